@@ -1,0 +1,2 @@
+//! Host-side (std) tooling for `coil-thermal`: independent reference solvers,
+//! trace generators and replay helpers used by the tests and benchmarks.

@@ -1,0 +1,101 @@
+//! Build-time errors. The per-tick path has none: it reports what it did with
+//! bad input through flags instead (see `network::InputFlags`).
+
+use core::fmt;
+
+/// Why a model, stepper or filter could not be built.
+///
+/// Every variant names the offending parameter (and its index where there is
+/// one), so a configuration error can be traced to one table entry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum BuildError {
+    /// A heat capacity \[J/K\] is not finite or not strictly positive.
+    InvalidCapacity {
+        /// State node index.
+        node: usize,
+    },
+    /// A conductance \[W/K\] is not finite or is negative.
+    InvalidConductance {
+        /// First node of the pair (a state node).
+        node: usize,
+        /// Second node of the pair (state or boundary index).
+        other: usize,
+    },
+    /// A node index is outside the network.
+    NodeOutOfRange {
+        /// The index that was given.
+        index: usize,
+    },
+    /// A conductance from a node to itself was requested.
+    SelfLoop {
+        /// The node.
+        node: usize,
+    },
+    /// A resistance model parameter \[ohm, 1/K, degC\] is not finite, or gives a
+    /// non-positive resistance at its reference temperature.
+    InvalidResistance {
+        /// Current input index of the source.
+        input: usize,
+    },
+    /// A current input has no Joule source attached.
+    MissingSource {
+        /// Current input index.
+        input: usize,
+    },
+    /// A fixed power \[W\] is not finite.
+    InvalidPower {
+        /// State node index.
+        node: usize,
+    },
+    /// The time step \[s\] is not finite or not strictly positive.
+    InvalidTimeStep,
+    /// The explicit step would be unstable or lose positivity at this node:
+    /// `dt * sum(G) / C >= 1`. Use a smaller step or the exact (ZOH) stepper.
+    UnstableStep {
+        /// The node with the largest `dt * sum(G) / C`.
+        node: usize,
+        /// That ratio (must be below 1).
+        ratio: f32,
+    },
+    /// The network has no path to any boundary, so it has no steady state
+    /// (or a linear solve met a singular matrix).
+    Singular,
+    /// Any other parameter that is not finite or out of its documented range.
+    InvalidParameter {
+        /// The parameter's name as written in the API.
+        name: &'static str,
+    },
+}
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::InvalidCapacity { node } => {
+                write!(f, "heat capacity of node {node} must be finite and > 0 J/K")
+            }
+            Self::InvalidConductance { node, other } => write!(
+                f,
+                "conductance between {node} and {other} must be finite and >= 0 W/K"
+            ),
+            Self::NodeOutOfRange { index } => write!(f, "node index {index} is out of range"),
+            Self::SelfLoop { node } => write!(f, "conductance from node {node} to itself"),
+            Self::InvalidResistance { input } => write!(
+                f,
+                "resistance model of input {input} must be finite and > 0 ohm at its reference"
+            ),
+            Self::MissingSource { input } => write!(f, "current input {input} has no source"),
+            Self::InvalidPower { node } => write!(f, "fixed power at node {node} must be finite"),
+            Self::InvalidTimeStep => write!(f, "time step must be finite and > 0 s"),
+            Self::UnstableStep { node, ratio } => write!(
+                f,
+                "explicit step unstable at node {node}: dt*sum(G)/C = {ratio} >= 1"
+            ),
+            Self::Singular => write!(f, "network has no path to a boundary (singular)"),
+            Self::InvalidParameter { name } => write!(f, "parameter `{name}` is invalid"),
+        }
+    }
+}
+
+impl core::error::Error for BuildError {}
