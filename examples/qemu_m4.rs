@@ -11,7 +11,11 @@ fn main() -> ! {
     let x = f32::from_f64(2.0).sqrt();
     hprintln!("sqrt2 = {}", x);
     let ok = (x - 1.414_213_5).abs() < 1e-6;
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
     loop {}
 }
 

@@ -62,6 +62,9 @@ pub enum BuildError {
     /// The network has no path to any boundary, so it has no steady state
     /// (or a linear solve met a singular matrix).
     Singular,
+    /// No steady state exists: the rise of `R(T)` feeds more heat back than
+    /// the network can remove (thermal runaway at these currents).
+    NoSteadyState,
     /// Any other parameter that is not finite or out of its documented range.
     InvalidParameter {
         /// The parameter's name as written in the API.
@@ -93,6 +96,7 @@ impl fmt::Display for BuildError {
                 "explicit step unstable at node {node}: dt*sum(G)/C = {ratio} >= 1"
             ),
             Self::Singular => write!(f, "network has no path to a boundary (singular)"),
+            Self::NoSteadyState => write!(f, "no steady state: thermal runaway at these currents"),
             Self::InvalidParameter { name } => write!(f, "parameter `{name}` is invalid"),
         }
     }

@@ -2,9 +2,16 @@
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+// Index loops mirror the matrix algebra they implement (K_ij, G_ib).
+#![allow(clippy::needless_range_loop)]
 
+pub mod discretize;
 pub mod error;
+pub mod input;
+pub mod network;
 pub mod scalar;
 
 pub use error::BuildError;
+pub use input::{InputFlags, InputLimits};
+pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};

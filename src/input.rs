@@ -1,0 +1,254 @@
+//! What the per-tick path does with bad input.
+//!
+//! Every stepper takes its inputs (coil currents, boundary temperatures) raw
+//! from the controller and passes each through [`InputLimits`] first. Nothing
+//! here panics or errs: a bad value is replaced by a safe one, and the
+//! returned [`InputFlags`] say which rule fired, so the caller can log it or
+//! raise an alarm. The rules, chosen so that a bad input never makes the model
+//! *cooler* than the truth:
+//!
+//! | input | bad when | what the step uses | flag |
+//! |---|---|---|---|
+//! | current \[A\] | NaN or infinite | the last valid current of that input (held) | [`InputFlags::CURRENT_NOT_FINITE`] |
+//! | current \[A\] | `abs(I) > max_current_a` | `±max_current_a` (clamped, and held) | [`InputFlags::CURRENT_CLAMPED`] |
+//! | temperature \[degC\] | NaN, infinite, or outside `[min_temp_c, max_temp_c]` | the last valid temperature (held) | [`InputFlags::TEMPERATURE_INVALID`] |
+//!
+//! Holding the last valid current, rather than assuming zero, keeps the heat
+//! input of a coil whose current sensor dropped out.
+
+use crate::scalar::Scalar;
+
+/// Bit set of the input rules that fired during one step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct InputFlags(u8);
+
+impl InputFlags {
+    /// No rule fired: every input was used as given.
+    pub const NONE: Self = Self(0);
+    /// At least one current was NaN or infinite; its last valid value was used.
+    pub const CURRENT_NOT_FINITE: Self = Self(1);
+    /// At least one current exceeded `max_current_a` and was clamped.
+    pub const CURRENT_CLAMPED: Self = Self(2);
+    /// At least one boundary temperature was invalid; its last valid value was used.
+    pub const TEMPERATURE_INVALID: Self = Self(4);
+    /// The elapsed time was invalid (NaN, negative, or beyond the allowed
+    /// catch-up) and was replaced as documented by the stepper.
+    pub const ELAPSED_INVALID: Self = Self(8);
+
+    /// `true` when no rule fired.
+    #[inline]
+    pub const fn is_clean(self) -> bool {
+        self.0 == 0
+    }
+    /// `true` when every flag in `other` is set in `self`.
+    #[inline]
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// The union of two flag sets.
+    #[inline]
+    #[must_use]
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    /// Raw bits (for logging).
+    #[inline]
+    pub const fn bits(self) -> u8 {
+        self.0
+    }
+}
+
+impl core::ops::BitOr for InputFlags {
+    type Output = Self;
+    fn bitor(self, rhs: Self) -> Self {
+        self.union(rhs)
+    }
+}
+
+impl core::ops::BitOrAssign for InputFlags {
+    fn bitor_assign(&mut self, rhs: Self) {
+        *self = self.union(rhs);
+    }
+}
+
+/// The plausible range of each input, fixed when a stepper is built.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct InputLimits {
+    /// Largest plausible current magnitude \[A\] (the amplifier's limit).
+    pub max_current_a: f64,
+    /// Lowest plausible boundary temperature \[degC\].
+    pub min_temp_c: f64,
+    /// Highest plausible boundary temperature \[degC\].
+    pub max_temp_c: f64,
+}
+
+impl Default for InputLimits {
+    /// 100 A, -60 .. 400 degC: wide enough for any coil in the references.
+    fn default() -> Self {
+        Self {
+            max_current_a: 100.0,
+            min_temp_c: -60.0,
+            max_temp_c: 400.0,
+        }
+    }
+}
+
+impl InputLimits {
+    /// Checks that the limits themselves make sense.
+    pub fn validate(&self) -> Result<(), crate::BuildError> {
+        let ok_current = self.max_current_a.is_finite() && self.max_current_a > 0.0;
+        let ok_temps = self.min_temp_c.is_finite()
+            && self.max_temp_c.is_finite()
+            && self.min_temp_c < self.max_temp_c;
+        if !ok_current {
+            return Err(crate::BuildError::InvalidParameter {
+                name: "max_current_a",
+            });
+        }
+        if !ok_temps {
+            return Err(crate::BuildError::InvalidParameter {
+                name: "min_temp_c/max_temp_c",
+            });
+        }
+        Ok(())
+    }
+
+    /// The same limits converted once to the stepper's scalar.
+    pub fn to_scalar<S: Scalar>(&self) -> ScalarLimits<S> {
+        ScalarLimits {
+            max_current_a: S::from_f64(self.max_current_a),
+            min_temp_c: S::from_f64(self.min_temp_c),
+            max_temp_c: S::from_f64(self.max_temp_c),
+        }
+    }
+}
+
+/// [`InputLimits`] in the stepper's scalar type (built once, used per tick).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScalarLimits<S> {
+    /// Largest plausible current magnitude \[A\].
+    pub max_current_a: S,
+    /// Lowest plausible boundary temperature \[degC\].
+    pub min_temp_c: S,
+    /// Highest plausible boundary temperature \[degC\].
+    pub max_temp_c: S,
+}
+
+impl<S: Scalar> ScalarLimits<S> {
+    /// Applies the current rule to one input: updates `held` (the value the
+    /// step will use) from `incoming`, and says which rule fired.
+    #[inline]
+    pub fn accept_current(&self, incoming_a: S, held_a: &mut S) -> InputFlags {
+        if !incoming_a.is_finite() {
+            return InputFlags::CURRENT_NOT_FINITE;
+        }
+        let clamped = incoming_a.clamp_to(-self.max_current_a, self.max_current_a);
+        *held_a = clamped;
+        if clamped == incoming_a {
+            InputFlags::NONE
+        } else {
+            InputFlags::CURRENT_CLAMPED
+        }
+    }
+
+    /// Applies the temperature rule to one boundary input.
+    #[inline]
+    pub fn accept_temperature(&self, incoming_c: S, held_c: &mut S) -> InputFlags {
+        let plausible = incoming_c.is_finite()
+            && incoming_c >= self.min_temp_c
+            && incoming_c <= self.max_temp_c;
+        if plausible {
+            *held_c = incoming_c;
+            InputFlags::NONE
+        } else {
+            InputFlags::TEMPERATURE_INVALID
+        }
+    }
+
+    /// Applies the current rule to a whole array.
+    #[inline]
+    pub fn accept_currents<const M: usize>(
+        &self,
+        incoming_a: &[S; M],
+        held_a: &mut [S; M],
+    ) -> InputFlags {
+        let mut flags = InputFlags::NONE;
+        for (incoming, held) in incoming_a.iter().zip(held_a.iter_mut()) {
+            flags |= self.accept_current(*incoming, held);
+        }
+        flags
+    }
+
+    /// Applies the temperature rule to a whole array.
+    #[inline]
+    pub fn accept_temperatures<const B: usize>(
+        &self,
+        incoming_c: &[S; B],
+        held_c: &mut [S; B],
+    ) -> InputFlags {
+        let mut flags = InputFlags::NONE;
+        for (incoming, held) in incoming_c.iter().zip(held_c.iter_mut()) {
+            flags |= self.accept_temperature(*incoming, held);
+        }
+        flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_currents_are_held_or_clamped_and_flagged() {
+        let limits = InputLimits::default().to_scalar::<f32>();
+        let mut held = 2.0f32;
+        assert_eq!(
+            limits.accept_current(f32::NAN, &mut held),
+            InputFlags::CURRENT_NOT_FINITE
+        );
+        assert_eq!(held, 2.0);
+        assert_eq!(
+            limits.accept_current(f32::INFINITY, &mut held),
+            InputFlags::CURRENT_NOT_FINITE
+        );
+        assert_eq!(held, 2.0);
+        assert_eq!(
+            limits.accept_current(-1e9, &mut held),
+            InputFlags::CURRENT_CLAMPED
+        );
+        assert_eq!(held, -100.0);
+        assert_eq!(limits.accept_current(3.5, &mut held), InputFlags::NONE);
+        assert_eq!(held, 3.5);
+    }
+
+    #[test]
+    fn implausible_temperatures_are_held_and_flagged() {
+        let limits = InputLimits::default().to_scalar::<f64>();
+        let mut held = [20.0, 25.0];
+        let flags = limits.accept_temperatures(&[f64::NAN, 1e6], &mut held);
+        assert!(flags.contains(InputFlags::TEMPERATURE_INVALID));
+        assert_eq!(held, [20.0, 25.0]);
+        assert!(limits
+            .accept_temperatures(&[21.0, 24.0], &mut held)
+            .is_clean());
+        assert_eq!(held, [21.0, 24.0]);
+    }
+
+    #[test]
+    fn limits_are_validated() {
+        let bad = InputLimits {
+            max_current_a: f64::NAN,
+            ..InputLimits::default()
+        };
+        assert!(bad.validate().is_err());
+        let inverted = InputLimits {
+            min_temp_c: 10.0,
+            max_temp_c: 0.0,
+            ..InputLimits::default()
+        };
+        assert!(inverted.validate().is_err());
+        assert!(InputLimits::default().validate().is_ok());
+    }
+}

@@ -1,0 +1,154 @@
+//! Heat sources: Joule heating of a winding with temperature-dependent
+//! resistance.
+//!
+//! Both forms found in the references reduce to one straight line in degC:
+//!
+//! * copper with a temperature coefficient (Omnimagnet Eq. A3, solenoid note):
+//!   `R(T) = R0 (1 + alpha (T - T_ref))`, built with [`Resistance::with_alpha`];
+//! * the HPPA coil's measured linear fit `R(T) = 0.026 T + 5.166` ohm (T in
+//!   degC), built with [`Resistance::linear_fit`] or taken as
+//!   [`Resistance::HPPA_COIL`].
+//!
+//! Stored as `R(T) = r_at_0c + slope * T`, one multiply and one add per tick.
+
+use crate::scalar::Scalar;
+
+/// A winding's electrical resistance as a straight line in temperature.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Resistance {
+    /// Resistance extrapolated to 0 degC \[ohm\].
+    pub r_at_0c_ohm: f64,
+    /// Slope dR/dT \[ohm/K\]; zero for a constant resistance.
+    pub slope_ohm_per_k: f64,
+}
+
+impl Resistance {
+    /// The HPPA coil: `R(T) = 0.026 T + 5.166` ohm, about 5.69 ohm at 20 degC
+    /// (hppa-coil-grid.md, measured at 20 and 50 degC).
+    pub const HPPA_COIL: Self = Self::linear_fit(0.026, 5.166);
+
+    /// Copper's temperature coefficient at 20 degC \[1/K\].
+    pub const ALPHA_COPPER_PER_K: f64 = 0.0039;
+
+    /// A temperature-independent resistance \[ohm\].
+    pub const fn constant(r_ohm: f64) -> Self {
+        Self {
+            r_at_0c_ohm: r_ohm,
+            slope_ohm_per_k: 0.0,
+        }
+    }
+
+    /// `R(T) = slope * T + r_at_0c` with T in degC (the HPPA form `a T + b`).
+    pub const fn linear_fit(slope_ohm_per_k: f64, r_at_0c_ohm: f64) -> Self {
+        Self {
+            r_at_0c_ohm,
+            slope_ohm_per_k,
+        }
+    }
+
+    /// `R(T) = r_ref (1 + alpha (T - t_ref))`: `r_ref_ohm` at `t_ref_c` \[degC\],
+    /// `alpha_per_k` \[1/K\].
+    pub fn with_alpha(r_ref_ohm: f64, alpha_per_k: f64, t_ref_c: f64) -> Self {
+        let slope = r_ref_ohm * alpha_per_k;
+        Self {
+            r_at_0c_ohm: r_ref_ohm - slope * t_ref_c,
+            slope_ohm_per_k: slope,
+        }
+    }
+
+    /// Resistance at `temp_c` \[ohm\], never negative.
+    pub fn at_c(&self, temp_c: f64) -> f64 {
+        (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(0.0)
+    }
+
+    /// The temperature \[degC\] at which the winding has resistance `r_ohm`:
+    /// the inverse of [`Resistance::at_c`], for a resistance-based virtual
+    /// sensor. `None` for a constant resistance or a non-finite result.
+    pub fn temp_c_at(&self, r_ohm: f64) -> Option<f64> {
+        if self.slope_ohm_per_k == 0.0 {
+            return None;
+        }
+        let t = (r_ohm - self.r_at_0c_ohm) / self.slope_ohm_per_k;
+        t.is_finite().then_some(t)
+    }
+
+    /// `true` when both coefficients are finite and the resistance is positive
+    /// at `temp_c`.
+    pub fn is_valid_at(&self, temp_c: f64) -> bool {
+        self.r_at_0c_ohm.is_finite()
+            && self.slope_ohm_per_k.is_finite()
+            && self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c > 0.0
+    }
+
+    /// The coefficients in a stepper's scalar type.
+    pub fn to_scalar<S: Scalar>(&self) -> ScalarResistance<S> {
+        ScalarResistance {
+            r_at_0c_ohm: S::from_f64(self.r_at_0c_ohm),
+            slope_ohm_per_k: S::from_f64(self.slope_ohm_per_k),
+        }
+    }
+}
+
+/// [`Resistance`] in a stepper's scalar type, for the per-tick Joule power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScalarResistance<S> {
+    /// Resistance extrapolated to 0 degC \[ohm\].
+    pub r_at_0c_ohm: S,
+    /// Slope dR/dT \[ohm/K\].
+    pub slope_ohm_per_k: S,
+}
+
+impl<S: Scalar> ScalarResistance<S> {
+    /// Joule power `R(T) I^2` \[W\] at winding temperature `temp_c`, with the
+    /// resistance floored at zero so that an absurdly cold estimate can never
+    /// make a coil a heat sink.
+    #[inline]
+    pub fn joule_power_w(&self, temp_c: S, current_a: S) -> S {
+        let r = (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(S::ZERO);
+        r * current_a * current_a
+    }
+}
+
+/// One current input heating one node: `P = R(T_node) I^2`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct JouleSource {
+    /// The state node the winding heats.
+    pub node: usize,
+    /// The winding's resistance model.
+    pub resistance: Resistance,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_reference_forms_reduce_to_the_same_line() {
+        // HPPA: a T + b, about 5.69 ohm at 20 degC.
+        assert!((Resistance::HPPA_COIL.at_c(20.0) - 5.686).abs() < 1e-12);
+        assert!((Resistance::HPPA_COIL.at_c(50.0) - 6.466).abs() < 1e-12);
+        // Omnimagnet solenoid 1: R0 = 3.2 ohm at 293.15 K, alpha0 = 0.0039.
+        let r = Resistance::with_alpha(3.2, 0.0039, 20.0);
+        assert!((r.at_c(20.0) - 3.2).abs() < 1e-12);
+        assert!((r.at_c(120.0) - 3.2 * (1.0 + 0.39)).abs() < 1e-12);
+        assert!((r.temp_c_at(r.at_c(87.5)).unwrap() - 87.5).abs() < 1e-9);
+        assert_eq!(Resistance::constant(2.0).temp_c_at(2.0), None);
+    }
+
+    #[test]
+    fn joule_power_in_every_scalar() {
+        let r = Resistance::HPPA_COIL;
+        let want = r.at_c(60.0) * 0.7 * 0.7;
+        let f = r.to_scalar::<f32>().joule_power_w(60.0, 0.7) as f64;
+        let q = r
+            .to_scalar::<crate::Q32>()
+            .joule_power_w(crate::Q32::from_f64(60.0), crate::Q32::from_f64(0.7))
+            .to_f64();
+        assert!((f - want).abs() < 1e-5);
+        assert!((q - want).abs() < 1e-7);
+        // Never a heat sink, however cold the estimate.
+        assert_eq!(r.to_scalar::<f64>().joule_power_w(-1000.0, 1.0), 0.0);
+    }
+}
