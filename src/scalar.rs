@@ -140,25 +140,23 @@ macro_rules! impl_float_scalar {
 impl_float_scalar!(f32, libm::sqrtf);
 impl_float_scalar!(f64, libm::sqrt);
 
+/// `2^32`: one in Q32.32 bits.
+const Q32_ONE_BITS: f64 = 4_294_967_296.0;
+
 impl Scalar for Q32 {
     const ZERO: Self = fixed::Saturating(I32F32::ZERO);
     const ONE: Self = fixed::Saturating(I32F32::ONE);
     const MAX: Self = fixed::Saturating(I32F32::MAX);
     #[inline]
     fn from_f64(value: f64) -> Self {
-        if value.is_nan() {
-            Self::ZERO
-        } else {
-            fixed::Saturating(I32F32::saturating_from_num(value))
-        }
+        // Rust's float-to-int `as` saturates and maps NaN to 0, so this path
+        // has no panic (fixed's `saturating_from_num` panics on NaN).
+        let bits = libm::round(value * Q32_ONE_BITS) as i64;
+        fixed::Saturating(I32F32::from_bits(bits))
     }
     #[inline]
     fn from_f32(value: f32) -> Self {
-        if value.is_nan() {
-            Self::ZERO
-        } else {
-            fixed::Saturating(I32F32::saturating_from_num(value))
-        }
+        Self::from_f64(value as f64)
     }
     #[inline]
     fn to_f64(self) -> f64 {

@@ -27,7 +27,7 @@ mod explicit;
 mod source;
 mod steady;
 
-pub use explicit::{ExplicitStepper, NetworkState};
+pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
 pub use source::{JouleSource, Resistance, ScalarResistance};
 
 use crate::error::BuildError;

@@ -334,7 +334,7 @@ mod properties {
                 .fold(0.0, f64::max);
             let dt = 0.5 / max_ratio;
             let stepper = ExplicitStepper::<f64, 4, 2, 1>::new(&net, dt, InputLimits::default()).unwrap();
-            let mut state = NetworkState::<f64, 4, 2, 1> { temps_c: t0, held_currents_a: [0.0], held_boundary_c: tb };
+            let mut state = NetworkState::<f64, 4, 2, 1> { temps_c: t0, held_currents_a: [0.0], held_boundary_c: tb, residual_c: [0.0; 4] };
             for _ in 0..50 {
                 let before = state.temps_c;
                 let rates = net.energy_rates(&before, &[current], &tb);

@@ -1,0 +1,107 @@
+//! Building aside, stepping allocates nothing: every allocation made on this
+//! test's thread is counted by a wrapping global allocator, and the per-tick
+//! calls must leave the count unchanged.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use coil_thermal::discretize::zoh;
+use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, Q32};
+
+struct CountingAllocator;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards every call unchanged to the system allocator; the only
+// addition is a thread-local counter that itself never allocates (const init).
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
+
+/// Runs `f` and returns how many allocations it made on this thread.
+pub fn count_allocations(f: impl FnOnce()) -> usize {
+    let before = allocations();
+    f();
+    allocations() - before
+}
+
+fn network() -> Network<4, 2, 2> {
+    Network::new([68.7, 40.0, 400.0, 12.0])
+        .unwrap()
+        .connect(0, 1, 0.35)
+        .unwrap()
+        .connect(1, 2, 0.8)
+        .unwrap()
+        .connect(3, 1, 0.2)
+        .unwrap()
+        .connect_boundary(2, 0, 1.5)
+        .unwrap()
+        .connect_boundary(3, 1, 0.1)
+        .unwrap()
+        .joule_source(0, 0, Resistance::HPPA_COIL)
+        .unwrap()
+        .joule_source(1, 3, Resistance::with_alpha(3.2, 0.0039, 20.0))
+        .unwrap()
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    // Without this the test below could pass with a broken counter.
+    let n = count_allocations(|| {
+        let v: Vec<u8> = Vec::with_capacity(std::hint::black_box(16));
+        std::hint::black_box(v);
+    });
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn network_steps_allocate_nothing() {
+    let net = network();
+    let limits = InputLimits::default();
+    let f32_stepper = ExplicitStepper::<f32, 4, 2, 2>::new(&net, 1e-3, limits).unwrap();
+    let q_stepper = ExplicitStepper::<Q32, 4, 2, 2>::new(&net, 1e-3, limits).unwrap();
+    let exact = zoh(&net.state_space(&[20.0; 4]), 1e-3)
+        .unwrap()
+        .cast::<f32>();
+    let mut state = NetworkState::<f32, 4, 2, 2>::uniform(20.0);
+    let mut q_state = NetworkState::<Q32, 4, 2, 2>::uniform(20.0);
+    let mut x = nalgebra::SVector::<f32, 4>::from_element(20.0);
+    let n = count_allocations(|| {
+        for k in 0..10_000 {
+            let current = if k % 13 == 0 { f32::NAN } else { 1.5 };
+            state.temps_c = std::hint::black_box(state.temps_c);
+            f32_stepper.step(&mut state, &[current, 0.5], &[20.0, f32::INFINITY]);
+            q_stepper.step(
+                &mut q_state,
+                &[Q32::from_f32(current), Q32::from_f64(0.5)],
+                &[Q32::from_f64(20.0), Q32::from_f64(25.0)],
+            );
+            x = exact.step(
+                &x,
+                &nalgebra::SVector::from_element(10.0),
+                &nalgebra::SVector::from_element(20.0),
+            );
+        }
+    });
+    assert_eq!(n, 0);
+    assert!(state.temps_c[0] > 20.0 && x[0] > 20.0);
+}
