@@ -4,6 +4,7 @@
 #![deny(missing_docs)]
 
 pub mod error;
+pub mod protect;
 pub mod scalar;
 
 pub use error::BuildError;

@@ -1,0 +1,10 @@
+//! Thermal protection on plain arrays of element temperatures `[S; N]`.
+//!
+//! Nothing here knows which model produced the temperatures: the same code
+//! protects the HPPA coil grid, the Omnimagnet filter's estimate or any
+//! network, in `f32`, `f64` or fixed point ([`Q32`](crate::scalar::Q32)).
+//!
+//! * [`derating`]: where the alarm limit sits below a material's critical
+//!   temperature (the HPPA report's factors), and the critical temperatures.
+
+pub mod derating;
