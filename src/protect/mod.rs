@@ -6,5 +6,8 @@
 //!
 //! * [`derating`]: where the alarm limit sits below a material's critical
 //!   temperature (the HPPA report's factors), and the critical temperatures.
+//! * [`events`]: the fixed-capacity queue through which the alarm reports
+//!   every change.
 
 pub mod derating;
+pub mod events;
