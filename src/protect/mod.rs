@@ -1,0 +1,46 @@
+//! Thermal protection on plain arrays of element temperatures `[S; N]`.
+//!
+//! Nothing here knows which model produced the temperatures: the same code
+//! protects the HPPA coil grid, the Omnimagnet filter's estimate or any
+//! network, in `f32`, `f64` or fixed point ([`Q32`](crate::scalar::Q32)).
+//!
+//! * [`derating`]: where the alarm limit sits below a material's critical
+//!   temperature (the HPPA report's factors), and the critical temperatures.
+//! * [`alarm`]: per-element warning, latched shutdown and predictive alarms,
+//!   debounced and with hysteresis; configuration in [`alarm::AlarmConfig`],
+//!   state in [`alarm::AlarmState`].
+//! * [`events`]: the fixed-capacity queue through which the alarm reports
+//!   every change.
+//! * [`limiter`]: per-coil current limits that taper towards the alarm limit,
+//!   and weights that favour cooler coils.
+//!
+//! A tick of a protected loop, after the model's update:
+//!
+//! ```
+//! use coil_thermal::protect::{alarm::AlarmBuilder, derating::*, events::EventQueue};
+//! use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
+//!
+//! let rule = DeratingRule::hppa();
+//! let alarm = AlarmBuilder::new(&rule, [HPPA_CRITICAL_C; 4]).build::<f32>()?;
+//! let limiter = LimiterConfig::<f32, 4>::new([3.0; 4], 10.0, 0.0)?;
+//! let mut state = coil_thermal::protect::alarm::AlarmState::new(&alarm);
+//! let mut events = EventQueue::<32>::new();
+//! let mut limits = [CoilLimit::default(); 4];
+//!
+//! let (temps_c, ambient_c) = ([40.0, 58.0, 66.0, 30.0], 20.0);
+//! let status = state.tick(&alarm, &temps_c, ambient_c, &[None; 4], &mut events);
+//! limiter.apply(&temps_c, &alarm.alarm_limits_c(state.ambient_c()), ambient_c, &mut limits);
+//! assert!(!status.shutdown); // debounced: one hot tick is not enough
+//! assert_eq!(limits[2].current_a, 0.0); // but the current is cut at once
+//! assert!(limits[3].weight > limits[0].weight);
+//! # Ok::<(), coil_thermal::BuildError>(())
+//! ```
+//!
+//! Model-dependent protection (time to limit, maximum safe current, runaway)
+//! lives in further submodules; the predictive alarm takes its time to limit
+//! as an input.
+
+pub mod alarm;
+pub mod derating;
+pub mod events;
+pub mod limiter;
