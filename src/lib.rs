@@ -5,6 +5,8 @@
 
 pub mod error;
 pub mod scalar;
+pub mod sensors;
 
 pub use error::BuildError;
 pub use scalar::{Scalar, Q32};
+pub use sensors::{Reading, SensorFault, SensorResult};
