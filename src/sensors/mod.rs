@@ -34,6 +34,7 @@
 //! (and through the observer to thermal protection), because a thermocouple
 //! that stays faulted means the coil is running on the model alone.
 
+pub mod max31855;
 
 use core::fmt;
 
