@@ -35,6 +35,7 @@
 //! that stays faulted means the coil is running on the model alone.
 
 pub mod max31855;
+pub mod max31856;
 
 use core::fmt;
 
