@@ -11,8 +11,10 @@ pub mod input;
 pub mod network;
 pub mod protect;
 pub mod scalar;
+pub mod sensors;
 
 pub use error::BuildError;
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};
+pub use sensors::{Reading, SensorFault, SensorResult};
