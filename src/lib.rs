@@ -9,6 +9,7 @@ pub mod discretize;
 pub mod error;
 pub mod input;
 pub mod network;
+pub mod observer;
 pub mod protect;
 pub mod scalar;
 pub mod sensors;

@@ -1,0 +1,20 @@
+//! Into the controller: the pieces that put the models in a 1 ms loop.
+//!
+//! * [`clock`]: the measured elapsed time, in integer microseconds, turned
+//!   into whole model steps with the remainder carried (jitter, late and
+//!   missed ticks), bounded per tick;
+//! * [`shared`]: outputs published to lower-priority tasks and readings
+//!   handed in from them through `critical-section`, no lock held longer than
+//!   a copy;
+//! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
+//!   the conservative start when a snapshot is refused.
+
+pub mod clock;
+pub mod shared;
+pub mod snapshot;
+
+pub use clock::{ClockState, StepClock, TickSteps};
+pub use shared::{Mailbox, Shared};
+pub use snapshot::{
+    conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
+};
