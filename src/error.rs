@@ -62,6 +62,13 @@ pub enum BuildError {
     /// The network has no path to any boundary, so it has no steady state
     /// (or a linear solve met a singular matrix).
     Singular,
+    /// An iterative build-time solver (e.g. the steady-state Riccati solution)
+    /// did not reach its tolerance within its iteration bound, usually because
+    /// the problem has no solution (an unstable mode no sensor observes).
+    NotConverged {
+        /// The solver's name as written in the API.
+        name: &'static str,
+    },
     /// Any other parameter that is not finite or out of its documented range.
     InvalidParameter {
         /// The parameter's name as written in the API.
@@ -93,6 +100,7 @@ impl fmt::Display for BuildError {
                 "explicit step unstable at node {node}: dt*sum(G)/C = {ratio} >= 1"
             ),
             Self::Singular => write!(f, "network has no path to a boundary (singular)"),
+            Self::NotConverged { name } => write!(f, "`{name}` did not converge"),
             Self::InvalidParameter { name } => write!(f, "parameter `{name}` is invalid"),
         }
     }

@@ -4,6 +4,7 @@
 #![deny(missing_docs)]
 
 pub mod error;
+pub mod filter;
 pub mod scalar;
 
 pub use error::BuildError;
