@@ -77,3 +77,28 @@ pub fn is_sym_psd<const N: usize>(p: &SMatrix<f64, N, N>, tol: f64) -> bool {
     let ridged = p.symmetric_part() + SMatrix::<f64, N, N>::identity() * (tol * scale);
     sym && nalgebra::Cholesky::new(ridged).is_some()
 }
+
+/// A 16-node thermal chain like the Omnimagnet's (explicit step, 1 ms):
+/// heat capacities 50..400 J/K, neighbour conductances 0.05..2 W/K, losses to
+/// ambient at a few nodes; six thermocouples, two each on nodes 0, 1, 2.
+pub fn thermal_chain_16() -> (SMatrix<f64, 16, 16>, SMatrix<f64, 6, 16>) {
+    let dt = 1e-3;
+    let c = SVector::<f64, 16>::from_fn(|i, _| 50.0 + 25.0 * ((i * 7) % 15) as f64);
+    let mut a = SMatrix::<f64, 16, 16>::zeros();
+    for i in 0..15 {
+        let g = 0.05 + 0.13 * ((i * 5) % 15) as f64;
+        a[(i, i + 1)] += g / c[i];
+        a[(i + 1, i)] += g / c[i + 1];
+        a[(i, i)] -= g / c[i];
+        a[(i + 1, i + 1)] -= g / c[i + 1];
+    }
+    for i in [2usize, 5, 6, 8, 10, 12, 15] {
+        a[(i, i)] -= 0.1 / c[i];
+    }
+    let f = SMatrix::<f64, 16, 16>::identity() + a * dt;
+    let mut h = SMatrix::<f64, 6, 16>::zeros();
+    for j in 0..6 {
+        h[(j, j / 2)] = 1.0;
+    }
+    (f, h)
+}
