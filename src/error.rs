@@ -65,6 +65,13 @@ pub enum BuildError {
     /// No steady state exists: the rise of `R(T)` feeds more heat back than
     /// the network can remove (thermal runaway at these currents).
     NoSteadyState,
+    /// An iterative build-time solver (e.g. the steady-state Riccati solution)
+    /// did not reach its tolerance within its iteration bound, usually because
+    /// the problem has no solution (an unstable mode no sensor observes).
+    NotConverged {
+        /// The solver's name as written in the API.
+        name: &'static str,
+    },
     /// Any other parameter that is not finite or out of its documented range.
     InvalidParameter {
         /// The parameter's name as written in the API.
@@ -97,6 +104,7 @@ impl fmt::Display for BuildError {
             ),
             Self::Singular => write!(f, "network has no path to a boundary (singular)"),
             Self::NoSteadyState => write!(f, "no steady state: thermal runaway at these currents"),
+            Self::NotConverged { name } => write!(f, "`{name}` did not converge"),
             Self::InvalidParameter { name } => write!(f, "parameter `{name}` is invalid"),
         }
     }

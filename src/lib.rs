@@ -7,6 +7,7 @@
 
 pub mod discretize;
 pub mod error;
+pub mod filter;
 pub mod input;
 pub mod network;
 pub mod observer;

@@ -1,0 +1,689 @@
+//! The time-varying filter: configuration, per-device state, predict and the
+//! sequential Joseph-form correction.
+
+use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+
+use super::gate::{
+    gate_all, usable, GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999,
+};
+use crate::error::BuildError;
+
+/// The discrete model and noise, validated once and shared by every device
+/// that uses it (N states, M inputs, P sensors).
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, const P: usize> {
+    pub(crate) f: SMatrix<T, N, N>,
+    pub(crate) g: SMatrix<T, N, M>,
+    /// `H^T`: column `j` is sensor `j`'s row of `H`, contiguous in memory.
+    pub(crate) ht: SMatrix<T, N, P>,
+    pub(crate) q: SMatrix<T, N, N>,
+    pub(crate) r: SVector<T, P>,
+    pub(crate) gate: GatePolicy<T>,
+    /// Variances added to the diagonal of `P` on recovery.
+    pub(crate) recovery_variance: SVector<T, N>,
+}
+
+/// Input handling of one predict step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum InputStatus {
+    /// All inputs were finite and used.
+    Used,
+    /// Some input was NaN or infinite: the input term `G u` was dropped for
+    /// this step (`x = F x`) so the estimate is not poisoned.
+    Dropped,
+}
+
+/// Per-device filter state: the estimate, its covariance and the gate memory.
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KalmanState<T: RealField + Copy, const N: usize, const P: usize> {
+    /// State estimate `x`.
+    pub x: SVector<T, N>,
+    /// Estimate covariance `P` (symmetric positive semi-definite).
+    pub cov: SMatrix<T, N, N>,
+    /// Rejection counters.
+    pub gate: GateCounters<P>,
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize> KalmanState<T, N, P> {
+    /// A state with estimate `x0` and covariance `p0` (the caller's prior).
+    pub fn new(x0: SVector<T, N>, p0: SMatrix<T, N, N>) -> Self {
+        Self {
+            x: x0,
+            cov: p0,
+            gate: GateCounters::new(),
+        }
+    }
+}
+
+fn all_finite<T: RealField + Copy, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> bool {
+    m.iter().all(|v| v.is_finite())
+}
+
+/// `m += diag(v)`.
+pub(crate) fn add_diagonal<T: RealField + Copy, const N: usize>(
+    m: &mut SMatrix<T, N, N>,
+    v: &SVector<T, N>,
+) {
+    for (i, vi) in v.iter().enumerate() {
+        m[(i, i)] += *vi;
+    }
+}
+
+/// Largest absolute entry (0 for an empty matrix).
+pub(crate) fn max_abs<T: RealField + Copy, const R: usize, const C: usize>(
+    m: &SMatrix<T, R, C>,
+) -> T {
+    m.iter().fold(T::zero(), |acc, v| acc.max(v.abs()))
+}
+
+/// Checks that `q` is finite, symmetric to rounding and positive semi-definite
+/// (to rounding), and returns its exactly symmetric part.
+pub(crate) fn validate_psd<T: RealField + Copy, const N: usize>(
+    q: &SMatrix<T, N, N>,
+    name: &'static str,
+) -> Result<SMatrix<T, N, N>, BuildError> {
+    if !all_finite(q) {
+        return Err(BuildError::InvalidParameter { name });
+    }
+    let scale = max_abs(q);
+    let eps = T::default_epsilon();
+    // Matrices computed by a discretisation are symmetric only to rounding.
+    let sym_tol = eps.sqrt() * scale;
+    let t = q.transpose();
+    if q.iter()
+        .zip(t.iter())
+        .any(|(a, b)| (*a - *b).abs() > sym_tol)
+    {
+        return Err(BuildError::InvalidParameter { name });
+    }
+    let sym = q.symmetric_part();
+    // A semi-definite matrix plus a small ridge is definite; an indefinite one
+    // (an eigenvalue below -ridge) is not.
+    if scale == T::zero() {
+        return Ok(sym);
+    }
+    let n: T = nalgebra::convert(N as f64);
+    let ridge = eps * n * nalgebra::convert(64.0) * scale;
+    let ridged = sym + SMatrix::<T, N, N>::identity() * ridge;
+    if Cholesky::new(ridged).is_none() {
+        return Err(BuildError::InvalidParameter { name });
+    }
+    Ok(sym)
+}
+
+impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> KalmanConfig<T, N, M, P> {
+    /// Validates and builds the configuration.
+    ///
+    /// * `f`: state transition `F` (N x N), one predict step.
+    /// * `g`: input matrix `G` (N x M); the caller folds powers, ambient and
+    ///   constant terms into `u`.
+    /// * `h`: measurement matrix `H` (P x N), one row per sensor.
+    /// * `q`: process noise covariance `Q` per step (N x N), symmetric PSD.
+    /// * `r`: measurement noise variance of each sensor (> 0, units of the
+    ///   reading squared).
+    ///
+    /// Defaults: gate threshold [`CHI2_1DOF_999`], suspect after 3 consecutive
+    /// rejections, recovery after 5 all-rejected corrections adding
+    /// `1e4 * max(r)` to every diagonal entry of `P` (a 100-sigma widening for
+    /// states in the units of the readings; see [`Self::with_recovery`]).
+    pub fn new(
+        f: SMatrix<T, N, N>,
+        g: SMatrix<T, N, M>,
+        h: SMatrix<T, P, N>,
+        q: SMatrix<T, N, N>,
+        r: SVector<T, P>,
+    ) -> Result<Self, BuildError> {
+        const { assert!(N > 0 && P > 0, "a filter needs states and sensors") };
+        if !all_finite(&f) {
+            return Err(BuildError::InvalidParameter { name: "f" });
+        }
+        if !all_finite(&g) {
+            return Err(BuildError::InvalidParameter { name: "g" });
+        }
+        if !all_finite(&h) {
+            return Err(BuildError::InvalidParameter { name: "h" });
+        }
+        let q = validate_psd(&q, "q")?;
+        if r.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
+            return Err(BuildError::InvalidParameter { name: "r" });
+        }
+        let r_max = r.iter().fold(T::zero(), |a, v| a.max(*v));
+        Ok(Self {
+            f,
+            g,
+            ht: h.transpose(),
+            q,
+            r,
+            gate: GatePolicy {
+                threshold: nalgebra::convert(CHI2_1DOF_999),
+                suspect_after: 3,
+                recover_after: 5,
+            },
+            recovery_variance: SVector::repeat(r_max * nalgebra::convert(1e4)),
+        })
+    }
+
+    /// Sets the gate threshold on `nu^2 / S` (> 0; `+inf` disables the gate).
+    pub fn with_gate(mut self, threshold: T) -> Result<Self, BuildError> {
+        if threshold.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return Err(BuildError::InvalidParameter { name: "threshold" });
+        }
+        self.gate.threshold = threshold;
+        Ok(self)
+    }
+
+    /// Flags a sensor suspect after `count` consecutive rejections (0: never).
+    pub fn with_suspect_after(mut self, count: u16) -> Self {
+        self.gate.suspect_after = count;
+        self
+    }
+
+    /// Recovery policy: after `after` consecutive corrections in which every
+    /// present reading was rejected (0: never), add `variance` (finite, >= 0,
+    /// units of each state squared) to the diagonal of `P` and re-gate.
+    pub fn with_recovery(
+        mut self,
+        after: u16,
+        variance: SVector<T, N>,
+    ) -> Result<Self, BuildError> {
+        if variance.iter().any(|v| !v.is_finite() || *v < T::zero()) {
+            return Err(BuildError::InvalidParameter { name: "variance" });
+        }
+        self.gate.recover_after = after;
+        self.recovery_variance = variance;
+        Ok(self)
+    }
+
+    /// State transition `F`.
+    pub fn f(&self) -> &SMatrix<T, N, N> {
+        &self.f
+    }
+
+    /// Input matrix `G`.
+    pub fn g(&self) -> &SMatrix<T, N, M> {
+        &self.g
+    }
+
+    /// Measurement matrix `H` (P x N).
+    pub fn h(&self) -> SMatrix<T, P, N> {
+        self.ht.transpose()
+    }
+
+    /// Process noise `Q` (exactly symmetric).
+    pub fn q(&self) -> &SMatrix<T, N, N> {
+        &self.q
+    }
+
+    /// Measurement noise variances `r`.
+    pub fn r(&self) -> &SVector<T, P> {
+        &self.r
+    }
+
+    /// Gate and recovery settings.
+    pub fn gate(&self) -> &GatePolicy<T> {
+        &self.gate
+    }
+}
+
+/// Mean-only predict: `x = F x + G u`. The per-tick path of the steady-state
+/// filter (N^2 + N M multiply-adds). Non-finite inputs drop the `G u` term.
+pub fn predict_mean<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+    cfg: &KalmanConfig<T, N, M, P>,
+    x: &mut SVector<T, N>,
+    u: &SVector<T, M>,
+) -> InputStatus {
+    let prev = *x;
+    x.gemv(T::one(), &cfg.f, &prev, T::zero());
+    if u.iter().all(|v| v.is_finite()) {
+        x.gemv(T::one(), &cfg.g, u, T::one());
+        InputStatus::Used
+    } else {
+        InputStatus::Dropped
+    }
+}
+
+/// Full predict: `x = F x + G u`, `P = F P F^T + Q` (symmetrised).
+pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+    cfg: &KalmanConfig<T, N, M, P>,
+    state: &mut KalmanState<T, N, P>,
+    u: &SVector<T, M>,
+) -> InputStatus {
+    let status = predict_mean(cfg, &mut state.x, u);
+    let prev = state.cov;
+    state.cov.copy_from(&cfg.q);
+    state.cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
+    state.cov = state.cov.symmetric_part();
+    status
+}
+
+/// One scalar measurement `z = h x + v`, `var(v) = r`, fused into (`x`, `P`)
+/// with the Joseph form `P = (I - k h) P (I - k h)^T + k r k^T`.
+///
+/// The products with `I - k h` are done as rank-one updates (it *is* the
+/// Joseph product, evaluated factor by factor, in O(N^2)): with `b = P h^T`,
+/// `s = h b + r`, `k = b / s`: `W = (I - k h) P = P - k b^T`, then
+/// `W (I - k h)^T = W - (W h^T) k^T`, then `+ r k k^T`.
+///
+/// Returns false (and changes nothing) if the result would not be finite.
+pub(crate) fn fuse_scalar<T: RealField + Copy, const N: usize>(
+    x: &mut SVector<T, N>,
+    cov: &mut SMatrix<T, N, N>,
+    h: &SVector<T, N>,
+    r: T,
+    z: T,
+) -> bool {
+    let b = *cov * h;
+    let s = h.dot(&b) + r;
+    if !s.is_finite() || s <= T::zero() {
+        return false;
+    }
+    let k = b / s;
+    let nu = z - h.dot(x);
+    let mut x_new = *x;
+    x_new.axpy(nu, &k, T::one());
+    if !x_new.iter().all(|v| v.is_finite()) {
+        return false;
+    }
+    let mut w = *cov;
+    w.ger(-T::one(), &k, &b, T::one());
+    let c = w * h;
+    w.ger(-T::one(), &c, &k, T::one());
+    w.ger(r, &k, &k, T::one());
+    let w = w.symmetric_part();
+    if !w.iter().all(|v| v.is_finite()) {
+        return false;
+    }
+    *x = x_new;
+    *cov = w;
+    true
+}
+
+/// Fuses the readings whose verdict is `Fused`, one scalar update each, in
+/// sensor order. A reading that would make the state non-finite is turned
+/// into a rejection.
+pub(crate) fn fuse_accepted<T: RealField + Copy, const N: usize, const P: usize>(
+    x: &mut SVector<T, N>,
+    cov: &mut SMatrix<T, N, N>,
+    ht: &SMatrix<T, N, P>,
+    r: &SVector<T, P>,
+    z: &[Option<T>; P],
+    verdicts: &mut [SensorVerdict; P],
+) {
+    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+        let SensorVerdict::Fused { nis } = *verdict else {
+            continue;
+        };
+        let Some(zj) = usable(*zj) else { continue };
+        let h: SVector<T, N> = ht.column(j).into_owned();
+        if !fuse_scalar(x, cov, &h, r[j], zj) {
+            *verdict = SensorVerdict::Rejected { nis };
+        }
+    }
+}
+
+/// Correction with whatever readings arrived: `z[j] = None` (or NaN/inf)
+/// skips sensor `j`. Each present reading is gated against the prior, the
+/// accepted ones are fused sequentially (Joseph form), and the rejection
+/// counters and recovery policy are applied (see the module docs).
+pub fn update<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+    cfg: &KalmanConfig<T, N, M, P>,
+    state: &mut KalmanState<T, N, P>,
+    z: &[Option<T>; P],
+) -> UpdateReport<P> {
+    let mut verdicts = gate_all(&state.x, &state.cov, &cfg.ht, &cfg.r, z, cfg.gate.threshold);
+    let recovered = state.gate.record_gate(&verdicts, cfg.gate.recover_after);
+    if recovered {
+        add_diagonal(&mut state.cov, &cfg.recovery_variance);
+        verdicts = gate_all(&state.x, &state.cov, &cfg.ht, &cfg.r, z, cfg.gate.threshold);
+    }
+    fuse_accepted(
+        &mut state.x,
+        &mut state.cov,
+        &cfg.ht,
+        &cfg.r,
+        z,
+        &mut verdicts,
+    );
+    let suspect = state.gate.record_sensors(&verdicts, cfg.gate.suspect_after);
+    UpdateReport {
+        verdicts,
+        suspect,
+        recovered,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::testutil::{is_sym_psd, RandomSystem, Rng};
+    use nalgebra::{Matrix1, SMatrix, SVector, Vector1, Vector2, Vector4};
+    use proptest::prelude::*;
+
+    type Cfg4 = KalmanConfig<f64, 4, 1, 2>;
+
+    fn random_cfg(rng: &mut Rng) -> (Cfg4, RandomSystem<4, 2>, SMatrix<f64, 4, 1>) {
+        let sys = RandomSystem::<4, 2>::new(rng, 0.95, 0.01);
+        let g: SMatrix<f64, 4, 1> = rng.matrix();
+        let cfg = Cfg4::new(sys.f, g, sys.h, sys.q, sys.r).unwrap();
+        (cfg, sys, g)
+    }
+
+    /// Scalar random walk (F = H = 1): the prior variance converges to
+    /// M = (q + sqrt(q^2 + 4 q r)) / 2 and the gain to M / (M + r).
+    #[test]
+    fn random_walk_matches_closed_form() {
+        let (q, r) = (0.3f64, 2.0f64);
+        let m = (q + (q * q + 4.0 * q * r).sqrt()) / 2.0;
+        let cfg = KalmanConfig::<f64, 1, 1, 1>::new(
+            Matrix1::new(1.0),
+            Matrix1::new(0.0),
+            Matrix1::new(1.0),
+            Matrix1::new(q),
+            Vector1::new(r),
+        )
+        .unwrap();
+        let mut st = KalmanState::new(Vector1::new(0.0), Matrix1::new(100.0));
+        for _ in 0..200 {
+            predict(&cfg, &mut st, &Vector1::new(0.0));
+            let prior = st.cov[(0, 0)];
+            let _ = update(&cfg, &mut st, &[Some(0.0)]);
+            // Posterior = (1 - K) M and K = M / (M + r).
+            let gain = 1.0 - st.cov[(0, 0)] / prior;
+            if (prior - m).abs() < 1e-12 {
+                assert!((gain - m / (m + r)).abs() < 1e-12);
+            }
+        }
+        predict(&cfg, &mut st, &Vector1::new(0.0));
+        assert!(
+            (st.cov[(0, 0)] - m).abs() < 1e-12 * m,
+            "{} vs {m}",
+            st.cov[(0, 0)]
+        );
+    }
+
+    /// Same in f32 (the generic path compiles and converges in single precision).
+    #[test]
+    fn random_walk_f32() {
+        let (q, r) = (0.3f32, 2.0f32);
+        let m = (q + (q * q + 4.0 * q * r).sqrt()) / 2.0;
+        let cfg = KalmanConfig::<f32, 1, 1, 1>::new(
+            Matrix1::new(1.0),
+            Matrix1::new(0.0),
+            Matrix1::new(1.0),
+            Matrix1::new(q),
+            Vector1::new(r),
+        )
+        .unwrap();
+        let mut st = KalmanState::new(Vector1::new(0.0), Matrix1::new(100.0));
+        for _ in 0..100 {
+            predict(&cfg, &mut st, &Vector1::new(0.0));
+            let _ = update(&cfg, &mut st, &[Some(0.0)]);
+        }
+        predict(&cfg, &mut st, &Vector1::new(0.0));
+        assert!((st.cov[(0, 0)] - m).abs() < 1e-5 * m);
+    }
+
+    /// Sequential scalar Joseph updates equal the batch update with the matrix
+    /// inverse, P+ = P - P H^T (H P H^T + R)^-1 H P (R diagonal), and the same
+    /// for x.
+    #[test]
+    fn sequential_joseph_equals_batch_update() {
+        let mut rng = Rng::new(7);
+        for _ in 0..20 {
+            let (cfg, sys, _) = random_cfg(&mut rng);
+            let l: SMatrix<f64, 4, 4> = rng.matrix();
+            let p0 = l * l.transpose() + SMatrix::identity() * 0.1;
+            let x0: SVector<f64, 4> = rng.matrix();
+            let z: SVector<f64, 2> = sys.h * x0 + rng.matrix::<2, 1>() * 0.1;
+            let mut st = KalmanState::new(x0 + rng.matrix::<4, 1>() * 0.1, p0);
+            let prior_x = st.x;
+            let rep = update(
+                &cfg.clone().with_gate(f64::INFINITY).unwrap(),
+                &mut st,
+                &[Some(z[0]), Some(z[1])],
+            );
+            assert_eq!(rep.fused(), 2);
+            let s = sys.h * p0 * sys.h.transpose() + SMatrix::<f64, 2, 2>::from_diagonal(&sys.r);
+            let k = p0 * sys.h.transpose() * s.try_inverse().unwrap();
+            let p_batch = p0 - k * sys.h * p0;
+            let x_batch = prior_x + k * (z - sys.h * prior_x);
+            assert!((st.cov - p_batch).abs().max() < 1e-10 * p0.abs().max());
+            assert!((st.x - x_batch).abs().max() < 1e-10 * (1.0 + x_batch.abs().max()));
+        }
+    }
+
+    #[test]
+    fn rejects_50_sigma_outlier_and_flags_suspect() {
+        let mut rng = Rng::new(11);
+        let (cfg, sys, _) = random_cfg(&mut rng);
+        let mut st = KalmanState::new(SVector::zeros(), SMatrix::identity());
+        // Settle on the truth x = 0 with clean readings.
+        for _ in 0..50 {
+            predict(&cfg, &mut st, &SVector::zeros());
+            let rep = update(&cfg, &mut st, &[Some(0.0), Some(0.0)]);
+            assert_eq!(rep.fused(), 2);
+        }
+        let before = st;
+        predict(&cfg, &mut st, &SVector::zeros());
+        let s1 = (sys.h.row(1) * st.cov * sys.h.row(1).transpose())[(0, 0)] + sys.r[1];
+        let outlier = 50.0 * s1.sqrt();
+        let mut last = None;
+        for _ in 0..3 {
+            let rep = update(&cfg, &mut st, &[Some(0.0), Some(outlier)]);
+            assert!(rep.verdicts[0].is_fused());
+            match rep.verdicts[1] {
+                SensorVerdict::Rejected { nis } => assert!(nis > 2000.0, "nis {nis}"),
+                v => panic!("outlier not rejected: {v:?}"),
+            }
+            assert!(!rep.recovered);
+            last = Some(rep);
+            predict(&cfg, &mut st, &SVector::zeros());
+        }
+        // Rejected 3 times in a row: suspect; the estimate stayed near the truth.
+        assert_eq!(last.unwrap().suspect, [false, true]);
+        assert!(
+            st.x.abs().max() < 1e-9,
+            "{:?} (before {:?})",
+            st.x,
+            before.x
+        );
+        // A good reading clears the suspicion.
+        let rep = update(&cfg, &mut st, &[Some(0.0), Some(0.0)]);
+        assert_eq!(rep.suspect, [false, false]);
+        assert_eq!(rep.fused(), 2);
+    }
+
+    /// A model error leaves the estimate 50 units off with a tiny covariance:
+    /// every reading is rejected. With recovery disabled it stays stuck; with
+    /// recovery after 3 it inflates P, fuses, and converges to the truth.
+    #[test]
+    fn recovers_from_wrong_state() {
+        let f = SMatrix::<f64, 3, 3>::new(0.9, 0.1, 0.0, 0.1, 0.8, 0.1, 0.0, 0.1, 0.9);
+        let h = SMatrix::<f64, 2, 3>::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        let base = KalmanConfig::<f64, 3, 1, 2>::new(
+            f,
+            SMatrix::zeros(),
+            h,
+            SMatrix::identity() * 1e-6,
+            SVector::<f64, 2>::repeat(0.01),
+        )
+        .unwrap();
+        let stuck_cfg = base.clone().with_recovery(0, SVector::zeros()).unwrap();
+        let cfg = base.with_recovery(3, SVector::repeat(1e4)).unwrap();
+        let start = KalmanState::new(SVector::repeat(50.0), SMatrix::identity() * 1e-4);
+
+        let mut stuck = start;
+        for _ in 0..100 {
+            predict(&stuck_cfg, &mut stuck, &SVector::zeros());
+            let rep = update(&stuck_cfg, &mut stuck, &[Some(0.0), Some(0.0)]);
+            assert_eq!(rep.fused(), 0);
+            assert!(!rep.recovered);
+        }
+
+        let mut st = start;
+        let mut recovered_at = None;
+        for i in 0..30 {
+            predict(&cfg, &mut st, &SVector::zeros());
+            let rep = update(&cfg, &mut st, &[Some(0.0), Some(0.0)]);
+            if rep.recovered {
+                assert!(recovered_at.is_none(), "recovery fired twice");
+                recovered_at = Some(i);
+                assert_eq!(rep.fused(), 2);
+            } else if recovered_at.is_none() {
+                assert_eq!(rep.fused(), 0);
+            }
+        }
+        assert_eq!(recovered_at, Some(2));
+        assert!(st.x.abs().max() < 0.5, "{:?}", st.x);
+    }
+
+    /// NEES e^T P^-1 e of a consistent filter is chi-square with N dof. The
+    /// ensemble mean over R = 200 runs at one time has mean N = 4 and standard
+    /// deviation sqrt(2 N / R) = 0.2; a time average of such means has at most
+    /// that spread, so the 99.9 % band is 4 +- 3.29 * 0.2 = [3.34, 4.66].
+    #[test]
+    fn nees_is_consistent() {
+        let mut rng = Rng::new(2024);
+        let (cfg, sys, g) = random_cfg(&mut rng);
+        let (runs, steps) = (200, 200);
+        let mut total = 0.0;
+        for _ in 0..runs {
+            let p0 = SMatrix::<f64, 4, 4>::identity();
+            let mut truth = RandomSystem::<4, 2>::sample(&mut rng, &p0);
+            let mut st = KalmanState::new(SVector::zeros(), p0);
+            for t in 0..steps {
+                let u = Vector1::new((t as f64 * 0.1).sin());
+                truth = sys.f * truth + g * u + RandomSystem::<4, 2>::sample(&mut rng, &sys.q);
+                predict(&cfg, &mut st, &u);
+                let z = sys.h * truth + SVector::from_fn(|j, _| sys.r[j].sqrt() * rng.gauss());
+                let _ = update(&cfg, &mut st, &[Some(z[0]), Some(z[1])]);
+                let e = truth - st.x;
+                total += (e.transpose() * st.cov.try_inverse().unwrap() * e)[(0, 0)];
+            }
+        }
+        let mean = total / (runs * steps) as f64;
+        assert!((3.34..=4.66).contains(&mean), "mean NEES {mean}");
+    }
+
+    #[test]
+    fn non_finite_input_is_dropped() {
+        let mut rng = Rng::new(3);
+        let (cfg, sys, _) = random_cfg(&mut rng);
+        let x0: SVector<f64, 4> = rng.matrix();
+        let mut st = KalmanState::new(x0, SMatrix::identity());
+        assert_eq!(
+            predict(&cfg, &mut st, &Vector1::new(f64::NAN)),
+            InputStatus::Dropped
+        );
+        assert!((st.x - sys.f * x0).abs().max() < 1e-15);
+        assert_eq!(
+            predict(&cfg, &mut st, &Vector1::new(1.0)),
+            InputStatus::Used
+        );
+    }
+
+    #[test]
+    fn build_validates_each_parameter() {
+        let mut rng = Rng::new(5);
+        let sys = RandomSystem::<4, 2>::new(&mut rng, 0.9, 1.0);
+        let g = SMatrix::<f64, 4, 1>::zeros();
+        let name = |e: Result<Cfg4, BuildError>| match e {
+            Err(BuildError::InvalidParameter { name }) => name,
+            other => panic!("{other:?}"),
+        };
+        let mut f = sys.f;
+        f[(1, 2)] = f64::NAN;
+        assert_eq!(name(Cfg4::new(f, g, sys.h, sys.q, sys.r)), "f");
+        let mut h = sys.h;
+        h[(0, 0)] = f64::INFINITY;
+        assert_eq!(name(Cfg4::new(sys.f, g, h, sys.q, sys.r)), "h");
+        let mut q = sys.q;
+        q[(0, 1)] += 1.0;
+        assert_eq!(name(Cfg4::new(sys.f, g, sys.h, q, sys.r)), "q");
+        let indefinite = SMatrix::<f64, 4, 4>::from_diagonal(&Vector4::new(1.0, 1.0, -1e-3, 1.0));
+        assert_eq!(name(Cfg4::new(sys.f, g, sys.h, indefinite, sys.r)), "q");
+        assert_eq!(
+            name(Cfg4::new(sys.f, g, sys.h, sys.q, Vector2::new(1.0, 0.0))),
+            "r"
+        );
+        // Singular PSD and zero Q are fine.
+        let singular = SMatrix::<f64, 4, 4>::from_diagonal(&Vector4::new(1.0, 0.0, 0.0, 2.0));
+        assert!(Cfg4::new(sys.f, g, sys.h, singular, sys.r).is_ok());
+        assert!(Cfg4::new(sys.f, g, sys.h, SMatrix::zeros(), sys.r).is_ok());
+        let cfg = Cfg4::new(sys.f, g, sys.h, sys.q, sys.r).unwrap();
+        assert_eq!(name(cfg.clone().with_gate(0.0)), "threshold");
+        assert_eq!(name(cfg.clone().with_gate(f64::NAN)), "threshold");
+        assert_eq!(
+            name(cfg.with_recovery(3, SVector::repeat(-1.0))),
+            "variance"
+        );
+    }
+
+    fn reading() -> impl Strategy<Value = Option<f64>> {
+        prop_oneof![
+            3 => (-10.0f64..10.0).prop_map(Some),
+            1 => Just(None),
+            1 => Just(Some(f64::NAN)),
+            1 => Just(Some(f64::INFINITY)),
+            1 => Just(Some(f64::NEG_INFINITY)),
+            1 => Just(Some(1e300)),
+            1 => Just(Some(-f64::MAX)),
+        ]
+    }
+
+    proptest! {
+        /// Joseph updates keep P symmetric PSD on random stable systems, with
+        /// any mix of present, missing and outlying readings.
+        #[test]
+        fn joseph_keeps_cov_sym_psd(
+            seed in any::<u64>(),
+            radius in 0.1f64..0.999,
+            q_scale in 1e-8f64..1.0,
+            zs in proptest::collection::vec((reading(), reading()), 1..40),
+            gate in prop_oneof![Just(10.83f64), Just(f64::INFINITY)],
+        ) {
+            let mut rng = Rng::new(seed);
+            let sys = RandomSystem::<4, 2>::new(&mut rng, radius, q_scale);
+            let cfg = Cfg4::new(sys.f, rng.matrix(), sys.h, sys.q, sys.r)
+                .unwrap()
+                .with_gate(gate)
+                .unwrap();
+            let mut st = KalmanState::new(SVector::zeros(), SMatrix::identity() * 10.0);
+            for (a, b) in zs {
+                predict(&cfg, &mut st, &Vector1::new(1.0));
+                let _ = update(&cfg, &mut st, &[a, b]);
+                prop_assert!(is_sym_psd(&st.cov, 1e-9), "{}", st.cov);
+            }
+        }
+
+        /// None, NaN and inf readings never panic and never poison x or P;
+        /// they are reported Missing.
+        #[test]
+        fn bad_readings_never_poison(
+            seed in any::<u64>(),
+            zs in proptest::collection::vec((reading(), reading()), 1..60),
+            gate in prop_oneof![Just(10.83f64), Just(f64::INFINITY)],
+        ) {
+            let mut rng = Rng::new(seed);
+            let (cfg, _, _) = random_cfg(&mut rng);
+            let cfg = cfg.with_gate(gate).unwrap();
+            let mut st = KalmanState::new(SVector::zeros(), SMatrix::identity());
+            for (a, b) in zs {
+                predict(&cfg, &mut st, &Vector1::new(0.5));
+                let rep = update(&cfg, &mut st, &[a, b]);
+                for (z, v) in [a, b].iter().zip(rep.verdicts) {
+                    if !z.is_some_and(f64::is_finite) {
+                        prop_assert_eq!(v, SensorVerdict::Missing);
+                    }
+                }
+                prop_assert!(st.x.iter().all(|v| v.is_finite()), "{}", st.x);
+                prop_assert!(st.cov.iter().all(|v| v.is_finite()), "{}", st.cov);
+            }
+        }
+    }
+}

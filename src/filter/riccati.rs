@@ -1,0 +1,516 @@
+//! Steady-state filter: the k-step model, the discrete algebraic Riccati
+//! equation (solved by structure-preserving doubling) and the constant-gain
+//! correction with its missing-sensor fallback.
+
+use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+
+use super::gate::{gate_all, judge, usable, GateCounters, SensorVerdict, UpdateReport};
+use super::kalman::{add_diagonal, fuse_accepted, fuse_scalar, max_abs, KalmanConfig};
+use crate::error::BuildError;
+
+/// Upper bound on doubling steps: step `i` covers `2^i` correction periods,
+/// so 64 steps exceed any horizon a filter meets.
+const MAX_DOUBLINGS: usize = 64;
+
+/// The steady-state solution for corrections every `period` predict steps.
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SteadyStateGain<T: RealField + Copy, const N: usize, const P: usize> {
+    period: u32,
+    gain: SMatrix<T, N, P>,
+    prior: SMatrix<T, N, N>,
+    posterior: SMatrix<T, N, N>,
+    innovation_var: SVector<T, P>,
+}
+
+/// Per-device state of the steady-state filter: the estimate and the gate
+/// memory (no covariance: it is constant and lives in [`SteadyStateGain`]).
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SteadyEstimate<T: RealField + Copy, const N: usize, const P: usize> {
+    /// State estimate `x`.
+    pub x: SVector<T, N>,
+    /// Rejection counters.
+    pub gate: GateCounters<P>,
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize> SteadyEstimate<T, N, P> {
+    /// An estimate starting at `x0`.
+    pub fn new(x0: SVector<T, N>) -> Self {
+        Self {
+            x: x0,
+            gate: GateCounters::new(),
+        }
+    }
+}
+
+/// `(F^k, sum_{i<k} F^i Q F^iT)`: the transition and process noise of `k`
+/// predict steps, by binary powering (at most 2 log2(k) compositions).
+pub fn k_step_model<T: RealField + Copy, const N: usize>(
+    f: &SMatrix<T, N, N>,
+    q: &SMatrix<T, N, N>,
+    k: u32,
+) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
+    // Segments of one time-invariant model commute, so the order in which the
+    // binary pieces are composed does not matter.
+    let compose = |(fa, qa): &(SMatrix<T, N, N>, SMatrix<T, N, N>),
+                   (fb, qb): &(SMatrix<T, N, N>, SMatrix<T, N, N>)| {
+        let mut qn = *qb;
+        qn.quadform_tr(T::one(), fb, qa, T::one());
+        (fb * fa, qn.symmetric_part())
+    };
+    let mut acc = (SMatrix::<T, N, N>::identity(), SMatrix::<T, N, N>::zeros());
+    let mut pow = (*f, *q);
+    let mut rest = k;
+    while rest > 0 {
+        if rest & 1 == 1 {
+            acc = compose(&acc, &pow);
+        }
+        rest >>= 1;
+        if rest > 0 {
+            pow = compose(&pow, &pow);
+        }
+    }
+    acc
+}
+
+/// Stabilising solution `X` of the filter DARE
+/// `X = A X A^T - A X H^T (H X H^T + R)^-1 H X A^T + Q` by the
+/// structure-preserving doubling algorithm (Chu, Fan, Lin 2005, applied to the
+/// dual control DARE with `A -> F^T`), quadratically convergent.
+fn solve_dare<T: RealField + Copy, const N: usize, const P: usize>(
+    a: &SMatrix<T, N, N>,
+    ht: &SMatrix<T, N, P>,
+    r: &SVector<T, P>,
+    q: &SMatrix<T, N, N>,
+) -> Result<SMatrix<T, N, N>, BuildError> {
+    let err = BuildError::NotConverged {
+        name: "steady_state_gain",
+    };
+    let eye = SMatrix::<T, N, N>::identity();
+    let mut ak = a.transpose();
+    // G0 = H^T R^-1 H; R is diagonal and positive.
+    let mut gk = SMatrix::<T, N, N>::zeros();
+    for (j, rj) in r.iter().enumerate() {
+        let h = ht.column(j);
+        gk.ger(T::one() / *rj, &h, &h, T::one());
+    }
+    let mut xk = *q;
+    let tol = T::default_epsilon() * nalgebra::convert(1e3);
+    for _ in 0..MAX_DOUBLINGS {
+        let w = (eye + gk * xk).try_inverse().ok_or(err)?;
+        let aw = ak * w;
+        let a_next = aw * ak;
+        let g_next = (gk + aw * gk * ak.transpose()).symmetric_part();
+        let x_next = (xk + ak.transpose() * xk * w * ak).symmetric_part();
+        if !x_next.iter().all(|v| v.is_finite()) {
+            return Err(err);
+        }
+        let change = max_abs(&(x_next - xk));
+        let scale = max_abs(&x_next);
+        ak = a_next;
+        gk = g_next;
+        xk = x_next;
+        if change <= tol * scale {
+            return Ok(xk);
+        }
+    }
+    Err(err)
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, P> {
+    /// Solves the steady-state filter for one correction (all `P` sensors)
+    /// every `period` predict steps (`period >= 1`).
+    ///
+    /// The covariance between corrections follows the `period`-step model
+    /// `F_k = F^k`, `Q_k = sum_{i<k} F^i Q F^iT`; the prior `M` just before a
+    /// correction solves the DARE of (`F_k`, `H`, `Q_k`, `R`). The result is
+    /// checked against one step of the Riccati recursion (sequential Joseph
+    /// update then `F_k P F_k^T + Q_k`): [`BuildError::NotConverged`] if the
+    /// residual exceeds `sqrt(eps)` relative, which is what an unstable mode
+    /// that no sensor observes produces.
+    ///
+    /// Build-time cost O(N^3 (log2(period) + doublings)); stack about
+    /// 20 N^2 scalars (about 20 KiB for N = 16 in f32, an estimate).
+    pub fn solve<const M: usize>(
+        cfg: &KalmanConfig<T, N, M, P>,
+        period: u32,
+    ) -> Result<Self, BuildError> {
+        if period == 0 {
+            return Err(BuildError::InvalidParameter { name: "period" });
+        }
+        let (fk, qk) = k_step_model(&cfg.f, &cfg.q, period);
+        let prior = solve_dare(&fk, &cfg.ht, &cfg.r, &qk)?;
+
+        let mut posterior = prior;
+        let mut scratch = SVector::<T, N>::zeros();
+        for (j, rj) in cfg.r.iter().enumerate() {
+            let h: SVector<T, N> = cfg.ht.column(j).into_owned();
+            // The reading is irrelevant to the covariance; zero keeps x finite.
+            let z = h.dot(&scratch);
+            if !fuse_scalar(&mut scratch, &mut posterior, &h, *rj, z) {
+                return Err(BuildError::Singular);
+            }
+        }
+        let mut next = qk;
+        next.quadform_tr(T::one(), &fk, &posterior, T::one());
+        let residual = max_abs(&(next - prior));
+        let bound = T::default_epsilon().sqrt() * max_abs(&prior);
+        if !residual.is_finite() || residual > bound {
+            return Err(BuildError::NotConverged {
+                name: "steady_state_gain",
+            });
+        }
+
+        // K = M H^T S^-1 with S = H M H^T + R, symmetric positive definite.
+        let h = cfg.ht.transpose();
+        let hm = h * prior;
+        let mut s = hm * cfg.ht;
+        add_diagonal(&mut s, &cfg.r);
+        let innovation_var = SVector::<T, P>::from_fn(|j, _| s[(j, j)]);
+        let chol = Cholesky::new(s.symmetric_part()).ok_or(BuildError::Singular)?;
+        let gain = chol.solve(&hm).transpose();
+        if !gain.iter().all(|v| v.is_finite()) {
+            return Err(BuildError::Singular);
+        }
+        Ok(Self {
+            period,
+            gain,
+            prior,
+            posterior,
+            innovation_var,
+        })
+    }
+
+    /// Predict steps per correction this solution was made for.
+    pub fn period(&self) -> u32 {
+        self.period
+    }
+
+    /// Steady-state gain `K` (N x P) for a correction with all sensors.
+    pub fn gain(&self) -> &SMatrix<T, N, P> {
+        &self.gain
+    }
+
+    /// Steady-state prior covariance `M` (just before a correction).
+    pub fn prior(&self) -> &SMatrix<T, N, N> {
+        &self.prior
+    }
+
+    /// Steady-state posterior covariance (just after a full correction).
+    pub fn posterior(&self) -> &SMatrix<T, N, N> {
+        &self.posterior
+    }
+
+    /// Steady-state innovation variance `S_jj = h_j M h_j^T + r_j` per sensor.
+    pub fn innovation_var(&self) -> &SVector<T, P> {
+        &self.innovation_var
+    }
+}
+
+/// Steady-state correction, to be called once every `ss.period()` calls of
+/// [`super::predict_mean`].
+///
+/// Every present reading is gated with the stored innovation variance. If all
+/// `P` are fused, `x += K (z - H x)` (2 N P multiply-adds). Otherwise (a
+/// sensor missing or rejected) the full gain is wrong (its columns assume the
+/// other sensors' information), so this correction falls back to sequential
+/// Joseph updates of the accepted readings starting from the stored prior
+/// `M`: the optimal update for that sensor subset given `M`, bounded at
+/// O(P N^2). The stored `M` is then slightly optimistic for the next
+/// correction (a missed reading leaves more uncertainty); the gate uses the
+/// same `M`, so this is the filter's only approximation. Recovery inflates a
+/// copy of `M` the same way as [`super::update`].
+pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+    cfg: &KalmanConfig<T, N, M, P>,
+    ss: &SteadyStateGain<T, N, P>,
+    est: &mut SteadyEstimate<T, N, P>,
+    z: &[Option<T>; P],
+) -> UpdateReport<P> {
+    let mut verdicts = [SensorVerdict::Missing; P];
+    let mut nu = SVector::<T, P>::zeros();
+    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+        let Some(zj) = usable(*zj) else { continue };
+        nu[j] = zj - cfg.ht.column(j).dot(&est.x);
+        *verdict = judge(nu[j], ss.innovation_var[j], cfg.gate.threshold);
+    }
+    let recovered = est.gate.record_gate(&verdicts, cfg.gate.recover_after);
+    if recovered {
+        let mut cov = ss.prior;
+        add_diagonal(&mut cov, &cfg.recovery_variance);
+        verdicts = gate_all(&est.x, &cov, &cfg.ht, &cfg.r, z, cfg.gate.threshold);
+        fuse_accepted(&mut est.x, &mut cov, &cfg.ht, &cfg.r, z, &mut verdicts);
+    } else if verdicts.iter().all(|v| v.is_fused()) {
+        let mut x_new = est.x;
+        x_new.gemv(T::one(), &ss.gain, &nu, T::one());
+        if x_new.iter().all(|v| v.is_finite()) {
+            est.x = x_new;
+        } else {
+            for v in verdicts.iter_mut() {
+                if let SensorVerdict::Fused { nis } = *v {
+                    *v = SensorVerdict::Rejected { nis };
+                }
+            }
+        }
+    } else if verdicts.iter().any(|v| v.is_fused()) {
+        let mut cov = ss.prior;
+        fuse_accepted(&mut est.x, &mut cov, &cfg.ht, &cfg.r, z, &mut verdicts);
+    }
+    let suspect = est.gate.record_sensors(&verdicts, cfg.gate.suspect_after);
+    UpdateReport {
+        verdicts,
+        suspect,
+        recovered,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::testutil::{RandomSystem, Rng};
+    use crate::filter::{predict, predict_mean, update, KalmanState};
+    use nalgebra::{Matrix1, SMatrix, SVector, Vector1};
+
+    type Cfg = KalmanConfig<f64, 4, 1, 2>;
+
+    fn random_cfg(seed: u64) -> (Cfg, RandomSystem<4, 2>) {
+        let mut rng = Rng::new(seed);
+        let sys = RandomSystem::<4, 2>::new(&mut rng, 0.98, 0.01);
+        let cfg = Cfg::new(sys.f, rng.matrix(), sys.h, sys.q, sys.r).unwrap();
+        (cfg, sys)
+    }
+
+    /// Batch gain from a prior, by the matrix inverse: the independent answer.
+    fn batch_gain(m: &SMatrix<f64, 4, 4>, sys: &RandomSystem<4, 2>) -> SMatrix<f64, 4, 2> {
+        let s = sys.h * m * sys.h.transpose() + SMatrix::<f64, 2, 2>::from_diagonal(&sys.r);
+        m * sys.h.transpose() * s.try_inverse().unwrap()
+    }
+
+    /// Random walk with a correction every k steps: F^k = 1, Q_k = k q, so
+    /// M = (k q + sqrt((k q)^2 + 4 k q r)) / 2 and K = M / (M + r).
+    #[test]
+    fn random_walk_closed_form_any_period() {
+        let (q, r) = (1e-3f64, 0.25f64);
+        let cfg = KalmanConfig::<f64, 1, 1, 1>::new(
+            Matrix1::new(1.0),
+            Matrix1::new(0.0),
+            Matrix1::new(1.0),
+            Matrix1::new(q),
+            Vector1::new(r),
+        )
+        .unwrap();
+        for k in [1u32, 2, 7, 500] {
+            let qk = k as f64 * q;
+            let m = (qk + (qk * qk + 4.0 * qk * r).sqrt()) / 2.0;
+            let ss = SteadyStateGain::solve(&cfg, k).unwrap();
+            assert!((ss.prior()[(0, 0)] - m).abs() < 1e-12 * m, "k={k}");
+            assert!((ss.gain()[(0, 0)] - m / (m + r)).abs() < 1e-12, "k={k}");
+            assert!((ss.innovation_var()[0] - (m + r)).abs() < 1e-12);
+        }
+    }
+
+    /// Binary powering against k plain steps of the recursion.
+    #[test]
+    fn k_step_model_matches_stepping() {
+        let (_, sys) = random_cfg(1);
+        for k in [1u32, 2, 3, 13, 64, 100] {
+            let (fk, qk) = k_step_model(&sys.f, &sys.q, k);
+            let (mut f_ref, mut q_ref) = (SMatrix::<f64, 4, 4>::identity(), SMatrix::zeros());
+            for _ in 0..k {
+                f_ref = sys.f * f_ref;
+                q_ref = sys.f * q_ref * sys.f.transpose() + sys.q;
+            }
+            assert!((fk - f_ref).abs().max() < 1e-12, "k={k}");
+            assert!(
+                (qk - q_ref).abs().max() < 1e-12 * q_ref.abs().max(),
+                "k={k}"
+            );
+        }
+    }
+
+    /// The steady-state prior and gain are the limits of the time-varying
+    /// filter run with `k` predicts between full corrections.
+    #[test]
+    fn steady_state_is_limit_of_time_varying() {
+        for (seed, k) in [(2u64, 1u32), (3, 1), (4, 7), (5, 50)] {
+            let (cfg, sys) = random_cfg(seed);
+            let ss = SteadyStateGain::solve(&cfg, k).unwrap();
+            let mut st = KalmanState::new(SVector::zeros(), SMatrix::identity() * 5.0);
+            let mut gain = SMatrix::<f64, 4, 2>::zeros();
+            for _ in 0..3000 {
+                for _ in 0..k {
+                    predict(&cfg, &mut st, &Vector1::new(0.0));
+                }
+                gain = batch_gain(&st.cov, &sys);
+                let _ = update(&cfg, &mut st, &[Some(0.0), Some(0.0)]);
+            }
+            let tol = 1e-9;
+            assert!(
+                (gain - ss.gain()).abs().max() < tol * gain.abs().max(),
+                "seed {seed} k {k}"
+            );
+            assert!((st.cov - ss.posterior()).abs().max() < tol * st.cov.abs().max());
+            for _ in 0..k {
+                predict(&cfg, &mut st, &Vector1::new(0.0));
+            }
+            assert!((st.cov - ss.prior()).abs().max() < tol * st.cov.abs().max());
+        }
+    }
+
+    /// With all sensors present the steady-state update is `x += K nu`; with
+    /// one missing or rejected it equals the batch update of the remaining
+    /// sensor from the stored prior (independent inverse formula).
+    #[test]
+    fn steady_update_full_and_missing_sensor() {
+        let (cfg, sys) = random_cfg(6);
+        let ss = SteadyStateGain::solve(&cfg, 10).unwrap();
+        let x0 = SVector::<f64, 4>::new(0.1, -0.2, 0.3, 0.05);
+        let z = sys.h * x0;
+        let mut est = SteadyEstimate::new(SVector::zeros());
+        let rep = update_steady(&cfg, &ss, &mut est, &[Some(z[0]), Some(z[1])]);
+        assert_eq!(rep.fused(), 2);
+        let expect = batch_gain(ss.prior(), &sys) * z;
+        assert!((est.x - expect).abs().max() < 1e-10);
+
+        // Sensor 1 alone: K_1 = M h1^T / (h1 M h1^T + r1).
+        let h1 = sys.h.row(1).transpose();
+        let k1 = ss.prior() * h1 / ((h1.transpose() * ss.prior() * h1)[(0, 0)] + sys.r[1]);
+        let expect = k1 * z[1];
+        for missing in [None, Some(f64::NAN), Some(1e6)] {
+            let mut est = SteadyEstimate::new(SVector::zeros());
+            let rep = update_steady(&cfg, &ss, &mut est, &[missing, Some(z[1])]);
+            assert!(rep.verdicts[1].is_fused());
+            assert!(!rep.verdicts[0].is_fused());
+            assert_eq!(rep.verdicts[0].is_rejected(), missing == Some(1e6));
+            assert!((est.x - expect).abs().max() < 1e-10, "{missing:?}");
+        }
+        // Nothing usable: x unchanged.
+        let mut est = SteadyEstimate::new(x0);
+        let rep = update_steady(&cfg, &ss, &mut est, &[None, Some(f64::INFINITY)]);
+        assert_eq!(rep.fused(), 0);
+        assert_eq!(est.x, x0);
+    }
+
+    /// Over a simulated run the steady-state filter (predict_mean, k = 20)
+    /// tracks the time-varying filter once both have settled.
+    #[test]
+    fn steady_filter_tracks_time_varying() {
+        let (cfg, sys) = random_cfg(8);
+        let k = 20;
+        let ss = SteadyStateGain::solve(&cfg, k).unwrap();
+        let mut rng = Rng::new(99);
+        let mut truth = SVector::<f64, 4>::zeros();
+        let mut st = KalmanState::new(SVector::zeros(), *ss.posterior());
+        let mut est = SteadyEstimate::new(SVector::zeros());
+        for n in 0..400 {
+            for t in 0..k {
+                let u = Vector1::new(((n * k + t) as f64 * 0.01).sin());
+                truth =
+                    sys.f * truth + cfg.g() * u + RandomSystem::<4, 2>::sample(&mut rng, &sys.q);
+                predict(&cfg, &mut st, &u);
+                predict_mean(&cfg, &mut est.x, &u);
+            }
+            let z = sys.h * truth + SVector::from_fn(|j, _| sys.r[j].sqrt() * rng.gauss());
+            let zs = [Some(z[0]), Some(z[1])];
+            let a = update(&cfg, &mut st, &zs);
+            let b = update_steady(&cfg, &ss, &mut est, &zs);
+            assert_eq!(
+                a.verdicts.map(|v| v.is_fused()),
+                b.verdicts.map(|v| v.is_fused())
+            );
+            // Starting at the steady posterior, both are the same filter.
+            assert!(
+                (st.x - est.x).abs().max() < 1e-9 * (1.0 + st.x.abs().max()),
+                "n={n}"
+            );
+        }
+    }
+
+    /// An unstable mode that no sensor sees has no steady state.
+    #[test]
+    fn unobservable_unstable_mode_does_not_converge() {
+        let f = SMatrix::<f64, 2, 2>::new(0.9, 0.0, 0.0, 1.01);
+        let h = SMatrix::<f64, 1, 2>::new(1.0, 0.0);
+        let cfg = KalmanConfig::<f64, 2, 1, 1>::new(
+            f,
+            SMatrix::zeros(),
+            h,
+            SMatrix::identity() * 0.01,
+            Vector1::new(0.1),
+        )
+        .unwrap();
+        assert_eq!(
+            SteadyStateGain::solve(&cfg, 1),
+            Err(BuildError::NotConverged {
+                name: "steady_state_gain"
+            })
+        );
+        assert_eq!(
+            SteadyStateGain::solve(&cfg, 0),
+            Err(BuildError::InvalidParameter { name: "period" })
+        );
+    }
+
+    /// Recovery in steady-state mode: a wrong estimate is pulled back after
+    /// `recover_after` all-rejected corrections.
+    #[test]
+    fn steady_recovery() {
+        let (cfg, sys) = random_cfg(9);
+        let cfg = cfg.with_recovery(2, SVector::repeat(1e6)).unwrap();
+        let ss = SteadyStateGain::solve(&cfg, 5).unwrap();
+        let mut est = SteadyEstimate::new(SVector::repeat(100.0));
+        let z = [Some(0.0), Some(0.0)];
+        let r1 = update_steady(&cfg, &ss, &mut est, &z);
+        assert_eq!((r1.fused(), r1.recovered), (0, false));
+        let r2 = update_steady(&cfg, &ss, &mut est, &z);
+        assert!(r2.recovered);
+        assert_eq!(r2.fused(), 2);
+        // The readings see H x: that projection is now near zero.
+        assert!((sys.h * est.x).abs().max() < 1.0, "{}", sys.h * est.x);
+    }
+}
+
+#[cfg(test)]
+mod sized_tests {
+    use super::*;
+    use crate::filter::testutil::thermal_chain_16;
+    use nalgebra::SMatrix;
+
+    /// The device's sizes: 16 states, 6 thermocouples at 2 Hz with 1 kHz
+    /// predicts (period 500). The f32 solution agrees with the f64 one.
+    #[test]
+    fn omnimagnet_sized_period_500() {
+        let (f, h) = thermal_chain_16();
+        let q = SMatrix::<f64, 16, 16>::identity() * 1e-8;
+        let r = SVector::<f64, 6>::repeat(0.01);
+        let cfg = KalmanConfig::<f64, 16, 3, 6>::new(f, SMatrix::zeros(), h, q, r).unwrap();
+        let ss = SteadyStateGain::solve(&cfg, 500).unwrap();
+        assert!(ss.gain().iter().all(|v| v.is_finite()));
+
+        let cfg32 = KalmanConfig::<f32, 16, 3, 6>::new(
+            f.cast(),
+            SMatrix::zeros(),
+            h.cast(),
+            q.cast(),
+            r.cast(),
+        )
+        .unwrap();
+        let ss32 = SteadyStateGain::solve(&cfg32, 500).unwrap();
+        // Compare with f64 on the same rounded model: F = I + A dt keeps only
+        // ~2 digits of A dt in f32, a model error the solver cannot undo.
+        let rounded = KalmanConfig::<f64, 16, 3, 6>::new(
+            cfg32.f().cast(),
+            SMatrix::zeros(),
+            cfg32.h().cast(),
+            cfg32.q().cast(),
+            cfg32.r().cast(),
+        )
+        .unwrap();
+        let reference = SteadyStateGain::solve(&rounded, 500).unwrap();
+        let scale = reference.gain().abs().max();
+        let diff = (ss32.gain().cast::<f64>() - reference.gain()).abs().max();
+        assert!(diff < 1e-3 * scale, "f32 gain off by {diff} (max {scale})");
+    }
+}
