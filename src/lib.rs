@@ -9,6 +9,7 @@ pub mod discretize;
 pub mod error;
 pub mod input;
 pub mod network;
+pub mod omnimagnet;
 pub mod scalar;
 
 pub use error::BuildError;
