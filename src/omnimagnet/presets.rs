@@ -1,7 +1,7 @@
 //! The paper's experiments as current profiles, plus a rotating-dipole drive.
 //!
 //! Heating runs start with every node at the ambient and stop at
-//! [`EXPERIMENT_STOP_C`](super::EXPERIMENT_STOP_C) on a solenoid or after
+//! [`EXPERIMENT_STOP_C`] on a solenoid or after
 //! [`Preset::DURATION_S`] (2 h), as the experiments did. Passive cooling
 //! starts from the end of the all-three heating run (documented choice: the
 //! hottest state the experiments reached), computed by
