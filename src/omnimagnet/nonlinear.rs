@@ -11,7 +11,7 @@
 //! `no_std`, allocation-free, `O(contacts)` work with about 20 `pow` calls:
 //! usable on target for re-linearisation.
 
-use super::data::{Contact, Correlation, Peer, SurfaceConvection, NODES, SOLENOIDS};
+use super::data::{Contact, Correlation, Peer, Solenoid, SurfaceConvection, NODES, SOLENOIDS};
 use super::Omnimagnet;
 use crate::network::Resistance;
 
@@ -127,8 +127,6 @@ impl Solenoid {
         Resistance::with_alpha(self.r0_ohm, self.alpha0_per_k, self.t_ref_k - ZERO_C_IN_K)
     }
 }
-
-use super::data::Solenoid;
 
 impl Omnimagnet {
     /// Heat capacities `rho V c_p(T)` \[J/K\] at `temps_c`.

@@ -375,6 +375,9 @@ fn relinearizer_slices_are_bounded_and_bitwise_equal_to_one_shot() {
         assert_eq!(r.active(), &one_shot);
         assert_eq!(r.poll(&hot, AMBIENT_C), RelinearizePoll::Idle);
     }
+    let bytes = core::mem::size_of::<Relinearizer>();
+    println!("Relinearizer: {bytes} bytes");
+    assert!(bytes < 17 * 1024);
     // The ambient threshold triggers too; NaN never does; a failed build
     // keeps the old model.
     let mut r = Relinearizer::new(
