@@ -47,7 +47,7 @@
 //! | worst `sum_i C_i A_ij + G_j0` | 1e-14 W/K | 5808 W/K (solenoid 2) |
 //! | slowest mode of `A` | 8.7e-5 1/s (3.2 h) | 3e-14 1/s (undamped) |
 //! | solenoid 1 after 1 h | 69.4 degC | 204.7 degC |
-//! | steady state / 115 degC | 75.2 degC, never | none; 115 degC at 2000 s |
+//! | steady state / 115 degC | 74.4 degC, never | none; 115 degC at 2000 s |
 //!
 //! The literal rows pump heat from low-conductivity nodes into high ones, so
 //! almost nothing reaches the covers that touch the ambient: the model has
@@ -81,10 +81,10 @@
 //!
 //! | `h` | time to 50 degC | after 2 h | steady state | `t_max` (115 degC) |
 //! |---|---|---|---|---|
-//! | x2 | 1344 s | 57.8 degC | 59 degC | never |
-//! | x1 (paper's CFs) | 1026 s | 72.1 degC | 75 degC | never |
-//! | x0.5 | 930 s | 90.4 degC | 95 degC | never |
-//! | x0.25 | - | - | 117 degC | > 2 h |
+//! | x2 | 1344 s | 57.8 degC | 59.1 degC | never |
+//! | x1 (paper's CFs) | 1026 s | 72.1 degC | 74.4 degC | never |
+//! | x0.5 | 930 s | 90.4 degC | 94.2 degC | never |
+//! | x0.25 | - | - | 115.5 degC | > 2 h |
 //!
 //! So with the paper's fitted correction factors *on an energy-conserving
 //! network*, the Omnimagnet does not reach 115 degC at 3.8 A; the paper's

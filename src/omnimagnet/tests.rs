@@ -513,6 +513,25 @@ fn plausibility_against_the_paper_and_sensitivity_to_h() {
         }
         previous = (t60, end);
     }
+    // Steady states (fixed point of the frozen-conductance network, which
+    // includes R(T)), down to h x0.25, where 115 degC is barely exceeded.
+    for scale in [2.0, 1.0, 0.5, 0.25] {
+        let m = PAPER
+            .with_convection(ConvectionParams::scaled(scale))
+            .unwrap();
+        let mut t = [AMBIENT_C; NODES];
+        for _ in 0..40 {
+            t = m
+                .network(&t, AMBIENT_C)
+                .unwrap()
+                .steady_state(&[3.8; 3], &[AMBIENT_C])
+                .unwrap();
+        }
+        let residual = m.derivative_k_per_s(&t, &[3.8; 3], AMBIENT_C);
+        assert!(residual.iter().all(|r| r.abs() < 1e-6), "{residual:?}");
+        println!("h x{scale}: steady state, solenoid 1 {:.1} degC", t[0]);
+        assert_eq!(t[0] > EXPERIMENT_STOP_C, scale < 0.3);
+    }
 }
 
 #[test]
