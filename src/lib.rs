@@ -11,6 +11,7 @@ pub mod filter;
 pub mod input;
 pub mod network;
 pub mod observer;
+pub mod omnimagnet;
 pub mod protect;
 pub mod scalar;
 pub mod sensors;
