@@ -10,8 +10,10 @@ pub mod error;
 pub mod input;
 pub mod network;
 pub mod scalar;
+pub mod solenoid;
 
 pub use error::BuildError;
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};
+pub use solenoid::SolenoidParams;
