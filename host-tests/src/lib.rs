@@ -16,6 +16,7 @@
 //!   step timing;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`]: figures and per-step timings;
+//! * [`synth`]: seeded synthetic traces for tests;
 //! * [`cli`]: the command-line front end.
 
 pub mod bench;
@@ -26,4 +27,5 @@ pub mod model_file;
 pub mod observer;
 pub mod plot;
 pub mod sim;
+pub mod synth;
 pub mod trace;
