@@ -276,13 +276,15 @@ impl Trace {
     }
 
     fn missing(&self, name: &str) -> Located {
+        // The closest header by edit distance (case-insensitive), if close.
+        let lower = name.to_lowercase();
         let hint = self
             .headers
             .iter()
-            .find(|h| {
-                h.eq_ignore_ascii_case(name) || h.to_lowercase().contains(&name.to_lowercase())
-            })
-            .map(|h| format!("; did you mean `{h}`?"))
+            .map(|h| (edit_distance(&h.to_lowercase(), &lower), h))
+            .filter(|(d, _)| *d <= 2.max(name.len() / 3))
+            .min_by_key(|(d, _)| *d)
+            .map(|(_, h)| format!("; did you mean `{h}`?"))
             .unwrap_or_default();
         Located {
             file: self.path.display().to_string(),
@@ -341,6 +343,22 @@ impl Trace {
             }
         })
     }
+}
+
+/// Levenshtein distance between two strings (by characters).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
 }
 
 /// Writes `time_s` then one column per series (all equal length).

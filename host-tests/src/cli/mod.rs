@@ -71,7 +71,7 @@ pub struct ModelArgs {
 pub struct TraceArgs {
     /// Sample period [s] for traces without a `time_s` column (row k is at
     /// k * period).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub sample_period_s: Option<f64>,
     /// Current input from a trace column or expression [A]: `COL=INPUT`,
     /// e.g. `i_coil=current` or `hypot(IdFbk,IqFbk)=current` (also `abs(C)`,
@@ -181,7 +181,12 @@ pub struct ReplayArgs {
     #[arg(long = "init", value_name = "COL=NODE")]
     init: Vec<String>,
     /// Alarm hysteresis below each node's critical temperature [K].
-    #[arg(long, value_name = "K", default_value_t = 2.0)]
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
     hysteresis_k: f64,
     /// Output CSV: `time_s` [s] then the estimate of every node [degC].
     #[arg(long, value_name = "OUT.csv")]
@@ -203,7 +208,7 @@ pub struct LimitsArgs {
     #[arg(long, value_name = "A[,A...]", value_delimiter = ',')]
     current_a: Vec<f64>,
     /// Horizon for the maximum safe current [s].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     horizon_s: Option<f64>,
     /// Ambient temperature [degC].
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
@@ -302,7 +307,7 @@ pub struct PlotArgs {
     #[arg(long, value_name = "IN.csv")]
     trace: Option<PathBuf>,
     /// Sample period [s] of a trace without `time_s`.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     sample_period_s: Option<f64>,
     /// A measured column drawn against a node: `COL=NODE` [degC].
     #[arg(long = "measure", value_name = "COL=NODE")]
