@@ -451,6 +451,7 @@ pub fn fit(
     let mut base = file.clone();
     let mut transforms = Vec::new();
     let mut x0 = Vec::new();
+    let mut initial = Vec::new();
     for p in params {
         let v = access_param(&mut base, &p.name, None)?;
         let (dlo, dhi) = default_bounds(&p.name, v);
@@ -480,6 +481,7 @@ pub fn fit(
             hi,
         };
         x0.push(t.to_x(v));
+        initial.push(v);
         transforms.push(t);
     }
     let mut prob = Problem {
@@ -492,7 +494,7 @@ pub fn fit(
         evaluations: 0,
     };
     let before = trace_fits(file, data, &inits)?;
-    let mut x = DVector::from_vec(x0.clone());
+    let mut x = DVector::from_vec(x0);
     let mut r = prob
         .residuals(&x)
         .context("the starting model gives non-finite temperatures")?;
@@ -530,8 +532,20 @@ pub fn fit(
                 .context("non-finite temperatures while differentiating")?;
             jac.set_column(j, &((rp - &r) / step));
         }
-        let jtj = jac.transpose() * &jac;
-        let g = jac.transpose() * &r;
+        let mut jtj = jac.transpose() * &jac;
+        let mut g = jac.transpose() * &r;
+        // Active set: a parameter on a bound whose descent direction points
+        // out of the box is held this iteration, so the others still move
+        // freely instead of being shortened by the projection.
+        for j in 0..n {
+            let held = (x[j] <= bounds[j].0 && g[j] > 0.0) || (x[j] >= bounds[j].1 && g[j] < 0.0);
+            if held {
+                jtj.row_mut(j).fill(0.0);
+                jtj.column_mut(j).fill(0.0);
+                jtj[(j, j)] = 1.0;
+                g[j] = 0.0;
+            }
+        }
         let max_diag = jtj.diagonal().max().max(1e-300);
         loop {
             let mut a = jtj.clone();
@@ -581,14 +595,14 @@ pub fn fit(
     let results = params
         .iter()
         .zip(&prob.transforms)
-        .zip(x.iter().zip(&x0))
-        .map(|((p, t), (xi, x0i))| {
+        .zip(x.iter().zip(&initial))
+        .map(|((p, t), (xi, v0))| {
             let fitted_v = t.to_p(*xi).clamp(t.lo, t.hi);
             let span = (t.hi - t.lo).abs();
             let tol = if span.is_finite() { 1e-9 * span } else { 0.0 };
             ParamResult {
                 name: p.name.clone(),
-                initial: t.to_p(*x0i),
+                initial: *v0,
                 fitted: fitted_v,
                 lo: t.lo,
                 hi: t.hi,

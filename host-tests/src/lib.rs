@@ -15,7 +15,7 @@
 //!   Kalman filter later) and a [`observer::Protection`] stage, scoring and
 //!   step timing;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
-//! * [`plot`], [`bench`]: figures and per-step timings;
+//! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;
 //! * [`cli`]: the command-line front end.
 

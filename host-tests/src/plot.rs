@@ -91,12 +91,24 @@ where
         (a, Some(b))
     };
     let temps: Vec<&Series> = data.estimated.iter().chain(&data.measured).collect();
-    let limits: Vec<f64> = data.limits.iter().map(|l| l.1).collect();
-    let Some((t0, t1, y0, y1)) = range(&temps, &limits) else {
+    let Some((_, _, d0, d1)) = range(&temps, &[]) else {
         bail!("plot: nothing to draw (no temperature series)");
     };
+    // A limit far above the data would squash it: such limits are named in
+    // a note instead of drawn.
+    let near = |v: f64| v <= d1 + 0.5 * (d1 - d0) && v >= d0 - 0.5 * (d1 - d0);
+    let (shown, off): (Vec<_>, Vec<_>) = data.limits.iter().partition(|l| near(l.1));
+    let limits: Vec<f64> = shown.iter().map(|l| l.1).collect();
+    let (t0, t1, y0, y1) = range(&temps, &limits).expect("series are not empty");
+    let mut y_desc = "temperature [degC]".to_string();
+    for (label, v) in &off {
+        y_desc.push_str(&format!("; {label} {v} off scale"));
+    }
+    // Long legends hide the plot: label at most about 10 estimated series.
+    let label_every = data.estimated.len().div_ceil(10).max(1);
     let mut chart = ChartBuilder::on(&top)
         .margin(12)
+        .margin_right(36)
         .x_label_area_size(36)
         .y_label_area_size(60)
         .build_cartesian_2d(t0..t1, y0..y1)
@@ -104,16 +116,19 @@ where
     chart
         .configure_mesh()
         .x_desc("time [s]")
-        .y_desc("temperature [degC]")
+        .y_desc(y_desc)
         .draw()
         .map_err(e)?;
-    for s in &data.estimated {
+    for (k, s) in data.estimated.iter().enumerate() {
         let c = color(s.color);
-        chart
+        let drawn = chart
             .draw_series(LineSeries::new(points(s), c.stroke_width(2)))
-            .map_err(e)?
-            .label(&s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            .map_err(e)?;
+        if k % label_every == 0 {
+            drawn.label(&s.label).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+            });
+        }
     }
     for s in &data.measured {
         let c = color(s.color);
@@ -123,7 +138,7 @@ where
             .label(&s.label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], c.stroke_width(1)));
     }
-    for (label, v) in &data.limits {
+    for (label, v) in &shown {
         chart
             .draw_series(DashedLineSeries::new(
                 vec![(t0, *v), (t1, *v)],
@@ -162,6 +177,7 @@ where
         let (_, _, c0, c1) = range(&currents, &[0.0]).expect("currents are not empty");
         let mut chart = ChartBuilder::on(&bottom)
             .margin(12)
+            .margin_right(36)
             .x_label_area_size(36)
             .y_label_area_size(60)
             .build_cartesian_2d(t0..t1, c0..c1)

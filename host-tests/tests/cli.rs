@@ -398,7 +398,7 @@ fn plot_draws_estimate_against_measurement() {
             "--width",
             "640",
         ])
-        .args(["--height", "480", "--json"])
+        .args(["--height", "480", "--alarm-s", "700", "--json"])
         .assert()
         .success();
     assert_eq!(json_of(&assert.get_output().stdout)["width"], 640);

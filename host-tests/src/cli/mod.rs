@@ -4,6 +4,10 @@
 //! [`main_entry`] prints the error chain to stderr and exits non-zero.
 //! Summaries go to stdout, as text or (with `--json`) as one JSON object.
 
+// The argument docs are also the `--help` text, where units read `[s]`,
+// `[degC]`: not intra-doc links.
+#![allow(rustdoc::broken_intra_doc_links)]
+
 mod bench_cmd;
 mod calibrate_cmd;
 mod common;
@@ -318,6 +322,9 @@ pub struct PlotArgs {
     /// A horizontal limit line: `LABEL=VALUE` [degC].
     #[arg(long = "limit-c", value_name = "LABEL=C")]
     limits: Vec<String>,
+    /// An alarm marker at this time [s]; repeatable.
+    #[arg(long = "alarm-s", value_name = "S")]
+    alarms: Vec<f64>,
     /// Output image (`.png` or `.svg`).
     #[arg(long, value_name = "FILE")]
     out: PathBuf,

@@ -81,6 +81,12 @@ pub fn run(a: PlotArgs) -> Result<()> {
             .with_context(|| format!("--limit-c `{l}`: `{v}` is not a finite number"))?;
         data.limits.push((label.to_string(), v));
     }
+    for t in &a.alarms {
+        if !t.is_finite() {
+            bail!("--alarm-s must be finite, got {t}");
+        }
+        data.alarms.push((*t, "alarm".into()));
+    }
     render(&data, &a.out, a.width, a.height)?;
     if a.json {
         common::print_json(&json!({

@@ -86,7 +86,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 .nodes
                 .iter()
                 .zip(&info.critical_c)
-                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical"), c)))
+                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
                 .take(1)
                 .collect(),
             alarms: result

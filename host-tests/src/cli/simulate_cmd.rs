@@ -83,7 +83,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
                 .nodes
                 .iter()
                 .zip(&info.critical_c)
-                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical"), c)))
+                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
                 .take(1)
                 .collect(),
             ..PlotData::default()
