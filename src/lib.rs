@@ -15,9 +15,11 @@ pub mod omnimagnet;
 pub mod protect;
 pub mod scalar;
 pub mod sensors;
+pub mod solenoid;
 
 pub use error::BuildError;
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};
 pub use sensors::{Reading, SensorFault, SensorResult};
+pub use solenoid::SolenoidParams;

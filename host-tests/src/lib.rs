@@ -1,2 +1,31 @@
-//! Host-side (std) tooling for `coil-thermal`: independent reference solvers,
-//! trace generators and replay helpers used by the tests and benchmarks.
+//! Host-side (std) tooling for `coil-thermal`: the `coil-thermal` command-line
+//! tool and the pieces it is built from.
+//!
+//! Layers, bottom up:
+//!
+//! * [`dynamic_network`]: a runtime-size mirror of the library's network and
+//!   explicit step (bit-identical in `f64`), for model files and calibration;
+//! * [`model_file`]: the TOML model format (`MODEL_FORMAT.md`) and its
+//!   validated, index-resolved [`model_file::Model`];
+//! * [`trace`]: strict CSV traces with `file:line:col` errors and column
+//!   expressions;
+//! * [`sim`]: the [`sim::Plant`] trait (file models now; grid and Omnimagnet
+//!   later), input bindings and open-loop simulation;
+//! * [`observer`]: replay with an [`observer::Estimator`] (open loop now, the
+//!   Kalman filter later) and a [`observer::Protection`] stage, scoring and
+//!   step timing;
+//! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
+//! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
+//! * [`synth`]: seeded synthetic traces for tests;
+//! * [`cli`]: the command-line front end.
+
+pub mod bench;
+pub mod calibrate;
+pub mod cli;
+pub mod dynamic_network;
+pub mod model_file;
+pub mod observer;
+pub mod plot;
+pub mod sim;
+pub mod synth;
+pub mod trace;

@@ -1,0 +1,364 @@
+//! The `coil-thermal` command line: argument definitions and dispatch.
+//!
+//! Every subcommand lives in its own module and returns `anyhow::Result`;
+//! [`main_entry`] prints the error chain to stderr and exits non-zero.
+//! Summaries go to stdout, as text or (with `--json`) as one JSON object.
+
+// The argument docs are also the `--help` text, where units read `[s]`,
+// `[degC]`: not intra-doc links.
+#![allow(rustdoc::broken_intra_doc_links)]
+
+mod bench_cmd;
+mod calibrate_cmd;
+mod common;
+mod limits_cmd;
+mod plot_cmd;
+mod replay_cmd;
+mod simulate_cmd;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+pub use common::{ModelSpec, NOT_YET};
+
+/// Thermal models of electromagnetic actuators: simulate, replay recorded
+/// traces, calibrate parameters, time the hot path and plot.
+///
+/// Units: temperatures in degC, currents in A, times in s, powers in W,
+/// capacities in J/K, conductances in W/K. Trace files are CSV with a header
+/// row; model files are TOML (see host-tests/MODEL_FORMAT.md).
+#[derive(Debug, Parser)]
+#[command(name = "coil-thermal", version, propagate_version = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Simulate a model under constant currents or a current trace; write
+    /// `time_s` then one column per node [degC].
+    Simulate(SimulateArgs),
+    /// Run the observer (model, filter, protection) over a recorded trace and
+    /// score it against held-out sensors.
+    Replay(ReplayArgs),
+    /// Time to limit, maximum safe current and runaway current (stage 2).
+    Limits(LimitsArgs),
+    /// Print the derated alarm limit (stage 2: needs the protection module).
+    AlarmLimit(AlarmLimitArgs),
+    /// Fit model parameters to one or more traces by bounded
+    /// Levenberg-Marquardt; write the fitted model file.
+    Calibrate(CalibrateArgs),
+    /// Per-step times of the hot-path steppers against the 0.1 ms budget.
+    Bench(BenchArgs),
+    /// Plot estimated vs measured temperatures and currents (PNG or SVG).
+    Plot(PlotArgs),
+}
+
+/// Which model to run.
+#[derive(Debug, Clone, Args)]
+pub struct ModelArgs {
+    /// Model: `solenoid` (layered HeSE coil), `hppa` (coil grid, stage 2),
+    /// `omnimagnet` (stage 2), or a model file path (TOML).
+    #[arg(long, value_name = "hppa|omnimagnet|solenoid|FILE")]
+    pub model: String,
+    /// Number of winding layers of `--model solenoid` (1..=64; the outer
+    /// surface is water cooled from 16 layers on).
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub layers: usize,
+}
+
+/// How trace columns feed the model.
+#[derive(Debug, Clone, Args, Default)]
+pub struct TraceArgs {
+    /// Sample period [s] for traces without a `time_s` column (row k is at
+    /// k * period).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub sample_period_s: Option<f64>,
+    /// Current input from a trace column or expression [A]: `COL=INPUT`,
+    /// e.g. `i_coil=current` or `hypot(IdFbk,IqFbk)=current` (also `abs(C)`,
+    /// `scale(C,K)`). Default: the source's `column`, else the input's name.
+    #[arg(long = "current", value_name = "EXPR=INPUT")]
+    pub currents: Vec<String>,
+    /// Boundary temperature from a trace column [degC]: `COL=BOUNDARY`.
+    /// Default: the boundary's `column`, else its name, else its `value_c`.
+    #[arg(long = "boundary", value_name = "EXPR=BOUNDARY")]
+    pub boundaries: Vec<String>,
+    /// A constant for a column the trace lacks (in the column's unit), e.g.
+    /// `speed=1500` [rpm] for a speed-dependent source.
+    #[arg(long = "const", value_name = "COL=VALUE")]
+    pub constants: Vec<String>,
+}
+
+/// HPPA grid drive patterns (stage 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Pattern {
+    /// Every coil driven.
+    All,
+    /// One row driven.
+    Row,
+    /// One line (column) driven.
+    Line,
+    /// A single coil driven.
+    OneCoil,
+}
+
+/// `simulate` arguments.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Constant current per input [A]: one value for every input, or one per
+    /// input in model order (`3,3,3`). Not with --trace.
+    #[arg(
+        long,
+        value_name = "A[,A...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    current_a: Vec<f64>,
+    /// Input trace (CSV) instead of constant currents.
+    #[arg(long, value_name = "IN.csv", conflicts_with_all = ["current_a", "duration_s"])]
+    trace: Option<PathBuf>,
+    /// Duration with constant currents [s] (>= 0).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    duration_s: Option<f64>,
+    /// Output sample period with constant currents [s] (> 0; the model
+    /// sub-steps internally as stability requires).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
+    dt_s: f64,
+    /// Ambient: the temperature of every boundary with constant currents
+    /// [degC] (default: each boundary's `value_c`).
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    ambient_c: Option<f64>,
+    /// HPPA grid rows (stage 2).
+    #[arg(long, value_name = "R")]
+    rows: Option<usize>,
+    /// HPPA grid columns (stage 2).
+    #[arg(long, value_name = "C")]
+    cols: Option<usize>,
+    /// HPPA grid drive pattern (stage 2).
+    #[arg(long, value_enum)]
+    pattern: Option<Pattern>,
+    #[command(flatten)]
+    trace_args: TraceArgs,
+    /// Output CSV: `time_s` [s] then one column per node [degC].
+    #[arg(long, value_name = "OUT.csv")]
+    out: PathBuf,
+    /// Also plot the run (`.png` or `.svg`).
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
+    /// Write the model actually run as a model file (e.g. the solenoid's).
+    #[arg(long, value_name = "MODEL.toml")]
+    write_model: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `replay` arguments.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Recorded trace (CSV) with inputs and measured temperatures.
+    #[arg(long, value_name = "IN.csv")]
+    trace: PathBuf,
+    #[command(flatten)]
+    trace_args: TraceArgs,
+    /// A sensor fused by the filter: `COL=NODE` [degC] (stage 2: needs the
+    /// Kalman filter; refused for now).
+    #[arg(long = "measure", value_name = "COL=NODE")]
+    measure: Vec<String>,
+    /// A held-out sensor, only scored: `COL=NODE` [degC].
+    #[arg(long = "truth", value_name = "COL=NODE")]
+    truth: Vec<String>,
+    /// A column that only sets a node's initial temperature (with
+    /// `[initial] policy = "measured"`): `COL=NODE` [degC].
+    #[arg(long = "init", value_name = "COL=NODE")]
+    init: Vec<String>,
+    /// Alarm hysteresis below each node's critical temperature [K].
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
+    hysteresis_k: f64,
+    /// Output CSV: `time_s` [s] then the estimate of every node [degC].
+    #[arg(long, value_name = "OUT.csv")]
+    out: PathBuf,
+    /// Also plot estimated vs measured (`.png` or `.svg`).
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `limits` arguments.
+#[derive(Debug, Args)]
+pub struct LimitsArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Constant current per input [A].
+    #[arg(long, value_name = "A[,A...]", value_delimiter = ',')]
+    current_a: Vec<f64>,
+    /// Horizon for the maximum safe current [s].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    horizon_s: Option<f64>,
+    /// Ambient temperature [degC].
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    ambient_c: Option<f64>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `alarm-limit` arguments.
+#[derive(Debug, Args)]
+pub struct AlarmLimitArgs {
+    /// Critical temperature of the element [degC].
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    critical_c: f64,
+    /// Ambient temperature [degC].
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    ambient_c: f64,
+    /// Derating factors a,b,c,d (dimensionless).
+    #[arg(long, value_name = "a,b,c,d", value_delimiter = ',')]
+    factors: Vec<f64>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `calibrate` arguments.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// A trace to fit (CSV); repeat for several.
+    #[arg(long = "trace", value_name = "IN.csv", required = true)]
+    traces: Vec<PathBuf>,
+    #[command(flatten)]
+    trace_args: TraceArgs,
+    /// A measured column the fit matches: `COL=NODE` [degC]; repeatable.
+    #[arg(long = "measure", value_name = "COL=NODE", required = true)]
+    measure: Vec<String>,
+    /// Parameters to fit, comma separated, each `NAME` or `NAME=LO:HI`:
+    /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
+    /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
+    /// [1/K], `.slope_ohm_per_k` [ohm/K], `.r_at_0c_ohm` [ohm], `.scale`,
+    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W]. Default bounds: a
+    /// factor 10 around positive values.
+    #[arg(
+        long,
+        value_name = "NAME[=LO:HI],...",
+        value_delimiter = ',',
+        required = true
+    )]
+    params: Vec<String>,
+    /// Iteration limit of Levenberg-Marquardt.
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    max_iterations: usize,
+    /// Fit every STRIDE-th row only (faster on long traces).
+    #[arg(long, value_name = "STRIDE", default_value_t = 1)]
+    stride: usize,
+    /// Where to write the fitted model file (TOML).
+    #[arg(long, value_name = "FITTED.toml")]
+    out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    no_progress: bool,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `bench` arguments.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Least wall-clock time per measurement run [ms].
+    #[arg(long, value_name = "MS", default_value_t = 40)]
+    min_time_ms: u64,
+    /// Runs per measurement (the median is reported).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    repeats: usize,
+    /// Print one JSON object: one key per measured step in ns, e.g.
+    /// `network_16_f32_ns`.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `plot` arguments.
+#[derive(Debug, Args)]
+pub struct PlotArgs {
+    /// Estimated temperatures: a CSV written by `simulate` or `replay`
+    /// (`time_s` [s], then nodes [degC]).
+    #[arg(long, value_name = "EST.csv")]
+    estimate: PathBuf,
+    /// Only these estimated columns (default: all).
+    #[arg(long = "node", value_name = "NODE")]
+    nodes: Vec<String>,
+    /// Recorded trace with measured temperatures and currents (CSV).
+    #[arg(long, value_name = "IN.csv")]
+    trace: Option<PathBuf>,
+    /// Sample period [s] of a trace without `time_s`.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    sample_period_s: Option<f64>,
+    /// A measured column drawn against a node: `COL=NODE` [degC].
+    #[arg(long = "measure", value_name = "COL=NODE")]
+    measure: Vec<String>,
+    /// A current column or expression of the trace for the lower panel [A].
+    #[arg(long = "current", value_name = "EXPR")]
+    currents: Vec<String>,
+    /// A horizontal limit line: `LABEL=VALUE` [degC].
+    #[arg(long = "limit-c", value_name = "LABEL=C")]
+    limits: Vec<String>,
+    /// An alarm marker at this time [s]; repeatable.
+    #[arg(long = "alarm-s", value_name = "S")]
+    alarms: Vec<f64>,
+    /// Output image (`.png` or `.svg`).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Image width [px].
+    #[arg(long, value_name = "PX", default_value_t = 1200)]
+    width: u32,
+    /// Image height [px].
+    #[arg(long, value_name = "PX", default_value_t = 800)]
+    height: u32,
+    /// Title (default: the estimate file's name).
+    #[arg(long)]
+    title: Option<String>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs the tool with the process arguments; the exit code to return.
+pub fn main_entry() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Simulate(a) => simulate_cmd::run(a),
+        Command::Replay(a) => replay_cmd::run(a),
+        Command::Limits(a) => limits_cmd::limits(a),
+        Command::AlarmLimit(a) => limits_cmd::alarm_limit(a),
+        Command::Calibrate(a) => calibrate_cmd::run(a),
+        Command::Bench(a) => bench_cmd::run(a),
+        Command::Plot(a) => plot_cmd::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

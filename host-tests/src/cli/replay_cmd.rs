@@ -1,0 +1,152 @@
+//! `coil-thermal replay`.
+
+use anyhow::{bail, Result};
+use serde_json::json;
+
+use super::common::{self, NOT_YET};
+use super::ReplayArgs;
+use crate::observer::{replay, CriticalThreshold, Estimator, OpenLoop};
+use crate::plot::{render, PlotData, Series};
+use crate::sim::Drive;
+use crate::trace::write_csv;
+
+/// Runs `replay`.
+pub fn run(a: ReplayArgs) -> Result<()> {
+    let plant = common::plant(&a.model)?;
+    let info = plant.info().clone();
+    let trace = common::read_trace(&a.trace, a.trace_args.sample_period_s)?;
+    let bind = common::bindings(&a.trace_args)?;
+    let drive = Drive::from_trace(&info, &trace, &bind)?;
+    let measured = common::sensors(&a.measure, "--measure", &info, &trace)?;
+    let truth = common::sensors(&a.truth, "--truth", &info, &trace)?;
+    let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
+    if !(a.hysteresis_k.is_finite() && a.hysteresis_k >= 0.0) {
+        bail!(
+            "--hysteresis-k must be finite and >= 0 K, got {}",
+            a.hysteresis_k
+        );
+    }
+    // The Kalman filter (src/filter) will be the estimator when sensors are
+    // fused; until then only the open-loop model exists.
+    let mut estimator: Box<dyn Estimator> = if measured.is_empty() {
+        Box::new(OpenLoop(plant))
+    } else {
+        bail!(
+            "--measure (fusing sensors with the Kalman filter) is {NOT_YET} in this build (stage 2: src/filter); use --truth to score the open-loop model"
+        );
+    };
+    let mut protection = CriticalThreshold::new(&info, a.hysteresis_k);
+    // Initial-only columns join the truth list for the initial state but are
+    // not scored.
+    let mut init_sensors = truth.clone();
+    init_sensors.extend(init_only);
+    let mut result = replay(
+        estimator.as_mut(),
+        &mut protection,
+        &drive,
+        &measured,
+        &init_sensors,
+    )?;
+    result.scores.truncate(truth.len());
+    write_csv(&a.out, &info.nodes, &drive.time_s, &result.estimate)?;
+    if let Some(path) = &a.plot {
+        let series = |label: String, values: &Vec<f64>, color: usize| Series {
+            label,
+            time_s: drive.time_s.clone(),
+            values: values.clone(),
+            color,
+        };
+        let data = PlotData {
+            title: format!("{}: replay of {}", info.name, a.trace.display()),
+            estimated: info
+                .nodes
+                .iter()
+                .zip(&result.estimate)
+                .enumerate()
+                .map(|(i, (n, v))| series(format!("{n} (estimate)"), v, i))
+                .collect(),
+            measured: truth
+                .iter()
+                .map(|t| {
+                    series(
+                        format!("{} (truth -> {})", t.column, info.nodes[t.node]),
+                        &t.values_c,
+                        t.node,
+                    )
+                })
+                .collect(),
+            currents: info
+                .inputs
+                .iter()
+                .zip(&drive.currents)
+                .enumerate()
+                .map(|(i, (ch, v))| series(format!("{} [A]", ch.name), v, i))
+                .collect(),
+            limits: info
+                .nodes
+                .iter()
+                .zip(&info.critical_c)
+                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
+                .take(1)
+                .collect(),
+            alarms: result
+                .alarms
+                .iter()
+                .filter(|e| e.kind == "raised")
+                .map(|e| (e.time_s, e.node.clone()))
+                .collect(),
+        };
+        render(&data, path, 1200, 800)?;
+    }
+    let summary = json!({
+        "command": "replay",
+        "model": info.name,
+        "estimator": estimator.kind(),
+        "trace": a.trace.display().to_string(),
+        "rows": drive.len(),
+        "truth": result.scores,
+        "alarms": result.alarms,
+        "step_time": result.times,
+        "out": a.out.display().to_string(),
+    });
+    if a.json {
+        common::print_json(&summary);
+        return Ok(());
+    }
+    println!(
+        "replayed `{}` ({}) over {} rows of {} -> {}",
+        info.name,
+        estimator.kind(),
+        drive.len(),
+        a.trace.display(),
+        a.out.display()
+    );
+    if !result.scores.is_empty() {
+        println!(
+            "{:<20} {:<16} {:>10} {:>10} {:>12} {:>10}",
+            "truth column", "node", "MSE [K^2]", "RMSE [K]", "max err [K]", "at [s]"
+        );
+        for s in &result.scores {
+            println!(
+                "{:<20} {:<16} {:>10.4} {:>10.4} {:>12.4} {:>10.1}",
+                s.column, s.node, s.mse_k2, s.rmse_k, s.max_abs_error_k, s.max_error_time_s
+            );
+        }
+    }
+    if result.alarms.is_empty() {
+        println!("alarms: none");
+    } else {
+        for e in &result.alarms {
+            println!(
+                "alarm {} at t = {:.1} s: {} at {:.2} degC (limit {:.1} degC)",
+                e.kind, e.time_s, e.node, e.temp_c, e.limit_c
+            );
+        }
+    }
+    let t = &result.times;
+    println!(
+        "step time [ns]: p50 {:.0}, p90 {:.0}, p99 {:.0}, max {:.0}; p99 is {:.4} of the 0.1 ms budget",
+        t.p50_ns, t.p90_ns, t.p99_ns, t.max_ns, t.p99_over_budget
+    );
+    Ok(())
+}

@@ -1,0 +1,740 @@
+//! The model file: a thermal network described in TOML (see
+//! `host-tests/MODEL_FORMAT.md` for the format with a full example).
+//!
+//! [`ModelFile`] is the serde image of the file (what is read, fitted and
+//! written back); [`Model`] is the validated, index-resolved form that the
+//! simulator runs: a [`DynNetwork`] plus the names and the input bindings.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use coil_thermal::{Network, Resistance, SolenoidParams};
+use serde::{Deserialize, Serialize};
+
+use crate::dynamic_network::DynNetwork;
+
+/// A model file as written on disk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    /// Short name of the model (for reports and plots).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Free text: where the numbers come from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// Largest `h sum(G)/C` of one explicit sub-step (default 0.5): trace
+    /// intervals are split into equal sub-steps to stay below it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_step_ratio: Option<f64>,
+    /// State nodes (`[[node]]`).
+    #[serde(rename = "node")]
+    pub nodes: Vec<NodeSpec>,
+    /// Boundaries with a given temperature (`[[boundary]]`).
+    #[serde(rename = "boundary", default)]
+    pub boundaries: Vec<BoundarySpec>,
+    /// Conductances (`[[conductance]]`).
+    #[serde(rename = "conductance", default)]
+    pub conductances: Vec<ConductanceSpec>,
+    /// Joule sources (`[[source]]`).
+    #[serde(rename = "source", default)]
+    pub sources: Vec<SourceSpec>,
+    /// Constant powers (`[[fixed_power]]`).
+    #[serde(rename = "fixed_power", default, skip_serializing_if = "Vec::is_empty")]
+    pub fixed_powers: Vec<FixedPowerSpec>,
+    /// Initial temperature policy (`[initial]`).
+    #[serde(default)]
+    pub initial: InitialSpec,
+}
+
+/// A state node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeSpec {
+    /// Unique name (used by conductances, sources, `--measure`, CSV headers).
+    pub name: String,
+    /// Heat capacity \[J/K\], > 0.
+    pub capacity_j_per_k: f64,
+    /// Critical temperature \[degC\] for limits and alarms (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub critical_c: Option<f64>,
+}
+
+/// A boundary node: its temperature comes from a trace column or a constant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundarySpec {
+    /// Unique name (ambient, coolant, ...), distinct from the node names.
+    pub name: String,
+    /// Trace column (or expression) giving its temperature \[degC\];
+    /// defaults to the boundary's name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub column: Option<String>,
+    /// Constant temperature \[degC\], used when the trace has no such column.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_c: Option<f64>,
+}
+
+/// A conductance between two nodes, or a node and a boundary. Exactly one
+/// of `g_w_per_k`, `r_k_per_w`, or `h_w_per_m2k` with `area_m2`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConductanceSpec {
+    /// Name for calibration (`conductance.<name>`); default `<a>-<b>`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The two ends: node or boundary names (at least one a node).
+    pub between: [String; 2],
+    /// Conductance \[W/K\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g_w_per_k: Option<f64>,
+    /// Thermal resistance \[K/W\] (`g = 1/r`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub r_k_per_w: Option<f64>,
+    /// Convection coefficient \[W/(m^2 K)\] (`g = h * area`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub h_w_per_m2k: Option<f64>,
+    /// Convection area \[m^2\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub area_m2: Option<f64>,
+    /// Correction factor multiplying the conductance (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor: Option<f64>,
+}
+
+/// A Joule source: `P = scale * R(T_node) * I^2 * (1 + a1 f + a2 f^2)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSpec {
+    /// Name for calibration (`source.<name>.<param>`); default: the node.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Heated node.
+    pub node: String,
+    /// Current input name (several sources may share one, e.g. series
+    /// layers); default: the source name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input: Option<String>,
+    /// Default trace column (or expression) of the input's current \[A\];
+    /// default: the input name. `--current COL=INPUT` overrides.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub column: Option<String>,
+    /// Resistance at `t_ref_c` \[ohm\] (form 1, with `alpha_per_k`, `t_ref_c`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub r0_ohm: Option<f64>,
+    /// Temperature coefficient \[1/K\] (form 1; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_per_k: Option<f64>,
+    /// Reference temperature of `r0_ohm` \[degC\] (form 1; default 20).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_ref_c: Option<f64>,
+    /// Slope dR/dT \[ohm/K\] (form 2, with `r_at_0c_ohm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slope_ohm_per_k: Option<f64>,
+    /// Resistance extrapolated to 0 degC \[ohm\] (form 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub r_at_0c_ohm: Option<f64>,
+    /// Power scale `k` (default 1; 1.5 for amplitude-invariant d/q currents).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
+    /// Optional speed-dependent factor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<SpeedSpec>,
+}
+
+/// Speed factor `1 + a1 f + a2 f^2` with `f = column / reference`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedSpec {
+    /// Trace column (or expression) of the speed, in the unit of `reference`.
+    pub column: String,
+    /// Reference speed (same unit as the column, e.g. rpm), > 0.
+    pub reference: f64,
+    /// Linear coefficient (default 0).
+    #[serde(default)]
+    pub a1: f64,
+    /// Quadratic coefficient (default 0).
+    #[serde(default)]
+    pub a2: f64,
+}
+
+/// A constant power at a node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FixedPowerSpec {
+    /// Heated node.
+    pub node: String,
+    /// Power \[W\].
+    pub power_w: f64,
+}
+
+/// How the node temperatures start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InitialPolicy {
+    /// Every node at the mean of the boundary temperatures at the first row.
+    #[default]
+    Boundary,
+    /// Every node at `uniform_c`.
+    Uniform,
+    /// Nodes with a mapped measured column (`--measure`, `--truth`,
+    /// `--init`) start at its first value; the others as `Boundary`.
+    Measured,
+}
+
+/// The `[initial]` table.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// The policy (default `boundary`).
+    #[serde(default)]
+    pub policy: InitialPolicy,
+    /// Temperature \[degC\] for `uniform`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uniform_c: Option<f64>,
+}
+
+/// Line (1-based) of the `index`-th `[[table]]` header in `src`, for messages.
+pub fn table_line(src: &str, table: &str, index: usize) -> Option<usize> {
+    let header = format!("[[{table}]]");
+    src.lines()
+        .enumerate()
+        .filter(|(_, l)| l.trim_start().starts_with(&header))
+        .nth(index)
+        .map(|(n, _)| n + 1)
+}
+
+/// Line and column (1-based) of a byte offset.
+pub fn line_col(src: &str, offset: usize) -> (usize, usize) {
+    let before = &src[..offset.min(src.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before
+        .rfind('\n')
+        .map_or(before.len(), |p| before.len() - p - 1)
+        + 1;
+    (line, col)
+}
+
+impl ModelFile {
+    /// Parses TOML; errors carry `file:line:col`.
+    pub fn parse(src: &str, file: &str) -> Result<Self> {
+        let parsed: Self = toml::from_str(src).map_err(|e| {
+            let (line, col) = e.span().map_or((1, 1), |s| line_col(src, s.start));
+            anyhow::anyhow!("{file}:{line}:{col}: {}", e.message().trim())
+        })?;
+        // Validate now, so semantic errors also point at the file.
+        Model::build(&parsed).map_err(|e| {
+            let msg = format!("{e:#}");
+            let loc = locate(src, &msg).unwrap_or(1);
+            anyhow::anyhow!("{file}:{loc}:1: {msg}")
+        })?;
+        Ok(parsed)
+    }
+
+    /// Reads and validates a model file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let src = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read model file", path.display()))?;
+        Self::parse(&src, &path.display().to_string())
+    }
+
+    /// The file as TOML text.
+    pub fn to_toml(&self) -> Result<String> {
+        Ok(toml::to_string_pretty(self)?)
+    }
+
+    /// A library network with named nodes, as a model file: how device
+    /// models built in Rust reach the host tool. `input_names[m]` names the
+    /// current input of source `m` (sources sharing a name share a current).
+    pub fn from_network<const N: usize, const B: usize, const M: usize>(
+        net: &Network<N, B, M>,
+        node_names: &[String; N],
+        boundary_names: &[String; B],
+        input_names: &[String; M],
+    ) -> Self {
+        let nodes = node_names
+            .iter()
+            .enumerate()
+            .map(|(i, name)| NodeSpec {
+                name: name.clone(),
+                capacity_j_per_k: net.capacity_j_per_k(i).unwrap_or(f64::NAN),
+                critical_c: None,
+            })
+            .collect();
+        let boundaries = boundary_names
+            .iter()
+            .map(|name| BoundarySpec {
+                name: name.clone(),
+                column: None,
+                value_c: None,
+            })
+            .collect();
+        let mut conductances = Vec::new();
+        for a in 0..N {
+            for b in (a + 1)..N {
+                let g = net.conductance_w_per_k(a, b);
+                if g != 0.0 {
+                    conductances.push(ConductanceSpec::g(&node_names[a], &node_names[b], g));
+                }
+            }
+            for (bd, bname) in boundary_names.iter().enumerate() {
+                let g = net.boundary_conductance_w_per_k(a, bd);
+                if g != 0.0 {
+                    conductances.push(ConductanceSpec::g(&node_names[a], bname, g));
+                }
+            }
+        }
+        let mut per_node = [0usize; N];
+        for m in 0..M {
+            if let Some(s) = net.source(m) {
+                per_node[s.node] += 1;
+            }
+        }
+        let sources = (0..M)
+            .filter_map(|m| net.source(m).map(|s| (m, s)))
+            .map(|(m, s)| SourceSpec {
+                // Named after the node, or node_m when a node has several.
+                name: Some(if per_node[s.node] > 1 {
+                    format!("{}_{m}", node_names[s.node])
+                } else {
+                    node_names[s.node].clone()
+                }),
+                node: node_names[s.node].clone(),
+                input: Some(input_names[m].clone()),
+                column: None,
+                r0_ohm: None,
+                alpha_per_k: None,
+                t_ref_c: None,
+                slope_ohm_per_k: Some(s.resistance.slope_ohm_per_k),
+                r_at_0c_ohm: Some(s.resistance.r_at_0c_ohm),
+                scale: None,
+                speed: None,
+            })
+            .collect();
+        let fixed_powers = (0..N)
+            .filter(|&i| net.fixed_power_w(i) != 0.0)
+            .map(|i| FixedPowerSpec {
+                node: node_names[i].clone(),
+                power_w: net.fixed_power_w(i),
+            })
+            .collect();
+        Self {
+            name: None,
+            description: None,
+            max_step_ratio: None,
+            nodes,
+            boundaries,
+            conductances,
+            sources,
+            fixed_powers,
+            initial: InitialSpec::default(),
+        }
+    }
+
+    /// The layered solenoid of [`coil_thermal::solenoid`] with `layers`
+    /// layers (1..=64), from the library's own network: nodes `layer_00`
+    /// (innermost) ..., boundary `water` (16 degC unless a trace column
+    /// `water` is given), one series input `current`.
+    pub fn solenoid(params: &SolenoidParams, layers: usize) -> Result<Self> {
+        macro_rules! build {
+            ($($n:literal)*) => {
+                match layers {
+                    $($n => Self::solenoid_sized::<$n>(params),)*
+                    _ => bail!("--layers must be 1..=64, got {layers}"),
+                }
+            };
+        }
+        build!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30
+            31 32 33 34 35 36 37 38 39 40 41 42 43 44 45 46 47 48 49 50 51 52 53 54 55 56 57 58
+            59 60 61 62 63 64)
+    }
+
+    fn solenoid_sized<const L: usize>(params: &SolenoidParams) -> Result<Self> {
+        let net = params
+            .network::<L>()
+            .map_err(|e| anyhow::anyhow!("solenoid: {e}"))?;
+        let names: [String; L] = core::array::from_fn(|i| format!("layer_{i:02}"));
+        let inputs: [String; L] = core::array::from_fn(|_| "current".to_string());
+        let mut file = Self::from_network(&net, &names, &["water".to_string()], &inputs);
+        file.name = Some(format!("solenoid-{L}"));
+        file.description = Some(format!(
+            "{L}-layer HeSE solenoid section (coil_thermal::solenoid, default parameters)"
+        ));
+        file.boundaries[0].value_c = Some(16.0);
+        for node in &mut file.nodes {
+            // Gap-filling epoxy rated 180 degC (solenoid-layers-runaway.md).
+            node.critical_c = Some(180.0);
+        }
+        Ok(file)
+    }
+}
+
+/// Finds the line of the table an error message names (`[[kind]] #k`).
+fn locate(src: &str, msg: &str) -> Option<usize> {
+    let start = msg.find("[[")?;
+    let rest = &msg[start + 2..];
+    let end = rest.find("]]")?;
+    let kind = &rest[..end];
+    let hash = rest[end..].find('#')?;
+    let digits: String = rest[end + hash + 1..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .collect();
+    let k: usize = digits.parse().ok()?;
+    table_line(src, kind, k.checked_sub(1)?)
+}
+
+impl ConductanceSpec {
+    /// A plain `g_w_per_k` conductance between `a` and `b`.
+    pub fn g(a: &str, b: &str, g_w_per_k: f64) -> Self {
+        Self {
+            name: None,
+            between: [a.to_string(), b.to_string()],
+            g_w_per_k: Some(g_w_per_k),
+            r_k_per_w: None,
+            h_w_per_m2k: None,
+            area_m2: None,
+            factor: None,
+        }
+    }
+
+    /// Its calibration name: `name`, or `<a>-<b>`.
+    pub fn key(&self) -> String {
+        self.name
+            .clone()
+            .unwrap_or_else(|| format!("{}-{}", self.between[0], self.between[1]))
+    }
+
+    /// Conductance \[W/K\] (before `factor`), or why it is ill-formed.
+    pub fn base_w_per_k(&self) -> Result<f64> {
+        match (
+            self.g_w_per_k,
+            self.r_k_per_w,
+            self.h_w_per_m2k,
+            self.area_m2,
+        ) {
+            (Some(g), None, None, None) => Ok(g),
+            (None, Some(r), None, None) => {
+                if !(r.is_finite() && r > 0.0) {
+                    bail!("r_k_per_w must be finite and > 0 K/W, got {r}");
+                }
+                Ok(1.0 / r)
+            }
+            (None, None, Some(h), Some(a)) => Ok(h * a),
+            _ => bail!(
+                "give exactly one of g_w_per_k, r_k_per_w, or h_w_per_m2k together with area_m2"
+            ),
+        }
+    }
+}
+
+impl SourceSpec {
+    /// Its calibration name: `name`, or the node.
+    pub fn key(&self) -> &str {
+        self.name.as_deref().unwrap_or(&self.node)
+    }
+
+    /// Its input name: `input`, or the source name.
+    pub fn input_name(&self) -> &str {
+        self.input.as_deref().unwrap_or_else(|| self.key())
+    }
+
+    /// The resistance line, or why it is ill-formed.
+    pub fn resistance(&self) -> Result<Resistance> {
+        let form1 = self.r0_ohm.is_some() || self.alpha_per_k.is_some() || self.t_ref_c.is_some();
+        let form2 = self.slope_ohm_per_k.is_some() || self.r_at_0c_ohm.is_some();
+        let r = match (form1, form2) {
+            (true, false) => {
+                let r0 = self
+                    .r0_ohm
+                    .context("r0_ohm is required with alpha_per_k/t_ref_c")?;
+                Resistance::with_alpha(
+                    r0,
+                    self.alpha_per_k.unwrap_or(0.0),
+                    self.t_ref_c.unwrap_or(20.0),
+                )
+            }
+            (false, true) => Resistance::linear_fit(
+                self.slope_ohm_per_k.unwrap_or(0.0),
+                self.r_at_0c_ohm
+                    .context("r_at_0c_ohm is required with slope_ohm_per_k")?,
+            ),
+            _ => bail!(
+                "give either r0_ohm (+ alpha_per_k, t_ref_c) or r_at_0c_ohm (+ slope_ohm_per_k)"
+            ),
+        };
+        let t_ref = self.t_ref_c.unwrap_or(20.0);
+        if !r.is_valid_at(t_ref) {
+            bail!("resistance must be finite and > 0 ohm at {t_ref} degC");
+        }
+        Ok(r)
+    }
+}
+
+/// How one Joule source is driven by the trace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceDrive {
+    /// Index into [`Model::inputs`].
+    pub input: usize,
+    /// Power scale `k`.
+    pub scale: f64,
+    /// Speed factor, if any: (signal index into [`Model::signals`], reference, a1, a2).
+    pub speed: Option<(usize, f64, f64, f64)>,
+}
+
+/// One current input of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputSpec {
+    /// Input name.
+    pub name: String,
+    /// Default column (or expression).
+    pub column: String,
+}
+
+/// A validated, index-resolved model.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Model name.
+    pub name: String,
+    /// Node names in state order.
+    pub nodes: Vec<String>,
+    /// Critical temperature of each node \[degC\], if given.
+    pub critical_c: Vec<Option<f64>>,
+    /// Boundaries in order.
+    pub boundaries: Vec<BoundarySpec>,
+    /// Current inputs in order of first use.
+    pub inputs: Vec<InputSpec>,
+    /// Extra signal columns the sources need (speed), in order.
+    pub signals: Vec<String>,
+    /// Drive of each network source (same order as the network's sources).
+    pub drives: Vec<SourceDrive>,
+    /// The network.
+    pub network: DynNetwork,
+    /// Sub-step ratio bound.
+    pub max_step_ratio: f64,
+    /// Initial temperature policy.
+    pub initial: InitialSpec,
+}
+
+impl Model {
+    /// Validates a model file and resolves every name to an index. Errors
+    /// name the table entry as `[[kind]] #k` (1-based).
+    pub fn build(file: &ModelFile) -> Result<Self> {
+        if file.nodes.is_empty() {
+            bail!("the model has no [[node]]");
+        }
+        let mut names: BTreeMap<&str, Endpoint> = BTreeMap::new();
+        for (k, n) in file.nodes.iter().enumerate() {
+            if !(n.capacity_j_per_k.is_finite() && n.capacity_j_per_k > 0.0) {
+                bail!(
+                    "[[node]] #{} `{}`: capacity_j_per_k must be finite and > 0 J/K, got {}",
+                    k + 1,
+                    n.name,
+                    n.capacity_j_per_k
+                );
+            }
+            if let Some(c) = n.critical_c {
+                if !c.is_finite() {
+                    bail!(
+                        "[[node]] #{} `{}`: critical_c must be finite",
+                        k + 1,
+                        n.name
+                    );
+                }
+            }
+            if names.insert(&n.name, Endpoint::Node(k)).is_some() {
+                bail!("[[node]] #{}: duplicate name `{}`", k + 1, n.name);
+            }
+        }
+        for (k, b) in file.boundaries.iter().enumerate() {
+            if names.insert(&b.name, Endpoint::Boundary(k)).is_some() {
+                bail!("[[boundary]] #{}: duplicate name `{}`", k + 1, b.name);
+            }
+            if let Some(v) = b.value_c {
+                if !v.is_finite() {
+                    bail!(
+                        "[[boundary]] #{} `{}`: value_c must be finite",
+                        k + 1,
+                        b.name
+                    );
+                }
+            }
+        }
+        let known = || names.keys().copied().collect::<Vec<_>>().join(", ");
+        let caps = file.nodes.iter().map(|n| n.capacity_j_per_k).collect();
+        let mut network = DynNetwork::new(caps, file.boundaries.len())?;
+        let mut keys = BTreeMap::new();
+        for (k, c) in file.conductances.iter().enumerate() {
+            let ctx = || format!("[[conductance]] #{} `{}`", k + 1, c.key());
+            let ends = c
+                .between
+                .iter()
+                .map(|n| {
+                    names.get(n.as_str()).copied().with_context(|| {
+                        format!(
+                            "{}: unknown node or boundary `{n}` (known: {})",
+                            ctx(),
+                            known()
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let g = c.base_w_per_k().with_context(ctx)? * c.factor.unwrap_or(1.0);
+            if !(g.is_finite() && g >= 0.0) {
+                bail!(
+                    "{}: conductance must be finite and >= 0 W/K, got {g}",
+                    ctx()
+                );
+            }
+            if keys.insert(c.key(), k).is_some() {
+                bail!("{}: duplicate conductance name (set `name`)", ctx());
+            }
+            match (ends[0], ends[1]) {
+                (Endpoint::Node(a), Endpoint::Node(b)) => {
+                    if a == b {
+                        bail!("{}: a conductance from a node to itself", ctx());
+                    }
+                    network.connect(a, b, g)?
+                }
+                (Endpoint::Node(a), Endpoint::Boundary(b))
+                | (Endpoint::Boundary(b), Endpoint::Node(a)) => {
+                    network.connect_boundary(a, b, g)?
+                }
+                _ => bail!("{}: joins two boundaries", ctx()),
+            }
+        }
+        let mut inputs: Vec<InputSpec> = Vec::new();
+        let mut signals: Vec<String> = Vec::new();
+        let mut drives = Vec::new();
+        let mut source_keys = BTreeMap::new();
+        for (k, s) in file.sources.iter().enumerate() {
+            let ctx = || format!("[[source]] #{} `{}`", k + 1, s.key());
+            let node = match names.get(s.node.as_str()) {
+                Some(Endpoint::Node(i)) => *i,
+                _ => bail!(
+                    "{}: unknown node `{}` (nodes: {})",
+                    ctx(),
+                    s.node,
+                    file.nodes
+                        .iter()
+                        .map(|n| n.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
+            if source_keys.insert(s.key().to_string(), k).is_some() {
+                bail!("{}: duplicate source name (set `name`)", ctx());
+            }
+            let resistance = s.resistance().with_context(ctx)?;
+            network.joule_source(node, resistance)?;
+            let input_name = s.input_name().to_string();
+            let column = s.column.clone().unwrap_or_else(|| input_name.clone());
+            let input = match inputs.iter().position(|i| i.name == input_name) {
+                Some(i) => i,
+                None => {
+                    inputs.push(InputSpec {
+                        name: input_name,
+                        column,
+                    });
+                    inputs.len() - 1
+                }
+            };
+            let scale = s.scale.unwrap_or(1.0);
+            if !(scale.is_finite() && scale >= 0.0) {
+                bail!("{}: scale must be finite and >= 0", ctx());
+            }
+            let speed = match &s.speed {
+                None => None,
+                Some(sp) => {
+                    if !(sp.reference.is_finite() && sp.reference > 0.0) {
+                        bail!("{}: speed.reference must be finite and > 0", ctx());
+                    }
+                    if !(sp.a1.is_finite() && sp.a2.is_finite()) {
+                        bail!("{}: speed.a1 and speed.a2 must be finite", ctx());
+                    }
+                    let idx = match signals.iter().position(|c| *c == sp.column) {
+                        Some(i) => i,
+                        None => {
+                            signals.push(sp.column.clone());
+                            signals.len() - 1
+                        }
+                    };
+                    Some((idx, sp.reference, sp.a1, sp.a2))
+                }
+            };
+            drives.push(SourceDrive {
+                input,
+                scale,
+                speed,
+            });
+        }
+        for (k, f) in file.fixed_powers.iter().enumerate() {
+            let node = match names.get(f.node.as_str()) {
+                Some(Endpoint::Node(i)) => *i,
+                _ => bail!("[[fixed_power]] #{}: unknown node `{}`", k + 1, f.node),
+            };
+            network
+                .fixed_power(node, f.power_w)
+                .with_context(|| format!("[[fixed_power]] #{}", k + 1))?;
+        }
+        let max_step_ratio = file.max_step_ratio.unwrap_or(0.5);
+        if !(max_step_ratio > 0.0 && max_step_ratio < 1.0) {
+            bail!("max_step_ratio must be in (0, 1), got {max_step_ratio}");
+        }
+        if file.initial.policy == InitialPolicy::Uniform
+            && !file.initial.uniform_c.is_some_and(f64::is_finite)
+        {
+            bail!("[initial] policy = \"uniform\" needs a finite uniform_c");
+        }
+        Ok(Self {
+            name: file.name.clone().unwrap_or_else(|| "model".into()),
+            nodes: file.nodes.iter().map(|n| n.name.clone()).collect(),
+            critical_c: file.nodes.iter().map(|n| n.critical_c).collect(),
+            boundaries: file.boundaries.clone(),
+            inputs,
+            signals,
+            drives,
+            network,
+            max_step_ratio,
+            initial: file.initial.clone(),
+        })
+    }
+
+    /// Index of node `name`.
+    pub fn node_index(&self, name: &str) -> Result<usize> {
+        self.nodes.iter().position(|n| n == name).with_context(|| {
+            format!(
+                "model `{}` has no node `{name}` (nodes: {})",
+                self.name,
+                self.nodes.join(", ")
+            )
+        })
+    }
+
+    /// Effective current of every network source \[A\]: `sqrt(k (1 + a1 f +
+    /// a2 f^2)) |I|`, so that the library's `R(T) I^2` gives the source's
+    /// power. `currents_a` per input, `signals` per signal.
+    pub fn effective_currents(&self, currents_a: &[f64], signals: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(self.drives.iter().map(|d| {
+            let mut factor = d.scale;
+            if let Some((s, reference, a1, a2)) = d.speed {
+                let f = signals[s] / reference;
+                factor *= (1.0 + a1 * f + a2 * f * f).max(0.0);
+            }
+            let i = currents_a[d.input];
+            if factor == 1.0 {
+                i
+            } else {
+                factor.sqrt() * i.abs()
+            }
+        }));
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Endpoint {
+    Node(usize),
+    Boundary(usize),
+}

@@ -1,0 +1,390 @@
+//! Plants (thermal models the tool can run) and their input series.
+//!
+//! A [`Plant`] is anything with named nodes that advances over an interval
+//! with currents, boundary temperatures and extra signals held (zero-order
+//! hold: row `k`'s inputs act over `[t_k, t_k+1)`). [`FilePlant`] runs a
+//! model file on the [`DynNetwork`](crate::dynamic_network::DynNetwork);
+//! the HPPA grid and the Omnimagnet will be further `Plant`s wrapping their
+//! library steppers, described by the same [`PlantInfo`].
+
+use anyhow::{bail, Context, Result};
+
+use crate::model_file::{InitialPolicy, InitialSpec, Model};
+use crate::trace::{ColumnExpr, Trace};
+
+/// One named input channel of a plant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channel {
+    /// Name (input, boundary).
+    pub name: String,
+    /// Default trace column or expression.
+    pub column: String,
+    /// Value used when the trace lacks the column (boundaries only).
+    pub default_value: Option<f64>,
+}
+
+/// What a plant exposes: names and units are fixed (nodes in degC, inputs in
+/// A, boundaries in degC, signals in their own unit).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantInfo {
+    /// Model name.
+    pub name: String,
+    /// Node names in state order (also the CSV column names).
+    pub nodes: Vec<String>,
+    /// Critical temperature of each node \[degC\].
+    pub critical_c: Vec<Option<f64>>,
+    /// Current inputs \[A\].
+    pub inputs: Vec<Channel>,
+    /// Boundaries \[degC\].
+    pub boundaries: Vec<Channel>,
+    /// Extra signal columns (speed, ...).
+    pub signals: Vec<String>,
+    /// Initial temperature policy.
+    pub initial: InitialSpec,
+}
+
+/// A thermal model stepped over a trace.
+pub trait Plant {
+    /// Names and bindings.
+    fn info(&self) -> &PlantInfo;
+    /// Sets every node temperature \[degC\].
+    fn reset(&mut self, temps_c: &[f64]);
+    /// Advances by `dt_s` \[s\] with inputs held: `currents_a` per input,
+    /// `boundary_c` per boundary, `signals` per signal.
+    fn step(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]);
+    /// Node temperatures \[degC\].
+    fn temps_c(&self) -> &[f64];
+}
+
+impl<P: Plant + ?Sized> Plant for Box<P> {
+    fn info(&self) -> &PlantInfo {
+        (**self).info()
+    }
+    fn reset(&mut self, temps_c: &[f64]) {
+        (**self).reset(temps_c);
+    }
+    fn step(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        (**self).step(dt_s, currents_a, boundary_c, signals);
+    }
+    fn temps_c(&self) -> &[f64] {
+        (**self).temps_c()
+    }
+}
+
+/// A model file run on the dynamic network.
+#[derive(Debug, Clone)]
+pub struct FilePlant {
+    model: Model,
+    info: PlantInfo,
+    temps: Vec<f64>,
+    effective: Vec<f64>,
+    scratch: Vec<f64>,
+}
+
+impl FilePlant {
+    /// Wraps a validated model.
+    pub fn new(model: Model) -> Self {
+        let info = PlantInfo {
+            name: model.name.clone(),
+            nodes: model.nodes.clone(),
+            critical_c: model.critical_c.clone(),
+            inputs: model
+                .inputs
+                .iter()
+                .map(|i| Channel {
+                    name: i.name.clone(),
+                    column: i.column.clone(),
+                    default_value: None,
+                })
+                .collect(),
+            boundaries: model
+                .boundaries
+                .iter()
+                .map(|b| Channel {
+                    name: b.name.clone(),
+                    column: b.column.clone().unwrap_or_else(|| b.name.clone()),
+                    default_value: b.value_c,
+                })
+                .collect(),
+            signals: model.signals.clone(),
+            initial: model.initial.clone(),
+        };
+        let n = model.nodes.len();
+        Self {
+            model,
+            info,
+            temps: vec![0.0; n],
+            effective: Vec::new(),
+            scratch: Vec::new(),
+        }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+}
+
+impl Plant for FilePlant {
+    fn info(&self) -> &PlantInfo {
+        &self.info
+    }
+
+    fn reset(&mut self, temps_c: &[f64]) {
+        self.temps.copy_from_slice(temps_c);
+    }
+
+    fn step(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        self.model
+            .effective_currents(currents_a, signals, &mut self.effective);
+        self.model.network.step(
+            &mut self.temps,
+            &self.effective,
+            boundary_c,
+            dt_s,
+            self.model.max_step_ratio,
+            &mut self.scratch,
+        );
+    }
+
+    fn temps_c(&self) -> &[f64] {
+        &self.temps
+    }
+}
+
+/// How trace columns map onto a plant (from the command line).
+#[derive(Debug, Clone, Default)]
+pub struct Bindings {
+    /// `--current EXPR=INPUT`.
+    pub currents: Vec<(ColumnExpr, String)>,
+    /// `--boundary EXPR=NAME`.
+    pub boundaries: Vec<(ColumnExpr, String)>,
+    /// `--const COL=VALUE`: a constant for a column the trace lacks.
+    pub constants: Vec<(String, f64)>,
+}
+
+/// Input series of a run, one value per row: `[channel][row]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Drive {
+    /// Row times \[s\].
+    pub time_s: Vec<f64>,
+    /// Currents per input \[A\].
+    pub currents: Vec<Vec<f64>>,
+    /// Boundary temperatures \[degC\].
+    pub boundaries: Vec<Vec<f64>>,
+    /// Extra signals.
+    pub signals: Vec<Vec<f64>>,
+}
+
+impl Drive {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+
+    /// `true` without rows.
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+
+    /// Inputs of row `k`, into reusable buffers.
+    pub fn row(
+        &self,
+        k: usize,
+        currents: &mut Vec<f64>,
+        boundary: &mut Vec<f64>,
+        signals: &mut Vec<f64>,
+    ) {
+        currents.clear();
+        currents.extend(self.currents.iter().map(|c| c[k]));
+        boundary.clear();
+        boundary.extend(self.boundaries.iter().map(|c| c[k]));
+        signals.clear();
+        signals.extend(self.signals.iter().map(|c| c[k]));
+    }
+
+    /// Resolves every channel of `info` against a trace.
+    pub fn from_trace(info: &PlantInfo, trace: &Trace, bind: &Bindings) -> Result<Self> {
+        let file = trace.path().display().to_string();
+        for (_, name) in &bind.currents {
+            if !info.inputs.iter().any(|i| &i.name == name) {
+                bail!(
+                    "--current: model `{}` has no current input `{name}` (inputs: {})",
+                    info.name,
+                    names(&info.inputs)
+                );
+            }
+        }
+        for (_, name) in &bind.boundaries {
+            if !info.boundaries.iter().any(|b| &b.name == name) {
+                bail!(
+                    "--boundary: model `{}` has no boundary `{name}` (boundaries: {})",
+                    info.name,
+                    names(&info.boundaries)
+                );
+            }
+        }
+        let column = |text: &str, what: &str| -> Result<Vec<f64>> {
+            let expr = ColumnExpr::parse(text).with_context(|| format!("{file}: {what}"))?;
+            let cols = expr.columns();
+            if let Some(missing) = cols.iter().find(|c| !trace.has_column(c)) {
+                if let Some((_, v)) = bind.constants.iter().find(|(c, _)| c == missing) {
+                    if cols.len() == 1 {
+                        return Ok(vec![*v; trace.len()]);
+                    }
+                }
+            }
+            trace
+                .eval(&expr)
+                .map_err(|e| anyhow::anyhow!("{e} (for {what})"))
+        };
+        let mut currents = Vec::new();
+        for input in &info.inputs {
+            let text = bind
+                .currents
+                .iter()
+                .rev()
+                .find(|(_, n)| *n == input.name)
+                .map_or(input.column.clone(), |(e, _)| e.to_string());
+            currents.push(column(&text, &format!("current input `{}`", input.name))?);
+        }
+        let mut boundaries = Vec::new();
+        for b in &info.boundaries {
+            let bound = bind.boundaries.iter().rev().find(|(_, n)| *n == b.name);
+            let series = match (bound, b.default_value) {
+                (Some((e, _)), _) => column(&e.to_string(), &format!("boundary `{}`", b.name))?,
+                (None, Some(v)) if !trace.has_column(&b.column) => vec![v; trace.len()],
+                (None, _) => column(&b.column, &format!("boundary `{}`", b.name))?,
+            };
+            boundaries.push(series);
+        }
+        let mut signals = Vec::new();
+        for s in &info.signals {
+            signals.push(column(s, &format!("signal `{s}`"))?);
+        }
+        Ok(Self {
+            time_s: trace.time_s().to_vec(),
+            currents,
+            boundaries,
+            signals,
+        })
+    }
+
+    /// Constant inputs on a uniform time grid `0, dt, ..., duration`.
+    pub fn constant(
+        info: &PlantInfo,
+        duration_s: f64,
+        dt_s: f64,
+        currents_a: &[f64],
+        ambient_c: Option<f64>,
+        bind: &Bindings,
+    ) -> Result<Self> {
+        if !(duration_s.is_finite() && duration_s >= 0.0) {
+            bail!("--duration-s must be finite and >= 0 s, got {duration_s}");
+        }
+        if !(dt_s.is_finite() && dt_s > 0.0) {
+            bail!("--dt-s must be finite and > 0 s, got {dt_s}");
+        }
+        let currents_a: Vec<f64> = match (currents_a.len(), info.inputs.len()) {
+            (1, m) => vec![currents_a[0]; m],
+            (n, m) if n == m => currents_a.to_vec(),
+            (n, m) => bail!(
+                "--current-a has {n} values but model `{}` has {m} current inputs ({})",
+                info.name,
+                names(&info.inputs)
+            ),
+        };
+        let steps = (duration_s / dt_s).round() as usize;
+        let rows = steps + 1;
+        let time_s = (0..rows).map(|k| k as f64 * dt_s).collect();
+        let lookup = |col: &str| {
+            bind.constants
+                .iter()
+                .find(|(c, _)| c == col)
+                .map(|(_, v)| *v)
+        };
+        let mut boundaries = Vec::new();
+        for b in &info.boundaries {
+            let v = ambient_c
+                .or_else(|| lookup(&b.column))
+                .or(b.default_value)
+                .with_context(|| {
+                    format!(
+                        "boundary `{}` has no temperature: pass --ambient-c or --const {}=VALUE",
+                        b.name, b.column
+                    )
+                })?;
+            boundaries.push(vec![v; rows]);
+        }
+        let mut signals = Vec::new();
+        for s in &info.signals {
+            let v = lookup(s).with_context(|| {
+                format!("the model needs signal column `{s}`: pass --const {s}=VALUE or --trace")
+            })?;
+            signals.push(vec![v; rows]);
+        }
+        Ok(Self {
+            time_s,
+            currents: currents_a.iter().map(|i| vec![*i; rows]).collect(),
+            boundaries,
+            signals,
+        })
+    }
+}
+
+fn names(ch: &[Channel]) -> String {
+    ch.iter()
+        .map(|c| c.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Initial node temperatures \[degC\] by the plant's policy. `measured` maps
+/// node index to a first measured value.
+pub fn initial_temps(
+    info: &PlantInfo,
+    drive: &Drive,
+    measured: &[(usize, f64)],
+) -> Result<Vec<f64>> {
+    let boundary_mean = if drive.boundaries.is_empty() {
+        None
+    } else {
+        Some(drive.boundaries.iter().map(|b| b[0]).sum::<f64>() / drive.boundaries.len() as f64)
+    };
+    let fallback = || {
+        boundary_mean
+            .context("the model has no boundary: set [initial] policy = \"uniform\" with uniform_c")
+    };
+    let mut temps = match info.initial.policy {
+        InitialPolicy::Uniform => vec![info.initial.uniform_c.unwrap_or(20.0); info.nodes.len()],
+        InitialPolicy::Boundary | InitialPolicy::Measured => vec![fallback()?; info.nodes.len()],
+    };
+    if info.initial.policy == InitialPolicy::Measured {
+        for (node, v) in measured {
+            temps[*node] = *v;
+        }
+    }
+    Ok(temps)
+}
+
+/// Runs a plant over a drive from `init`: the state at every row `[row][node]`.
+pub fn simulate(plant: &mut dyn Plant, drive: &Drive, init: &[f64]) -> Vec<Vec<f64>> {
+    plant.reset(init);
+    let (mut c, mut b, mut s) = (Vec::new(), Vec::new(), Vec::new());
+    let mut out = Vec::with_capacity(drive.len());
+    out.push(plant.temps_c().to_vec());
+    for k in 0..drive.len().saturating_sub(1) {
+        drive.row(k, &mut c, &mut b, &mut s);
+        plant.step(drive.time_s[k + 1] - drive.time_s[k], &c, &b, &s);
+        out.push(plant.temps_c().to_vec());
+    }
+    out
+}
+
+/// Transposes `[row][node]` into `[node][row]`.
+pub fn by_node(rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let n = rows.first().map_or(0, Vec::len);
+    (0..n)
+        .map(|i| rows.iter().map(|r| r[i]).collect())
+        .collect()
+}

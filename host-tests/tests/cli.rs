@@ -1,0 +1,716 @@
+//! Integration tests of the `coil-thermal` binary: every subcommand, and
+//! every class of bad input (non-zero exit, message naming file, line and
+//! column).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use predicates::prelude::*;
+use predicates::str::contains;
+use serde_json::Value;
+use tempfile::TempDir;
+
+fn ct() -> assert_cmd::Command {
+    cargo_bin_cmd!("coil-thermal")
+}
+
+fn models(name: &str) -> String {
+    format!("{}/models/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn write(dir: &TempDir, name: &str, text: &str) -> PathBuf {
+    let p = dir.path().join(name);
+    fs::write(&p, text).unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn json_of(out: &[u8]) -> Value {
+    let text = std::str::from_utf8(out).unwrap();
+    assert_eq!(
+        text.trim().lines().count(),
+        1,
+        "one JSON object on one line: {text}"
+    );
+    serde_json::from_str(text).unwrap()
+}
+
+/// A two-node-coil input trace: current steps, 1 s rows.
+fn coil_trace(dir: &TempDir, current_a: f64) -> PathBuf {
+    let mut text = String::from("time_s,current\n");
+    for k in 0..=1200 {
+        let i = if k < 800 { current_a } else { 0.0 };
+        text.push_str(&format!("{k},{i}\n"));
+    }
+    write(dir, "coil.csv", &text)
+}
+
+fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = fs::read(path).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "PNG signature");
+    assert!(bytes.len() > 10_000, "a real picture, not an empty file");
+    let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    let reader = decoder.read_info().unwrap();
+    let info = reader.info();
+    (info.width, info.height)
+}
+
+#[test]
+fn help_documents_every_subcommand_with_units() {
+    for (cmd, must) in [
+        (
+            "simulate",
+            vec![
+                "--duration-s",
+                "[s]",
+                "[A]",
+                "[degC]",
+                "--trace",
+                "--plot",
+                "--json",
+            ],
+        ),
+        ("replay", vec!["--truth", "--measure", "[degC]", "--json"]),
+        (
+            "calibrate",
+            vec!["--params", "[J/K]", "[W/K]", "--trace", "--json"],
+        ),
+        ("bench", vec!["--json", "[ms]"]),
+        ("plot", vec!["--out", "[px]", "[degC]"]),
+        ("limits", vec!["--current-a", "[A]", "[s]"]),
+        ("alarm-limit", vec!["--critical-c", "[degC]", "--factors"]),
+    ] {
+        let out = ct().args([cmd, "--help"]).assert().success();
+        let text = String::from_utf8(out.get_output().stdout.clone()).unwrap();
+        for m in must {
+            assert!(text.contains(m), "`{cmd} --help` lacks `{m}`:\n{text}");
+        }
+    }
+}
+
+#[test]
+fn simulate_solenoid_writes_time_then_stable_node_names() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("sol.csv");
+    let assert = ct()
+        .args([
+            "simulate",
+            "--model",
+            "solenoid",
+            "--layers",
+            "20",
+            "--current-a",
+            "5",
+        ])
+        .args([
+            "--duration-s",
+            "600",
+            "--dt-s",
+            "10",
+            "--json",
+            "--out",
+            s(&out),
+        ])
+        .assert()
+        .success();
+    let j = json_of(&assert.get_output().stdout);
+    assert_eq!(j["rows"], 61);
+    let hot = j["hot_spot"]["max_c"].as_f64().unwrap();
+    assert!(hot > 30.0 && hot < 180.0, "{hot}");
+    let text = fs::read_to_string(&out).unwrap();
+    let header = text.lines().next().unwrap();
+    let mut want = vec!["time_s".to_string()];
+    want.extend((0..20).map(|i| format!("layer_{i:02}")));
+    assert_eq!(header, want.join(","));
+    assert_eq!(text.lines().count(), 62);
+}
+
+#[test]
+fn simulate_model_file_with_trace_and_plots() {
+    let dir = TempDir::new().unwrap();
+    let trace = coil_trace(&dir, 2.0);
+    let out = dir.path().join("sim.csv");
+    let png = dir.path().join("sim.png");
+    let svg = dir.path().join("sim.svg");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--out", s(&out), "--plot", s(&png)])
+    .assert()
+    .success()
+    .stdout(contains("hot spot: coil"));
+    assert_eq!(png_size(&png), (1200, 800));
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--current-a",
+        "1.5",
+    ])
+    .args(["--duration-s", "100", "--out", s(&out), "--plot", s(&svg)])
+    .assert()
+    .success();
+    let text = fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg") && text.contains("width=\"1200\""));
+    // Per-input constant currents: the wrong count is refused.
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--current-a",
+        "1,2",
+    ])
+    .args(["--duration-s", "10", "--out", s(&out)])
+    .assert()
+    .failure()
+    .stderr(contains(
+        "--current-a has 2 values but model `two-node-coil` has 1 current input",
+    ));
+}
+
+#[test]
+fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
+    let dir = TempDir::new().unwrap();
+    let trace = coil_trace(&dir, 4.0);
+    let sim = dir.path().join("sim.csv");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--out", s(&sim)])
+    .assert()
+    .success();
+    // A "recording": the inputs plus the simulated coil temperature as a
+    // sensor column, so the open-loop replay must score ~0 error.
+    let inputs = fs::read_to_string(&trace).unwrap();
+    let temps = fs::read_to_string(&sim).unwrap();
+    let mut rec = String::new();
+    for (a, b) in inputs.lines().zip(temps.lines()) {
+        let coil = b.split(',').nth(1).unwrap();
+        rec.push_str(&format!(
+            "{a},{}\n",
+            if coil == "coil" { "T_coil" } else { coil }
+        ));
+    }
+    let rec = write(&dir, "rec.csv", &rec);
+    let est = dir.path().join("est.csv");
+    let png = dir.path().join("replay.png");
+    let assert = ct()
+        .args([
+            "replay",
+            "--model",
+            &models("two-node-coil.toml"),
+            "--trace",
+            s(&rec),
+        ])
+        .args([
+            "--truth",
+            "T_coil=coil",
+            "--out",
+            s(&est),
+            "--plot",
+            s(&png),
+            "--json",
+        ])
+        .assert()
+        .success();
+    let j = json_of(&assert.get_output().stdout);
+    let truth = &j["truth"][0];
+    assert_eq!(truth["node"], "coil");
+    assert!(truth["mse_k2"].as_f64().unwrap() < 1e-10, "{truth}");
+    assert!(truth["rmse_k"].as_f64().is_some() && truth["max_abs_error_k"].as_f64().is_some());
+    // 4 A heats the coil past its 155 degC critical temperature.
+    let alarms = j["alarms"].as_array().unwrap();
+    assert_eq!(alarms[0]["kind"], "raised");
+    assert_eq!(alarms[0]["node"], "coil");
+    let st = &j["step_time"];
+    assert_eq!(st["budget_ns"], 100000.0);
+    assert!(st["p50_ns"].as_f64().unwrap() <= st["p99_ns"].as_f64().unwrap());
+    assert_eq!(st["steps"], 1201);
+    assert_eq!(png_size(&png), (1200, 800));
+    // The text summary names the same things.
+    ct().args([
+        "replay",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&rec),
+    ])
+    .args(["--truth", "T_coil=coil", "--out", s(&est)])
+    .assert()
+    .success()
+    .stdout(
+        contains("MSE [K^2]")
+            .and(contains("alarm raised"))
+            .and(contains("0.1 ms budget")),
+    );
+}
+
+#[test]
+fn calibrate_fits_a_perturbed_model_back_and_writes_it() {
+    let dir = TempDir::new().unwrap();
+    let trace = coil_trace(&dir, 2.0);
+    let sim = dir.path().join("sim.csv");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--out", s(&sim)])
+    .assert()
+    .success();
+    let inputs = fs::read_to_string(&trace).unwrap();
+    let temps = fs::read_to_string(&sim).unwrap();
+    let rec: String = inputs
+        .lines()
+        .zip(temps.lines())
+        .map(|(a, b)| format!("{a},{}\n", b.split_once(',').unwrap().1))
+        .collect();
+    let rec = write(&dir, "rec.csv", &rec);
+    let start = fs::read_to_string(models("two-node-coil.toml"))
+        .unwrap()
+        .replace("capacity_j_per_k = 200.0", "capacity_j_per_k = 300.0")
+        .replace("g_w_per_k = 1.5", "g_w_per_k = 1.0");
+    let start = write(&dir, "start.toml", &start);
+    let fitted = dir.path().join("fitted.toml");
+    let assert = ct()
+        .args([
+            "calibrate",
+            "--model",
+            s(&start),
+            "--trace",
+            s(&rec),
+            "--trace",
+            s(&rec),
+        ])
+        .args(["--measure", "coil=coil", "--measure", "housing=housing"])
+        .args(["--params", "capacity.coil,conductance.coil-housing=0.1:10"])
+        .args(["--out", s(&fitted), "--json"])
+        .assert()
+        .success();
+    let j = json_of(&assert.get_output().stdout);
+    let params = j["fit"]["params"].as_array().unwrap();
+    let c = params[0]["fitted"].as_f64().unwrap();
+    let g = params[1]["fitted"].as_f64().unwrap();
+    assert!(
+        (c - 200.0).abs() < 0.5 && (g - 1.5).abs() < 0.005,
+        "{c} {g}"
+    );
+    assert_eq!(j["fit"]["traces"].as_array().unwrap().len(), 2);
+    assert!(j["fit"]["traces"][0]["rmse_after_k"].as_f64().unwrap() < 0.01);
+    // The fitted file is a valid model.
+    ct().args(["simulate", "--model", s(&fitted), "--current-a", "1"])
+        .args(["--duration-s", "10", "--out", s(&sim)])
+        .assert()
+        .success();
+    // Text mode prints the per-trace fit error.
+    ct().args(["calibrate", "--model", s(&start), "--trace", s(&rec)])
+        .args([
+            "--measure",
+            "coil=coil",
+            "--params",
+            "capacity.coil",
+            "--out",
+            s(&fitted),
+        ])
+        .assert()
+        .success()
+        .stdout(contains("RMSE after [K]").and(contains("capacity.coil")));
+    // Unknown parameter names are named.
+    ct().args(["calibrate", "--model", s(&start), "--trace", s(&rec)])
+        .args([
+            "--measure",
+            "coil=coil",
+            "--params",
+            "capacity.rotor",
+            "--out",
+            s(&fitted),
+        ])
+        .assert()
+        .failure()
+        .stderr(contains("no node `rotor`"));
+}
+
+#[test]
+fn bench_json_names_model_size_scalar_and_unit() {
+    let assert = ct()
+        .args(["bench", "--json", "--min-time-ms", "1", "--repeats", "1"])
+        .assert()
+        .success();
+    let j = json_of(&assert.get_output().stdout);
+    for key in [
+        "network_3_f32_ns",
+        "network_16_f32_ns",
+        "network_16_f64_ns",
+        "network_84_q32_ns",
+        "solenoid_30_f32_ns",
+        "dynamic_84_f64_ns",
+    ] {
+        assert!(j[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {j}");
+    }
+    assert_eq!(j["budget_ns"], 100000.0);
+}
+
+#[test]
+fn plot_draws_estimate_against_measurement() {
+    let dir = TempDir::new().unwrap();
+    let trace = coil_trace(&dir, 2.0);
+    let sim = dir.path().join("sim.csv");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--out", s(&sim)])
+    .assert()
+    .success();
+    let png = dir.path().join("p.png");
+    let assert = ct()
+        .args([
+            "plot",
+            "--estimate",
+            s(&sim),
+            "--trace",
+            s(&trace),
+            "--current",
+            "current",
+        ])
+        .args([
+            "--limit-c",
+            "coil critical=155",
+            "--out",
+            s(&png),
+            "--width",
+            "640",
+        ])
+        .args(["--height", "480", "--alarm-s", "700", "--json"])
+        .assert()
+        .success();
+    assert_eq!(json_of(&assert.get_output().stdout)["width"], 640);
+    assert_eq!(png_size(&png), (640, 480));
+    ct().args([
+        "plot",
+        "--estimate",
+        s(&sim),
+        "--out",
+        s(&dir.path().join("p.gif")),
+    ])
+    .assert()
+    .failure()
+    .stderr(contains(".png or .svg"));
+}
+
+// ---- bad input -------------------------------------------------------------
+
+fn simulate_trace(dir: &TempDir, name: &str, text: &str) -> assert_cmd::assert::Assert {
+    let trace = write(dir, name, text);
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--out", s(&dir.path().join("o.csv"))])
+    .assert()
+    .failure()
+}
+
+#[test]
+fn bad_traces_are_refused_with_file_line_and_column() {
+    let dir = TempDir::new().unwrap();
+    let at = |name: &str| dir.path().join(name).display().to_string();
+    simulate_trace(&dir, "missing.csv", "time_s,volts\n0,1\n").stderr(contains(format!(
+        "{}:1: missing column `current`",
+        at("missing.csv")
+    )));
+    simulate_trace(&dir, "misnamed.csv", "time_s,Current\n0,1\n")
+        .stderr(contains("did you mean `Current`?"));
+    simulate_trace(&dir, "text.csv", "time_s,current\n0,1\n1,2\n2,abc\n").stderr(contains(
+        format!(
+            "{}:4:2: column `current`: `abc` is not a number",
+            at("text.csv")
+        ),
+    ));
+    simulate_trace(&dir, "nan.csv", "time_s,current\n0,1\n1,NaN\n").stderr(contains(format!(
+        "{}:3:2: column `current`: `NaN` is not a finite number",
+        at("nan.csv")
+    )));
+    simulate_trace(&dir, "empty.csv", "time_s,current\n0,1\n1,\n").stderr(contains(format!(
+        "{}:3:2: column `current`: empty cell",
+        at("empty.csv")
+    )));
+    simulate_trace(&dir, "time.csv", "time_s,current\n0,1\n1,1\n0.5,1\n").stderr(contains(
+        format!(
+            "{}:4:1: column `time_s`: time must increase strictly",
+            at("time.csv")
+        ),
+    ));
+    simulate_trace(&dir, "ragged.csv", "time_s,current\n0,1\n1,1,7\n").stderr(contains(format!(
+        "{}:3: row has 3 fields, the header has 2",
+        at("ragged.csv")
+    )));
+    simulate_trace(&dir, "notime.csv", "current\n1\n")
+        .stderr(contains("no `time_s` column").and(contains("--sample-period-s")));
+    simulate_trace(&dir, "norows.csv", "time_s,current\n").stderr(contains("no data rows"));
+    // Implicit time works (and a non-positive period is refused).
+    let t = write(&dir, "implicit.csv", "current\n1\n1\n");
+    let o = dir.path().join("o.csv");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&t),
+    ])
+    .args(["--sample-period-s", "1", "--out", s(&o)])
+    .assert()
+    .success();
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&t),
+    ])
+    .args(["--sample-period-s", "-1", "--out", s(&o)])
+    .assert()
+    .failure()
+    .stderr(contains("sample period must be > 0 s"));
+    // A derived current from two columns, and a misnamed column in it.
+    let dq = write(&dir, "dq.csv", "time_s,Id,Iq\n0,3,4\n1,3,4\n");
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&dq),
+    ])
+    .args(["--current", "hypot(Id,Iq)=current", "--out", s(&o)])
+    .assert()
+    .success();
+    ct().args([
+        "simulate",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&dq),
+    ])
+    .args(["--current", "hypot(Id,Iqq)=current", "--out", s(&o)])
+    .assert()
+    .failure()
+    .stderr(contains("missing column `Iqq`").and(contains("did you mean `Iq`?")));
+    // Truth columns are read as strictly as inputs.
+    let tr = write(&dir, "truth.csv", "time_s,current,T\n0,1,20\n1,1,x\n");
+    ct().args([
+        "replay",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&tr),
+    ])
+    .args(["--truth", "T=coil", "--out", s(&o)])
+    .assert()
+    .failure()
+    .stderr(contains(format!("{}:3:3: column `T`", at("truth.csv"))));
+    ct().args([
+        "replay",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&tr),
+    ])
+    .args(["--truth", "T=winding", "--out", s(&o)])
+    .assert()
+    .failure()
+    .stderr(contains("no node `winding` (nodes: coil, housing)"));
+}
+
+#[test]
+fn bad_models_and_arguments_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let o = dir.path().join("o.csv");
+    let sim = |model: &str| {
+        ct().args([
+            "simulate",
+            "--model",
+            model,
+            "--current-a",
+            "1",
+            "--duration-s",
+            "10",
+        ])
+        .args(["--out", s(&o)])
+        .assert()
+        .failure()
+    };
+    sim("nosuch").stderr(contains("unknown model `nosuch`"));
+    let syntax = write(
+        &dir,
+        "syntax.toml",
+        "[[node]]\nname = \"a\"\ncapacity_j_per_k = = 3\n",
+    );
+    sim(s(&syntax)).stderr(contains(format!("{}:3:", syntax.display())));
+    let unknown = write(
+        &dir,
+        "unknown.toml",
+        "[[node]]\nname = \"a\"\ncapacity_j_per_k = 3.0\n\n[[boundary]]\nname = \"air\"\nvalue_c = 20.0\n\n[[conductance]]\nbetween = [\"a\", \"air\"]\ng_w_per_k = 1.0\n\n[[conductance]]\nbetween = [\"a\", \"aer\"]\ng_w_per_k = 1.0\n",
+    );
+    sim(s(&unknown)).stderr(contains(format!(
+        "{}:13:1: [[conductance]] #2 `a-aer`: unknown node or boundary `aer`",
+        unknown.display()
+    )));
+    let field = write(
+        &dir,
+        "field.toml",
+        "[[node]]\nname = \"a\"\ncapacity = 3.0\n",
+    );
+    sim(s(&field)).stderr(contains("unknown field `capacity`"));
+    let negative = write(
+        &dir,
+        "neg.toml",
+        "[[node]]\nname = \"a\"\ncapacity_j_per_k = -3.0\n",
+    );
+    sim(s(&negative)).stderr(contains(format!(
+        "{}:1:1: [[node]] #1 `a`: capacity_j_per_k",
+        negative.display()
+    )));
+    // Negative and NaN durations, NaN currents.
+    let two = models("two-node-coil.toml");
+    for (flag, value, msg) in [
+        (
+            "--duration-s",
+            "-5",
+            "--duration-s must be finite and >= 0 s",
+        ),
+        (
+            "--duration-s",
+            "nan",
+            "--duration-s must be finite and >= 0 s",
+        ),
+        ("--dt-s", "0", "--dt-s must be finite and > 0 s"),
+    ] {
+        let mut args = vec!["simulate", "--model", &two, "--current-a", "1"];
+        if flag != "--duration-s" {
+            args.extend(["--duration-s", "10"]);
+        }
+        args.extend([flag, value, "--out", s(&o)]);
+        ct().args(&args).assert().failure().stderr(contains(msg));
+    }
+    ct().args([
+        "simulate",
+        "--model",
+        &two,
+        "--current-a",
+        "nan",
+        "--duration-s",
+        "1",
+        "--out",
+        s(&o),
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("--current-a must be finite"));
+    ct().args([
+        "simulate",
+        "--model",
+        &two,
+        "--current-a",
+        "1",
+        "--out",
+        s(&o),
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("--duration-s"));
+}
+
+#[test]
+fn stage_two_features_say_not_yet_available() {
+    let dir = TempDir::new().unwrap();
+    let o = dir.path().join("o.csv");
+    for model in ["hppa", "omnimagnet"] {
+        ct().args([
+            "simulate",
+            "--model",
+            model,
+            "--current-a",
+            "1",
+            "--duration-s",
+            "1",
+        ])
+        .args(["--out", s(&o)])
+        .assert()
+        .failure()
+        .stderr(contains("not yet available"));
+    }
+    ct().args(["limits", "--model", "solenoid", "--current-a", "3"])
+        .assert()
+        .failure()
+        .stderr(contains("not yet available"));
+    ct().args(["alarm-limit", "--critical-c", "180", "--ambient-c", "20"])
+        .assert()
+        .failure()
+        .stderr(contains("not yet available"));
+    let trace = coil_trace(&dir, 1.0);
+    ct().args([
+        "replay",
+        "--model",
+        &models("two-node-coil.toml"),
+        "--trace",
+        s(&trace),
+    ])
+    .args(["--measure", "current=coil", "--out", s(&o)])
+    .assert()
+    .failure()
+    .stderr(contains("not yet available"));
+}
+
+/// Opt-in: the real HUST motor data (set `COIL_THERMAL_HUST_DIR` to the
+/// folder holding `id_N.csv`; CI points it at shared/data/hust-ipmsm).
+#[test]
+fn hust_baseline_replays_within_the_published_error_range() {
+    let Ok(dir) = std::env::var("COIL_THERMAL_HUST_DIR") else {
+        eprintln!("skipped: COIL_THERMAL_HUST_DIR is not set");
+        return;
+    };
+    let tmp = TempDir::new().unwrap();
+    let trace = Path::new(&dir).join("id_1.csv");
+    let assert = ct()
+        .args([
+            "replay",
+            "--model",
+            &models("hust-ipmsm-3node.toml"),
+            "--trace",
+            s(&trace),
+        ])
+        .args([
+            "--sample-period-s",
+            "1",
+            "--truth",
+            "activewind_1=winding",
+            "--json",
+        ])
+        .args(["--out", s(&tmp.path().join("e.csv"))])
+        .assert()
+        .success();
+    let j = json_of(&assert.get_output().stdout);
+    let mse = j["truth"][0]["mse_k2"].as_f64().unwrap();
+    // The README: the baseline's winding MSE is from under 1 to over 30 K^2.
+    assert!(mse < 30.0, "winding MSE {mse} K^2");
+}
