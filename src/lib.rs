@@ -7,11 +7,13 @@
 
 pub mod discretize;
 pub mod error;
+pub mod grid;
 pub mod input;
 pub mod network;
 pub mod scalar;
 
 pub use error::BuildError;
+pub use grid::{CoilGrid, GridConfig, GridParams, GridState, Stencil};
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};
