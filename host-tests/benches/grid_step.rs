@@ -22,21 +22,34 @@ fn bench_scalar<S: Scalar>(c: &mut Criterion, name: &str) {
         ..GridConfig::default()
     })
     .unwrap();
-    let currents: [[S; 12]; 7] =
-        std::array::from_fn(|r| std::array::from_fn(|c| S::from_f64(((r * 12 + c) % 5) as f64 * 0.3)));
+    let currents: [[S; 12]; 7] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| S::from_f64(((r * 12 + c) % 5) as f64 * 0.3))
+    });
     let (coolant, ambient) = (S::from_f64(19.0), S::from_f64(22.0));
     let mut state = GridState::<S, 7, 12>::uniform(20.0);
     let mut group = c.benchmark_group(format!("grid_7x12/{name}"));
-    group.bench_function("update", |b| {
-        b.iter(|| grid.update(black_box(&mut state)))
-    });
+    group.bench_function("update", |b| b.iter(|| grid.update(black_box(&mut state))));
     let mut state = GridState::<S, 7, 12>::uniform(20.0);
     group.bench_function("tick", |b| {
-        b.iter(|| grid.tick(black_box(&mut state), black_box(&currents), coolant, ambient))
+        b.iter(|| {
+            grid.tick(
+                black_box(&mut state),
+                black_box(&currents),
+                coolant,
+                ambient,
+            )
+        })
     });
     let mut state = GridState::<S, 7, 12>::uniform(20.0);
     group.bench_function("tick_decimated_10", |b| {
-        b.iter(|| decimated.tick(black_box(&mut state), black_box(&currents), coolant, ambient))
+        b.iter(|| {
+            decimated.tick(
+                black_box(&mut state),
+                black_box(&currents),
+                coolant,
+                ambient,
+            )
+        })
     });
     group.finish();
     let _ = BUDGET_NS;

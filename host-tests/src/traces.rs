@@ -257,8 +257,13 @@ impl Pattern {
 
 /// A calibration pattern at 0.7 A: on from 0 to 1200 s, off to 1800 s.
 pub fn calibration(pattern: Pattern) -> Trace {
-    let on: [f64; COILS] =
-        std::array::from_fn(|k| if pattern.on(k / COLS, k % COLS) { 0.7 } else { 0.0 });
+    let on: [f64; COILS] = std::array::from_fn(|k| {
+        if pattern.on(k / COLS, k % COLS) {
+            0.7
+        } else {
+            0.0
+        }
+    });
     Trace {
         times_s: vec![0.0, 1200.0, 1800.0],
         currents_a: vec![on, [0.0; COILS], [0.0; COILS]],
