@@ -31,7 +31,12 @@ fn main() -> ! {
     }
     let top = state.hottest_k::<3>();
     for t in &top {
-        hprintln!("60 s at 2 A: coil ({}, {}) at {} degC", t.row, t.col, t.temp_c);
+        hprintln!(
+            "60 s at 2 A: coil ({}, {}) at {} degC",
+            t.row,
+            t.col,
+            t.temp_c
+        );
     }
     let hottest_ok = (top[0].row, top[0].col) == (3, 5) && top[0].temp_c > 20.5;
 
@@ -41,38 +46,52 @@ fn main() -> ! {
         tick_dt_s: 1.0,
         ..GridConfig::default()
     });
-    let Ok(flat) = flat else { fail("build adiabatic") };
+    let Ok(flat) = flat else {
+        fail("build adiabatic")
+    };
     let mut state = GridState::uniform(20.0);
     for _ in 0..8_000 {
         flat.tick(&mut state, &[[0.7; 12]; 7], 20.0, 20.0);
     }
     let expected = 20.0 + 5.69 * 0.49 * 5.74;
     let centre = state.temps_c[3][5];
-    hprintln!("all on, adiabatic: {} degC (P Rz: {} degC)", centre, expected);
+    hprintln!(
+        "all on, adiabatic: {} degC (P Rz: {} degC)",
+        centre,
+        expected
+    );
     let steady_ok = (centre - expected).abs() < 1e-3;
     debug::exit(if hottest_ok && steady_ok {
         debug::EXIT_SUCCESS
     } else {
         debug::EXIT_FAILURE
     });
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 fn fail(what: &str) -> ! {
     hprintln!("failed: {}", what);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     hprintln!("panic: {}", info);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }

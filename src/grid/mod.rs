@@ -83,7 +83,8 @@ pub struct GridConfig {
     pub stencil: Stencil,
     /// Border model.
     pub border: Border,
-    /// Coil resistance `R(T)` \[ohm\], the same for every coil.
+    /// Coil resistance `R(T)` \[ohm\], the same for every coil; must be
+    /// positive over the limits' temperature range.
     pub resistance: Resistance,
     /// Interval between calls of [`CoilGrid::tick`] \[s\].
     pub tick_dt_s: f64,
