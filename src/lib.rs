@@ -8,6 +8,7 @@
 pub mod discretize;
 pub mod error;
 pub mod filter;
+pub mod grid;
 pub mod input;
 pub mod network;
 pub mod observer;
@@ -18,6 +19,7 @@ pub mod sensors;
 pub mod solenoid;
 
 pub use error::BuildError;
+pub use grid::{CoilGrid, GridConfig, GridParams, GridState, Stencil};
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
 pub use scalar::{Scalar, Q32};

@@ -17,15 +17,19 @@
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;
+//! * [`traces`]: the generator of the committed synthetic HPPA current traces;
+//! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
 //! * [`cli`]: the command-line front end.
 
 pub mod bench;
 pub mod calibrate;
 pub mod cli;
 pub mod dynamic_network;
+pub mod grid_reference;
 pub mod model_file;
 pub mod observer;
 pub mod plot;
 pub mod sim;
 pub mod synth;
 pub mod trace;
+pub mod traces;

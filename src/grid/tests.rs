@@ -1,0 +1,499 @@
+//! Grid tests against closed forms, the network core's steady-state solver
+//! and stepper (a different code path), and symmetry arguments. The
+//! trace replays against an independent f64 integrator live in `host-tests`.
+
+use super::*;
+use crate::input::InputFlags;
+use crate::network::{ExplicitStepper, NetworkState};
+use crate::scalar::Q32;
+
+/// The HPPA's 84 coils as 7 rows of 12 (rows offset in the herringbone).
+type Hppa<S> = CoilGrid<S, 7, 12>;
+
+fn config(stencil: Stencil, border: Border) -> GridConfig {
+    GridConfig {
+        stencil,
+        border,
+        ..GridConfig::default()
+    }
+}
+
+fn run<S: Scalar, const R: usize, const C: usize>(
+    grid: &CoilGrid<S, R, C>,
+    state: &mut GridState<S, R, C>,
+    currents_a: &[[f64; C]; R],
+    coolant_c: f64,
+    ambient_c: f64,
+    ticks: usize,
+) {
+    let currents = currents_a.map(|row| row.map(S::from_f64));
+    for _ in 0..ticks {
+        grid.tick(
+            state,
+            &currents,
+            S::from_f64(coolant_c),
+            S::from_f64(ambient_c),
+        );
+    }
+}
+
+#[test]
+fn report_and_digest_give_the_same_model() {
+    let report = GridParams::FDM_FITTED;
+    let digest = GridParams::FDM_FITTED_DIGEST;
+    assert_eq!(report.rx_between_coils_k_per_w(), 9.9);
+    assert_eq!(
+        report.rx_between_coils_k_per_w(),
+        digest.rx_between_coils_k_per_w()
+    );
+    // The digest prints 3.49 for 6.99 / 2 = 3.495.
+    let ry = report.ry_between_coils_k_per_w() / digest.ry_between_coils_k_per_w();
+    assert!((ry - 1.0).abs() < 2e-3);
+    assert_eq!(report.rz_k_per_w(), digest.rz_k_per_w());
+    assert_eq!(
+        GridParams::new(Convention::PerElement, 19.8, 6.99, 5.74, 68.7),
+        report
+    );
+    assert_eq!(
+        GridParams::new(Convention::BetweenCoils, 9.9, 3.495, 5.74, 68.7),
+        report
+    );
+}
+
+#[test]
+fn bad_configurations_are_refused() {
+    let bad_params = GridConfig::hppa(GridParams::between_coils(0.0, 1.0, 1.0, 1.0));
+    assert!(Hppa::<f32>::new(&bad_params).is_err());
+    let no_updates = GridConfig {
+        ticks_per_update: 0,
+        ..GridConfig::default()
+    };
+    assert!(Hppa::<f32>::new(&no_updates).is_err());
+    let bad_tick = GridConfig {
+        tick_dt_s: f64::NAN,
+        ..GridConfig::default()
+    };
+    assert_eq!(
+        Hppa::<f32>::new(&bad_tick).unwrap_err(),
+        BuildError::InvalidTimeStep
+    );
+    let mut asymmetric = GridConfig::default();
+    asymmetric.stencil.even[0][0] = Link::X;
+    assert!(Hppa::<f32>::new(&asymmetric).is_err());
+}
+
+#[test]
+fn an_unstable_grid_step_is_refused_with_the_worst_coil() {
+    // Every HPPA coil (padding included): sum G = 2/9.9 + 4/3.495 + 1/5.74 = 1.520 W/K;
+    // C / sum G = 45.2 s, so a 46 s step is unstable and a 45 s one is not.
+    let ok = GridConfig {
+        tick_dt_s: 1.0,
+        ticks_per_update: 45,
+        ..GridConfig::default()
+    };
+    let grid = Hppa::<f64>::new(&ok).unwrap();
+    assert!(grid.stability_ratio() < 1.0 && grid.stability_ratio() > 0.99);
+    let unstable = GridConfig {
+        ticks_per_update: 46,
+        ..ok
+    };
+    match Hppa::<f64>::new(&unstable) {
+        Err(BuildError::UnstableStep { node, ratio }) => {
+            // With the ambient padding every coil has the same sum of G, so
+            // the first coil is reported.
+            assert!((1.0..1.03).contains(&ratio), "{ratio}");
+            assert_eq!(node, 0);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn conductances_are_symmetric_for_every_stencil_and_shape() {
+    fn check<const R: usize, const C: usize>(stencil: Stencil) {
+        let grid = CoilGrid::<f64, R, C>::new(&config(stencil, Border::Ambient)).unwrap();
+        for row in 0..R {
+            for col in 0..C {
+                for &(dr, dc) in &DIRECTIONS {
+                    let g = grid.neighbour_conductance_w_per_k(row, col, dr, dc);
+                    if let Some((r, c)) = CoilGrid::<f64, R, C>::neighbour(row, col, dr, dc) {
+                        assert_eq!(g, grid.neighbour_conductance_w_per_k(r, c, -dr, -dc));
+                    } else {
+                        assert_eq!(g, 0.0);
+                    }
+                }
+            }
+        }
+    }
+    check::<7, 12>(Stencil::HPPA_HERRINGBONE);
+    check::<12, 6>(Stencil::HPPA_HERRINGBONE);
+    check::<6, 12>(Stencil::RECTANGULAR);
+    check::<1, 1>(Stencil::HPPA_HERRINGBONE);
+}
+
+#[test]
+fn herringbone_interior_coil_has_two_x_and_four_y_neighbours() {
+    let grid = Hppa::<f64>::new(&GridConfig::default()).unwrap();
+    let p = GridParams::FDM_FITTED;
+    for (row, col, cross_cols) in [(2, 5, [-1, 0]), (3, 5, [0, 1])] {
+        let total: f64 = DIRECTIONS
+            .iter()
+            .map(|&(dr, dc)| grid.neighbour_conductance_w_per_k(row, col, dr, dc))
+            .sum();
+        assert!((total - 2.0 * p.gx_w_per_k() - 4.0 * p.gy_w_per_k()).abs() < 1e-12);
+        for dr in [-1, 1] {
+            for dc in cross_cols {
+                assert_eq!(
+                    grid.neighbour_conductance_w_per_k(row, col, dr, dc),
+                    p.gy_w_per_k()
+                );
+            }
+        }
+        assert_eq!(grid.ambient_conductance_w_per_k(row, col), 0.0);
+    }
+    // Corner (0, 0), even row: missing (-1,-1), (-1,0), (0,-1), (1,-1).
+    let corner = 3.0 * p.gy_w_per_k() + p.gx_w_per_k();
+    assert!((grid.ambient_conductance_w_per_k(0, 0) - corner).abs() < 1e-12);
+}
+
+#[test]
+fn one_update_closes_the_energy_balance() {
+    let grid = Hppa::<f64>::new(&GridConfig::default()).unwrap();
+    let mut state = GridState::uniform(20.0);
+    let mut currents = [[0.0; 12]; 7];
+    currents[3][4] = 2.0;
+    currents[0][0] = 1.5;
+    run(&grid, &mut state, &currents, 18.0, 24.0, 5_000);
+    let before = state;
+    let joule_j = grid.accumulate(&mut state, &currents.map(|r| r.map(f64::from)));
+    assert!(joule_j.is_clean());
+    let pending: f64 = state.pending_joule_j.iter().flatten().sum();
+    let expected: f64 = (0..7)
+        .flat_map(|r| (0..12).map(move |c| (r, c)))
+        .map(|(r, c)| {
+            let t = before.temps_c[r][c];
+            Resistance::HPPA_COIL.at_c(t) * currents[r][c] * currents[r][c] * 1e-3
+        })
+        .sum();
+    assert!((pending - expected).abs() < 1e-15);
+    grid.update(&mut state);
+    let dt = grid.grid_dt_s();
+    let mut stored_j = 0.0;
+    let mut out_j = 0.0;
+    for r in 0..7 {
+        for c in 0..12 {
+            let t = before.temps_c[r][c];
+            stored_j += grid.capacity_j_per_k() * (state.temps_c[r][c] - t);
+            out_j += grid.base_conductance_w_per_k() * (t - 18.0) * dt;
+            out_j += grid.ambient_conductance_w_per_k(r, c) * (t - 24.0) * dt;
+        }
+    }
+    // Rounding of 84 temperatures near 25 degC times C: about 1e-11 J.
+    assert!(
+        (pending - stored_j - out_j).abs() < 1e-10,
+        "{pending} {stored_j} {out_j}"
+    );
+}
+
+/// Constant R and an adiabatic border make every coil identical, so each
+/// settles at exactly `P Rz` above the coolant (the 1-D all-coils-on model).
+#[test]
+fn all_coils_on_settle_at_p_times_rz() {
+    let cfg = GridConfig {
+        border: Border::Adiabatic,
+        resistance: Resistance::constant(5.69),
+        tick_dt_s: 1.0,
+        ..GridConfig::default()
+    };
+    let grid = Hppa::<f64>::new(&cfg).unwrap();
+    let mut state = GridState::uniform(20.0);
+    run(&grid, &mut state, &[[0.7; 12]; 7], 20.0, 20.0, 10_000);
+    let rise = 5.69 * 0.49 * 5.74;
+    for t in state.temps_c.iter().flatten() {
+        assert!((t - 20.0 - rise).abs() < 1e-6, "{t}");
+    }
+}
+
+/// With the ambient padding the grid matches the network core's exact
+/// steady state (a linear solve with R(T), not a time integration).
+#[test]
+fn steady_state_matches_the_network_solver() {
+    let cfg = GridConfig {
+        tick_dt_s: 1.0,
+        ..GridConfig::default()
+    };
+    let grid = CoilGrid::<f64, 6, 8>::new(&cfg).unwrap();
+    let mut state = GridState::uniform(20.0);
+    let currents: [[f64; 8]; 6] =
+        core::array::from_fn(|r| core::array::from_fn(|c| 0.3 + 0.1 * ((r * 3 + c) % 5) as f64));
+    run(&grid, &mut state, &currents, 18.0, 23.0, 12_000);
+    let net = grid.to_network::<48>().unwrap();
+    let flat: [f64; 48] = core::array::from_fn(|k| currents[k / 8][k % 8]);
+    let steady = net.steady_state(&flat, &[18.0, 23.0]).unwrap();
+    for k in 0..48 {
+        assert!((state.temps_c[k / 8][k % 8] - steady[k]).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn grid_step_matches_the_network_core_stepper() {
+    let cfg = config(Stencil::HPPA_HERRINGBONE, Border::Ambient);
+    let grid = CoilGrid::<f64, 4, 5>::new(&cfg).unwrap();
+    let net = grid.to_network::<20>().unwrap();
+    let stepper = ExplicitStepper::<f64, 20, 2, 20>::new(&net, 1e-3, cfg.limits).unwrap();
+    let mut a = GridState::uniform(20.0);
+    let mut b = NetworkState::<f64, 20, 2, 20>::uniform(20.0);
+    let currents: [[f64; 5]; 4] =
+        core::array::from_fn(|r| core::array::from_fn(|c| (r + c) as f64 * 0.4));
+    let flat: [f64; 20] = core::array::from_fn(|k| currents[k / 5][k % 5]);
+    for _ in 0..2_000 {
+        grid.tick(&mut a, &currents, 15.0, 25.0);
+        stepper.step(&mut b, &flat, &[15.0, 25.0]);
+    }
+    for k in 0..20 {
+        assert!((a.temps_c[k / 5][k % 5] - b.temps_c[k]).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn mirror_symmetric_powering_gives_mirror_symmetric_temperatures() {
+    fn powered<const R: usize, const C: usize>(
+        stencil: Stencil,
+        currents: &[[f64; C]; R],
+    ) -> [[f64; C]; R] {
+        let cfg = GridConfig {
+            tick_dt_s: 0.5,
+            ..config(stencil, Border::Ambient)
+        };
+        let grid = CoilGrid::<f64, R, C>::new(&cfg).unwrap();
+        let mut state = GridState::uniform(20.0);
+        run(&grid, &mut state, currents, 20.0, 23.0, 2_000);
+        state.temps_c
+    }
+    let mut load = [[0.0; 12]; 7];
+    load[1][2] = 1.0;
+    load[2][9] = 0.7;
+    // Herringbone, odd number of rows: mirroring rows keeps each row's
+    // parity, so the y mirror is a symmetry.
+    let y_mirror: [[f64; 12]; 7] = core::array::from_fn(|r| load[6 - r]);
+    let mut both = load;
+    for r in 0..7 {
+        for c in 0..12 {
+            both[r][c] = load[r][c] + y_mirror[r][c];
+        }
+    }
+    let t = powered(Stencil::HPPA_HERRINGBONE, &both);
+    for r in 0..7 {
+        for c in 0..12 {
+            assert!((t[r][c] - t[6 - r][c]).abs() < 1e-9);
+        }
+    }
+    // Herringbone, even number of rows: the 180 degree rotation swaps the
+    // parities and maps each stencil onto the other.
+    let mut load6 = [[0.0; 12]; 6];
+    load6[1][2] = 1.0;
+    load6[4][9] = 1.0;
+    let t = powered(Stencil::HPPA_HERRINGBONE, &load6);
+    assert!((t[1][2] - t[4][9]).abs() < 1e-9);
+    for r in 0..6 {
+        for c in 0..12 {
+            assert!((t[r][c] - t[5 - r][11 - c]).abs() < 1e-9);
+        }
+    }
+    // ...but the plain column mirror is not a symmetry of the herringbone,
+    // while it is of the rectangular stencil.
+    let mut x_sym = [[0.0; 12]; 6];
+    x_sym[2][3] = 1.0;
+    x_sym[2][8] = 1.0;
+    let t = powered(Stencil::HPPA_HERRINGBONE, &x_sym);
+    assert!((t[1][2] - t[1][9]).abs() > 1e-3);
+    let t = powered(Stencil::RECTANGULAR, &x_sym);
+    for r in 0..6 {
+        for c in 0..12 {
+            assert!((t[r][c] - t[r][11 - c]).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn with_currents_off_every_coil_relaxes_to_the_boundaries() {
+    let cfg = GridConfig {
+        tick_dt_s: 1.0,
+        ..GridConfig::default()
+    };
+    let grid = Hppa::<f32>::new(&cfg).unwrap();
+    let mut state = GridState::uniform(20.0);
+    for (k, t) in state.temps_c.iter_mut().flatten().enumerate() {
+        *t = 30.0 + (k % 13) as f32 * 5.0;
+    }
+    run(&grid, &mut state, &[[0.0; 12]; 7], 22.0, 22.0, 8_000);
+    for t in state.temps_c.iter().flatten() {
+        assert!((t - 22.0).abs() < 1e-4, "{t}");
+    }
+    // Coolant and ambient apart: every coil ends between them.
+    run(&grid, &mut state, &[[0.0; 12]; 7], 15.0, 25.0, 8_000);
+    for t in state.temps_c.iter().flatten() {
+        assert!(*t > 15.0 && *t < 25.0);
+    }
+    let adiabatic = Hppa::<f32>::new(&GridConfig {
+        border: Border::Adiabatic,
+        ..cfg
+    })
+    .unwrap();
+    run(&adiabatic, &mut state, &[[0.0; 12]; 7], 15.0, 25.0, 8_000);
+    for t in state.temps_c.iter().flatten() {
+        assert!((t - 15.0).abs() < 1e-4);
+    }
+}
+
+/// Constant R: the Joule energy does not depend on the temperatures, so a
+/// decimated grid must receive exactly the energy of the undecimated one.
+#[test]
+fn decimation_loses_no_joule_energy() {
+    let base = GridConfig {
+        resistance: Resistance::constant(5.69),
+        ..GridConfig::default()
+    };
+    let every = Hppa::<f64>::new(&base).unwrap();
+    let decimated = Hppa::<f64>::new(&GridConfig {
+        ticks_per_update: 250,
+        ..base
+    })
+    .unwrap();
+    assert_eq!(decimated.grid_dt_s(), 0.25);
+    let (mut a, mut b) = (GridState::uniform(20.0), GridState::uniform(20.0));
+    let (mut joule_a, mut joule_b) = (0.0, 0.0);
+    let mut currents = [[0.0; 12]; 7];
+    for k in 0..5_000usize {
+        currents[3][k / 500] = 1.0 + (k % 7) as f64 * 0.1;
+        for (grid, state, joule) in [
+            (&every, &mut a, &mut joule_a),
+            (&decimated, &mut b, &mut joule_b),
+        ] {
+            grid.accumulate(state, &currents);
+            state.pending_ticks += 1;
+            if state.pending_ticks == grid.ticks_per_update() {
+                *joule += state.pending_joule_j.iter().flatten().sum::<f64>();
+                grid.update(state);
+            }
+        }
+    }
+    assert!(
+        (joule_a - joule_b).abs() < 1e-9 * joule_a,
+        "{joule_a} {joule_b}"
+    );
+    let heat = |s: &GridState<f64, 7, 12>| {
+        s.temps_c
+            .iter()
+            .flatten()
+            .map(|t| (t - 20.0) * 68.7)
+            .sum::<f64>()
+    };
+    // Little has left through the base in 5 s: both hold nearly all of it.
+    assert!((heat(&a) - heat(&b)).abs() < 2e-3 * joule_a);
+    for (ta, tb) in a.temps_c.iter().flatten().zip(b.temps_c.iter().flatten()) {
+        assert!((ta - tb).abs() < 5e-3);
+    }
+}
+
+#[test]
+fn tick_reports_updates_and_bad_inputs() {
+    let grid = Hppa::<f32>::new(&GridConfig {
+        ticks_per_update: 3,
+        ..GridConfig::default()
+    })
+    .unwrap();
+    let mut state = GridState::uniform(20.0);
+    let mut currents = [[0.5f32; 12]; 7];
+    let updates: [bool; 6] =
+        core::array::from_fn(|_| grid.tick(&mut state, &currents, 20.0, 20.0).updated);
+    assert_eq!(updates, [false, false, true, false, false, true]);
+    currents[2][2] = f32::NAN;
+    currents[4][4] = 1e9;
+    let out = grid.tick(&mut state, &currents, f32::INFINITY, 20.0);
+    assert!(out.flags.contains(InputFlags::CURRENT_NOT_FINITE));
+    assert!(out.flags.contains(InputFlags::CURRENT_CLAMPED));
+    assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+    assert_eq!(state.held_currents_a[2][2], 0.5);
+    assert_eq!(state.held_currents_a[4][4], 100.0);
+    assert_eq!(state.held_coolant_c, 20.0);
+}
+
+#[test]
+fn hottest_queries_rank_coils_without_allocation() {
+    let mut state = GridState::<f32, 3, 4>::uniform(20.0);
+    state.temps_c[2][1] = 50.0;
+    state.temps_c[0][3] = 45.0;
+    state.temps_c[1][0] = 50.0;
+    state.temps_c[1][1] = 21.0;
+    let top = state.hottest();
+    assert_eq!((top.row, top.col, top.temp_c), (1, 0, 50.0));
+    let top3 = state.hottest_k::<3>();
+    let got: [(usize, usize); 3] = top3.map(|t| (t.row, t.col));
+    assert_eq!(got, [(1, 0), (2, 1), (0, 3)]);
+    let all = state.hottest_k::<12>();
+    assert!(all.windows(2).all(|w| w[0].temp_c >= w[1].temp_c));
+    assert_eq!(all[11].temp_c, 20.0);
+    assert_eq!(state.hottest_k::<0>().len(), 0);
+}
+
+#[test]
+fn fixed_point_tracks_f64() {
+    let cfg = GridConfig::default();
+    let f = Hppa::<f64>::new(&cfg).unwrap();
+    let q = Hppa::<Q32>::new(&cfg).unwrap();
+    let mut a = GridState::uniform(20.0);
+    let mut b = GridState::uniform(20.0);
+    let mut currents = [[0.0; 12]; 7];
+    currents[3][5] = 3.0;
+    run(&f, &mut a, &currents, 20.0, 20.0, 20_000);
+    run(&q, &mut b, &currents, 20.0, 20.0, 20_000);
+    for (x, y) in a.temps_c.iter().flatten().zip(b.temps_c.iter().flatten()) {
+        assert!((x - y.to_f64()).abs() < 1e-5);
+    }
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            prop::num::f32::ANY,
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(-1e30f32),
+            -200.0f32..600.0,
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn no_input_makes_the_grid_panic_or_go_non_finite(
+            currents in prop::collection::vec(any_f32(), 12),
+            coolant in any_f32(),
+            ambient in any_f32(),
+            decimation in 1u32..20,
+        ) {
+            let cfg = GridConfig { ticks_per_update: decimation, ..GridConfig::default() };
+            let f = CoilGrid::<f32, 3, 4>::new(&cfg).unwrap();
+            let d = CoilGrid::<f64, 3, 4>::new(&cfg).unwrap();
+            let q = CoilGrid::<Q32, 3, 4>::new(&cfg).unwrap();
+            let grid_f: [[f32; 4]; 3] = core::array::from_fn(|r| core::array::from_fn(|c| currents[r * 4 + c]));
+            let (mut sf, mut sd, mut sq) = (GridState::uniform(20.0), GridState::uniform(20.0), GridState::uniform(20.0));
+            for _ in 0..200 {
+                f.tick(&mut sf, &grid_f, coolant, ambient);
+                d.tick(&mut sd, &grid_f.map(|r| r.map(f64::from)), f64::from(coolant), f64::from(ambient));
+                q.tick(&mut sq, &grid_f.map(|r| r.map(Q32::from_f32)), Q32::from_f32(coolant), Q32::from_f32(ambient));
+            }
+            for t in sf.temps_c.iter().flatten().chain(sf.carry_c.iter().flatten()) {
+                prop_assert!(t.is_finite());
+            }
+            for t in sd.temps_c.iter().flatten().chain(sd.carry_c.iter().flatten()) {
+                prop_assert!(t.is_finite());
+            }
+            let _ = (sq.hottest(), sf.hottest_k::<5>());
+        }
+    }
+}
