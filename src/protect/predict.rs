@@ -50,7 +50,12 @@
 //! **Guarantee (linear model):** the predicted time is never later than the
 //! true first crossing, whatever the grid; the grid only sets how much
 //! earlier it may be (tested against the analytic single-node formula and
-//! against an `f64` RK4 integration of random networks).
+//! against an `f64` RK4 integration of random networks). Measured: at most
+//! 2.1 % early on the single node, worst where the limit sits 0.1 K below the
+//! steady state and the approach is flattest. In `f32` the rounding of the
+//! steady state can move the answer by about `1e-7 (T_ss - T_0)` divided by
+//! the heating rate at the crossing (11 us in the tests' worst case, a 20 A
+//! step towards 4820 degC), far below a tick.
 //!
 //! # Conservative treatment of `R(T)`
 //!
@@ -772,3 +777,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
         &self.out
     }
 }
+
+#[cfg(test)]
+#[path = "predict_tests.rs"]
+mod tests;
