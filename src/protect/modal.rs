@@ -196,7 +196,7 @@ impl<const N: usize> Modal<N> {
     }
 
     /// `V diag(w) z`: node values from weighted modal amplitudes.
-    pub fn from_modes(&self, z: &[f64; N], weights: &[f64; N]) -> [f64; N] {
+    pub fn node_values(&self, z: &[f64; N], weights: &[f64; N]) -> [f64; N] {
         let mut x = [0.0; N];
         for (x, row) in x.iter_mut().zip(&self.v) {
             *x = row
@@ -251,7 +251,7 @@ mod tests {
             for col in 0..4 {
                 let mut unit = [0.0; 4];
                 unit[col] = 1.0;
-                let x = modal.from_modes(&modal.to_modes(&unit), &decay);
+                let x = modal.node_values(&modal.to_modes(&unit), &decay);
                 for row in 0..4 {
                     assert!((x[row] - e[(row, col)]).abs() < 1e-12, "{row} {col}");
                 }

@@ -9,8 +9,10 @@
 //! T(t) = T_ss + exp(A t) (T_0 - T_ss) = T_ss + V diag(exp(lambda t)) z,   z = V^-1 (T_0 - T_ss)
 //! ```
 //!
-//! (see [`modal`](super::modal): `A` is similar to a symmetric matrix, so its
-//! modes are real and decay, `lambda_j < 0`). Element `e`'s distance from its
+//! `A = -C^-1 K` with `C` the diagonal of capacities and `K` the symmetric
+//! conductance matrix (pairs are stored once), so `A` is similar to the
+//! symmetric `-C^(-1/2) K C^(-1/2)` and `A = V diag(lambda) V^-1` with real,
+//! decaying modes, `lambda_j < 0`, found by Jacobi rotations at build time. Element `e`'s distance from its
 //! steady state is a sum of decaying exponentials `c_ej exp(lambda_j t)`,
 //! `c_ej = V_ej z_j`. Split by the sign of `c_ej`:
 //!
@@ -210,7 +212,7 @@ impl PredictorBuilder {
             for (z, w) in modes.iter_mut().zip(&inverse_rate) {
                 *z *= w;
             }
-            (modal.from_modes(&modes, &ones), modes)
+            (modal.node_values(&modes, &ones), modes)
         };
 
         let mut gain_power = [[T::zero(); M]; N];
@@ -740,7 +742,10 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
         let powers = predictor.conservative_powers_w(op, T::one());
         for (peak, p) in self.peak_power_w.iter_mut().zip(&powers) {
             // NaN must win here: it marks the snapshot invalid.
-            if !(*peak >= *p) {
+            if matches!(
+                (*peak).partial_cmp(p),
+                Some(core::cmp::Ordering::Less) | None
+            ) {
                 *peak = *p;
             }
         }

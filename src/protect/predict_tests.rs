@@ -374,7 +374,8 @@ fn replay(trace: impl Fn(f64) -> f64, horizon_s: f64, debounce: u16) -> (usize, 
 #[test]
 fn predictive_alarm_fires_a_horizon_ahead_on_replayed_traces() {
     let horizon = 30.0;
-    let traces: [(&str, fn(f64) -> f64); 3] = [
+    type Trace = fn(f64) -> f64;
+    let traces: [(&str, Trace); 3] = [
         ("constant", |_| 1.6),
         ("step", |t| if t < 100.0 { 1.0 } else { 1.8 }),
         // Commutation-like: 2.4 A peak at 20 Hz, rectified sine.

@@ -12,7 +12,7 @@
 //! At constant currents the Joule power `(r0 + s T) I^2` is affine in the
 //! winding temperature, so the *nonlinear* model is an exact linear ODE with
 //! the feedback `s I^2` moved into the conduction matrix (`A_I`, still
-//! symmetrisable: see [`modal`](super::modal)). From the start `T_0`,
+//! symmetrisable, see [`predict`](super::predict)). From the start `T_0`,
 //!
 //! ```text
 //! T(t) = T_0 + V diag((exp(lambda_j t) - 1) / lambda_j) V^-1 (dT/dt)(0),
@@ -137,7 +137,7 @@ impl<const N: usize> Trajectory<N> {
                 libm::expm1(x) / l
             }
         });
-        let mut t = self.modal.from_modes(&self.initial_rate_modes, &weights);
+        let mut t = self.modal.node_values(&self.initial_rate_modes, &weights);
         for (t, t0) in t.iter_mut().zip(&self.start_c) {
             *t += t0;
         }
@@ -149,7 +149,7 @@ impl<const N: usize> Trajectory<N> {
         self.temps_c(t_s)
             .iter()
             .zip(&limits.limits_c)
-            .any(|(t, l)| !(t < l))
+            .any(|(t, l)| t.partial_cmp(l) != Some(core::cmp::Ordering::Less))
     }
 }
 
