@@ -336,6 +336,7 @@ mod tests {
             // Sampling error of a variance from 2e5 samples: 0.3 %; f32 and
             // the second-order terms add less than that here.
             let ratio = variance / predicted;
+            std::println!("{t} degC, {i} A: Monte Carlo / first-order variance = {ratio:.4}");
             assert!(
                 (ratio - 1.0).abs() < 0.02,
                 "at {t} degC, {i} A: ratio {ratio}"
@@ -399,6 +400,7 @@ mod tests {
             assert!(residual.abs() < 1.5, "{residual}");
             // 30 % less conductance from the coil to its base.
             let (degraded, residual) = run_drift(0.7 * 0.35, seed);
+            std::println!("seed {seed}: degraded coil flagged after {degraded:?} s, mean residual {residual:.2} K");
             assert!(degraded.is_some(), "seed {seed}: residual {residual}");
             assert!(residual > 3.0);
         }

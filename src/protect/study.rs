@@ -368,6 +368,7 @@ mod tests {
                 );
                 match (exact, rk4) {
                     (Some(a), Some(b)) => {
+                        std::println!("{powered:?} {current} A: t_max {a:.3} s, RK4 {b:.3} s");
                         assert!(
                             (a - b).abs() < 1e-4 * b + 1e-3,
                             "{powered:?} {current}: {a} vs {b}"
