@@ -327,6 +327,11 @@ mod tests {
         let onset = low;
         let fraction = onset / runaway;
         let growth = mean_rise(1.05 * onset) / mean_rise(onset) - 1.0;
+        std::println!(
+            "layered coil: runaway {runaway:.3} A, 50 % onset {onset:.3} A ({fraction:.3}), \
+             +5 % current gives +{:.1} % rise",
+            100.0 * growth
+        );
         assert!(
             (0.5..0.8).contains(&fraction),
             "onset at {fraction} of runaway"
@@ -357,6 +362,9 @@ mod tests {
         };
         let t = constant.steady_state(&[onset; 20], &[16.0]).unwrap();
         let constant_rise = t.iter().sum::<f64>() / 20.0 - 16.0;
+        std::println!(
+            "constant R at the onset current: {constant_rise:.1} K rise against {target:.1} K"
+        );
         assert!(constant_rise < 0.75 * target, "{constant_rise}");
     }
 
