@@ -36,11 +36,29 @@
 //! # Ok::<(), coil_thermal::BuildError>(())
 //! ```
 //!
-//! Model-dependent protection (time to limit, maximum safe current, runaway)
-//! lives in further submodules; the predictive alarm takes its time to limit
-//! as an input.
+//! Model-dependent protection needs the network the temperatures came from:
+//!
+//! * [`predict`]: every element's time to its alarm limit at the present
+//!   currents (never later than the truth), sliced to a few microseconds per
+//!   tick, for the predictive alarm.
+//! * [`safe_current`]: the largest common scale on the currents, or the
+//!   largest current of one coil, that keeps every element below its limit
+//!   over a horizon (seconds, for ever, or at a duty cycle).
+//! * [`runaway`]: per coil, the current above which no steady state exists,
+//!   and the one above which the steady hot spot passes its limit.
+//! * [`resistance_sensor`]: the winding's mean temperature from its voltage
+//!   and current, as a virtual sensor with its own variance, and a drift
+//!   check for a coil that heats more than modelled.
+//! * [`study`]: the Omnimagnet paper's maximum safe time and current for
+//!   each combination of powered coils, with `R(T)` exact.
 
 pub mod alarm;
 pub mod derating;
 pub mod events;
 pub mod limiter;
+mod modal;
+pub mod predict;
+pub mod resistance_sensor;
+pub mod runaway;
+pub mod safe_current;
+pub mod study;
