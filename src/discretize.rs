@@ -37,47 +37,126 @@ pub fn expm_with_integral<const N: usize>(
     a: &SMatrix<f64, N, N>,
     h: f64,
 ) -> Result<(SMatrix<f64, N, N>, SMatrix<f64, N, N>), BuildError> {
-    if !(h.is_finite() && h > 0.0) {
-        return Err(BuildError::InvalidTimeStep);
-    }
-    let ah = a * h;
-    if !ah.iter().all(|v| v.is_finite()) {
-        return Err(BuildError::InvalidParameter { name: "a" });
-    }
-    let norm = ah
-        .column_iter()
-        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    if !norm.is_finite() {
-        return Err(BuildError::InvalidParameter { name: "a" });
-    }
-    let mut squarings = 0;
-    let mut scale = 1.0;
-    while norm * scale > 0.25 {
-        squarings += 1;
-        scale *= 0.5;
-        if squarings > MAX_SQUARINGS {
+    let mut work = SlicedExpm::new(a, h)?;
+    // Bounded: at most TAYLOR_TERMS / 2 + MAX_SQUARINGS slices.
+    while !work.slice() {}
+    Ok(work.result())
+}
+
+/// Products of `N x N` matrices one [`SlicedExpm::slice`] performs at most.
+pub const MATMULS_PER_SLICE: usize = 2;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ExpmPhase {
+    Taylor { next_term: usize },
+    Squaring { left: u32 },
+    Done,
+}
+
+/// [`expm_with_integral`] cut into slices of bounded work, for a task that
+/// must not block: each [`SlicedExpm::slice`] does at most
+/// [`MATMULS_PER_SLICE`] matrix products. The slices compute exactly what the
+/// one-shot call computes, in the same order, so the results are equal bit for
+/// bit. A full run takes `TAYLOR_TERMS / 2 + s` slices (8 + s), `s` the number
+/// of squarings (`||A h||_1 <= 2^s / 4`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlicedExpm<const N: usize> {
+    x: SMatrix<f64, N, N>,
+    term: SMatrix<f64, N, N>,
+    e: SMatrix<f64, N, N>,
+    phi: SMatrix<f64, N, N>,
+    scaled_h: f64,
+    squarings: u32,
+    phase: ExpmPhase,
+}
+
+impl<const N: usize> SlicedExpm<N> {
+    /// Chooses the scaling for `exp(A h)` (`O(N^2)` work); no product yet.
+    pub fn new(a: &SMatrix<f64, N, N>, h: f64) -> Result<Self, BuildError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(BuildError::InvalidTimeStep);
+        }
+        let ah = a * h;
+        if !ah.iter().all(|v| v.is_finite()) {
             return Err(BuildError::InvalidParameter { name: "a" });
         }
+        let norm = ah
+            .column_iter()
+            .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+            .fold(0.0, f64::max);
+        let mut squarings = 0;
+        let mut scale = 1.0;
+        while norm * scale > 0.25 {
+            squarings += 1;
+            scale *= 0.5;
+            if squarings > MAX_SQUARINGS {
+                return Err(BuildError::InvalidParameter { name: "a" });
+            }
+        }
+        let scaled_h = h * scale;
+        let identity = SMatrix::<f64, N, N>::identity();
+        Ok(Self {
+            x: a * scaled_h,
+            term: identity,
+            e: identity,
+            phi: identity,
+            scaled_h,
+            squarings,
+            phase: ExpmPhase::Taylor { next_term: 1 },
+        })
     }
-    let scaled_h = h * scale;
-    let x = a * scaled_h;
-    let identity = SMatrix::<f64, N, N>::identity();
-    // E = sum X^k / k!, Phi / h_s = sum X^k / (k+1)!
-    let mut term = identity;
-    let mut e = identity;
-    let mut phi = identity;
-    for k in 1..TAYLOR_TERMS {
-        term = term * x / (k as f64);
-        e += term;
-        phi += term / ((k + 1) as f64);
+
+    /// Does one slice of work; `true` once the result is ready.
+    pub fn slice(&mut self) -> bool {
+        self.phase = match self.phase {
+            ExpmPhase::Taylor { next_term } => {
+                // E = sum X^k / k!, Phi / h_s = sum X^k / (k+1)!
+                let end = (next_term + MATMULS_PER_SLICE).min(TAYLOR_TERMS);
+                for k in next_term..end {
+                    self.term = self.term * self.x / (k as f64);
+                    self.e += self.term;
+                    self.phi += self.term / ((k + 1) as f64);
+                }
+                if end < TAYLOR_TERMS {
+                    ExpmPhase::Taylor { next_term: end }
+                } else {
+                    self.phi *= self.scaled_h;
+                    match self.squarings {
+                        0 => ExpmPhase::Done,
+                        left => ExpmPhase::Squaring { left },
+                    }
+                }
+            }
+            ExpmPhase::Squaring { left } => {
+                // Phi(2h) = Phi(h) (I + E(h)), E(2h) = E(h)^2
+                self.phi *= SMatrix::<f64, N, N>::identity() + self.e;
+                self.e = self.e * self.e;
+                if left <= 1 {
+                    ExpmPhase::Done
+                } else {
+                    ExpmPhase::Squaring { left: left - 1 }
+                }
+            }
+            ExpmPhase::Done => ExpmPhase::Done,
+        };
+        self.phase == ExpmPhase::Done
     }
-    let mut phi = phi * scaled_h;
-    for _ in 0..squarings {
-        phi *= identity + e;
-        e = e * e;
+
+    /// `true` once every slice is done.
+    pub fn is_done(&self) -> bool {
+        self.phase == ExpmPhase::Done
     }
-    Ok((e, phi))
+
+    /// The number of squarings chosen for this `A h`.
+    pub fn squarings(&self) -> u32 {
+        self.squarings
+    }
+
+    /// `(exp(A h), integral_0^h exp(A s) ds)`; meaningful once
+    /// [`SlicedExpm::is_done`].
+    pub fn result(&self) -> (SMatrix<f64, N, N>, SMatrix<f64, N, N>) {
+        (self.e, self.phi)
+    }
 }
 
 /// A network discretised exactly for one step `dt_s`, in `f32` or `f64`.

@@ -10,29 +10,23 @@
 //! |---|---|
 //! | idle check | 17 subtractions and compares |
 //! | build | conductances (33 contacts, ~20 `pow`), network, `A`, `||A h||_1` |
-//! | Taylor | 2 terms: 2 products `N x N x N` (8192 MACs) |
-//! | squaring | 1 doubling: `Phi (I + E)` and `E E`, 2 products |
+//! | exp | one [`SlicedExpm::slice`]: at most 2 products `N x N x N` (8192 MACs) |
 //! | finish | `Phi B`, `Phi G`, `Phi d` (1280 MACs), swap |
 //!
 //! One cycle is `1 + 1 + 8 + s + 1` slices, `s` the number of squarings
-//! (`||A dt||_1 <= 2^s / 4`; 0 at dt = 1 ms, at most 60). The arithmetic is
-//! that of [`crate::discretize::zoh`] in the same order, so the result is
+//! (`||A dt||_1 <= 2^s / 4`; 0 at dt = 1 ms, at most 60). The exponential is
+//! [`crate::discretize`]'s own, run slice by slice, so the result is
 //! bit-for-bit the one-shot [`Omnimagnet::linearize`].
 
 use super::data::{NODES, SOLENOIDS};
 use super::linearize::Linearization;
 use super::Omnimagnet;
-use crate::discretize::Discrete;
+use crate::discretize::{Discrete, SlicedExpm};
 use crate::error::BuildError;
 use crate::network::StateSpace;
 use nalgebra::SMatrix;
 
-/// Most `N x N x N` matrix products one slice performs.
-pub const MATMULS_PER_SLICE: usize = 2;
-/// Taylor terms of `exp` (as in [`crate::discretize`]).
-const TAYLOR_TERMS: usize = 16;
-/// Most halvings of the step (as in [`crate::discretize`]).
-const MAX_SQUARINGS: u32 = 60;
+pub use crate::discretize::MATMULS_PER_SLICE;
 
 type Square = SMatrix<f64, NODES, NODES>;
 
@@ -77,8 +71,7 @@ pub enum RelinearizePoll {
 enum Phase {
     Idle,
     Build,
-    Taylor { next_k: usize },
-    Squaring { left: u32 },
+    Exponential,
     Finish,
 }
 
@@ -88,12 +81,7 @@ struct Work {
     op_temps_c: [f64; NODES],
     op_ambient_c: f64,
     ss: StateSpace<NODES, 1, SOLENOIDS>,
-    x: Square,
-    term: Square,
-    e: Square,
-    phi: Square,
-    scaled_h: f64,
-    squarings: u32,
+    expm: SlicedExpm<NODES>,
 }
 
 /// Keeps an active linearisation and replaces it, slice by slice, when the
@@ -134,12 +122,7 @@ impl Relinearizer {
             op_temps_c: *temps_c,
             op_ambient_c: ambient_c,
             ss: model.state_space(temps_c, ambient_c)?,
-            x: Square::zeros(),
-            term: Square::zeros(),
-            e: Square::zeros(),
-            phi: Square::zeros(),
-            scaled_h: 0.0,
-            squarings: 0,
+            expm: SlicedExpm::new(&Square::zeros(), config.dt_s)?,
         };
         Ok(Self {
             model,
@@ -220,74 +203,29 @@ impl Relinearizer {
             Phase::Idle => Phase::Idle,
             Phase::Build => {
                 w.ss = self.model.state_space(&w.op_temps_c, w.op_ambient_c)?;
-                // Scaling exactly as `discretize::expm_with_integral`.
-                let h = self.config.dt_s;
-                if !(h.is_finite() && h > 0.0) {
-                    return Err(BuildError::InvalidTimeStep);
-                }
-                let ah = w.ss.a * h;
-                let norm = ah
-                    .column_iter()
-                    .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
-                    .fold(0.0, f64::max);
-                if !norm.is_finite() {
-                    return Err(BuildError::InvalidParameter { name: "a" });
-                }
-                let (mut squarings, mut scale) = (0, 1.0);
-                while norm * scale > 0.25 {
-                    squarings += 1;
-                    scale *= 0.5;
-                    if squarings > MAX_SQUARINGS {
-                        return Err(BuildError::InvalidParameter { name: "a" });
-                    }
-                }
-                w.scaled_h = h * scale;
-                w.squarings = squarings;
-                w.x = w.ss.a * w.scaled_h;
-                w.term = Square::identity();
-                w.e = Square::identity();
-                w.phi = Square::identity();
-                Phase::Taylor { next_k: 1 }
+                w.expm = SlicedExpm::new(&w.ss.a, self.config.dt_s)?;
+                Phase::Exponential
             }
-            Phase::Taylor { next_k } => {
-                let end = (next_k + MATMULS_PER_SLICE).min(TAYLOR_TERMS);
-                for k in next_k..end {
-                    w.term = w.term * w.x / (k as f64);
-                    w.e += w.term;
-                    w.phi += w.term / ((k + 1) as f64);
-                }
-                if end < TAYLOR_TERMS {
-                    Phase::Taylor { next_k: end }
-                } else {
-                    w.phi *= w.scaled_h;
-                    if w.squarings == 0 {
-                        Phase::Finish
-                    } else {
-                        Phase::Squaring { left: w.squarings }
-                    }
-                }
-            }
-            Phase::Squaring { left } => {
-                w.phi *= Square::identity() + w.e;
-                w.e = w.e * w.e;
-                if left <= 1 {
+            Phase::Exponential => {
+                if w.expm.slice() {
                     Phase::Finish
                 } else {
-                    Phase::Squaring { left: left - 1 }
+                    Phase::Exponential
                 }
             }
             Phase::Finish => {
-                let bd_power = w.phi * w.ss.b_power;
+                let (ad, phi) = w.expm.result();
+                let bd_power = phi * w.ss.b_power;
                 self.active = Linearization {
                     op_temps_c: w.op_temps_c,
                     op_ambient_c: w.op_ambient_c,
                     bd_current_squared: self.model.current_squared_input(&bd_power, &w.op_temps_c),
                     discrete: Discrete {
                         dt_s: self.config.dt_s,
-                        ad: w.e,
+                        ad,
                         bd_power,
-                        gd_boundary: w.phi * w.ss.g_boundary,
-                        dd: w.phi * w.ss.d,
+                        gd_boundary: phi * w.ss.g_boundary,
+                        dd: phi * w.ss.d,
                     },
                 };
                 Phase::Idle
