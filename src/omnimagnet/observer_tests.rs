@@ -1,0 +1,509 @@
+//! Tests of the observer on synthetic truth from the nonlinear model with
+//! every parameter perturbed (the filter's model is never the truth's).
+//! Meant for `cargo test --release`.
+
+use super::*;
+use crate::omnimagnet::{
+    Contact, ConvectionParams, Preset, Radiator, RelinearizeConfig, NODE_NAMES, PAPER_OMNIMAGNET,
+};
+
+const AMBIENT_C: f64 = 22.0;
+const SAMPLE_S: f64 = 0.5;
+
+/// SplitMix64 and Box-Muller: deterministic test noise.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in (0, 1).
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    /// A factor uniform in [1 - a, 1 + a].
+    fn factor(&mut self, a: f64) -> f64 {
+        1.0 + a * (2.0 * self.uniform() - 1.0)
+    }
+
+    fn gauss(&mut self) -> f64 {
+        let (u1, u2) = (self.uniform(), self.uniform());
+        (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos()
+    }
+}
+
+/// The paper's Omnimagnet with every parameter scaled independently by a
+/// factor in [1 - a, 1 + a]: each element's capacity (volume), each
+/// contact's conductance (area: conduction and convection alike), each
+/// radiator's emissivity, each convection group's `h`, each `R0`.
+fn perturbed(seed: u64, a: f64) -> Omnimagnet {
+    let mut rng = Rng(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x1234_5678);
+    let mut g = PAPER_OMNIMAGNET;
+    for e in g.elements.iter_mut() {
+        e.volume_m3 *= rng.factor(a);
+    }
+    let mut contacts: Vec<Contact> = g.contacts.to_vec();
+    for c in contacts.iter_mut() {
+        let f = rng.factor(a);
+        c.area_m2.iter_mut().for_each(|s| *s *= f);
+    }
+    g.contacts = Box::leak(contacts.into_boxed_slice());
+    let mut radiators: Vec<Radiator> = g.radiators.to_vec();
+    for r in radiators.iter_mut() {
+        r.emissivity = (r.emissivity * rng.factor(a)).min(1.0);
+    }
+    g.radiators = Box::leak(radiators.into_boxed_slice());
+    for s in g.solenoids.iter_mut() {
+        s.r0_ohm *= rng.factor(a);
+    }
+    let mut conv = ConvectionParams::PAPER;
+    conv.scale.iter_mut().for_each(|s| *s = rng.factor(a));
+    Omnimagnet::new(g, conv).unwrap()
+}
+
+/// Mean of `I^2` over `[t, t + dt]` per solenoid, as an RMS current \[A\]:
+/// what a controller integrating its own current commands would pass.
+fn rms_currents(preset: &Preset, t: f64, dt: f64) -> [f64; SOLENOIDS] {
+    const SUB: usize = 16;
+    let mut acc = [0.0; SOLENOIDS];
+    for k in 0..SUB {
+        let c = preset.currents_a(t + (k as f64 + 0.5) * dt / SUB as f64);
+        for m in 0..SOLENOIDS {
+            acc[m] += c[m] * c[m] / SUB as f64;
+        }
+    }
+    acc.map(f64::sqrt)
+}
+
+/// The truth: the nonlinear model, integrated by RK4 with RMS currents;
+/// and the information bound ("oracle"): the *nominal* model's unmeasured
+/// elements driven by the *true* solenoid temperatures from the true start.
+/// No estimator that uses the solenoid thermocouples and the nominal model
+/// does better: the unmeasured elements have no sources, so their
+/// temperatures follow from conductance ratios and capacities the sensors
+/// cannot see.
+struct Truth {
+    model: Omnimagnet,
+    temps_c: [f64; NODES],
+    oracle_c: [f64; NODES],
+    t_s: f64,
+    step_s: f64,
+}
+
+impl Truth {
+    fn advance_to(&mut self, preset: &Preset, t_end: f64) {
+        while self.t_s < t_end - 1e-9 {
+            let dt = self.step_s.min(t_end - self.t_s);
+            let cur = rms_currents(preset, self.t_s, dt);
+            self.oracle_c[..SOLENOIDS].copy_from_slice(&self.temps_c[..SOLENOIDS]);
+            self.model.step_rk4(&mut self.temps_c, &cur, AMBIENT_C, dt);
+            Omnimagnet::PAPER.step_rk4(&mut self.oracle_c, &cur, AMBIENT_C, dt);
+            self.oracle_c[..SOLENOIDS].copy_from_slice(&self.temps_c[..SOLENOIDS]);
+            self.t_s += dt;
+        }
+    }
+}
+
+/// What a thermocouple does in a run.
+#[derive(Clone, Copy, PartialEq)]
+enum Failure {
+    None,
+    /// Reads this value from `at_s` on, no fault bit.
+    Reads {
+        sensor: usize,
+        at_s: f64,
+        value_c: f64,
+    },
+    /// The driver reports open circuit from `at_s` on.
+    DriverOpen {
+        sensor: usize,
+        at_s: f64,
+    },
+    /// Jumps by `offset_k` from `at_s` on, no fault bit.
+    Jumps {
+        sensor: usize,
+        at_s: f64,
+        offset_k: f64,
+    },
+    /// Freezes at its value at `at_s`, no fault bit.
+    Sticks {
+        sensor: usize,
+        at_s: f64,
+    },
+}
+
+struct Scenario {
+    preset: Preset,
+    seed: u64,
+    perturbation: f64,
+    /// Filter predict step \[s\].
+    dt_s: f64,
+    duration_s: f64,
+    /// Errors are scored from here on \[s\].
+    score_from_s: f64,
+    settings: ObserverSettings,
+    failure: Failure,
+    relinearize: bool,
+    /// Solve and install a new gain after every model swap.
+    refresh_gain: bool,
+    /// Truth RK4 step \[s\] (with the RMS current over the step: the 10 Hz
+    /// ripple of the rotating dipole's `I^2` moves a solenoid by about
+    /// 3e-4 K, so averaging it is exact for this purpose).
+    truth_step_s: f64,
+}
+
+impl Scenario {
+    fn new(preset: Preset, seed: u64) -> Self {
+        Self {
+            preset,
+            seed,
+            perturbation: 0.2,
+            dt_s: 0.1,
+            duration_s: 3600.0,
+            score_from_s: 1200.0,
+            settings: ObserverSettings::DEFAULT,
+            failure: Failure::None,
+            relinearize: true,
+            refresh_gain: true,
+            truth_step_s: 0.1,
+        }
+    }
+}
+
+struct Outcome {
+    /// Per element RMS of (estimate - truth) over the scored window \[K\].
+    rms_k: [f64; NODES],
+    /// The same for the oracle (the information bound) \[K\].
+    bound_k: [f64; NODES],
+    /// Largest |error| of any element in the scored window \[K\].
+    max_k: f64,
+    /// Largest |error| of any element after a failure \[K\].
+    max_after_failure_k: f64,
+    /// Mean NEES of the 16 temperatures over the scored window.
+    nees: f64,
+    /// Time from the failure to the first flag \[s\].
+    flagged_after_s: Option<f64>,
+    /// Healthy sensors ever flagged.
+    false_flags: usize,
+    /// Model swaps during the run.
+    swaps: usize,
+}
+
+fn run(sc: &Scenario) -> Outcome {
+    let truth_model = perturbed(sc.seed, sc.perturbation);
+    let start = match sc.preset {
+        Preset::PassiveCooling => Preset::PASSIVE_COOLING.initial_temps_c(&truth_model, AMBIENT_C),
+        _ => [AMBIENT_C; NODES],
+    };
+    let mut truth = Truth {
+        model: truth_model,
+        temps_c: start,
+        oracle_c: start,
+        t_s: 0.0,
+        step_s: sc.truth_step_s,
+    };
+    let nominal = Omnimagnet::PAPER;
+    let wrong = start.map(|t| t + 10.0);
+    let cfg = RelinearizeConfig {
+        dt_s: sc.dt_s,
+        ..RelinearizeConfig::default()
+    };
+    let mut relin = Relinearizer::new(nominal, cfg, &wrong, AMBIENT_C).unwrap();
+    let mut obs =
+        OmnimagnetObserver::<f64>::new(&nominal, relin.active(), &sc.settings, &wrong, AMBIENT_C)
+            .unwrap();
+    let mut noise = Rng(sc.seed ^ 0xABCD_EF01);
+    let steps = (sc.duration_s / sc.dt_s).round() as usize;
+    let per_sample = (SAMPLE_S / sc.dt_s).round() as usize;
+    let mut sq = [0.0; NODES];
+    let mut sq_oracle = [0.0; NODES];
+    let (mut n, mut nees, mut max_k, mut max_after) = (0usize, 0.0, 0.0f64, 0.0f64);
+    let mut flagged_after_s = None;
+    let mut false_flags = 0;
+    let mut stuck_value = None;
+    let mut swaps = 0;
+    for k in 0..steps {
+        let t = k as f64 * sc.dt_s;
+        let cur = rms_currents(&sc.preset, t, sc.dt_s);
+        obs.predict(&cur, AMBIENT_C);
+        if sc.relinearize {
+            let poll = obs.follow(&mut relin, AMBIENT_C);
+            swaps += usize::from(poll == RelinearizePoll::Swapped);
+            if poll == RelinearizePoll::Swapped && sc.refresh_gain {
+                let gain = obs.config().solve_gain().unwrap();
+                obs.install_gain(gain).unwrap();
+            }
+        }
+        if (k + 1) % per_sample != 0 {
+            continue;
+        }
+        let now = (k + 1) as f64 * sc.dt_s;
+        truth.advance_to(&sc.preset, now);
+        let mut samples: [Option<Result<f64, SensorFault>>; THERMOCOUPLES] =
+            core::array::from_fn(|j| {
+                Some(Ok(
+                    truth.temps_c[THERMOCOUPLE_NODES[j]] + 0.1 * noise.gauss()
+                ))
+            });
+        let failed = match sc.failure {
+            Failure::None => None,
+            Failure::Reads {
+                sensor,
+                at_s,
+                value_c,
+            } if now >= at_s => {
+                samples[sensor] = Some(Ok(value_c));
+                Some((sensor, at_s))
+            }
+            Failure::DriverOpen { sensor, at_s } if now >= at_s => {
+                samples[sensor] = Some(Err(SensorFault::OpenCircuit));
+                Some((sensor, at_s))
+            }
+            Failure::Jumps {
+                sensor,
+                at_s,
+                offset_k,
+            } if now >= at_s => {
+                if let Some(Ok(v)) = samples[sensor] {
+                    samples[sensor] = Some(Ok(v + offset_k));
+                }
+                Some((sensor, at_s))
+            }
+            Failure::Sticks { sensor, at_s } if now >= at_s => {
+                let v = *stuck_value.get_or_insert(match samples[sensor] {
+                    Some(Ok(v)) => v,
+                    _ => unreachable!(),
+                });
+                samples[sensor] = Some(Ok(v));
+                Some((sensor, at_s))
+            }
+            _ => None,
+        };
+        let rep = obs.correct_samples(&samples);
+        for j in 0..THERMOCOUPLES {
+            if rep.flagged(j) {
+                match failed {
+                    Some((s, at)) if s == j => {
+                        flagged_after_s.get_or_insert(now - at);
+                    }
+                    _ => false_flags += 1,
+                }
+            }
+        }
+        let est = obs.temperatures_c();
+        let err: [f64; NODES] = core::array::from_fn(|i| est[i] - truth.temps_c[i]);
+        if failed.is_some() {
+            max_after = err.iter().fold(max_after, |m, e| m.max(e.abs()));
+        }
+        if now >= sc.score_from_s {
+            n += 1;
+            for i in 0..NODES {
+                sq[i] += err[i] * err[i];
+                let e = truth.oracle_c[i] - truth.temps_c[i];
+                sq_oracle[i] += e * e;
+            }
+            max_k = err.iter().fold(max_k, |m, e| m.max(e.abs()));
+            let cov = match obs.mode() {
+                GainMode::TimeVarying => obs.state().filter.cov,
+                GainMode::SteadyState => *obs.config().gain().posterior(),
+            };
+            let p = cov.fixed_view::<NODES, NODES>(0, 0).into_owned();
+            let e = SVector::<f64, NODES>::from_column_slice(&err);
+            nees += (e.transpose() * p.try_inverse().unwrap() * e)[(0, 0)];
+        }
+    }
+    Outcome {
+        rms_k: sq.map(|s| (s / n.max(1) as f64).sqrt()),
+        bound_k: sq_oracle.map(|s| (s / n.max(1) as f64).sqrt()),
+        max_k,
+        max_after_failure_k: max_after,
+        nees: nees / n.max(1) as f64,
+        flagged_after_s,
+        false_flags,
+        swaps,
+    }
+}
+
+fn fmt_row(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:5.2}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Slack of the filter over the information bound \[K\]: the oracle knows
+/// the true start and the noise-free solenoid temperatures, the filter
+/// starts 10 K wrong (largest excess measured: 0.26 K, the core of
+/// all_three seed 2, whose 2.5 h time constant keeps part of the start
+/// error after 20 min).
+const BOUND_SLACK_K: f64 = 0.3;
+const TARGET_K: f64 = 0.5;
+
+/// Checks one run: the solenoids within 0.1 K, every element within the
+/// 0.5 K target or, where the information bound makes that impossible,
+/// within the bound plus the slack. Returns the elements that missed 0.5 K.
+fn check_accuracy(label: &str, o: &Outcome) -> Vec<usize> {
+    let bound = &o.bound_k;
+    let mut missed = Vec::new();
+    for i in 0..NODES {
+        let rms = o.rms_k[i];
+        if i < SOLENOIDS {
+            assert!(rms < 0.1, "{label}: {} rms {rms:.3} K", NODE_NAMES[i]);
+        }
+        if rms >= TARGET_K {
+            missed.push(i);
+            assert!(
+                rms < bound[i] + BOUND_SLACK_K,
+                "{label}: {} rms {rms:.2} K, bound {:.2} K",
+                NODE_NAMES[i],
+                bound[i]
+            );
+        }
+    }
+    missed
+}
+
+/// Every preset of the issue and three seeds of +-20 % perturbations,
+/// filter at 0.1 s (the 1 ms run is below), 1 h, scored after 20 min.
+#[test]
+fn accuracy_under_20_percent_parameter_errors() {
+    let presets = [
+        Preset::ALL_THREE,
+        Preset::SOLENOID_1,
+        Preset::ROTATING_DIPOLE,
+        Preset::PASSIVE_COOLING,
+    ];
+    let mut missed_total = 0;
+    let mut nees = Vec::new();
+    println!("preset           seed  max_K  all_rms_K  per-element RMS [K] (node order)");
+    for preset in presets {
+        for seed in 1..=3 {
+            let o = run(&Scenario::new(preset, seed));
+            let label = format!("{} seed {seed}", preset.name());
+            let all = (o.rms_k.iter().map(|v| v * v).sum::<f64>() / NODES as f64).sqrt();
+            println!(
+                "{:16} {seed:4}  {:5.2}  {all:9.2}  [{}]",
+                preset.name(),
+                o.max_k,
+                fmt_row(&o.rms_k)
+            );
+            println!("{:16} bound            [{}]", "", fmt_row(&o.bound_k));
+            let missed = check_accuracy(&label, &o);
+            for i in &missed {
+                println!(
+                    "  {label}: {} misses 0.5 K: {:.2} K (bound {:.2} K)",
+                    NODE_NAMES[*i], o.rms_k[*i], o.bound_k[*i]
+                );
+            }
+            missed_total += missed.len();
+            assert_eq!(o.false_flags, 0, "{label}: healthy sensor flagged");
+            assert!(o.swaps > 0, "{label}: the model never followed the device");
+            nees.push(o.nees);
+        }
+    }
+    let mean_nees = nees.iter().sum::<f64>() / nees.len() as f64;
+    println!(
+        "element-runs missing 0.5 K: {missed_total} of {}; mismatched-model mean NEES (16 dof): {mean_nees:.0}",
+        NODES * presets.len() * 3
+    );
+    // The measured figure (README): a regression shows up here.
+    assert!(missed_total <= 4, "{missed_total} element-runs miss 0.5 K");
+}
+
+/// The control loop's rate: predict every 1 ms (steady-state gain after
+/// the warm-up, re-linearising), the rotating dipole's 10 Hz `I^2` ripple
+/// resolved, 30 min, scored after 10 min. The same figures as the 0.1 s
+/// runs.
+#[test]
+fn one_ms_rotating_dipole() {
+    let mut sc = Scenario::new(Preset::ROTATING_DIPOLE, 1);
+    sc.dt_s = 1e-3;
+    sc.duration_s = 1800.0;
+    sc.score_from_s = 600.0;
+    sc.truth_step_s = 0.01;
+    let o = run(&sc);
+    println!("1 ms rotating dipole: rms [{}]", fmt_row(&o.rms_k));
+    println!("             bound:     [{}]", fmt_row(&o.bound_k));
+    let missed = check_accuracy("1 ms rotating dipole", &o);
+    assert!(missed.is_empty(), "{missed:?}");
+    assert_eq!(o.false_flags, 0);
+    assert!(o.swaps > 0);
+}
+
+fn failure_run(failure: Failure) -> Outcome {
+    let mut sc = Scenario::new(Preset::ALL_THREE, 2);
+    sc.duration_s = 1500.0;
+    sc.score_from_s = 600.0;
+    sc.failure = failure;
+    run(&sc)
+}
+
+/// One thermocouple fails open mid-run, seen as a 1372 degC reading (no
+/// fault bit) or as the driver's `OpenCircuit`; or jumps by 5 K. The
+/// estimates stay within 2 K of the truth and the sensor is flagged within
+/// 1 s; no healthy sensor is flagged.
+#[test]
+fn failed_thermocouple_is_flagged_within_1_s() {
+    let at_s = 600.2;
+    for (name, failure) in [
+        (
+            "open, 1372 degC",
+            Failure::Reads {
+                sensor: 2,
+                at_s,
+                value_c: 1372.0,
+            },
+        ),
+        (
+            "open, driver fault",
+            Failure::DriverOpen { sensor: 0, at_s },
+        ),
+        (
+            "jump +5 K",
+            Failure::Jumps {
+                sensor: 4,
+                at_s,
+                offset_k: 5.0,
+            },
+        ),
+    ] {
+        let o = failure_run(failure);
+        println!(
+            "{name}: flagged after {:?} s, max error after failure {:.2} K",
+            o.flagged_after_s, o.max_after_failure_k
+        );
+        let latency = o.flagged_after_s.expect("never flagged");
+        assert!(latency <= 1.0, "{name}: flagged after {latency} s");
+        assert!(
+            o.max_after_failure_k < 2.0,
+            "{name}: {}",
+            o.max_after_failure_k
+        );
+        assert_eq!(o.false_flags, 0, "{name}");
+    }
+}
+
+/// A thermocouple sticks (no fault bit) while the coil heats: fused while
+/// within the gate, flagged once the truth has moved away; the estimates
+/// stay within 2 K.
+#[test]
+fn stuck_thermocouple_is_flagged_and_does_not_drag() {
+    let o = failure_run(Failure::Sticks {
+        sensor: 1,
+        at_s: 120.2,
+    });
+    println!(
+        "stuck: flagged after {:?} s, max error after failure {:.2} K",
+        o.flagged_after_s, o.max_after_failure_k
+    );
+    let latency = o.flagged_after_s.expect("never flagged");
+    assert!(latency <= 60.0, "flagged after {latency} s");
+    assert!(o.max_after_failure_k < 2.0, "{}", o.max_after_failure_k);
+    assert_eq!(o.false_flags, 0);
+}
