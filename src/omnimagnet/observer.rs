@@ -142,6 +142,10 @@ pub const STATES: usize = NODES + SOLENOIDS;
 /// Filter inputs: 3 Joule powers \[W\], the ambient \[degC\] and 1.
 pub const INPUTS: usize = SOLENOIDS + 2;
 
+/// Relative distance of every time-varying variance from the steady-state
+/// posterior below which the warm-up switches to the steady-state gain.
+pub const STEADY_SWITCH_TOLERANCE: f64 = 1.0;
+
 /// The filter configuration type the observer uses.
 pub type ObserverKalman<T> = KalmanConfig<T, STATES, INPUTS, THERMOCOUPLES>;
 /// The steady-state solution type the observer uses.
@@ -193,9 +197,11 @@ pub struct ObserverSettings {
     pub recover_after: u16,
     /// Gain mode after the warm-up.
     pub mode: GainMode,
-    /// Corrections run with the time-varying filter before switching to
-    /// `mode` (0: start in `mode`). The start covariance is not the
-    /// steady-state one, and only the time-varying filter uses it.
+    /// Least number of corrections run with the time-varying filter before
+    /// switching to `mode` (0: start in `mode`); the switch waits further
+    /// until the covariance has converged ([`STEADY_SWITCH_TOLERANCE`]).
+    /// The start covariance is not the steady-state one, and only the
+    /// time-varying filter uses it.
     pub warmup_corrections: u32,
 }
 
@@ -631,6 +637,21 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
         core::array::from_fn(|i| cov[(i, i)])
     }
 
+    /// The time-varying posterior has reached the steady-state one: every
+    /// variance within [`STEADY_SWITCH_TOLERANCE`] of it (relative). Until
+    /// then the steady gain would under-weight the readings for the states
+    /// still uncertain and the estimate's error would exceed what the
+    /// steady covariance claims. A factor of 2, not closer: the core and the
+    /// inside air converge with the core's 2.5 h time constant (about
+    /// 8 min to reach a factor 2, hours to 10 %), and the steady gain on
+    /// them is small either way.
+    fn covariance_converged(&self) -> bool {
+        let post = self.config.gain.posterior();
+        let cov = &self.state.filter.cov;
+        let tol: T = cast(STEADY_SWITCH_TOLERANCE);
+        (0..STATES).all(|i| (cov[(i, i)] - post[(i, i)]).abs() <= tol * post[(i, i)])
+    }
+
     /// `true` after a model swap until a new gain is installed.
     pub fn gain_is_stale(&self) -> bool {
         self.config.gain_stale
@@ -711,6 +732,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
         if self.state.mode == GainMode::TimeVarying
             && self.config.settings.mode == GainMode::SteadyState
             && self.state.corrections >= self.config.settings.warmup_corrections
+            && self.covariance_converged()
         {
             self.state.mode = GainMode::SteadyState;
         }

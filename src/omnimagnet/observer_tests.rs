@@ -507,3 +507,136 @@ fn stuck_thermocouple_is_flagged_and_does_not_drag() {
     assert!(o.max_after_failure_k < 2.0, "{}", o.max_after_failure_k);
     assert_eq!(o.false_flags, 0);
 }
+
+/// NEES on the matched model: the truth is the observer's own augmented
+/// linear model (`F`, `G`, `Q`, `R`, start drawn from its start covariance)
+/// at 0.5 s, so the filter is consistent by construction if it is wired
+/// right (deviation coordinates, input columns, steady gain). With `R`
+/// runs and 19 states the ensemble mean of a chi-square(19) has standard
+/// deviation sqrt(2 * 19 / R); the time average has at most that spread, so
+/// the 99.9 % band is 19 +- 3.29 sqrt(38 / R). Time-varying: 50 runs of
+/// 10 min. Steady state: 30 runs of 30 min scored over the last 10 min,
+/// after the warm-up has switched to the steady gain.
+#[test]
+fn nees_is_consistent_on_the_matched_model() {
+    let op = [40.0; NODES];
+    let lin = Omnimagnet::PAPER
+        .linearize(&op, AMBIENT_C, SAMPLE_S)
+        .unwrap();
+    for mode in [GainMode::TimeVarying, GainMode::SteadyState] {
+        let mut settings = ObserverSettings::DEFAULT;
+        settings.mode = mode;
+        let (runs, steps, score_from) = match mode {
+            GainMode::TimeVarying => (50, 1200, 240),
+            GainMode::SteadyState => (30, 3600, 2400),
+        };
+        let mut rng = Rng(99);
+        let (mut total, mut n) = (0.0, 0usize);
+        let mut switched = None;
+        for _ in 0..runs {
+            let mut obs =
+                OmnimagnetObserver::<f64>::new(&Omnimagnet::PAPER, &lin, &settings, &op, AMBIENT_C)
+                    .unwrap();
+            let k = obs.config().kalman().clone();
+            let (f, g, h, q) = (*k.f(), *k.g(), k.h(), *k.q());
+            // Start: the prior's common and independent parts, the biases.
+            let common = settings.initial_common_sigma_k * rng.gauss();
+            let mut x = SVector::<f64, STATES>::from_fn(|i, _| {
+                if i < NODES {
+                    obs.state().filter.x[i] + common + settings.initial_sigma_k * rng.gauss()
+                } else {
+                    settings.initial_bias_sigma_w * rng.gauss()
+                }
+            });
+            let u = SVector::<f64, INPUTS>::from_column_slice(&[0.0, 0.0, 0.0, AMBIENT_C, 1.0]);
+            for step in 0..steps {
+                let w = SVector::<f64, STATES>::from_fn(|i, _| q[(i, i)].sqrt() * rng.gauss());
+                x = f * x + g * u + w;
+                obs.predict(&[0.0; SOLENOIDS], AMBIENT_C);
+                let z = h * x;
+                let readings: [Option<f64>; THERMOCOUPLES] = core::array::from_fn(|j| {
+                    Some(z[j] + obs.config().origin_c()[THERMOCOUPLE_NODES[j]] + 0.1 * rng.gauss())
+                });
+                obs.correct(&readings);
+                if obs.mode() == GainMode::SteadyState {
+                    switched.get_or_insert(step);
+                }
+                if step >= score_from {
+                    assert_eq!(obs.mode(), mode);
+                    let cov = match obs.mode() {
+                        GainMode::TimeVarying => obs.state().filter.cov,
+                        GainMode::SteadyState => *obs.config().gain().posterior(),
+                    };
+                    let e = x - obs.state().filter.x;
+                    total += (e.transpose() * cov.try_inverse().unwrap() * e)[(0, 0)];
+                    n += 1;
+                }
+            }
+        }
+        let mean = total / n as f64;
+        println!("matched-model NEES ({mode:?}): {mean:.2} (19 dof), steady after {switched:?} corrections");
+        let half = 3.29 * (38.0 / runs as f64).sqrt();
+        assert!(
+            (19.0 - half..=19.0 + half).contains(&mean),
+            "{mode:?}: mean NEES {mean}"
+        );
+    }
+}
+
+/// Which elements are observable from which thermocouples, for the 16-node
+/// model and for the observer's augmented model (with the heat biases).
+#[test]
+fn observability_of_sensor_sets() {
+    let lin = Omnimagnet::PAPER
+        .linearize(&[AMBIENT_C; NODES], AMBIENT_C, 1e-3)
+        .unwrap();
+    let obs = OmnimagnetObserver::<f64>::new(
+        &Omnimagnet::PAPER,
+        &lin,
+        &ObserverSettings::DEFAULT,
+        &[AMBIENT_C; NODES],
+        AMBIENT_C,
+    )
+    .unwrap();
+    let sets: [(&str, [bool; THERMOCOUPLES]); 6] = [
+        ("all six", [true; 6]),
+        ("one per solenoid", [true, false, true, false, true, false]),
+        ("solenoid 1 only", [true, true, false, false, false, false]),
+        ("solenoid 2 only", [false, false, true, true, false, false]),
+        ("solenoid 3 only", [false, false, false, false, true, true]),
+        (
+            "one thermocouple",
+            [true, false, false, false, false, false],
+        ),
+    ];
+    let mut results = Vec::new();
+    for (name, sel) in sets {
+        let e = element_observability(&lin, &sel);
+        let a = obs.config().observability(&sel, 1e-9);
+        let marks: String = a
+            .observable
+            .iter()
+            .map(|o| if *o { '+' } else { '.' })
+            .collect();
+        let worst = e.unobservable_share.iter().fold(0.0f64, |m, s| m.max(*s));
+        println!(
+            "{name:18} 16-node rank {:2} (worst share {worst:.1e}); augmented rank {:2} [{marks}]",
+            e.rank, a.rank
+        );
+        results.push((e, a));
+    }
+    // All six and one per solenoid see the same three nodes.
+    assert_eq!(results[0].0, results[1].0);
+    assert_eq!(results[0].1, results[1].1);
+    // The network is connected and each solenoid feeds all others through
+    // it, so the 16 temperatures are observable from any one node; the
+    // three biases need all three solenoids measured.
+    for (e, _) in &results {
+        assert!(e.is_full(), "rank {}", e.rank);
+    }
+    assert!(results[0].1.is_full());
+    assert_eq!(results[2].0, results[5].0);
+    for (_, a) in &results[2..] {
+        assert!(!a.is_full(), "one node cannot separate three biases");
+    }
+}
