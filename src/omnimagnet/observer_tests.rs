@@ -418,13 +418,13 @@ fn accuracy_under_20_percent_parameter_errors() {
 
 /// The control loop's rate: predict every 1 ms (steady-state gain after
 /// the warm-up, re-linearising), the rotating dipole's 10 Hz `I^2` ripple
-/// resolved, 30 min, scored after 10 min. The same figures as the 0.1 s
+/// resolved, 20 min, scored after 10 min. The same figures as the 0.1 s
 /// runs.
 #[test]
 fn one_ms_rotating_dipole() {
     let mut sc = Scenario::new(Preset::ROTATING_DIPOLE, 1);
     sc.dt_s = 1e-3;
-    sc.duration_s = 1800.0;
+    sc.duration_s = 1200.0;
     sc.score_from_s = 600.0;
     sc.truth_step_s = 0.01;
     let o = run(&sc);
@@ -639,4 +639,209 @@ fn observability_of_sensor_sets() {
     for (_, a) in &results[2..] {
         assert!(!a.is_full(), "one node cannot separate three biases");
     }
+}
+
+/// A model swap: `F` and `G` follow at once, the estimate is continuous
+/// (only its origin moves), the gain is marked stale until a new one is
+/// installed. Keeping the stale gain costs almost nothing in accuracy.
+#[test]
+fn relinearization_swaps_the_model_and_keeps_the_estimate() {
+    let nominal = Omnimagnet::PAPER;
+    let start = [AMBIENT_C; NODES];
+    let mut relin =
+        Relinearizer::new(nominal, RelinearizeConfig::default(), &start, AMBIENT_C).unwrap();
+    let mut obs = OmnimagnetObserver::<f64>::new(
+        &nominal,
+        relin.active(),
+        &ObserverSettings::DEFAULT,
+        &start,
+        AMBIENT_C,
+    )
+    .unwrap();
+    // Move the estimate 8 K up: the relinearizer must start and swap.
+    obs.correct(&[Some(30.0); THERMOCOUPLES]);
+    let mut swapped = false;
+    for _ in 0..100 {
+        let before = obs.temperatures_c();
+        if obs.follow(&mut relin, AMBIENT_C) == RelinearizePoll::Swapped {
+            let after = obs.temperatures_c();
+            for i in 0..NODES {
+                assert!((before[i] - after[i]).abs() < 1e-9, "node {i}");
+            }
+            swapped = true;
+            break;
+        }
+    }
+    assert!(swapped);
+    assert!(obs.gain_is_stale());
+    let f = obs.config().kalman().f();
+    let ad = &relin.active().discrete.ad;
+    assert_eq!(f.fixed_view::<NODES, NODES>(0, 0).into_owned(), *ad);
+    assert_eq!(
+        obs.config().origin_c().as_slice(),
+        &relin.active().op_temps_c[..]
+    );
+    let gain = obs.config().solve_gain().unwrap();
+    obs.install_gain(gain).unwrap();
+    assert!(!obs.gain_is_stale());
+    // A gain for another period is refused.
+    let mut other = obs.config().clone();
+    other.period += 1;
+    assert!(obs.install_gain(other.solve_gain().unwrap()).is_err());
+    // Another step is refused and changes nothing.
+    let lin = nominal.linearize(&start, AMBIENT_C, 0.5).unwrap();
+    let snapshot = obs.clone();
+    assert_eq!(
+        obs.install_linearization(&lin),
+        Err(BuildError::InvalidTimeStep)
+    );
+    assert_eq!(obs, snapshot);
+
+    let fresh = run(&Scenario::new(Preset::ALL_THREE, 1));
+    let mut stale_sc = Scenario::new(Preset::ALL_THREE, 1);
+    stale_sc.refresh_gain = false;
+    let stale = run(&stale_sc);
+    let worst = (0..NODES)
+        .map(|i| (fresh.rms_k[i] - stale.rms_k[i]).abs())
+        .fold(0.0, f64::max);
+    println!("stale vs refreshed gain: largest RMS difference {worst:.3} K");
+    assert!(worst < 0.05, "{worst}");
+}
+
+/// f32 and f64 observers on the same 1 ms inputs and readings, 10 min of
+/// heating without re-linearisation (so the deviations grow to 15 K), agree
+/// within 0.1 K (measured: 0.050 K). The difference is f32's rounding of
+/// `F = I + A dt` (about three digits of `A dt`) and of the solved gain, a
+/// model error far below the parameter uncertainty.
+#[test]
+fn f32_matches_f64_at_1_ms() {
+    let nominal = Omnimagnet::PAPER;
+    let truth_model = perturbed(4, 0.2);
+    let preset = Preset::ALL_THREE;
+    let start = [AMBIENT_C; NODES];
+    let mut settings = ObserverSettings::DEFAULT;
+    settings.warmup_corrections = 0;
+    let lin = nominal.linearize(&start, AMBIENT_C, 1e-3).unwrap();
+    let mut o64 =
+        OmnimagnetObserver::<f64>::new(&nominal, &lin, &settings, &start, AMBIENT_C).unwrap();
+    let mut o32 =
+        OmnimagnetObserver::<f32>::new(&nominal, &lin, &settings, &start, AMBIENT_C).unwrap();
+    let mut truth = start;
+    let mut rng = Rng(5);
+    let mut worst: f64 = 0.0;
+    for k in 0..600_000usize {
+        let cur = preset.currents_a(0.0);
+        o64.predict(&cur, AMBIENT_C);
+        o32.predict(&cur.map(|c| c as f32), AMBIENT_C as f32);
+        if (k + 1) % 500 == 0 {
+            truth_model.step_rk4(&mut truth, &cur, AMBIENT_C, SAMPLE_S);
+            let z: [f64; THERMOCOUPLES] =
+                core::array::from_fn(|j| truth[THERMOCOUPLE_NODES[j]] + 0.1 * rng.gauss());
+            o64.correct(&z.map(Some));
+            o32.correct(&z.map(|v| Some(v as f32)));
+            let (a, b) = (o64.temperatures_c(), o32.temperatures_c());
+            for i in 0..NODES {
+                worst = worst.max((a[i] - f64::from(b[i])).abs());
+            }
+        }
+    }
+    println!("f32 vs f64 over 10 min at 1 ms: largest difference {worst:.4} K");
+    assert!(worst < 0.1, "{worst}");
+}
+
+#[test]
+fn inputs_readings_and_settings_are_validated() {
+    let nominal = Omnimagnet::PAPER;
+    let start = [AMBIENT_C; NODES];
+    let lin = nominal.linearize(&start, AMBIENT_C, 1e-3).unwrap();
+    let build = |s: &ObserverSettings| {
+        OmnimagnetObserver::<f32>::new(&nominal, &lin, s, &start, AMBIENT_C).map(|_| ())
+    };
+    let name = |r: Result<(), BuildError>| match r {
+        Err(BuildError::InvalidParameter { name }) => name,
+        other => panic!("{other:?}"),
+    };
+    let mut s = ObserverSettings::DEFAULT;
+    s.sensors = [false; THERMOCOUPLES];
+    assert_eq!(name(build(&s)), "sensors");
+    let mut s = ObserverSettings::DEFAULT;
+    s.thermocouple_sigma_k = 0.0;
+    assert_eq!(name(build(&s)), "thermocouple_sigma_k");
+    let mut s = ObserverSettings::DEFAULT;
+    s.node_noise_k2_per_s[3] = f64::NAN;
+    assert_eq!(name(build(&s)), "node_noise_k2_per_s");
+    let mut s = ObserverSettings::DEFAULT;
+    s.correction_period_s = 1e-5;
+    assert_eq!(name(build(&s)), "correction_period_s");
+    let mut s = ObserverSettings::DEFAULT;
+    s.gate_threshold = 0.0;
+    assert_eq!(name(build(&s)), "threshold");
+    let mut bad = start;
+    bad[5] = f64::INFINITY;
+    assert_eq!(
+        name(
+            OmnimagnetObserver::<f64>::new(
+                &nominal,
+                &lin,
+                &ObserverSettings::DEFAULT,
+                &bad,
+                AMBIENT_C
+            )
+            .map(|_| ())
+        ),
+        "initial_temps_c"
+    );
+
+    // One thermocouple per solenoid: the others are Disabled whatever they
+    // read, and the steady gain ignores them.
+    let settings = ObserverSettings::with_sensors([true, false, true, false, true, false]);
+    let mut obs =
+        OmnimagnetObserver::<f32>::new(&nominal, &lin, &settings, &start, AMBIENT_C).unwrap();
+    for j in [1, 3, 5] {
+        assert!(obs
+            .config()
+            .gain()
+            .gain()
+            .column(j)
+            .iter()
+            .all(|v| *v == 0.0));
+    }
+    let rep = obs.correct(&[
+        Some(22.0),
+        Some(1e30),
+        Some(22.0),
+        Some(f32::NAN),
+        None,
+        None,
+    ]);
+    assert_eq!(rep.verdicts[1], ThermocoupleVerdict::Disabled);
+    assert_eq!(rep.verdicts[3], ThermocoupleVerdict::Disabled);
+    assert_eq!(rep.verdicts[4], ThermocoupleVerdict::Missing);
+    assert_eq!(rep.fused(), 2);
+    // A driver fault is reported and flagged at once, not fused.
+    let rep = obs.correct_samples(&[
+        Some(Ok(22.0)),
+        None,
+        Some(Err(SensorFault::ShortToGnd)),
+        None,
+        Some(Ok(22.0)),
+        None,
+    ]);
+    assert_eq!(
+        rep.verdicts[2],
+        ThermocoupleVerdict::Faulted(SensorFault::ShortToGnd)
+    );
+    assert!(rep.flagged(2) && !rep.flagged(0));
+    assert_eq!(rep.fused(), 2);
+    // Non-finite inputs: the last finite ones are held, nothing is poisoned.
+    let before = obs.temperatures_c();
+    assert_eq!(obs.predict(&[3.8; 3], AMBIENT_C as f32), InputStatus::Used);
+    assert_eq!(
+        obs.predict(&[f32::NAN, 3.8, 3.8], AMBIENT_C as f32),
+        InputStatus::Dropped
+    );
+    assert_eq!(obs.predict(&[3.8; 3], f32::INFINITY), InputStatus::Dropped);
+    let after = obs.temperatures_c();
+    assert!(after.iter().all(|t| t.is_finite()));
+    assert!(after[0] > before[0], "held power still heats");
 }
