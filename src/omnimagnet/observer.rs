@@ -58,10 +58,13 @@
 //! is invisible to every estimator that uses these sensors: the tests compute
 //! this bound per element ("oracle": the nominal model's unmeasured rows
 //! solved with the *true* solenoid temperatures) and show the filter reaches
-//! it. Under independent +-20 % errors of every parameter, at 3.8 A on all
-//! three solenoids, frame 4 and the paper sheet have bounds above 0.5 K (up
-//! to about 1.9 K), and the cover insulations up to about 0.9 K; see the
-//! README for the measured figures. The reported variance
+//! it. Under independent +-20 % errors of every parameter, in the tests'
+//! 1 h runs the bound reaches 0.73 K (cover insulation 3, all three at
+//! 3.8 A); at the *steady state* of that preset it is larger (a one-off
+//! computation over 20 seeds, not in the tests: up to 1.9 K for frame 4 and
+//! the paper, 0.9 K for the cover insulations), because these errors grow
+//! with the temperature rise. See the README for the measured figures. The
+//! reported variance
 //! ([`OmnimagnetObserver::variances_k2`]) is what a protection margin should
 //! use for those elements.
 //!
