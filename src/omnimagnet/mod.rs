@@ -97,10 +97,17 @@
 //! The corrected `h` lies between 6 and 26 W/(m^2 K) for surface-to-air
 //! differences of 1 .. 60 K (the horizontal plate facing up exceeds the
 //! paper's 25 W/(m^2 K) bound above about 50 K).
+//!
+//! # Observer
+//!
+//! [`observer`]: the Kalman observer of every element from the six
+//! thermocouples (steady-state or time-varying gain, innovation gate, heat-
+//! input bias states, following the [`Relinearizer`]).
 
 pub mod data;
 mod linearize;
 mod nonlinear;
+pub mod observer;
 pub mod presets;
 mod relinearize;
 

@@ -1,0 +1,813 @@
+//! The Omnimagnet thermal observer: the 16-node linearised model in a Kalman
+//! filter ([`crate::filter`]) with the six embedded thermocouples, predicting
+//! every control tick and correcting whenever samples arrive.
+//!
+//! # State, inputs, measurements
+//!
+//! | | size | content |
+//! |---|---|---|
+//! | state `x` | 19 | the 16 element temperatures as deviations from the operating point \[K\], then one heat-input bias per solenoid \[W\] |
+//! | input `u` | 5 | Joule power of each solenoid \[W\], ambient \[degC\], 1 (the constant term) |
+//! | readings | 6 | the thermocouples, two per solenoid ([`THERMOCOUPLE_NODES`]) \[degC\] |
+//!
+//! **Powers, not the paper's `U = I^2`.** The input is `p = R(T) I^2` with
+//! `R(T)` (Eq. A3) evaluated every tick at the *estimated* solenoid
+//! temperature. The paper's `U = I^2` form freezes `R` at the operating point,
+//! so between re-linearisations (5 K apart by default) the Joule power would
+//! be wrong by up to `alpha0 * 5 K` = 2 %, and by 20 % over a 50 K rise
+//! without re-linearisation. Using the estimate (not a measurement) keeps the
+//! input defined on every tick, also when all thermocouples are missing.
+//!
+//! **Deviation coordinates.** The filter works on `T - T_op` (the
+//! linearisation's operating point) and the thermocouples are shifted the same
+//! way. The temperatures then stay within a few kelvin of zero, so `f32`
+//! keeps about five more bits of each 1 ms increment (a 1 ms step changes a
+//! solenoid by about 1e-4 K; `f32` resolves 8e-6 K near 100 degC but 5e-7 K
+//! near 5 K). The shift enters the constant input column:
+//! `T_op + dx' = Ad (T_op + dx) + ...` gives `dx' = Ad dx + ... + (Ad - I) T_op`.
+//!
+//! **Heat-input bias (state augmentation).** The filter's model is not the
+//! device: capacities, conductances, `h` and `R0` are uncertain (the paper's
+//! fitted factors alone move temperatures by tens of kelvin). A constant error
+//! in a solenoid's heat balance (its `R0`, or the conductances around it)
+//! would leave a steady offset between the model and that solenoid's
+//! thermocouples, which a filter with white process noise only partly
+//! removes and spreads into the unmeasured neighbours. Each solenoid
+//! therefore has a bias `b_m` \[W\] added to its Joule power, a random walk
+//! (`b' = b + w_b`), so `F = [Ad, Bd_p; 0, I]` and the bias column is the
+//! power column. Three biases are observable from the three solenoid
+//! temperatures (see [`ObserverConfig::observability`]); more parameter
+//! states (a loss-factor per element, an `h` scale) are not: at a steady
+//! state the thermocouples give three numbers.
+//!
+//! # Process noise
+//!
+//! `Q = diag(q_T dt, q_b dt)`: each element's temperature diffuses at
+//! [`ObserverSettings::node_noise_k2_per_s`] (model error in its heat
+//! balance, white), each bias at [`ObserverSettings::bias_noise_w2_per_s`]
+//! (slow drift of the heat-balance error as the device heats). The
+//! first-order form `Q_c dt` is exact to `O(dt^2)`; at 1 ms it is exact for
+//! every practical purpose.
+//!
+//! # What the thermocouples cannot see
+//!
+//! No sensor sits on an unmeasured element and none of them has a heat
+//! source, so at a steady state its temperature is fixed by the conductance
+//! ratios of the unmeasured sub-network and the three solenoid temperatures.
+//! An error in those ratios (an outer-shell `h`, the cover-to-paper contact)
+//! is invisible to every estimator that uses these sensors: the tests compute
+//! this bound per element ("oracle": the nominal model's unmeasured
+//! elements integrated from the true start, driven by the *true* solenoid
+//! temperatures) and show the filter reaches it. Under independent +-20 % errors of every parameter, in the tests'
+//! 1 h runs the bound reaches 0.73 K (cover insulation 3, all three at
+//! 3.8 A); at the *steady state* of that preset it is larger (a one-off
+//! computation over 20 seeds, not in the tests: up to 1.9 K for frame 4 and
+//! the paper, 0.9 K for the cover insulations), because these errors grow
+//! with the temperature rise. See the README for the measured figures. The
+//! reported variance ([`OmnimagnetObserver::variances_k2`]) does *not* cover
+//! these errors (they are not white noise; the NEES on the perturbed model
+//! is about 5500 for 16 states): a protection margin for the unmeasured
+//! elements, the cover insulation above all, must come from the parameter
+//! uncertainty, e.g. this bound.
+//!
+//! # Gain modes
+//!
+//! * [`GainMode::SteadyState`] (default): [`predict_mean`] every tick
+//!   (19 x 19 + 19 x 5 multiply-adds) and [`update_steady`] per correction,
+//!   with the gain solved at build time for one correction every
+//!   `period = correction_period_s / dt` predicts (the thermocouples' 2 Hz).
+//!   A correction with a sensor missing, rejected, faulted or disabled uses
+//!   the optimal sequential update from the stored steady prior (bounded
+//!   `O(P N^2)`, see [`crate::filter`]).
+//! * [`GainMode::TimeVarying`]: full covariance, [`predict`] every tick and
+//!   the sequential Joseph [`update`]. Exact for irregular sample times, for
+//!   a model that just changed and during the start transient.
+//!
+//! # Following the re-linearisation
+//!
+//! [`OmnimagnetObserver::follow`] polls a [`Relinearizer`] (one slice per
+//! call). When it swaps in a new model, [`OmnimagnetObserver::install_linearization`]
+//! replaces `F` and `G` and re-bases the estimate on the new operating point
+//! in the same call (`O(N^2)` plus one `O(N^3 / 6)` Cholesky of `Q` in the
+//! filter's validation). The steady-state gain is *not* re-solved there: it
+//! is kept (a gain for a model a few kelvin away is suboptimal, not unstable;
+//! the tests measure the effect) and marked stale
+//! ([`OmnimagnetObserver::gain_is_stale`]). The new gain is solved by
+//! [`ObserverConfig::solve_gain`], a `&self` call that can run on a copy of
+//! the configuration in a background task (bounded: at most `2 log2(period)`
+//! compositions and 64 doublings; 1.1 ms on the host in f64), and
+//! installed in `O(1)` by [`OmnimagnetObserver::install_gain`]. The time-
+//! varying mode needs nothing: its covariance follows the new `F`.
+//!
+//! # Faults and the gate
+//!
+//! A reading that is `None` or NaN means "predict only" for that sensor; a
+//! [`SensorFault`] from the driver is not fused and is reported as
+//! [`ThermocoupleVerdict::Faulted`]. Every other reading is gated
+//! (chi-square, 1 dof, [`ObserverSettings::gate_threshold`]) against the
+//! prior; a sensor rejected [`ObserverSettings::suspect_after`] times in a
+//! row is reported suspect. The default of 2 at 2 Hz flags a failure within
+//! 1 s of its onset (the first bad sample arrives within 0.5 s, the second
+//! 0.5 s later); 3, the filter's default, could take 1.5 s.
+//!
+//! # Costs and memory
+//!
+//! | call | work (N = 19, P = 6) |
+//! |---|---|
+//! | [`OmnimagnetObserver::predict`], steady | 3 `R(T)`, 456 multiply-adds |
+//! | [`OmnimagnetObserver::predict`], time-varying | about 14 k multiply-adds |
+//! | [`OmnimagnetObserver::correct`], steady, all six fused | 6 gate tests, 228 multiply-adds |
+//! | [`OmnimagnetObserver::correct`], otherwise | about 12 k multiply-adds |
+//!
+//! Measured on the host: see the README's "Omnimagnet observer" section
+//! (steady predict 0.1 us, time-varying predict 3.5 us, in f32).
+//! [`ObserverConfig`] holds `F`, `G`, `H^T`, `Q` and the steady gain (at
+//! most 8 KiB in f32, checked by a test); [`ObserverState`] the estimate and
+//! its covariance (at most 2 KiB in f32).
+//!
+//! [`predict_mean`]: crate::filter::predict_mean
+//! [`predict`]: crate::filter::predict
+//! [`update`]: crate::filter::update
+//! [`update_steady`]: crate::filter::update_steady
+
+use nalgebra::{RealField, SMatrix, SVector};
+
+use super::data::{NODES, SOLENOIDS};
+use super::linearize::Linearization;
+use super::relinearize::{RelinearizePoll, Relinearizer};
+use super::{measurement_matrix, Omnimagnet, THERMOCOUPLES, THERMOCOUPLE_NODES};
+use crate::error::BuildError;
+use crate::filter::{
+    self, InputStatus, KalmanConfig, KalmanState, Observability, SensorVerdict, SteadyEstimate,
+    SteadyStateGain, CHI2_1DOF_999,
+};
+use crate::sensors::SensorFault;
+
+/// Filter states: 16 element temperatures and 3 heat-input biases.
+pub const STATES: usize = NODES + SOLENOIDS;
+/// Filter inputs: 3 Joule powers \[W\], the ambient \[degC\] and 1.
+pub const INPUTS: usize = SOLENOIDS + 2;
+
+/// Relative distance of every time-varying variance from the steady-state
+/// posterior below which the warm-up switches to the steady-state gain.
+pub const STEADY_SWITCH_TOLERANCE: f64 = 1.0;
+
+/// The filter configuration type the observer uses.
+pub type ObserverKalman<T> = KalmanConfig<T, STATES, INPUTS, THERMOCOUPLES>;
+/// The steady-state solution type the observer uses.
+pub type ObserverGain<T> = SteadyStateGain<T, STATES, THERMOCOUPLES>;
+
+/// Which Kalman gain the corrections use (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GainMode {
+    /// Constant gain solved for one correction every `period` predicts;
+    /// mean-only predict. The cheapest per tick.
+    SteadyState,
+    /// Full covariance propagated every tick (time-varying Kalman filter).
+    TimeVarying,
+}
+
+/// Build-time settings of the observer, in SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserverSettings {
+    /// Which thermocouples are fitted and used (order of
+    /// [`THERMOCOUPLE_NODES`]); at least one.
+    pub sensors: [bool; THERMOCOUPLES],
+    /// Thermocouple noise standard deviation \[K\] (the paper's calibrated
+    /// uncertainty: 0.1 degC).
+    pub thermocouple_sigma_k: f64,
+    /// Growth rate of each element's temperature variance from model error
+    /// \[K^2/s\] (node order).
+    pub node_noise_k2_per_s: [f64; NODES],
+    /// Growth rate of each heat-input bias variance \[W^2/s\].
+    pub bias_noise_w2_per_s: f64,
+    /// Initial standard deviation of the error *common* to all elements
+    /// \[K\] (fully correlated part of the initial covariance).
+    pub initial_common_sigma_k: f64,
+    /// Initial standard deviation of each element's own error \[K\]
+    /// (independent part).
+    pub initial_sigma_k: f64,
+    /// Initial standard deviation of every heat-input bias \[W\].
+    pub initial_bias_sigma_w: f64,
+    /// Time between thermocouple samples \[s\]: the steady-state gain is
+    /// solved for one correction every `round(correction_period_s / dt)`
+    /// predicts.
+    pub correction_period_s: f64,
+    /// Gate threshold on `nu^2 / S` (chi-square, 1 dof; `+inf` disables).
+    pub gate_threshold: f64,
+    /// Consecutive rejections before a sensor is reported suspect (0: never).
+    pub suspect_after: u16,
+    /// Consecutive all-rejected corrections before the covariance is
+    /// inflated (0: never); see [`crate::filter`], "Recovery".
+    pub recover_after: u16,
+    /// Gain mode after the warm-up.
+    pub mode: GainMode,
+    /// Least number of corrections run with the time-varying filter before
+    /// switching to `mode` (0: start in `mode`); the switch waits further
+    /// until the covariance has converged ([`STEADY_SWITCH_TOLERANCE`]).
+    /// The start covariance is not the steady-state one, and only the
+    /// time-varying filter uses it.
+    pub warmup_corrections: u32,
+}
+
+impl ObserverSettings {
+    /// The defaults: all six thermocouples at 0.1 degC and 2 Hz, the gate at
+    /// [`CHI2_1DOF_999`], suspect after 2 rejections, and the process noise
+    /// tuned on the perturbed-model tests (see the README).
+    pub const DEFAULT: Self = Self {
+        sensors: [true; THERMOCOUPLES],
+        thermocouple_sigma_k: 0.1,
+        node_noise_k2_per_s: [1e-4; NODES],
+        bias_noise_w2_per_s: 1e-3,
+        initial_common_sigma_k: 10.0,
+        initial_sigma_k: 1.0,
+        initial_bias_sigma_w: 5.0,
+        correction_period_s: 0.5,
+        gate_threshold: CHI2_1DOF_999,
+        suspect_after: 2,
+        recover_after: 5,
+        mode: GainMode::SteadyState,
+        warmup_corrections: 120,
+    };
+
+    /// The defaults with another sensor subset.
+    pub const fn with_sensors(sensors: [bool; THERMOCOUPLES]) -> Self {
+        let mut s = Self::DEFAULT;
+        s.sensors = sensors;
+        s
+    }
+}
+
+impl Default for ObserverSettings {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// What a correction did with one thermocouple.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ThermocoupleVerdict {
+    /// Not in the configured sensor subset.
+    Disabled,
+    /// No sample, or a NaN/infinite one: predict only.
+    Missing,
+    /// The driver reported a fault: not fused.
+    Faulted(SensorFault),
+    /// Passed the gate and fused (`nis`: normalised innovation squared).
+    Fused {
+        /// `nu^2 / S` (dimensionless).
+        nis: f32,
+    },
+    /// Failed the gate and not fused.
+    Rejected {
+        /// `nu^2 / S` (dimensionless; infinite if it overflowed).
+        nis: f32,
+    },
+}
+
+/// The outcome of one correction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CorrectionReport {
+    /// One verdict per thermocouple.
+    pub verdicts: [ThermocoupleVerdict; THERMOCOUPLES],
+    /// Thermocouples rejected `suspect_after` times in a row by the gate
+    /// (open, shorted, jumped or stuck without a fault bit).
+    pub suspect: [bool; THERMOCOUPLES],
+    /// The covariance was inflated because every reading was rejected for
+    /// `recover_after` corrections.
+    pub recovered: bool,
+}
+
+impl CorrectionReport {
+    /// Number of fused readings.
+    pub fn fused(&self) -> usize {
+        self.verdicts
+            .iter()
+            .filter(|v| matches!(v, ThermocoupleVerdict::Fused { .. }))
+            .count()
+    }
+
+    /// A thermocouple that is suspect or reported a driver fault in this
+    /// correction: its readings are not being used.
+    pub fn flagged(&self, sensor: usize) -> bool {
+        self.suspect.get(sensor).copied().unwrap_or(false)
+            || matches!(
+                self.verdicts.get(sensor),
+                Some(ThermocoupleVerdict::Faulted(_))
+            )
+    }
+}
+
+/// The model, filter and gain of one observer: built and validated once,
+/// replaced only by [`OmnimagnetObserver::install_linearization`] and
+/// [`OmnimagnetObserver::install_gain`].
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObserverConfig<T: RealField + Copy> {
+    settings: ObserverSettings,
+    kalman: ObserverKalman<T>,
+    gain: ObserverGain<T>,
+    /// Operating point of the linearisation \[degC\]: the origin of the
+    /// deviation coordinates.
+    origin_c: SVector<T, NODES>,
+    /// `R(T) = r_at_0c + slope T` of each solenoid \[ohm, ohm/K\].
+    resistance: [(T, T); SOLENOIDS],
+    solenoid_nodes: [usize; SOLENOIDS],
+    period: u32,
+    dt_s: f64,
+    gain_stale: bool,
+}
+
+/// Per-device state: the estimate, its covariance (time-varying mode) and
+/// the gate memory.
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserverState<T: RealField + Copy> {
+    /// The filter state (deviations from the operating point \[K\], biases
+    /// \[W\]), its covariance and the gate counters.
+    pub filter: KalmanState<T, STATES, THERMOCOUPLES>,
+    /// Gain mode in use.
+    pub mode: GainMode,
+    /// The last finite input `u` (held when a tick's inputs are not finite).
+    pub last_input: SVector<T, INPUTS>,
+    /// Corrections so far (saturating).
+    pub corrections: u32,
+}
+
+/// The Omnimagnet observer: configuration and state of one device.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OmnimagnetObserver<T: RealField + Copy> {
+    config: ObserverConfig<T>,
+    state: ObserverState<T>,
+}
+
+fn cast<T: RealField + Copy>(v: f64) -> T {
+    nalgebra::convert(v)
+}
+
+fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(BuildError::InvalidParameter { name })
+    }
+}
+
+impl ObserverSettings {
+    fn validate(&self) -> Result<(), BuildError> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+        check(self.sensors.iter().any(|s| *s), "sensors")?;
+        check(pos(self.thermocouple_sigma_k), "thermocouple_sigma_k")?;
+        check(
+            self.node_noise_k2_per_s.iter().all(|v| nonneg(*v)),
+            "node_noise_k2_per_s",
+        )?;
+        check(nonneg(self.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
+        check(
+            nonneg(self.initial_common_sigma_k),
+            "initial_common_sigma_k",
+        )?;
+        check(pos(self.initial_sigma_k), "initial_sigma_k")?;
+        check(nonneg(self.initial_bias_sigma_w), "initial_bias_sigma_w")?;
+        check(pos(self.correction_period_s), "correction_period_s")?;
+        Ok(())
+    }
+}
+
+impl<T: RealField + Copy> ObserverConfig<T> {
+    /// Builds the filter for `lin` (any step; 1 ms for the control loop) and
+    /// solves the steady-state gain.
+    pub fn new(
+        model: &Omnimagnet,
+        lin: &Linearization,
+        settings: &ObserverSettings,
+    ) -> Result<Self, BuildError> {
+        settings.validate()?;
+        let dt_s = lin.discrete.dt_s;
+        let ratio = settings.correction_period_s / dt_s;
+        check(
+            ratio.is_finite() && (0.5..=f64::from(u32::MAX)).contains(&ratio),
+            "correction_period_s",
+        )?;
+        let period = (libm::round(ratio) as u32).max(1);
+        let mut resistance = [(T::zero(), T::zero()); SOLENOIDS];
+        let mut solenoid_nodes = [0; SOLENOIDS];
+        for ((r, node), s) in resistance
+            .iter_mut()
+            .zip(solenoid_nodes.iter_mut())
+            .zip(&model.geometry().solenoids)
+        {
+            let res = s.resistance();
+            *r = (cast(res.r_at_0c_ohm), cast(res.slope_ohm_per_k));
+            *node = s.node;
+        }
+        let kalman = Self::build_kalman(lin, settings)?;
+        let gain = SteadyStateGain::solve(&kalman, period)?;
+        Ok(Self {
+            settings: *settings,
+            kalman,
+            gain,
+            origin_c: SVector::from_fn(|i, _| cast(lin.op_temps_c[i])),
+            resistance,
+            solenoid_nodes,
+            period,
+            dt_s,
+            gain_stale: false,
+        })
+    }
+
+    /// `F`, `G`, `H`, `Q`, `R` of the augmented model (f64, then cast).
+    fn build_kalman(
+        lin: &Linearization,
+        settings: &ObserverSettings,
+    ) -> Result<ObserverKalman<T>, BuildError> {
+        let d = &lin.discrete;
+        let mut f = SMatrix::<f64, STATES, STATES>::identity();
+        f.fixed_view_mut::<NODES, NODES>(0, 0).copy_from(&d.ad);
+        // The bias adds to the Joule power, so it enters like the power.
+        f.fixed_view_mut::<NODES, SOLENOIDS>(0, NODES)
+            .copy_from(&d.bd_power);
+        let op = SVector::<f64, NODES>::from_column_slice(&lin.op_temps_c);
+        let mut g = SMatrix::<f64, STATES, INPUTS>::zeros();
+        g.fixed_view_mut::<NODES, INPUTS>(0, 0)
+            .copy_from(&d.input_matrix::<INPUTS>());
+        // Deviation coordinates: dx' = Ad dx + ... + (Ad - I) T_op.
+        let shift = d.ad * op - op;
+        for i in 0..NODES {
+            g[(i, INPUTS - 1)] += shift[i];
+        }
+        let mut h = SMatrix::<f64, THERMOCOUPLES, STATES>::zeros();
+        let h16 = measurement_matrix();
+        for (row, on) in settings.sensors.iter().enumerate() {
+            // A disabled sensor has a zero row: the Riccati solution then
+            // carries none of its information and its gain column is zero.
+            if *on {
+                h.fixed_view_mut::<1, NODES>(row, 0)
+                    .copy_from(&h16.fixed_view::<1, NODES>(row, 0));
+            }
+        }
+        let dt = d.dt_s;
+        let mut q = SMatrix::<f64, STATES, STATES>::zeros();
+        for (i, v) in settings.node_noise_k2_per_s.iter().enumerate() {
+            q[(i, i)] = v * dt;
+        }
+        for m in 0..SOLENOIDS {
+            q[(NODES + m, NODES + m)] = settings.bias_noise_w2_per_s * dt;
+        }
+        let r = SVector::<f64, THERMOCOUPLES>::repeat(
+            settings.thermocouple_sigma_k * settings.thermocouple_sigma_k,
+        );
+        // Recovery widens by the start uncertainty: the estimate may be as
+        // far off as it was at power-up.
+        let mut recovery = SVector::<T, STATES>::repeat(cast(
+            settings.initial_common_sigma_k * settings.initial_common_sigma_k
+                + settings.initial_sigma_k * settings.initial_sigma_k,
+        ));
+        for m in 0..SOLENOIDS {
+            recovery[NODES + m] =
+                cast(settings.initial_bias_sigma_w * settings.initial_bias_sigma_w);
+        }
+        KalmanConfig::new(f.cast(), g.cast(), h.cast(), q.cast(), r.cast())?
+            .with_gate(cast(settings.gate_threshold))?
+            .with_suspect_after(settings.suspect_after)
+            .with_recovery(settings.recover_after, recovery)
+    }
+
+    /// Solves the steady-state gain for the current model: bounded (at most
+    /// `2 log2(period)` compositions and 64 doublings of 19 x 19 matrices),
+    /// but far beyond a 1 ms tick; run it in a background task on a copy of
+    /// the configuration and hand the result to
+    /// [`OmnimagnetObserver::install_gain`].
+    pub fn solve_gain(&self) -> Result<ObserverGain<T>, BuildError> {
+        SteadyStateGain::solve(&self.kalman, self.period)
+    }
+
+    /// The filter configuration (`F`, `G`, `H`, `Q`, `R`, gate).
+    pub fn kalman(&self) -> &ObserverKalman<T> {
+        &self.kalman
+    }
+
+    /// The steady-state solution in use.
+    pub fn gain(&self) -> &ObserverGain<T> {
+        &self.gain
+    }
+
+    /// The settings it was built with.
+    pub fn settings(&self) -> &ObserverSettings {
+        &self.settings
+    }
+
+    /// Predicts per correction the steady-state gain assumes.
+    pub fn period(&self) -> u32 {
+        self.period
+    }
+
+    /// The predict step \[s\].
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// The operating point \[degC\] the deviations are taken from.
+    pub fn origin_c(&self) -> &SVector<T, NODES> {
+        &self.origin_c
+    }
+
+    /// Per-element (and per-bias) observability of the augmented model from
+    /// the thermocouples in `sensors` (`tol` as in
+    /// [`filter::observability()`]).
+    pub fn observability(
+        &self,
+        sensors: &[bool; THERMOCOUPLES],
+        tol: T,
+    ) -> Observability<T, STATES> {
+        let h = SMatrix::<T, THERMOCOUPLES, STATES>::from_fn(|r, c| {
+            if c == THERMOCOUPLE_NODES[r] {
+                T::one()
+            } else {
+                T::zero()
+            }
+        });
+        filter::observability(self.kalman.f(), &h, sensors, tol)
+    }
+}
+
+/// Per-element observability of the 16-node model `lin` from the
+/// thermocouples in `sensors` (no bias states), in f64.
+pub fn element_observability(
+    lin: &Linearization,
+    sensors: &[bool; THERMOCOUPLES],
+) -> Observability<f64, NODES> {
+    filter::observability(&lin.discrete.ad, &measurement_matrix(), sensors, 1e-9)
+}
+
+impl<T: RealField + Copy> OmnimagnetObserver<T> {
+    /// Builds the observer for `lin` with the estimate starting at
+    /// `initial_temps_c` \[degC\] and zero heat-input biases.
+    pub fn new(
+        model: &Omnimagnet,
+        lin: &Linearization,
+        settings: &ObserverSettings,
+        initial_temps_c: &[f64; NODES],
+        ambient_c: f64,
+    ) -> Result<Self, BuildError> {
+        check(
+            initial_temps_c.iter().all(|t| t.is_finite()),
+            "initial_temps_c",
+        )?;
+        check(ambient_c.is_finite(), "ambient_c")?;
+        let config = ObserverConfig::new(model, lin, settings)?;
+        let mut x = SVector::<T, STATES>::zeros();
+        for i in 0..NODES {
+            x[i] = cast::<T>(initial_temps_c[i]) - config.origin_c[i];
+        }
+        let mut p0 = SMatrix::<T, STATES, STATES>::zeros();
+        let common: T = cast(settings.initial_common_sigma_k * settings.initial_common_sigma_k);
+        for i in 0..NODES {
+            for j in 0..NODES {
+                p0[(i, j)] = common;
+            }
+            p0[(i, i)] += cast(settings.initial_sigma_k * settings.initial_sigma_k);
+        }
+        for i in NODES..STATES {
+            p0[(i, i)] = cast(settings.initial_bias_sigma_w * settings.initial_bias_sigma_w);
+        }
+        let mode = if settings.warmup_corrections > 0 {
+            GainMode::TimeVarying
+        } else {
+            settings.mode
+        };
+        let mut last_input = SVector::<T, INPUTS>::zeros();
+        last_input[SOLENOIDS] = cast(ambient_c);
+        last_input[INPUTS - 1] = T::one();
+        Ok(Self {
+            state: ObserverState {
+                filter: KalmanState::new(x, p0),
+                mode,
+                last_input,
+                corrections: 0,
+            },
+            config,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ObserverConfig<T> {
+        &self.config
+    }
+
+    /// The per-device state.
+    pub fn state(&self) -> &ObserverState<T> {
+        &self.state
+    }
+
+    /// Gain mode in use.
+    pub fn mode(&self) -> GainMode {
+        self.state.mode
+    }
+
+    /// Switches the gain mode. Entering the time-varying mode starts the
+    /// covariance at the steady-state prior (the covariance the steady filter
+    /// implicitly had).
+    pub fn set_mode(&mut self, mode: GainMode) {
+        if mode == GainMode::TimeVarying && self.state.mode == GainMode::SteadyState {
+            self.state.filter.cov = *self.config.gain.prior();
+        }
+        self.state.mode = mode;
+    }
+
+    /// Estimated temperature of every element \[degC\], node order.
+    pub fn temperatures_c(&self) -> [T; NODES] {
+        core::array::from_fn(|i| self.config.origin_c[i] + self.state.filter.x[i])
+    }
+
+    /// Estimated heat-input bias of each solenoid \[W\] (what the model
+    /// misses in its heat balance).
+    pub fn heat_bias_w(&self) -> [T; SOLENOIDS] {
+        core::array::from_fn(|m| self.state.filter.x[NODES + m])
+    }
+
+    /// Variance of every element's estimate \[K^2\]: the propagated
+    /// covariance in time-varying mode, the steady-state prior (the value
+    /// just before a correction, the largest) in steady-state mode.
+    pub fn variances_k2(&self) -> [T; NODES] {
+        let cov = match self.state.mode {
+            GainMode::TimeVarying => &self.state.filter.cov,
+            GainMode::SteadyState => self.config.gain.prior(),
+        };
+        core::array::from_fn(|i| cov[(i, i)])
+    }
+
+    /// The time-varying posterior has reached the steady-state one: every
+    /// variance within [`STEADY_SWITCH_TOLERANCE`] of it (relative). Until
+    /// then the steady gain would under-weight the readings for the states
+    /// still uncertain and the estimate's error would exceed what the
+    /// steady covariance claims. A factor of 2, not closer: the core and the
+    /// inside air converge with the core's 2.5 h time constant (about
+    /// 8 min to reach a factor 2, hours to 10 %), and the steady gain on
+    /// them is small either way.
+    fn covariance_converged(&self) -> bool {
+        let post = self.config.gain.posterior();
+        let cov = &self.state.filter.cov;
+        let tol: T = cast(STEADY_SWITCH_TOLERANCE);
+        (0..STATES).all(|i| (cov[(i, i)] - post[(i, i)]).abs() <= tol * post[(i, i)])
+    }
+
+    /// `true` after a model swap until a new gain is installed.
+    pub fn gain_is_stale(&self) -> bool {
+        self.config.gain_stale
+    }
+
+    /// One tick: solenoid currents \[A\] and ambient \[degC\] held over the
+    /// step. The Joule power uses `R(T)` at the estimated solenoid
+    /// temperatures. Non-finite inputs are replaced by the last finite ones
+    /// (reported as [`InputStatus::Dropped`]).
+    pub fn predict(&mut self, currents_a: &[T; SOLENOIDS], ambient_c: T) -> InputStatus {
+        let x = &self.state.filter.x;
+        let mut u = self.state.last_input;
+        let finite = ambient_c.is_finite() && currents_a.iter().all(|i| i.is_finite());
+        if finite {
+            for m in 0..SOLENOIDS {
+                let node = self.config.solenoid_nodes[m];
+                let temp_c = self.config.origin_c[node] + x[node];
+                let (r0, slope) = self.config.resistance[m];
+                let r_ohm = (r0 + slope * temp_c).max(T::zero());
+                u[m] = r_ohm * currents_a[m] * currents_a[m];
+            }
+            u[SOLENOIDS] = ambient_c;
+            self.state.last_input = u;
+        }
+        match self.state.mode {
+            GainMode::SteadyState => {
+                filter::predict_mean(&self.config.kalman, &mut self.state.filter.x, &u);
+            }
+            GainMode::TimeVarying => {
+                filter::predict(&self.config.kalman, &mut self.state.filter, &u);
+            }
+        }
+        if finite {
+            InputStatus::Used
+        } else {
+            InputStatus::Dropped
+        }
+    }
+
+    /// A correction with the readings that arrived \[degC\]: `None` (or NaN)
+    /// means no sample from that thermocouple.
+    pub fn correct(&mut self, readings_c: &[Option<T>; THERMOCOUPLES]) -> CorrectionReport {
+        let samples = readings_c.map(|r| r.map(Ok));
+        self.correct_samples(&samples)
+    }
+
+    /// A correction with the driver's results: a [`SensorFault`] is not
+    /// fused and is reported as [`ThermocoupleVerdict::Faulted`].
+    pub fn correct_samples(
+        &mut self,
+        samples_c: &[Option<Result<T, SensorFault>>; THERMOCOUPLES],
+    ) -> CorrectionReport {
+        let sensors = self.config.settings.sensors;
+        let mut z = [None; THERMOCOUPLES];
+        for (j, (zj, s)) in z.iter_mut().zip(samples_c).enumerate() {
+            if let (true, Some(Ok(v))) = (sensors[j], s) {
+                *zj = Some(*v - self.config.origin_c[THERMOCOUPLE_NODES[j]]);
+            }
+        }
+        let report = match self.state.mode {
+            GainMode::SteadyState => {
+                let f = &mut self.state.filter;
+                let mut est = SteadyEstimate {
+                    x: f.x,
+                    gate: f.gate,
+                };
+                let rep =
+                    filter::update_steady(&self.config.kalman, &self.config.gain, &mut est, &z);
+                f.x = est.x;
+                f.gate = est.gate;
+                rep
+            }
+            GainMode::TimeVarying => {
+                filter::update(&self.config.kalman, &mut self.state.filter, &z)
+            }
+        };
+        self.state.corrections = self.state.corrections.saturating_add(1);
+        if self.state.mode == GainMode::TimeVarying
+            && self.config.settings.mode == GainMode::SteadyState
+            && self.state.corrections >= self.config.settings.warmup_corrections
+            && self.covariance_converged()
+        {
+            self.state.mode = GainMode::SteadyState;
+        }
+        let mut out = CorrectionReport {
+            verdicts: [ThermocoupleVerdict::Missing; THERMOCOUPLES],
+            suspect: [false; THERMOCOUPLES],
+            recovered: report.recovered,
+        };
+        for j in 0..THERMOCOUPLES {
+            out.verdicts[j] = match (sensors[j], samples_c[j], report.verdicts[j]) {
+                (false, _, _) => ThermocoupleVerdict::Disabled,
+                (true, Some(Err(fault)), _) => ThermocoupleVerdict::Faulted(fault),
+                (true, _, SensorVerdict::Missing) => ThermocoupleVerdict::Missing,
+                (true, _, SensorVerdict::Fused { nis }) => ThermocoupleVerdict::Fused { nis },
+                (true, _, SensorVerdict::Rejected { nis }) => ThermocoupleVerdict::Rejected { nis },
+            };
+            out.suspect[j] = sensors[j] && report.suspect[j];
+        }
+        out
+    }
+
+    /// Replaces `F` and `G` by those of `lin` (same step) and re-bases the
+    /// estimate on its operating point; the covariance is unchanged (a shift
+    /// of origin). The steady-state gain is kept and marked stale (see the
+    /// module docs). On error nothing changes.
+    pub fn install_linearization(&mut self, lin: &Linearization) -> Result<(), BuildError> {
+        if lin.discrete.dt_s != self.config.dt_s {
+            return Err(BuildError::InvalidTimeStep);
+        }
+        let kalman = ObserverConfig::<T>::build_kalman(lin, &self.config.settings)?;
+        let new_origin = SVector::<T, NODES>::from_fn(|i, _| cast(lin.op_temps_c[i]));
+        for i in 0..NODES {
+            self.state.filter.x[i] += self.config.origin_c[i] - new_origin[i];
+        }
+        self.config.origin_c = new_origin;
+        self.config.kalman = kalman;
+        self.config.gain_stale = true;
+        Ok(())
+    }
+
+    /// Installs a steady-state gain solved for the current model (from
+    /// [`ObserverConfig::solve_gain`]). `O(1)`.
+    pub fn install_gain(&mut self, gain: ObserverGain<T>) -> Result<(), BuildError> {
+        if gain.period() != self.config.period {
+            return Err(BuildError::InvalidParameter { name: "gain" });
+        }
+        self.config.gain = gain;
+        self.config.gain_stale = false;
+        Ok(())
+    }
+
+    /// One slice of `relinearizer` at the current estimate (call it from a
+    /// loop slower than the tick, or once per tick: each call is one
+    /// bounded slice); on [`RelinearizePoll::Swapped`] the new model is
+    /// installed. `relinearizer` must produce this observer's step.
+    pub fn follow(&mut self, relinearizer: &mut Relinearizer, ambient_c: f64) -> RelinearizePoll {
+        let temps = self.temperatures_c();
+        let temps_f64: [f64; NODES] =
+            core::array::from_fn(|i| nalgebra::convert_unchecked(temps[i]));
+        let poll = relinearizer.poll(&temps_f64, ambient_c);
+        if poll == RelinearizePoll::Swapped {
+            if let Err(e) = self.install_linearization(relinearizer.active()) {
+                return RelinearizePoll::Failed(e);
+            }
+        }
+        poll
+    }
+}
+
+#[cfg(test)]
+#[path = "observer_tests.rs"]
+mod tests;
