@@ -13,11 +13,17 @@
 //! 2. each step is one [`CoilGrid::tick`] (Joule energy accumulated, the grid
 //!    updated every `ticks_per_update` steps);
 //! 3. after a tick in which the grid updated (temperatures change only then),
-//!    the protection runs once: per-coil time to limit, the alarm, then the
-//!    current limiter. Between updates the protection outputs stand, because
-//!    nothing they depend on has changed except the currents, which the
-//!    limiter does not take. The alarm's debounce therefore counts grid
-//!    updates, not ticks.
+//!    the protection runs once, spread over the next three ticks so that no
+//!    tick carries both a grid update and the whole protection: per-coil time
+//!    to limit, then the alarm, then the current limiter and the hottest coil.
+//!    Between updates the protection outputs stand, because nothing they
+//!    depend on has changed except the currents, which the limiter does not
+//!    take. So the limits lag the model by at most three ticks (3 ms at the
+//!    HPPA's rate, against thermal time constants of minutes), and the
+//!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
+//!    should exceed 3 (and `max_steps_per_tick`) for every update to be
+//!    followed by a complete protection pass; otherwise a newer update
+//!    restarts the stages.
 //!
 //! # Time to limit per coil
 //!
@@ -147,7 +153,7 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
     pub steps: u32,
     /// Time dropped by the catch-up limit this tick \[us\].
     pub dropped_us: u32,
-    /// The grid updated (and the protection ran) this tick.
+    /// The grid updated this tick (the protection follows in the next three).
     pub updated: bool,
     /// Ticks since the state was made.
     pub tick: u32,
@@ -164,6 +170,8 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     pub clock: ClockState,
     /// Alarm events not yet drained by the application.
     pub events: EventQueue<EVENT_CAPACITY>,
+    /// Next protection stage (0: none pending).
+    stage: u8,
     outputs: GridOutputs<S, ROWS, COLS, N>,
 }
 
@@ -296,6 +304,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize> GridObserv
             alarm,
             clock: ClockState::default(),
             events: EventQueue::new(),
+            stage: 0,
         };
         self.protect(&mut state, false);
         state
@@ -323,7 +332,10 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize> GridObserv
             updated |= outcome.updated;
         }
         if updated {
-            self.protect(state, true);
+            // Temperatures changed: the protection runs in the next ticks.
+            state.stage = 1;
+        } else {
+            self.protect_stage(state);
         }
         let out = &mut state.outputs;
         out.flags = flags;
@@ -334,8 +346,46 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize> GridObserv
         &state.outputs
     }
 
+    /// One stage of the protection after a grid update, so that no tick
+    /// carries both the update and the whole protection: 1 time to limit,
+    /// 2 alarm, 3 limiter and hottest coil.
+    fn protect_stage(&self, state: &mut GridObserverState<S, ROWS, COLS, N>) {
+        let ambient_c = state.grid.held_ambient_c;
+        let out = &mut state.outputs;
+        match state.stage {
+            1 => {
+                let limits_c = self.alarm.alarm_limits_c(ambient_c);
+                self.time_to_limit(&state.grid, &limits_c, &mut out.time_to_limit_s);
+                // The answers were computed one tick after the update they
+                // describe; the next stages use them as they are (1 ms).
+            }
+            2 => {
+                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    out.alarm = state.alarm.tick(
+                        &self.alarm,
+                        temps,
+                        ambient_c,
+                        &out.time_to_limit_s,
+                        &mut state.events,
+                    );
+                }
+            }
+            3 => {
+                let limits_c = self.alarm.alarm_limits_c(ambient_c);
+                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    self.limiter
+                        .apply(temps, &limits_c, ambient_c, &mut out.limits);
+                }
+                out.temps_c = state.grid.temps_c;
+                out.hottest = state.grid.hottest();
+            }
+            _ => return,
+        }
+        state.stage = if state.stage >= 3 { 0 } else { state.stage + 1 };
+    }
+
     /// Time to limit, alarm (when `alarm`) and limiter on the present
-    /// temperatures.
+    /// temperatures, all at once (for a fresh or restored state).
     fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
         let ambient_c = state.grid.held_ambient_c;
         let limits_c = self.alarm.alarm_limits_c(ambient_c);

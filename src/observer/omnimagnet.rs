@@ -240,6 +240,59 @@ impl OmniObserver {
     ) -> Result<Self, BuildError> {
         let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?;
         let dt_s = clock.step_s();
+        let (kalman, gain, fingerprint) = Self::filter(model, op_temps_c, ambient_c, dt_s, settings)?;
+        let rule = DeratingRule::omnimagnet();
+        let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
+        let alarm = AlarmBuilder::new(&rule, [w, c, w, c, w, c]).build::<f32>()?;
+        let limiter = LimiterConfig::new(
+            [settings.hardware_limit_a; SOLENOIDS],
+            settings.taper_k,
+            0.0,
+        )?;
+        let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s)?;
+        Ok(Self {
+            kalman,
+            gain,
+            alarm,
+            limiter,
+            predictor,
+            clock,
+            limits: InputLimits::default().to_scalar(),
+            max_reading_age_us: settings.max_reading_age_us,
+            fingerprint,
+        })
+    }
+
+    // The build steps run in frames of their own (`inline(never)`): on an
+    // MCU their matrix temporaries would otherwise add up in one frame.
+    #[inline(never)]
+    fn predictor(
+        model: &Omnimagnet,
+        op_temps_c: &[f64; NODES],
+        ambient_c: f64,
+        dt_s: f64,
+    ) -> Result<LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>, BuildError> {
+        PredictorBuilder::new()
+            .tick_s(dt_s)
+            .build(&model.network(op_temps_c, ambient_c)?)
+    }
+
+    #[inline(never)]
+    #[allow(clippy::type_complexity)]
+    fn filter(
+        model: &Omnimagnet,
+        op_temps_c: &[f64; NODES],
+        ambient_c: f64,
+        dt_s: f64,
+        settings: &OmniSettings,
+    ) -> Result<
+        (
+            KalmanConfig<f32, NODES, INPUTS, THERMOCOUPLES>,
+            SteadyStateGain<f32, NODES, THERMOCOUPLES>,
+            u32,
+        ),
+        BuildError,
+    > {
         let lin = model.linearize(op_temps_c, ambient_c, dt_s)?;
         let d = &lin.discrete;
         let mut g = SMatrix::<f64, NODES, INPUTS>::zeros();
@@ -267,17 +320,6 @@ impl OmniObserver {
             SVector::<f32, THERMOCOUPLES>::repeat(r as f32),
         )?;
         let gain = SteadyStateGain::solve(&kalman, settings.reading_period_steps)?;
-        let rule = DeratingRule::omnimagnet();
-        let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
-        let alarm = AlarmBuilder::new(&rule, [w, c, w, c, w, c]).build::<f32>()?;
-        let limiter = LimiterConfig::new(
-            [settings.hardware_limit_a; SOLENOIDS],
-            settings.taper_k,
-            0.0,
-        )?;
-        let predictor = PredictorBuilder::new()
-            .tick_s(dt_s)
-            .build(&model.network(op_temps_c, ambient_c)?)?;
         let mut fingerprint = Fingerprint::new()
             .u32(settings.step_us)
             .f64s(d.ad.as_slice())
@@ -286,17 +328,7 @@ impl OmniObserver {
             .f64(r)
             .u32(settings.reading_period_steps);
         fingerprint = fingerprint.f64s(&[settings.hardware_limit_a, settings.taper_k]);
-        Ok(Self {
-            kalman,
-            gain,
-            alarm,
-            limiter,
-            predictor,
-            clock,
-            limits: InputLimits::default().to_scalar(),
-            max_reading_age_us: settings.max_reading_age_us,
-            fingerprint: fingerprint.finish(),
-        })
+        Ok((kalman, gain, fingerprint.finish()))
     }
 
     /// The configuration fingerprint that snapshots carry.
