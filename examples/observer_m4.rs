@@ -155,7 +155,12 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
             plain.add(insn);
         }
         for _ in 0..steps {
-            bare.tick(&mut bare_state, &currents, AMBIENT_C as f32, AMBIENT_C as f32);
+            bare.tick(
+                &mut bare_state,
+                &currents,
+                AMBIENT_C as f32,
+                AMBIENT_C as f32,
+            );
             truth = lin.step_current_squared(&truth, &[3.8; 3], AMBIENT_C);
         }
         steps_total += steps;
@@ -282,10 +287,7 @@ fn snapshots(
         .ok()
         .and_then(|_| omni.restore(&buf, 160, 600, AMBIENT_C as f32).ok());
     let omni_ok = omni_back.is_some_and(|s| s.estimate.x == os.estimate.x);
-    let foreign = matches!(
-        grid.restore(&buf, 160, 600, AMBIENT_C),
-        Err(_)
-    );
+    let foreign = matches!(grid.restore(&buf, 160, 600, AMBIENT_C), Err(_));
     grid_ok && refused && omni_ok && foreign
 }
 

@@ -30,10 +30,10 @@ use coil_thermal::protect::limiter::LimiterConfig;
 use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Reading, Resistance, SensorFault, Q32,
 };
-use nalgebra::{SMatrix, SVector};
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
+use nalgebra::{SMatrix, SVector};
 
 fn network() -> Result<Network<3, 1, 1>, coil_thermal::BuildError> {
     Network::new(black_box([68.7, 40.0, 400.0]))?
@@ -133,7 +133,11 @@ fn time_varying_filter() -> bool {
     let Ok(cfg) = cfg else { return false };
     let mut state = KalmanState::new(SVector::repeat(20.0), SMatrix::identity());
     for k in 0..black_box(100u32) {
-        let u = black_box(SVector::<f32, 1>::new(if k % 3 == 0 { f32::NAN } else { 1.0 }));
+        let u = black_box(SVector::<f32, 1>::new(if k % 3 == 0 {
+            f32::NAN
+        } else {
+            1.0
+        }));
         black_box(predict(&cfg, &mut state, &u));
         let z = black_box([Some(20.5), if k % 2 == 0 { None } else { Some(f32::NAN) }]);
         black_box(update(&cfg, &mut state, &z));

@@ -175,14 +175,18 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     outputs: GridOutputs<S, ROWS, COLS, N>,
 }
 
-impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize> GridObserverState<S, ROWS, COLS, N> {
+impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
+    GridObserverState<S, ROWS, COLS, N>
+{
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &GridOutputs<S, ROWS, COLS, N> {
         &self.outputs
     }
 }
 
-impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize> GridObserver<S, ROWS, COLS, N> {
+impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
+    GridObserver<S, ROWS, COLS, N>
+{
     /// Validates and builds a grid observer.
     ///
     /// * `grid`: the grid model; its `tick_dt_s` is the model step and must

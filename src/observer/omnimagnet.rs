@@ -240,7 +240,8 @@ impl OmniObserver {
     ) -> Result<Self, BuildError> {
         let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?;
         let dt_s = clock.step_s();
-        let (kalman, gain, fingerprint) = Self::filter(model, op_temps_c, ambient_c, dt_s, settings)?;
+        let (kalman, gain, fingerprint) =
+            Self::filter(model, op_temps_c, ambient_c, dt_s, settings)?;
         let rule = DeratingRule::omnimagnet();
         let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
         let alarm = AlarmBuilder::new(&rule, [w, c, w, c, w, c]).build::<f32>()?;
@@ -408,13 +409,8 @@ impl OmniObserver {
             .limits
             .accept_temperature(inputs.ambient_c, &mut state.held_ambient_c);
         let [i1, i2, i3] = state.held_currents_a;
-        let u = SVector::<f32, INPUTS>::from([
-            i1 * i1,
-            i2 * i2,
-            i3 * i3,
-            state.held_ambient_c,
-            1.0,
-        ]);
+        let u =
+            SVector::<f32, INPUTS>::from([i1 * i1, i2 * i2, i3 * i3, state.held_ambient_c, 1.0]);
         let out = &mut state.outputs;
         for _ in 0..steps.steps {
             predict_mean(&self.kalman, &mut state.estimate.x, &u);
@@ -486,13 +482,11 @@ impl OmniObserver {
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> bool {
         let mut z = [None; THERMOCOUPLES];
         let statuses = &mut state.outputs.sensors;
-        for ((zj, status), reading) in z.iter_mut().zip(statuses.iter_mut()).zip(&inputs.readings)
-        {
+        for ((zj, status), reading) in z.iter_mut().zip(statuses.iter_mut()).zip(&inputs.readings) {
             *status = match reading {
                 None => SensorStatus::NoReading,
                 Some(TimedReading {
-                    result: Err(fault),
-                    ..
+                    result: Err(fault), ..
                 }) => SensorStatus::Fault(*fault),
                 Some(TimedReading {
                     result: Ok(r),
@@ -580,8 +574,11 @@ impl OmniObserver {
         readings_c: &[Option<f32>; THERMOCOUPLES],
         ambient_c: f32,
     ) -> OmniObserverState {
-        let temps =
-            snapshot::conservative_start::<NODES, THERMOCOUPLES>(readings_c, &THERMOCOUPLE_NODES, ambient_c);
+        let temps = snapshot::conservative_start::<NODES, THERMOCOUPLES>(
+            readings_c,
+            &THERMOCOUPLE_NODES,
+            ambient_c,
+        );
         self.state(&temps, ambient_c)
     }
 }
