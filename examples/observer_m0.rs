@@ -157,7 +157,12 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         ram,
         run_stack
     );
-    let ok = worst_k < 5e-3 && worst_a < 0.02 && hot_limit < 6.0 && hot_limit > 0.0 && others_full;
+    let ok = stats.count() == TICKS
+        && worst_k < 5e-3
+        && worst_a < 0.02
+        && hot_limit < 6.0
+        && hot_limit > 0.0
+        && others_full;
     if ok {
         Ok(())
     } else {

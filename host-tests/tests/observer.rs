@@ -300,7 +300,8 @@ fn true_crossings(
 #[test]
 fn grid_time_to_limit_is_never_later_than_the_f64_reference() {
     let grid = grid();
-    let patterns: [(&str, Box<dyn Fn(usize, usize) -> f32>); 4] = [
+    type Pattern = Box<dyn Fn(usize, usize) -> f32>;
+    let patterns: [(&str, Pattern); 4] = [
         (
             "one coil at 4 A",
             Box::new(|r, c| if (r, c) == (3, 5) { 4.0 } else { 0.0 }),

@@ -453,10 +453,16 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             let (temp, limit) = (temp.to_f32(), limit.to_f32());
             let g_total = g_n + t.base_g + g_amb;
             let steady = (p + g_n * bound_c + t.base_g * coolant + g_amb * ambient) / g_total;
-            *out = if !(temp < limit) {
+            // A NaN anywhere reads "no time left", the conservative answer:
+            // `below` is false for a NaN temperature or limit, and a NaN
+            // steady state leads to a NaN time, which the alarm counts as
+            // inside its horizon.
+            let below = temp < limit;
+            let crosses = steady > limit || steady.is_nan();
+            *out = if !below {
                 // At or past the limit, or not finite: no time left.
                 Some(S::ZERO)
-            } else if !(steady > limit) {
+            } else if !crosses {
                 None
             } else {
                 let tau_s = t.capacity / g_total;
