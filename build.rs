@@ -1,18 +1,27 @@
-//! Links the firmware examples for the QEMU machine, and nothing else.
+//! Links the firmware examples for their QEMU machine, and nothing else.
 //!
 //! Acts only when building for a bare-metal target (`target_os = "none"`), and
-//! only for examples (`rustc-link-arg-examples`), so `memory.x` never reaches
+//! only for examples (`rustc-link-arg-examples`), so the memory layout never reaches
 //! host builds or a downstream firmware crate that depends on this library.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=memory-m4.x");
+    println!("cargo:rerun-if-changed=memory-m0.x");
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
+    // ARMv6-M (Cortex-M0) examples run on QEMU's microbit, the others on
+    // mps2-an386; each machine has its own memory map. Neither file may be
+    // called `memory.x` in the package root: the linker looks in its working
+    // directory (the package root) before the search path.
+    let source = match env::var("TARGET").as_deref() {
+        Ok(t) if t.starts_with("thumbv6m") => "memory-m0.x",
+        _ => "memory-m4.x",
+    };
     let out = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
-    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x to OUT_DIR");
+    fs::copy(source, out.join("memory.x")).expect("copy the memory layout to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-examples=-Tlink.x");
 }

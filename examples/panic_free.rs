@@ -10,13 +10,30 @@
 //! inputs the optimiser cannot see through (`black_box`), and failures exit
 //! through semihosting instead of panicking. The stepped inputs include NaN
 //! and infinities, also hidden behind `black_box`.
+//!
+//! Every per-tick function is called: the network steppers, the grid
+//! observer's tick (grid tick and update, time to limit, alarm tick, limiter,
+//! hottest coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
+//! `update_steady`, predictor slice, alarm, limiter), and the time-varying
+//! Kalman `predict` and `update`.
 #![no_std]
 #![no_main]
 
-use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Q32};
+use coil_thermal::filter::{predict, update, KalmanConfig, KalmanState};
+use coil_thermal::grid::GridConfig;
+use coil_thermal::observer::omnimagnet::TimedReading;
+use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, OmniObserver};
+use coil_thermal::omnimagnet::NODES;
+use coil_thermal::protect::alarm::AlarmBuilder;
+use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
+use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::{
+    ExplicitStepper, InputLimits, Network, NetworkState, Reading, Resistance, SensorFault, Q32,
+};
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
+use nalgebra::{SMatrix, SVector};
 
 fn network() -> Result<Network<3, 1, 1>, coil_thermal::BuildError> {
     Network::new(black_box([68.7, 40.0, 400.0]))?
@@ -26,9 +43,124 @@ fn network() -> Result<Network<3, 1, 1>, coil_thermal::BuildError> {
         .joule_source(0, 0, Resistance::HPPA_COIL)
 }
 
+type Grid = GridObserver<f32, 7, 12, 84>;
+
+fn grid_observer() -> Result<Grid, coil_thermal::BuildError> {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84]).build()?;
+    let limiter = LimiterConfig::new(black_box([3.0; 84]), 10.0, 0.0)?;
+    let config = GridConfig {
+        ticks_per_update: black_box(10),
+        ..GridConfig::default()
+    };
+    Grid::new(&config, alarm, limiter, black_box(4))
+}
+
+/// An Omnimagnet configuration the optimiser knows nothing about.
+///
+/// The real build (`OmniObserver::new`: linearisation, Riccati solver, modal
+/// decomposition) runs once before the loop and still holds bounds checks on
+/// the model's table indices, which would fail this link although the tick
+/// has none. So the tick is proven on opaque configuration bits instead,
+/// which covers every configuration, valid or not; `observer_m4` runs the
+/// real build.
+#[inline(never)]
+fn omni_config() -> Option<OmniObserver> {
+    // SAFETY: every field of `OmniObserver` (f32 matrices and arrays,
+    // integers, bools, `Option`s of those; no references, no `NonZero`, no
+    // enum without a zero variant) has all-zero bits as a valid value. The
+    // value is hidden behind `black_box`.
+    Some(black_box(unsafe { core::mem::zeroed() }))
+}
+
+/// The observers' ticks with hostile inputs.
+#[inline(never)]
+fn observers() -> bool {
+    let (Ok(grid), Some(omni)) = (grid_observer(), omni_config()) else {
+        return false;
+    };
+    let mut gs = grid.state(20.0);
+    let mut os = omni.state(&[22.0; NODES], 22.0);
+    for k in 0..black_box(2000u32) {
+        let current = black_box(if k % 7 == 0 { f32::NAN } else { 2.0 });
+        let temp = black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 });
+        let currents = [[current; 12]; 7];
+        let elapsed_us = black_box(if k % 13 == 0 { u32::MAX } else { 1000 });
+        black_box(grid.tick(
+            &mut gs,
+            &GridInputs {
+                currents_a: &currents,
+                coolant_c: temp,
+                ambient_c: temp,
+                elapsed_us,
+            },
+        ));
+        let reading = black_box(TimedReading {
+            result: if k % 5 == 0 {
+                Err(SensorFault::OpenCircuit)
+            } else {
+                Ok(Reading {
+                    temp_c: temp,
+                    cold_junction_c: 20.0,
+                })
+            },
+            sampled_at_us: k,
+        });
+        black_box(omni.tick(
+            &mut os,
+            &OmniInputs {
+                currents_a: [current; 3],
+                ambient_c: temp,
+                readings: [Some(reading); 6],
+                now_us: k.wrapping_mul(1000),
+                elapsed_us,
+            },
+        ));
+    }
+    true
+}
+
+/// The time-varying filter's predict and update.
+#[inline(never)]
+fn time_varying_filter() -> bool {
+    let f = black_box(SMatrix::<f32, 4, 4>::identity() * 0.99);
+    let cfg = KalmanConfig::<f32, 4, 1, 2>::new(
+        f,
+        black_box(SMatrix::<f32, 4, 1>::repeat(0.01)),
+        black_box(SMatrix::<f32, 2, 4>::identity()),
+        SMatrix::<f32, 4, 4>::identity() * 1e-3,
+        SVector::<f32, 2>::repeat(0.1),
+    );
+    let Ok(cfg) = cfg else { return false };
+    let mut state = KalmanState::new(SVector::repeat(20.0), SMatrix::identity());
+    for k in 0..black_box(100u32) {
+        let u = black_box(SVector::<f32, 1>::new(if k % 3 == 0 {
+            f32::NAN
+        } else {
+            1.0
+        }));
+        black_box(predict(&cfg, &mut state, &u));
+        let z = black_box([Some(20.5), if k % 2 == 0 { None } else { Some(f32::NAN) }]);
+        black_box(update(&cfg, &mut state, &z));
+    }
+    true
+}
+
 #[entry]
 fn main() -> ! {
-    let ok = match network() {
+    let ok = observers() && time_varying_filter() && steppers();
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[inline(never)]
+fn steppers() -> bool {
+    match network() {
         Ok(net) => {
             let limits = InputLimits::default();
             match (
@@ -54,14 +186,6 @@ fn main() -> ! {
             }
         }
         Err(_) => false,
-    };
-    debug::exit(if ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::wfi();
     }
 }
 

@@ -113,13 +113,24 @@ macro_rules! impl_float_scalar {
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
             }
+            // `max`/`min` with the std semantics (a NaN loses), written as
+            // comparisons: ARMv7E-M has no VMAXNM, so `f32::max` is a call to
+            // `fmaxf`, and the hot loops make several per coil.
             #[inline]
             fn max(self, other: Self) -> Self {
-                <$t>::max(self, other)
+                if self < other || self.is_nan() {
+                    other
+                } else {
+                    self
+                }
             }
             #[inline]
             fn min(self, other: Self) -> Self {
-                <$t>::min(self, other)
+                if self > other || self.is_nan() {
+                    other
+                } else {
+                    self
+                }
             }
             #[inline]
             fn abs(self) -> Self {

@@ -244,9 +244,15 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                     if g == 0.0 {
                         continue;
                     }
-                    grid.direction_used[d][row % 2] = true;
+                    // `get_mut`: the optimiser loses `d < 8` here, and the
+                    // panic-free proof (examples/panic_free.rs) builds a grid.
+                    if let Some(used) = grid.direction_used.get_mut(d) {
+                        used[row % 2] = true;
+                    }
                     if Self::neighbour(row, col, d_row, d_col).is_some() {
-                        grid.neighbour_g_dt[d][row][col] = S::from_f64(g * dt);
+                        if let Some(slot) = grid.neighbour_g_dt.get_mut(d) {
+                            slot[row][col] = S::from_f64(g * dt);
+                        }
                         total_g += g;
                     } else if config.border == Border::Ambient {
                         ambient_g += g;

@@ -80,8 +80,11 @@ impl StepClock {
     /// Never panics; saturating arithmetic throughout.
     pub fn advance(&self, state: &mut ClockState, elapsed_us: u32) -> TickSteps {
         let total_us = state.debt_us as u64 + elapsed_us as u64;
-        let due = total_us / self.step_us as u64;
-        let remainder = (total_us % self.step_us as u64) as u32;
+        // `new` refuses a zero step; `max(1)` lets the compiler see it, so no
+        // division check (and no panic path) is left in the tick.
+        let step_us = self.step_us.max(1) as u64;
+        let due = total_us / step_us;
+        let remainder = (total_us % step_us) as u32;
         if due <= self.max_steps_per_tick as u64 {
             state.debt_us = remainder;
             TickSteps {

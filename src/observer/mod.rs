@@ -6,14 +6,25 @@
 //! * [`shared`]: outputs published to lower-priority tasks and readings
 //!   handed in from them through `critical-section`, no lock held longer than
 //!   a copy;
+//! * [`grid`]: one observer per coil grid (model, alarms, limiter, time to
+//!   limit) behind `tick(inputs) -> outputs`;
+//! * [`omnimagnet`]: the same for an Omnimagnet (model, steady-state Kalman
+//!   filter fed by thermocouples, protection), a thin adapter;
 //! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
 //!   the conservative start when a snapshot is refused.
 
 pub mod clock;
+pub mod grid;
+pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
 
 pub use clock::{ClockState, StepClock, TickSteps};
+pub use grid::{GridInputs, GridObserver, GridObserverState, GridOutputs};
+pub use omnimagnet::{
+    OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
+    TimedReading,
+};
 pub use shared::{Mailbox, Shared};
 pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,

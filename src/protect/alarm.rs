@@ -594,6 +594,19 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         Ok(())
     }
 
+    /// Latches the shutdown of every element, without an event: for a warm
+    /// restart from a snapshot that recorded a latched shutdown, because a
+    /// reset of the MCU must not be a way around the latch. [`Self::reset`]
+    /// clears it under its usual conditions.
+    pub fn latch_shutdown(&mut self) {
+        for element in &mut self.elements {
+            element.shutdown = Debounced {
+                active: true,
+                count: 0,
+            };
+        }
+    }
+
     /// `true` while any element's shutdown is latched.
     pub fn shutdown_latched(&self) -> bool {
         self.elements.iter().any(|e| e.shutdown.active)

@@ -1,0 +1,317 @@
+//! The observers in the 1 ms loop of a Cortex-M4F, under QEMU: the 84-coil
+//! HPPA grid and an Omnimagnet (steady-state Kalman filter fed by six
+//! thermocouples) with their protection, on a 20 s trace segment, with the
+//! instructions of every tick counted.
+//!
+//! ```text
+//! cargo build --profile firmware --features firmware --example observer_m4 --target thumbv7em-none-eabihf
+//! qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=7 \
+//!   -semihosting-config enable=on,target=native -kernel target/thumbv7em-none-eabihf/firmware/examples/observer_m4
+//! ```
+//!
+//! The trace segment is synthetic (made here, deterministic): coil (3, 5) at
+//! 2 A and row 1 at 1 A on the grid, all three solenoids at 3.8 A on the
+//! Omnimagnet; the tick period jitters between 1100 and 900 us, and one tick
+//! comes 3.4 ms late, followed by one 0 us later (a catch-up of 3 steps, then
+//! none). The thermocouples read an `f64` reference (the same
+//! linear model stepped in `f64` from a state 0.5 K hotter on the solenoids
+//! than the observer's start) plus fixed offsets, every 500 ms; sensor 5
+//! goes open circuit at 10 s, one reading arrives 30 ms late (fused) and one
+//! 200 ms late (refused as too old).
+//!
+//! Checks (exit 1 on any mismatch): the grid observer equals the bare grid
+//! stepped as many times; the filter pulls the solenoid estimates to within
+//! 0.3 K of the reference; every sensor status is the expected one; no
+//! alarm; full current allowed; snapshots of both observers restore
+//! exactly, and a corrupted one is refused. The cost line (instructions per
+//! tick under `-icount`) is printed but not part of the expected output.
+#![no_std]
+#![no_main]
+
+#[path = "support/cost.rs"]
+mod cost;
+
+use coil_thermal::grid::GridConfig;
+use coil_thermal::observer::omnimagnet::{OmniObserver, OmniSettings, SensorStatus, TimedReading};
+use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, SnapshotError};
+use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
+use coil_thermal::protect::alarm::AlarmBuilder;
+use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
+use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::{CoilGrid, GridState, Reading, SensorFault};
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+use nalgebra::SVector;
+
+type Grid = GridObserver<f32, 7, 12, 84>;
+const TICKS: u32 = 20_000;
+const AMBIENT_C: f64 = 22.0;
+const OFFSETS_K: [f64; 6] = [0.1, -0.1, 0.05, -0.05, 0.15, -0.15];
+
+#[entry]
+fn main() -> ! {
+    cost::paint_stack();
+    let Some(mut peripherals) = cortex_m::Peripherals::take() else {
+        fail("peripherals")
+    };
+    let meter = cost::Meter::new(&mut peripherals.SYST);
+    let Some(omni) = build_omni() else {
+        fail("omni observer")
+    };
+    match run(&meter, &omni) {
+        Ok(()) => debug::exit(debug::EXIT_SUCCESS),
+        Err(what) => fail(what),
+    }
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[inline(never)]
+fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
+    let grid_config = GridConfig {
+        ticks_per_update: 10,
+        ..GridConfig::default()
+    };
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+        .build::<f32>()
+        .map_err(|_| "grid alarm")?;
+    let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).map_err(|_| "grid limiter")?;
+    let grid = Grid::new(&grid_config, alarm, limiter, 4).map_err(|_| "grid observer")?;
+    let bare = CoilGrid::<f32, 7, 12>::new(&grid_config).map_err(|_| "bare grid")?;
+
+    let lin = reference().ok_or("reference linearisation")?;
+    let build_stack = cost::stack_peak();
+    cost::paint_stack();
+
+    let mut currents = [[0.0f32; 12]; 7];
+    currents[3][5] = 2.0;
+    currents[1] = [1.0; 12];
+    let mut gs = grid.state(AMBIENT_C);
+    let mut bare_state = GridState::uniform(AMBIENT_C);
+    let mut os = omni.state(&[AMBIENT_C as f32; NODES], AMBIENT_C as f32);
+    let mut truth = SVector::<f64, NODES>::repeat(AMBIENT_C);
+    for node in 0..3 {
+        truth[node] += 0.5;
+    }
+    let omni_currents = [3.8f32; 3];
+
+    let (mut plain, mut corrected) = (cost::Stats::default(), cost::Stats::default());
+    let mut now_us = 0u32;
+    let mut steps_total = 0u32;
+    let mut statuses_ok = true;
+    for k in 0..TICKS {
+        let elapsed_us = match k {
+            7_000 => 3_400,
+            7_001 => 0,
+            _ if k % 2 == 0 => 1_100,
+            _ => 900,
+        };
+        now_us = now_us.wrapping_add(elapsed_us);
+        let mut readings = [None; 6];
+        let reading_tick = k % 500 == 499;
+        if reading_tick {
+            for (j, slot) in readings.iter_mut().enumerate() {
+                let temp_c = (truth[THERMOCOUPLE_NODES[j]] + OFFSETS_K[j]) as f32;
+                let result = if j == 5 && k > 10_000 {
+                    Err(SensorFault::OpenCircuit)
+                } else {
+                    Ok(Reading {
+                        temp_c,
+                        cold_junction_c: AMBIENT_C as f32,
+                    })
+                };
+                let age_us = match (j, k) {
+                    (0, 2_999) => 30_000,
+                    (1, 3_999) => 200_000,
+                    _ => 0,
+                };
+                *slot = Some(TimedReading {
+                    result,
+                    sampled_at_us: now_us.wrapping_sub(age_us),
+                });
+            }
+        }
+        let grid_in = GridInputs {
+            currents_a: &currents,
+            coolant_c: AMBIENT_C as f32,
+            ambient_c: AMBIENT_C as f32,
+            elapsed_us,
+        };
+        let omni_in = OmniInputs {
+            currents_a: omni_currents,
+            ambient_c: AMBIENT_C as f32,
+            readings,
+            now_us,
+            elapsed_us,
+        };
+        let ((steps, omni_out), insn) = meter.measure(|| {
+            let steps = grid.tick(&mut gs, &grid_in).steps;
+            (steps, *omni.tick(&mut os, &omni_in))
+        });
+        if omni_out.corrected {
+            corrected.add(insn);
+        } else {
+            plain.add(insn);
+        }
+        for _ in 0..steps {
+            bare.tick(
+                &mut bare_state,
+                &currents,
+                AMBIENT_C as f32,
+                AMBIENT_C as f32,
+            );
+            truth = lin.step_current_squared(&truth, &[3.8; 3], AMBIENT_C);
+        }
+        steps_total += steps;
+        if reading_tick {
+            statuses_ok &= sensors_as_expected(k, &omni_out.sensors);
+        }
+    }
+    let run_stack = cost::stack_peak();
+
+    let g = gs.outputs();
+    let o = os.outputs();
+    hprintln!(
+        "grid: {} steps, hottest coil ({}, {}) at {} degC, limit {} A, time to limit {:?} s, predictive alarm {}",
+        steps_total,
+        g.hottest.row,
+        g.hottest.col,
+        g.hottest.temp_c,
+        g.limits[3 * 12 + 5].current_a,
+        g.time_to_limit_s[3 * 12 + 5],
+        g.alarm.predictive
+    );
+    // 20 000 ticks of 1 ms on average, plus the 1.4 ms of the late pair.
+    let grid_ok = steps_total == TICKS + 1
+        && gs.grid.temps_c == bare_state.temps_c
+        && (g.hottest.row, g.hottest.col) == (3, 5);
+    let mut worst_k = 0.0f64;
+    for node in 0..3 {
+        worst_k = worst_k.max(libm::fabs(o.temps_c[node] as f64 - truth[node]));
+    }
+    hprintln!(
+        "omnimagnet: solenoids {} {} {} degC, reference {} {} {} degC, max error {} K",
+        o.temps_c[0],
+        o.temps_c[1],
+        o.temps_c[2],
+        truth[0] as f32,
+        truth[1] as f32,
+        truth[2] as f32,
+        worst_k as f32
+    );
+    let omni_ok = worst_k < 0.3;
+    let protect_ok = !g.alarm.warning
+        && !g.alarm.shutdown
+        && !o.alarm.warning
+        && !o.alarm.shutdown
+        && g.limits.iter().all(|l| l.current_a == 3.0)
+        && o.limits.iter().all(|l| l.current_a == 8.0);
+    hprintln!(
+        "checks: grid {}, filter {}, sensors {}, protection {}",
+        grid_ok,
+        omni_ok,
+        statuses_ok,
+        protect_ok
+    );
+
+    let snapshot_ok = snapshots(&grid, &gs, omni, &os);
+    hprintln!("snapshots: {}", snapshot_ok);
+
+    let (flash, ram) = cost::image_sizes();
+    hprintln!(
+        "cost: grid+omni+protect mean {} worst {} insn; with correction mean {} worst {} insn; flash {} B ram {} B (static {} B, stack peak {} B build, {} B ticking)",
+        plain.mean(),
+        plain.worst(),
+        corrected.mean(),
+        corrected.worst(),
+        flash,
+        ram + build_stack.max(run_stack),
+        ram,
+        build_stack,
+        run_stack
+    );
+    if !(grid_ok && omni_ok && statuses_ok && protect_ok && snapshot_ok) {
+        return Err("a check failed");
+    }
+    if corrected.count() != TICKS / 500 {
+        return Err("corrections counted");
+    }
+    Ok(())
+}
+
+// Separate frames: the build-time temporaries (matrix exponential, Riccati
+// solver, modal decomposition) must not share one inlined stack frame.
+#[inline(never)]
+fn build_omni() -> Option<OmniObserver> {
+    let op = [AMBIENT_C; NODES];
+    OmniObserver::new(&Omnimagnet::PAPER, &op, AMBIENT_C, &OmniSettings::default()).ok()
+}
+
+#[inline(never)]
+fn reference() -> Option<coil_thermal::omnimagnet::Linearization> {
+    Omnimagnet::PAPER
+        .linearize(&[AMBIENT_C; NODES], AMBIENT_C, 1e-3)
+        .ok()
+}
+
+/// Sensor 5 is open from 10 s; sensor 1's reading at 4 s is 200 ms old.
+fn sensors_as_expected(k: u32, sensors: &[SensorStatus; 6]) -> bool {
+    sensors.iter().enumerate().all(|(j, s)| match (j, k, s) {
+        (5, k, SensorStatus::Fault(SensorFault::OpenCircuit)) if k > 10_000 => true,
+        (1, 3_999, SensorStatus::TooOld { age_us: 200_000 }) => true,
+        (_, _, SensorStatus::Fused { .. }) => !(j == 5 && k > 10_000 || j == 1 && k == 3_999),
+        _ => false,
+    })
+}
+
+fn snapshots(
+    grid: &Grid,
+    gs: &coil_thermal::observer::GridObserverState<f32, 7, 12, 84>,
+    omni: &OmniObserver,
+    os: &coil_thermal::observer::OmniObserverState,
+) -> bool {
+    let mut buf = [0u8; coil_thermal::observer::snapshot::snapshot_len(84)];
+    let grid_back = grid
+        .save(gs, 100, &mut buf)
+        .ok()
+        .and_then(|_| grid.restore(&buf, 160, 600, AMBIENT_C).ok());
+    let grid_ok = grid_back.is_some_and(|s| s.grid.temps_c == gs.grid.temps_c);
+    buf[40] ^= 0x10;
+    let refused = matches!(
+        grid.restore(&buf, 160, 600, AMBIENT_C),
+        Err(SnapshotError::CrcMismatch)
+    );
+    let omni_back = omni
+        .save(os, 100, &mut buf)
+        .ok()
+        .and_then(|_| omni.restore(&buf, 160, 600, AMBIENT_C as f32).ok());
+    let omni_ok = omni_back.is_some_and(|s| s.estimate.x == os.estimate.x);
+    let foreign = grid.restore(&buf, 160, 600, AMBIENT_C).is_err();
+    grid_ok && refused && omni_ok && foreign
+}
+
+fn fail(what: &str) -> ! {
+    hprintln!("failed: {}", what);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}

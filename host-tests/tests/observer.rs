@@ -1,0 +1,589 @@
+//! The observers' tick API on the host: jitter, missed and late ticks, late
+//! and faulty readings, NaN inputs, warm restart, sharing between threads,
+//! no allocation, and the grid's time to limit against an independent f64
+//! reference.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use coil_thermal::grid::GridConfig;
+use coil_thermal::observer::omnimagnet::{SensorStatus, TimedReading};
+use coil_thermal::observer::snapshot::snapshot_len;
+use coil_thermal::observer::{
+    GridInputs, GridObserver, GridObserverState, GridOutputs, Mailbox, OmniInputs, OmniObserver,
+    OmniObserverState, OmniSettings, Shared, SnapshotError,
+};
+use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
+use coil_thermal::protect::alarm::AlarmBuilder;
+use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
+use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::{CoilGrid, GridParams, GridState, InputFlags, Reading, SensorFault};
+use coil_thermal_host::grid_reference::{GridReference, ReferenceParams};
+
+struct CountingAllocator;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards every call unchanged to the system allocator; the only
+// addition is a thread-local counter that itself never allocates.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+type Grid = GridObserver<f32, 7, 12, 84>;
+type GridOut = GridOutputs<f32, 7, 12, 84>;
+
+fn grid_config(params: GridParams) -> GridConfig {
+    GridConfig {
+        ticks_per_update: 10,
+        ..GridConfig::hppa(params)
+    }
+}
+
+fn grid_with(params: GridParams, max_steps: u32) -> Grid {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+        .build()
+        .unwrap();
+    let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).unwrap();
+    Grid::new(&grid_config(params), alarm, limiter, max_steps).unwrap()
+}
+
+fn grid() -> Grid {
+    grid_with(GridParams::FDM_FITTED, 4)
+}
+
+fn tick(
+    grid: &Grid,
+    state: &mut GridObserverState<f32, 7, 12, 84>,
+    currents: &[[f32; 12]; 7],
+    elapsed_us: u32,
+) -> GridOut {
+    *grid.tick(
+        state,
+        &GridInputs {
+            currents_a: currents,
+            coolant_c: 20.0,
+            ambient_c: 20.0,
+            elapsed_us,
+        },
+    )
+}
+
+fn hot_currents() -> [[f32; 12]; 7] {
+    let mut currents = [[0.0f32; 12]; 7];
+    currents[3][5] = 2.5;
+    currents[1] = [1.0; 12];
+    currents
+}
+
+#[test]
+fn jittered_ticks_step_the_grid_exactly_as_often_as_time_allows() {
+    let grid = grid();
+    let bare = CoilGrid::<f32, 7, 12>::new(&grid_config(GridParams::FDM_FITTED)).unwrap();
+    let mut state = grid.state(20.0);
+    let mut reference = GridState::uniform(20.0);
+    let currents = hot_currents();
+    let mut total_us = 0u64;
+    let mut steps = 0u32;
+    for k in 0..5_000u32 {
+        // Deterministic jitter of +-30 %, never a multiple of the step.
+        let elapsed_us = 700 + (k * 7919) % 600;
+        total_us += elapsed_us as u64;
+        let out = tick(&grid, &mut state, &currents, elapsed_us);
+        assert!(out.flags.is_clean());
+        for _ in 0..out.steps {
+            bare.tick(&mut reference, &currents, 20.0, 20.0);
+        }
+        steps += out.steps;
+    }
+    assert_eq!(steps as u64, total_us / 1000);
+    assert_eq!(state.clock.debt_us as u64, total_us % 1000);
+    assert_eq!(state.grid.temps_c, reference.temps_c);
+}
+
+#[test]
+fn missed_ticks_catch_up_and_a_stall_is_bounded_and_flagged() {
+    let grid = grid();
+    let mut state = grid.state(20.0);
+    let currents = hot_currents();
+    let out = tick(&grid, &mut state, &currents, 0);
+    assert_eq!((out.steps, out.dropped_us), (0, 0));
+    assert!(out.flags.is_clean());
+    let out = tick(&grid, &mut state, &currents, 3_400);
+    assert_eq!(out.steps, 3);
+    assert_eq!(state.clock.debt_us, 400);
+    assert!(out.flags.is_clean());
+    let before = state.grid.temps_c;
+    let out = tick(&grid, &mut state, &currents, 500_000);
+    assert_eq!(out.steps, 4, "at most max_steps_per_tick");
+    assert!(out.flags.contains(InputFlags::ELAPSED_INVALID));
+    assert_eq!(out.dropped_us, 496_000);
+    assert_eq!(state.clock.debt_us, 400);
+    // The stall still heated the grid by the steps it took.
+    assert!(state.grid.temps_c[3][5] >= before[3][5]);
+    let out = tick(&grid, &mut state, &currents, 1_000);
+    assert!(out.flags.is_clean(), "the flag is per tick");
+}
+
+#[test]
+fn nan_inputs_are_flagged_and_never_reach_the_estimates() {
+    let grid = grid();
+    let mut state = grid.state(20.0);
+    let mut currents = hot_currents();
+    for _ in 0..30 {
+        tick(&grid, &mut state, &currents, 1000);
+    }
+    currents[3][5] = f32::NAN;
+    let out = *grid.tick(
+        &mut state,
+        &GridInputs {
+            currents_a: &currents,
+            coolant_c: f32::NAN,
+            ambient_c: f32::INFINITY,
+            elapsed_us: 1000,
+        },
+    );
+    assert!(out.flags.contains(InputFlags::CURRENT_NOT_FINITE));
+    assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+    for _ in 0..30 {
+        tick(&grid, &mut state, &currents, 1000);
+    }
+    let out = state.outputs();
+    assert!(out.temps_c.as_flattened().iter().all(|t| t.is_finite()));
+    assert!(out.limits.iter().all(|l| !l.invalid));
+    // The held 2.5 A keeps heating the coil whose current sensor failed.
+    assert_eq!(state.grid.held_currents_a[3][5], 2.5);
+}
+
+#[test]
+fn limits_and_alarms_follow_the_model_within_three_ticks() {
+    let grid = grid();
+    let mut state = grid.conservative_state(20.0);
+    let currents = hot_currents();
+    let mut saw_update = None;
+    for k in 0..40 {
+        let out = tick(&grid, &mut state, &currents, 1000);
+        if out.updated && saw_update.is_none() {
+            saw_update = Some(k);
+        }
+    }
+    // The update of the 40th tick is in the model; its protection is due in
+    // the next three ticks, so the outputs still show the previous update.
+    assert_ne!(state.outputs().temps_c, state.grid.temps_c);
+    for _ in 0..3 {
+        tick(&grid, &mut state, &currents, 0);
+    }
+    let out = state.outputs();
+    assert_eq!(out.temps_c, state.grid.temps_c);
+    // Started at the start of the taper band: the powered coil heats into
+    // it at once, the unpowered ones cool out of it.
+    assert!(out.limits[3 * 12 + 5].current_a < 3.0);
+    assert_eq!(out.limits[6 * 12].current_a, 3.0);
+    assert_eq!(saw_update, Some(9));
+}
+
+#[test]
+fn grid_snapshot_round_trip_is_exact_and_keeps_the_latch() {
+    let grid = grid();
+    let mut state = grid.state(20.0);
+    let mut currents = [[0.0f32; 12]; 7];
+    currents[2][2] = 9.0;
+    for _ in 0..200_000 {
+        tick(&grid, &mut state, &currents, 1000);
+        if state.alarm.shutdown_latched() {
+            break;
+        }
+    }
+    assert!(state.alarm.shutdown_latched(), "9 A must trip the coil");
+    let mut buf = [0u8; snapshot_len(84)];
+    let len = grid.save(&state, 1_000, &mut buf).unwrap();
+    assert_eq!(len, buf.len());
+    let restored = grid.restore(&buf, 1_010, 600, 20.0).unwrap();
+    assert_eq!(restored.grid.temps_c, state.grid.temps_c);
+    assert!(restored.alarm.shutdown_latched());
+    assert!(restored.outputs().alarm.shutdown);
+
+    // Every kind of refusal.
+    let mut corrupt = buf;
+    corrupt[100] ^= 1;
+    assert_eq!(
+        grid.restore(&corrupt, 1_010, 600, 20.0).err(),
+        Some(SnapshotError::CrcMismatch)
+    );
+    let other = grid_with(GridParams::FDM_FITTED_DIGEST, 4);
+    assert_eq!(
+        other.restore(&buf, 1_010, 600, 20.0).err(),
+        Some(SnapshotError::ConfigMismatch)
+    );
+    assert_eq!(
+        grid.restore(&buf, 2_000, 600, 20.0).err(),
+        Some(SnapshotError::Stale { age_s: 1_000 })
+    );
+    assert_eq!(
+        grid.restore(&buf, 999, 600, 20.0).err(),
+        Some(SnapshotError::FromFuture)
+    );
+    assert!(matches!(
+        grid.restore(&buf[..50], 1_010, 600, 20.0),
+        Err(SnapshotError::BufferTooSmall { .. })
+    ));
+    // The documented fallback: every coil at the taper start, no latch.
+    let fallback = grid.conservative_state(20.0);
+    let start = grid.restart_temp_c() as f32;
+    assert!(fallback
+        .grid
+        .temps_c
+        .as_flattened()
+        .iter()
+        .all(|t| *t == start));
+    assert!(start > 40.0);
+    assert!(!fallback.alarm.shutdown_latched());
+}
+
+#[test]
+fn grid_ticks_do_not_allocate() {
+    let grid = grid();
+    let mut state = grid.state(20.0);
+    let currents = hot_currents();
+    let before = ALLOCATIONS.with(Cell::get);
+    for k in 0..2_000u32 {
+        tick(&grid, &mut state, &currents, 900 + k % 300);
+    }
+    assert_eq!(ALLOCATIONS.with(Cell::get), before);
+}
+
+/// First time \[s\] each coil reaches `limits_c`, by RK4 of the dense f64
+/// reference at 0.1 s, or `None` within `horizon_s`.
+fn true_crossings(
+    temps_c: &[f64],
+    currents_a: &[f64],
+    limits_c: &[f64],
+    horizon_s: f64,
+) -> Vec<Option<f64>> {
+    let reference = GridReference::assemble(
+        7,
+        12,
+        &coil_thermal::Stencil::HPPA_HERRINGBONE,
+        &ReferenceParams::HPPA_FDM,
+    );
+    let mut t = temps_c.to_vec();
+    let mut crossed = vec![None; t.len()];
+    let h = 0.1;
+    let mut now = 0.0;
+    while now < horizon_s {
+        reference.integrate(&mut t, currents_a, 20.0, 20.0, h, h);
+        now += h;
+        for (c, (temp, limit)) in crossed.iter_mut().zip(t.iter().zip(limits_c)) {
+            if c.is_none() && temp >= limit {
+                *c = Some(now);
+            }
+        }
+    }
+    crossed
+}
+
+#[test]
+fn grid_time_to_limit_is_never_later_than_the_f64_reference() {
+    let grid = grid();
+    type Pattern = Box<dyn Fn(usize, usize) -> f32>;
+    let patterns: [(&str, Pattern); 4] = [
+        (
+            "one coil at 4 A",
+            Box::new(|r, c| if (r, c) == (3, 5) { 4.0 } else { 0.0 }),
+        ),
+        (
+            "row 2 at 3 A",
+            Box::new(|r, _| if r == 2 { 3.0 } else { 0.0 }),
+        ),
+        ("all at 1.6 A", Box::new(|_, _| 1.6)),
+        (
+            "checkerboard at 2.5 A",
+            Box::new(|r, c| if (r + c) % 2 == 0 { 2.5 } else { 0.0 }),
+        ),
+    ];
+    for (name, pattern) in patterns {
+        let mut currents = [[0.0f32; 12]; 7];
+        for (r, row) in currents.iter_mut().enumerate() {
+            for (c, i) in row.iter_mut().enumerate() {
+                *i = pattern(r, c);
+            }
+        }
+        let mut state = grid.state(20.0);
+        // One update (tick 10), then the time-to-limit stage (tick 11).
+        for _ in 0..11 {
+            tick(&grid, &mut state, &currents, 1000);
+        }
+        let predicted = state.outputs().time_to_limit_s;
+        let temps: Vec<f64> = state
+            .grid
+            .temps_c
+            .as_flattened()
+            .iter()
+            .map(|t| *t as f64)
+            .collect();
+        let currents_f64: Vec<f64> = currents.as_flattened().iter().map(|i| *i as f64).collect();
+        let limits: Vec<f64> = grid
+            .alarm()
+            .alarm_limits_c(20.0)
+            .iter()
+            .map(|l| *l as f64)
+            .collect();
+        let truth = true_crossings(&temps, &currents_f64, &limits, 1_500.0);
+        let mut crossing = 0;
+        let mut worst_ratio = 0.0f64;
+        for (coil, (p, t)) in predicted.iter().zip(&truth).enumerate() {
+            if let Some(t) = t {
+                crossing += 1;
+                let p = p.unwrap_or_else(|| {
+                    panic!("{name}: coil {coil} crosses at {t} s, predicted never")
+                });
+                // 0.1 s: the reference's sampling of the crossing.
+                assert!(
+                    p as f64 <= t + 0.1,
+                    "{name}: coil {coil} predicted {p} s, truth {t} s"
+                );
+                worst_ratio = worst_ratio.max(t / (p as f64).max(1e-3));
+            }
+        }
+        let hottest = truth.iter().flatten().fold(f64::INFINITY, |a, b| a.min(*b));
+        println!("{name}: {crossing} coils cross within 1500 s, first at {hottest:.1} s; truth / prediction up to {worst_ratio:.2}");
+        assert!(
+            crossing > 0,
+            "{name}: the pattern must heat some coil past its limit"
+        );
+    }
+}
+
+// ---------------------------------------------------------------- Omnimagnet
+
+fn omni() -> OmniObserver {
+    OmniObserver::new(
+        &Omnimagnet::PAPER,
+        &[22.0; NODES],
+        22.0,
+        &OmniSettings::default(),
+    )
+    .unwrap()
+}
+
+fn reading(temp_c: f32, sampled_at_us: u32) -> Option<TimedReading> {
+    Some(TimedReading {
+        result: Ok(Reading {
+            temp_c,
+            cold_junction_c: 22.0,
+        }),
+        sampled_at_us,
+    })
+}
+
+fn omni_tick(
+    omni: &OmniObserver,
+    state: &mut OmniObserverState,
+    readings: [Option<TimedReading>; 6],
+    now_us: u32,
+) -> coil_thermal::observer::OmniOutputs {
+    *omni.tick(
+        state,
+        &OmniInputs {
+            currents_a: [3.8; 3],
+            ambient_c: 22.0,
+            readings,
+            now_us,
+            elapsed_us: 1000,
+        },
+    )
+}
+
+#[test]
+fn readings_late_old_faulty_and_not_finite_are_sorted() {
+    let omni = omni();
+    let mut state = omni.state(&[22.0; NODES], 22.0);
+    for k in 0..499u32 {
+        omni_tick(&omni, &mut state, [None; 6], k * 1000);
+    }
+    let now = 499_000;
+    let out = omni_tick(
+        &omni,
+        &mut state,
+        [
+            reading(22.1, now - 30_000),
+            reading(22.1, now - 200_000),
+            Some(TimedReading {
+                result: Err(SensorFault::ShortToVcc),
+                sampled_at_us: now,
+            }),
+            reading(f32::NAN, now),
+            reading(22.1, now),
+            None,
+        ],
+        now,
+    );
+    assert!(out.corrected);
+    assert!(
+        matches!(out.sensors[0], SensorStatus::Fused { .. }),
+        "30 ms late is fused"
+    );
+    assert_eq!(out.sensors[1], SensorStatus::TooOld { age_us: 200_000 });
+    assert_eq!(out.sensors[2], SensorStatus::Fault(SensorFault::ShortToVcc));
+    assert_eq!(out.sensors[3], SensorStatus::Fault(SensorFault::NotFinite));
+    assert!(matches!(out.sensors[4], SensorStatus::Fused { .. }));
+    assert_eq!(out.sensors[5], SensorStatus::NoReading);
+    // A wild reading is refused by the gate, not fused.
+    let out = omni_tick(
+        &omni,
+        &mut state,
+        [reading(80.0, now), None, None, None, None, None],
+        now + 1000,
+    );
+    assert!(matches!(out.sensors[0], SensorStatus::Rejected { .. }));
+    let out = omni_tick(&omni, &mut state, [None; 6], now + 2000);
+    assert!(!out.corrected);
+}
+
+#[test]
+fn omni_filter_converges_to_readings_of_a_hotter_device() {
+    let omni = omni();
+    let mut state = omni.state(&[22.0; NODES], 22.0);
+    let before = state.outputs().temps_c[0];
+    for k in 0..20_000u32 {
+        let readings = if k % 500 == 499 {
+            let mut r = [None; 6];
+            for (j, slot) in r.iter_mut().enumerate() {
+                *slot = reading(22.5 + 0.01 * THERMOCOUPLE_NODES[j] as f32, k * 1000);
+            }
+            r
+        } else {
+            [None; 6]
+        };
+        omni_tick(&omni, &mut state, readings, k * 1000);
+    }
+    let after = state.outputs().temps_c[0];
+    assert!(
+        after > before + 0.3,
+        "estimate {after} should approach 22.5 + heating"
+    );
+    assert!(state.outputs().alarm == Default::default());
+}
+
+#[test]
+fn omni_snapshot_round_trip_and_refusals() {
+    let omni = omni();
+    let mut state = omni.state(&[22.0; NODES], 22.0);
+    for k in 0..3_000u32 {
+        omni_tick(&omni, &mut state, [None; 6], k * 1000);
+    }
+    let mut buf = [0u8; snapshot_len(NODES)];
+    omni.save(&state, 50, &mut buf).unwrap();
+    let restored = omni.restore(&buf, 60, 600, 22.0).unwrap();
+    assert_eq!(restored.estimate.x, state.estimate.x);
+    let mut corrupt = buf;
+    corrupt[30] ^= 0x80;
+    assert_eq!(
+        omni.restore(&corrupt, 60, 600, 22.0).err(),
+        Some(SnapshotError::CrcMismatch)
+    );
+    let grid = grid();
+    assert!(
+        grid.restore(&buf, 60, 600, 22.0).is_err(),
+        "another device's snapshot"
+    );
+    let fallback = omni.conservative_state(&[Some(40.0), None, Some(35.0), None, None, None], 22.0);
+    let t = fallback.outputs().temps_c;
+    assert_eq!((t[0], t[1], t[2]), (40.0, 35.0, 40.0));
+    assert!(
+        t.iter().all(|v| *v >= 35.0),
+        "unmeasured nodes at the hottest reading"
+    );
+}
+
+#[test]
+fn omni_ticks_do_not_allocate() {
+    let omni = omni();
+    let mut state = omni.state(&[22.0; NODES], 22.0);
+    let before = ALLOCATIONS.with(Cell::get);
+    for k in 0..1_500u32 {
+        let readings = if k % 500 == 499 {
+            [reading(22.0, k * 1000); 6]
+        } else {
+            [None; 6]
+        };
+        omni_tick(&omni, &mut state, readings, k * 1000);
+    }
+    assert_eq!(ALLOCATIONS.with(Cell::get), before);
+}
+
+/// The pattern of `observer::shared`: the "interrupt" thread ticks and
+/// publishes, the "task" thread posts readings and reads whole snapshots.
+#[test]
+fn a_second_task_reads_consistent_outputs_and_hands_in_readings() {
+    static OUTPUTS: std::sync::OnceLock<Shared<GridOut>> = std::sync::OnceLock::new();
+    static READINGS: Mailbox<TimedReading, 6> = Mailbox::new();
+    static OMNI_TICKS: Shared<(u32, u32)> = Shared::new((0, 0));
+    let grid = grid();
+    let omni = omni();
+    let outputs = OUTPUTS.get_or_init(|| Shared::new(*grid.state(20.0).outputs()));
+
+    let task = std::thread::spawn(move || {
+        let mut last_tick = 0;
+        for k in 0..2_000u32 {
+            if k % 50 == 0 {
+                let r = reading(22.0, 0).unwrap();
+                READINGS.post(k as usize % 6, r).unwrap();
+            }
+            let copy = outputs.snapshot();
+            // A torn copy would mix two ticks: temps and tick from different
+            // publications would break the monotone tick count.
+            assert!(copy.tick >= last_tick);
+            last_tick = copy.tick;
+            assert!(copy.temps_c.as_flattened().iter().all(|t| t.is_finite()));
+        }
+    });
+    let mut gs = grid.state(20.0);
+    let mut os = omni.state(&[22.0; NODES], 22.0);
+    let currents = hot_currents();
+    let mut fused = 0;
+    for k in 0..3_000u32 {
+        let out = tick(&grid, &mut gs, &currents, 1000);
+        outputs.publish(out);
+        let (readings, _) = READINGS.take_all();
+        let o = omni.tick(
+            &mut os,
+            &OmniInputs {
+                currents_a: [1.0; 3],
+                ambient_c: 22.0,
+                readings: readings.map(|r| {
+                    r.map(|r| TimedReading {
+                        sampled_at_us: k * 1000,
+                        ..r
+                    })
+                }),
+                now_us: k * 1000,
+                elapsed_us: 1000,
+            },
+        );
+        fused += o
+            .sensors
+            .iter()
+            .filter(|s| matches!(s, SensorStatus::Fused { .. }))
+            .count();
+        OMNI_TICKS.publish((k, fused as u32));
+    }
+    task.join().unwrap();
+    assert_eq!(outputs.snapshot().tick, 3_000);
+    assert!(OMNI_TICKS.snapshot().1 > 0, "readings handed in were fused");
+}

@@ -1,0 +1,545 @@
+//! One observer per coil grid: the HPPA model, its alarms, its current
+//! limiter and a per-coil time to limit behind one `tick`.
+//!
+//! [`GridObserver`] is the configuration (built and validated once, shared
+//! by every device of the kind), [`GridObserverState`] the per-device state,
+//! and [`GridObserver::tick`] the whole per-tick path:
+//!
+//! 1. the measured elapsed time becomes whole model steps of the grid's tick
+//!    (`tick_dt_s`, stable by construction) through the [`StepClock`]: a late
+//!    tick sub-steps, an early one carries its time, a stall beyond
+//!    `max_steps_per_tick` is dropped and flagged
+//!    ([`InputFlags::ELAPSED_INVALID`]);
+//! 2. each step is one [`CoilGrid::tick`] (Joule energy accumulated, the grid
+//!    updated every `ticks_per_update` steps);
+//! 3. after a tick in which the grid updated (temperatures change only then),
+//!    the protection runs once, spread over the next three ticks so that no
+//!    tick carries both a grid update and the whole protection: per-coil time
+//!    to limit, then the alarm, then the current limiter and the hottest coil.
+//!    Between updates the protection outputs stand, because nothing they
+//!    depend on has changed except the currents, which the limiter does not
+//!    take. So the limits lag the model by at most three ticks (3 ms at the
+//!    HPPA's rate, against thermal time constants of minutes), and the
+//!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
+//!    should exceed 3 (and `max_steps_per_tick`) for every update to be
+//!    followed by a complete protection pass; otherwise a newer update
+//!    restarts the stages.
+//!
+//! # Time to limit per coil
+//!
+//! The full modal predictor of [`crate::protect::predict`] needs `N x N`
+//! matrices, 28 KiB for 84 coils in `f32`: too big for an MCU. Instead each
+//! coil is a first-order node with a rigorous upper bound on its neighbours:
+//!
+//! * powers at the resistance of the alarm limit (or of the present
+//!   temperature, if higher), `p_i = R(max(T_i, L_i)) I_i^2`, as the modal
+//!   predictor does;
+//! * `U = max(max_i T_i, max_i (p_i + G_z T_c + G_a,i T_a) / (G_z + G_a,i))`:
+//!   by the maximum principle no coil of the grid ever exceeds `U` at these
+//!   powers and boundaries (at the hottest coil, neighbours are cooler, so it
+//!   can rise only while it is below its own isolated steady state);
+//! * coil `i` with every neighbour held at `U` obeys
+//!   `C y' = p_i + G_n,i (U - y) + G_z (T_c - y) + G_a,i (T_a - y)`, and by
+//!   comparison `T_i(t) <= y(t)`: its crossing of `L_i`,
+//!   `tau ln((y_ss - T_i) / (y_ss - L_i))`, is never later than the truth.
+//!
+//! The bound is tight for the hottest coil of a uniformly heated region and
+//! pessimistic for cold coils beside a hot one (they are assumed to sit next
+//! to the hottest possible neighbour); a single powered coil is predicted to
+//! run towards its isolated steady state. Cost: two passes over the coils
+//! and one `ln` per coil that is predicted to cross. `f32` throughout (also
+//! for fixed-point grids: the answer is a time, not a temperature).
+//!
+//! # Warm restart
+//!
+//! [`GridObserver::save`] writes the coil temperatures and the latched
+//! shutdown with [`snapshot::save`]; [`GridObserver::restore`] checks them
+//! against this configuration's [`fingerprint`](GridObserver::fingerprint)
+//! and refuses anything else; [`GridObserver::conservative_state`] is the
+//! documented start after a refusal: the grid has no sensors, so every coil
+//! starts at the start of its limiter's taper band (alarm limit at the
+//! nominal ambient minus `taper_k`). The full current is still allowed there,
+//! but no coil has more headroom than the taper, and the model cools the coils
+//! at the modelled rate until it knows better.
+
+use super::clock::{ClockState, StepClock};
+use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use crate::error::BuildError;
+use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState};
+use crate::input::InputFlags;
+use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus};
+use crate::protect::events::EventQueue;
+use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::scalar::Scalar;
+
+/// Capacity of each observer's alarm event queue.
+pub const EVENT_CAPACITY: usize = 16;
+
+/// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
+const DIRECTIONS: [(isize, isize); 8] = [
+    (-1, -1),
+    (-1, 0),
+    (-1, 1),
+    (0, -1),
+    (0, 1),
+    (1, -1),
+    (1, 0),
+    (1, 1),
+];
+
+/// The configuration of one grid device: model, protection and clock.
+/// `N` must be `ROWS * COLS` (checked at compile time).
+#[derive(Debug, Clone)]
+pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize> {
+    grid: CoilGrid<S, ROWS, COLS>,
+    alarm: AlarmConfig<S, N>,
+    limiter: LimiterConfig<S, N>,
+    clock: StepClock,
+    ttl: TimeToLimit<ROWS, COLS>,
+    restart_c: f64,
+    fingerprint: u32,
+}
+
+/// Per-coil constants of the time-to-limit bound, `f32`.
+#[derive(Debug, Clone)]
+struct TimeToLimit<const ROWS: usize, const COLS: usize> {
+    /// Sum of the conductances to neighbouring coils \[W/K\].
+    neighbour_g: [[f32; COLS]; ROWS],
+    /// Conductance to the ambient padding \[W/K\].
+    ambient_g: [[f32; COLS]; ROWS],
+    /// Conductance to the base \[W/K\].
+    base_g: f32,
+    /// Heat capacity \[J/K\].
+    capacity: f32,
+    /// `R(0 degC)` \[ohm\] and `dR/dT` \[ohm/K\].
+    r0_ohm: f32,
+    slope_ohm_per_k: f32,
+}
+
+/// The inputs of one tick. Currents by reference: 84 coils are 336 bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct GridInputs<'a, S, const ROWS: usize, const COLS: usize> {
+    /// Coil currents \[A\] (sign irrelevant); NaN holds the last valid one.
+    pub currents_a: &'a [[S; COLS]; ROWS],
+    /// Coolant (base) temperature \[degC\].
+    pub coolant_c: S,
+    /// Ambient temperature around the border \[degC\].
+    pub ambient_c: S,
+    /// Measured time since the previous tick \[us\].
+    pub elapsed_us: u32,
+}
+
+/// What one tick produced: `Copy`, so it can be published through
+/// [`Shared`](super::Shared).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> {
+    /// Coil temperature estimates \[degC\].
+    pub temps_c: [[S; COLS]; ROWS],
+    /// Per-coil current limit and preference weight, index `row * COLS + col`.
+    pub limits: [CoilLimit<S>; N],
+    /// Per-coil time to the alarm limit at the present currents \[s\]
+    /// (`None`: never), index `row * COLS + col`; never later than the truth
+    /// (see the module docs).
+    pub time_to_limit_s: [Option<S>; N],
+    /// The alarm summary.
+    pub alarm: AlarmStatus,
+    /// The hottest coil.
+    pub hottest: CoilTemp<S>,
+    /// Input rules that fired this tick, including
+    /// [`InputFlags::ELAPSED_INVALID`] when time was dropped.
+    pub flags: InputFlags,
+    /// Model steps taken this tick.
+    pub steps: u32,
+    /// Time dropped by the catch-up limit this tick \[us\].
+    pub dropped_us: u32,
+    /// The grid updated this tick (the protection follows in the next three).
+    pub updated: bool,
+    /// Ticks since the state was made.
+    pub tick: u32,
+}
+
+/// The per-device state: model, alarm, clock, events and the last outputs.
+#[derive(Debug, Clone)]
+pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: usize> {
+    /// The grid model's state.
+    pub grid: GridState<S, ROWS, COLS>,
+    /// The alarm's state.
+    pub alarm: AlarmState<S, N>,
+    /// The time not yet simulated.
+    pub clock: ClockState,
+    /// Alarm events not yet drained by the application.
+    pub events: EventQueue<EVENT_CAPACITY>,
+    /// Next protection stage (0: none pending).
+    stage: u8,
+    outputs: GridOutputs<S, ROWS, COLS, N>,
+}
+
+impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
+    GridObserverState<S, ROWS, COLS, N>
+{
+    /// The outputs of the last tick.
+    pub fn outputs(&self) -> &GridOutputs<S, ROWS, COLS, N> {
+        &self.outputs
+    }
+}
+
+impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
+    GridObserver<S, ROWS, COLS, N>
+{
+    /// Validates and builds a grid observer.
+    ///
+    /// * `grid`: the grid model; its `tick_dt_s` is the model step and must
+    ///   be a whole number of microseconds;
+    /// * `alarm`, `limiter`: the protection of every coil (e.g. from
+    ///   [`DeratingRule::hppa`](crate::protect::derating::DeratingRule::hppa)
+    ///   and [`HPPA_CRITICAL_C`](crate::protect::derating::HPPA_CRITICAL_C));
+    /// * `max_steps_per_tick`: the catch-up bound, which bounds a tick's work.
+    ///
+    /// # Errors
+    /// Those of [`CoilGrid::new`] and [`StepClock::new`];
+    /// [`BuildError::InvalidTimeStep`] for a tick that is not a whole number
+    /// of microseconds.
+    pub fn new(
+        grid: &GridConfig,
+        alarm: AlarmConfig<S, N>,
+        limiter: LimiterConfig<S, N>,
+        max_steps_per_tick: u32,
+    ) -> Result<Self, BuildError> {
+        const { assert!(N == ROWS * COLS, "N must be ROWS * COLS") };
+        let model = CoilGrid::<S, ROWS, COLS>::new(grid)?;
+        let step_us = libm::round(grid.tick_dt_s * 1e6);
+        if !(step_us >= 1.0 && step_us <= u32::MAX as f64)
+            || libm::fabs(step_us - grid.tick_dt_s * 1e6) > 1e-6
+        {
+            return Err(BuildError::InvalidTimeStep);
+        }
+        let clock = StepClock::new(step_us as u32, max_steps_per_tick)?;
+        let mut ttl = TimeToLimit {
+            neighbour_g: [[0.0; COLS]; ROWS],
+            ambient_g: [[0.0; COLS]; ROWS],
+            base_g: model.base_conductance_w_per_k() as f32,
+            capacity: model.capacity_j_per_k() as f32,
+            r0_ohm: grid.resistance.r_at_0c_ohm as f32,
+            slope_ohm_per_k: grid.resistance.slope_ohm_per_k as f32,
+        };
+        let mut fingerprint = Fingerprint::new()
+            .u32(ROWS as u32)
+            .u32(COLS as u32)
+            .f64s(&[
+                model.capacity_j_per_k(),
+                model.base_conductance_w_per_k(),
+                grid.resistance.r_at_0c_ohm,
+                grid.resistance.slope_ohm_per_k,
+                grid.tick_dt_s,
+            ])
+            .u32(grid.ticks_per_update)
+            .u32(u32::from(grid.border == Border::Ambient));
+        for row in 0..ROWS {
+            for col in 0..COLS {
+                let g: f64 = DIRECTIONS
+                    .iter()
+                    .map(|&(dr, dc)| model.neighbour_conductance_w_per_k(row, col, dr, dc))
+                    .sum();
+                let g_amb = model.ambient_conductance_w_per_k(row, col);
+                ttl.neighbour_g[row][col] = g as f32;
+                ttl.ambient_g[row][col] = g_amb as f32;
+                fingerprint = fingerprint.f64(g).f64(g_amb);
+            }
+        }
+        let nominal_limit = alarm
+            .alarm_limits_c(S::from_f64(20.0))
+            .iter()
+            .fold(f64::INFINITY, |lo, l| lo.min(l.to_f64()));
+        let restart_c = nominal_limit - limiter.taper_k().to_f64();
+        Ok(Self {
+            grid: model,
+            alarm,
+            limiter,
+            clock,
+            ttl,
+            restart_c,
+            fingerprint: fingerprint.finish(),
+        })
+    }
+
+    /// The grid model.
+    pub fn grid(&self) -> &CoilGrid<S, ROWS, COLS> {
+        &self.grid
+    }
+
+    /// The alarm configuration.
+    pub fn alarm(&self) -> &AlarmConfig<S, N> {
+        &self.alarm
+    }
+
+    /// The step clock.
+    pub fn clock(&self) -> &StepClock {
+        &self.clock
+    }
+
+    /// The configuration fingerprint that snapshots carry.
+    pub fn fingerprint(&self) -> u32 {
+        self.fingerprint
+    }
+
+    /// A fresh state: every coil, the coolant and the ambient at `temp_c`
+    /// \[degC\], no current, no alarm.
+    pub fn state(&self, temp_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
+        self.state_from(GridState::uniform(temp_c))
+    }
+
+    fn state_from(&self, grid: GridState<S, ROWS, COLS>) -> GridObserverState<S, ROWS, COLS, N> {
+        let alarm = AlarmState::new(&self.alarm);
+        let mut state = GridObserverState {
+            outputs: GridOutputs {
+                temps_c: grid.temps_c,
+                limits: [CoilLimit::default(); N],
+                time_to_limit_s: [None; N],
+                alarm: AlarmStatus::default(),
+                hottest: grid.hottest(),
+                flags: InputFlags::NONE,
+                steps: 0,
+                dropped_us: 0,
+                updated: false,
+                tick: 0,
+            },
+            grid,
+            alarm,
+            clock: ClockState::default(),
+            events: EventQueue::new(),
+            stage: 0,
+        };
+        self.protect(&mut state, false);
+        state
+    }
+
+    /// One controller tick (see the module docs). Bounded work: at most
+    /// `max_steps_per_tick` grid ticks and one protection pass;
+    /// allocation-free and panic-free.
+    pub fn tick<'s>(
+        &self,
+        state: &'s mut GridObserverState<S, ROWS, COLS, N>,
+        inputs: &GridInputs<'_, S, ROWS, COLS>,
+    ) -> &'s GridOutputs<S, ROWS, COLS, N> {
+        let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        let mut flags = steps.flags;
+        let mut updated = false;
+        for _ in 0..steps.steps {
+            let outcome = self.grid.tick(
+                &mut state.grid,
+                inputs.currents_a,
+                inputs.coolant_c,
+                inputs.ambient_c,
+            );
+            flags |= outcome.flags;
+            updated |= outcome.updated;
+        }
+        if updated {
+            // Temperatures changed: the protection runs in the next ticks.
+            state.stage = 1;
+        } else {
+            self.protect_stage(state);
+        }
+        let out = &mut state.outputs;
+        out.flags = flags;
+        out.steps = steps.steps;
+        out.dropped_us = steps.dropped_us;
+        out.updated = updated;
+        out.tick = out.tick.wrapping_add(1);
+        &state.outputs
+    }
+
+    /// One stage of the protection after a grid update, so that no tick
+    /// carries both the update and the whole protection: 1 time to limit,
+    /// 2 alarm, 3 limiter and hottest coil.
+    fn protect_stage(&self, state: &mut GridObserverState<S, ROWS, COLS, N>) {
+        let ambient_c = state.grid.held_ambient_c;
+        let out = &mut state.outputs;
+        match state.stage {
+            1 => {
+                let limits_c = self.alarm.alarm_limits_c(ambient_c);
+                self.time_to_limit(&state.grid, &limits_c, &mut out.time_to_limit_s);
+                // The answers were computed one tick after the update they
+                // describe; the next stages use them as they are (1 ms).
+            }
+            2 => {
+                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    out.alarm = state.alarm.tick(
+                        &self.alarm,
+                        temps,
+                        ambient_c,
+                        &out.time_to_limit_s,
+                        &mut state.events,
+                    );
+                }
+            }
+            3 => {
+                let limits_c = self.alarm.alarm_limits_c(ambient_c);
+                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    self.limiter
+                        .apply(temps, &limits_c, ambient_c, &mut out.limits);
+                }
+                out.temps_c = state.grid.temps_c;
+                out.hottest = state.grid.hottest();
+            }
+            _ => return,
+        }
+        state.stage = if state.stage >= 3 { 0 } else { state.stage + 1 };
+    }
+
+    /// Time to limit, alarm (when `alarm`) and limiter on the present
+    /// temperatures, all at once (for a fresh or restored state).
+    fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
+        let ambient_c = state.grid.held_ambient_c;
+        let limits_c = self.alarm.alarm_limits_c(ambient_c);
+        let out = &mut state.outputs;
+        self.time_to_limit(&state.grid, &limits_c, &mut out.time_to_limit_s);
+        let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) else {
+            return;
+        };
+        if alarm {
+            out.alarm = state.alarm.tick(
+                &self.alarm,
+                temps,
+                ambient_c,
+                &out.time_to_limit_s,
+                &mut state.events,
+            );
+        }
+        self.limiter
+            .apply(temps, &limits_c, ambient_c, &mut out.limits);
+        out.temps_c = state.grid.temps_c;
+        out.hottest = state.grid.hottest();
+    }
+
+    /// The bound of the module docs, for every coil.
+    fn time_to_limit(
+        &self,
+        grid: &GridState<S, ROWS, COLS>,
+        limits_c: &[S; N],
+        out: &mut [Option<S>; N],
+    ) {
+        let t = &self.ttl;
+        let coolant = grid.held_coolant_c.to_f32();
+        let ambient = grid.held_ambient_c.to_f32();
+        let mut power_w = [0.0f32; N];
+        let mut bound_c = f32::NEG_INFINITY;
+        let coils = grid
+            .temps_c
+            .as_flattened()
+            .iter()
+            .zip(grid.held_currents_a.as_flattened())
+            .zip(t.ambient_g.as_flattened())
+            .zip(limits_c.iter())
+            .zip(power_w.iter_mut());
+        for ((((temp, current), g_amb), limit), p) in coils {
+            let (temp, current) = (temp.to_f32(), current.to_f32());
+            let r_ohm = t.r0_ohm + t.slope_ohm_per_k * temp.max(limit.to_f32());
+            *p = r_ohm.max(0.0) * current * current;
+            let isolated = (*p + t.base_g * coolant + g_amb * ambient) / (t.base_g + g_amb);
+            bound_c = bound_c.max(isolated).max(temp);
+        }
+        let coils = grid
+            .temps_c
+            .as_flattened()
+            .iter()
+            .zip(t.neighbour_g.as_flattened())
+            .zip(t.ambient_g.as_flattened())
+            .zip(limits_c.iter())
+            .zip(power_w.iter())
+            .zip(out.iter_mut());
+        for (((((temp, g_n), g_amb), limit), p), out) in coils {
+            let (temp, limit) = (temp.to_f32(), limit.to_f32());
+            let g_total = g_n + t.base_g + g_amb;
+            let steady = (p + g_n * bound_c + t.base_g * coolant + g_amb * ambient) / g_total;
+            // A NaN anywhere reads "no time left", the conservative answer:
+            // `below` is false for a NaN temperature or limit, and a NaN
+            // steady state leads to a NaN time, which the alarm counts as
+            // inside its horizon.
+            let below = temp < limit;
+            let crosses = steady > limit || steady.is_nan();
+            *out = if !below {
+                // At or past the limit, or not finite: no time left.
+                Some(S::ZERO)
+            } else if !crosses {
+                None
+            } else {
+                let tau_s = t.capacity / g_total;
+                Some(S::from_f32(
+                    tau_s * libm::logf((steady - temp) / (steady - limit)),
+                ))
+            };
+        }
+    }
+
+    /// Writes a snapshot of the coil temperatures and the latched shutdown,
+    /// stamped `now_s` \[s\] on the application's clock; returns its length.
+    /// `out` needs [`snapshot::snapshot_len`]`(N)` bytes.
+    pub fn save(
+        &self,
+        state: &GridObserverState<S, ROWS, COLS, N>,
+        now_s: u32,
+        out: &mut [u8],
+    ) -> Result<usize, SnapshotError> {
+        let mut temps_c = [0.0f32; N];
+        for (t, s) in temps_c.iter_mut().zip(state.grid.temps_c.as_flattened()) {
+            *t = s.to_f32();
+        }
+        let meta = SnapshotMeta {
+            fingerprint: self.fingerprint,
+            saved_at_s: now_s,
+            shutdown_latched: state.alarm.shutdown_latched(),
+        };
+        snapshot::save(&temps_c, &meta, out)
+    }
+
+    /// Restores a state from a snapshot taken by [`Self::save`] with this
+    /// configuration at most `max_age_s` \[s\] before `now_s` \[s\]; the
+    /// coolant and ambient start at `ambient_c` \[degC\]. A latched shutdown
+    /// stays latched.
+    ///
+    /// # Errors
+    /// Why the snapshot was refused; start from
+    /// [`Self::conservative_state`] then.
+    pub fn restore(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f64,
+    ) -> Result<GridObserverState<S, ROWS, COLS, N>, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
+        let mut grid = GridState::uniform(ambient_c);
+        for (t, s) in grid.temps_c.as_flattened_mut().iter_mut().zip(&temps_c) {
+            *t = S::from_f32(*s);
+        }
+        let mut state = self.state_from(grid);
+        if meta.shutdown_latched {
+            state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
+        }
+        Ok(state)
+    }
+
+    /// The documented start when no snapshot can be trusted: every coil at
+    /// the start of the limiter's taper band (the lowest alarm limit at
+    /// 20 degC ambient minus `taper_k`), or at `ambient_c` \[degC\] if that
+    /// is hotter; coolant and ambient at `ambient_c`. No latched shutdown.
+    pub fn conservative_state(&self, ambient_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
+        let mut grid = GridState::uniform(ambient_c);
+        let hot = S::from_f64(self.restart_c.max(ambient_c));
+        grid.temps_c = [[hot; COLS]; ROWS];
+        self.state_from(grid)
+    }
+
+    /// The temperature [`Self::conservative_state`] assumes \[degC\].
+    pub fn restart_temp_c(&self) -> f64 {
+        self.restart_c
+    }
+}
