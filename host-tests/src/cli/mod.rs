@@ -256,7 +256,7 @@ pub struct CalibrateArgs {
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
     /// [1/K], `.slope_ohm_per_k` [ohm/K], `.r_at_0c_ohm` [ohm], `.scale`,
-    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W]. Default bounds: a
+    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W], `speed_loss.NAME.p1_w` (`.p2_w`) [W]. Default bounds: a
     /// factor 10 around positive values.
     #[arg(
         long,
