@@ -53,7 +53,14 @@ fn filter_matches_the_library_bit_for_bit() {
     let q = SMatrix::<f64, 4, 4>::from_diagonal(&SVector::from([1e-4, 2e-4, 1e-4, 5e-5]));
     let r = SVector::<f64, 2>::from([0.04, 0.09]);
     let cfg = KalmanConfig::<f64, 4, 3, 2>::new(f, g, h, q, r).unwrap();
-    let dcfg = DynKalman::new(dyn_of(&f), dyn_of(&g), dyn_of(&h), dyn_of(&q), DVector::from_column_slice(r.as_slice())).unwrap();
+    let dcfg = DynKalman::new(
+        dyn_of(&f),
+        dyn_of(&g),
+        dyn_of(&h),
+        dyn_of(&q),
+        DVector::from_column_slice(r.as_slice()),
+    )
+    .unwrap();
     let x0 = SVector::<f64, 4>::from([25.0, 25.5, 25.2, 25.1]);
     let p0 = SMatrix::<f64, 4, 4>::identity() * 4.0;
     let mut st = KalmanState::<f64, 4, 2>::new(x0, p0);
@@ -77,15 +84,26 @@ fn filter_matches_the_library_bit_for_bit() {
         }
         let rep = update(&cfg, &mut st, &z);
         let drep = kalman::update(&dcfg, &mut dst, &z);
-        assert_eq!(drep.verdicts.as_slice(), rep.verdicts.as_slice(), "step {k}");
+        assert_eq!(
+            drep.verdicts.as_slice(),
+            rep.verdicts.as_slice(),
+            "step {k}"
+        );
         assert_eq!(drep.suspect.as_slice(), rep.suspect.as_slice(), "step {k}");
         assert_eq!(drep.recovered, rep.recovered, "step {k}");
         assert_eq!(dst.x.as_slice(), st.x.as_slice(), "x at step {k}");
         assert_eq!(dst.cov.as_slice(), st.cov.as_slice(), "P at step {k}");
         recovered += usize::from(rep.recovered);
         rejected += rep.rejected();
-        missing += rep.verdicts.iter().filter(|v| matches!(v, coil_thermal::filter::SensorVerdict::Missing)).count();
+        missing += rep
+            .verdicts
+            .iter()
+            .filter(|v| matches!(v, coil_thermal::filter::SensorVerdict::Missing))
+            .count();
     }
     // The sequence exercised every branch.
-    assert!(recovered > 0 && rejected > 0 && missing > 0, "{recovered} {rejected} {missing}");
+    assert!(
+        recovered > 0 && rejected > 0 && missing > 0,
+        "{recovered} {rejected} {missing}"
+    );
 }
