@@ -29,7 +29,8 @@ pub struct ParamSpec {
     /// Name, e.g. `capacity.winding`, `conductance.winding-stator`,
     /// `conductance.<name>.factor`, `conductance.<name>.h_w_per_m2k`,
     /// `source.<name>.r0_ohm` (also `alpha_per_k`, `slope_ohm_per_k`,
-    /// `r_at_0c_ohm`, `scale`, `speed_a1`, `speed_a2`), `fixed_power.<node>`.
+    /// `r_at_0c_ohm`, `scale`, `speed_a1`, `speed_a2`), `fixed_power.<node>`,
+    /// `speed_loss.<name>.p1_w` (and `.p2_w`).
     pub name: String,
     /// Lower bound (None: the default for the parameter).
     pub lo: Option<f64>,
@@ -218,8 +219,28 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
             }
             Ok(old)
         }
+        "speed_loss" => {
+            let (key, field) = rest
+                .rsplit_once('.')
+                .with_context(|| format!("parameter `{name}`: expected speed_loss.NAME.FIELD"))?;
+            let l = file
+                .speed_losses
+                .iter_mut()
+                .find(|l| l.key() == key)
+                .with_context(|| format!("parameter `{name}`: no [[speed_loss]] `{key}`"))?;
+            let v = match field {
+                "p1_w" => &mut l.p1_w,
+                "p2_w" => &mut l.p2_w,
+                f => bail!("parameter `{name}`: unknown speed_loss field `{f}` (p1_w, p2_w)"),
+            };
+            let old = *v;
+            if let Some(new) = set {
+                *v = new;
+            }
+            Ok(old)
+        }
         k => bail!(
-            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power)"
+            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss)"
         ),
     }
 }

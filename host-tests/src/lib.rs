@@ -26,6 +26,7 @@ pub mod calibrate;
 pub mod cli;
 pub mod dynamic_network;
 pub mod grid_reference;
+pub mod kalman;
 pub mod model_file;
 pub mod observer;
 pub mod plot;

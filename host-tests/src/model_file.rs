@@ -43,6 +43,9 @@ pub struct ModelFile {
     /// Constant powers (`[[fixed_power]]`).
     #[serde(rename = "fixed_power", default, skip_serializing_if = "Vec::is_empty")]
     pub fixed_powers: Vec<FixedPowerSpec>,
+    /// Speed-dependent losses without a current (`[[speed_loss]]`).
+    #[serde(rename = "speed_loss", default, skip_serializing_if = "Vec::is_empty")]
+    pub speed_losses: Vec<SpeedLossSpec>,
     /// Initial temperature policy (`[initial]`).
     #[serde(default)]
     pub initial: InitialSpec,
@@ -157,6 +160,48 @@ pub struct SpeedSpec {
     /// Quadratic coefficient (default 0).
     #[serde(default)]
     pub a2: f64,
+}
+
+/// A loss that depends on a speed signal only (iron, magnet, friction):
+/// `P = max(0, p1_w f + p2_w f^2)` with `f = column / reference`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedLossSpec {
+    /// Name for calibration (`speed_loss.<name>.p1_w`); default: the node.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Heated node.
+    pub node: String,
+    /// Trace column (or expression) of the speed, in the unit of `reference`.
+    pub column: String,
+    /// Reference speed (same unit as the column, e.g. rpm), > 0.
+    pub reference: f64,
+    /// Power at `f = 1` of the linear (hysteresis-like) term \[W\].
+    #[serde(default)]
+    pub p1_w: f64,
+    /// Power at `f = 1` of the quadratic (eddy-current-like) term \[W\].
+    #[serde(default)]
+    pub p2_w: f64,
+}
+
+impl SpeedLossSpec {
+    /// Calibration name.
+    pub fn key(&self) -> &str {
+        self.name.as_deref().unwrap_or(&self.node)
+    }
+}
+
+/// How a speed loss is driven: (signal index, reference, p1 \[W\], p2 \[W\]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedLossDrive {
+    /// Index into [`Model::signals`].
+    pub signal: usize,
+    /// Reference speed.
+    pub reference: f64,
+    /// Linear coefficient \[W\].
+    pub p1_w: f64,
+    /// Quadratic coefficient \[W\].
+    pub p2_w: f64,
 }
 
 /// A constant power at a node.
@@ -328,6 +373,7 @@ impl ModelFile {
             conductances,
             sources,
             fixed_powers,
+            speed_losses: Vec::new(),
             initial: InitialSpec::default(),
         }
     }
@@ -507,8 +553,11 @@ pub struct Model {
     pub inputs: Vec<InputSpec>,
     /// Extra signal columns the sources need (speed), in order.
     pub signals: Vec<String>,
-    /// Drive of each network source (same order as the network's sources).
+    /// Drive of each Joule source (the network's first sources, in order).
     pub drives: Vec<SourceDrive>,
+    /// Speed losses: the network's sources after the Joule ones, each a
+    /// constant 1 ohm driven by the effective current `sqrt(P)`.
+    pub speed_losses: Vec<SpeedLossDrive>,
     /// The network.
     pub network: DynNetwork,
     /// Sub-step ratio bound.
@@ -669,6 +718,40 @@ impl Model {
                 speed,
             });
         }
+        let mut speed_losses = Vec::new();
+        let mut loss_keys = BTreeMap::new();
+        for (k, l) in file.speed_losses.iter().enumerate() {
+            let ctx = || format!("[[speed_loss]] #{} `{}`", k + 1, l.key());
+            let node = match names.get(l.node.as_str()) {
+                Some(Endpoint::Node(i)) => *i,
+                _ => bail!("{}: unknown node `{}`", ctx(), l.node),
+            };
+            if loss_keys.insert(l.key().to_string(), k).is_some() {
+                bail!("{}: duplicate speed loss name (set `name`)", ctx());
+            }
+            if !(l.reference.is_finite() && l.reference > 0.0) {
+                bail!("{}: reference must be finite and > 0", ctx());
+            }
+            if !(l.p1_w.is_finite() && l.p2_w.is_finite()) {
+                bail!("{}: p1_w and p2_w must be finite", ctx());
+            }
+            // A 1 ohm constant resistance driven by sqrt(P) keeps the network
+            // exactly the library's (a Joule source) while carrying any power.
+            network.joule_source(node, Resistance::constant(1.0))?;
+            let signal = match signals.iter().position(|c| *c == l.column) {
+                Some(i) => i,
+                None => {
+                    signals.push(l.column.clone());
+                    signals.len() - 1
+                }
+            };
+            speed_losses.push(SpeedLossDrive {
+                signal,
+                reference: l.reference,
+                p1_w: l.p1_w,
+                p2_w: l.p2_w,
+            });
+        }
         for (k, f) in file.fixed_powers.iter().enumerate() {
             let node = match names.get(f.node.as_str()) {
                 Some(Endpoint::Node(i)) => *i,
@@ -695,6 +778,7 @@ impl Model {
             inputs,
             signals,
             drives,
+            speed_losses,
             network,
             max_step_ratio,
             initial: file.initial.clone(),
@@ -729,6 +813,10 @@ impl Model {
             } else {
                 factor.sqrt() * i.abs()
             }
+        }));
+        out.extend(self.speed_losses.iter().map(|l| {
+            let f = signals[l.signal] / l.reference;
+            (l.p1_w * f + l.p2_w * f * f).max(0.0).sqrt()
         }));
     }
 }

@@ -667,18 +667,6 @@ fn stage_two_features_say_not_yet_available() {
         .assert()
         .failure()
         .stderr(contains("not yet available"));
-    let trace = coil_trace(&dir, 1.0);
-    ct().args([
-        "replay",
-        "--model",
-        &models("two-node-coil.toml"),
-        "--trace",
-        s(&trace),
-    ])
-    .args(["--measure", "current=coil", "--out", s(&o)])
-    .assert()
-    .failure()
-    .stderr(contains("not yet available"));
 }
 
 /// Opt-in: the real HUST motor data (set `COIL_THERMAL_HUST_DIR` to the

@@ -173,10 +173,62 @@ pub struct ReplayArgs {
     trace: PathBuf,
     #[command(flatten)]
     trace_args: TraceArgs,
-    /// A sensor fused by the filter: `COL=NODE` [degC] (stage 2: needs the
-    /// Kalman filter; refused for now).
+    /// A sensor fused by the Kalman filter: `COL=NODE` [degC]; repeatable.
+    /// With any, the estimator is the filter (see the next flags), else the
+    /// open-loop model.
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
+    /// Filter: process noise of every temperature state [K^2/s] (white heat
+    /// flow; per step `Q = q dt`).
+    #[arg(
+        long,
+        value_name = "K2_PER_S",
+        default_value_t = 1e-4,
+        allow_negative_numbers = true
+    )]
+    process_noise_k2_per_s: f64,
+    /// Filter: standard deviation of every fused sensor [K].
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 0.2,
+        allow_negative_numbers = true
+    )]
+    measurement_noise_k: f64,
+    /// Filter: standard deviation of the initial temperatures [K].
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
+    initial_std_k: f64,
+    /// Filter: a disturbance state, an unmodelled heat [W] shared by these
+    /// nodes in proportion to their capacities (comma separated); repeatable.
+    /// It lets one sensor correct the heat input of unmeasured nodes.
+    #[arg(long = "disturbance", value_name = "NODE[,NODE...]")]
+    disturbance: Vec<String>,
+    /// Filter: stationary standard deviation of each disturbance [W].
+    #[arg(
+        long,
+        value_name = "W",
+        default_value_t = 50.0,
+        allow_negative_numbers = true
+    )]
+    disturbance_std_w: f64,
+    /// Filter: correlation time of each disturbance [s] (first-order
+    /// Gauss-Markov).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 1800.0,
+        allow_negative_numbers = true
+    )]
+    disturbance_tau_s: f64,
+    /// Filter: chi-square gate (1 dof) on `nu^2 / S`; readings above it are
+    /// rejected (default: 0.1 % false alarms).
+    #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]
+    gate: f64,
     /// A held-out sensor, only scored: `COL=NODE` [degC].
     #[arg(long = "truth", value_name = "COL=NODE")]
     truth: Vec<String>,
@@ -256,7 +308,7 @@ pub struct CalibrateArgs {
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
     /// [1/K], `.slope_ohm_per_k` [ohm/K], `.r_at_0c_ohm` [ohm], `.scale`,
-    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W]. Default bounds: a
+    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W], `speed_loss.NAME.p1_w` (`.p2_w`) [W]. Default bounds: a
     /// factor 10 around positive values.
     #[arg(
         long,

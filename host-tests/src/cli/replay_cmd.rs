@@ -1,10 +1,12 @@
 //! `coil-thermal replay`.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use super::common::{self, NOT_YET};
+use super::common;
 use super::ReplayArgs;
+use crate::kalman::{KalmanEstimator, KalmanOptions};
+use crate::model_file::Model;
 use crate::observer::{replay, CriticalThreshold, Estimator, OpenLoop};
 use crate::plot::{render, PlotData, Series};
 use crate::sim::Drive;
@@ -26,28 +28,64 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             a.hysteresis_k
         );
     }
-    // The Kalman filter (src/filter) will be the estimator when sensors are
-    // fused; until then only the open-loop model exists.
-    let mut estimator: Box<dyn Estimator> = if measured.is_empty() {
-        Box::new(OpenLoop(plant))
+    // With fused sensors the estimator is the Kalman filter on the model
+    // file; the open-loop model otherwise.
+    let mut open_loop = None;
+    let mut kalman = None;
+    let estimator: &mut dyn Estimator = if measured.is_empty() {
+        open_loop.insert(OpenLoop(plant))
     } else {
-        bail!(
-            "--measure (fusing sensors with the Kalman filter) is {NOT_YET} in this build (stage 2: src/filter); use --truth to score the open-loop model"
-        );
+        let model = Model::build(&common::model_file(&a.model)?)?;
+        let disturbances = a
+            .disturbance
+            .iter()
+            .map(|d| {
+                d.split(',')
+                    .map(|n| {
+                        let n = n.trim();
+                        info.nodes.iter().position(|x| x == n).with_context(|| {
+                            format!(
+                                "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
+                                info.name,
+                                info.nodes.join(", ")
+                            )
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let opts = KalmanOptions {
+            process_noise_k2_per_s: a.process_noise_k2_per_s,
+            measurement_noise_k: a.measurement_noise_k,
+            initial_std_k: a.initial_std_k,
+            disturbances,
+            disturbance_std_w: a.disturbance_std_w,
+            disturbance_tau_s: a.disturbance_tau_s,
+            gate: a.gate,
+        };
+        let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
+        kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
     };
     let mut protection = CriticalThreshold::new(&info, a.hysteresis_k);
     // Initial-only columns join the truth list for the initial state but are
     // not scored.
     let mut init_sensors = truth.clone();
     init_sensors.extend(init_only);
-    let mut result = replay(
-        estimator.as_mut(),
-        &mut protection,
-        &drive,
-        &measured,
-        &init_sensors,
-    )?;
+    let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
     result.scores.truncate(truth.len());
+    let kind = estimator.kind();
+    let fusion = kalman.as_ref().map(|k| {
+        json!({
+            "sensors": k.stats().iter().zip(&measured).map(|(s, m)| json!({
+                "column": m.column,
+                "node": info.nodes[s.node],
+                "fused": s.fused,
+                "rejected": s.rejected,
+            })).collect::<Vec<_>>(),
+            "recoveries": k.recoveries(),
+            "final_disturbances_w": k.disturbances_w(),
+        })
+    });
     write_csv(&a.out, &info.nodes, &drive.time_s, &result.estimate)?;
     if let Some(path) = &a.plot {
         let series = |label: String, values: &Vec<f64>, color: usize| Series {
@@ -101,7 +139,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let summary = json!({
         "command": "replay",
         "model": info.name,
-        "estimator": estimator.kind(),
+        "estimator": kind,
+        "fusion": fusion,
         "trace": a.trace.display().to_string(),
         "rows": drive.len(),
         "truth": result.scores,
@@ -116,7 +155,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     println!(
         "replayed `{}` ({}) over {} rows of {} -> {}",
         info.name,
-        estimator.kind(),
+        kind,
         drive.len(),
         a.trace.display(),
         a.out.display()
@@ -131,6 +170,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "{:<20} {:<16} {:>10.4} {:>10.4} {:>12.4} {:>10.1}",
                 s.column, s.node, s.mse_k2, s.rmse_k, s.max_abs_error_k, s.max_error_time_s
             );
+        }
+    }
+    if let Some(k) = &kalman {
+        for (s, m) in k.stats().iter().zip(&measured) {
+            println!(
+                "fused {} -> {}: {} readings fused, {} rejected by the gate",
+                m.column, info.nodes[s.node], s.fused, s.rejected
+            );
+        }
+        if k.recoveries() > 0 {
+            println!("covariance recoveries: {}", k.recoveries());
         }
     }
     if result.alarms.is_empty() {
