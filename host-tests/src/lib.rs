@@ -19,11 +19,13 @@
 //! * [`synth`]: seeded synthetic traces for tests;
 //! * [`traces`]: the generator of the committed synthetic HPPA current traces;
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
+//! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
 //! * [`cli`]: the command-line front end.
 
 pub mod bench;
 pub mod calibrate;
 pub mod cli;
+pub mod devices;
 pub mod dynamic_network;
 pub mod grid_reference;
 pub mod model_file;

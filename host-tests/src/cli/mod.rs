@@ -60,14 +60,27 @@ enum Command {
 /// Which model to run.
 #[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
-    /// Model: `solenoid` (layered HeSE coil), `hppa` (coil grid, stage 2),
-    /// `omnimagnet` (stage 2), or a model file path (TOML).
+    /// Model: `hppa` (the HPPA coil grid, one node per coil), `omnimagnet`
+    /// (the paper's 16-node model: nonlinear RK4 in `simulate`/`replay`,
+    /// linearised at the ambient in `limits`/`calibrate`), `solenoid`
+    /// (layered HeSE coil), or a model file path (TOML).
     #[arg(long, value_name = "hppa|omnimagnet|solenoid|FILE")]
     pub model: String,
     /// Number of winding layers of `--model solenoid` (1..=64; the outer
     /// surface is water cooled from 16 layers on).
     #[arg(long, value_name = "N", default_value_t = 30)]
     pub layers: usize,
+    /// HPPA grid rows (`--model hppa`; default 7). Built-in sizes (rows x
+    /// cols): 7x12, 12x7, 6x12, 12x6, 4x4, 3x4, 3x3, 2x3.
+    #[arg(long, value_name = "R")]
+    pub rows: Option<usize>,
+    /// HPPA grid columns (`--model hppa`; default 12).
+    #[arg(long, value_name = "C")]
+    pub cols: Option<usize>,
+    /// HPPA parameter set (`--model hppa`): `fdm-fitted` (report Table 7,
+    /// the default), `calculated`, `stepwise-fit`, `global-fit`.
+    #[arg(long, value_name = "SET")]
+    pub grid_params: Option<String>,
 }
 
 /// How trace columns feed the model.
@@ -92,17 +105,29 @@ pub struct TraceArgs {
     pub constants: Vec<String>,
 }
 
-/// HPPA grid drive patterns (stage 2).
+/// HPPA grid drive patterns: the report's four calibration patterns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Pattern {
     /// Every coil driven.
     All,
-    /// One row driven.
+    /// The middle row (`rows / 2`) driven.
     Row,
-    /// One line (column) driven.
+    /// The middle line (column `(cols - 1) / 2`) driven.
     Line,
-    /// A single coil driven.
+    /// The centre coil (middle row, middle line) driven.
     OneCoil,
+}
+
+impl Pattern {
+    /// Stable name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::All => "all",
+            Self::Row => "row",
+            Self::Line => "line",
+            Self::OneCoil => "one-coil",
+        }
+    }
 }
 
 /// `simulate` arguments.
@@ -138,15 +163,32 @@ pub struct SimulateArgs {
     /// [degC] (default: each boundary's `value_c`).
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     ambient_c: Option<f64>,
-    /// HPPA grid rows (stage 2).
-    #[arg(long, value_name = "R")]
-    rows: Option<usize>,
-    /// HPPA grid columns (stage 2).
-    #[arg(long, value_name = "C")]
-    cols: Option<usize>,
-    /// HPPA grid drive pattern (stage 2).
-    #[arg(long, value_enum)]
+    /// HPPA grid drive pattern (`--model hppa`): every driven coil at
+    /// `--current-a` (default 0.7 A) for `--duration-s` (default 1800 s).
+    #[arg(long, value_enum, conflicts_with = "trace")]
     pattern: Option<Pattern>,
+    /// Omnimagnet preset (`--model omnimagnet`): `all-three` (3.8 A),
+    /// `solenoid-1` (3.13 A), `solenoids-2-3` (3.04 A), `cooling` (from the
+    /// end of all-three), `rotating-dipole` (3.8 A peak, 5 Hz); duration
+    /// `--duration-s` (default 7200 s).
+    #[arg(long, value_name = "PRESET", conflicts_with_all = ["trace", "current_a"])]
+    preset: Option<String>,
+    /// With --trace: output every S seconds [s] (inputs held between trace
+    /// rows), instead of at the trace's rows.
+    #[arg(long, value_name = "S", requires = "trace", allow_negative_numbers = true)]
+    resample_s: Option<f64>,
+    /// Add seeded Gaussian noise of this standard deviation [K] to the
+    /// written temperatures (synthetic measurements).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    noise_k: Option<f64>,
+    /// Seed of --noise-k.
+    #[arg(long, value_name = "SEED", default_value_t = 1)]
+    seed: u64,
+    /// Also write the input columns (currents [A], boundaries [degC]) after
+    /// the node columns, so the output is a complete trace for `replay` or
+    /// `calibrate`.
+    #[arg(long)]
+    with_inputs: bool,
     #[command(flatten)]
     trace_args: TraceArgs,
     /// Output CSV: `time_s` [s] then one column per node [degC].

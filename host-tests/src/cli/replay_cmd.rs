@@ -82,13 +82,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 .enumerate()
                 .map(|(i, (ch, v))| series(format!("{} [A]", ch.name), v, i))
                 .collect(),
-            limits: info
-                .nodes
-                .iter()
-                .zip(&info.critical_c)
-                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
-                .take(1)
-                .collect(),
+            limits: common::lowest_critical(&info),
             alarms: result
                 .alarms
                 .iter()
