@@ -44,9 +44,11 @@ enum Command {
     /// Run the observer (model, filter, protection) over a recorded trace and
     /// score it against held-out sensors.
     Replay(ReplayArgs),
-    /// Time to limit, maximum safe current and runaway current (stage 2).
+    /// Time to limit of each element, maximum safe currents (for a horizon and
+    /// for ever) and runaway currents; `--study` for the Omnimagnet's table.
     Limits(LimitsArgs),
-    /// Print the derated alarm limit (stage 2: needs the protection module).
+    /// Print the derated alarm limit: T_amb + (T_crit - T_amb) * product of
+    /// the derating factors.
     AlarmLimit(AlarmLimitArgs),
     /// Fit model parameters to one or more traces by bounded
     /// Levenberg-Marquardt; write the fitted model file.
@@ -250,15 +252,62 @@ pub struct ReplayArgs {
 pub struct LimitsArgs {
     #[command(flatten)]
     model: ModelArgs,
-    /// Constant current per input [A].
-    #[arg(long, value_name = "A[,A...]", value_delimiter = ',')]
+    /// Constant current per input [A], held from equilibrium at the ambient:
+    /// one value for every input or one per input (`3.8,3.8,3.8`). With
+    /// --pattern: the driven coils' current (default 0.7 A). With --study:
+    /// the currents of the max-safe-time table (default 2,5,10,20,50).
+    #[arg(
+        long,
+        value_name = "A[,A...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     current_a: Vec<f64>,
-    /// Horizon for the maximum safe current [s].
+    /// HPPA grid drive pattern (`--model hppa`) instead of --current-a for
+    /// every coil.
+    #[arg(long, value_enum)]
+    pattern: Option<Pattern>,
+    /// Horizon of the maximum safe current [s] (> 0); the answer for ever is
+    /// always given too.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     horizon_s: Option<f64>,
-    /// Ambient temperature [degC].
+    /// Temperature of every boundary (ambient, coolant) [degC]; default:
+    /// each boundary's `value_c` (20 degC for hppa and omnimagnet).
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     ambient_c: Option<f64>,
+    /// Derating factors for the element limits, each in (0, 1]
+    /// (dimensionless): limit = ambient + (critical - ambient) * product.
+    /// Default: the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the Omnimagnet
+    /// rule (0.9,0.9,0.8) for omnimagnet, none for other models.
+    #[arg(
+        long,
+        value_name = "a,b,...",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    factors: Vec<f64>,
+    /// One limit for every element [degC], instead of the derated critical
+    /// temperatures (with --study: for the three solenoid nodes; default
+    /// there 115 degC, the experiments' stop temperature).
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    limit_c: Option<f64>,
+    /// Per-coil figures (max current, runaway current) for this input only;
+    /// repeatable. Default: every driven input, at most 16.
+    #[arg(long = "coil", value_name = "INPUT")]
+    coils: Vec<String>,
+    /// The Omnimagnet study (`--model omnimagnet`): max safe time of each of
+    /// the seven combinations of powered solenoids at each --current-a, and
+    /// the max safe current for each --time-s.
+    #[arg(long)]
+    study: bool,
+    /// Run times for the study's max safe current [s] (> 0).
+    #[arg(
+        long,
+        value_name = "S[,S...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    time_s: Vec<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     json: bool,
@@ -267,14 +316,21 @@ pub struct LimitsArgs {
 /// `alarm-limit` arguments.
 #[derive(Debug, Args)]
 pub struct AlarmLimitArgs {
-    /// Critical temperature of the element [degC].
+    /// Critical temperature of the element's material [degC].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     critical_c: f64,
-    /// Ambient temperature [degC].
+    /// Measured ambient temperature [degC].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     ambient_c: f64,
-    /// Derating factors a,b,c,d (dimensionless).
-    #[arg(long, value_name = "a,b,c,d", value_delimiter = ',')]
+    /// Derating factors, each in (0, 1] (dimensionless; at most 8). Default:
+    /// the HPPA report's magnet plate 0.875, model error 0.9, unknown
+    /// conditions 0.9, safety 0.8.
+    #[arg(
+        long,
+        value_name = "a,b,c,d",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     factors: Vec<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
