@@ -354,8 +354,11 @@ pub struct CalibrateArgs {
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
     /// [1/K], `.slope_ohm_per_k` [ohm/K], `.r_at_0c_ohm` [ohm], `.scale`,
-    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W]. Default bounds: a
-    /// factor 10 around positive values.
+    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W]; for `--model hppa`
+    /// `grid.rx_k_per_w`, `grid.ry_k_per_w` [K/W] (between two coils: half
+    /// the report's per-element values), `grid.rz_k_per_w` [K/W],
+    /// `grid.capacity_j_per_k` [J/K]. Default bounds: a factor 10 around
+    /// positive values.
     #[arg(
         long,
         value_name = "NAME[=LO:HI],...",
