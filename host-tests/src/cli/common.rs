@@ -18,9 +18,9 @@ pub const NOT_YET: &str = "not yet available";
 /// The model named by `--model`.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelSpec {
-    /// The HPPA coil grid (`src/grid`, stage 2).
+    /// The HPPA coil grid (`src/grid`), on the dynamic network.
     Hppa,
-    /// The Omnimagnet (`src/omnimagnet`, stage 2).
+    /// The Omnimagnet (`src/omnimagnet`), nonlinear.
     Omnimagnet,
     /// The layered solenoid of `coil_thermal::solenoid`.
     Solenoid,
@@ -208,4 +208,17 @@ pub fn lowest_critical(info: &PlantInfo) -> Vec<(String, f64)> {
         .map(|(n, c)| (format!("{n} critical {c} degC"), c))
         .into_iter()
         .collect()
+}
+
+/// The hottest node over a run `[node][row]`: (node, max degC, time s).
+pub fn hot_spot(states: &[Vec<f64>], time_s: &[f64]) -> (usize, f64, f64) {
+    let mut hot = (0, f64::MIN, 0.0);
+    for (i, s) in states.iter().enumerate() {
+        for (k, v) in s.iter().enumerate() {
+            if *v > hot.1 {
+                hot = (i, *v, time_s[k]);
+            }
+        }
+    }
+    hot
 }
