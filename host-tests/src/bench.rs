@@ -234,14 +234,20 @@ fn omnimagnet_predict<T: nalgebra::RealField + Copy>(
 
 fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>) {
     use coil_thermal::filter::{
-        predict, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate,
-        SteadyStateGain,
+        predict, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
     };
     let (f, g, h, q, r) = omnimagnet_model();
     let cfg = KalmanConfig::<f32, 16, 5, 6>::new(f.cast(), g.cast(), h.cast(), q.cast(), r.cast())
         .expect("valid filter model");
     let x0 = nalgebra::SVector::<f32, 16>::repeat(20.0);
-    let z = [Some(20.3f32), Some(20.1), Some(19.8), Some(20.2), Some(20.0), Some(19.9)];
+    let z = [
+        Some(20.3f32),
+        Some(20.1),
+        Some(19.8),
+        Some(20.2),
+        Some(20.0),
+        Some(19.9),
+    ];
     let steady = SteadyStateGain::solve(&cfg, 1).expect("the Riccati equation converges");
     let mut est = SteadyEstimate::new(x0);
     out.push(measure(
@@ -249,7 +255,12 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
         min_time,
         repeats,
         || {
-            black_box(update_steady(&cfg, &steady, black_box(&mut est), black_box(&z)));
+            black_box(update_steady(
+                &cfg,
+                &steady,
+                black_box(&mut est),
+                black_box(&z),
+            ));
             est.x = x0;
         },
     ));
@@ -286,7 +297,10 @@ fn protect_tick(min_time: Duration, repeats: usize) -> Timing {
     let predictor = PredictorBuilder::new()
         .build::<f32, 16, 1, 3, 48>(&net)
         .expect("the Omnimagnet network decomposes");
-    let highest = CRITICAL_TEMPS_C.iter().flatten().fold(0.0f64, |a, b| a.max(*b));
+    let highest = CRITICAL_TEMPS_C
+        .iter()
+        .flatten()
+        .fold(0.0f64, |a, b| a.max(*b));
     let critical = CRITICAL_TEMPS_C.map(|c| c.unwrap_or(highest));
     let alarm = AlarmBuilder::new(&DeratingRule::omnimagnet(), critical)
         .build::<f32>()

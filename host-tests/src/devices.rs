@@ -229,12 +229,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
 }
 
 /// The grid parameter names of [`access_grid_param`].
-pub const GRID_PARAMS: [&str; 4] = [
-    "rx_k_per_w",
-    "ry_k_per_w",
-    "rz_k_per_w",
-    "capacity_j_per_k",
-];
+pub const GRID_PARAMS: [&str; 4] = ["rx_k_per_w", "ry_k_per_w", "rz_k_per_w", "capacity_j_per_k"];
 
 /// Reads (`set = None`) or writes a grid parameter `grid.<field>` of a grid
 /// model file: `rx_k_per_w`, `ry_k_per_w` (between two coils \[K/W\]),

@@ -644,29 +644,6 @@ fn bad_models_and_arguments_are_refused() {
 fn stage_two_features_say_not_yet_available() {
     let dir = TempDir::new().unwrap();
     let o = dir.path().join("o.csv");
-    for model in ["hppa", "omnimagnet"] {
-        ct().args([
-            "simulate",
-            "--model",
-            model,
-            "--current-a",
-            "1",
-            "--duration-s",
-            "1",
-        ])
-        .args(["--out", s(&o)])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
-    }
-    ct().args(["limits", "--model", "solenoid", "--current-a", "3"])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
-    ct().args(["alarm-limit", "--critical-c", "180", "--ambient-c", "20"])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
     let trace = coil_trace(&dir, 1.0);
     ct().args([
         "replay",

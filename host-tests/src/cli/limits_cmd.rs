@@ -37,10 +37,7 @@ fn rule(factors: &[f64], default: DeratingRule) -> Result<DeratingRule> {
         .enumerate()
         .find(|(_, v)| !(**v > 0.0 && **v <= 1.0))
     {
-        bail!(
-            "--factors: factor {} is {v}; each must be in (0, 1]",
-            k + 1
-        );
+        bail!("--factors: factor {} is {v}; each must be in (0, 1]", k + 1);
     }
     let list: Vec<DeratingFactor> = factors
         .iter()
@@ -79,12 +76,14 @@ pub fn alarm_limit(a: AlarmLimitArgs) -> Result<()> {
         .map(|f| format!("{} {}", f.name, f.value))
         .collect::<Vec<_>>()
         .join(" x ");
-    println!(
-        "alarm limit = T_amb + (T_crit - T_amb) * product, capped at T_crit [degC]"
-    );
+    println!("alarm limit = T_amb + (T_crit - T_amb) * product, capped at T_crit [degC]");
     println!(
         "  product = {} = {:.6}",
-        if list.is_empty() { "1 (no factors)" } else { &list },
+        if list.is_empty() {
+            "1 (no factors)"
+        } else {
+            &list
+        },
         rule.product()
     );
     println!(
@@ -207,10 +206,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         .iter()
         .map(|b| {
             a.ambient_c.or(b.value_c).with_context(|| {
-                format!(
-                    "boundary `{}` has no temperature: pass --ambient-c",
-                    b.name
-                )
+                format!("boundary `{}` has no temperature: pass --ambient-c", b.name)
             })
         })
         .collect::<Result<_>>()?;
@@ -260,17 +256,20 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     } else {
         let mut list = Vec::new();
         for name in &a.coils {
-            let idx = inputs.iter().position(|i| &i.name == name).with_context(|| {
-                format!(
-                    "--coil `{name}`: model `{}` has no such input (inputs: {})",
-                    model.name,
-                    inputs
-                        .iter()
-                        .map(|i| i.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            })?;
+            let idx = inputs
+                .iter()
+                .position(|i| &i.name == name)
+                .with_context(|| {
+                    format!(
+                        "--coil `{name}`: model `{}` has no such input (inputs: {})",
+                        model.name,
+                        inputs
+                            .iter()
+                            .map(|i| i.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })?;
             list.extend((0..model.drives.len()).filter(|&k| model.drives[k].input == idx));
         }
         list
@@ -363,12 +362,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         .collect();
     order.sort_by(|&x, &y| {
         let t = |i: usize| report.time_to_limit_s[i].unwrap_or(f64::INFINITY);
-        let s = |i: usize| {
-            report
-                .steady_c
-                .as_ref()
-                .map_or(0.0, |v| -v[i])
-        };
+        let s = |i: usize| report.steady_c.as_ref().map_or(0.0, |v| -v[i]);
         t(x).total_cmp(&t(y)).then(s(x).total_cmp(&s(y)))
     });
     let shown = if nodes.len() > 20 { 10 } else { order.len() };
@@ -392,7 +386,10 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         println!("* no critical temperature: the model's highest limit is assumed");
     }
     if shown < order.len() {
-        println!("... {} more elements (use --json for all)", order.len() - shown);
+        println!(
+            "... {} more elements (use --json for all)",
+            order.len() - shown
+        );
     }
     if let (Some(h), Some(s)) = (a.horizon_s, &report.common_scale_horizon) {
         println!(
@@ -405,7 +402,11 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         fmt_safe(&report.common_scale_forever, nodes, "x")
     );
     if !report.coils.is_empty() {
-        if report.coils.iter().any(|c| !c.max_current_forever_a.feasible) {
+        if report
+            .coils
+            .iter()
+            .any(|c| !c.max_current_forever_a.feasible)
+        {
             println!("! infeasible: the other coils alone take some element past its limit");
         }
         println!(
@@ -425,7 +426,11 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
                     .value
                     .map_or("unbounded".into(), |v| format!(
                         "{v:.3}{}",
-                        if c.max_current_forever_a.feasible { "" } else { "!" }
+                        if c.max_current_forever_a.feasible {
+                            ""
+                        } else {
+                            "!"
+                        }
                     )),
                 c.runaway_current_a
                     .map_or("none".into(), |v| format!("{v:.3}")),
@@ -528,10 +533,7 @@ fn study(a: &LimitsArgs) -> Result<()> {
     for (n, t, c) in &rows {
         print!("{n:<10}");
         for v in t {
-            print!(
-                " {:>14}",
-                v.map_or("never".into(), |v| format!("{v:.1}"))
-            );
+            print!(" {:>14}", v.map_or("never".into(), |v| format!("{v:.1}")));
         }
         for v in c {
             print!(

@@ -177,7 +177,12 @@ pub struct SimulateArgs {
     preset: Option<String>,
     /// With --trace: output every S seconds [s] (inputs held between trace
     /// rows), instead of at the trace's rows.
-    #[arg(long, value_name = "S", requires = "trace", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "trace",
+        allow_negative_numbers = true
+    )]
     resample_s: Option<f64>,
     /// Add seeded Gaussian noise of this standard deviation [K] to the
     /// written temperatures (synthetic measurements).

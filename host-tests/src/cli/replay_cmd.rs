@@ -60,7 +60,13 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             title: format!("{}: replay of {}", info.name, a.trace.display()),
             estimated: common::plotted(&result.estimate)
                 .into_iter()
-                .map(|i| series(format!("{} (estimate)", info.nodes[i]), &result.estimate[i], i))
+                .map(|i| {
+                    series(
+                        format!("{} (estimate)", info.nodes[i]),
+                        &result.estimate[i],
+                        i,
+                    )
+                })
                 .collect(),
             measured: truth
                 .iter()
@@ -74,7 +80,13 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 .collect(),
             currents: common::plotted(&drive.currents)
                 .into_iter()
-                .map(|i| series(format!("{} [A]", info.inputs[i].name), &drive.currents[i], i))
+                .map(|i| {
+                    series(
+                        format!("{} [A]", info.inputs[i].name),
+                        &drive.currents[i],
+                        i,
+                    )
+                })
                 .collect(),
             limits: common::lowest_critical(&info),
             alarms: result

@@ -6,11 +6,11 @@ use serde_json::json;
 use coil_thermal::omnimagnet::{Omnimagnet, Preset};
 
 use super::common::{self, ModelSpec};
-use crate::devices;
-use crate::synth::Rng;
 use super::SimulateArgs;
+use crate::devices;
 use crate::plot::{render, PlotData, Series};
 use crate::sim::{by_node, initial_temps, simulate, Drive};
+use crate::synth::Rng;
 use crate::trace::write_csv;
 
 /// Runs `simulate`.
