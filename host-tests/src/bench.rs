@@ -271,7 +271,7 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
         update(&cfg, &mut state, &z);
     }
     predict(&cfg, &mut state, &u);
-    let prior = state.clone();
+    let prior = state;
     out.push(measure(
         "omnimagnet_correct_tv_f32_ns".into(),
         min_time,
