@@ -30,7 +30,10 @@ pub struct ParamSpec {
     /// `conductance.<name>.factor`, `conductance.<name>.h_w_per_m2k`,
     /// `source.<name>.r0_ohm` (also `alpha_per_k`, `slope_ohm_per_k`,
     /// `r_at_0c_ohm`, `scale`, `speed_a1`, `speed_a2`), `fixed_power.<node>`,
-    /// `speed_loss.<name>.p1_w` (and `.p2_w`).
+    /// `speed_loss.<name>.p1_w` (and `.p2_w`),
+    /// and for the HPPA grid `grid.rx_k_per_w`, `grid.ry_k_per_w` (between
+    /// two coils), `grid.rz_k_per_w`, `grid.capacity_j_per_k` (every coil at
+    /// once, see [`crate::devices`]).
     pub name: String,
     /// Lower bound (None: the default for the parameter).
     pub lo: Option<f64>,
@@ -239,8 +242,10 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
             }
             Ok(old)
         }
+        "grid" => crate::devices::access_grid_param(file, rest, set)
+            .with_context(|| format!("parameter `{name}`")),
         k => bail!(
-            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss)"
+            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss, grid)"
         ),
     }
 }
@@ -252,6 +257,7 @@ pub fn default_bounds(name: &str, value: f64) -> (f64, f64) {
     let field = name.rsplit('.').next().unwrap_or("");
     let positive = name.starts_with("capacity.")
         || name.starts_with("conductance.")
+        || name.starts_with("grid.")
         || matches!(field, "r0_ohm" | "r_at_0c_ohm" | "scale");
     if positive && value > 0.0 {
         (value / 10.0, value * 10.0)

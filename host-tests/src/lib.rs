@@ -19,14 +19,18 @@
 //! * [`synth`]: seeded synthetic traces for tests;
 //! * [`traces`]: the generator of the committed synthetic HPPA current traces;
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
+//! * [`limits`](mod@limits): time to limit, safe and runaway currents of any network (padded sizes);
+//! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
 //! * [`cli`]: the command-line front end.
 
 pub mod bench;
 pub mod calibrate;
 pub mod cli;
+pub mod devices;
 pub mod dynamic_network;
 pub mod grid_reference;
 pub mod kalman;
+pub mod limits;
 pub mod model_file;
 pub mod observer;
 pub mod plot;

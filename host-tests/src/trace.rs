@@ -10,6 +10,9 @@
 //! Column *expressions* keep derived inputs minimal: `NAME`, `hypot(A,B,...)`
 //! (root of the sum of squares, e.g. `hypot(IdFbk,IqFbk)` for a d/q current
 //! magnitude), `abs(NAME)`, `scale(NAME,K)` and a number (a constant).
+//!
+//! Lines starting with `#` are comments (the committed HPPA traces describe
+//! themselves that way); line numbers in errors count them.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -144,6 +147,7 @@ impl Trace {
             .has_headers(true)
             .flexible(false)
             .trim(csv::Trim::All)
+            .comment(Some(b'#'))
             .from_path(path)
             .map_err(|e| at(1, None, format!("cannot open trace: {e}")))?;
         let headers: Vec<String> = reader

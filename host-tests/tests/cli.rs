@@ -640,35 +640,6 @@ fn bad_models_and_arguments_are_refused() {
     .stderr(contains("--duration-s"));
 }
 
-#[test]
-fn stage_two_features_say_not_yet_available() {
-    let dir = TempDir::new().unwrap();
-    let o = dir.path().join("o.csv");
-    for model in ["hppa", "omnimagnet"] {
-        ct().args([
-            "simulate",
-            "--model",
-            model,
-            "--current-a",
-            "1",
-            "--duration-s",
-            "1",
-        ])
-        .args(["--out", s(&o)])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
-    }
-    ct().args(["limits", "--model", "solenoid", "--current-a", "3"])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
-    ct().args(["alarm-limit", "--critical-c", "180", "--ambient-c", "20"])
-        .assert()
-        .failure()
-        .stderr(contains("not yet available"));
-}
-
 /// Opt-in: the real HUST motor data (set `COIL_THERMAL_HUST_DIR` to the
 /// folder holding `id_N.csv`; CI points it at shared/data/hust-ipmsm).
 #[test]

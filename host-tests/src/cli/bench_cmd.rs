@@ -19,6 +19,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let mut map = serde_json::Map::new();
         for t in &timings {
             map.insert(t.key.clone(), json!(t.ns));
+            let stem = t.key.strip_suffix("_ns").unwrap_or(&t.key);
+            map.insert(format!("{stem}_budget_ratio"), json!(t.budget_ratio));
         }
         map.insert("budget_ns".into(), json!(STEP_BUDGET_NS));
         common::print_json(&serde_json::Value::Object(map));
@@ -34,11 +36,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         }
     );
     println!(
-        "{:<28} {:>12} {:>16}",
+        "{:<34} {:>12} {:>16}",
         "step", "time [ns]", "of 0.1 ms budget"
     );
     for t in &timings {
-        println!("{:<28} {:>12.1} {:>15.5}", t.key, t.ns, t.budget_ratio);
+        println!("{:<34} {:>12.1} {:>15.5}", t.key, t.ns, t.budget_ratio);
     }
     Ok(())
 }

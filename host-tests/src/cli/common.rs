@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use coil_thermal::SolenoidParams;
 
 use super::{ModelArgs, TraceArgs};
+use crate::devices;
 use crate::model_file::{Model, ModelFile};
 use crate::observer::Sensor;
 use crate::sim::{Bindings, FilePlant, Plant, PlantInfo};
@@ -17,9 +18,9 @@ pub const NOT_YET: &str = "not yet available";
 /// The model named by `--model`.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelSpec {
-    /// The HPPA coil grid (`src/grid`, stage 2).
+    /// The HPPA coil grid (`src/grid`), on the dynamic network.
     Hppa,
-    /// The Omnimagnet (`src/omnimagnet`, stage 2).
+    /// The Omnimagnet (`src/omnimagnet`), nonlinear.
     Omnimagnet,
     /// The layered solenoid of `coil_thermal::solenoid`.
     Solenoid,
@@ -47,25 +48,54 @@ impl ModelSpec {
     }
 }
 
-fn not_yet(what: &str, module: &str) -> anyhow::Error {
-    anyhow::anyhow!(
-        "model `{what}` is {NOT_YET} in this build: it arrives with `{module}` (stage 2); use --model solenoid or a model file"
+/// The HPPA grid size from `--rows`/`--cols` (defaults 7 x 12).
+pub fn grid_dims(args: &ModelArgs) -> (usize, usize) {
+    (
+        args.rows.unwrap_or(devices::DEFAULT_ROWS),
+        args.cols.unwrap_or(devices::DEFAULT_COLS),
     )
 }
 
-/// The model as a model file (every model a file can describe).
+fn check_grid_flags(args: &ModelArgs, spec: &ModelSpec) -> Result<()> {
+    if *spec != ModelSpec::Hppa
+        && (args.rows.is_some() || args.cols.is_some() || args.grid_params.is_some())
+    {
+        bail!("--rows, --cols and --grid-params apply to --model hppa only");
+    }
+    Ok(())
+}
+
+/// The model as a model file (every model a file can describe; the
+/// Omnimagnet linearised at 20 degC, see [`model_file_at`]).
 pub fn model_file(args: &ModelArgs) -> Result<ModelFile> {
-    match ModelSpec::parse(&args.model)? {
-        ModelSpec::Hppa => Err(not_yet("hppa", "src/grid")),
-        ModelSpec::Omnimagnet => Err(not_yet("omnimagnet", "src/omnimagnet")),
+    model_file_at(args, devices::OMNIMAGNET_DEFAULT_AMBIENT_C)
+}
+
+/// [`model_file`] with the Omnimagnet linearised at `omnimagnet_op_c`
+/// \[degC\] (every node and the ambient).
+pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile> {
+    let spec = ModelSpec::parse(&args.model)?;
+    check_grid_flags(args, &spec)?;
+    match spec {
+        ModelSpec::Hppa => {
+            let (rows, cols) = grid_dims(args);
+            let params = devices::grid_preset(args.grid_params.as_deref().unwrap_or("fdm-fitted"))?;
+            devices::grid_file(rows, cols, &params)
+        }
+        ModelSpec::Omnimagnet => devices::omnimagnet_file(omnimagnet_op_c),
         ModelSpec::Solenoid => ModelFile::solenoid(&SolenoidParams::HESE, args.layers),
         ModelSpec::File(p) => ModelFile::load(&p),
     }
 }
 
-/// The model as a runnable plant. Stage 2 adds the grid and Omnimagnet
-/// plants here (their library steppers behind [`Plant`]).
+/// The model as a runnable plant: the Omnimagnet's nonlinear model, every
+/// other model on the dynamic network.
 pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
+    let spec = ModelSpec::parse(&args.model)?;
+    check_grid_flags(args, &spec)?;
+    if spec == ModelSpec::Omnimagnet {
+        return Ok(Box::new(devices::OmnimagnetPlant::default()));
+    }
     let file = model_file(args)?;
     Ok(Box::new(FilePlant::new(Model::build(&file)?)))
 }
@@ -149,4 +179,46 @@ pub fn print_json(value: &serde_json::Value) {
         "{}",
         serde_json::to_string(value).expect("JSON values serialise")
     );
+}
+
+/// The series worth plotting: all of them up to 12, else the 8 with the
+/// largest maximum (a grid has 84 coils).
+pub fn plotted(series: &[Vec<f64>]) -> Vec<usize> {
+    if series.len() <= 12 {
+        return (0..series.len()).collect();
+    }
+    let mut order: Vec<(usize, f64)> = series
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (i, s.iter().copied().fold(f64::MIN, f64::max)))
+        .collect();
+    order.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let mut keep: Vec<usize> = order.into_iter().take(8).map(|(i, _)| i).collect();
+    keep.sort_unstable();
+    keep
+}
+
+/// The lowest critical temperature of a plant, as a plot limit line.
+pub fn lowest_critical(info: &PlantInfo) -> Vec<(String, f64)> {
+    info.nodes
+        .iter()
+        .zip(&info.critical_c)
+        .filter_map(|(n, c)| c.map(|c| (n, c)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(n, c)| (format!("{n} critical {c} degC"), c))
+        .into_iter()
+        .collect()
+}
+
+/// The hottest node over a run `[node][row]`: (node, max degC, time s).
+pub fn hot_spot(states: &[Vec<f64>], time_s: &[f64]) -> (usize, f64, f64) {
+    let mut hot = (0, f64::MIN, 0.0);
+    for (i, s) in states.iter().enumerate() {
+        for (k, v) in s.iter().enumerate() {
+            if *v > hot.1 {
+                hot = (i, *v, time_s[k]);
+            }
+        }
+    }
+    hot
 }

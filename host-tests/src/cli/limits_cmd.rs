@@ -1,19 +1,50 @@
-//! `coil-thermal limits` and `alarm-limit`: dispatch in place, the maths
-//! arrives with `src/protect` (stage 2).
+//! `coil-thermal limits` and `alarm-limit`, on `coil_thermal::protect`.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
+use coil_thermal::omnimagnet::{Omnimagnet, EXPERIMENT_STOP_C, NODES, NODE_NAMES};
+use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
+use coil_thermal::protect::study::{
+    max_safe_current_a, max_safe_time_s, StudyLimits, POWERED_COMBINATIONS,
+};
+use serde_json::json;
 
-use super::common::{self, NOT_YET};
+use super::common::{self, ModelSpec};
 use super::{AlarmLimitArgs, LimitsArgs};
+use crate::devices;
+use crate::limits::{compute, LimitsQuery, Safe};
+use crate::model_file::Model;
 
-/// Runs `limits`.
-pub fn limits(a: LimitsArgs) -> Result<()> {
-    // Validate the model first, so a bad model is reported as such.
-    common::model_file(&a.model)?;
-    let _ = (a.current_a, a.horizon_s, a.ambient_c, a.json);
-    bail!(
-        "`limits` (time to limit, maximum safe current, runaway current) is {NOT_YET} in this build: it arrives with the protection module `src/protect` (stage 2)"
-    )
+/// Names of the derating factors given on the command line (the HPPA
+/// report's meaning when there are four).
+const FACTOR_NAMES: [&str; 8] = [
+    "factor_1", "factor_2", "factor_3", "factor_4", "factor_5", "factor_6", "factor_7", "factor_8",
+];
+
+/// The derating rule from `--factors`, or `default`.
+fn rule(factors: &[f64], default: DeratingRule) -> Result<DeratingRule> {
+    if factors.is_empty() {
+        return Ok(default);
+    }
+    if factors.len() > FACTOR_NAMES.len() {
+        bail!(
+            "--factors: at most {} factors, got {}",
+            FACTOR_NAMES.len(),
+            factors.len()
+        );
+    }
+    if let Some((k, v)) = factors
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(**v > 0.0 && **v <= 1.0))
+    {
+        bail!("--factors: factor {} is {v}; each must be in (0, 1]", k + 1);
+    }
+    let list: Vec<DeratingFactor> = factors
+        .iter()
+        .zip(FACTOR_NAMES)
+        .map(|(v, n)| DeratingFactor::new(n, *v))
+        .collect();
+    DeratingRule::new(&list).map_err(|e| anyhow::anyhow!("--factors: {e}"))
 }
 
 /// Runs `alarm-limit`.
@@ -21,8 +52,500 @@ pub fn alarm_limit(a: AlarmLimitArgs) -> Result<()> {
     if !(a.critical_c.is_finite() && a.ambient_c.is_finite()) {
         bail!("--critical-c and --ambient-c must be finite");
     }
-    let _ = (a.factors, a.json);
-    bail!(
-        "`alarm-limit` (the derating rule) is {NOT_YET} in this build: it arrives with the protection module `src/protect` (stage 2)"
-    )
+    let rule = rule(&a.factors, DeratingRule::hppa())?;
+    let limit = rule.alarm_limit_c(a.critical_c, a.ambient_c);
+    let factors: Vec<_> = rule
+        .factors()
+        .iter()
+        .map(|f| json!({"name": f.name, "value": f.value}))
+        .collect();
+    if a.json {
+        common::print_json(&json!({
+            "command": "alarm-limit",
+            "critical_c": a.critical_c,
+            "ambient_c": a.ambient_c,
+            "factors": factors,
+            "product": rule.product(),
+            "alarm_limit_c": limit,
+        }));
+        return Ok(());
+    }
+    let list = rule
+        .factors()
+        .iter()
+        .map(|f| format!("{} {}", f.name, f.value))
+        .collect::<Vec<_>>()
+        .join(" x ");
+    println!("alarm limit = T_amb + (T_crit - T_amb) * product, capped at T_crit [degC]");
+    println!(
+        "  product = {} = {:.6}",
+        if list.is_empty() {
+            "1 (no factors)"
+        } else {
+            &list
+        },
+        rule.product()
+    );
+    println!(
+        "  = {} + ({} - {}) * {:.6} = {:.2} degC",
+        a.ambient_c,
+        a.critical_c,
+        a.ambient_c,
+        rule.product(),
+        limit
+    );
+    if a.factors.is_empty() {
+        println!(
+            "note: the HPPA report states 60 degC for its 100 degC coils at 20 degC ambient; its own factors give 65.36 degC (the report rounded down)"
+        );
+    }
+    Ok(())
+}
+
+fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+    match v {
+        Some(v) if v.is_infinite() => "unbounded".into(),
+        Some(v) => format!("{v:.3} {unit}"),
+        None => "never".into(),
+    }
+}
+
+fn fmt_safe(s: &Safe, nodes: &[String], unit: &str) -> String {
+    let value = match s.value {
+        Some(v) => format!("{v:.4} {unit}"),
+        None => "unbounded".into(),
+    };
+    let bind = s
+        .binding_node
+        .map(|i| format!(" (binding: {})", nodes[i]))
+        .unwrap_or_default();
+    let feas = if s.feasible { "" } else { " INFEASIBLE" };
+    format!("{value}{bind}{feas}")
+}
+
+/// Runs `limits`.
+pub fn limits(a: LimitsArgs) -> Result<()> {
+    let spec = ModelSpec::parse(&a.model.model)?;
+    if let Some(h) = a.horizon_s {
+        if !(h.is_finite() && h > 0.0) {
+            bail!("--horizon-s must be finite and > 0 s, got {h}");
+        }
+    }
+    if let Some(t) = a.ambient_c.filter(|t| !t.is_finite()) {
+        bail!("--ambient-c must be finite, got {t}");
+    }
+    if let Some(t) = a.limit_c.filter(|t| !t.is_finite()) {
+        bail!("--limit-c must be finite, got {t}");
+    }
+    if let Some(bad) = a.current_a.iter().find(|v| !v.is_finite()) {
+        bail!("--current-a must be finite, got {bad}");
+    }
+    if a.study {
+        if spec != ModelSpec::Omnimagnet {
+            bail!("--study applies to --model omnimagnet only");
+        }
+        return study(&a);
+    }
+    if a.pattern.is_some() && spec != ModelSpec::Hppa {
+        bail!("--pattern applies to --model hppa only");
+    }
+    let default_rule = match spec {
+        ModelSpec::Hppa => DeratingRule::hppa(),
+        ModelSpec::Omnimagnet => DeratingRule::omnimagnet(),
+        _ => DeratingRule::new(&[]).expect("an empty rule is valid"),
+    };
+    let rule = rule(&a.factors, default_rule)?;
+    let op_c = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
+    let file = common::model_file_at(&a.model, op_c)?;
+    let model = Model::build(&file)?;
+    if !model.signals.is_empty() {
+        bail!(
+            "limits: model `{}` needs signal columns ({}); constant-signal limits are not supported",
+            model.name,
+            model.signals.join(", ")
+        );
+    }
+    // Currents per input.
+    let inputs = &model.inputs;
+    let per_input: Vec<f64> = if let Some(pattern) = a.pattern {
+        let (rows, cols) = common::grid_dims(&a.model);
+        let amps = match a.current_a.as_slice() {
+            [] => 0.7,
+            [i] => *i,
+            _ => bail!("--pattern takes one --current-a value [A]"),
+        };
+        (0..inputs.len())
+            .map(|k| {
+                if devices::pattern_on(pattern.name(), rows, cols, k / cols, k % cols) {
+                    amps
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    } else {
+        match (a.current_a.len(), inputs.len()) {
+            (0, _) => bail!("give --current-a A[,A...] (or --pattern for --model hppa)"),
+            (1, m) => vec![a.current_a[0]; m],
+            (n, m) if n == m => a.current_a.clone(),
+            (n, m) => bail!(
+                "--current-a has {n} values but model `{}` has {m} current inputs ({})",
+                model.name,
+                inputs
+                    .iter()
+                    .map(|i| i.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    };
+    let mut currents = Vec::new();
+    model.effective_currents(&per_input, &[], &mut currents);
+    let boundary_c: Vec<f64> = model
+        .boundaries
+        .iter()
+        .map(|b| {
+            a.ambient_c.or(b.value_c).with_context(|| {
+                format!("boundary `{}` has no temperature: pass --ambient-c", b.name)
+            })
+        })
+        .collect::<Result<_>>()?;
+    let ambient = boundary_c.iter().sum::<f64>() / boundary_c.len().max(1) as f64;
+    let limits_c: Vec<Option<f64>> = model
+        .critical_c
+        .iter()
+        .map(|c| match a.limit_c {
+            Some(l) => Some(l),
+            None => c.map(|c| rule.alarm_limit_c(c, ambient)),
+        })
+        .collect();
+    let Some(highest) = limits_c.iter().flatten().copied().reduce(f64::max) else {
+        bail!(
+            "model `{}` has no critical_c on any node: pass --limit-c C",
+            model.name
+        );
+    };
+    // The predictor evaluates each winding's R(T) at its node's limit, so
+    // every node needs a finite one: nodes without a critical temperature
+    // take the model's highest limit (marked "assumed").
+    let assumed: Vec<bool> = limits_c.iter().map(Option::is_none).collect();
+    let limits_c: Vec<Option<f64>> = limits_c
+        .iter()
+        .map(|l| Some(l.unwrap_or(highest)))
+        .collect();
+    // Sources per coil selection.
+    let source_label = |k: usize| -> String {
+        let input = &inputs[model.drives[k].input].name;
+        let shared = model
+            .drives
+            .iter()
+            .filter(|d| d.input == model.drives[k].input)
+            .count()
+            > 1;
+        if shared {
+            format!("{input}@{}", model.nodes[model.network.sources()[k].node])
+        } else {
+            input.clone()
+        }
+    };
+    let coils: Vec<usize> = if a.coils.is_empty() {
+        (0..currents.len())
+            .filter(|&k| currents[k] != 0.0)
+            .take(16)
+            .collect()
+    } else {
+        let mut list = Vec::new();
+        for name in &a.coils {
+            let idx = inputs
+                .iter()
+                .position(|i| &i.name == name)
+                .with_context(|| {
+                    format!(
+                        "--coil `{name}`: model `{}` has no such input (inputs: {})",
+                        model.name,
+                        inputs
+                            .iter()
+                            .map(|i| i.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })?;
+            list.extend((0..model.drives.len()).filter(|&k| model.drives[k].input == idx));
+        }
+        list
+    };
+    let query = LimitsQuery {
+        network: model.network.clone(),
+        currents_a: currents.clone(),
+        boundary_c: boundary_c.clone(),
+        limits_c: limits_c.clone(),
+        horizon_s: a.horizon_s,
+        coils,
+    };
+    let report = compute(&query)?;
+    let nodes = &model.nodes;
+    let scaled = |s: &Safe| -> Option<Vec<f64>> {
+        s.value
+            .map(|k| per_input.iter().map(|i| i * k).collect::<Vec<f64>>())
+    };
+    if a.json {
+        let mut ttl = serde_json::Map::new();
+        let mut lim = serde_json::Map::new();
+        for (i, n) in nodes.iter().enumerate() {
+            ttl.insert(n.clone(), json!(report.time_to_limit_s[i]));
+            lim.insert(n.clone(), json!(limits_c[i]));
+        }
+        let coils: Vec<_> = report
+            .coils
+            .iter()
+            .map(|c| {
+                json!({
+                    "coil": source_label(c.source),
+                    "current_a": currents[c.source],
+                    "max_current_horizon_a": c.max_current_horizon_a,
+                    "max_current_forever_a": c.max_current_forever_a,
+                    "runaway_current_a": c.runaway_current_a,
+                    "hot_spot_current_a": c.hot_spot_current_a,
+                    "error": c.error,
+                })
+            })
+            .collect();
+        common::print_json(&json!({
+            "command": "limits",
+            "model": model.name,
+            "currents_a": per_input,
+            "boundary_c": boundary_c,
+            "derating_product": if a.limit_c.is_some() { None } else { Some(rule.product()) },
+            "limits_c": lim,
+            "assumed_limit_nodes": nodes.iter().zip(&assumed).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect::<Vec<_>>(),
+            "time_to_limit_s": ttl,
+            "horizon_s": a.horizon_s,
+            "common_scale_horizon": report.common_scale_horizon,
+            "common_scale_forever": report.common_scale_forever,
+            "max_currents_horizon_a": report.common_scale_horizon.as_ref().and_then(scaled),
+            "max_currents_forever_a": scaled(&report.common_scale_forever),
+            "coils": coils,
+            "size_class": report.size_class,
+            "slowest_time_constant_s": report.slowest_time_constant_s,
+        }));
+        return Ok(());
+    }
+    println!(
+        "limits of `{}` at {} (boundaries {:?} degC), from equilibrium without current",
+        model.name,
+        if per_input.len() <= 6 {
+            format!("{per_input:?} A")
+        } else {
+            format!(
+                "{} driven inputs (max {:.3} A)",
+                per_input.iter().filter(|i| **i != 0.0).count(),
+                per_input.iter().fold(0.0f64, |m, i| m.max(i.abs()))
+            )
+        },
+        boundary_c
+    );
+    match a.limit_c {
+        Some(l) => println!("element limits: {l} degC (--limit-c)"),
+        None => println!(
+            "element limits: critical temperatures derated by product {:.4} at {ambient} degC",
+            rule.product()
+        ),
+    }
+    println!(
+        "{:<24} {:>12} {:>14} {:>16}",
+        "element", "limit [degC]", "steady [degC]", "time to limit"
+    );
+    // Limit the table for large grids: the elements that reach their limit
+    // first, then the hottest.
+    let mut order: Vec<usize> = (0..nodes.len())
+        .filter(|&i| limits_c[i].is_some())
+        .collect();
+    order.sort_by(|&x, &y| {
+        let t = |i: usize| report.time_to_limit_s[i].unwrap_or(f64::INFINITY);
+        let s = |i: usize| report.steady_c.as_ref().map_or(0.0, |v| -v[i]);
+        t(x).total_cmp(&t(y)).then(s(x).total_cmp(&s(y)))
+    });
+    let shown = if nodes.len() > 20 { 10 } else { order.len() };
+    for &i in order.iter().take(shown) {
+        println!(
+            "{:<24} {:>12} {:>14} {:>16}",
+            nodes[i],
+            format!(
+                "{:.2}{}",
+                limits_c[i].unwrap_or(f64::NAN),
+                if assumed[i] { "*" } else { "" }
+            ),
+            report
+                .steady_c
+                .as_ref()
+                .map_or("none".into(), |v| format!("{:.2}", v[i])),
+            fmt_opt(report.time_to_limit_s[i], "s")
+        );
+    }
+    if assumed.iter().any(|a| *a) {
+        println!("* no critical temperature: the model's highest limit is assumed");
+    }
+    if shown < order.len() {
+        println!(
+            "... {} more elements (use --json for all)",
+            order.len() - shown
+        );
+    }
+    if let (Some(h), Some(s)) = (a.horizon_s, &report.common_scale_horizon) {
+        println!(
+            "max common current scale for {h} s: {}",
+            fmt_safe(s, nodes, "x")
+        );
+    }
+    println!(
+        "max common current scale for ever: {}",
+        fmt_safe(&report.common_scale_forever, nodes, "x")
+    );
+    if !report.coils.is_empty() {
+        if report
+            .coils
+            .iter()
+            .any(|c| !c.max_current_forever_a.feasible)
+        {
+            println!("! infeasible: the other coils alone take some element past its limit");
+        }
+        println!(
+            "{:<22} {:>10} {:>16} {:>16} {:>14} {:>14}",
+            "coil", "I [A]", "max I horizon", "max I forever", "runaway [A]", "hot spot [A]"
+        );
+        for c in &report.coils {
+            println!(
+                "{:<22} {:>10.3} {:>16} {:>16} {:>14} {:>14}{}",
+                source_label(c.source),
+                currents[c.source],
+                c.max_current_horizon_a
+                    .as_ref()
+                    .and_then(|s| s.value)
+                    .map_or("-".into(), |v| format!("{v:.3}")),
+                c.max_current_forever_a
+                    .value
+                    .map_or("unbounded".into(), |v| format!(
+                        "{v:.3}{}",
+                        if c.max_current_forever_a.feasible {
+                            ""
+                        } else {
+                            "!"
+                        }
+                    )),
+                c.runaway_current_a
+                    .map_or("none".into(), |v| format!("{v:.3}")),
+                c.hot_spot_current_a
+                    .map_or("none".into(), |v| format!("{v:.3}")),
+                c.error
+                    .as_ref()
+                    .map(|e| format!("  ({e})"))
+                    .unwrap_or_default()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn combination_name(powered: &[bool; 3]) -> String {
+    powered
+        .iter()
+        .enumerate()
+        .filter(|(_, on)| **on)
+        .map(|(k, _)| (k + 1).to_string())
+        .collect::<Vec<_>>()
+        .join("+")
+}
+
+/// The Omnimagnet study: seven combinations of powered solenoids.
+fn study(a: &LimitsArgs) -> Result<()> {
+    let ambient = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
+    let currents = if a.current_a.is_empty() {
+        vec![2.0, 5.0, 10.0, 20.0, 50.0]
+    } else {
+        a.current_a.clone()
+    };
+    if let Some(t) = a.time_s.iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+        bail!("--time-s must be finite and > 0 s, got {t}");
+    }
+    let times = if a.time_s.is_empty() {
+        vec![60.0, 600.0, 3600.0]
+    } else {
+        a.time_s.clone()
+    };
+    let limit = a.limit_c.unwrap_or(EXPERIMENT_STOP_C);
+    let model = Omnimagnet::PAPER;
+    let net = model
+        .network(&[ambient; NODES], ambient)
+        .map_err(|e| anyhow::anyhow!("omnimagnet network: {e}"))?;
+    let mut limits = [f64::INFINITY; NODES];
+    for s in &model.geometry().solenoids {
+        limits[s.node] = limit;
+    }
+    let study_limits =
+        StudyLimits::new(limits, ambient).map_err(|e| anyhow::anyhow!("study limits: {e}"))?;
+    let mut rows = Vec::new();
+    for powered in POWERED_COMBINATIONS {
+        let name = combination_name(&powered);
+        let t: Vec<Option<f64>> = currents
+            .iter()
+            .map(|&i| max_safe_time_s(&net, &study_limits, powered, i))
+            .collect::<Result<_, _>>()
+            .map_err(|e| anyhow::anyhow!("max safe time of {name}: {e}"))?;
+        let c: Vec<f64> = times
+            .iter()
+            .map(|&s| max_safe_current_a(&net, &study_limits, powered, s))
+            .collect::<Result<_, _>>()
+            .map_err(|e| anyhow::anyhow!("max safe current of {name}: {e}"))?;
+        rows.push((name, t, c));
+    }
+    if a.json {
+        let list: Vec<_> = rows
+            .iter()
+            .map(|(n, t, c)| {
+                json!({"powered": n, "max_safe_time_s": t,
+                       "max_safe_current_a": c.iter().map(|v| v.is_finite().then_some(*v)).collect::<Vec<_>>()})
+            })
+            .collect();
+        common::print_json(&json!({
+            "command": "limits",
+            "study": true,
+            "model": "omnimagnet",
+            "ambient_c": ambient,
+            "limit_c": limit,
+            "limited_nodes": [NODE_NAMES[0], NODE_NAMES[1], NODE_NAMES[2]],
+            "currents_a": currents,
+            "times_s": times,
+            "combinations": list,
+        }));
+        return Ok(());
+    }
+    println!(
+        "Omnimagnet study: solenoids at {limit} degC from equilibrium at {ambient} degC (network linearised at the ambient, R(T) exact)"
+    );
+    print!("{:<10}", "powered");
+    for i in &currents {
+        print!(" {:>14}", format!("t_max@{i}A [s]"));
+    }
+    for t in &times {
+        print!(" {:>14}", format!("I_max@{t}s [A]"));
+    }
+    println!();
+    for (n, t, c) in &rows {
+        print!("{n:<10}");
+        for v in t {
+            print!(" {:>14}", v.map_or("never".into(), |v| format!("{v:.1}")));
+        }
+        for v in c {
+            print!(
+                " {:>14}",
+                if v.is_finite() {
+                    format!("{v:.3}")
+                } else {
+                    "unbounded".into()
+                }
+            );
+        }
+        println!();
+    }
+    Ok(())
 }

@@ -44,9 +44,11 @@ enum Command {
     /// Run the observer (model, filter, protection) over a recorded trace and
     /// score it against held-out sensors.
     Replay(ReplayArgs),
-    /// Time to limit, maximum safe current and runaway current (stage 2).
+    /// Time to limit of each element, maximum safe currents (for a horizon and
+    /// for ever) and runaway currents; `--study` for the Omnimagnet's table.
     Limits(LimitsArgs),
-    /// Print the derated alarm limit (stage 2: needs the protection module).
+    /// Print the derated alarm limit: T_amb + (T_crit - T_amb) * product of
+    /// the derating factors.
     AlarmLimit(AlarmLimitArgs),
     /// Fit model parameters to one or more traces by bounded
     /// Levenberg-Marquardt; write the fitted model file.
@@ -60,14 +62,27 @@ enum Command {
 /// Which model to run.
 #[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
-    /// Model: `solenoid` (layered HeSE coil), `hppa` (coil grid, stage 2),
-    /// `omnimagnet` (stage 2), or a model file path (TOML).
+    /// Model: `hppa` (the HPPA coil grid, one node per coil), `omnimagnet`
+    /// (the paper's 16-node model: nonlinear RK4 in `simulate`/`replay`,
+    /// linearised at the ambient in `limits`/`calibrate`), `solenoid`
+    /// (layered HeSE coil), or a model file path (TOML).
     #[arg(long, value_name = "hppa|omnimagnet|solenoid|FILE")]
     pub model: String,
     /// Number of winding layers of `--model solenoid` (1..=64; the outer
     /// surface is water cooled from 16 layers on).
     #[arg(long, value_name = "N", default_value_t = 30)]
     pub layers: usize,
+    /// HPPA grid rows (`--model hppa`; default 7). Built-in sizes (rows x
+    /// cols): 7x12, 12x7, 6x12, 12x6, 4x4, 3x4, 3x3, 2x3.
+    #[arg(long, value_name = "R")]
+    pub rows: Option<usize>,
+    /// HPPA grid columns (`--model hppa`; default 12).
+    #[arg(long, value_name = "C")]
+    pub cols: Option<usize>,
+    /// HPPA parameter set (`--model hppa`): `fdm-fitted` (report Table 7,
+    /// the default), `calculated`, `stepwise-fit`, `global-fit`.
+    #[arg(long, value_name = "SET")]
+    pub grid_params: Option<String>,
 }
 
 /// How trace columns feed the model.
@@ -92,17 +107,29 @@ pub struct TraceArgs {
     pub constants: Vec<String>,
 }
 
-/// HPPA grid drive patterns (stage 2).
+/// HPPA grid drive patterns: the report's four calibration patterns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Pattern {
     /// Every coil driven.
     All,
-    /// One row driven.
+    /// The middle row (`rows / 2`) driven.
     Row,
-    /// One line (column) driven.
+    /// The middle line (column `(cols - 1) / 2`) driven.
     Line,
-    /// A single coil driven.
+    /// The centre coil (middle row, middle line) driven.
     OneCoil,
+}
+
+impl Pattern {
+    /// Stable name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::All => "all",
+            Self::Row => "row",
+            Self::Line => "line",
+            Self::OneCoil => "one-coil",
+        }
+    }
 }
 
 /// `simulate` arguments.
@@ -138,15 +165,37 @@ pub struct SimulateArgs {
     /// [degC] (default: each boundary's `value_c`).
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     ambient_c: Option<f64>,
-    /// HPPA grid rows (stage 2).
-    #[arg(long, value_name = "R")]
-    rows: Option<usize>,
-    /// HPPA grid columns (stage 2).
-    #[arg(long, value_name = "C")]
-    cols: Option<usize>,
-    /// HPPA grid drive pattern (stage 2).
-    #[arg(long, value_enum)]
+    /// HPPA grid drive pattern (`--model hppa`): every driven coil at
+    /// `--current-a` (default 0.7 A) for `--duration-s` (default 1800 s).
+    #[arg(long, value_enum, conflicts_with = "trace")]
     pattern: Option<Pattern>,
+    /// Omnimagnet preset (`--model omnimagnet`): `all-three` (3.8 A),
+    /// `solenoid-1` (3.13 A), `solenoids-2-3` (3.04 A), `cooling` (from the
+    /// end of all-three), `rotating-dipole` (3.8 A peak, 5 Hz); duration
+    /// `--duration-s` (default 7200 s).
+    #[arg(long, value_name = "PRESET", conflicts_with_all = ["trace", "current_a"])]
+    preset: Option<String>,
+    /// With --trace: output every S seconds [s] (inputs held between trace
+    /// rows), instead of at the trace's rows.
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "trace",
+        allow_negative_numbers = true
+    )]
+    resample_s: Option<f64>,
+    /// Add seeded Gaussian noise of this standard deviation [K] to the
+    /// written temperatures (synthetic measurements).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    noise_k: Option<f64>,
+    /// Seed of --noise-k.
+    #[arg(long, value_name = "SEED", default_value_t = 1)]
+    seed: u64,
+    /// Also write the input columns (currents [A], boundaries [degC]) after
+    /// the node columns, so the output is a complete trace for `replay` or
+    /// `calibrate`.
+    #[arg(long)]
+    with_inputs: bool,
     #[command(flatten)]
     trace_args: TraceArgs,
     /// Output CSV: `time_s` [s] then one column per node [degC].
@@ -260,15 +309,62 @@ pub struct ReplayArgs {
 pub struct LimitsArgs {
     #[command(flatten)]
     model: ModelArgs,
-    /// Constant current per input [A].
-    #[arg(long, value_name = "A[,A...]", value_delimiter = ',')]
+    /// Constant current per input [A], held from equilibrium at the ambient:
+    /// one value for every input or one per input (`3.8,3.8,3.8`). With
+    /// --pattern: the driven coils' current (default 0.7 A). With --study:
+    /// the currents of the max-safe-time table (default 2,5,10,20,50).
+    #[arg(
+        long,
+        value_name = "A[,A...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     current_a: Vec<f64>,
-    /// Horizon for the maximum safe current [s].
+    /// HPPA grid drive pattern (`--model hppa`) instead of --current-a for
+    /// every coil.
+    #[arg(long, value_enum)]
+    pattern: Option<Pattern>,
+    /// Horizon of the maximum safe current [s] (> 0); the answer for ever is
+    /// always given too.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     horizon_s: Option<f64>,
-    /// Ambient temperature [degC].
+    /// Temperature of every boundary (ambient, coolant) [degC]; default:
+    /// each boundary's `value_c` (20 degC for hppa and omnimagnet).
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     ambient_c: Option<f64>,
+    /// Derating factors for the element limits, each in (0, 1]
+    /// (dimensionless): limit = ambient + (critical - ambient) * product.
+    /// Default: the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the Omnimagnet
+    /// rule (0.9,0.9,0.8) for omnimagnet, none for other models.
+    #[arg(
+        long,
+        value_name = "a,b,...",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    factors: Vec<f64>,
+    /// One limit for every element [degC], instead of the derated critical
+    /// temperatures (with --study: for the three solenoid nodes; default
+    /// there 115 degC, the experiments' stop temperature).
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    limit_c: Option<f64>,
+    /// Per-coil figures (max current, runaway current) for this input only;
+    /// repeatable. Default: every driven input, at most 16.
+    #[arg(long = "coil", value_name = "INPUT")]
+    coils: Vec<String>,
+    /// The Omnimagnet study (`--model omnimagnet`): max safe time of each of
+    /// the seven combinations of powered solenoids at each --current-a, and
+    /// the max safe current for each --time-s.
+    #[arg(long)]
+    study: bool,
+    /// Run times for the study's max safe current [s] (> 0).
+    #[arg(
+        long,
+        value_name = "S[,S...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    time_s: Vec<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     json: bool,
@@ -277,14 +373,21 @@ pub struct LimitsArgs {
 /// `alarm-limit` arguments.
 #[derive(Debug, Args)]
 pub struct AlarmLimitArgs {
-    /// Critical temperature of the element [degC].
+    /// Critical temperature of the element's material [degC].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     critical_c: f64,
-    /// Ambient temperature [degC].
+    /// Measured ambient temperature [degC].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     ambient_c: f64,
-    /// Derating factors a,b,c,d (dimensionless).
-    #[arg(long, value_name = "a,b,c,d", value_delimiter = ',')]
+    /// Derating factors, each in (0, 1] (dimensionless; at most 8). Default:
+    /// the HPPA report's magnet plate 0.875, model error 0.9, unknown
+    /// conditions 0.9, safety 0.8.
+    #[arg(
+        long,
+        value_name = "a,b,c,d",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     factors: Vec<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
@@ -308,8 +411,11 @@ pub struct CalibrateArgs {
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
     /// [1/K], `.slope_ohm_per_k` [ohm/K], `.r_at_0c_ohm` [ohm], `.scale`,
-    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W], `speed_loss.NAME.p1_w` (`.p2_w`) [W]. Default bounds: a
-    /// factor 10 around positive values.
+    /// `.speed_a1`, `.speed_a2`), `fixed_power.NODE` [W], `speed_loss.NAME.p1_w` (`.p2_w`) [W]; for `--model hppa`
+    /// `grid.rx_k_per_w`, `grid.ry_k_per_w` [K/W] (between two coils: half
+    /// the report's per-element values), `grid.rz_k_per_w` [K/W],
+    /// `grid.capacity_j_per_k` [J/K]. Default bounds: a factor 10 around
+    /// positive values.
     #[arg(
         long,
         value_name = "NAME[=LO:HI],...",

@@ -96,12 +96,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         };
         let data = PlotData {
             title: format!("{}: replay of {}", info.name, a.trace.display()),
-            estimated: info
-                .nodes
-                .iter()
-                .zip(&result.estimate)
-                .enumerate()
-                .map(|(i, (n, v))| series(format!("{n} (estimate)"), v, i))
+            estimated: common::plotted(&result.estimate)
+                .into_iter()
+                .map(|i| {
+                    series(
+                        format!("{} (estimate)", info.nodes[i]),
+                        &result.estimate[i],
+                        i,
+                    )
+                })
                 .collect(),
             measured: truth
                 .iter()
@@ -113,20 +116,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     )
                 })
                 .collect(),
-            currents: info
-                .inputs
-                .iter()
-                .zip(&drive.currents)
-                .enumerate()
-                .map(|(i, (ch, v))| series(format!("{} [A]", ch.name), v, i))
+            currents: common::plotted(&drive.currents)
+                .into_iter()
+                .map(|i| {
+                    series(
+                        format!("{} [A]", info.inputs[i].name),
+                        &drive.currents[i],
+                        i,
+                    )
+                })
                 .collect(),
-            limits: info
-                .nodes
-                .iter()
-                .zip(&info.critical_c)
-                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
-                .take(1)
-                .collect(),
+            limits: common::lowest_critical(&info),
             alarms: result
                 .alarms
                 .iter()
@@ -136,8 +136,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         };
         render(&data, path, 1200, 800)?;
     }
+    let hot = common::hot_spot(&result.estimate, &drive.time_s);
     let summary = json!({
         "command": "replay",
+        "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
         "model": info.name,
         "estimator": kind,
         "fusion": fusion,
@@ -159,6 +161,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         drive.len(),
         a.trace.display(),
         a.out.display()
+    );
+    println!(
+        "hot spot: {} at {:.3} degC (t = {:.1} s)",
+        info.nodes[hot.0], hot.1, hot.2
     );
     if !result.scores.is_empty() {
         println!(

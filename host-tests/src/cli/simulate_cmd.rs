@@ -3,75 +3,141 @@
 use anyhow::{bail, Result};
 use serde_json::json;
 
-use super::common::{self, ModelSpec, NOT_YET};
+use coil_thermal::omnimagnet::{Omnimagnet, Preset};
+
+use super::common::{self, ModelSpec};
 use super::SimulateArgs;
+use crate::devices;
 use crate::plot::{render, PlotData, Series};
 use crate::sim::{by_node, initial_temps, simulate, Drive};
+use crate::synth::Rng;
 use crate::trace::write_csv;
 
 /// Runs `simulate`.
 pub fn run(a: SimulateArgs) -> Result<()> {
-    let grid_flags = a.rows.is_some() || a.cols.is_some() || a.pattern.is_some();
-    if grid_flags && ModelSpec::parse(&a.model.model)? != ModelSpec::Hppa {
-        bail!("--rows, --cols and --pattern apply to --model hppa only");
+    let spec = ModelSpec::parse(&a.model.model)?;
+    if a.pattern.is_some() && spec != ModelSpec::Hppa {
+        bail!("--pattern applies to --model hppa only");
+    }
+    if a.preset.is_some() && spec != ModelSpec::Omnimagnet {
+        bail!("--preset applies to --model omnimagnet only");
+    }
+    if let Some(k) = a.noise_k.filter(|k| !(k.is_finite() && *k >= 0.0)) {
+        bail!("--noise-k must be finite and >= 0 K, got {k}");
     }
     let mut plant = common::plant(&a.model)?;
-    if grid_flags {
-        // Reached only once the grid plant exists (stage 2).
-        bail!("--pattern is {NOT_YET}");
-    }
     let info = plant.info().clone();
     let bind = common::bindings(&a.trace_args)?;
-    let drive = match &a.trace {
-        Some(path) => {
-            if a.ambient_c.is_some() {
-                bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
-            }
-            let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
-            Drive::from_trace(&info, &trace, &bind)?
+    if let Some(t) = a.ambient_c.filter(|t| !t.is_finite()) {
+        bail!("--ambient-c must be finite, got {t}");
+    }
+    let mut preset_init = None;
+    let drive = if let Some(path) = &a.trace {
+        if a.ambient_c.is_some() {
+            bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
         }
-        None => {
-            let Some(duration) = a.duration_s else {
-                bail!("give --duration-s S with --current-a, or --trace IN.csv");
-            };
-            if a.current_a.is_empty() {
-                bail!("give --current-a A[,A...] (or --trace IN.csv)");
-            }
-            if let Some(bad) = a.current_a.iter().find(|v| !v.is_finite()) {
-                bail!("--current-a must be finite, got {bad}");
-            }
-            if let Some(t) = a.ambient_c.filter(|t| !t.is_finite()) {
-                bail!("--ambient-c must be finite, got {t}");
-            }
-            Drive::constant(&info, duration, a.dt_s, &a.current_a, a.ambient_c, &bind)?
+        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
+        let drive = Drive::from_trace(&info, &trace, &bind)?;
+        match a.resample_s {
+            Some(s) => resample(&drive, s)?,
+            None => drive,
         }
+    } else if let Some(pattern) = a.pattern {
+        let (rows, cols) = common::grid_dims(&a.model);
+        let amps = match a.current_a.as_slice() {
+            [] => 0.7,
+            [i] if i.is_finite() => *i,
+            _ => bail!("--pattern takes one --current-a value (the driven coils' current) [A]"),
+        };
+        let currents: Vec<f64> = (0..info.inputs.len())
+            .map(|k| {
+                if devices::pattern_on(pattern.name(), rows, cols, k / cols, k % cols) {
+                    amps
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let duration = a.duration_s.unwrap_or(1800.0);
+        Drive::constant(&info, duration, a.dt_s, &currents, a.ambient_c, &bind)?
+    } else if let Some(name) = &a.preset {
+        let preset = devices::omnimagnet_preset(name)?;
+        let ambient = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
+        let default_duration = if matches!(preset, Preset::RotatingDipole { .. }) {
+            600.0
+        } else {
+            Preset::DURATION_S
+        };
+        let duration = a.duration_s.unwrap_or(default_duration);
+        let dt = a.dt_s.min(preset.step_s());
+        let mut drive = Drive::constant(&info, duration, dt, &[0.0], Some(ambient), &bind)?;
+        for (k, t) in drive.time_s.iter().enumerate() {
+            // Currents at the interval's midpoint (as Preset::run).
+            let i = preset.currents_a(t + 0.5 * dt);
+            for (m, series) in drive.currents.iter_mut().enumerate() {
+                series[k] = i[m];
+            }
+        }
+        let init = preset.initial_temps_c(&Omnimagnet::PAPER, ambient);
+        preset_init = Some(init.to_vec());
+        drive
+    } else {
+        let Some(duration) = a.duration_s else {
+            bail!("give --duration-s S with --current-a, or --trace IN.csv");
+        };
+        if a.current_a.is_empty() {
+            bail!("give --current-a A[,A...] (or --trace IN.csv, --pattern, --preset)");
+        }
+        if let Some(bad) = a.current_a.iter().find(|v| !v.is_finite()) {
+            bail!("--current-a must be finite, got {bad}");
+        }
+        Drive::constant(&info, duration, a.dt_s, &a.current_a, a.ambient_c, &bind)?
     };
-    let init = initial_temps(&info, &drive, &[])?;
+    let init = match preset_init {
+        Some(t) => t,
+        None => initial_temps(&info, &drive, &[])?,
+    };
     let states = by_node(&simulate(plant.as_mut(), &drive, &init));
-    write_csv(&a.out, &info.nodes, &drive.time_s, &states)?;
+    let mut names = info.nodes.clone();
+    let mut written = states.clone();
+    if let Some(sigma) = a.noise_k.filter(|k| *k > 0.0) {
+        let mut rng = Rng::new(a.seed);
+        for series in &mut written {
+            for v in series.iter_mut() {
+                *v += sigma * rng.normal();
+            }
+        }
+    }
+    if a.with_inputs {
+        for (ch, series) in info.inputs.iter().zip(&drive.currents) {
+            names.push(ch.column.clone());
+            written.push(series.clone());
+        }
+        for (ch, series) in info.boundaries.iter().zip(&drive.boundaries) {
+            names.push(ch.column.clone());
+            written.push(series.clone());
+        }
+    }
+    write_csv(&a.out, &names, &drive.time_s, &written)?;
     if let Some(path) = &a.write_model {
         std::fs::write(path, common::model_file(&a.model)?.to_toml()?)?;
     }
     if let Some(path) = &a.plot {
         let data = PlotData {
             title: format!("{}: simulation", info.name),
-            estimated: info
-                .nodes
-                .iter()
-                .zip(&states)
+            estimated: common::plotted(&states)
+                .into_iter()
                 .enumerate()
-                .map(|(i, (n, v))| Series {
-                    label: n.clone(),
+                .map(|(c, i)| Series {
+                    label: info.nodes[i].clone(),
                     time_s: drive.time_s.clone(),
-                    values: v.clone(),
-                    color: i,
+                    values: states[i].clone(),
+                    color: c,
                 })
                 .collect(),
-            currents: info
-                .inputs
-                .iter()
-                .zip(&drive.currents)
-                .enumerate()
+            currents: common::plotted(&drive.currents)
+                .into_iter()
+                .map(|i| (i, (&info.inputs[i], &drive.currents[i])))
                 .map(|(i, (ch, v))| Series {
                     label: format!("{} [A]", ch.name),
                     time_s: drive.time_s.clone(),
@@ -79,13 +145,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
                     color: i,
                 })
                 .collect(),
-            limits: info
-                .nodes
-                .iter()
-                .zip(&info.critical_c)
-                .filter_map(|(n, c)| c.map(|c| (format!("{n} critical {c} degC"), c)))
-                .take(1)
-                .collect(),
+            limits: common::lowest_critical(&info),
             ..PlotData::default()
         };
         render(&data, path, 1200, 800)?;
@@ -144,4 +204,38 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The drive sampled every `period_s` from its first time to its last, each
+/// sample holding the inputs of the last row at or before it.
+fn resample(drive: &Drive, period_s: f64) -> Result<Drive> {
+    if !(period_s.is_finite() && period_s > 0.0) {
+        bail!("--resample-s must be finite and > 0 s, got {period_s}");
+    }
+    let (t0, t1) = (drive.time_s[0], drive.time_s[drive.len() - 1]);
+    let steps = ((t1 - t0) / period_s).floor() as usize;
+    let mut time_s: Vec<f64> = (0..=steps).map(|k| t0 + k as f64 * period_s).collect();
+    if t1 - time_s[steps] > 1e-9 * period_s.max(1.0) {
+        time_s.push(t1);
+    }
+    let mut rows = Vec::with_capacity(time_s.len());
+    let mut k = 0;
+    for t in &time_s {
+        while k + 1 < drive.len() && drive.time_s[k + 1] <= *t {
+            k += 1;
+        }
+        rows.push(k);
+    }
+    let pick = |series: &Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+        series
+            .iter()
+            .map(|s| rows.iter().map(|&k| s[k]).collect())
+            .collect()
+    };
+    Ok(Drive {
+        currents: pick(&drive.currents),
+        boundaries: pick(&drive.boundaries),
+        signals: pick(&drive.signals),
+        time_s,
+    })
 }
