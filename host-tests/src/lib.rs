@@ -23,6 +23,7 @@
 //! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
 //! * [`cli`]: the command-line front end.
 
+pub mod alloc_count;
 pub mod bench;
 pub mod calibrate;
 pub mod cli;

@@ -2,47 +2,13 @@
 //! test's thread is counted by a wrapping global allocator, and the per-tick
 //! calls must leave the count unchanged.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use coil_thermal_host::alloc_count::{count_allocations, CountingAllocator};
 
 use coil_thermal::discretize::zoh;
 use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, Q32};
 
-struct CountingAllocator;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards every call unchanged to the system allocator; the only
-// addition is a thread-local counter that itself never allocates (const init).
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
-
-/// Runs `f` and returns how many allocations it made on this thread.
-pub fn count_allocations(f: impl FnOnce()) -> usize {
-    let before = allocations();
-    f();
-    allocations() - before
-}
 
 fn network() -> Network<4, 2, 2> {
     Network::new([68.7, 40.0, 400.0, 12.0])

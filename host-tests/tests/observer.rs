@@ -3,8 +3,7 @@
 //! no allocation, and the grid's time to limit against an independent f64
 //! reference.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use coil_thermal_host::alloc_count::CountingAllocator;
 
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::{SensorStatus, TimedReading};
@@ -19,28 +18,6 @@ use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::LimiterConfig;
 use coil_thermal::{CoilGrid, GridParams, GridState, InputFlags, Reading, SensorFault};
 use coil_thermal_host::grid_reference::{GridReference, ReferenceParams};
-
-struct CountingAllocator;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards every call unchanged to the system allocator; the only
-// addition is a thread-local counter that itself never allocates.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -260,11 +237,11 @@ fn grid_ticks_do_not_allocate() {
     let grid = grid();
     let mut state = grid.state(20.0);
     let currents = hot_currents();
-    let before = ALLOCATIONS.with(Cell::get);
+    let before = coil_thermal_host::alloc_count::allocations();
     for k in 0..2_000u32 {
         tick(&grid, &mut state, &currents, 900 + k % 300);
     }
-    assert_eq!(ALLOCATIONS.with(Cell::get), before);
+    assert_eq!(coil_thermal_host::alloc_count::allocations(), before);
 }
 
 /// First time \[s\] each coil reaches `limits_c`, by RK4 of the dense f64
@@ -515,7 +492,7 @@ fn omni_snapshot_round_trip_and_refusals() {
 fn omni_ticks_do_not_allocate() {
     let omni = omni();
     let mut state = omni.state(&[22.0; NODES], 22.0);
-    let before = ALLOCATIONS.with(Cell::get);
+    let before = coil_thermal_host::alloc_count::allocations();
     for k in 0..1_500u32 {
         let readings = if k % 500 == 499 {
             [reading(22.0, k * 1000); 6]
@@ -524,7 +501,7 @@ fn omni_ticks_do_not_allocate() {
         };
         omni_tick(&omni, &mut state, readings, k * 1000);
     }
-    assert_eq!(ALLOCATIONS.with(Cell::get), before);
+    assert_eq!(coil_thermal_host::alloc_count::allocations(), before);
 }
 
 /// The pattern of `observer::shared`: the "interrupt" thread ticks and

@@ -2,8 +2,7 @@
 //! sensor, drift check) and the safe-current bound allocate nothing: every
 //! allocation on this test's thread is counted.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use coil_thermal_host::alloc_count::{count_allocations, CountingAllocator};
 
 use coil_thermal::protect::alarm::{AlarmBuilder, AlarmState};
 use coil_thermal::protect::derating::DeratingRule;
@@ -14,36 +13,8 @@ use coil_thermal::protect::resistance_sensor::{DriftConfig, DriftState, Resistan
 use coil_thermal::protect::safe_current::Horizon;
 use coil_thermal::{Network, Resistance};
 
-struct CountingAllocator;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards every call unchanged to the system allocator; the only
-// addition is a thread-local counter that itself never allocates.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn count_allocations(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
 
 #[test]
 fn the_counter_sees_allocations() {
