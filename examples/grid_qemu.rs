@@ -9,10 +9,14 @@
 #![no_std]
 #![no_main]
 
+#[path = "support/exit.rs"]
+mod exit;
+use exit::fail;
+
 use coil_thermal::grid::{Border, CoilGrid, GridConfig, GridState};
 use coil_thermal::Resistance;
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 
 type Hppa = CoilGrid<f32, 7, 12>;
 
@@ -61,37 +65,5 @@ fn main() -> ! {
         expected
     );
     let steady_ok = (centre - expected).abs() < 1e-3;
-    debug::exit(if hottest_ok && steady_ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-fn fail(what: &str) -> ! {
-    hprintln!("failed: {}", what);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
+    exit::exit(hottest_ok && steady_ok)
 }

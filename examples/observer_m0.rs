@@ -19,6 +19,10 @@
 #![no_std]
 #![no_main]
 
+#[path = "support/exit.rs"]
+mod exit;
+use exit::fail;
+
 #[path = "support/cost.rs"]
 mod cost;
 
@@ -28,8 +32,8 @@ use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
 use coil_thermal::{CoilGrid, GridState, Scalar, Q32};
-use cortex_m_rt::{entry, exception};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 
 const ROWS: usize = 3;
 const COLS: usize = 4;
@@ -45,11 +49,8 @@ fn main() -> ! {
     };
     let meter = cost::Meter::new(&mut peripherals.SYST);
     match run(&meter) {
-        Ok(()) => debug::exit(debug::EXIT_SUCCESS),
+        Ok(()) => exit::exit(true),
         Err(what) => fail(what),
-    }
-    loop {
-        cortex_m::asm::wfi();
     }
 }
 
@@ -167,30 +168,5 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         Ok(())
     } else {
         Err("a check failed")
-    }
-}
-
-fn fail(what: &str) -> ! {
-    hprintln!("failed: {}", what);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
     }
 }

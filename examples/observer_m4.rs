@@ -28,6 +28,10 @@
 #![no_std]
 #![no_main]
 
+#[path = "support/exit.rs"]
+mod exit;
+use exit::fail;
+
 #[path = "support/cost.rs"]
 mod cost;
 
@@ -39,8 +43,8 @@ use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::LimiterConfig;
 use coil_thermal::{CoilGrid, GridState, Reading, SensorFault};
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use nalgebra::SVector;
 
 type Grid = GridObserver<f32, 7, 12, 84>;
@@ -59,11 +63,8 @@ fn main() -> ! {
         fail("omni observer")
     };
     match run(&meter, &omni) {
-        Ok(()) => debug::exit(debug::EXIT_SUCCESS),
+        Ok(()) => exit::exit(true),
         Err(what) => fail(what),
-    }
-    loop {
-        cortex_m::asm::wfi();
     }
 }
 
@@ -289,29 +290,4 @@ fn snapshots(
     let omni_ok = omni_back.is_some_and(|s| s.estimate.x == os.estimate.x);
     let foreign = grid.restore(&buf, 160, 600, AMBIENT_C).is_err();
     grid_ok && refused && omni_ok && foreign
-}
-
-fn fail(what: &str) -> ! {
-    hprintln!("failed: {}", what);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
 }

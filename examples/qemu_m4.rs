@@ -5,10 +5,13 @@
 #![no_std]
 #![no_main]
 
+#[path = "support/exit.rs"]
+mod exit;
+
 use coil_thermal::discretize::zoh;
 use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState, Resistance};
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use nalgebra::SVector;
 
 /// A coil (node 0) on a former (node 1) in a housing (node 2) cooled to ambient.
@@ -69,31 +72,11 @@ fn main() -> ! {
     match run() {
         Ok(()) => {
             hprintln!("qemu_m4: all checks passed");
-            debug::exit(debug::EXIT_SUCCESS);
+            exit::exit(true)
         }
         Err(what) => {
             hprintln!("qemu_m4: FAILED: {}", what);
-            debug::exit(debug::EXIT_FAILURE);
+            exit::exit(false)
         }
-    }
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
     }
 }
