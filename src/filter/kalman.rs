@@ -373,20 +373,28 @@ mod tests {
         (cfg, sys, g)
     }
 
+    /// The scalar random walk (F = H = 1, no input) and its closed-form
+    /// steady prior variance `M = (q + sqrt(q^2 + 4 q r)) / 2`.
+    fn random_walk<T: RealField + Copy>(q: T, r: T) -> (KalmanConfig<T, 1, 1, 1>, T) {
+        let two = T::one() + T::one();
+        let m = (q + (q * q + two * two * q * r).sqrt()) / two;
+        let cfg = KalmanConfig::new(
+            Matrix1::new(T::one()),
+            Matrix1::new(T::zero()),
+            Matrix1::new(T::one()),
+            Matrix1::new(q),
+            Vector1::new(r),
+        )
+        .unwrap();
+        (cfg, m)
+    }
+
     /// Scalar random walk (F = H = 1): the prior variance converges to
     /// M = (q + sqrt(q^2 + 4 q r)) / 2 and the gain to M / (M + r).
     #[test]
     fn random_walk_matches_closed_form() {
         let (q, r) = (0.3f64, 2.0f64);
-        let m = (q + (q * q + 4.0 * q * r).sqrt()) / 2.0;
-        let cfg = KalmanConfig::<f64, 1, 1, 1>::new(
-            Matrix1::new(1.0),
-            Matrix1::new(0.0),
-            Matrix1::new(1.0),
-            Matrix1::new(q),
-            Vector1::new(r),
-        )
-        .unwrap();
+        let (cfg, m) = random_walk(q, r);
         let mut st = KalmanState::new(Vector1::new(0.0), Matrix1::new(100.0));
         for _ in 0..200 {
             predict(&cfg, &mut st, &Vector1::new(0.0));
@@ -409,16 +417,7 @@ mod tests {
     /// Same in f32 (the generic path compiles and converges in single precision).
     #[test]
     fn random_walk_f32() {
-        let (q, r) = (0.3f32, 2.0f32);
-        let m = (q + (q * q + 4.0 * q * r).sqrt()) / 2.0;
-        let cfg = KalmanConfig::<f32, 1, 1, 1>::new(
-            Matrix1::new(1.0),
-            Matrix1::new(0.0),
-            Matrix1::new(1.0),
-            Matrix1::new(q),
-            Vector1::new(r),
-        )
-        .unwrap();
+        let (cfg, m) = random_walk(0.3f32, 2.0f32);
         let mut st = KalmanState::new(Vector1::new(0.0), Matrix1::new(100.0));
         for _ in 0..100 {
             predict(&cfg, &mut st, &Vector1::new(0.0));
