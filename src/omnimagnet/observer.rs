@@ -58,15 +58,15 @@
 //! is invisible to every estimator that uses these sensors: the tests compute
 //! this bound per element ("oracle": the nominal model's unmeasured
 //! elements integrated from the true start, driven by the *true* solenoid
-//! temperatures) and show the filter reaches it. Under independent +-20 % errors of every parameter, in the tests'
-//! 1 h runs the bound reaches 0.73 K (cover insulation 3, all three at
-//! 3.8 A); at the *steady state* of that preset it is larger (a one-off
-//! computation over 20 seeds, not in the tests: up to 1.9 K for frame 4 and
-//! the paper, 0.9 K for the cover insulations), because these errors grow
-//! with the temperature rise. See the README for the measured figures. The
-//! reported variance ([`OmnimagnetObserver::variances_k2`]) does *not* cover
-//! these errors (they are not white noise; the NEES on the perturbed model
-//! is about 5500 for 16 states): a protection margin for the unmeasured
+//! temperatures) and show the filter reaches it. Under independent +-20 %
+//! errors of every parameter, in the tests' 1 h runs the bound reaches
+//! 1.05 K (the core, all three at 3.8 A), and it is larger at the steady
+//! state of that preset, because these errors grow with the temperature
+//! rise; with +-5 % errors every element stays within 0.5 K. See the
+//! README for the measured figures. The reported variance
+//! ([`OmnimagnetObserver::variances_k2`]) does *not* cover these errors
+//! (they are not white noise; the NEES on the perturbed model is about 8800
+//! for 16 states at +-20 %): a protection margin for the unmeasured
 //! elements, the cover insulation above all, must come from the parameter
 //! uncertainty, e.g. this bound.
 //!

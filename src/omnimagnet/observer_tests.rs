@@ -4,7 +4,8 @@
 
 use super::*;
 use crate::omnimagnet::{
-    Contact, ConvectionParams, Preset, Radiator, RelinearizeConfig, NODE_NAMES, PAPER_OMNIMAGNET,
+    Contact, ConvectionParams, Peer, Preset, Radiator, RelinearizeConfig, NODE_NAMES,
+    PAPER_OMNIMAGNET,
 };
 
 const AMBIENT_C: f64 = 22.0;
@@ -40,17 +41,39 @@ impl Rng {
 
 /// The paper's Omnimagnet with every parameter scaled independently by a
 /// factor in [1 - a, 1 + a]: each element's capacity (volume), each
-/// contact's conductance (area: conduction and convection alike), each
-/// radiator's emissivity, each convection group's `h`, each `R0`.
+/// conductance, each radiator's emissivity, each convection group's `h`,
+/// each `R0`.
+///
+/// A convective conductance is `h_group * area`, and the group's `h` is
+/// itself perturbed: drawing the area factor independently would compound
+/// to `(1 + a)^2` (+44 % at `a = 0.2`), more than the issue's "up to 20 %".
+/// So each convective contact draws its *total* factor in [1 - a, 1 + a] and
+/// its area takes that total divided by its group's factor.
 fn perturbed(seed: u64, a: f64) -> Omnimagnet {
     let mut rng = Rng(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x1234_5678);
     let mut g = PAPER_OMNIMAGNET;
     for e in g.elements.iter_mut() {
         e.volume_m3 *= rng.factor(a);
     }
+    let mut conv = ConvectionParams::PAPER;
+    conv.scale.iter_mut().for_each(|s| *s = rng.factor(a));
+    let air = g.inside_air_node;
+    let elements = g.elements;
+    let group_scale = |solid: usize| {
+        elements[solid]
+            .convection
+            .map_or(1.0, |c| conv.scale[c.group.index()])
+    };
     let mut contacts: Vec<Contact> = g.contacts.to_vec();
     for c in contacts.iter_mut() {
-        let f = rng.factor(a);
+        let convective_solid = match c.peer {
+            Peer::Ambient => Some(c.node),
+            Peer::Node(j) if j == air => Some(c.node),
+            Peer::Node(j) if c.node == air => Some(j),
+            Peer::Node(_) => None,
+        };
+        let total = rng.factor(a);
+        let f = convective_solid.map_or(total, |s| total / group_scale(s));
         c.area_m2.iter_mut().for_each(|s| *s *= f);
     }
     g.contacts = Box::leak(contacts.into_boxed_slice());
@@ -62,8 +85,6 @@ fn perturbed(seed: u64, a: f64) -> Omnimagnet {
     for s in g.solenoids.iter_mut() {
         s.r0_ohm *= rng.factor(a);
     }
-    let mut conv = ConvectionParams::PAPER;
-    conv.scale.iter_mut().for_each(|s| *s = rng.factor(a));
     Omnimagnet::new(g, conv).unwrap()
 }
 
@@ -369,22 +390,31 @@ fn check_accuracy(label: &str, o: &Outcome) -> Vec<usize> {
     missed
 }
 
-/// Every preset of the issue and three seeds of +-20 % perturbations,
-/// filter at 0.1 s (the 1 ms run is below), 1 h, scored after 20 min.
-#[test]
-fn accuracy_under_20_percent_parameter_errors() {
-    let presets = [
-        Preset::ALL_THREE,
-        Preset::SOLENOID_1,
-        Preset::ROTATING_DIPOLE,
-        Preset::PASSIVE_COOLING,
-    ];
+const PRESETS: [Preset; 5] = [
+    Preset::ALL_THREE,
+    Preset::SOLENOID_1,
+    Preset::SOLENOIDS_2_AND_3,
+    Preset::ROTATING_DIPOLE,
+    Preset::PASSIVE_COOLING,
+];
+
+/// Runs every preset with three seeds of `+-perturbation` parameter errors
+/// and checks each run with [`check_accuracy`]; also requires the RMS over
+/// all 16 elements within 0.5 K. Returns the element-runs that missed
+/// 0.5 K on their own and the largest element RMS of any run \[K\].
+fn sweep(perturbation: f64) -> (usize, f64) {
     let mut missed_total = 0;
+    let mut worst_k = 0.0f64;
     let mut nees = Vec::new();
-    println!("preset           seed  max_K  all_rms_K  per-element RMS [K] (node order)");
-    for preset in presets {
+    println!(
+        "+-{:.0} %: preset  seed  max_K  all_rms_K  per-element RMS [K] (node order)",
+        perturbation * 100.0
+    );
+    for preset in PRESETS {
         for seed in 1..=3 {
-            let o = run(&Scenario::new(preset, seed));
+            let mut sc = Scenario::new(preset, seed);
+            sc.perturbation = perturbation;
+            let o = run(&sc);
             let label = format!("{} seed {seed}", preset.name());
             let all = (o.rms_k.iter().map(|v| v * v).sum::<f64>() / NODES as f64).sqrt();
             println!(
@@ -394,6 +424,7 @@ fn accuracy_under_20_percent_parameter_errors() {
                 fmt_row(&o.rms_k)
             );
             println!("{:16} bound            [{}]", "", fmt_row(&o.bound_k));
+            assert!(all < TARGET_K, "{label}: RMS over the elements {all:.2} K");
             let missed = check_accuracy(&label, &o);
             for i in &missed {
                 println!(
@@ -402,6 +433,7 @@ fn accuracy_under_20_percent_parameter_errors() {
                 );
             }
             missed_total += missed.len();
+            worst_k = o.rms_k.iter().fold(worst_k, |w, r| w.max(*r));
             assert_eq!(o.false_flags, 0, "{label}: healthy sensor flagged");
             assert!(o.swaps > 0, "{label}: the model never followed the device");
             nees.push(o.nees);
@@ -410,10 +442,38 @@ fn accuracy_under_20_percent_parameter_errors() {
     let mean_nees = nees.iter().sum::<f64>() / nees.len() as f64;
     println!(
         "element-runs missing 0.5 K: {missed_total} of {}; mismatched-model mean NEES (16 dof): {mean_nees:.0}",
-        NODES * presets.len() * 3
+        NODES * PRESETS.len() * 3
     );
+    (missed_total, worst_k)
+}
+
+/// The issue's test: every preset, three seeds of +-20 % errors in every
+/// parameter, filter at 0.1 s (the 1 ms run is below), 1 h, scored after
+/// 20 min. The RMS over the 16 elements stays within 0.5 K in every run.
+///
+/// Element by element, a few unmeasured elements (inside air, core, paper,
+/// frame 4: far from the solenoids, coupled through the most uncertain
+/// convective paths) miss 0.5 K in the hottest presets, and the oracle
+/// misses them by as much: with the solenoids as the only measured nodes,
+/// their error is the model's, and no filter can remove it. So the test
+/// holds each element to that information bound (plus the slack for the
+/// wrong start) and then shows the misses are model error: the same sweep
+/// with +-5 % errors has every element of every run within 0.5 K, and the
+/// worst element error shrinks in proportion to the parameter error (a
+/// filter defect would not).
+#[test]
+fn accuracy_under_20_percent_parameter_errors() {
+    let (missed, worst_20) = sweep(0.2);
     // The measured figure (README): a regression shows up here.
-    assert!(missed_total <= 3, "{missed_total} element-runs miss 0.5 K");
+    assert!(missed <= 9, "{missed} element-runs miss 0.5 K");
+    let (missed_5, worst_5) = sweep(0.05);
+    assert_eq!(missed_5, 0, "+-5 %: element-runs missing 0.5 K");
+    let ratio = worst_5 / worst_20;
+    println!("worst element RMS: +-20 % {worst_20:.2} K, +-5 % {worst_5:.2} K, ratio {ratio:.2}");
+    assert!(
+        (0.15..0.4).contains(&ratio),
+        "worst element error does not scale with the model error: {ratio:.2}"
+    );
 }
 
 /// The control loop's rate: predict every 1 ms (steady-state gain after
