@@ -1,12 +1,15 @@
 //! Plots of a run: temperatures (estimated solid, measured dashed, limits
-//! dotted red, alarms as red vertical markers) over currents, as PNG or SVG
-//! (chosen by the file extension).
+//! dotted red, shutdowns as red and warnings as orange vertical markers) over
+//! currents, as PNG or SVG (chosen by the file extension).
 
 use std::path::Path;
 
 use anyhow::{anyhow, bail, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+/// Warning markers.
+const ORANGE: RGBColor = RGBColor(255, 140, 0);
 
 /// One time series.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,8 +37,10 @@ pub struct PlotData {
     pub currents: Vec<Series>,
     /// Horizontal limits: (label, degC).
     pub limits: Vec<(String, f64)>,
-    /// Alarm markers: (time s, label).
+    /// Alarm (shutdown) markers, red: (time s, label).
     pub alarms: Vec<(f64, String)>,
+    /// Warning markers, orange and thinner: (time s, label).
+    pub warnings: Vec<(f64, String)>,
 }
 
 /// Most points drawn per series (longer series are decimated).
@@ -150,20 +155,32 @@ where
             .label(label)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
     }
-    for (t, _) in &data.alarms {
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![(*t, y0), (*t, y1)],
-                RED.stroke_width(2),
-            )))
-            .map_err(e)?;
-        chart
-            .draw_series(std::iter::once(TriangleMarker::new(
-                (*t, y1),
-                7,
-                RED.filled(),
-            )))
-            .map_err(e)?;
+    // Warnings first, so that a shutdown at the same time stays visible.
+    let markers = [
+        (&data.warnings, ORANGE, 1, "warning"),
+        (&data.alarms, RED, 2, "shutdown"),
+    ];
+    for (events, colour, width, label) in markers {
+        for (k, (t, _)) in events.iter().enumerate() {
+            let drawn = chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(*t, y0), (*t, y1)],
+                    colour.stroke_width(width),
+                )))
+                .map_err(e)?;
+            if k == 0 {
+                drawn
+                    .label(label)
+                    .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 5, colour.filled()));
+            }
+            chart
+                .draw_series(std::iter::once(TriangleMarker::new(
+                    (*t, y1),
+                    7,
+                    colour.filled(),
+                )))
+                .map_err(e)?;
+        }
     }
     chart
         .configure_series_labels()
