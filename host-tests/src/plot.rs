@@ -105,9 +105,14 @@ where
     let (shown, off): (Vec<_>, Vec<_>) = data.limits.iter().partition(|l| near(l.1));
     let limits: Vec<f64> = shown.iter().map(|l| l.1).collect();
     let (t0, t1, y0, y1) = range(&temps, &limits).expect("series are not empty");
-    let mut y_desc = "temperature [degC]".to_string();
-    for (label, v) in &off {
-        y_desc.push_str(&format!("; {label} {v} off scale"));
+    // Along the time axis, where a long note has room.
+    let mut x_desc = "time [s]".to_string();
+    if !off.is_empty() {
+        let notes: Vec<String> = off
+            .iter()
+            .map(|(label, v)| format!("{label} at {v:.2} degC"))
+            .collect();
+        x_desc.push_str(&format!("    (off scale: {})", notes.join("; ")));
     }
     // Long legends hide the plot: label at most about 10 estimated series.
     let label_every = data.estimated.len().div_ceil(10).max(1);
@@ -120,8 +125,8 @@ where
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("time [s]")
-        .y_desc(y_desc)
+        .x_desc(x_desc)
+        .y_desc("temperature [degC]")
         .draw()
         .map_err(e)?;
     for (k, s) in data.estimated.iter().enumerate() {

@@ -105,10 +105,13 @@ fn alarm_lines(settings: &AlarmSettings) -> Vec<(String, f64)> {
     let warning_c = limit_c - settings.warning_margin_k;
     vec![
         (
-            format!("alarm limit {limit_c:.2} degC (critical {critical_c} degC derated)"),
+            format!("alarm limit (critical {critical_c} degC derated)"),
             limit_c,
         ),
-        (format!("warning level {warning_c:.2} degC"), warning_c),
+        (
+            format!("warning level ({} K below)", settings.warning_margin_k),
+            warning_c,
+        ),
     ]
 }
 
