@@ -20,13 +20,27 @@
 //!   sequential Joseph updates) with the same model, from the same prior
 //!   covariance each time (its copy included);
 //! * `protect_tick_16_f32_ns`: a protection tick on the Omnimagnet network
-//!   (16 elements): predictor slice, alarm tick and current limiter.
+//!   (16 elements): predictor slice, alarm tick and current limiter
+//!   ([`ProtectTick`]);
+//! * `grid_observer_84_f32_ns`: model and protection of the HPPA grid
+//!   together, the mean 1 ms tick over whole update cycles ([`GridLoop`]);
+//! * `omnimagnet_observer_16_f32_ns`: model and protection of one
+//!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]).
 //!
 //! In JSON each key `<name>_ns` also has `<name>_budget_ratio`.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use coil_thermal::observer::{
+    GridInputs, GridObserver, GridObserverState, OmniInputs, OmniObserver, OmniObserverState,
+    OmniSettings,
+};
+use coil_thermal::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
+use coil_thermal::protect::derating::DeratingRule;
+use coil_thermal::protect::events::EventQueue;
+use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
+use coil_thermal::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, SolenoidParams, Q32,
 };
@@ -284,50 +298,257 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
     ));
 }
 
-fn protect_tick(min_time: Duration, repeats: usize) -> Timing {
-    use coil_thermal::omnimagnet::{Omnimagnet, CRITICAL_TEMPS_C, NODES};
-    use coil_thermal::protect::alarm::{AlarmBuilder, AlarmState};
-    use coil_thermal::protect::derating::DeratingRule;
-    use coil_thermal::protect::events::EventQueue;
-    use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
-    use coil_thermal::protect::predict::{Operating, PredictorBuilder, PredictorState};
-    let net = Omnimagnet::PAPER
-        .network(&[20.0; NODES], 20.0)
-        .expect("the paper's model builds");
-    let predictor = PredictorBuilder::new()
-        .build::<f32, 16, 1, 3, 48>(&net)
-        .expect("the Omnimagnet network decomposes");
-    let highest = CRITICAL_TEMPS_C
-        .iter()
-        .flatten()
-        .fold(0.0f64, |a, b| a.max(*b));
-    let critical = CRITICAL_TEMPS_C.map(|c| c.unwrap_or(highest));
-    let alarm = AlarmBuilder::new(&DeratingRule::omnimagnet(), critical)
-        .build::<f32>()
-        .expect("valid alarm");
-    let limiter = LimiterConfig::<f32, 3>::new([8.0; 3], 10.0, 0.0).expect("valid limiter");
-    let ambient = 20.0f32;
-    let limits = alarm.alarm_limits_c(ambient);
-    let op = Operating {
-        temps_c: core::array::from_fn(|i| 30.0 + i as f32),
-        currents_a: [3.0, 2.5, 3.5],
-        boundary_c: [ambient],
-        limits_c: limits,
-    };
-    let mut state = PredictorState::new(&predictor, &op);
-    let mut alarm_state = AlarmState::new(&alarm);
-    let mut events = EventQueue::<32>::new();
-    let mut coil_limits = [CoilLimit::default(); 3];
-    measure("protect_tick_16_f32_ns".into(), min_time, repeats, || {
-        let op = black_box(&op);
-        let ttl = *state.tick(&predictor, op);
-        let status = alarm_state.tick(&alarm, &op.temps_c, ambient, &ttl, &mut events);
+/// The per-tick protection path on the Omnimagnet's 16-node network with
+/// its inputs held: one predictor slice, the alarm tick on every node and
+/// the current limiter on the three solenoids. One implementation for
+/// `coil-thermal bench` and the criterion bench `protect`.
+pub struct ProtectTick {
+    predictor: LimitPredictor<f32, 16, 1, 3, 48>,
+    alarm: AlarmConfig<f32, 16>,
+    limiter: LimiterConfig<f32, 3>,
+    op: Operating<f32, 16, 1, 3>,
+    state: PredictorState<f32, 16, 3>,
+    alarm_state: AlarmState<f32, 16>,
+    events: EventQueue<32>,
+    coil_limits: [CoilLimit<f32>; 3],
+}
+
+impl Default for ProtectTick {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ProtectTick {
+    /// The Omnimagnet network linearised at 20 degC, nodes at 30 to 45 degC,
+    /// currents 3, 2.5 and 3.5 A, the Omnimagnet derating rule (nodes
+    /// without a critical temperature take the highest, 240 degC).
+    pub fn new() -> Self {
+        use coil_thermal::omnimagnet::{Omnimagnet, CRITICAL_TEMPS_C, NODES};
+        let net = Omnimagnet::PAPER
+            .network(&[20.0; NODES], 20.0)
+            .expect("the paper's model builds");
+        let predictor = PredictorBuilder::new()
+            .build::<f32, 16, 1, 3, 48>(&net)
+            .expect("the Omnimagnet network decomposes");
+        let highest = CRITICAL_TEMPS_C
+            .iter()
+            .flatten()
+            .fold(0.0f64, |a, b| a.max(*b));
+        let critical = CRITICAL_TEMPS_C.map(|c| c.unwrap_or(highest));
+        let alarm = AlarmBuilder::new(&DeratingRule::omnimagnet(), critical)
+            .build::<f32>()
+            .expect("valid alarm");
+        let limiter = LimiterConfig::<f32, 3>::new([8.0; 3], 10.0, 0.0).expect("valid limiter");
+        let op = Operating {
+            temps_c: core::array::from_fn(|i| 30.0 + i as f32),
+            currents_a: [3.0, 2.5, 3.5],
+            boundary_c: [20.0],
+            limits_c: alarm.alarm_limits_c(20.0),
+        };
+        Self {
+            state: PredictorState::new(&predictor, &op),
+            alarm_state: AlarmState::new(&alarm),
+            predictor,
+            alarm,
+            limiter,
+            op,
+            events: EventQueue::new(),
+            coil_limits: [CoilLimit::default(); 3],
+        }
+    }
+
+    /// One tick; returns the alarm summary and the solenoids' limits.
+    pub fn tick(&mut self) -> (AlarmStatus, [CoilLimit<f32>; 3]) {
+        let op = black_box(&self.op);
+        let ambient_c = op.boundary_c[0];
+        let ttl = *self.state.tick(&self.predictor, op);
+        let status =
+            self.alarm_state
+                .tick(&self.alarm, &op.temps_c, ambient_c, &ttl, &mut self.events);
         let coil_temps = [op.temps_c[0], op.temps_c[1], op.temps_c[2]];
-        let coil_alarm = [limits[0], limits[1], limits[2]];
-        limiter.apply(&coil_temps, &coil_alarm, ambient, &mut coil_limits);
-        while events.pop().is_some() {}
-        black_box((status, coil_limits));
-    })
+        let coil_alarm = [op.limits_c[0], op.limits_c[1], op.limits_c[2]];
+        self.limiter
+            .apply(&coil_temps, &coil_alarm, ambient_c, &mut self.coil_limits);
+        while self.events.pop().is_some() {}
+        (status, self.coil_limits)
+    }
+
+    /// The predictor (for the benches of its other calls).
+    pub fn predictor(&self) -> &LimitPredictor<f32, 16, 1, 3, 48> {
+        &self.predictor
+    }
+
+    /// The operating point it protects.
+    pub fn operating(&self) -> &Operating<f32, 16, 1, 3> {
+        &self.op
+    }
+}
+
+/// Grid updates of [`GridLoop`]: every 10 ticks, so that the observer's
+/// three protection stages run between updates (`GridObserver`'s docs).
+pub const GRID_TICKS_PER_UPDATE: u32 = 10;
+
+/// Model and protection of the 84-coil HPPA grid together, as a controller
+/// runs them every 1 ms tick: the commanded currents clamped by the last
+/// limits, then one `GridObserver::tick` (grid step, and in the ticks after
+/// each update the time to limit, the alarm and the limiter), `f32`. The
+/// commands put 2.5 to 3 A on the middle rows so that the limiter tapers.
+#[derive(Clone)]
+pub struct GridLoop {
+    observer: GridObserver<f32, 7, 12, 84>,
+    state: GridObserverState<f32, 7, 12, 84>,
+    demand_a: [[f32; 12]; 7],
+    applied_a: [[f32; 12]; 7],
+}
+
+impl Default for GridLoop {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl GridLoop {
+    /// The HPPA grid (FDM-fitted), the HPPA rule at 100 degC, 3 A hardware
+    /// limit, 10 K taper; coils start at 55 degC, in the taper band.
+    pub fn new() -> Self {
+        use coil_thermal::grid::{GridConfig, GridParams};
+        use coil_thermal::protect::derating::HPPA_CRITICAL_C;
+        let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+            .build::<f32>()
+            .expect("valid alarm");
+        let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).expect("valid limiter");
+        let config = GridConfig {
+            ticks_per_update: GRID_TICKS_PER_UPDATE,
+            ..GridConfig::hppa(GridParams::FDM_FITTED)
+        };
+        let observer =
+            GridObserver::new(&config, alarm, limiter, 4).expect("the HPPA grid is valid");
+        let state = observer.conservative_state(20.0);
+        let demand_a = core::array::from_fn(|r| {
+            core::array::from_fn(|c| {
+                if (2..5).contains(&r) {
+                    2.5 + 0.05 * c as f32
+                } else {
+                    0.5
+                }
+            })
+        });
+        Self {
+            observer,
+            state,
+            demand_a,
+            applied_a: [[0.0; 12]; 7],
+        }
+    }
+
+    /// Ticks until the next tick is `phase` ticks after a grid update
+    /// (0: the update tick itself, 1: the time-to-limit stage, 2: the alarm,
+    /// 3: the limiter), for timing one kind of tick.
+    pub fn align(&mut self, phase: u32) {
+        loop {
+            self.tick();
+            if self.state.outputs().updated {
+                break;
+            }
+        }
+        for _ in 0..(phase + GRID_TICKS_PER_UPDATE - 1) % GRID_TICKS_PER_UPDATE {
+            self.tick();
+        }
+    }
+
+    /// `true` if the last tick updated the grid.
+    pub fn updated(&self) -> bool {
+        self.state.outputs().updated
+    }
+
+    /// One 1 ms tick; returns the smallest coil limit \[A\].
+    pub fn tick(&mut self) -> f32 {
+        let limits = &self.state.outputs().limits;
+        let pairs = self
+            .applied_a
+            .as_flattened_mut()
+            .iter_mut()
+            .zip(self.demand_a.as_flattened());
+        for ((applied, demand), limit) in pairs.zip(limits) {
+            *applied = limit.clamp_a(*demand);
+        }
+        let inputs = GridInputs {
+            currents_a: &self.applied_a,
+            coolant_c: 20.0,
+            ambient_c: 20.0,
+            elapsed_us: 1000,
+        };
+        let smallest = self
+            .observer
+            .tick(&mut self.state, black_box(&inputs))
+            .limits
+            .iter()
+            .fold(f32::INFINITY, |a, l| a.min(l.current_a));
+        while self.state.events.pop().is_some() {}
+        smallest
+    }
+}
+
+/// Model and protection of one Omnimagnet together, every 1 ms tick: the
+/// commanded currents clamped by the last limits, then one
+/// `OmniObserver::tick` (model predict and predictor slice, alarm on the six
+/// insulation nodes, limiter), without thermocouple readings (the filter's
+/// correction is timed on its own, `omnimagnet_correct_*`).
+pub struct OmniLoop {
+    observer: OmniObserver,
+    state: OmniObserverState,
+    demand_a: [f32; 3],
+}
+
+impl Default for OmniLoop {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl OmniLoop {
+    /// The paper's Omnimagnet linearised at 60 degC, default settings
+    /// (1 ms step); nodes at 70 degC, 5 A commanded on each solenoid.
+    pub fn new() -> Self {
+        use coil_thermal::omnimagnet::{Omnimagnet, NODES};
+        let observer = OmniObserver::new(
+            &Omnimagnet::PAPER,
+            &[60.0; NODES],
+            20.0,
+            &OmniSettings::default(),
+        )
+        .expect("the paper's Omnimagnet builds");
+        let state = observer.state(&[70.0; NODES], 20.0);
+        Self {
+            observer,
+            state,
+            demand_a: [5.0; 3],
+        }
+    }
+
+    /// One 1 ms tick; returns the smallest solenoid limit \[A\].
+    pub fn tick(&mut self, now_us: u32) -> f32 {
+        let limits = self.state.outputs().limits;
+        let mut currents_a = self.demand_a;
+        for (i, l) in currents_a.iter_mut().zip(&limits) {
+            *i = l.clamp_a(*i);
+        }
+        let inputs = OmniInputs {
+            currents_a,
+            ambient_c: 20.0,
+            readings: [None; 6],
+            now_us,
+            elapsed_us: 1000,
+        };
+        let out = self.observer.tick(&mut self.state, black_box(&inputs));
+        let smallest = out
+            .limits
+            .iter()
+            .fold(f32::INFINITY, |a, l| a.min(l.current_a));
+        while self.state.events.pop().is_some() {}
+        smallest
+    }
 }
 
 /// Runs every measurement.
@@ -356,6 +577,57 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
         repeats,
     ));
     omnimagnet_correct(min_time, repeats, &mut out);
-    out.push(protect_tick(min_time, repeats));
+    let mut protect = ProtectTick::new();
+    out.push(measure(
+        "protect_tick_16_f32_ns".into(),
+        min_time,
+        repeats,
+        || {
+            black_box(protect.tick());
+        },
+    ));
+    // Whole update cycles, so every tick kind is in the mean.
+    let mut grid = GridLoop::new();
+    let mut timing = measure("grid_observer_84_f32_ns".into(), min_time, repeats, || {
+        for _ in 0..GRID_TICKS_PER_UPDATE {
+            black_box(grid.tick());
+        }
+    });
+    timing.ns /= f64::from(GRID_TICKS_PER_UPDATE);
+    timing.budget_ratio /= f64::from(GRID_TICKS_PER_UPDATE);
+    out.push(timing);
+    let mut omni = OmniLoop::new();
+    let mut now_us = 0u32;
+    out.push(measure(
+        "omnimagnet_observer_16_f32_ns".into(),
+        min_time,
+        repeats,
+        || {
+            now_us = now_us.wrapping_add(1000);
+            black_box(omni.tick(now_us));
+        },
+    ));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The phase-0 tick is the grid update; the next update comes a full
+    /// cycle later. The fixture's commands are limited (it is in the taper).
+    #[test]
+    fn grid_loop_aligns_on_the_update_tick() {
+        let mut l = GridLoop::new();
+        l.align(0);
+        let smallest_a = l.tick();
+        assert!(l.updated());
+        for _ in 1..GRID_TICKS_PER_UPDATE {
+            l.tick();
+            assert!(!l.updated());
+        }
+        l.tick();
+        assert!(l.updated());
+        assert!(smallest_a < 3.0, "{smallest_a}");
+    }
 }

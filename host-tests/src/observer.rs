@@ -1,16 +1,31 @@
 //! Replay: an estimator and a protection stage run over a recorded trace.
 //!
 //! The composition mirrors the library's observer tick: *predict* with the
-//! inputs, *update* with the measurements, then *check* the estimate. Stage 1
-//! ships [`OpenLoop`] (the model alone: `update` ignores measurements) and
-//! [`CriticalThreshold`] alarms; the Kalman filter (`src/filter`) becomes a
-//! second [`Estimator`] and the derating/alarm rules of `src/protect` a second
-//! [`Protection`], with no change to [`replay`].
+//! inputs, *update* with the measurements, then *check* the estimate. The
+//! estimators are [`OpenLoop`] (the model alone: `update` ignores
+//! measurements) and the Kalman filter ([`crate::kalman`]); the protection is
+//! [`LibraryAlarm`], the library's `coil_thermal::protect::alarm` with its
+//! derated limits, debounced warning, latched shutdown and event queue.
+//!
+//! # Size dispatch by padding
+//!
+//! The library's alarm is const-generic in its element count; a model file
+//! has its node count at run time. As in [`crate::limits`], the watched
+//! nodes (those with a critical temperature) are padded to the smallest size
+//! class of [`SIZE_CLASSES`] and one generic `PaddedAlarm<P>` is
+//! instantiated per class behind one object-safe trait. A padding element has
+//! the critical temperature [`NO_LIMIT_C`] and stays at the nominal ambient,
+//! so it can never raise an event.
 
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{anyhow, bail, Result};
+use coil_thermal::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
+use coil_thermal::protect::derating::DeratingRule;
+use coil_thermal::protect::events::{AlarmEvent as LibEvent, EventKind, EventQueue};
 use serde::Serialize;
+
+use crate::limits::{NO_LIMIT_C, SIZE_CLASSES};
 
 use crate::sim::{initial_temps, Drive, Plant, PlantInfo};
 
@@ -61,69 +76,309 @@ impl<P: Plant> Estimator for OpenLoop<P> {
     }
 }
 
-/// An alarm raised or cleared.
+/// One event of the library's alarm, with its time.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AlarmEvent {
-    /// Time \[s\].
+    /// Time of the row whose estimate caused it \[s\].
     pub time_s: f64,
-    /// Node name.
-    pub node: String,
-    /// `raised` or `cleared`.
+    /// Node name; `None` for the ambient sensor and for a reset.
+    pub node: Option<String>,
+    /// `warning`, `shutdown`, `predictive`, `sensor` or `reset`.
+    pub level: &'static str,
+    /// `raised`, `cleared`, `latched` (shutdown), `invalid` or `valid`
+    /// (sensor), `reset`.
     pub kind: &'static str,
-    /// Estimated temperature \[degC\].
-    pub temp_c: f64,
-    /// Limit it was compared with \[degC\].
-    pub limit_c: f64,
+    /// The node's estimated temperature at that row \[degC\] (`None` without
+    /// a node).
+    pub temp_c: Option<f64>,
+    /// The level it was compared with at that row's ambient \[degC\]: the
+    /// warning level for a warning, the derated alarm limit otherwise.
+    pub limit_c: Option<f64>,
 }
 
-/// A protection stage: looks at each estimate, reports alarm transitions.
+/// A protection stage: looks at each estimate, reports alarm events.
 pub trait Protection {
-    /// Checks the estimate at `time_s`; pushes transitions to `events`.
-    fn check(&mut self, time_s: f64, estimate_c: &[f64], events: &mut Vec<AlarmEvent>);
+    /// Checks the estimate `estimate_c` \[degC\] of the row at `time_s` \[s\]
+    /// with that row's boundary temperatures `boundary_c` \[degC\] and, when
+    /// the estimator predicts them, each node's time to its alarm limit
+    /// \[s\] (`None` inside: never); pushes what changed to `events`.
+    fn check(
+        &mut self,
+        time_s: f64,
+        estimate_c: &[f64],
+        boundary_c: &[f64],
+        time_to_limit_s: Option<&[Option<f64>]>,
+        events: &mut Vec<AlarmEvent>,
+    );
 }
 
-/// Stage-1 placeholder until `src/protect`: an alarm per node above its
-/// `critical_c`, cleared `hysteresis_k` below it.
-pub struct CriticalThreshold {
-    nodes: Vec<String>,
-    critical_c: Vec<Option<f64>>,
-    hysteresis_k: f64,
-    active: Vec<bool>,
+/// The settings of [`LibraryAlarm`]: the library's
+/// [`AlarmBuilder`] parameters, per node, plus where the ambient comes from.
+#[derive(Debug, Clone)]
+pub struct AlarmSettings {
+    /// The derating rule of the alarm limits.
+    pub rule: DeratingRule,
+    /// Critical temperature of each node \[degC\]; nodes with `None` are not
+    /// watched.
+    pub critical_c: Vec<Option<f64>>,
+    /// The warning rises this far below the alarm limit \[K\].
+    pub warning_margin_k: f64,
+    /// How far below a level a clear (or a reset) needs \[K\].
+    pub hysteresis_k: f64,
+    /// Rows of evidence to raise or clear an alarm (the alarm's tick is one
+    /// replay row).
+    pub debounce_rows: u16,
+    /// Predictive alarm horizon \[s\] (used only with times to limit).
+    pub horizon_s: f64,
+    /// The boundary whose temperature is the measured ambient of the
+    /// derating rule; `None`: `nominal_ambient_c` throughout.
+    pub ambient_boundary: Option<usize>,
+    /// The ambient before the first valid one, or throughout \[degC\].
+    pub nominal_ambient_c: f64,
 }
 
-impl CriticalThreshold {
-    /// From the plant's critical temperatures.
-    pub fn new(info: &PlantInfo, hysteresis_k: f64) -> Self {
-        Self {
-            nodes: info.nodes.clone(),
-            critical_c: info.critical_c.clone(),
-            hysteresis_k,
-            active: vec![false; info.nodes.len()],
+/// The library's alarm ([`AlarmState`]) over `P` elements: the runtime
+/// number of watched nodes padded to a size class of [`SIZE_CLASSES`].
+///
+/// Padding elements have a critical temperature of [`NO_LIMIT_C`] and sit at
+/// the nominal ambient for ever, so they never raise anything.
+struct PaddedAlarm<const P: usize> {
+    config: AlarmConfig<f64, P>,
+    state: AlarmState<f64, P>,
+    events: EventQueue<EVENT_CAPACITY>,
+    temps_c: [f64; P],
+    time_to_limit_s: [Option<f64>; P],
+}
+
+/// Every event one tick can push: four per element (sensor, warning,
+/// shutdown, predictive) and the ambient's. The queue is drained after each
+/// tick, so with this capacity nothing is ever dropped.
+const EVENT_CAPACITY: usize = 4 * SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 1;
+
+/// The size-independent face of [`PaddedAlarm`].
+trait ElementAlarms {
+    /// One alarm tick over the first `temps_c.len()` elements; every event
+    /// goes to `sink` in queue order.
+    fn tick(
+        &mut self,
+        temps_c: &[f64],
+        ambient_c: f64,
+        time_to_limit_s: &[Option<f64>],
+        sink: &mut dyn FnMut(LibEvent),
+    ) -> AlarmStatus;
+    /// The alarm limit of element `e` at the ambient of the last tick
+    /// \[degC\].
+    fn limit_c(&self, e: usize) -> Option<f64>;
+    /// The warning margin \[K\].
+    fn warning_margin_k(&self) -> f64;
+}
+
+impl<const P: usize> PaddedAlarm<P> {
+    fn build(s: &AlarmSettings, critical_c: &[f64]) -> Result<Box<dyn ElementAlarms>> {
+        let mut padded = [NO_LIMIT_C; P];
+        padded[..critical_c.len()].copy_from_slice(critical_c);
+        let config = AlarmBuilder::new(&s.rule, padded)
+            .warning_margin_k(s.warning_margin_k)
+            .hysteresis_k(s.hysteresis_k)
+            .debounce_ticks(s.debounce_rows)
+            .horizon_s(s.horizon_s)
+            .nominal_ambient_c(s.nominal_ambient_c)
+            .build::<f64>()
+            .map_err(|e| anyhow!("alarm: {e}"))?;
+        Ok(Box::new(Self {
+            state: AlarmState::new(&config),
+            config,
+            events: EventQueue::new(),
+            temps_c: [s.nominal_ambient_c; P],
+            time_to_limit_s: [None; P],
+        }))
+    }
+}
+
+impl<const P: usize> ElementAlarms for PaddedAlarm<P> {
+    fn tick(
+        &mut self,
+        temps_c: &[f64],
+        ambient_c: f64,
+        time_to_limit_s: &[Option<f64>],
+        sink: &mut dyn FnMut(LibEvent),
+    ) -> AlarmStatus {
+        self.temps_c[..temps_c.len()].copy_from_slice(temps_c);
+        self.time_to_limit_s[..time_to_limit_s.len()].copy_from_slice(time_to_limit_s);
+        let status = self.state.tick(
+            &self.config,
+            &self.temps_c,
+            ambient_c,
+            &self.time_to_limit_s,
+            &mut self.events,
+        );
+        while let Some(event) = self.events.pop() {
+            sink(event);
+        }
+        status
+    }
+
+    fn limit_c(&self, e: usize) -> Option<f64> {
+        self.config.alarm_limit_c(e, self.state.ambient_c())
+    }
+
+    fn warning_margin_k(&self) -> f64 {
+        self.config.warning_margin_k()
+    }
+}
+
+/// The library's derated, debounced, latched alarm as a replay
+/// [`Protection`]: one element per node with a critical temperature, limits
+/// derated at the measured ambient every row.
+pub struct LibraryAlarm {
+    /// Plant node of each element.
+    nodes: Vec<usize>,
+    names: Vec<String>,
+    ambient_boundary: Option<usize>,
+    nominal_ambient_c: f64,
+    alarm: Box<dyn ElementAlarms>,
+    temps_c: Vec<f64>,
+    time_to_limit_s: Vec<Option<f64>>,
+    /// This row's library events, drained from the queue.
+    pending: Vec<LibEvent>,
+    shutdown: bool,
+}
+
+impl LibraryAlarm {
+    /// Builds the alarm for `info`'s nodes with a critical temperature in
+    /// `settings` (in node order), padded to the smallest size class.
+    ///
+    /// # Errors
+    /// More watched nodes than the largest size class, a boundary index out
+    /// of range, or a parameter the library's builder refuses.
+    pub fn new(info: &PlantInfo, settings: &AlarmSettings) -> Result<Self> {
+        if settings.critical_c.len() != info.nodes.len() {
+            bail!(
+                "alarm: {} critical temperatures for {} nodes",
+                settings.critical_c.len(),
+                info.nodes.len()
+            );
+        }
+        if let Some(b) = settings
+            .ambient_boundary
+            .filter(|b| *b >= info.boundaries.len())
+        {
+            bail!(
+                "alarm: boundary {b} does not exist in model `{}`",
+                info.name
+            );
+        }
+        let (nodes, critical_c): (Vec<usize>, Vec<f64>) = settings
+            .critical_c
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| c.map(|c| (i, c)))
+            .unzip();
+        let n = nodes.len();
+        let Some(&class) = SIZE_CLASSES.iter().find(|&&p| p >= n) else {
+            bail!(
+                "alarm: model `{}` has {n} nodes with a critical temperature; at most {} are supported",
+                info.name,
+                SIZE_CLASSES[SIZE_CLASSES.len() - 1]
+            );
+        };
+        let alarm = match class {
+            4 => PaddedAlarm::<4>::build(settings, &critical_c),
+            8 => PaddedAlarm::<8>::build(settings, &critical_c),
+            16 => PaddedAlarm::<16>::build(settings, &critical_c),
+            32 => PaddedAlarm::<32>::build(settings, &critical_c),
+            64 => PaddedAlarm::<64>::build(settings, &critical_c),
+            96 => PaddedAlarm::<96>::build(settings, &critical_c),
+            other => unreachable!("size class {other} has no alarm instance"),
+        }?;
+        Ok(Self {
+            names: nodes.iter().map(|i| info.nodes[*i].clone()).collect(),
+            nodes,
+            ambient_boundary: settings.ambient_boundary,
+            nominal_ambient_c: settings.nominal_ambient_c,
+            alarm,
+            temps_c: vec![0.0; n],
+            time_to_limit_s: vec![None; n],
+            pending: Vec::new(),
+            shutdown: false,
+        })
+    }
+
+    /// Nodes watched (those with a critical temperature), in node order.
+    pub fn watched(&self) -> &[String] {
+        &self.names
+    }
+
+    /// `true` once any shutdown has latched.
+    pub fn shutdown_latched(&self) -> bool {
+        self.shutdown
+    }
+}
+
+impl Protection for LibraryAlarm {
+    fn check(
+        &mut self,
+        time_s: f64,
+        estimate_c: &[f64],
+        boundary_c: &[f64],
+        time_to_limit_s: Option<&[Option<f64>]>,
+        events: &mut Vec<AlarmEvent>,
+    ) {
+        for ((t, ttl), &node) in self
+            .temps_c
+            .iter_mut()
+            .zip(self.time_to_limit_s.iter_mut())
+            .zip(&self.nodes)
+        {
+            *t = estimate_c[node];
+            *ttl = time_to_limit_s.and_then(|v| v[node]);
+        }
+        let ambient_c = self
+            .ambient_boundary
+            .map_or(self.nominal_ambient_c, |b| boundary_c[b]);
+        self.pending.clear();
+        let status = self
+            .alarm
+            .tick(&self.temps_c, ambient_c, &self.time_to_limit_s, &mut |e| {
+                self.pending.push(e)
+            });
+        self.shutdown |= status.shutdown;
+        let margin_k = self.alarm.warning_margin_k();
+        for e in &self.pending {
+            // Padding elements never change; an index past the watched nodes
+            // cannot come, but would not be a node either.
+            let element = e.element.filter(|i| *i < self.nodes.len());
+            let (level, kind) = describe(e.kind);
+            let limit_c = element.and_then(|i| self.alarm.limit_c(i)).map(|l| {
+                if level == "warning" {
+                    l - margin_k
+                } else {
+                    l
+                }
+            });
+            events.push(AlarmEvent {
+                time_s,
+                node: element.map(|i| self.names[i].clone()),
+                level,
+                kind,
+                temp_c: element.map(|i| self.temps_c[i]),
+                limit_c,
+            });
         }
     }
 }
 
-impl Protection for CriticalThreshold {
-    fn check(&mut self, time_s: f64, estimate_c: &[f64], events: &mut Vec<AlarmEvent>) {
-        for (i, (limit, t)) in self.critical_c.iter().zip(estimate_c).enumerate() {
-            let Some(limit) = *limit else { continue };
-            let kind = if !self.active[i] && *t >= limit {
-                self.active[i] = true;
-                "raised"
-            } else if self.active[i] && *t < limit - self.hysteresis_k {
-                self.active[i] = false;
-                "cleared"
-            } else {
-                continue;
-            };
-            events.push(AlarmEvent {
-                time_s,
-                node: self.nodes[i].clone(),
-                kind,
-                temp_c: *t,
-                limit_c: limit,
-            });
-        }
+/// (level, kind) names of a library event.
+fn describe(kind: EventKind) -> (&'static str, &'static str) {
+    match kind {
+        EventKind::WarningRaised => ("warning", "raised"),
+        EventKind::WarningCleared => ("warning", "cleared"),
+        EventKind::ShutdownLatched => ("shutdown", "latched"),
+        EventKind::PredictiveRaised => ("predictive", "raised"),
+        EventKind::PredictiveCleared => ("predictive", "cleared"),
+        EventKind::SensorInvalid => ("sensor", "invalid"),
+        EventKind::SensorValid => ("sensor", "valid"),
+        EventKind::Reset => ("reset", "reset"),
     }
 }
 
@@ -231,7 +486,7 @@ pub struct ReplayResult {
     pub estimate: Vec<Vec<f64>>,
     /// Scores of the `--truth` sensors.
     pub scores: Vec<Score>,
-    /// Alarm transitions.
+    /// Alarm events, in order.
     pub alarms: Vec<AlarmEvent>,
     /// Timing of predict + update per row.
     pub times: StepTimes,
@@ -272,9 +527,15 @@ pub fn replay(
         for (series, t) in estimate.iter_mut().zip(estimator.estimate_c()) {
             series.push(*t);
         }
-        protection.check(drive.time_s[k], estimator.estimate_c(), &mut alarms);
+        drive.row(k, &mut c, &mut b, &mut s);
+        protection.check(
+            drive.time_s[k],
+            estimator.estimate_c(),
+            &b,
+            None,
+            &mut alarms,
+        );
         if k + 1 < rows {
-            drive.row(k, &mut c, &mut b, &mut s);
             let start = Instant::now();
             estimator.predict(drive.time_s[k + 1] - drive.time_s[k], &c, &b, &s);
             elapsed += start.elapsed();
@@ -291,4 +552,62 @@ pub fn replay(
         alarms,
         times: StepTimes::from_samples(&mut samples),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model_file::InitialSpec;
+
+    fn info(nodes: usize) -> PlantInfo {
+        PlantInfo {
+            name: "test".into(),
+            nodes: (0..nodes).map(|i| format!("n{i}")).collect(),
+            critical_c: vec![Some(100.0); nodes],
+            inputs: Vec::new(),
+            boundaries: Vec::new(),
+            signals: Vec::new(),
+            initial: InitialSpec::default(),
+        }
+    }
+
+    fn settings(nodes: usize) -> AlarmSettings {
+        AlarmSettings {
+            rule: DeratingRule::hppa(),
+            critical_c: vec![Some(100.0); nodes],
+            warning_margin_k: 5.0,
+            hysteresis_k: 2.0,
+            debounce_rows: 1,
+            horizon_s: 60.0,
+            ambient_boundary: None,
+            nominal_ambient_c: 20.0,
+        }
+    }
+
+    /// Every size class has an instance, and the last watched element of
+    /// each (the one next to the padding) raises its own shutdown at the
+    /// HPPA limit, 65.36 degC, and nothing else does.
+    #[test]
+    fn every_size_class_dispatches_and_padding_stays_silent() {
+        for n in SIZE_CLASSES.iter().flat_map(|p| [*p - 1, *p]) {
+            let mut alarm = LibraryAlarm::new(&info(n), &settings(n)).unwrap();
+            let mut temps = vec![20.0; n];
+            temps[n - 1] = 65.37;
+            let mut events = Vec::new();
+            alarm.check(0.0, &temps, &[], None, &mut events);
+            let levels: Vec<_> = events.iter().map(|e| (e.level, e.kind)).collect();
+            assert_eq!(
+                levels,
+                [("warning", "raised"), ("shutdown", "latched")],
+                "{n}"
+            );
+            assert!(events
+                .iter()
+                .all(|e| e.node.as_deref() == Some(format!("n{}", n - 1).as_str())));
+            assert!((events[1].limit_c.unwrap() - 65.36).abs() < 1e-12);
+            assert!(alarm.shutdown_latched());
+        }
+        let largest = SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 1;
+        assert!(LibraryAlarm::new(&info(largest), &settings(largest)).is_err());
+    }
 }

@@ -1,12 +1,15 @@
 //! Plots of a run: temperatures (estimated solid, measured dashed, limits
-//! dotted red, alarms as red vertical markers) over currents, as PNG or SVG
-//! (chosen by the file extension).
+//! dotted red, shutdowns as red and warnings as orange vertical markers) over
+//! currents, as PNG or SVG (chosen by the file extension).
 
 use std::path::Path;
 
 use anyhow::{anyhow, bail, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+/// Warning markers.
+const ORANGE: RGBColor = RGBColor(255, 140, 0);
 
 /// One time series.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,8 +37,10 @@ pub struct PlotData {
     pub currents: Vec<Series>,
     /// Horizontal limits: (label, degC).
     pub limits: Vec<(String, f64)>,
-    /// Alarm markers: (time s, label).
+    /// Alarm (shutdown) markers, red: (time s, label).
     pub alarms: Vec<(f64, String)>,
+    /// Warning markers, orange and thinner: (time s, label).
+    pub warnings: Vec<(f64, String)>,
 }
 
 /// Most points drawn per series (longer series are decimated).
@@ -100,9 +105,14 @@ where
     let (shown, off): (Vec<_>, Vec<_>) = data.limits.iter().partition(|l| near(l.1));
     let limits: Vec<f64> = shown.iter().map(|l| l.1).collect();
     let (t0, t1, y0, y1) = range(&temps, &limits).expect("series are not empty");
-    let mut y_desc = "temperature [degC]".to_string();
-    for (label, v) in &off {
-        y_desc.push_str(&format!("; {label} {v} off scale"));
+    // Along the time axis, where a long note has room.
+    let mut x_desc = "time [s]".to_string();
+    if !off.is_empty() {
+        let notes: Vec<String> = off
+            .iter()
+            .map(|(label, v)| format!("{label} at {v:.2} degC"))
+            .collect();
+        x_desc.push_str(&format!("    (off scale: {})", notes.join("; ")));
     }
     // Long legends hide the plot: label at most about 10 estimated series.
     let label_every = data.estimated.len().div_ceil(10).max(1);
@@ -115,8 +125,8 @@ where
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("time [s]")
-        .y_desc(y_desc)
+        .x_desc(x_desc)
+        .y_desc("temperature [degC]")
         .draw()
         .map_err(e)?;
     for (k, s) in data.estimated.iter().enumerate() {
@@ -150,20 +160,32 @@ where
             .label(label)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
     }
-    for (t, _) in &data.alarms {
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![(*t, y0), (*t, y1)],
-                RED.stroke_width(2),
-            )))
-            .map_err(e)?;
-        chart
-            .draw_series(std::iter::once(TriangleMarker::new(
-                (*t, y1),
-                7,
-                RED.filled(),
-            )))
-            .map_err(e)?;
+    // Warnings first, so that a shutdown at the same time stays visible.
+    let markers = [
+        (&data.warnings, ORANGE, 1, "warning"),
+        (&data.alarms, RED, 2, "shutdown"),
+    ];
+    for (events, colour, width, label) in markers {
+        for (k, (t, _)) in events.iter().enumerate() {
+            let drawn = chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(*t, y0), (*t, y1)],
+                    colour.stroke_width(width),
+                )))
+                .map_err(e)?;
+            if k == 0 {
+                drawn
+                    .label(label)
+                    .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 5, colour.filled()));
+            }
+            chart
+                .draw_series(std::iter::once(TriangleMarker::new(
+                    (*t, y1),
+                    7,
+                    colour.filled(),
+                )))
+                .map_err(e)?;
+        }
     }
     chart
         .configure_series_labels()

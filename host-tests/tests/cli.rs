@@ -74,7 +74,22 @@ fn help_documents_every_subcommand_with_units() {
                 "--json",
             ],
         ),
-        ("replay", vec!["--truth", "--measure", "[degC]", "--json"]),
+        (
+            "replay",
+            vec![
+                "--truth",
+                "--measure",
+                "[degC]",
+                "--json",
+                "--factors",
+                "--critical-c",
+                "--warning-margin-k",
+                "--hysteresis-k",
+                "[K]",
+                "--debounce-rows",
+                "--ambient-boundary",
+            ],
+        ),
         (
             "calibrate",
             vec!["--params", "[J/K]", "[W/K]", "--trace", "--json"],
@@ -230,10 +245,15 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     assert_eq!(truth["node"], "coil");
     assert!(truth["mse_k2"].as_f64().unwrap() < 1e-10, "{truth}");
     assert!(truth["rmse_k"].as_f64().is_some() && truth["max_abs_error_k"].as_f64().is_some());
-    // 4 A heats the coil past its 155 degC critical temperature.
+    // 4 A heats the coil past its 155 degC critical temperature (a model
+    // file has no derating by default): warning first, then the shutdown.
     let alarms = j["alarms"].as_array().unwrap();
+    assert_eq!(alarms[0]["level"], "warning");
     assert_eq!(alarms[0]["kind"], "raised");
     assert_eq!(alarms[0]["node"], "coil");
+    assert_eq!(alarms[0]["limit_c"], 150.0);
+    assert_eq!(alarms[1]["level"], "shutdown");
+    assert_eq!(alarms[1]["limit_c"], 155.0);
     let st = &j["step_time"];
     assert_eq!(st["budget_ns"], 100000.0);
     assert!(st["p50_ns"].as_f64().unwrap() <= st["p99_ns"].as_f64().unwrap());
@@ -252,9 +272,159 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     .success()
     .stdout(
         contains("MSE [K^2]")
-            .and(contains("alarm raised"))
+            .and(contains("warning raised at t ="))
+            .and(contains("shutdown latched at t ="))
             .and(contains("0.1 ms budget")),
     );
+}
+
+/// Column `name` of a CSV the tool wrote.
+fn csv_column(path: &Path, name: &str) -> Vec<f64> {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let k = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("{path:?} has no column `{name}`"));
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse().unwrap())
+        .collect()
+}
+
+/// Pixels of exactly this colour in a PNG (the plot's markers are drawn
+/// without anti-aliasing).
+fn pixels_of(path: &Path, rgb: [u8; 3]) -> usize {
+    let decoder = png::Decoder::new(std::io::BufReader::new(fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let step = info.color_type.samples();
+    buf[..info.buffer_size()]
+        .chunks(step)
+        .filter(|p| p[..3] == rgb)
+        .count()
+}
+
+/// The orange of the plot's warning markers.
+const WARNING_ORANGE: [u8; 3] = [255, 140, 0];
+
+/// The first row from which `debounce` rows in a row are above `level_c`:
+/// when the alarm's up/down counter, starting at zero on a rising
+/// temperature, reaches `debounce`.
+fn debounced_crossing(temp_c: &[f64], level_c: f64, debounce: usize) -> Option<usize> {
+    let first = temp_c.iter().position(|t| *t > level_c)?;
+    assert!(
+        temp_c[first..first + debounce].iter().all(|t| *t > level_c),
+        "the crossing is clean"
+    );
+    Some(first + debounce - 1)
+}
+
+/// Replays the two-node coil under the HPPA derating rule, debounced over
+/// 3 rows; returns the JSON summary, the coil estimate and the times.
+fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>) {
+    // On for 400 s, then 1200 s of cooling, 1 s rows.
+    let mut text = String::from("time_s,current\n");
+    for k in 0..=1600 {
+        let i = if k < 400 { current_a } else { 0.0 };
+        text.push_str(&format!("{k},{i}\n"));
+    }
+    let trace = write(dir, "step.csv", &text);
+    let est = dir.path().join("est.csv");
+    let png = dir.path().join("alarm.png");
+    let out = ct()
+        .args([
+            "replay",
+            "--model",
+            &models("two-node-coil.toml"),
+            "--trace",
+            s(&trace),
+        ])
+        .args(["--factors", "0.875,0.9,0.9,0.8", "--debounce-rows", "3"])
+        .args(["--out", s(&est), "--plot", s(&png), "--json"])
+        .assert()
+        .success();
+    let j = json_of(&out.get_output().stdout);
+    let orange = pixels_of(&png, WARNING_ORANGE);
+    // The plot's warning markers are the JSON's warnings.
+    let warnings = j["alarms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["level"] == "warning" && e["kind"] == "raised")
+        .count();
+    assert_eq!(orange > 0, warnings > 0, "{orange} orange pixels, {j}");
+    (j, csv_column(&est, "coil"), csv_column(&est, "time_s"))
+}
+
+// The rule by hand: 155 degC critical, 20 degC ambient (the model's
+// boundary), product 0.875 * 0.9 * 0.9 * 0.8 = 0.567.
+const DERATED_LIMIT_C: f64 = 20.0 + (155.0 - 20.0) * 0.567;
+const WARNING_C: f64 = DERATED_LIMIT_C - 5.0;
+
+#[test]
+fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
+    let dir = TempDir::new().unwrap();
+    // 4 A for 400 s, then off: the coil passes 96.5 degC, then cools.
+    let (j, coil_c, time_s) = replay_derated(&dir, 4.0);
+    let events = j["alarms"].as_array().unwrap();
+    let warn_row = debounced_crossing(&coil_c, WARNING_C, 3).unwrap();
+    let shut_row = debounced_crossing(&coil_c, DERATED_LIMIT_C, 3).unwrap();
+    let (w, sd) = (&events[0], &events[1]);
+    assert_eq!(
+        (&w["level"], &w["kind"], &w["node"]),
+        (&"warning".into(), &"raised".into(), &"coil".into()),
+        "{j}"
+    );
+    assert_eq!(w["time_s"].as_f64().unwrap(), time_s[warn_row], "{j}");
+    assert!(
+        (w["limit_c"].as_f64().unwrap() - WARNING_C).abs() < 1e-9,
+        "{w}"
+    );
+    assert_eq!(
+        (&sd["level"], &sd["kind"]),
+        (&"shutdown".into(), &"latched".into()),
+        "{j}"
+    );
+    assert_eq!(sd["time_s"].as_f64().unwrap(), time_s[shut_row], "{j}");
+    assert!(
+        (sd["limit_c"].as_f64().unwrap() - DERATED_LIMIT_C).abs() < 1e-9,
+        "{sd}"
+    );
+    assert!(sd["temp_c"].as_f64().unwrap() > DERATED_LIMIT_C);
+    // Cooling after 400 s clears the warning (2 K hysteresis, 3 rows) but
+    // never the latched shutdown.
+    let clear_row = coil_c
+        .iter()
+        .enumerate()
+        .skip(shut_row)
+        .filter(|(_, t)| **t < WARNING_C - 2.0)
+        .nth(2)
+        .map(|(k, _)| k)
+        .unwrap();
+    assert_eq!(events.len(), 3, "{j}");
+    assert_eq!(
+        (&events[2]["level"], &events[2]["kind"]),
+        (&"warning".into(), &"cleared".into())
+    );
+    assert_eq!(events[2]["time_s"].as_f64().unwrap(), time_s[clear_row]);
+    assert_eq!(j["alarm"]["shutdown_latched"], true);
+    assert!((j["alarm"]["derating_product"].as_f64().unwrap() - 0.567).abs() < 1e-12);
+}
+
+#[test]
+fn replay_below_the_derated_limit_raises_nothing() {
+    let dir = TempDir::new().unwrap();
+    // 3.3 A for 400 s: the coil heats well above ambient but stays below
+    // the warning level of the same rule.
+    let (j, coil_c, _) = replay_derated(&dir, 3.3);
+    let peak_c = coil_c.iter().copied().fold(f64::MIN, f64::max);
+    assert!(peak_c < WARNING_C && peak_c > 50.0, "peak {peak_c} degC");
+    assert_eq!(j["alarms"].as_array().unwrap().len(), 0, "{j}");
+    assert_eq!(j["alarm"]["shutdown_latched"], false);
+    assert_eq!(j["alarm"]["watched_nodes"], 1);
 }
 
 #[test]

@@ -648,6 +648,8 @@ fn bench_json_has_device_keys_and_budget_ratios() {
         "omnimagnet_correct_steady_f32_ns",
         "omnimagnet_correct_tv_f32_ns",
         "protect_tick_16_f32_ns",
+        "grid_observer_84_f32_ns",
+        "omnimagnet_observer_16_f32_ns",
     ] {
         assert!(j[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {j}");
         let ratio = key.replace("_ns", "_budget_ratio");

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
+use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
 use coil_thermal::SolenoidParams;
 
 use super::{ModelArgs, TraceArgs};
@@ -45,6 +46,50 @@ impl ModelSpec {
                 Self::File(p)
             }
         })
+    }
+}
+
+/// Names of the derating factors given on the command line (the HPPA
+/// report's meaning when there are four).
+const FACTOR_NAMES: [&str; 8] = [
+    "factor_1", "factor_2", "factor_3", "factor_4", "factor_5", "factor_6", "factor_7", "factor_8",
+];
+
+/// The derating rule from `--factors`, or `default`.
+pub fn derating_rule(factors: &[f64], default: DeratingRule) -> Result<DeratingRule> {
+    if factors.is_empty() {
+        return Ok(default);
+    }
+    if factors.len() > FACTOR_NAMES.len() {
+        bail!(
+            "--factors: at most {} factors, got {}",
+            FACTOR_NAMES.len(),
+            factors.len()
+        );
+    }
+    if let Some((k, v)) = factors
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(**v > 0.0 && **v <= 1.0))
+    {
+        bail!("--factors: factor {} is {v}; each must be in (0, 1]", k + 1);
+    }
+    let list: Vec<DeratingFactor> = factors
+        .iter()
+        .zip(FACTOR_NAMES)
+        .map(|(v, n)| DeratingFactor::new(n, *v))
+        .collect();
+    DeratingRule::new(&list).map_err(|e| anyhow::anyhow!("--factors: {e}"))
+}
+
+/// The device's own derating rule: the HPPA report's for `hppa`, the
+/// Omnimagnet's (no magnet plate) for `omnimagnet`, none (product 1) for
+/// other models.
+pub fn default_rule(spec: &ModelSpec) -> DeratingRule {
+    match spec {
+        ModelSpec::Hppa => DeratingRule::hppa(),
+        ModelSpec::Omnimagnet => DeratingRule::omnimagnet(),
+        _ => DeratingRule::new(&[]).expect("an empty rule is valid"),
     }
 }
 

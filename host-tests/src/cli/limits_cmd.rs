@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use coil_thermal::omnimagnet::{Omnimagnet, EXPERIMENT_STOP_C, NODES, NODE_NAMES};
-use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
+use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::study::{
     max_safe_current_a, max_safe_time_s, StudyLimits, POWERED_COMBINATIONS,
 };
@@ -14,45 +14,12 @@ use crate::devices;
 use crate::limits::{compute, LimitsQuery, Safe};
 use crate::model_file::Model;
 
-/// Names of the derating factors given on the command line (the HPPA
-/// report's meaning when there are four).
-const FACTOR_NAMES: [&str; 8] = [
-    "factor_1", "factor_2", "factor_3", "factor_4", "factor_5", "factor_6", "factor_7", "factor_8",
-];
-
-/// The derating rule from `--factors`, or `default`.
-fn rule(factors: &[f64], default: DeratingRule) -> Result<DeratingRule> {
-    if factors.is_empty() {
-        return Ok(default);
-    }
-    if factors.len() > FACTOR_NAMES.len() {
-        bail!(
-            "--factors: at most {} factors, got {}",
-            FACTOR_NAMES.len(),
-            factors.len()
-        );
-    }
-    if let Some((k, v)) = factors
-        .iter()
-        .enumerate()
-        .find(|(_, v)| !(**v > 0.0 && **v <= 1.0))
-    {
-        bail!("--factors: factor {} is {v}; each must be in (0, 1]", k + 1);
-    }
-    let list: Vec<DeratingFactor> = factors
-        .iter()
-        .zip(FACTOR_NAMES)
-        .map(|(v, n)| DeratingFactor::new(n, *v))
-        .collect();
-    DeratingRule::new(&list).map_err(|e| anyhow::anyhow!("--factors: {e}"))
-}
-
 /// Runs `alarm-limit`.
 pub fn alarm_limit(a: AlarmLimitArgs) -> Result<()> {
     if !(a.critical_c.is_finite() && a.ambient_c.is_finite()) {
         bail!("--critical-c and --ambient-c must be finite");
     }
-    let rule = rule(&a.factors, DeratingRule::hppa())?;
+    let rule = common::derating_rule(&a.factors, DeratingRule::hppa())?;
     let limit = rule.alarm_limit_c(a.critical_c, a.ambient_c);
     let factors: Vec<_> = rule
         .factors()
@@ -149,12 +116,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     if a.pattern.is_some() && spec != ModelSpec::Hppa {
         bail!("--pattern applies to --model hppa only");
     }
-    let default_rule = match spec {
-        ModelSpec::Hppa => DeratingRule::hppa(),
-        ModelSpec::Omnimagnet => DeratingRule::omnimagnet(),
-        _ => DeratingRule::new(&[]).expect("an empty rule is valid"),
-    };
-    let rule = rule(&a.factors, default_rule)?;
+    let rule = common::derating_rule(&a.factors, common::default_rule(&spec))?;
     let op_c = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
     let file = common::model_file_at(&a.model, op_c)?;
     let model = Model::build(&file)?;

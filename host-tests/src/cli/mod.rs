@@ -285,7 +285,33 @@ pub struct ReplayArgs {
     /// `[initial] policy = "measured"`): `COL=NODE` [degC].
     #[arg(long = "init", value_name = "COL=NODE")]
     init: Vec<String>,
-    /// Alarm hysteresis below each node's critical temperature [K].
+    /// Alarm: derating factors, each in (0, 1] (dimensionless): alarm limit
+    /// = ambient + (critical - ambient) * product, the shutdown level.
+    /// Default: the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the Omnimagnet
+    /// rule (0.9,0.9,0.8) for omnimagnet, none for other models.
+    #[arg(
+        long,
+        value_name = "a,b,...",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    factors: Vec<f64>,
+    /// Alarm: one critical temperature for every node [degC], instead of
+    /// the model's (`critical_c` per node in a model file; 100 degC per
+    /// coil for hppa; 120 degC cover and 240 degC wire insulation for
+    /// omnimagnet). Nodes without one are not watched.
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    critical_c: Option<f64>,
+    /// Alarm: the warning rises this far below the alarm limit [K].
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 5.0,
+        allow_negative_numbers = true
+    )]
+    warning_margin_k: f64,
+    /// Alarm: hysteresis below the warning level that clears a warning (and
+    /// below the alarm limit that allows a reset) [K].
     #[arg(
         long,
         value_name = "K",
@@ -293,6 +319,14 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     hysteresis_k: f64,
+    /// Alarm: trace rows of evidence (net, up/down counter) to raise or clear
+    /// an alarm; 1 raises on the first row beyond the level.
+    #[arg(long, value_name = "ROWS", default_value_t = 3)]
+    debounce_rows: u16,
+    /// Alarm: the boundary whose temperature is the measured ambient of the
+    /// derating rule. Default: the boundary named `ambient`, else the first.
+    #[arg(long, value_name = "BOUNDARY")]
+    ambient_boundary: Option<String>,
     /// Output CSV: `time_s` [s] then the estimate of every node [degC].
     #[arg(long, value_name = "OUT.csv")]
     out: PathBuf,

@@ -5,12 +5,115 @@ use serde_json::json;
 
 use super::common;
 use super::ReplayArgs;
+use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
 use crate::model_file::Model;
-use crate::observer::{replay, CriticalThreshold, Estimator, OpenLoop};
+use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, OpenLoop};
 use crate::plot::{render, PlotData, Series};
-use crate::sim::Drive;
+use crate::sim::{Drive, PlantInfo};
 use crate::trace::write_csv;
+
+/// Alarm events printed in the text summary (`--json` has them all).
+const MAX_PRINTED_EVENTS: usize = 20;
+
+/// The alarm settings from the flags: the model's critical temperatures (or
+/// `--critical-c`), the device's derating rule (or `--factors`), the
+/// measured ambient from `--ambient-boundary` (default `ambient`, else the
+/// first boundary).
+fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<AlarmSettings> {
+    let spec = common::ModelSpec::parse(&a.model.model)?;
+    let rule = common::derating_rule(&a.factors, common::default_rule(&spec))?;
+    let non_negative = |v: f64, flag: &str| {
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            bail!("{flag} must be finite and >= 0 K, got {v}")
+        }
+    };
+    if a.debounce_rows == 0 {
+        bail!("--debounce-rows must be at least 1");
+    }
+    if let Some(c) = a.critical_c.filter(|c| !c.is_finite()) {
+        bail!("--critical-c must be finite, got {c}");
+    }
+    let ambient_boundary = match &a.ambient_boundary {
+        Some(name) => Some(
+            info.boundaries
+                .iter()
+                .position(|b| &b.name == name)
+                .with_context(|| {
+                    format!(
+                        "--ambient-boundary: model `{}` has no boundary `{name}` (boundaries: {})",
+                        info.name,
+                        info.boundaries
+                            .iter()
+                            .map(|b| b.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })?,
+        ),
+        None => info
+            .boundaries
+            .iter()
+            .position(|b| b.name == "ambient")
+            .or((!info.boundaries.is_empty()).then_some(0)),
+    };
+    let nominal_ambient_c = ambient_boundary
+        .and_then(|b| drive.boundaries[b].first().copied())
+        .filter(|t| t.is_finite())
+        .unwrap_or(devices::GRID_DEFAULT_C);
+    Ok(AlarmSettings {
+        rule,
+        critical_c: match a.critical_c {
+            Some(c) => vec![Some(c); info.nodes.len()],
+            None => info.critical_c.clone(),
+        },
+        warning_margin_k: non_negative(a.warning_margin_k, "--warning-margin-k")?,
+        hysteresis_k: non_negative(a.hysteresis_k, "--hysteresis-k")?,
+        debounce_rows: a.debounce_rows,
+        horizon_s: 60.0,
+        ambient_boundary,
+        nominal_ambient_c,
+    })
+}
+
+/// Plot markers of one alarm level's rising events: (time s, node).
+fn markers(events: &[AlarmEvent], level: &str) -> Vec<(f64, String)> {
+    events
+        .iter()
+        .filter(|e| e.level == level && e.kind != "cleared")
+        .map(|e| (e.time_s, e.node.clone().unwrap_or_default()))
+        .collect()
+}
+
+/// Horizontal lines at the lowest alarm limit and its warning level, at
+/// the nominal (first row's) ambient.
+fn alarm_lines(settings: &AlarmSettings) -> Vec<(String, f64)> {
+    let Some(critical_c) = settings
+        .critical_c
+        .iter()
+        .flatten()
+        .copied()
+        .reduce(f64::min)
+    else {
+        return Vec::new();
+    };
+    let limit_c = settings
+        .rule
+        .alarm_limit_c(critical_c, settings.nominal_ambient_c);
+    let warning_c = limit_c - settings.warning_margin_k;
+    vec![
+        (
+            format!("alarm limit (critical {critical_c} degC derated)"),
+            limit_c,
+        ),
+        (
+            format!("warning level ({} K below)", settings.warning_margin_k),
+            warning_c,
+        ),
+    ]
+}
 
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
@@ -22,12 +125,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let measured = common::sensors(&a.measure, "--measure", &info, &trace)?;
     let truth = common::sensors(&a.truth, "--truth", &info, &trace)?;
     let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
-    if !(a.hysteresis_k.is_finite() && a.hysteresis_k >= 0.0) {
-        bail!(
-            "--hysteresis-k must be finite and >= 0 K, got {}",
-            a.hysteresis_k
-        );
-    }
+    let settings = alarm_settings(&a, &info, &drive)?;
+    let rule_product = settings.rule.product();
+    let mut protection = LibraryAlarm::new(&info, &settings)?;
     // With fused sensors the estimator is the Kalman filter on the model
     // file; the open-loop model otherwise.
     let mut open_loop = None;
@@ -66,7 +166,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
         kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
     };
-    let mut protection = CriticalThreshold::new(&info, a.hysteresis_k);
     // Initial-only columns join the truth list for the initial state but are
     // not scored.
     let mut init_sensors = truth.clone();
@@ -126,13 +225,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     )
                 })
                 .collect(),
-            limits: common::lowest_critical(&info),
-            alarms: result
-                .alarms
-                .iter()
-                .filter(|e| e.kind == "raised")
-                .map(|e| (e.time_s, e.node.clone()))
-                .collect(),
+            limits: alarm_lines(&settings),
+            warnings: markers(&result.alarms, "warning"),
+            alarms: markers(&result.alarms, "shutdown"),
         };
         render(&data, path, 1200, 800)?;
     }
@@ -146,6 +241,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "trace": a.trace.display().to_string(),
         "rows": drive.len(),
         "truth": result.scores,
+        "alarm": {
+            "watched_nodes": protection.watched().len(),
+            "derating_product": rule_product,
+            "shutdown_latched": protection.shutdown_latched(),
+        },
         "alarms": result.alarms,
         "step_time": result.times,
         "out": a.out.display().to_string(),
@@ -189,15 +289,32 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             println!("covariance recoveries: {}", k.recoveries());
         }
     }
-    if result.alarms.is_empty() {
-        println!("alarms: none");
-    } else {
-        for e in &result.alarms {
-            println!(
-                "alarm {} at t = {:.1} s: {} at {:.2} degC (limit {:.1} degC)",
-                e.kind, e.time_s, e.node, e.temp_c, e.limit_c
-            );
+    println!(
+        "alarm: {} watched nodes, derating product {:.4}, shutdown {}",
+        protection.watched().len(),
+        rule_product,
+        if protection.shutdown_latched() {
+            "latched"
+        } else {
+            "not latched"
         }
+    );
+    if result.alarms.is_empty() {
+        println!("alarm events: none");
+    }
+    for e in result.alarms.iter().take(MAX_PRINTED_EVENTS) {
+        let at = match (&e.node, e.temp_c, e.limit_c) {
+            (Some(n), Some(t), Some(l)) => format!(": {n} at {t:.2} degC (level {l:.2} degC)"),
+            (Some(n), _, _) => format!(": {n}"),
+            _ => String::new(),
+        };
+        println!("{} {} at t = {:.1} s{at}", e.level, e.kind, e.time_s);
+    }
+    if result.alarms.len() > MAX_PRINTED_EVENTS {
+        println!(
+            "... and {} more alarm events (--json lists them all)",
+            result.alarms.len() - MAX_PRINTED_EVENTS
+        );
     }
     let t = &result.times;
     println!(
