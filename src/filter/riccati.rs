@@ -260,7 +260,7 @@ fn solve_subset<T: RealField + Copy, const P: usize>(
             d -= l[(i, k)] * l[(i, k)];
         }
         // Also refuses NaN.
-        if !(d > T::zero()) {
+        if d.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
             return None;
         }
         l[(i, i)] = d.sqrt();
