@@ -254,18 +254,27 @@ pub fn predict_mean<T: RealField + Copy, const N: usize, const M: usize, const P
     }
 }
 
-/// Full predict: `x = F x + G u`, `P = F P F^T + Q`, exactly symmetric. A
-/// trailing block of random-walk states (unit rows of `F`, found at build
-/// time) and the symmetry of `P` are exploited: about 40 % fewer
+/// Full predict: `x = F x + G u`, `P = F P F^T + Q`, exactly symmetric.
+/// When `F` ends in a block of random-walk states (unit rows, found at build
+/// time), that block and the symmetry of `P` are exploited: about 40 % fewer
 /// multiply-adds for the Omnimagnet's 16 + 3 states, same result to
-/// rounding.
+/// rounding; otherwise the plain product.
 pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
     cfg: &KalmanConfig<T, N, M, P>,
     state: &mut KalmanState<T, N, P>,
     u: &SVector<T, M>,
 ) -> InputStatus {
     let status = predict_mean(cfg, &mut state.x, u);
-    propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, &mut state.cov);
+    if cfg.walk_from < N {
+        propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, &mut state.cov);
+    } else {
+        // Without random walks the plain product, so that models without
+        // them keep their results bit for bit (the host tool mirrors them).
+        let prev = state.cov;
+        state.cov.copy_from(&cfg.q);
+        state.cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
+        state.cov = state.cov.symmetric_part();
+    }
     status
 }
 
