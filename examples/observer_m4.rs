@@ -98,6 +98,8 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
     let omni_currents = [3.8f32; 3];
 
     let (mut plain, mut corrected) = (cost::Stats::default(), cost::Stats::default());
+    let (mut omni_plain, mut omni_corrected) = (cost::Stats::default(), cost::Stats::default());
+    let mut omni_after_fault = cost::Stats::default();
     let mut now_us = 0u32;
     let mut steps_total = 0u32;
     let mut statuses_ok = true;
@@ -146,14 +148,18 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
             now_us,
             elapsed_us,
         };
-        let ((steps, omni_out), insn) = meter.measure(|| {
-            let steps = grid.tick(&mut gs, &grid_in).steps;
-            (steps, *omni.tick(&mut os, &omni_in))
-        });
+        let (steps, grid_insn) = meter.measure(|| grid.tick(&mut gs, &grid_in).steps);
+        let (omni_out, omni_insn) = meter.measure(|| *omni.tick(&mut os, &omni_in));
+        let insn = grid_insn + omni_insn;
         if omni_out.corrected {
             corrected.add(insn);
+            omni_corrected.add(omni_insn);
+            if k > 10_000 {
+                omni_after_fault.add(omni_insn);
+            }
         } else {
             plain.add(insn);
+            omni_plain.add(omni_insn);
         }
         for _ in 0..steps {
             bare.tick(
@@ -231,6 +237,15 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
         ram,
         build_stack,
         run_stack
+    );
+    hprintln!(
+        "cost: omnimagnet part mean {} worst {} insn; with correction mean {} worst {} insn, after the sensor fault mean {} worst {} insn",
+        omni_plain.mean(),
+        omni_plain.worst(),
+        omni_corrected.mean(),
+        omni_corrected.worst(),
+        omni_after_fault.mean(),
+        omni_after_fault.worst()
     );
     if !(grid_ok && omni_ok && statuses_ok && protect_ok && snapshot_ok) {
         return Err("a check failed");

@@ -511,6 +511,7 @@ fn a_second_task_reads_consistent_outputs_and_hands_in_readings() {
     static OUTPUTS: std::sync::OnceLock<Shared<GridOut>> = std::sync::OnceLock::new();
     static READINGS: Mailbox<TimedReading, 6> = Mailbox::new();
     static OMNI_TICKS: Shared<(u32, u32)> = Shared::new((0, 0));
+    static POSTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
     let grid = grid();
     let omni = omni();
     let outputs = OUTPUTS.get_or_init(|| Shared::new(*grid.state(20.0).outputs()));
@@ -521,6 +522,7 @@ fn a_second_task_reads_consistent_outputs_and_hands_in_readings() {
             if k % 50 == 0 {
                 let r = reading(22.0, 0).unwrap();
                 READINGS.post(k as usize % 6, r).unwrap();
+                POSTED.store(true, std::sync::atomic::Ordering::Release);
             }
             let copy = outputs.snapshot();
             // A torn copy would mix two ticks: temps and tick from different
@@ -534,6 +536,11 @@ fn a_second_task_reads_consistent_outputs_and_hands_in_readings() {
     let mut os = omni.state(&[22.0; NODES], 22.0);
     let currents = hot_currents();
     let mut fused = 0;
+    // The ticks are fast enough to end before the task thread has run at
+    // all; the reading check needs at least one posted in time.
+    while !POSTED.load(std::sync::atomic::Ordering::Acquire) {
+        std::thread::yield_now();
+    }
     for k in 0..3_000u32 {
         let out = tick(&grid, &mut gs, &currents, 1000);
         outputs.publish(out);

@@ -23,6 +23,9 @@ pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, con
     pub(crate) gate: GatePolicy<T>,
     /// Variances added to the diagonal of `P` on recovery.
     pub(crate) recovery_variance: SVector<T, N>,
+    /// First of the trailing states whose row of `F` is a unit row (random
+    /// walks, such as bias states): `N` when there are none.
+    pub(crate) walk_from: usize,
 }
 
 /// Input handling of one predict step.
@@ -153,6 +156,9 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
             return Err(BuildError::InvalidParameter { name: "r" });
         }
         let r_max = r.iter().fold(T::zero(), |a, v| a.max(*v));
+        let unit_row =
+            |i: usize| (0..N).all(|k| f[(i, k)] == if k == i { T::one() } else { T::zero() });
+        let walk_from = (0..N).rev().take_while(|i| unit_row(*i)).fold(N, |_, i| i);
         Ok(Self {
             f,
             g,
@@ -165,6 +171,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
                 recover_after: 5,
             },
             recovery_variance: SVector::repeat(r_max * nalgebra::convert(1e4)),
+            walk_from,
         })
     }
 
@@ -247,18 +254,125 @@ pub fn predict_mean<T: RealField + Copy, const N: usize, const M: usize, const P
     }
 }
 
-/// Full predict: `x = F x + G u`, `P = F P F^T + Q` (symmetrised).
+/// Full predict: `x = F x + G u`, `P = F P F^T + Q`, exactly symmetric.
+/// When `F` ends in a block of random-walk states (unit rows, found at build
+/// time), that block and the symmetry of `P` are exploited: about 40 % fewer
+/// multiply-adds for the Omnimagnet's 16 + 3 states, same result to
+/// rounding; otherwise the plain product.
 pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
     cfg: &KalmanConfig<T, N, M, P>,
     state: &mut KalmanState<T, N, P>,
     u: &SVector<T, M>,
 ) -> InputStatus {
     let status = predict_mean(cfg, &mut state.x, u);
-    let prev = state.cov;
-    state.cov.copy_from(&cfg.q);
-    state.cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
-    state.cov = state.cov.symmetric_part();
+    if cfg.walk_from < N {
+        propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, &mut state.cov);
+    } else {
+        // Without random walks the plain product, so that models without
+        // them keep their results bit for bit (the host tool mirrors them).
+        let prev = state.cov;
+        state.cov.copy_from(&cfg.q);
+        state.cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
+        state.cov = state.cov.symmetric_part();
+    }
     status
+}
+
+/// Rows per register block of [`propagate_cov`].
+const BLOCK: usize = 8;
+
+/// `sum_k m[start..start + BLOCK, k] w_k` for the column-major `m` with
+/// `ROWS` rows (rows past the end of a column count as zero): a fixed-size
+/// accumulator the compiler keeps in registers.
+fn block_combination<T: RealField + Copy, const ROWS: usize>(
+    m: &[T],
+    start: usize,
+    weights: impl Iterator<Item = T>,
+) -> [T; BLOCK] {
+    let mut acc = [T::zero(); BLOCK];
+    for (col, w) in m.chunks_exact(ROWS).zip(weights) {
+        match col.get(start..start + BLOCK) {
+            Some(block) => {
+                for (a, v) in acc.iter_mut().zip(block) {
+                    *a += *v * w;
+                }
+            }
+            None => {
+                for (a, v) in acc.iter_mut().zip(col.iter().skip(start)) {
+                    *a += *v * w;
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// Writes `acc` into `col[start..]`, as far as the column reaches.
+fn store_block<T: Copy>(col: &mut [T], start: usize, acc: &[T; BLOCK]) {
+    for (c, v) in col.iter_mut().skip(start).zip(acc) {
+        *c = *v;
+    }
+}
+
+/// `P = F P F^T + Q` for a symmetric `P` and `Q`, exactly symmetric, where
+/// rows `a..N` of `F` are unit rows (`a = walk_from`, `N` for none), i.e.
+/// `F = [[Phi, Gamma], [0, I]]`. Three exact savings over the plain product
+/// (`2 N^3` multiply-adds), with `Y = F P`:
+/// * `Y` is needed in rows `0..a` only: rows `a..N` of `F P` are those of `P`;
+/// * only the lower triangle of `Y F^T` is formed, then mirrored;
+/// * below the top-left block, `(Y F^T)[i, j] = (F P)[j, i]` for `i >= a`
+///   (`P` symmetric, row `i` of `F` unit), and for `j >= a` it is `P[i, j]`,
+///   so only the top-left `a x a` triangle needs a product.
+///
+/// About `a N^2 + N a (a + 1) / 2` multiply-adds: 8360 for the Omnimagnet's
+/// 16 + 3 states against 13 718. Columns are walked contiguously (nalgebra
+/// stores column-major) in blocks of [`BLOCK`] rows accumulated in
+/// registers.
+pub(crate) fn propagate_cov<T: RealField + Copy, const N: usize>(
+    f: &SMatrix<T, N, N>,
+    q: &SMatrix<T, N, N>,
+    walk_from: usize,
+    cov: &mut SMatrix<T, N, N>,
+) {
+    let a = walk_from.min(N);
+    let p = *cov;
+    let fs = f.as_slice();
+    // Y[:a, j] = sum_k F[:a, k] P[k, j], in blocks of rows held in registers.
+    let mut y = SMatrix::<T, N, N>::zeros();
+    for (ycol, pcol) in y
+        .as_mut_slice()
+        .chunks_exact_mut(N)
+        .zip(p.as_slice().chunks_exact(N))
+    {
+        for start in (0..a).step_by(BLOCK) {
+            let acc = block_combination::<T, N>(fs, start, pcol.iter().copied());
+            store_block(ycol, start, &acc);
+        }
+    }
+    // C[i, j] = sum_k Y[i, k] F[j, k] for j <= i < a (blocks may reach above
+    // the diagonal; those entries are not used).
+    let ys = y.as_slice();
+    let mut c = SMatrix::<T, N, N>::zeros();
+    for (j, ccol) in c.as_mut_slice().chunks_exact_mut(N).enumerate().take(a) {
+        let fj = fs.iter().skip(j).step_by(N).copied();
+        for start in (j - j % BLOCK..a).step_by(BLOCK) {
+            let acc = block_combination::<T, N>(ys, start, fj.clone());
+            store_block(ccol, start, &acc);
+        }
+    }
+    for j in 0..N {
+        for i in j..N {
+            let v = if j >= a {
+                p[(i, j)]
+            } else if i >= a {
+                y[(j, i)]
+            } else {
+                c[(i, j)]
+            } + q[(i, j)];
+            cov[(i, j)] = v;
+            cov[(j, i)] = v;
+        }
+    }
 }
 
 /// One scalar measurement `z = h x + v`, `var(v) = r`, fused into (`x`, `P`)
@@ -567,6 +681,43 @@ mod tests {
         }
         let mean = total / (runs * steps) as f64;
         assert!((3.34..=4.66).contains(&mean), "mean NEES {mean}");
+    }
+
+    /// The structured propagation against the plain `F P F^T + Q` (f64), for
+    /// no, some and only random-walk states.
+    #[test]
+    fn propagate_cov_matches_plain_product() {
+        let mut rng = Rng::new(404);
+        for walk_from in [7usize, 5, 2, 0] {
+            let mut f: SMatrix<f64, 7, 7> = rng.matrix();
+            for i in walk_from..7 {
+                for k in 0..7 {
+                    f[(i, k)] = if i == k { 1.0 } else { 0.0 };
+                }
+            }
+            let l: SMatrix<f64, 7, 7> = rng.matrix();
+            let p = (l * l.transpose()).symmetric_part();
+            let lq: SMatrix<f64, 7, 7> = rng.matrix();
+            let q = (lq * lq.transpose() * 0.01).symmetric_part();
+            let cfg = KalmanConfig::<f64, 7, 1, 1>::new(
+                f,
+                SMatrix::zeros(),
+                SMatrix::<f64, 1, 7>::repeat(1.0),
+                q,
+                Vector1::new(1.0),
+            )
+            .unwrap();
+            assert_eq!(cfg.walk_from, walk_from);
+            let plain = f * p * f.transpose() + q;
+            let mut fast = p;
+            propagate_cov(&f, &q, cfg.walk_from, &mut fast);
+            assert_eq!(fast, fast.transpose());
+            let err = (fast - plain).abs().max();
+            assert!(
+                err < 1e-13 * plain.abs().max(),
+                "walk_from {walk_from}: {err}"
+            );
+        }
     }
 
     #[test]

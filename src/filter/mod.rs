@@ -62,13 +62,16 @@
 //! with the stored `S`, then:
 //! * all `P` readings fused: `x += K (z - H x)`;
 //! * some missing or rejected: `K`'s columns assume the other sensors'
-//!   information, so they are not used; instead the accepted readings are
-//!   fused by the sequential Joseph update starting from the stored steady
-//!   prior `M`. That is the optimal update for the sensor subset given `M`, at
-//!   bounded O(P N^2) cost for that correction only. The next correction again
-//!   assumes `M`, slightly optimistic after a missed reading (the filter's
-//!   one approximation; the time-varying filter has none).
-//! * recovery: as above, on a copy of `M` inflated by the same diagonal.
+//!   information, so they are not used; instead the accepted subset `s` is
+//!   fused with `x += M H_s^T (H_s M H_s^T + R_s)^-1 nu_s`, from `M H^T` and
+//!   `S = H M H^T + R` stored with the gain: the optimal update for the
+//!   subset given `M` (what sequential Joseph updates from `M` give, to
+//!   rounding), at `O(N P + P^3)`, never touching an `N x N` matrix. The
+//!   next correction again assumes `M`, slightly optimistic after a missed
+//!   reading (the filter's one approximation; the time-varying filter has
+//!   none).
+//! * recovery: as above, with `M` inflated by the same diagonal `D` (through
+//!   `M H^T + D H^T` and `S + H D H^T`).
 //!
 //! # Costs (N = 16, M = 3, P = 6; multiply-adds, one flop = half of one)
 //! | call | multiply-adds | when |
@@ -77,17 +80,17 @@
 //! | [`predict`] | ~8.5 k (`F P F^T` 8192 + mean) | every tick, time-varying |
 //! | [`update`], 6 readings | ~10 k (gate 6 x 290, Joseph 6 x 1.3 k) | per correction |
 //! | [`update_steady`], all fused | 192 (`H x` 96 + `K nu` 96) | per correction |
-//! | [`update_steady`], fallback | <= ~8 k | a correction with a sensor out |
+//! | [`update_steady`], fallback | <= ~190 (`N P` 96, Cholesky and solves of `S` ~90) | a correction with a sensor out |
 //!
 //! At 1 kHz with 2 Hz corrections: about 17 Mflop/s time-varying, 0.6 Mflop/s
 //! steady-state.
 //!
 //! # Memory (N = 16, M = 3, P = 6, f32; f64 doubles it)
 //! * [`KalmanConfig`] ~2.7 KiB (shared), [`KalmanState`] ~1.1 KiB,
-//!   [`SteadyStateGain`] ~2.5 KiB (shared), [`SteadyEstimate`] 80 B.
+//!   [`SteadyStateGain`] ~3 KiB (shared), [`SteadyEstimate`] 80 B.
 //! * Stack, estimated from the N x N temporaries each call holds (about 1 KiB
 //!   each; not measured): [`predict`] ~2 KiB, [`update`] ~2 KiB,
-//!   [`update_steady`] ~3 KiB in the fallback (0.1 KiB otherwise),
+//!   [`update_steady`] 0.3 KiB,
 //!   [`SteadyStateGain::solve`] ~20 KiB (build time: run it before the
 //!   control loop's task starts, or on the host), [`observability()`] ~3 KiB.
 //!

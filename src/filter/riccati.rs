@@ -4,8 +4,8 @@
 
 use nalgebra::{Cholesky, RealField, SMatrix, SVector};
 
-use super::gate::{gate_all, judge, usable, GateCounters, SensorVerdict, UpdateReport};
-use super::kalman::{add_diagonal, fuse_accepted, fuse_scalar, max_abs, KalmanConfig};
+use super::gate::{judge, usable, GateCounters, SensorVerdict, UpdateReport};
+use super::kalman::{add_diagonal, fuse_scalar, max_abs, KalmanConfig};
 use crate::error::BuildError;
 
 /// Upper bound on doubling steps: step `i` covers `2^i` correction periods,
@@ -22,6 +22,11 @@ pub struct SteadyStateGain<T: RealField + Copy, const N: usize, const P: usize> 
     prior: SMatrix<T, N, N>,
     posterior: SMatrix<T, N, N>,
     innovation_var: SVector<T, P>,
+    /// `M H^T`: with `S` below, the update of any sensor subset from `M`
+    /// without touching an `N x N` matrix.
+    prior_ht: SMatrix<T, N, P>,
+    /// Innovation covariance `S = H M H^T + R` of all sensors.
+    innovation_cov: SMatrix<T, P, P>,
 }
 
 /// Per-device state of the steady-state filter: the estimate and the gate
@@ -169,8 +174,9 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
         let hm = h * prior;
         let mut s = hm * cfg.ht;
         add_diagonal(&mut s, &cfg.r);
+        let s = s.symmetric_part();
         let innovation_var = SVector::<T, P>::from_fn(|j, _| s[(j, j)]);
-        let chol = Cholesky::new(s.symmetric_part()).ok_or(BuildError::Singular)?;
+        let chol = Cholesky::new(s).ok_or(BuildError::Singular)?;
         let gain = chol.solve(&hm).transpose();
         if !gain.iter().all(|v| v.is_finite()) {
             return Err(BuildError::Singular);
@@ -181,6 +187,8 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
             prior,
             posterior,
             innovation_var,
+            prior_ht: hm.transpose(),
+            innovation_cov: s,
         })
     }
 
@@ -208,6 +216,103 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
     pub fn innovation_var(&self) -> &SVector<T, P> {
         &self.innovation_var
     }
+
+    /// Steady-state innovation covariance `S = H M H^T + R` (P x P).
+    pub fn innovation_cov(&self) -> &SMatrix<T, P, P> {
+        &self.innovation_cov
+    }
+
+    /// `M H^T` (N x P): the columns the update of any sensor subset combines.
+    pub fn prior_ht(&self) -> &SMatrix<T, N, P> {
+        &self.prior_ht
+    }
+}
+
+/// Solves `S_ss w_s = nu_s` on the sensors `used` (`w` is zero elsewhere) by
+/// Cholesky; `None` unless `S_ss` is positive definite and `w` finite.
+///
+/// The unused rows and columns are replaced by those of the identity, so one
+/// fixed-size factorisation serves every subset: `O(P^3 / 6)`.
+fn solve_subset<T: RealField + Copy, const P: usize>(
+    s: &SMatrix<T, P, P>,
+    nu: &SVector<T, P>,
+    used: &[bool; P],
+) -> Option<SVector<T, P>> {
+    let mut l = SMatrix::<T, P, P>::zeros();
+    let mut w = SVector::<T, P>::zeros();
+    for i in 0..P {
+        if !used[i] {
+            l[(i, i)] = T::one();
+            continue;
+        }
+        for j in 0..i {
+            if !used[j] {
+                continue;
+            }
+            let mut v = s[(i, j)];
+            for k in 0..j {
+                v -= l[(i, k)] * l[(j, k)];
+            }
+            l[(i, j)] = v / l[(j, j)];
+        }
+        let mut d = s[(i, i)];
+        for k in 0..i {
+            d -= l[(i, k)] * l[(i, k)];
+        }
+        // Also refuses NaN.
+        if d.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return None;
+        }
+        l[(i, i)] = d.sqrt();
+        w[i] = nu[i];
+    }
+    // L y = nu, then L^T w = y (unused rows stay zero: their row of L is e_i
+    // and their right-hand side zero).
+    for i in 0..P {
+        let mut v = w[i];
+        for k in 0..i {
+            v -= l[(i, k)] * w[k];
+        }
+        w[i] = v / l[(i, i)];
+    }
+    for i in (0..P).rev() {
+        let mut v = w[i];
+        for k in i + 1..P {
+            v -= l[(k, i)] * w[k];
+        }
+        w[i] = v / l[(i, i)];
+    }
+    w.iter().all(|v| v.is_finite()).then_some(w)
+}
+
+/// `x += M H_s^T (H_s M H_s^T + R_s)^-1 nu_s` over the fused sensors `s`
+/// (the batch form of the sequential update from the prior `M`, equal to it
+/// up to rounding because `R` is diagonal), from `mht = M H^T` and
+/// `S = H M H^T + R`. Fused verdicts become rejected if it is not finite.
+/// `O(N P + P^3)`, against `O(P N^2)` for the sequential Joseph updates.
+fn fuse_subset<T: RealField + Copy, const N: usize, const P: usize>(
+    x: &mut SVector<T, N>,
+    mht: &SMatrix<T, N, P>,
+    s: &SMatrix<T, P, P>,
+    nu: &SVector<T, P>,
+    verdicts: &mut [SensorVerdict; P],
+) {
+    let used = verdicts.map(|v| v.is_fused());
+    let step = solve_subset(s, nu, &used).map(|w| {
+        let mut x_new = *x;
+        x_new.gemv(T::one(), mht, &w, T::one());
+        x_new
+    });
+    match step {
+        Some(x_new) if x_new.iter().all(|v| v.is_finite()) => *x = x_new,
+        _ => {
+            for v in verdicts.iter_mut() {
+                if let SensorVerdict::Fused { nis } = *v {
+                    *v = SensorVerdict::Rejected { nis };
+                }
+            }
+        }
+    }
 }
 
 /// Steady-state correction, to be called once every `ss.period()` calls of
@@ -216,13 +321,15 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
 /// Every present reading is gated with the stored innovation variance. If all
 /// `P` are fused, `x += K (z - H x)` (2 N P multiply-adds). Otherwise (a
 /// sensor missing or rejected) the full gain is wrong (its columns assume the
-/// other sensors' information), so this correction falls back to sequential
-/// Joseph updates of the accepted readings starting from the stored prior
-/// `M`: the optimal update for that sensor subset given `M`, bounded at
-/// O(P N^2). The stored `M` is then slightly optimistic for the next
-/// correction (a missed reading leaves more uncertainty); the gate uses the
-/// same `M`, so this is the filter's only approximation. Recovery inflates a
-/// copy of `M` the same way as [`super::update`].
+/// other sensors' information), so this correction uses the optimal update
+/// for the accepted subset `s` given the stored prior `M`,
+/// `x += M H_s^T (H_s M H_s^T + R_s)^-1 nu_s`, from the stored `M H^T` and
+/// `S` (a `P x P` Cholesky and an `N x P` product, `O(N P + P^3)`; the same
+/// result as sequential Joseph updates from `M`, to rounding). The stored
+/// `M` is then slightly optimistic for the next correction (a missed reading
+/// leaves more uncertainty); the gate uses the same `M`, so this is the
+/// filter's only approximation. Recovery inflates `M` by the same diagonal as
+/// [`super::update`], through `M H^T` and `S` only (`O(N P^2)`).
 pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
     cfg: &KalmanConfig<T, N, M, P>,
     ss: &SteadyStateGain<T, N, P>,
@@ -238,10 +345,25 @@ pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const 
     }
     let recovered = est.gate.record_gate(&verdicts, cfg.gate.recover_after);
     if recovered {
-        let mut cov = ss.prior;
-        add_diagonal(&mut cov, &cfg.recovery_variance);
-        verdicts = gate_all(&est.x, &cov, &cfg.ht, &cfg.r, z, cfg.gate.threshold);
-        fuse_accepted(&mut est.x, &mut cov, &cfg.ht, &cfg.r, z, &mut verdicts);
+        // M + D for the inflation D: (M + D) H^T = M H^T + D H^T and
+        // S + H D H^T, so the inflated prior is never formed.
+        let d = &cfg.recovery_variance;
+        let mut mht = ss.prior_ht;
+        let mut s = ss.innovation_cov;
+        for (j, hj) in cfg.ht.column_iter().enumerate() {
+            for (n, dn) in d.iter().enumerate() {
+                mht[(n, j)] += *dn * hj[n];
+            }
+            for (i, hi) in cfg.ht.column_iter().enumerate() {
+                s[(i, j)] += hi.component_mul(&hj).dot(d);
+            }
+        }
+        for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+            if usable(*zj).is_some() {
+                *verdict = judge(nu[j], s[(j, j)], cfg.gate.threshold);
+            }
+        }
+        fuse_subset(&mut est.x, &mht, &s, &nu, &mut verdicts);
     } else if verdicts.iter().all(|v| v.is_fused()) {
         let mut x_new = est.x;
         x_new.gemv(T::one(), &ss.gain, &nu, T::one());
@@ -255,8 +377,13 @@ pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const 
             }
         }
     } else if verdicts.iter().any(|v| v.is_fused()) {
-        let mut cov = ss.prior;
-        fuse_accepted(&mut est.x, &mut cov, &cfg.ht, &cfg.r, z, &mut verdicts);
+        fuse_subset(
+            &mut est.x,
+            &ss.prior_ht,
+            &ss.innovation_cov,
+            &nu,
+            &mut verdicts,
+        );
     }
     let suspect = est.gate.record_sensors(&verdicts, cfg.gate.suspect_after);
     UpdateReport {
@@ -391,6 +518,77 @@ mod tests {
         let rep = update_steady(&cfg, &ss, &mut est, &[None, Some(f64::INFINITY)]);
         assert_eq!(rep.fused(), 0);
         assert_eq!(est.x, x0);
+    }
+
+    /// Every subset of six sensors (missing or gated out): the update equals
+    /// the batch formula with the subset's inverse from the stored prior and
+    /// the sequential Joseph updates from it; after recovery, the same with
+    /// the inflated prior.
+    #[test]
+    fn steady_update_every_sensor_subset() {
+        use crate::filter::kalman::fuse_accepted;
+        let mut rng = Rng::new(61);
+        let sys = RandomSystem::<5, 6>::new(&mut rng, 0.97, 0.02);
+        let cfg = KalmanConfig::<f64, 5, 1, 6>::new(sys.f, rng.matrix(), sys.h, sys.q, sys.r)
+            .unwrap()
+            .with_gate(f64::INFINITY)
+            .unwrap();
+        let ss = SteadyStateGain::solve(&cfg, 3).unwrap();
+        let x0: SVector<f64, 5> = rng.matrix();
+        let zv: SVector<f64, 6> = sys.h * rng.matrix::<5, 1>();
+        let batch = |m: &SMatrix<f64, 5, 5>, used: &[bool; 6], zv: &SVector<f64, 6>| {
+            let idx: Vec<usize> = (0..6).filter(|j| used[*j]).collect();
+            let hs =
+                SMatrix::<f64, 6, 5>::from_fn(|r, c| idx.get(r).map_or(0.0, |j| sys.h[(*j, c)]));
+            let mut s = hs * m * hs.transpose();
+            for r in 0..6 {
+                s[(r, r)] += idx.get(r).map_or(1.0, |j| sys.r[*j]);
+            }
+            let nu = SVector::<f64, 6>::from_fn(|r, _| {
+                idx.get(r).map_or(0.0, |j| zv[*j] - (sys.h.row(*j) * x0)[0])
+            });
+            x0 + m * hs.transpose() * s.try_inverse().unwrap() * nu
+        };
+        for mask in 1u32..64 {
+            let used: [bool; 6] = core::array::from_fn(|j| mask & (1 << j) != 0);
+            let z: [Option<f64>; 6] = core::array::from_fn(|j| used[j].then_some(zv[j]));
+            let mut est = SteadyEstimate::new(x0);
+            let rep = update_steady(&cfg, &ss, &mut est, &z);
+            assert_eq!(rep.fused(), mask.count_ones() as usize);
+            let expect = batch(ss.prior(), &used, &zv);
+            let tol = 1e-10 * (1.0 + expect.abs().max());
+            assert!((est.x - expect).abs().max() < tol, "mask {mask:06b}");
+            let (mut x_seq, mut cov) = (x0, *ss.prior());
+            let mut verdicts = rep.verdicts;
+            fuse_accepted(&mut x_seq, &mut cov, &cfg.ht, &cfg.r, &z, &mut verdicts);
+            assert!((est.x - x_seq).abs().max() < tol, "mask {mask:06b}");
+        }
+
+        // Readings 100 sigma off: every one fails the gate against M, so
+        // recovery (after 1) inflates M by D and fuses them against M + D.
+        let d = SVector::<f64, 5>::from_fn(|i, _| 1e6 * (1.0 + i as f64));
+        let cfg = cfg
+            .with_gate(crate::filter::CHI2_1DOF_999)
+            .unwrap()
+            .with_recovery(1, d)
+            .unwrap();
+        let mut inflated = *ss.prior();
+        add_diagonal(&mut inflated, &d);
+        let far = sys.h * x0 + SVector::from_fn(|j, _| 100.0 * ss.innovation_var()[j].sqrt());
+        for mask in [0b111111u32, 0b101101, 0b000100] {
+            let used: [bool; 6] = core::array::from_fn(|j| mask & (1 << j) != 0);
+            let z: [Option<f64>; 6] = core::array::from_fn(|j| used[j].then_some(far[j]));
+            let mut est = SteadyEstimate::new(x0);
+            let rep = update_steady(&cfg, &ss, &mut est, &z);
+            assert!(rep.recovered);
+            assert_eq!(rep.fused(), mask.count_ones() as usize);
+            let expect = batch(&inflated, &used, &far);
+            let tol = 1e-9 * (1.0 + expect.abs().max());
+            assert!(
+                (est.x - expect).abs().max() < tol,
+                "recovery mask {mask:06b}"
+            );
+        }
     }
 
     /// Over a simulated run the steady-state filter (predict_mean, k = 20)

@@ -8,6 +8,28 @@
 //!   (nodes 7 .. 12, [`ALARM_NODES`]), the current limiter on the three
 //!   solenoid currents, and the sliced modal time-to-limit predictor.
 //!
+//! # Protection cycle
+//!
+//! A 1 ms step changes a solenoid by about 1e-4 K, so the protection need
+//! not follow every step: it runs once every
+//! [`OmniSettings::protect_period_steps`] model steps (default 16 ms), one
+//! stage per tick so that no tick carries more than one: a predictor slice
+//! (one horizon), then the alarm, then the limiter. Between cycles the
+//! outputs stand, except the times to limit, which are aged every tick. The
+//! slice is put off by one tick when that tick also corrects or catches up
+//! (never twice in a row), so a correction tick does not carry the most
+//! expensive stage. The limits lag the model by at most a cycle and three
+//! ticks (20 ms at the defaults, against time constants of seconds), and the
+//! alarm's debounce and event stamps count cycles, not ticks.
+//!
+//! The predictor is built for one slice per cycle (`tick_s` = the cycle)
+//! and is fed the largest current of each solenoid since its last slice, so
+//! its conservative bound still covers currents that vary within a cycle.
+//! Each slice ages its answers by one cycle; the real time it lags behind
+//! (a put-off slice, a catch-up, dropped time) is counted and subtracted
+//! from the published times to limit, so they stay never later than the
+//! model's.
+//!
 //! It does not re-linearise: a full Omnimagnet observer with re-linearisation
 //! lives in `omnimagnet::observer`, and this adapter is meant to be replaced
 //! by it; only the tick API here is meant to last.
@@ -85,6 +107,11 @@ pub struct OmniSettings {
     pub hardware_limit_a: f64,
     /// Width of the limiter's taper band \[K\]. Default 10.
     pub taper_k: f64,
+    /// Model steps per protection cycle (see the module docs), at least
+    /// `4 max_steps_per_tick`: a cycle takes at most four ticks (a put-off
+    /// slice and three stages), so it always ends before the next is due
+    /// and the predictor's lag stays bounded. Default 16.
+    pub protect_period_steps: u32,
 }
 
 impl Default for OmniSettings {
@@ -98,6 +125,7 @@ impl Default for OmniSettings {
             max_reading_age_us: 100_000,
             hardware_limit_a: 8.0,
             taper_k: 10.0,
+            protect_period_steps: 16,
         }
     }
 }
@@ -194,6 +222,10 @@ pub struct OmniObserver {
     clock: StepClock,
     limits: ScalarLimits<f32>,
     max_reading_age_us: u32,
+    /// Model step \[us\].
+    step_us: u32,
+    /// Length of a protection cycle \[us\]: `protect_period_steps` steps.
+    protect_period_us: u32,
     fingerprint: u32,
 }
 
@@ -214,6 +246,16 @@ pub struct OmniObserverState {
     pub events: EventQueue<EVENT_CAPACITY>,
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
+    /// Largest held current magnitude of each solenoid since the last
+    /// predictor slice \[A\].
+    peak_currents_a: [f32; SOLENOIDS],
+    /// Real time minus the predictor's own ageing \[us\]: how much older its
+    /// answers are than it assumes.
+    predictor_lag_us: u32,
+    /// Next protection stage: 0 none, 1 predictor slice, 2 alarm, 3 limiter.
+    stage: u8,
+    /// The predictor slice was put off on the previous tick.
+    slice_put_off: bool,
     outputs: OmniOutputs,
 }
 
@@ -240,6 +282,15 @@ impl OmniObserver {
     ) -> Result<Self, BuildError> {
         let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?;
         let dt_s = clock.step_s();
+        let period = settings.protect_period_steps;
+        let protect_period_us = period.checked_mul(settings.step_us);
+        let Some(protect_period_us) =
+            protect_period_us.filter(|_| period >= 4 * settings.max_steps_per_tick)
+        else {
+            return Err(BuildError::InvalidParameter {
+                name: "protect_period_steps",
+            });
+        };
         let (kalman, gain, fingerprint) =
             Self::filter(model, op_temps_c, ambient_c, dt_s, settings)?;
         let rule = DeratingRule::omnimagnet();
@@ -250,7 +301,7 @@ impl OmniObserver {
             settings.taper_k,
             0.0,
         )?;
-        let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s)?;
+        let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
         Ok(Self {
             kalman,
             gain,
@@ -260,6 +311,8 @@ impl OmniObserver {
             clock,
             limits: InputLimits::default().to_scalar(),
             max_reading_age_us: settings.max_reading_age_us,
+            step_us: settings.step_us,
+            protect_period_us,
             fingerprint,
         })
     }
@@ -271,10 +324,10 @@ impl OmniObserver {
         model: &Omnimagnet,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
-        dt_s: f64,
+        cycle_s: f64,
     ) -> Result<LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>, BuildError> {
         PredictorBuilder::new()
-            .tick_s(dt_s)
+            .tick_s(cycle_s)
             .build(&model.network(op_temps_c, ambient_c)?)
     }
 
@@ -328,7 +381,9 @@ impl OmniObserver {
             .f64(q)
             .f64(r)
             .u32(settings.reading_period_steps);
-        fingerprint = fingerprint.f64s(&[settings.hardware_limit_a, settings.taper_k]);
+        fingerprint = fingerprint
+            .f64s(&[settings.hardware_limit_a, settings.taper_k])
+            .u32(settings.protect_period_steps);
         Ok((kalman, gain, fingerprint.finish()))
     }
 
@@ -355,6 +410,11 @@ impl OmniObserver {
             events: EventQueue::new(),
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
+            peak_currents_a: [0.0; SOLENOIDS],
+            predictor_lag_us: 0,
+            // The first ticks run a whole cycle: outputs valid from the start.
+            stage: 1,
+            slice_put_off: false,
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 limits: [CoilLimit::default(); SOLENOIDS],
@@ -392,9 +452,10 @@ impl OmniObserver {
     }
 
     /// One controller tick: model steps from the elapsed time (each a filter
-    /// predict and a predictor slice), a correction if readings arrived, then
-    /// the alarm and the limiter. Bounded (`max_steps_per_tick` steps and one
-    /// correction), allocation-free, panic-free.
+    /// predict), a correction if readings arrived, then at most one stage of
+    /// the protection cycle (see the module docs). Bounded
+    /// (`max_steps_per_tick` steps, one correction, one stage),
+    /// allocation-free, panic-free.
     pub fn tick<'s>(
         &self,
         state: &'s mut OmniObserverState,
@@ -411,36 +472,92 @@ impl OmniObserver {
         let [i1, i2, i3] = state.held_currents_a;
         let u =
             SVector::<f32, INPUTS>::from([i1 * i1, i2 * i2, i3 * i3, state.held_ambient_c, 1.0]);
-        let out = &mut state.outputs;
         for _ in 0..steps.steps {
             predict_mean(&self.kalman, &mut state.estimate.x, &u);
-            out.temps_c.copy_from_slice(state.estimate.x.as_slice());
-            let op = self.operating(&out.temps_c, &state.held_currents_a, state.held_ambient_c);
-            state.predictor.tick(&self.predictor, &op);
         }
+        if steps.steps > 0 {
+            for (peak, i) in state.peak_currents_a.iter_mut().zip(state.held_currents_a) {
+                *peak = peak.max(i.abs());
+            }
+        }
+        state.predictor_lag_us = state
+            .predictor_lag_us
+            .saturating_add(steps.steps.saturating_mul(self.step_us))
+            .saturating_add(steps.dropped_us);
         let corrected = self.correct(state, inputs);
         let out = &mut state.outputs;
         out.corrected = corrected;
         out.temps_c.copy_from_slice(state.estimate.x.as_slice());
 
-        let ttl = state.predictor.time_to_limit_s();
-        let mut temps = [0.0f32; ALARM_NODES.len()];
-        for ((t, time), node) in temps
-            .iter_mut()
-            .zip(out.time_to_limit_s.iter_mut())
-            .zip(ALARM_NODES)
-        {
-            *t = out.temps_c.get(node).copied().unwrap_or(f32::NAN);
-            *time = ttl.get(node).copied().flatten();
+        if state.stage == 0 && state.predictor_lag_us >= self.protect_period_us {
+            state.stage = 1;
         }
-        let ambient_c = state.held_ambient_c;
-        out.alarm = state.alarm.tick(
-            &self.alarm,
-            &temps,
-            ambient_c,
-            &out.time_to_limit_s,
-            &mut state.events,
-        );
+        let busy = corrected || steps.steps > 1;
+        match state.stage {
+            1 if busy && !state.slice_put_off => state.slice_put_off = true,
+            1 => {
+                state.slice_put_off = false;
+                let op = self.operating(
+                    &state.outputs.temps_c,
+                    &state.peak_currents_a,
+                    state.held_ambient_c,
+                );
+                state.predictor.tick(&self.predictor, &op);
+                state.predictor_lag_us = state
+                    .predictor_lag_us
+                    .saturating_sub(self.protect_period_us);
+                state.peak_currents_a = state.held_currents_a.map(f32::abs);
+                state.stage = 2;
+            }
+            2 => {
+                self.age_time_to_limit(state);
+                let out = &mut state.outputs;
+                let temps = alarm_temps(&out.temps_c);
+                out.alarm = state.alarm.tick(
+                    &self.alarm,
+                    &temps,
+                    state.held_ambient_c,
+                    &out.time_to_limit_s,
+                    &mut state.events,
+                );
+                state.stage = 3;
+            }
+            3 => {
+                self.limit(&mut state.outputs, state.held_ambient_c);
+                state.stage = 0;
+            }
+            _ => state.stage = 0,
+        }
+        self.age_time_to_limit(state);
+        let out = &mut state.outputs;
+        out.flags = flags;
+        out.steps = steps.steps;
+        out.dropped_us = steps.dropped_us;
+        out.tick = out.tick.wrapping_add(1);
+        &state.outputs
+    }
+
+    /// The predictor's answers for the [`ALARM_NODES`], made older by the
+    /// time it lags behind (never later than its own answer).
+    fn age_time_to_limit(&self, state: &mut OmniObserverState) {
+        let lag_s = state.predictor_lag_us as f32 * 1e-6;
+        let ttl = state.predictor.time_to_limit_s();
+        for (time, node) in state.outputs.time_to_limit_s.iter_mut().zip(ALARM_NODES) {
+            *time = ttl.get(node).copied().flatten().map(|t| {
+                let left = t - lag_s;
+                // NaN ("unknown") passes through.
+                if left < 0.0 {
+                    0.0
+                } else {
+                    left
+                }
+            });
+        }
+    }
+
+    /// The limiter on the three solenoids at the present estimate.
+    fn limit(&self, out: &mut OmniOutputs, ambient_c: f32) {
+        let temps = alarm_temps(&out.temps_c);
         let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let mut solenoid_c = [f32::NAN; SOLENOIDS];
         let mut solenoid_limit_c = [f32::NAN; SOLENOIDS];
@@ -470,11 +587,6 @@ impl OmniObserver {
         }
         self.limiter
             .apply(&solenoid_c, &solenoid_limit_c, ambient_c, &mut out.limits);
-        out.flags = flags;
-        out.steps = steps.steps;
-        out.dropped_us = steps.dropped_us;
-        out.tick = out.tick.wrapping_add(1);
-        &state.outputs
     }
 
     /// Sorts the readings and runs one steady-state correction if any is
@@ -581,4 +693,9 @@ impl OmniObserver {
         );
         self.state(&temps, ambient_c)
     }
+}
+
+/// The estimates of the [`ALARM_NODES`] \[degC\].
+fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
+    ALARM_NODES.map(|node| temps_c.get(node).copied().unwrap_or(f32::NAN))
 }

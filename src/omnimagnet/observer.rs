@@ -77,8 +77,8 @@
 //!   with the gain solved at build time for one correction every
 //!   `period = correction_period_s / dt` predicts (the thermocouples' 2 Hz).
 //!   A correction with a sensor missing, rejected, faulted or disabled uses
-//!   the optimal sequential update from the stored steady prior (bounded
-//!   `O(P N^2)`, see [`crate::filter`]).
+//!   the optimal update of that subset from the stored steady prior
+//!   (`O(N P + P^3)` from the stored `M H^T` and `S`, see [`crate::filter`]).
 //! * [`GainMode::TimeVarying`]: full covariance, [`predict`] every tick and
 //!   the sequential Joseph [`update`]. Exact for irregular sample times, for
 //!   a model that just changed and during the start transient.
@@ -115,12 +115,13 @@
 //! | call | work (N = 19, P = 6) |
 //! |---|---|
 //! | [`OmnimagnetObserver::predict`], steady | 3 `R(T)`, 456 multiply-adds |
-//! | [`OmnimagnetObserver::predict`], time-varying | about 14 k multiply-adds |
+//! | [`OmnimagnetObserver::predict`], time-varying | about 8.8 k multiply-adds (bias rows of `F` are unit rows) |
 //! | [`OmnimagnetObserver::correct`], steady, all six fused | 6 gate tests, 228 multiply-adds |
-//! | [`OmnimagnetObserver::correct`], otherwise | about 12 k multiply-adds |
+//! | [`OmnimagnetObserver::correct`], steady, a subset | 6 gate tests, about 300 multiply-adds |
+//! | [`OmnimagnetObserver::correct`], time-varying | about 12 k multiply-adds |
 //!
 //! Measured on the host: see the README's "Omnimagnet observer" section
-//! (steady predict 0.1 us, time-varying predict 3.5 us, in f32).
+//! (steady predict 0.04-0.07 us, time-varying predict 1.3-2 us, in f32).
 //! [`ObserverConfig`] holds `F`, `G`, `H^T`, `Q` and the steady gain (at
 //! most 8 KiB in f32, checked by a test); [`ObserverState`] the estimate and
 //! its covariance (at most 2 KiB in f32).
