@@ -386,6 +386,28 @@ fn omni_tick(
     )
 }
 
+/// A fresh state carries limits for its start temperatures, so the first
+/// ticks (before the protection cycle reaches the limiter) do not clamp
+/// the commands: full current when cold, the floor when the covers start
+/// above their alarm limit (a warm restart on a hot device).
+#[test]
+fn a_fresh_state_has_limits_for_its_start_temperatures() {
+    let omni = omni();
+    let cold = omni.state(&[22.0; NODES], 22.0);
+    for limit in &cold.outputs().limits {
+        assert!(!limit.invalid);
+        assert_eq!(limit.current_a, 8.0, "cold start: the hardware limit");
+    }
+    let hot = omni.state(&[150.0; NODES], 22.0);
+    for limit in &hot.outputs().limits {
+        assert!(!limit.invalid);
+        assert_eq!(
+            limit.current_a, 0.0,
+            "start above the alarm limit: the floor"
+        );
+    }
+}
+
 #[test]
 fn readings_late_old_faulty_and_not_finite_are_sorted() {
     let omni = omni();

@@ -402,7 +402,7 @@ impl OmniObserver {
     pub fn state(&self, temps_c: &[f32; NODES], ambient_c: f32) -> OmniObserverState {
         let x = SVector::from_column_slice(temps_c);
         let op = self.operating(temps_c, &[0.0; SOLENOIDS], ambient_c);
-        OmniObserverState {
+        let mut state = OmniObserverState {
             estimate: SteadyEstimate::new(x),
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
@@ -427,7 +427,12 @@ impl OmniObserver {
                 dropped_us: 0,
                 tick: 0,
             },
-        }
+        };
+        // Limits valid from the first tick: without this the first ticks
+        // (until the cycle reaches the limiter) would clamp every command to
+        // the default zero-current limit.
+        self.limit(&mut state.outputs, ambient_c);
+        state
     }
 
     fn operating(
