@@ -115,4 +115,4 @@ pub use observability::{observability, Observability};
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};
 
 #[cfg(test)]
-mod testutil;
+pub(crate) mod testutil;

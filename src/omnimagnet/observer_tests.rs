@@ -3,6 +3,7 @@
 //! Meant for `cargo test --release`.
 
 use super::*;
+use crate::filter::testutil::Rng;
 use crate::omnimagnet::{
     Contact, ConvectionParams, Peer, Preset, Radiator, RelinearizeConfig, NODE_NAMES,
     PAPER_OMNIMAGNET,
@@ -11,32 +12,9 @@ use crate::omnimagnet::{
 const AMBIENT_C: f64 = 22.0;
 const SAMPLE_S: f64 = 0.5;
 
-/// SplitMix64 and Box-Muller: deterministic test noise.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in (0, 1).
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    /// A factor uniform in [1 - a, 1 + a].
-    fn factor(&mut self, a: f64) -> f64 {
-        1.0 + a * (2.0 * self.uniform() - 1.0)
-    }
-
-    fn gauss(&mut self) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos()
-    }
+/// A factor uniform in [1 - a, 1 + a].
+fn factor(rng: &mut Rng, a: f64) -> f64 {
+    1.0 + a * (2.0 * rng.uniform() - 1.0)
 }
 
 /// The paper's Omnimagnet with every parameter scaled independently by a
@@ -50,13 +28,13 @@ impl Rng {
 /// So each convective contact draws its *total* factor in [1 - a, 1 + a] and
 /// its area takes that total divided by its group's factor.
 fn perturbed(seed: u64, a: f64) -> Omnimagnet {
-    let mut rng = Rng(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x1234_5678);
+    let mut rng = Rng::new(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x1234_5678);
     let mut g = PAPER_OMNIMAGNET;
     for e in g.elements.iter_mut() {
-        e.volume_m3 *= rng.factor(a);
+        e.volume_m3 *= factor(&mut rng, a);
     }
     let mut conv = ConvectionParams::PAPER;
-    conv.scale.iter_mut().for_each(|s| *s = rng.factor(a));
+    conv.scale.iter_mut().for_each(|s| *s = factor(&mut rng, a));
     let air = g.inside_air_node;
     let elements = g.elements;
     let group_scale = |solid: usize| {
@@ -72,18 +50,18 @@ fn perturbed(seed: u64, a: f64) -> Omnimagnet {
             Peer::Node(j) if c.node == air => Some(j),
             Peer::Node(_) => None,
         };
-        let total = rng.factor(a);
+        let total = factor(&mut rng, a);
         let f = convective_solid.map_or(total, |s| total / group_scale(s));
         c.area_m2.iter_mut().for_each(|s| *s *= f);
     }
     g.contacts = Box::leak(contacts.into_boxed_slice());
     let mut radiators: Vec<Radiator> = g.radiators.to_vec();
     for r in radiators.iter_mut() {
-        r.emissivity = (r.emissivity * rng.factor(a)).min(1.0);
+        r.emissivity = (r.emissivity * factor(&mut rng, a)).min(1.0);
     }
     g.radiators = Box::leak(radiators.into_boxed_slice());
     for s in g.solenoids.iter_mut() {
-        s.r0_ohm *= rng.factor(a);
+        s.r0_ohm *= factor(&mut rng, a);
     }
     Omnimagnet::new(g, conv).unwrap()
 }
@@ -239,7 +217,7 @@ fn run(sc: &Scenario) -> Outcome {
     let mut obs =
         OmnimagnetObserver::<f64>::new(&nominal, relin.active(), &sc.settings, &wrong, AMBIENT_C)
             .unwrap();
-    let mut noise = Rng(sc.seed ^ 0xABCD_EF01);
+    let mut noise = Rng::new(sc.seed ^ 0xABCD_EF01);
     let steps = (sc.duration_s / sc.dt_s).round() as usize;
     let per_sample = (SAMPLE_S / sc.dt_s).round() as usize;
     let mut sq = [0.0; NODES];
@@ -590,7 +568,7 @@ fn nees_is_consistent_on_the_matched_model() {
             GainMode::TimeVarying => (50, 1200, 240),
             GainMode::SteadyState => (30, 3600, 2400),
         };
-        let mut rng = Rng(99);
+        let mut rng = Rng::new(99);
         let (mut total, mut n) = (0.0, 0usize);
         let mut switched = None;
         for _ in 0..runs {
@@ -787,7 +765,7 @@ fn f32_matches_f64_at_1_ms() {
     let mut o32 =
         OmnimagnetObserver::<f32>::new(&nominal, &lin, &settings, &start, AMBIENT_C).unwrap();
     let mut truth = start;
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let mut worst: f64 = 0.0;
     for k in 0..600_000usize {
         let cur = preset.currents_a(0.0);
