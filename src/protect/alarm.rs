@@ -109,6 +109,18 @@ impl Debounced {
         self.count
     }
 
+    /// `true` when [`Self::update`] with `observation` would change
+    /// nothing: no evidence and a counter already at zero (or an inactive
+    /// alarm facing an unknown sample).
+    #[inline]
+    fn is_settled(&self, observation: Observation) -> bool {
+        match (self.active, observation) {
+            (false, Observation::Unknown) => true,
+            (false, obs) => self.count == 0 && obs != Observation::Above,
+            (true, obs) => self.count == 0 && obs != Observation::Below,
+        }
+    }
+
     fn update(
         &mut self,
         observation: Observation,
@@ -490,6 +502,8 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
             ambient_invalid: !ambient_valid,
             ..AlarmStatus::default()
         };
+        let (mut warning, mut shutdown, mut predictive, mut sensor_invalid) =
+            (false, false, false, false);
         let inputs = temps_c
             .iter()
             .zip(config.critical_c.iter())
@@ -500,11 +514,6 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
             let limit_c = derated_limit_c(critical_c, self.ambient_c, config.product);
             let warning_c = limit_c - config.warning_margin_k;
             let valid = temp_c.is_finite();
-            if valid == element.sensor_invalid {
-                push(Some(index), sensor_event(valid));
-            }
-            element.sensor_invalid = !valid;
-
             let (warning_obs, shutdown_obs) = if valid {
                 (
                     observe(temp_c, warning_c, config.hysteresis_k),
@@ -513,41 +522,56 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
             } else {
                 (Observation::Above, Observation::Unknown)
             };
+            let time_obs = observe_time(time_s, config);
             element.below_reset = shutdown_obs == Observation::Below;
-
-            let changes = [
-                (
-                    element.warning.update(warning_obs, debounce, false),
-                    EventKind::WarningRaised,
-                    EventKind::WarningCleared,
-                ),
-                (
-                    element.shutdown.update(shutdown_obs, debounce, true),
-                    EventKind::ShutdownLatched,
-                    // Never produced: the shutdown is latched.
-                    EventKind::Reset,
-                ),
-                (
-                    element
-                        .predictive
-                        .update(observe_time(time_s, config), debounce, false),
-                    EventKind::PredictiveRaised,
-                    EventKind::PredictiveCleared,
-                ),
-            ];
-            for (transition, raised, cleared) in changes {
-                match transition {
-                    Transition::Raised => push(Some(index), raised),
-                    Transition::Cleared => push(Some(index), cleared),
-                    Transition::None => {}
+            // The usual element: no alarm would move (see
+            // `Debounced::is_settled`) and the sensor's validity is
+            // unchanged, so the full update below would change nothing else.
+            let settled = valid != element.sensor_invalid
+                && element.warning.is_settled(warning_obs)
+                && element.shutdown.is_settled(shutdown_obs)
+                && element.predictive.is_settled(time_obs);
+            if !settled {
+                if valid == element.sensor_invalid {
+                    push(Some(index), sensor_event(valid));
+                }
+                element.sensor_invalid = !valid;
+                let changes = [
+                    (
+                        element.warning.update(warning_obs, debounce, false),
+                        EventKind::WarningRaised,
+                        EventKind::WarningCleared,
+                    ),
+                    (
+                        element.shutdown.update(shutdown_obs, debounce, true),
+                        EventKind::ShutdownLatched,
+                        // Never produced: the shutdown is latched.
+                        EventKind::Reset,
+                    ),
+                    (
+                        element.predictive.update(time_obs, debounce, false),
+                        EventKind::PredictiveRaised,
+                        EventKind::PredictiveCleared,
+                    ),
+                ];
+                for (transition, raised, cleared) in changes {
+                    match transition {
+                        Transition::Raised => push(Some(index), raised),
+                        Transition::Cleared => push(Some(index), cleared),
+                        Transition::None => {}
+                    }
                 }
             }
-
-            status.warning |= element.warning.active;
-            status.shutdown |= element.shutdown.active;
-            status.predictive |= element.predictive.active;
-            status.sensor_invalid |= element.sensor_invalid;
+            // Locals, not `status` fields: kept in registers across the loop.
+            warning |= element.warning.active;
+            shutdown |= element.shutdown.active;
+            predictive |= element.predictive.active;
+            sensor_invalid |= element.sensor_invalid;
         }
+        status.warning = warning;
+        status.shutdown = shutdown;
+        status.predictive = predictive;
+        status.sensor_invalid = sensor_invalid;
         status.events_dropped = events.overflowed();
         status
     }

@@ -168,9 +168,14 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
         }
         let margin_k = alarm_c - temp_c;
         let headroom = (margin_k / self.taper_k).clamp_to(S::ZERO, S::ONE);
-        let current_a = (hardware_a * Scalar::sqrt(headroom))
-            .max(self.floor_a)
-            .min(hardware_a);
+        // Below the taper band (most coils, most of the time) the root is 1
+        // exactly: no square root, which is software on an M0.
+        let root = if headroom >= S::ONE {
+            S::ONE
+        } else {
+            Scalar::sqrt(headroom)
+        };
+        let current_a = (hardware_a * root).max(self.floor_a).min(hardware_a);
         let span_k = (alarm_c - ambient_c).max(self.taper_k);
         let weight = (margin_k / span_k).clamp_to(S::ZERO, S::ONE);
         CoilLimit {
