@@ -37,7 +37,9 @@ mod cost;
 
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::{OmniObserver, OmniSettings, SensorStatus, TimedReading};
-use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, SnapshotError};
+use coil_thermal::observer::{
+    GridInputs, GridObserver, OmniInputs, SnapshotError, PROTECTION_TICKS,
+};
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
@@ -168,6 +170,16 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
         if reading_tick {
             statuses_ok &= sensors_as_expected(k, &omni_out.sensors);
         }
+    }
+    // Let the grid's staged protection finish on the last temperatures.
+    for _ in 0..PROTECTION_TICKS {
+        let idle = GridInputs {
+            currents_a: &currents,
+            coolant_c: AMBIENT_C as f32,
+            ambient_c: AMBIENT_C as f32,
+            elapsed_us: 0,
+        };
+        grid.tick(&mut gs, &idle);
     }
     let run_stack = cost::stack_peak();
 
