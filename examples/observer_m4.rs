@@ -103,6 +103,7 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
     let mut now_us = 0u32;
     let mut steps_total = 0u32;
     let mut statuses_ok = true;
+    let mut grid_cost = cost::Stats::default();
     for k in 0..TICKS {
         let elapsed_us = match k {
             7_000 => 3_400,
@@ -148,10 +149,9 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
             now_us,
             elapsed_us,
         };
-        let ((steps, omni_out), insn) = meter.measure(|| {
-            let steps = grid.tick(&mut gs, &grid_in).steps;
-            (steps, *omni.tick(&mut os, &omni_in))
-        });
+        let (steps, grid_insn) = meter.measure(|| grid.tick(&mut gs, &grid_in).steps);
+        let (omni_out, omni_insn) = meter.measure(|| *omni.tick(&mut os, &omni_in));
+        let insn = grid_insn + omni_insn;
         if omni_out.corrected {
             corrected.add(insn);
         } else {
@@ -166,6 +166,7 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
             );
             truth = lin.step_current_squared(&truth, &[3.8; 3], AMBIENT_C);
         }
+        grid_cost.add(grid_insn);
         steps_total += steps;
         if reading_tick {
             statuses_ok &= sensors_as_expected(k, &omni_out.sensors);
@@ -231,6 +232,11 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
     let snapshot_ok = snapshots(&grid, &gs, omni, &os);
     hprintln!("snapshots: {}", snapshot_ok);
 
+    hprintln!(
+        "cost: grid part (84-coil model and its protection) mean {} worst {} insn",
+        grid_cost.mean(),
+        grid_cost.worst()
+    );
     let (flash, ram) = cost::image_sizes();
     hprintln!(
         "cost: grid+omni+protect mean {} worst {} insn; with correction mean {} worst {} insn; flash {} B ram {} B (static {} B, stack peak {} B build, {} B ticking)",

@@ -148,7 +148,7 @@ fn nan_inputs_are_flagged_and_never_reach_the_estimates() {
 }
 
 #[test]
-fn limits_and_alarms_follow_the_model_within_five_ticks() {
+fn limits_and_alarms_follow_the_model_within_protection_ticks() {
     let grid = grid();
     let mut state = grid.conservative_state(20.0);
     let currents = hot_currents();
@@ -160,7 +160,7 @@ fn limits_and_alarms_follow_the_model_within_five_ticks() {
         }
     }
     // The update of the 40th tick is in the model; its protection is due in
-    // the next five ticks, so the outputs still show the previous update.
+    // the next PROTECTION_TICKS ticks, so the outputs still show the previous update.
     assert_ne!(state.outputs().temps_c, state.grid.temps_c);
     for _ in 1..PROTECTION_TICKS {
         tick(&grid, &mut state, &currents, 0);

@@ -15,16 +15,17 @@
 //!    `ticks_per_update` steps): the temperatures of [`CoilGrid::tick`] to the
 //!    bit, without a tick that carries the whole update;
 //! 3. after a tick in which the grid updated (temperatures change only then),
-//!    the protection runs once, spread over the next five ticks so that no
+//!    the protection runs once, spread over the next seven ticks so that no
 //!    tick carries both a grid update and a large share of the protection:
-//!    coil powers and the bound `U`, the per-coil time to limit in two
-//!    halves, the alarm, then the current limiter and the hottest coil.
+//!    coil powers and the bound `U`, then the per-coil time to limit, the
+//!    alarm and the current limiter, each in two halves of the coils, and
+//!    the hottest coil.
 //!    Between updates the protection outputs stand, because nothing they
 //!    depend on has changed except the currents, which the limiter does not
-//!    take. So the limits lag the model by at most five ticks (5 ms at the
+//!    take. So the limits lag the model by at most seven ticks (7 ms at the
 //!    HPPA's rate, against thermal time constants of minutes), and the
 //!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
-//!    should exceed 5 (and `max_steps_per_tick`) for every update to be
+//!    should exceed 7 (and `max_steps_per_tick`) for every update to be
 //!    followed by a complete protection pass; otherwise a newer update
 //!    restarts the stages.
 //!
@@ -82,7 +83,7 @@ pub const EVENT_CAPACITY: usize = 16;
 
 /// Ticks after a grid update until its protection pass is complete (the
 /// outputs lag the model by at most this many ticks; see the module docs).
-pub const PROTECTION_TICKS: u32 = 5;
+pub const PROTECTION_TICKS: u32 = 7;
 
 /// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
 const DIRECTIONS: [(isize, isize); 8] = [
@@ -126,36 +127,54 @@ struct TimeToLimit<const ROWS: usize, const COLS: usize> {
 }
 
 /// The protection stages after a grid update, one per tick, in this order.
+/// The per-coil stages are cut in two halves of the coils (row-major) so
+/// that no tick carries more than half of the 84-coil work of one of them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
     /// Alarm limits at the held ambient, coil powers and the bound `U`.
     Bound = 1,
-    /// Time to limit of the first half of the coils (row-major).
+    /// Time to limit of the first half of the coils.
     TimeFirstHalf,
     /// Time to limit of the second half.
     TimeSecondHalf,
-    /// The alarm, with the new times.
-    Alarm,
-    /// The current limiter, the published temperatures and hottest coil.
-    Limiter,
+    /// The alarm of the first half, with the new times.
+    AlarmFirstHalf,
+    /// The alarm of the second half.
+    AlarmSecondHalf,
+    /// The current limiter of the first half.
+    LimiterFirstHalf,
+    /// The limiter of the second half, the published temperatures and the
+    /// hottest coil.
+    LimiterSecondHalf,
 }
 
 impl Stage {
-    const LAST: Self = Self::Limiter;
+    const LAST: Self = Self::LimiterSecondHalf;
 
     fn from_index(index: u8) -> Option<Self> {
         match index {
             1 => Some(Self::Bound),
             2 => Some(Self::TimeFirstHalf),
             3 => Some(Self::TimeSecondHalf),
-            4 => Some(Self::Alarm),
-            5 => Some(Self::Limiter),
+            4 => Some(Self::AlarmFirstHalf),
+            5 => Some(Self::AlarmSecondHalf),
+            6 => Some(Self::LimiterFirstHalf),
+            7 => Some(Self::LimiterSecondHalf),
             _ => None,
         }
     }
 
     fn next(self) -> Option<Self> {
         Self::from_index(self as u8 + 1)
+    }
+}
+
+/// The coils of half `second` (`false`: the first) of `n`, row-major.
+fn half(n: usize, second: bool) -> core::ops::Range<usize> {
+    if second {
+        n / 2..n
+    } else {
+        0..n / 2
     }
 }
 
@@ -174,6 +193,8 @@ struct ProtectPass<S, const N: usize> {
     /// Coolant and ambient temperatures of the bound \[degC\].
     coolant_c: f32,
     ambient_c: f32,
+    /// The alarm status of the first half.
+    alarm: AlarmStatus,
 }
 
 /// `ln(x)` for the time-to-limit ratio (`x >= 1`), within a few ulps of
@@ -236,7 +257,8 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
     pub steps: u32,
     /// Time dropped by the catch-up limit this tick \[us\].
     pub dropped_us: u32,
-    /// The grid updated this tick (the protection follows in the next five).
+    /// The grid updated this tick (the protection follows in the next
+    /// [`PROTECTION_TICKS`]).
     pub updated: bool,
     /// Ticks since the state was made.
     pub tick: u32,
@@ -406,6 +428,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 bound_c: 0.0,
                 coolant_c: 0.0,
                 ambient_c: 0.0,
+                alarm: AlarmStatus::default(),
             },
         };
         self.protect(&mut state, false);
@@ -487,29 +510,46 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 // The answers are computed in the ticks after the update
                 // they describe; the next stages use them as they are (ms).
             }
-            Stage::TimeFirstHalf => self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, 0),
-            Stage::TimeSecondHalf => self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, 1),
-            Stage::Alarm => {
+            Stage::TimeFirstHalf | Stage::TimeSecondHalf => {
+                let coils = half(N, stage == Stage::TimeSecondHalf);
+                self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, coils);
+            }
+            Stage::AlarmFirstHalf | Stage::AlarmSecondHalf => {
+                let second = stage == Stage::AlarmSecondHalf;
                 if let (true, Ok(temps)) = (
                     alarm,
                     <&[S; N]>::try_from(state.grid.temps_c.as_flattened()),
                 ) {
-                    out.alarm = state.alarm.tick(
+                    let status = state.alarm.tick_part(
                         &self.alarm,
                         temps,
                         ambient_c,
                         &out.time_to_limit_s,
                         &mut state.events,
+                        half(N, second),
                     );
+                    if second {
+                        out.alarm = pass.alarm.union(status);
+                    } else {
+                        pass.alarm = status;
+                    }
                 }
             }
-            Stage::Limiter => {
+            Stage::LimiterFirstHalf | Stage::LimiterSecondHalf => {
+                let second = stage == Stage::LimiterSecondHalf;
                 if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
-                    self.limiter
-                        .apply(temps, &pass.limits_c, ambient_c, &mut out.limits);
+                    self.limiter.apply_part(
+                        temps,
+                        &pass.limits_c,
+                        ambient_c,
+                        &mut out.limits,
+                        half(N, second),
+                    );
                 }
-                out.temps_c = state.grid.temps_c;
-                out.hottest = state.grid.hottest();
+                if second {
+                    out.temps_c = state.grid.temps_c;
+                    out.hottest = state.grid.hottest();
+                }
             }
         }
     }
@@ -537,26 +577,32 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             let r_ohm = t.r0_ohm + t.slope_ohm_per_k * Scalar::max(temp, limit.to_f32());
             *p = Scalar::max(r_ohm, 0.0) * current * current;
             let isolated = (*p + t.base_g * coolant + g_amb * ambient) / (t.base_g + g_amb);
-            bound_c = Scalar::max(Scalar::max(bound_c, isolated), temp);
+            // `bound_c` is never NaN, so these are `Scalar::max` (a NaN
+            // loses) in half the instructions.
+            if isolated > bound_c {
+                bound_c = isolated;
+            }
+            if temp > bound_c {
+                bound_c = temp;
+            }
         }
         pass.bound_c = bound_c;
         pass.coolant_c = coolant;
         pass.ambient_c = ambient;
     }
 
-    /// Second pass of the bound for half `half` (0 or 1) of the coils in
-    /// row-major order: each coil's crossing time with every neighbour at
-    /// `U`, from the powers and boundaries of the first pass.
+    /// Second pass of the bound for the coils in `coils` (row-major): each
+    /// coil's crossing time with every neighbour at `U`, from the powers and
+    /// boundaries of the first pass.
     fn ttl_coils(
         &self,
         grid: &GridState<S, ROWS, COLS>,
         pass: &ProtectPass<S, N>,
         out: &mut [Option<S>; N],
-        half: usize,
+        range: core::ops::Range<usize>,
     ) {
         let t = &self.ttl;
         let (coolant, ambient, bound_c) = (pass.coolant_c, pass.ambient_c, pass.bound_c);
-        let range = if half == 0 { 0..N / 2 } else { N / 2..N };
         let (Some(temps), Some(g_n), Some(g_amb), Some(limits), Some(power), Some(out)) = (
             grid.temps_c.as_flattened().get(range.clone()),
             t.neighbour_g.as_flattened().get(range.clone()),
