@@ -215,16 +215,23 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                 .zip(r_row)
                 .zip(pending.iter_mut());
             for (((&i, held), &r), e) in coils {
-                // `abs(i) <= max` is false for a NaN: those take the rules.
+                // `abs(i) <= max` is false for a NaN: those take the rules,
+                // out of line so that the loop body stays small.
                 if i.abs() <= max_a {
                     *held = i;
                 } else {
-                    flags |= self.limits.accept_current(i, held);
+                    flags |= self.accept_current_cold(i, held);
                 }
                 *e += r * *held * *held;
             }
         }
         flags
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn accept_current_cold(&self, incoming_a: S, held_a: &mut S) -> InputFlags {
+        self.limits.accept_current(incoming_a, held_a)
     }
 
     /// One explicit grid step of `grid_dt_s` with the pending Joule energy
@@ -256,33 +263,57 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             let (Some(t_row), Some(e_row)) = (temps_c.get(row), neighbour_j.get_mut(row)) else {
                 return;
             };
-            for ((&(d_row, d_col), g_d), used) in DIRECTIONS
-                .iter()
-                .zip(&self.neighbour_g_dt)
-                .zip(&self.direction_used)
-            {
-                if !used[row % 2] {
-                    continue;
-                }
-                let (c_lo, c_hi) = inner_range(COLS, d_col);
-                let (n_lo, n_hi) = (
-                    c_lo.wrapping_add_signed(d_col),
-                    c_hi.wrapping_add_signed(d_col),
-                );
-                let n_row = row.wrapping_add_signed(d_row);
-                let (Some(t), Some(n), Some(g), Some(e)) = (
-                    t_row.get(c_lo..c_hi),
-                    temps_c.get(n_row).and_then(|r| r.get(n_lo..n_hi)),
-                    g_d.get(row).and_then(|r| r.get(c_lo..c_hi)),
-                    e_row.get_mut(c_lo..c_hi),
-                ) else {
-                    // The neighbour row is outside the grid.
-                    continue;
-                };
-                for (((e, g), t), n) in e.iter_mut().zip(g).zip(t).zip(n) {
-                    *e += *g * (*n - *t);
-                }
-            }
+            // One call per direction, in `DIRECTIONS` order, each with its
+            // offsets known at compile time: straight-line loads instead of
+            // run-time column ranges.
+            self.neighbour_direction::<0>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<1>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<2>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<3>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<4>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<5>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<6>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<7>(row, temps_c, t_row, e_row);
+        }
+    }
+
+    /// The heat coil row `row` receives from its neighbours in direction
+    /// `DIRECTIONS[D]`, added to `e_row`.
+    #[inline(always)]
+    fn neighbour_direction<const D: usize>(
+        &self,
+        row: usize,
+        temps_c: &[[S; COLS]; ROWS],
+        t_row: &[S; COLS],
+        e_row: &mut [S; COLS],
+    ) {
+        let (Some(&(d_row, d_col)), Some(g_d), Some(used)) = (
+            DIRECTIONS.get(D),
+            self.neighbour_g_dt.get(D),
+            self.direction_used.get(D),
+        ) else {
+            return;
+        };
+        if !used[row % 2] {
+            return;
+        }
+        let (c_lo, c_hi) = inner_range(COLS, d_col);
+        let (n_lo, n_hi) = (
+            c_lo.wrapping_add_signed(d_col),
+            c_hi.wrapping_add_signed(d_col),
+        );
+        let n_row = row.wrapping_add_signed(d_row);
+        let (Some(t), Some(n), Some(g), Some(e)) = (
+            t_row.get(c_lo..c_hi),
+            temps_c.get(n_row).and_then(|r| r.get(n_lo..n_hi)),
+            g_d.get(row).and_then(|r| r.get(c_lo..c_hi)),
+            e_row.get_mut(c_lo..c_hi),
+        ) else {
+            // The neighbour row is outside the grid.
+            return;
+        };
+        for (((e, g), t), n) in e.iter_mut().zip(g).zip(t).zip(n) {
+            *e += *g * (*n - *t);
         }
     }
 
