@@ -15,17 +15,17 @@
 //!    `ticks_per_update` steps): the temperatures of [`CoilGrid::tick`] to the
 //!    bit, without a tick that carries the whole update;
 //! 3. after a tick in which the grid updated (temperatures change only then),
-//!    the protection runs once, spread over the next seven ticks so that no
+//!    the protection runs once, spread over the next eight ticks so that no
 //!    tick carries both a grid update and a large share of the protection:
-//!    coil powers and the bound `U`, then the per-coil time to limit, the
-//!    alarm and the current limiter, each in two halves of the coils, and
-//!    the hottest coil.
+//!    coil powers and the bound `U`, then the per-coil time to limit (two
+//!    parts of the coils), the alarm (three) and the current limiter (two),
+//!    and the hottest coil.
 //!    Between updates the protection outputs stand, because nothing they
 //!    depend on has changed except the currents, which the limiter does not
-//!    take. So the limits lag the model by at most seven ticks (7 ms at the
+//!    take. So the limits lag the model by at most eight ticks (8 ms at the
 //!    HPPA's rate, against thermal time constants of minutes), and the
 //!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
-//!    should exceed 7 (and `max_steps_per_tick`) for every update to be
+//!    should exceed 8 (and `max_steps_per_tick`) for every update to be
 //!    followed by a complete protection pass; otherwise a newer update
 //!    restarts the stages.
 //!
@@ -83,7 +83,7 @@ pub const EVENT_CAPACITY: usize = 16;
 
 /// Ticks after a grid update until its protection pass is complete (the
 /// outputs lag the model by at most this many ticks; see the module docs).
-pub const PROTECTION_TICKS: u32 = 7;
+pub const PROTECTION_TICKS: u32 = 8;
 
 /// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
 const DIRECTIONS: [(isize, isize); 8] = [
@@ -126,59 +126,44 @@ struct TimeToLimit<const ROWS: usize, const COLS: usize> {
     slope_ohm_per_k: f32,
 }
 
-/// The protection stages after a grid update, one per tick, in this order.
-/// The per-coil stages are cut in two halves of the coils (row-major) so
-/// that no tick carries more than half of the 84-coil work of one of them.
+/// What a protection stage does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stage {
+enum Step {
     /// Alarm limits at the held ambient, coil powers and the bound `U`.
-    Bound = 1,
-    /// Time to limit of the first half of the coils.
-    TimeFirstHalf,
-    /// Time to limit of the second half.
-    TimeSecondHalf,
-    /// The alarm of the first half, with the new times.
-    AlarmFirstHalf,
-    /// The alarm of the second half.
-    AlarmSecondHalf,
-    /// The current limiter of the first half.
-    LimiterFirstHalf,
-    /// The limiter of the second half, the published temperatures and the
-    /// hottest coil.
-    LimiterSecondHalf,
+    Bound,
+    /// Time to limit of some coils.
+    TimeToLimit,
+    /// The alarm of some coils, with the new times.
+    Alarm,
+    /// The current limiter of some coils; after the last part, the
+    /// published temperatures and the hottest coil.
+    Limiter,
 }
 
-impl Stage {
-    const LAST: Self = Self::LimiterSecondHalf;
+/// The protection stages after a grid update, one per tick, in order: a
+/// step and its part `(step, part, parts)`. The per-coil steps are cut into
+/// parts of the coils (row-major) so that no tick carries the whole 84-coil
+/// work of one of them; the alarm, whose elements can each raise events in
+/// the same pass, in three.
+const STAGES: [(Step, u8, u8); 8] = [
+    (Step::Bound, 0, 1),
+    (Step::TimeToLimit, 0, 2),
+    (Step::TimeToLimit, 1, 2),
+    (Step::Alarm, 0, 3),
+    (Step::Alarm, 1, 3),
+    (Step::Alarm, 2, 3),
+    (Step::Limiter, 0, 2),
+    (Step::Limiter, 1, 2),
+];
 
-    fn from_index(index: u8) -> Option<Self> {
-        match index {
-            1 => Some(Self::Bound),
-            2 => Some(Self::TimeFirstHalf),
-            3 => Some(Self::TimeSecondHalf),
-            4 => Some(Self::AlarmFirstHalf),
-            5 => Some(Self::AlarmSecondHalf),
-            6 => Some(Self::LimiterFirstHalf),
-            7 => Some(Self::LimiterSecondHalf),
-            _ => None,
-        }
-    }
+const _: () = assert!(STAGES.len() as u32 == PROTECTION_TICKS);
 
-    fn next(self) -> Option<Self> {
-        Self::from_index(self as u8 + 1)
-    }
+/// The coils of part `part` of `parts` of `n`, row-major.
+fn part_of(n: usize, part: u8, parts: u8) -> core::ops::Range<usize> {
+    let parts = usize::from(parts.max(1));
+    let part = usize::from(part);
+    n * part / parts..n * (part + 1) / parts
 }
-
-/// The coils of half `second` (`false`: the first) of `n`, row-major.
-fn half(n: usize, second: bool) -> core::ops::Range<usize> {
-    if second {
-        n / 2..n
-    } else {
-        0..n / 2
-    }
-}
-
-const _: () = assert!(Stage::LAST as u32 == PROTECTION_TICKS);
 
 /// What one protection pass carries from stage to stage.
 #[derive(Debug, Clone)]
@@ -193,7 +178,7 @@ struct ProtectPass<S, const N: usize> {
     /// Coolant and ambient temperatures of the bound \[degC\].
     coolant_c: f32,
     ambient_c: f32,
-    /// The alarm status of the first half.
+    /// The alarm status of the parts so far.
     alarm: AlarmStatus,
 }
 
@@ -280,7 +265,7 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     pub clock: ClockState,
     /// Alarm events not yet drained by the application.
     pub events: EventQueue<EVENT_CAPACITY>,
-    /// Next protection stage (0: none pending; see [`Stage`]).
+    /// Next protection stage, from 1 (0: none pending; see [`STAGES`]).
     stage: u8,
     /// What the protection stages hand on to each other.
     pass: ProtectPass<S, N>,
@@ -459,7 +444,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         }
         if updated {
             // Temperatures changed: the protection runs in the next ticks.
-            state.stage = Stage::Bound as u8;
+            state.stage = 1;
         } else {
             self.protect_stage(state);
         }
@@ -473,23 +458,28 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// One stage of the protection after a grid update, so that no tick
-    /// carries both the update and the whole protection (see
-    /// [`Stage`] for the order).
+    /// carries both the update and the whole protection (see [`STAGES`]).
+    /// `state.stage` is the next stage's number from 1 (0: none pending).
     fn protect_stage(&self, state: &mut GridObserverState<S, ROWS, COLS, N>) {
-        let Some(stage) = Stage::from_index(state.stage) else {
+        let Some(&stage) = usize::from(state.stage)
+            .checked_sub(1)
+            .and_then(|i| STAGES.get(i))
+        else {
             return;
         };
         self.run_stage(state, stage, true);
-        state.stage = stage.next().map_or(0, |s| s as u8);
+        state.stage = if usize::from(state.stage) >= STAGES.len() {
+            0
+        } else {
+            state.stage + 1
+        };
     }
 
     /// Every stage at once on the present temperatures, the alarm only when
     /// `alarm` (for a fresh or restored state).
     fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
-        let mut stage = Some(Stage::Bound);
-        while let Some(s) = stage {
-            self.run_stage(state, s, alarm);
-            stage = s.next();
+        for stage in STAGES {
+            self.run_stage(state, stage, alarm);
         }
         state.stage = 0;
     }
@@ -497,25 +487,25 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     fn run_stage(
         &self,
         state: &mut GridObserverState<S, ROWS, COLS, N>,
-        stage: Stage,
+        (step, part, parts): (Step, u8, u8),
         alarm: bool,
     ) {
         let ambient_c = state.grid.held_ambient_c;
         let out = &mut state.outputs;
         let pass = &mut state.pass;
-        match stage {
-            Stage::Bound => {
+        let coils = part_of(N, part, parts);
+        let last = part + 1 >= parts;
+        match step {
+            Step::Bound => {
                 pass.limits_c = self.alarm.alarm_limits_c(ambient_c);
                 self.ttl_bound(&state.grid, pass);
                 // The answers are computed in the ticks after the update
                 // they describe; the next stages use them as they are (ms).
             }
-            Stage::TimeFirstHalf | Stage::TimeSecondHalf => {
-                let coils = half(N, stage == Stage::TimeSecondHalf);
+            Step::TimeToLimit => {
                 self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, coils);
             }
-            Stage::AlarmFirstHalf | Stage::AlarmSecondHalf => {
-                let second = stage == Stage::AlarmSecondHalf;
+            Step::Alarm => {
                 if let (true, Ok(temps)) = (
                     alarm,
                     <&[S; N]>::try_from(state.grid.temps_c.as_flattened()),
@@ -526,27 +516,29 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                         ambient_c,
                         &out.time_to_limit_s,
                         &mut state.events,
-                        half(N, second),
+                        coils,
                     );
-                    if second {
-                        out.alarm = pass.alarm.union(status);
+                    pass.alarm = if part == 0 {
+                        status
                     } else {
-                        pass.alarm = status;
+                        pass.alarm.union(status)
+                    };
+                    if last {
+                        out.alarm = pass.alarm;
                     }
                 }
             }
-            Stage::LimiterFirstHalf | Stage::LimiterSecondHalf => {
-                let second = stage == Stage::LimiterSecondHalf;
+            Step::Limiter => {
                 if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
                     self.limiter.apply_part(
                         temps,
                         &pass.limits_c,
                         ambient_c,
                         &mut out.limits,
-                        half(N, second),
+                        coils,
                     );
                 }
-                if second {
+                if last {
                     out.temps_c = state.grid.temps_c;
                     out.hottest = state.grid.hottest();
                 }
