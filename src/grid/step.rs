@@ -108,7 +108,9 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         coolant_c: S,
         ambient_c: S,
     ) -> TickOutcome {
-        let mut flags = self.accumulate_cached(state, &work.r_tick_dt, currents_a);
+        // `ticks_spread(.., 1)` written out: the loop's bookkeeping costs
+        // about a hundred instructions a tick on the M4F.
+        let mut flags = self.accumulate_cached(state, &work.r_tick_dt, currents_a, 1);
         flags |= self.accept_boundaries(state, coolant_c, ambient_c);
         state.pending_ticks = state.pending_ticks.saturating_add(1);
         let updated = state.pending_ticks >= self.config.ticks_per_update;
@@ -125,6 +127,64 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             work.rows_done = 0;
         }
         TickOutcome { flags, updated }
+    }
+
+    /// `ticks` calls of [`CoilGrid::tick_spread`] with the same inputs (a
+    /// controller catching up on missed ticks), bit-identical to them, for
+    /// less work: the inputs are checked once per update interval, each
+    /// coil's Joule energy of one tick is computed once and added `ticks`
+    /// times, and only one slice of neighbour heat is summed (the update
+    /// tick sums what is left). `updated` is true if any of the ticks
+    /// updated the grid.
+    pub fn ticks_spread(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        work: &mut UpdateWork<S, ROWS, COLS>,
+        currents_a: &[[S; COLS]; ROWS],
+        coolant_c: S,
+        ambient_c: S,
+        ticks: u32,
+    ) -> TickOutcome {
+        let mut outcome = TickOutcome {
+            flags: InputFlags::NONE,
+            updated: false,
+        };
+        let mut remaining = ticks;
+        let mut sliced = false;
+        // At most two passes for a catch-up shorter than an update interval,
+        // and at most `ticks` passes in any case (each takes at least one).
+        while remaining > 0 {
+            // The ticks up to and including the next update share `R(T)`.
+            let to_update = self
+                .config
+                .ticks_per_update
+                .saturating_sub(state.pending_ticks)
+                .max(1);
+            let batch = remaining.min(to_update);
+            remaining -= batch;
+            outcome.flags |= self.accumulate_cached(state, &work.r_tick_dt, currents_a, batch);
+            // Accepting the same boundary `batch` times is accepting it once.
+            outcome.flags |= self.accept_boundaries(state, coolant_c, ambient_c);
+            state.pending_ticks = state.pending_ticks.saturating_add(batch);
+            let updated = state.pending_ticks >= self.config.ticks_per_update;
+            let rows_end = if updated {
+                ROWS
+            } else if sliced {
+                work.rows_done
+            } else {
+                work.rows_done.saturating_add(self.rows_per_tick).min(ROWS)
+            };
+            sliced = true;
+            let rows = work.rows_done..rows_end;
+            self.neighbour_heat(&state.temps_c, &mut work.neighbour_j, rows);
+            work.rows_done = rows_end;
+            if updated {
+                self.finish_update(state, &mut work.neighbour_j, Some(&mut work.r_tick_dt));
+                work.rows_done = 0;
+                outcome.updated = true;
+            }
+        }
+        outcome
     }
 
     /// A fresh [`UpdateWork`] for `state`: the resistances of its present
@@ -192,14 +252,33 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         flags
     }
 
-    /// [`CoilGrid::accumulate`] with the resistances taken from `r_tick_dt`.
-    /// A current within the limits (the usual case) is taken with one
-    /// comparison; anything else goes through the full input rules.
+    /// [`CoilGrid::accumulate`] `ticks` times (at least once) with the
+    /// resistances taken from `r_tick_dt`. A current within the limits (the
+    /// usual case) is taken with one comparison; anything else goes through
+    /// the full input rules.
     fn accumulate_cached(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
         r_tick_dt: &[[S; COLS]; ROWS],
         currents_a: &[[S; COLS]; ROWS],
+        ticks: u32,
+    ) -> InputFlags {
+        // Two copies of the loop: the repeat loop in the one-tick case
+        // (every tick but a catch-up) would double its cost.
+        if ticks > 1 {
+            self.accumulate_repeated::<true>(state, r_tick_dt, currents_a, ticks)
+        } else {
+            self.accumulate_repeated::<false>(state, r_tick_dt, currents_a, 1)
+        }
+    }
+
+    #[inline(always)]
+    fn accumulate_repeated<const REPEAT: bool>(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        r_tick_dt: &[[S; COLS]; ROWS],
+        currents_a: &[[S; COLS]; ROWS],
+        ticks: u32,
     ) -> InputFlags {
         let mut flags = InputFlags::NONE;
         let max_a = self.limits.max_current_a;
@@ -222,7 +301,15 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                 } else {
                     flags |= self.accept_current_cold(i, held);
                 }
-                *e += r * *held * *held;
+                // The same energy added `ticks` times, in sequence: the
+                // bits of `ticks` separate ticks.
+                let joule = r * *held * *held;
+                *e += joule;
+                if REPEAT {
+                    for _ in 1..ticks {
+                        *e += joule;
+                    }
+                }
             }
         }
         flags

@@ -441,6 +441,22 @@ fn spread_matches_whole<S: Scalar, const R: usize, const C: usize>(
         let b = grid.tick_spread(&mut spread, &mut work, &currents, coolant, ambient);
         assert_eq!(a, b, "tick {k}");
         assert_eq!(whole, spread, "tick {k}");
+        // Now and then a catch-up of 0 to 12 ticks in one call.
+        if k % 7 == 3 {
+            let burst = (k * 5) % 13;
+            let mut expected = TickOutcome {
+                flags: InputFlags::NONE,
+                updated: false,
+            };
+            for _ in 0..burst {
+                let o = grid.tick(&mut whole, &currents, coolant, ambient);
+                expected.flags |= o.flags;
+                expected.updated |= o.updated;
+            }
+            let got = grid.ticks_spread(&mut spread, &mut work, &currents, coolant, ambient, burst);
+            assert_eq!(expected, got, "burst of {burst} at tick {k}");
+            assert_eq!(whole, spread, "burst of {burst} at tick {k}");
+        }
     }
 }
 
@@ -519,6 +535,23 @@ fn hottest_queries_rank_coils_without_allocation() {
     assert!(all.windows(2).all(|w| w[0].temp_c >= w[1].temp_c));
     assert_eq!(all[11].temp_c, 20.0);
     assert_eq!(state.hottest_k::<0>().len(), 0);
+}
+
+#[test]
+fn hottest_is_hottest_k_of_one() {
+    // Ties, a NaN first or later, infinities: the scan and the insertion
+    // ranking agree on every one.
+    let values = [20.0f32, 50.0, 50.0, f32::NAN, -1.0, f32::INFINITY, 49.9];
+    for seed in 0..200usize {
+        let mut state = GridState::<f32, 3, 4>::uniform(20.0);
+        for (i, t) in state.temps_c.as_flattened_mut().iter_mut().enumerate() {
+            *t = values[(seed * 7 + i * i * 3 + seed / 7) % values.len()];
+        }
+        let [want] = state.hottest_k::<1>();
+        let got = state.hottest();
+        assert_eq!((got.row, got.col), (want.row, want.col), "seed {seed}");
+        assert_eq!(got.temp_c.to_bits(), want.temp_c.to_bits(), "seed {seed}");
+    }
 }
 
 #[test]

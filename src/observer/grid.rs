@@ -10,10 +10,11 @@
 //!    tick sub-steps, an early one carries its time, a stall beyond
 //!    `max_steps_per_tick` is dropped and flagged
 //!    ([`InputFlags::ELAPSED_INVALID`]);
-//! 2. each step is one [`CoilGrid::tick_spread`] (Joule energy accumulated,
+//! 2. the steps are [`CoilGrid::ticks_spread`] (Joule energy accumulated,
 //!    a slice of the next update done, the grid updated every
-//!    `ticks_per_update` steps): the temperatures of [`CoilGrid::tick`] to the
-//!    bit, without a tick that carries the whole update;
+//!    `ticks_per_update` steps): the temperatures of as many
+//!    [`CoilGrid::tick`]s to the bit, without a tick that carries the whole
+//!    update;
 //! 3. after a tick in which the grid updated (temperatures change only then),
 //!    the protection runs once, spread over the next eight ticks so that no
 //!    tick carries both a grid update and a large share of the protection:
@@ -429,19 +430,23 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         inputs: &GridInputs<'_, S, ROWS, COLS>,
     ) -> &'s GridOutputs<S, ROWS, COLS, N> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
-        let mut flags = steps.flags;
-        let mut updated = false;
-        for _ in 0..steps.steps {
-            let outcome = self.grid.tick_spread(
-                &mut state.grid,
-                &mut state.work,
-                inputs.currents_a,
-                inputs.coolant_c,
-                inputs.ambient_c,
-            );
-            flags |= outcome.flags;
-            updated |= outcome.updated;
-        }
+        let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
+        let outcome = if steps.steps == 1 {
+            self.grid
+                .tick_spread(grid, work, i.currents_a, i.coolant_c, i.ambient_c)
+        } else {
+            // All the steps at once: a catch-up costs little more than one.
+            self.grid.ticks_spread(
+                grid,
+                work,
+                i.currents_a,
+                i.coolant_c,
+                i.ambient_c,
+                steps.steps,
+            )
+        };
+        let flags = steps.flags | outcome.flags;
+        let updated = outcome.updated;
         if updated {
             // Temperatures changed: the protection runs in the next ticks.
             state.stage = 1;
