@@ -618,24 +618,41 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
             let limit_c = derated_limit_c(critical_c, self.ambient_c, config.product);
             let warning_c = limit_c - config.warning_margin_k;
             let valid = temp_c.is_finite();
-            let (warning_obs, shutdown_obs) = if valid {
-                (
-                    observe(temp_c, warning_c, config.hysteresis_k),
-                    observe(temp_c, limit_c, config.hysteresis_k),
-                )
-            } else {
-                (Observation::Above, Observation::Unknown)
-            };
             let time_obs = observe_time(time_s, config);
-            element.below_reset = shutdown_obs == Observation::Below;
-            // The usual element: no alarm would move (see
-            // `Debounced::is_settled`) and the sensor's validity is
-            // unchanged, so the full update below would change nothing else.
-            let settled = valid != element.sensor_invalid
-                && element.warning.is_settled(warning_obs)
-                && element.shutdown.is_settled(shutdown_obs)
-                && element.predictive.is_settled(time_obs);
+            let hysteresis_k = config.hysteresis_k;
+            // A valid sample below `limit - hysteresis` is below the limit
+            // too (the hysteresis is not negative): `Below` for the shutdown.
+            let below_reset = valid && temp_c < limit_c - hysteresis_k;
+            element.below_reset = below_reset;
+            // The usual element, in plain comparisons: a valid sample as
+            // before, every counter at zero and no evidence for any alarm
+            // (see `Debounced::is_settled`). The full update would change
+            // nothing; anything else (including a NaN level) takes it.
+            let (w, s, p) = (&element.warning, &element.shutdown, &element.predictive);
+            let settled = valid
+                && !element.sensor_invalid
+                && w.count == 0
+                && s.count == 0
+                && if w.active {
+                    temp_c >= warning_c - hysteresis_k
+                } else {
+                    temp_c <= warning_c
+                }
+                && if s.active {
+                    !below_reset
+                } else {
+                    temp_c <= limit_c
+                }
+                && p.is_settled(time_obs);
             if !settled {
+                let (warning_obs, shutdown_obs) = if valid {
+                    (
+                        observe(temp_c, warning_c, hysteresis_k),
+                        observe(temp_c, limit_c, hysteresis_k),
+                    )
+                } else {
+                    (Observation::Above, Observation::Unknown)
+                };
                 let observations = [warning_obs, shutdown_obs, time_obs];
                 element.update(index, valid, observations, debounce, tick, events);
             }
