@@ -206,10 +206,27 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     /// `R(T) tick_dt` \[ohm s\] at coil temperature `temp_c` \[degC\],
     /// clamped to the input limits' temperature range: beyond it the winding
     /// has failed anyway, and a bounded `R` keeps a runaway estimate finite.
+    ///
+    /// Plain comparisons rather than [`Scalar::clamp_to`]: they differ only
+    /// for a NaN temperature, whose coil is NaN after its next update
+    /// whatever its Joule energy (the boundary terms carry the NaN), and they
+    /// save eight instructions per coil of an update on an M4F.
     #[inline(always)]
     fn r_tick_dt(&self, temp_c: S) -> S {
-        let t = temp_c.clamp_to(self.limits.min_temp_c, self.limits.max_temp_c);
-        (self.r_at_0c_tick_dt + self.slope_tick_dt * t).max(S::ZERO)
+        let (lo, hi) = (self.limits.min_temp_c, self.limits.max_temp_c);
+        let t = if temp_c < lo {
+            lo
+        } else if temp_c > hi {
+            hi
+        } else {
+            temp_c
+        };
+        let r = self.r_at_0c_tick_dt + self.slope_tick_dt * t;
+        if r > S::ZERO {
+            r
+        } else {
+            S::ZERO
+        }
     }
 
     fn accept_boundaries(
