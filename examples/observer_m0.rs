@@ -27,7 +27,7 @@ use exit::fail;
 mod cost;
 
 use coil_thermal::grid::GridConfig;
-use coil_thermal::observer::{GridInputs, GridObserver};
+use coil_thermal::observer::{GridInputs, GridObserver, PROTECTION_TICKS};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
@@ -94,7 +94,7 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         reference.tick(&mut ref_state, &ref_currents, 20.0, 20.0);
     }
     // Let the staged protection finish on the last temperatures.
-    for _ in 0..3 {
+    for _ in 0..PROTECTION_TICKS {
         let inputs = GridInputs {
             currents_a: &currents,
             coolant_c: twenty,

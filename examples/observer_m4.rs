@@ -37,7 +37,9 @@ mod cost;
 
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::{OmniObserver, OmniSettings, SensorStatus, TimedReading};
-use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, SnapshotError};
+use coil_thermal::observer::{
+    GridInputs, GridObserver, OmniInputs, SnapshotError, PROTECTION_TICKS,
+};
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
@@ -103,6 +105,7 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
     let mut now_us = 0u32;
     let mut steps_total = 0u32;
     let mut statuses_ok = true;
+    let mut grid_cost = cost::Stats::default();
     for k in 0..TICKS {
         let elapsed_us = match k {
             7_000 => 3_400,
@@ -170,10 +173,21 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
             );
             truth = lin.step_current_squared(&truth, &[3.8; 3], AMBIENT_C);
         }
+        grid_cost.add(grid_insn);
         steps_total += steps;
         if reading_tick {
             statuses_ok &= sensors_as_expected(k, &omni_out.sensors);
         }
+    }
+    // Let the grid's staged protection finish on the last temperatures.
+    for _ in 0..PROTECTION_TICKS {
+        let idle = GridInputs {
+            currents_a: &currents,
+            coolant_c: AMBIENT_C as f32,
+            ambient_c: AMBIENT_C as f32,
+            elapsed_us: 0,
+        };
+        grid.tick(&mut gs, &idle);
     }
     let run_stack = cost::stack_peak();
 
@@ -225,6 +239,11 @@ fn run(meter: &cost::Meter, omni: &OmniObserver) -> Result<(), &'static str> {
     let snapshot_ok = snapshots(&grid, &gs, omni, &os);
     hprintln!("snapshots: {}", snapshot_ok);
 
+    hprintln!(
+        "cost: grid part (84-coil model and its protection) mean {} worst {} insn",
+        grid_cost.mean(),
+        grid_cost.worst()
+    );
     let (flash, ram) = cost::image_sizes();
     hprintln!(
         "cost: grid+omni+protect mean {} worst {} insn; with correction mean {} worst {} insn; flash {} B ram {} B (static {} B, stack peak {} B build, {} B ticking)",

@@ -12,8 +12,9 @@
 //! and infinities, also hidden behind `black_box`.
 //!
 //! Every per-tick function is called: the network steppers, the grid
-//! observer's tick (grid tick and update, time to limit, alarm tick, limiter,
-//! hottest coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
+//! observer's tick (the spread grid step, one step or a catch-up of several,
+//! the update, time to limit, the alarm and the limiter in parts, hottest
+//! coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
 //! `update_steady`, predictor slice, alarm, limiter), and the time-varying
 //! Kalman `predict` and `update`.
 #![no_std]

@@ -10,7 +10,7 @@ use coil_thermal::observer::omnimagnet::{SensorStatus, TimedReading};
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::{
     GridInputs, GridObserver, GridObserverState, GridOutputs, Mailbox, OmniInputs, OmniObserver,
-    OmniObserverState, OmniSettings, Shared, SnapshotError,
+    OmniObserverState, OmniSettings, Shared, SnapshotError, PROTECTION_TICKS,
 };
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -148,7 +148,7 @@ fn nan_inputs_are_flagged_and_never_reach_the_estimates() {
 }
 
 #[test]
-fn limits_and_alarms_follow_the_model_within_three_ticks() {
+fn limits_and_alarms_follow_the_model_within_protection_ticks() {
     let grid = grid();
     let mut state = grid.conservative_state(20.0);
     let currents = hot_currents();
@@ -160,11 +160,13 @@ fn limits_and_alarms_follow_the_model_within_three_ticks() {
         }
     }
     // The update of the 40th tick is in the model; its protection is due in
-    // the next three ticks, so the outputs still show the previous update.
+    // the next PROTECTION_TICKS ticks, so the outputs still show the previous update.
     assert_ne!(state.outputs().temps_c, state.grid.temps_c);
-    for _ in 0..3 {
+    for _ in 1..PROTECTION_TICKS {
         tick(&grid, &mut state, &currents, 0);
     }
+    assert_ne!(state.outputs().temps_c, state.grid.temps_c);
+    tick(&grid, &mut state, &currents, 0);
     let out = state.outputs();
     assert_eq!(out.temps_c, state.grid.temps_c);
     // Started at the start of the taper band: the powered coil heats into
@@ -301,8 +303,9 @@ fn grid_time_to_limit_is_never_later_than_the_f64_reference() {
             }
         }
         let mut state = grid.state(20.0);
-        // One update (tick 10), then the time-to-limit stage (tick 11).
-        for _ in 0..11 {
+        // One update (tick 10), then the bound (tick 11) and the time to
+        // limit of each half of the coils (ticks 12 and 13).
+        for _ in 0..13 {
             tick(&grid, &mut state, &currents, 1000);
         }
         let predicted = state.outputs().time_to_limit_s;

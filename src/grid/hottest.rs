@@ -17,9 +17,28 @@ pub struct CoilTemp<S> {
 }
 
 impl<S: Scalar, const ROWS: usize, const COLS: usize> GridState<S, ROWS, COLS> {
-    /// The hottest coil; the first in row-major order on a tie.
+    /// The hottest coil; the first in row-major order on a tie. The same
+    /// as `hottest_k::<1>()` (a test checks it), in one comparison per coil.
     pub fn hottest(&self) -> CoilTemp<S> {
-        let [top] = self.hottest_k::<1>();
+        let mut top = CoilTemp {
+            row: 0,
+            col: 0,
+            temp_c: self
+                .temps_c
+                .first()
+                .and_then(|r| r.first())
+                .copied()
+                .unwrap_or(S::ZERO),
+        };
+        for (row, temps) in self.temps_c.iter().enumerate() {
+            for (col, &temp_c) in temps.iter().enumerate() {
+                // Strict `>`: the earlier coil stays ahead on a tie (and a
+                // NaN never takes the place, as in `hottest_k`).
+                if temp_c > top.temp_c {
+                    top = CoilTemp { row, col, temp_c };
+                }
+            }
+        }
         top
     }
 

@@ -33,6 +33,10 @@
 //! ambient temperatures are those held at the update tick. The report found a
 //! thermal cycle of seconds adequate; the host tests bound the difference.
 //!
+//! On an MCU, [`CoilGrid::tick_spread`] gives the same temperatures to the bit
+//! with the update's work spread over the ticks in between (see
+//! [`UpdateWork`]), so no tick carries the whole update.
+//!
 //! # Precision
 //!
 //! A 1 ms increment of a coil is about `1e-4` K, within a few ulps of a
@@ -55,7 +59,7 @@ mod step;
 pub use hottest::CoilTemp;
 pub use params::{Convention, GridParams, HppaPreset};
 pub use stencil::{Link, Stencil};
-pub use step::TickOutcome;
+pub use step::{TickOutcome, UpdateWork};
 
 use crate::error::BuildError;
 use crate::input::{InputLimits, ScalarLimits};
@@ -155,6 +159,8 @@ pub struct CoilGrid<S, const ROWS: usize, const COLS: usize> {
     r_at_0c_tick_dt: S,
     /// `dR/dT * tick_dt` \[ohm s / K\].
     slope_tick_dt: S,
+    /// Rows of neighbour heat [`CoilGrid::tick_spread`] sums per tick.
+    rows_per_tick: usize,
     limits: ScalarLimits<S>,
 }
 
@@ -232,6 +238,12 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             inverse_capacity: S::from_f64(1.0 / p.capacity_j_per_k()),
             r_at_0c_tick_dt: S::from_f64(r.r_at_0c_ohm * tick),
             slope_tick_dt: S::from_f64(r.slope_ohm_per_k * tick),
+            // Every row done by the tick before the update, which then only
+            // finishes; with an update every tick, that tick does it all.
+            rows_per_tick: match config.ticks_per_update {
+                1 => ROWS,
+                n => ROWS.div_ceil(n as usize - 1),
+            },
             limits: config.limits.to_scalar(),
         };
         let mut worst = (0, 0.0f64);

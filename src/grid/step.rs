@@ -3,6 +3,26 @@
 //! Both are bounded loops over `[[S; COLS]; ROWS]` with const bounds, no
 //! allocation, no reachable panic (every neighbour row and column range is
 //! taken with `get`, which cannot fail for the ranges built here).
+//!
+//! # Spreading the update
+//!
+//! [`CoilGrid::tick`] does the whole grid update in the tick that completes
+//! `ticks_per_update`, which makes that tick the most expensive one by far on
+//! an MCU. [`CoilGrid::tick_spread`] gives bit-identical temperatures with
+//! bounded work in every tick, keeping an [`UpdateWork`] beside the state:
+//!
+//! * the heat from the neighbouring coils depends only on the temperatures of
+//!   the last update, so it is summed a few rows per tick while the Joule
+//!   energy accumulates (the update tick sums whatever rows are left);
+//! * `R(T) tick_dt` depends only on those temperatures too, so it is computed
+//!   once per coil in the update and reused by every tick until the next.
+//!
+//! Both paths share one update order (neighbour heat summed apart, in
+//! direction order, then added to the Joule and boundary terms), which is
+//! what makes them agree to the bit in floating point; the unit tests check
+//! it for several shapes, decimations and bad inputs.
+
+use core::ops::Range;
 
 use super::{CoilGrid, GridState, DIRECTIONS};
 use crate::input::InputFlags;
@@ -16,6 +36,20 @@ pub struct TickOutcome {
     pub flags: InputFlags,
     /// `true` when this tick ran a grid update (every `ticks_per_update`).
     pub updated: bool,
+}
+
+/// The part of the next grid update done ahead by [`CoilGrid::tick_spread`],
+/// kept beside a [`GridState`] (per device, not part of a snapshot: it is
+/// derived from the state by [`CoilGrid::update_work`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateWork<S, const ROWS: usize, const COLS: usize> {
+    /// `R(T) tick_dt` of every coil at its last updated temperature \[ohm s\].
+    r_tick_dt: [[S; COLS]; ROWS],
+    /// Heat from the neighbouring coils over the coming grid step \[J\], for
+    /// the rows before `rows_done`.
+    neighbour_j: [[S; COLS]; ROWS],
+    /// Rows whose neighbour heat is summed.
+    rows_done: usize,
 }
 
 /// Indices `[lo, hi)` of the cells whose neighbour at offset `d` along an
@@ -48,18 +82,164 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         ambient_c: S,
     ) -> TickOutcome {
         let mut flags = self.accumulate(state, currents_a);
-        flags |= self
-            .limits
-            .accept_temperature(coolant_c, &mut state.held_coolant_c);
-        flags |= self
-            .limits
-            .accept_temperature(ambient_c, &mut state.held_ambient_c);
+        flags |= self.accept_boundaries(state, coolant_c, ambient_c);
         state.pending_ticks = state.pending_ticks.saturating_add(1);
         let updated = state.pending_ticks >= self.config.ticks_per_update;
         if updated {
             self.update(state);
         }
         TickOutcome { flags, updated }
+    }
+
+    /// [`CoilGrid::tick`] with the update spread over the ticks between
+    /// updates (see the module docs): the same temperatures to the bit, and
+    /// no tick doing more than one update's final pass plus a slice of
+    /// `ceil(ROWS / (ticks_per_update - 1))` rows of neighbour heat.
+    ///
+    /// `work` must come from [`CoilGrid::update_work`] on this state, and be
+    /// made again whenever the state is replaced or its temperatures are
+    /// written other than by this method; otherwise the Joule energy uses
+    /// stale resistances until the next update.
+    pub fn tick_spread(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        work: &mut UpdateWork<S, ROWS, COLS>,
+        currents_a: &[[S; COLS]; ROWS],
+        coolant_c: S,
+        ambient_c: S,
+    ) -> TickOutcome {
+        // `ticks_spread(.., 1)` written out: the loop's bookkeeping costs
+        // about a hundred instructions a tick on the M4F.
+        let mut flags = self.accumulate_cached(state, &work.r_tick_dt, currents_a, 1);
+        flags |= self.accept_boundaries(state, coolant_c, ambient_c);
+        state.pending_ticks = state.pending_ticks.saturating_add(1);
+        let updated = state.pending_ticks >= self.config.ticks_per_update;
+        let rows_end = if updated {
+            ROWS
+        } else {
+            work.rows_done.saturating_add(self.rows_per_tick).min(ROWS)
+        };
+        let rows = work.rows_done..rows_end;
+        self.neighbour_heat(&state.temps_c, &mut work.neighbour_j, rows);
+        work.rows_done = rows_end;
+        if updated {
+            self.finish_update(state, &mut work.neighbour_j, Some(&mut work.r_tick_dt));
+            work.rows_done = 0;
+        }
+        TickOutcome { flags, updated }
+    }
+
+    /// `ticks` calls of [`CoilGrid::tick_spread`] with the same inputs (a
+    /// controller catching up on missed ticks), bit-identical to them, for
+    /// less work: the inputs are checked once per update interval, each
+    /// coil's Joule energy of one tick is computed once and added `ticks`
+    /// times, and only one slice of neighbour heat is summed (the update
+    /// tick sums what is left). `updated` is true if any of the ticks
+    /// updated the grid.
+    pub fn ticks_spread(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        work: &mut UpdateWork<S, ROWS, COLS>,
+        currents_a: &[[S; COLS]; ROWS],
+        coolant_c: S,
+        ambient_c: S,
+        ticks: u32,
+    ) -> TickOutcome {
+        let mut outcome = TickOutcome {
+            flags: InputFlags::NONE,
+            updated: false,
+        };
+        let mut remaining = ticks;
+        let mut sliced = false;
+        // At most two passes for a catch-up shorter than an update interval,
+        // and at most `ticks` passes in any case (each takes at least one).
+        while remaining > 0 {
+            // The ticks up to and including the next update share `R(T)`.
+            let to_update = self
+                .config
+                .ticks_per_update
+                .saturating_sub(state.pending_ticks)
+                .max(1);
+            let batch = remaining.min(to_update);
+            remaining -= batch;
+            outcome.flags |= self.accumulate_cached(state, &work.r_tick_dt, currents_a, batch);
+            // Accepting the same boundary `batch` times is accepting it once.
+            outcome.flags |= self.accept_boundaries(state, coolant_c, ambient_c);
+            state.pending_ticks = state.pending_ticks.saturating_add(batch);
+            let updated = state.pending_ticks >= self.config.ticks_per_update;
+            let rows_end = if updated {
+                ROWS
+            } else if sliced {
+                work.rows_done
+            } else {
+                work.rows_done.saturating_add(self.rows_per_tick).min(ROWS)
+            };
+            sliced = true;
+            let rows = work.rows_done..rows_end;
+            self.neighbour_heat(&state.temps_c, &mut work.neighbour_j, rows);
+            work.rows_done = rows_end;
+            if updated {
+                self.finish_update(state, &mut work.neighbour_j, Some(&mut work.r_tick_dt));
+                work.rows_done = 0;
+                outcome.updated = true;
+            }
+        }
+        outcome
+    }
+
+    /// A fresh [`UpdateWork`] for `state`: the resistances of its present
+    /// temperatures, no neighbour heat summed yet.
+    pub fn update_work(&self, state: &GridState<S, ROWS, COLS>) -> UpdateWork<S, ROWS, COLS> {
+        let mut r_tick_dt = [[S::ZERO; COLS]; ROWS];
+        for (r_row, t_row) in r_tick_dt.iter_mut().zip(&state.temps_c) {
+            for (r, t) in r_row.iter_mut().zip(t_row) {
+                *r = self.r_tick_dt(*t);
+            }
+        }
+        UpdateWork {
+            r_tick_dt,
+            neighbour_j: [[S::ZERO; COLS]; ROWS],
+            rows_done: 0,
+        }
+    }
+
+    /// `R(T) tick_dt` \[ohm s\] at coil temperature `temp_c` \[degC\],
+    /// clamped to the input limits' temperature range: beyond it the winding
+    /// has failed anyway, and a bounded `R` keeps a runaway estimate finite.
+    ///
+    /// Plain comparisons rather than [`Scalar::clamp_to`]: they differ only
+    /// for a NaN temperature, whose coil is NaN after its next update
+    /// whatever its Joule energy (the boundary terms carry the NaN), and they
+    /// save eight instructions per coil of an update on an M4F.
+    #[inline(always)]
+    fn r_tick_dt(&self, temp_c: S) -> S {
+        let (lo, hi) = (self.limits.min_temp_c, self.limits.max_temp_c);
+        let t = if temp_c < lo {
+            lo
+        } else if temp_c > hi {
+            hi
+        } else {
+            temp_c
+        };
+        let r = self.r_at_0c_tick_dt + self.slope_tick_dt * t;
+        if r > S::ZERO {
+            r
+        } else {
+            S::ZERO
+        }
+    }
+
+    fn accept_boundaries(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        coolant_c: S,
+        ambient_c: S,
+    ) -> InputFlags {
+        self.limits
+            .accept_temperature(coolant_c, &mut state.held_coolant_c)
+            | self
+                .limits
+                .accept_temperature(ambient_c, &mut state.held_ambient_c)
     }
 
     /// The cheap per-tick part of [`CoilGrid::tick`]: accepts the currents
@@ -75,7 +255,6 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         currents_a: &[[S; COLS]; ROWS],
     ) -> InputFlags {
         let mut flags = InputFlags::NONE;
-        let (t_lo, t_hi) = (self.limits.min_temp_c, self.limits.max_temp_c);
         for (((incoming, held), temps), pending) in currents_a
             .iter()
             .zip(state.held_currents_a.iter_mut())
@@ -84,12 +263,79 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         {
             flags |= self.limits.accept_currents(incoming, held);
             for ((i, t), e) in held.iter().zip(temps).zip(pending.iter_mut()) {
-                let r_dt = (self.r_at_0c_tick_dt + self.slope_tick_dt * t.clamp_to(t_lo, t_hi))
-                    .max(S::ZERO);
-                *e += r_dt * *i * *i;
+                *e += self.r_tick_dt(*t) * *i * *i;
             }
         }
         flags
+    }
+
+    /// [`CoilGrid::accumulate`] `ticks` times (at least once) with the
+    /// resistances taken from `r_tick_dt`. A current within the limits (the
+    /// usual case) is taken with one comparison; anything else goes through
+    /// the full input rules.
+    fn accumulate_cached(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        r_tick_dt: &[[S; COLS]; ROWS],
+        currents_a: &[[S; COLS]; ROWS],
+        ticks: u32,
+    ) -> InputFlags {
+        // Two copies of the loop: the repeat loop in the one-tick case
+        // (every tick but a catch-up) would double its cost.
+        if ticks > 1 {
+            self.accumulate_repeated::<true>(state, r_tick_dt, currents_a, ticks)
+        } else {
+            self.accumulate_repeated::<false>(state, r_tick_dt, currents_a, 1)
+        }
+    }
+
+    #[inline(always)]
+    fn accumulate_repeated<const REPEAT: bool>(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        r_tick_dt: &[[S; COLS]; ROWS],
+        currents_a: &[[S; COLS]; ROWS],
+        ticks: u32,
+    ) -> InputFlags {
+        let mut flags = InputFlags::NONE;
+        let max_a = self.limits.max_current_a;
+        for (((incoming, held), r_row), pending) in currents_a
+            .iter()
+            .zip(state.held_currents_a.iter_mut())
+            .zip(r_tick_dt)
+            .zip(state.pending_joule_j.iter_mut())
+        {
+            let coils = incoming
+                .iter()
+                .zip(held.iter_mut())
+                .zip(r_row)
+                .zip(pending.iter_mut());
+            for (((&i, held), &r), e) in coils {
+                // `abs(i) <= max` is false for a NaN: those take the rules,
+                // out of line so that the loop body stays small.
+                if i.abs() <= max_a {
+                    *held = i;
+                } else {
+                    flags |= self.accept_current_cold(i, held);
+                }
+                // The same energy added `ticks` times, in sequence: the
+                // bits of `ticks` separate ticks.
+                let joule = r * *held * *held;
+                *e += joule;
+                if REPEAT {
+                    for _ in 1..ticks {
+                        *e += joule;
+                    }
+                }
+            }
+        }
+        flags
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn accept_current_cold(&self, incoming_a: S, held_a: &mut S) -> InputFlags {
+        self.limits.accept_current(incoming_a, held_a)
     }
 
     /// One explicit grid step of `grid_dt_s` with the pending Joule energy
@@ -103,59 +349,122 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     /// to `a` (same coefficient, negated difference), so heat moves between
     /// coils without loss.
     pub fn update(&self, state: &mut GridState<S, ROWS, COLS>) {
-        let old = &state.temps_c;
+        let mut neighbour_j = [[S::ZERO; COLS]; ROWS];
+        self.neighbour_heat(&state.temps_c, &mut neighbour_j, 0..ROWS);
+        self.finish_update(state, &mut neighbour_j, None);
+    }
+
+    /// Adds the heat each coil of `rows` receives from its neighbouring
+    /// coils over one grid step, `sum_d G_d dt (T_d - T)` \[J\], to
+    /// `neighbour_j`, directions in [`DIRECTIONS`] order.
+    fn neighbour_heat(
+        &self,
+        temps_c: &[[S; COLS]; ROWS],
+        neighbour_j: &mut [[S; COLS]; ROWS],
+        rows: Range<usize>,
+    ) {
+        for row in rows {
+            let (Some(t_row), Some(e_row)) = (temps_c.get(row), neighbour_j.get_mut(row)) else {
+                return;
+            };
+            // One call per direction, in `DIRECTIONS` order, each with its
+            // offsets known at compile time: straight-line loads instead of
+            // run-time column ranges.
+            self.neighbour_direction::<0>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<1>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<2>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<3>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<4>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<5>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<6>(row, temps_c, t_row, e_row);
+            self.neighbour_direction::<7>(row, temps_c, t_row, e_row);
+        }
+    }
+
+    /// The heat coil row `row` receives from its neighbours in direction
+    /// `DIRECTIONS[D]`, added to `e_row`.
+    #[inline(always)]
+    fn neighbour_direction<const D: usize>(
+        &self,
+        row: usize,
+        temps_c: &[[S; COLS]; ROWS],
+        t_row: &[S; COLS],
+        e_row: &mut [S; COLS],
+    ) {
+        let (Some(&(d_row, d_col)), Some(g_d), Some(used)) = (
+            DIRECTIONS.get(D),
+            self.neighbour_g_dt.get(D),
+            self.direction_used.get(D),
+        ) else {
+            return;
+        };
+        if !used[row % 2] {
+            return;
+        }
+        let (c_lo, c_hi) = inner_range(COLS, d_col);
+        let (n_lo, n_hi) = (
+            c_lo.wrapping_add_signed(d_col),
+            c_hi.wrapping_add_signed(d_col),
+        );
+        let n_row = row.wrapping_add_signed(d_row);
+        let (Some(t), Some(n), Some(g), Some(e)) = (
+            t_row.get(c_lo..c_hi),
+            temps_c.get(n_row).and_then(|r| r.get(n_lo..n_hi)),
+            g_d.get(row).and_then(|r| r.get(c_lo..c_hi)),
+            e_row.get_mut(c_lo..c_hi),
+        ) else {
+            // The neighbour row is outside the grid.
+            return;
+        };
+        for (((e, g), t), n) in e.iter_mut().zip(g).zip(t).zip(n) {
+            *e += *g * (*n - *t);
+        }
+    }
+
+    /// The rest of the update once every row's neighbour heat is in
+    /// `neighbour_j` (cleared here): boundary and Joule terms, the
+    /// compensated temperature step, and, when given, the new `R(T) tick_dt`.
+    fn finish_update(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        neighbour_j: &mut [[S; COLS]; ROWS],
+        mut r_tick_dt: Option<&mut [[S; COLS]; ROWS]>,
+    ) {
         let coolant = state.held_coolant_c;
         let ambient = state.held_ambient_c;
-        let mut energy_j = state.pending_joule_j;
-        for ((e_row, t_row), g_amb_row) in energy_j.iter_mut().zip(old).zip(&self.ambient_g_dt) {
-            for ((e, t), g_amb) in e_row.iter_mut().zip(t_row).zip(g_amb_row) {
-                *e += self.base_g_dt * (coolant - *t) + *g_amb * (ambient - *t);
-            }
-        }
-        for ((&(d_row, d_col), g_d), used) in DIRECTIONS
-            .iter()
-            .zip(&self.neighbour_g_dt)
-            .zip(&self.direction_used)
-        {
-            let (r_lo, r_hi) = inner_range(ROWS, d_row);
-            let (c_lo, c_hi) = inner_range(COLS, d_col);
-            let (n_lo, n_hi) = (
-                c_lo.wrapping_add_signed(d_col),
-                c_hi.wrapping_add_signed(d_col),
-            );
-            for row in r_lo..r_hi {
-                if !used[row % 2] {
-                    continue;
-                }
-                let n_row = row.wrapping_add_signed(d_row);
-                let (Some(t), Some(n), Some(g), Some(e)) = (
-                    old.get(row).and_then(|r| r.get(c_lo..c_hi)),
-                    old.get(n_row).and_then(|r| r.get(n_lo..n_hi)),
-                    g_d.get(row).and_then(|r| r.get(c_lo..c_hi)),
-                    energy_j.get_mut(row).and_then(|r| r.get_mut(c_lo..c_hi)),
-                ) else {
-                    continue;
-                };
-                for (((e, g), t), n) in e.iter_mut().zip(g).zip(t).zip(n) {
-                    *e += *g * (*n - *t);
-                }
-            }
-        }
-        for ((t_row, carry_row), e_row) in state
+        let rows = state
             .temps_c
             .iter_mut()
             .zip(state.carry_c.iter_mut())
-            .zip(&energy_j)
-        {
-            for ((t, carry), e) in t_row.iter_mut().zip(carry_row.iter_mut()).zip(e_row) {
+            .zip(state.pending_joule_j.iter_mut())
+            .zip(neighbour_j.iter_mut())
+            .zip(&self.ambient_g_dt)
+            .enumerate();
+        for (row, ((((t_row, carry_row), joule_row), n_row), g_amb_row)) in rows {
+            let coils = t_row
+                .iter_mut()
+                .zip(carry_row.iter_mut())
+                .zip(joule_row.iter_mut())
+                .zip(n_row.iter_mut())
+                .zip(g_amb_row);
+            for ((((t, carry), joule), n), g_amb) in coils {
+                let mut e = *joule;
+                e += self.base_g_dt * (coolant - *t) + *g_amb * (ambient - *t);
+                e += *n;
                 // Fast2Sum: `carry` keeps what `t + increment` rounded away.
-                let increment = *e * self.inverse_capacity + *carry;
+                let increment = e * self.inverse_capacity + *carry;
                 let new = *t + increment;
                 *carry = increment - (new - *t);
                 *t = new;
+                *joule = S::ZERO;
+                *n = S::ZERO;
+            }
+            if let Some(r_row) = r_tick_dt.as_deref_mut().and_then(|r| r.get_mut(row)) {
+                for (r, t) in r_row.iter_mut().zip(t_row.iter()) {
+                    *r = self.r_tick_dt(*t);
+                }
             }
         }
-        state.pending_joule_j = [[S::ZERO; COLS]; ROWS];
         state.pending_ticks = 0;
     }
 }

@@ -419,6 +419,106 @@ fn tick_reports_updates_and_bad_inputs() {
     assert_eq!(state.held_coolant_c, 20.0);
 }
 
+/// Steps `tick` and `tick_spread` side by side on the same inputs and
+/// checks that every field of the state agrees to the bit after every tick.
+fn spread_matches_whole<S: Scalar, const R: usize, const C: usize>(
+    config: &GridConfig,
+    ticks: u32,
+    input: impl Fn(u32, usize, usize) -> f64,
+    boundary: impl Fn(u32) -> (f64, f64),
+) {
+    let grid = CoilGrid::<S, R, C>::new(config).unwrap();
+    let mut whole = GridState::uniform(20.0);
+    whole.temps_c[0][C - 1] = S::from_f64(35.0);
+    let mut spread = whole;
+    let mut work = grid.update_work(&spread);
+    for k in 0..ticks {
+        let currents: [[S; C]; R] =
+            core::array::from_fn(|r| core::array::from_fn(|c| S::from_f64(input(k, r, c))));
+        let (coolant, ambient) = boundary(k);
+        let (coolant, ambient) = (S::from_f64(coolant), S::from_f64(ambient));
+        let a = grid.tick(&mut whole, &currents, coolant, ambient);
+        let b = grid.tick_spread(&mut spread, &mut work, &currents, coolant, ambient);
+        assert_eq!(a, b, "tick {k}");
+        assert_eq!(whole, spread, "tick {k}");
+        // Now and then a catch-up of 0 to 12 ticks in one call.
+        if k % 7 == 3 {
+            let burst = (k * 5) % 13;
+            let mut expected = TickOutcome {
+                flags: InputFlags::NONE,
+                updated: false,
+            };
+            for _ in 0..burst {
+                let o = grid.tick(&mut whole, &currents, coolant, ambient);
+                expected.flags |= o.flags;
+                expected.updated |= o.updated;
+            }
+            let got = grid.ticks_spread(&mut spread, &mut work, &currents, coolant, ambient, burst);
+            assert_eq!(expected, got, "burst of {burst} at tick {k}");
+            assert_eq!(whole, spread, "burst of {burst} at tick {k}");
+        }
+    }
+}
+
+#[test]
+fn the_spread_update_is_the_whole_update_to_the_bit() {
+    // Currents that change every tick, with a NaN, an infinity and an
+    // overcurrent now and then; boundaries that drift and sometimes fail.
+    let input = |k: u32, r: usize, c: usize| match (k * 7 + (r * 5 + c) as u32 * 3) % 97 {
+        0 => f64::NAN,
+        1 => f64::INFINITY,
+        2 => -250.0,
+        x => (x as f64 * 0.37).sin() * 4.0 + (r + c) as f64 * 0.1,
+    };
+    let boundary = |k: u32| match k % 53 {
+        0 => (f64::NAN, 21.0),
+        1 => (19.0, 1e6),
+        x => (18.0 + x as f64 * 0.05, 22.0 - x as f64 * 0.03),
+    };
+    for ticks_per_update in [1, 2, 3, 4, 7, 8, 10, 13] {
+        let hppa = GridConfig {
+            ticks_per_update,
+            ..GridConfig::default()
+        };
+        spread_matches_whole::<f32, 7, 12>(&hppa, 300, input, boundary);
+        spread_matches_whole::<f64, 7, 12>(&hppa, 300, input, boundary);
+        spread_matches_whole::<Q32, 3, 4>(&hppa, 300, input, boundary);
+        let rectangular = GridConfig {
+            stencil: Stencil::RECTANGULAR,
+            border: Border::Adiabatic,
+            ticks_per_update,
+            ..GridConfig::default()
+        };
+        spread_matches_whole::<f32, 5, 3>(&rectangular, 300, input, boundary);
+        spread_matches_whole::<f32, 1, 1>(&rectangular, 50, input, boundary);
+    }
+}
+
+#[test]
+fn update_work_mid_cycle_still_matches() {
+    // Work made while energy is pending (a restored or replaced state): the
+    // update tick sums every row it has not, and the result is the same.
+    let cfg = GridConfig {
+        ticks_per_update: 10,
+        ..GridConfig::default()
+    };
+    let grid = Hppa::<f32>::new(&cfg).unwrap();
+    let mut currents = [[0.0f32; 12]; 7];
+    currents[3][5] = 2.0;
+    let mut whole = GridState::uniform(20.0);
+    for _ in 0..37 {
+        grid.tick(&mut whole, &currents, 20.0, 20.0);
+    }
+    let mut spread = whole;
+    let mut work = grid.update_work(&spread);
+    for k in 0..40 {
+        let a = grid.tick(&mut whole, &currents, 20.0, 20.0);
+        let b = grid.tick_spread(&mut spread, &mut work, &currents, 20.0, 20.0);
+        assert_eq!((a, &whole), (b, &spread), "tick {k}");
+    }
+    assert!(whole.temps_c[3][5] > 20.0);
+}
+
 #[test]
 fn hottest_queries_rank_coils_without_allocation() {
     let mut state = GridState::<f32, 3, 4>::uniform(20.0);
@@ -435,6 +535,23 @@ fn hottest_queries_rank_coils_without_allocation() {
     assert!(all.windows(2).all(|w| w[0].temp_c >= w[1].temp_c));
     assert_eq!(all[11].temp_c, 20.0);
     assert_eq!(state.hottest_k::<0>().len(), 0);
+}
+
+#[test]
+fn hottest_is_hottest_k_of_one() {
+    // Ties, a NaN first or later, infinities: the scan and the insertion
+    // ranking agree on every one.
+    let values = [20.0f32, 50.0, 50.0, f32::NAN, -1.0, f32::INFINITY, 49.9];
+    for seed in 0..200usize {
+        let mut state = GridState::<f32, 3, 4>::uniform(20.0);
+        for (i, t) in state.temps_c.as_flattened_mut().iter_mut().enumerate() {
+            *t = values[(seed * 7 + i * i * 3 + seed / 7) % values.len()];
+        }
+        let [want] = state.hottest_k::<1>();
+        let got = state.hottest();
+        assert_eq!((got.row, got.col), (want.row, want.col), "seed {seed}");
+        assert_eq!(got.temp_c.to_bits(), want.temp_c.to_bits(), "seed {seed}");
+    }
 }
 
 #[test]

@@ -10,18 +10,23 @@
 //!    tick sub-steps, an early one carries its time, a stall beyond
 //!    `max_steps_per_tick` is dropped and flagged
 //!    ([`InputFlags::ELAPSED_INVALID`]);
-//! 2. each step is one [`CoilGrid::tick`] (Joule energy accumulated, the grid
-//!    updated every `ticks_per_update` steps);
+//! 2. the steps are [`CoilGrid::ticks_spread`] (Joule energy accumulated,
+//!    a slice of the next update done, the grid updated every
+//!    `ticks_per_update` steps): the temperatures of as many
+//!    [`CoilGrid::tick`]s to the bit, without a tick that carries the whole
+//!    update;
 //! 3. after a tick in which the grid updated (temperatures change only then),
-//!    the protection runs once, spread over the next three ticks so that no
-//!    tick carries both a grid update and the whole protection: per-coil time
-//!    to limit, then the alarm, then the current limiter and the hottest coil.
+//!    the protection runs once, spread over the next eight ticks so that no
+//!    tick carries both a grid update and a large share of the protection:
+//!    coil powers and the bound `U`, then the per-coil time to limit (two
+//!    parts of the coils), the alarm (three) and the current limiter (two),
+//!    and the hottest coil.
 //!    Between updates the protection outputs stand, because nothing they
 //!    depend on has changed except the currents, which the limiter does not
-//!    take. So the limits lag the model by at most three ticks (3 ms at the
+//!    take. So the limits lag the model by at most eight ticks (8 ms at the
 //!    HPPA's rate, against thermal time constants of minutes), and the
 //!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
-//!    should exceed 3 (and `max_steps_per_tick`) for every update to be
+//!    should exceed 8 (and `max_steps_per_tick`) for every update to be
 //!    followed by a complete protection pass; otherwise a newer update
 //!    restarts the stages.
 //!
@@ -47,8 +52,10 @@
 //! pessimistic for cold coils beside a hot one (they are assumed to sit next
 //! to the hottest possible neighbour); a single powered coil is predicted to
 //! run towards its isolated steady state. Cost: two passes over the coils
-//! and one `ln` per coil that is predicted to cross. `f32` throughout (also
-//! for fixed-point grids: the answer is a time, not a temperature).
+//! and one `ln` per coil that is predicted to cross (a short series, within
+//! a few ulps of libm's, the accuracy of every other `f32` step here). `f32`
+//! throughout (also for fixed-point grids: the answer is a time, not a
+//! temperature).
 //!
 //! # Warm restart
 //!
@@ -65,7 +72,7 @@
 use super::clock::{ClockState, StepClock};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
-use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState};
+use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus};
 use crate::protect::events::EventQueue;
@@ -74,6 +81,10 @@ use crate::scalar::Scalar;
 
 /// Capacity of each observer's alarm event queue.
 pub const EVENT_CAPACITY: usize = 16;
+
+/// Ticks after a grid update until its protection pass is complete (the
+/// outputs lag the model by at most this many ticks; see the module docs).
+pub const PROTECTION_TICKS: u32 = 8;
 
 /// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
 const DIRECTIONS: [(isize, isize); 8] = [
@@ -116,6 +127,85 @@ struct TimeToLimit<const ROWS: usize, const COLS: usize> {
     slope_ohm_per_k: f32,
 }
 
+/// What a protection stage does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Step {
+    /// Alarm limits at the held ambient, coil powers and the bound `U`.
+    Bound,
+    /// Time to limit of some coils.
+    TimeToLimit,
+    /// The alarm of some coils, with the new times.
+    Alarm,
+    /// The current limiter of some coils; after the last part, the
+    /// published temperatures and the hottest coil.
+    Limiter,
+}
+
+/// The protection stages after a grid update, one per tick, in order: a
+/// step and its part `(step, part, parts)`. The per-coil steps are cut into
+/// parts of the coils (row-major) so that no tick carries the whole 84-coil
+/// work of one of them; the alarm, whose elements can each raise events in
+/// the same pass, in three.
+const STAGES: [(Step, u8, u8); 8] = [
+    (Step::Bound, 0, 1),
+    (Step::TimeToLimit, 0, 2),
+    (Step::TimeToLimit, 1, 2),
+    (Step::Alarm, 0, 3),
+    (Step::Alarm, 1, 3),
+    (Step::Alarm, 2, 3),
+    (Step::Limiter, 0, 2),
+    (Step::Limiter, 1, 2),
+];
+
+const _: () = assert!(STAGES.len() as u32 == PROTECTION_TICKS);
+
+/// The coils of part `part` of `parts` of `n`, row-major.
+fn part_of(n: usize, part: u8, parts: u8) -> core::ops::Range<usize> {
+    let parts = usize::from(parts.max(1));
+    let part = usize::from(part);
+    n * part / parts..n * (part + 1) / parts
+}
+
+/// What one protection pass carries from stage to stage.
+#[derive(Debug, Clone)]
+struct ProtectPass<S, const N: usize> {
+    /// Alarm limits at the held ambient \[degC\].
+    limits_c: [S; N],
+    /// Coil powers of the bound \[W\], fixed at the first stage so that the
+    /// bound `U` holds for the powers the later stages use.
+    power_w: [f32; N],
+    /// The bound `U` \[degC\].
+    bound_c: f32,
+    /// Coolant and ambient temperatures of the bound \[degC\].
+    coolant_c: f32,
+    ambient_c: f32,
+    /// The alarm status of the parts so far.
+    alarm: AlarmStatus,
+}
+
+/// `ln(x)` for the time-to-limit ratio (`x >= 1`), within a few ulps of
+/// libm's `logf` in about a third of its instructions (it runs for every
+/// coil predicted to cross, 84 times per grid update on the HPPA): with
+/// `x = m 2^e`, `m` in `[sqrt(1/2), sqrt(2))`, `ln m = 2 atanh(s)` for
+/// `s = (m - 1) / (m + 1)`, `|s| < 0.172`, whose series to `s^7` leaves
+/// less than `3e-8`. NaN, infinities and non-normal `x` go to `logf`.
+fn ln(x: f32) -> f32 {
+    if !(f32::MIN_POSITIVE..f32::INFINITY).contains(&x) {
+        return libm::logf(x);
+    }
+    let bits = x.to_bits();
+    let mut exponent = (bits >> 23) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    if m > core::f32::consts::SQRT_2 {
+        m *= 0.5;
+        exponent += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = 2.0 * s * (1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0))));
+    exponent as f32 * core::f32::consts::LN_2 + series
+}
+
 /// The inputs of one tick. Currents by reference: 84 coils are 336 bytes.
 #[derive(Debug, Clone, Copy)]
 pub struct GridInputs<'a, S, const ROWS: usize, const COLS: usize> {
@@ -153,7 +243,8 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
     pub steps: u32,
     /// Time dropped by the catch-up limit this tick \[us\].
     pub dropped_us: u32,
-    /// The grid updated this tick (the protection follows in the next three).
+    /// The grid updated this tick (the protection follows in the next
+    /// [`PROTECTION_TICKS`]).
     pub updated: bool,
     /// Ticks since the state was made.
     pub tick: u32,
@@ -162,16 +253,23 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
 /// The per-device state: model, alarm, clock, events and the last outputs.
 #[derive(Debug, Clone)]
 pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: usize> {
-    /// The grid model's state.
+    /// The grid model's state. Read it freely; the observer keeps work
+    /// derived from its temperatures (see [`UpdateWork`]), so a state with
+    /// other temperatures is made with [`GridObserver::restore`] or
+    /// [`GridObserver::conservative_state`] rather than written here.
     pub grid: GridState<S, ROWS, COLS>,
+    /// The grid update done ahead, a few rows per tick.
+    work: UpdateWork<S, ROWS, COLS>,
     /// The alarm's state.
     pub alarm: AlarmState<S, N>,
     /// The time not yet simulated.
     pub clock: ClockState,
     /// Alarm events not yet drained by the application.
     pub events: EventQueue<EVENT_CAPACITY>,
-    /// Next protection stage (0: none pending).
+    /// Next protection stage, from 1 (0: none pending; see [`STAGES`]).
     stage: u8,
+    /// What the protection stages hand on to each other.
+    pass: ProtectPass<S, N>,
     outputs: GridOutputs<S, ROWS, COLS, N>,
 }
 
@@ -304,11 +402,20 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 updated: false,
                 tick: 0,
             },
+            work: self.grid.update_work(&grid),
             grid,
             alarm,
             clock: ClockState::default(),
             events: EventQueue::new(),
             stage: 0,
+            pass: ProtectPass {
+                limits_c: [S::ZERO; N],
+                power_w: [0.0; N],
+                bound_c: 0.0,
+                coolant_c: 0.0,
+                ambient_c: 0.0,
+                alarm: AlarmStatus::default(),
+            },
         };
         self.protect(&mut state, false);
         state
@@ -323,18 +430,23 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         inputs: &GridInputs<'_, S, ROWS, COLS>,
     ) -> &'s GridOutputs<S, ROWS, COLS, N> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
-        let mut flags = steps.flags;
-        let mut updated = false;
-        for _ in 0..steps.steps {
-            let outcome = self.grid.tick(
-                &mut state.grid,
-                inputs.currents_a,
-                inputs.coolant_c,
-                inputs.ambient_c,
-            );
-            flags |= outcome.flags;
-            updated |= outcome.updated;
-        }
+        let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
+        let outcome = if steps.steps == 1 {
+            self.grid
+                .tick_spread(grid, work, i.currents_a, i.coolant_c, i.ambient_c)
+        } else {
+            // All the steps at once: a catch-up costs little more than one.
+            self.grid.ticks_spread(
+                grid,
+                work,
+                i.currents_a,
+                i.coolant_c,
+                i.ambient_c,
+                steps.steps,
+            )
+        };
+        let flags = steps.flags | outcome.flags;
+        let updated = outcome.updated;
         if updated {
             // Temperatures changed: the protection runs in the next ticks.
             state.stage = 1;
@@ -351,79 +463,101 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// One stage of the protection after a grid update, so that no tick
-    /// carries both the update and the whole protection: 1 time to limit,
-    /// 2 alarm, 3 limiter and hottest coil.
+    /// carries both the update and the whole protection (see [`STAGES`]).
+    /// `state.stage` is the next stage's number from 1 (0: none pending).
     fn protect_stage(&self, state: &mut GridObserverState<S, ROWS, COLS, N>) {
+        let Some(&stage) = usize::from(state.stage)
+            .checked_sub(1)
+            .and_then(|i| STAGES.get(i))
+        else {
+            return;
+        };
+        self.run_stage(state, stage, true);
+        state.stage = if usize::from(state.stage) >= STAGES.len() {
+            0
+        } else {
+            state.stage + 1
+        };
+    }
+
+    /// Every stage at once on the present temperatures, the alarm only when
+    /// `alarm` (for a fresh or restored state).
+    fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
+        for stage in STAGES {
+            self.run_stage(state, stage, alarm);
+        }
+        state.stage = 0;
+    }
+
+    fn run_stage(
+        &self,
+        state: &mut GridObserverState<S, ROWS, COLS, N>,
+        (step, part, parts): (Step, u8, u8),
+        alarm: bool,
+    ) {
         let ambient_c = state.grid.held_ambient_c;
         let out = &mut state.outputs;
-        match state.stage {
-            1 => {
-                let limits_c = self.alarm.alarm_limits_c(ambient_c);
-                self.time_to_limit(&state.grid, &limits_c, &mut out.time_to_limit_s);
-                // The answers were computed one tick after the update they
-                // describe; the next stages use them as they are (1 ms).
+        let pass = &mut state.pass;
+        let coils = part_of(N, part, parts);
+        let last = part + 1 >= parts;
+        match step {
+            Step::Bound => {
+                pass.limits_c = self.alarm.alarm_limits_c(ambient_c);
+                self.ttl_bound(&state.grid, pass);
+                // The answers are computed in the ticks after the update
+                // they describe; the next stages use them as they are (ms).
             }
-            2 => {
-                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
-                    out.alarm = state.alarm.tick(
+            Step::TimeToLimit => {
+                self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, coils);
+            }
+            Step::Alarm => {
+                if let (true, Ok(temps)) = (
+                    alarm,
+                    <&[S; N]>::try_from(state.grid.temps_c.as_flattened()),
+                ) {
+                    let status = state.alarm.tick_part(
                         &self.alarm,
                         temps,
                         ambient_c,
                         &out.time_to_limit_s,
                         &mut state.events,
+                        coils,
+                    );
+                    pass.alarm = if part == 0 {
+                        status
+                    } else {
+                        pass.alarm.union(status)
+                    };
+                    if last {
+                        out.alarm = pass.alarm;
+                    }
+                }
+            }
+            Step::Limiter => {
+                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    self.limiter.apply_part(
+                        temps,
+                        &pass.limits_c,
+                        ambient_c,
+                        &mut out.limits,
+                        coils,
                     );
                 }
-            }
-            3 => {
-                let limits_c = self.alarm.alarm_limits_c(ambient_c);
-                if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
-                    self.limiter
-                        .apply(temps, &limits_c, ambient_c, &mut out.limits);
+                if last {
+                    out.temps_c = state.grid.temps_c;
+                    out.hottest = state.grid.hottest();
                 }
-                out.temps_c = state.grid.temps_c;
-                out.hottest = state.grid.hottest();
             }
-            _ => return,
         }
-        state.stage = if state.stage >= 3 { 0 } else { state.stage + 1 };
     }
 
-    /// Time to limit, alarm (when `alarm`) and limiter on the present
-    /// temperatures, all at once (for a fresh or restored state).
-    fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
-        let ambient_c = state.grid.held_ambient_c;
-        let limits_c = self.alarm.alarm_limits_c(ambient_c);
-        let out = &mut state.outputs;
-        self.time_to_limit(&state.grid, &limits_c, &mut out.time_to_limit_s);
-        let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) else {
-            return;
-        };
-        if alarm {
-            out.alarm = state.alarm.tick(
-                &self.alarm,
-                temps,
-                ambient_c,
-                &out.time_to_limit_s,
-                &mut state.events,
-            );
-        }
-        self.limiter
-            .apply(temps, &limits_c, ambient_c, &mut out.limits);
-        out.temps_c = state.grid.temps_c;
-        out.hottest = state.grid.hottest();
-    }
-
-    /// The bound of the module docs, for every coil.
-    fn time_to_limit(
-        &self,
-        grid: &GridState<S, ROWS, COLS>,
-        limits_c: &[S; N],
-        out: &mut [Option<S>; N],
-    ) {
+    /// First pass of the bound of the module docs: each coil's power at the
+    /// resistance of its limit (or temperature, if higher) and the bound `U`
+    /// on every coil, kept with the boundaries in `pass` for the second.
+    fn ttl_bound(&self, grid: &GridState<S, ROWS, COLS>, pass: &mut ProtectPass<S, N>) {
         let t = &self.ttl;
         let coolant = grid.held_coolant_c.to_f32();
         let ambient = grid.held_ambient_c.to_f32();
-        let mut power_w = [0.0f32; N];
         let mut bound_c = f32::NEG_INFINITY;
         let coils = grid
             .temps_c
@@ -431,23 +565,57 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             .iter()
             .zip(grid.held_currents_a.as_flattened())
             .zip(t.ambient_g.as_flattened())
-            .zip(limits_c.iter())
-            .zip(power_w.iter_mut());
+            .zip(pass.limits_c.iter())
+            .zip(pass.power_w.iter_mut());
         for ((((temp, current), g_amb), limit), p) in coils {
             let (temp, current) = (temp.to_f32(), current.to_f32());
-            let r_ohm = t.r0_ohm + t.slope_ohm_per_k * temp.max(limit.to_f32());
-            *p = r_ohm.max(0.0) * current * current;
+            // `Scalar::max`, a comparison: the inherent `f32::max` is a call
+            // to `fmaxf` on ARMv7E-M, four per coil here.
+            let r_ohm = t.r0_ohm + t.slope_ohm_per_k * Scalar::max(temp, limit.to_f32());
+            *p = Scalar::max(r_ohm, 0.0) * current * current;
             let isolated = (*p + t.base_g * coolant + g_amb * ambient) / (t.base_g + g_amb);
-            bound_c = bound_c.max(isolated).max(temp);
+            // `bound_c` is never NaN, so these are `Scalar::max` (a NaN
+            // loses) in half the instructions.
+            if isolated > bound_c {
+                bound_c = isolated;
+            }
+            if temp > bound_c {
+                bound_c = temp;
+            }
         }
-        let coils = grid
-            .temps_c
-            .as_flattened()
+        pass.bound_c = bound_c;
+        pass.coolant_c = coolant;
+        pass.ambient_c = ambient;
+    }
+
+    /// Second pass of the bound for the coils in `coils` (row-major): each
+    /// coil's crossing time with every neighbour at `U`, from the powers and
+    /// boundaries of the first pass.
+    fn ttl_coils(
+        &self,
+        grid: &GridState<S, ROWS, COLS>,
+        pass: &ProtectPass<S, N>,
+        out: &mut [Option<S>; N],
+        range: core::ops::Range<usize>,
+    ) {
+        let t = &self.ttl;
+        let (coolant, ambient, bound_c) = (pass.coolant_c, pass.ambient_c, pass.bound_c);
+        let (Some(temps), Some(g_n), Some(g_amb), Some(limits), Some(power), Some(out)) = (
+            grid.temps_c.as_flattened().get(range.clone()),
+            t.neighbour_g.as_flattened().get(range.clone()),
+            t.ambient_g.as_flattened().get(range.clone()),
+            pass.limits_c.get(range.clone()),
+            pass.power_w.get(range.clone()),
+            out.get_mut(range),
+        ) else {
+            return;
+        };
+        let coils = temps
             .iter()
-            .zip(t.neighbour_g.as_flattened())
-            .zip(t.ambient_g.as_flattened())
-            .zip(limits_c.iter())
-            .zip(power_w.iter())
+            .zip(g_n)
+            .zip(g_amb)
+            .zip(limits)
+            .zip(power)
             .zip(out.iter_mut());
         for (((((temp, g_n), g_amb), limit), p), out) in coils {
             let (temp, limit) = (temp.to_f32(), limit.to_f32());
@@ -466,9 +634,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 None
             } else {
                 let tau_s = t.capacity / g_total;
-                Some(S::from_f32(
-                    tau_s * libm::logf((steady - temp) / (steady - limit)),
-                ))
+                Some(S::from_f32(tau_s * ln((steady - temp) / (steady - limit))))
             };
         }
     }
@@ -541,5 +707,42 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// The temperature [`Self::conservative_state`] assumes \[degC\].
     pub fn restart_temp_c(&self) -> f64 {
         self.restart_c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ln;
+
+    #[test]
+    fn ln_is_within_a_few_ulps_of_the_f64_logarithm() {
+        // Ratios from just above 1 (a coil far from its limit's crossing,
+        // or a slow one) to 1e30, geometrically spaced, plus the points
+        // where the reduction switches (powers of 2 and their sqrt(2)).
+        let mut x = 1.0f32;
+        let mut worst_ulps = 0.0f64;
+        let mut check = |x: f32| {
+            let got = ln(x) as f64;
+            let want = (x as f64).ln();
+            let ulp = f32::EPSILON as f64 * want.abs().max(f32::MIN_POSITIVE as f64);
+            worst_ulps = worst_ulps.max((got - want).abs() / ulp);
+        };
+        while x < 1e30 {
+            check(x);
+            check(f32::from_bits(x.to_bits() + 1));
+            x *= 1.0137;
+        }
+        for e in 0..40 {
+            let p = (1u64 << e) as f32;
+            for y in [p, p * core::f32::consts::SQRT_2] {
+                for d in [-1i32, 0, 1] {
+                    check(f32::from_bits(y.to_bits().wrapping_add_signed(d)).max(1.0));
+                }
+            }
+        }
+        assert!(worst_ulps <= 4.0, "{worst_ulps} ulps");
+        assert_eq!(ln(1.0), 0.0);
+        assert!(ln(f32::NAN).is_nan());
+        assert_eq!(ln(f32::INFINITY), f32::INFINITY);
     }
 }

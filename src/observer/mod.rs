@@ -20,7 +20,7 @@ pub mod shared;
 pub mod snapshot;
 
 pub use clock::{ClockState, StepClock, TickSteps};
-pub use grid::{GridInputs, GridObserver, GridObserverState, GridOutputs};
+pub use grid::{GridInputs, GridObserver, GridObserverState, GridOutputs, PROTECTION_TICKS};
 pub use omnimagnet::{
     OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
     TimedReading,

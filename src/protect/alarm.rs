@@ -61,6 +61,7 @@
 //! allocates and never panics; the fixed-point path (`Q32`) has no division.
 
 use core::fmt;
+use core::ops::Range;
 
 use super::derating::{derated_limit_c, DeratingRule};
 use super::events::{AlarmEvent, EventKind, EventQueue};
@@ -107,6 +108,18 @@ impl Debounced {
     /// on.
     pub fn count(&self) -> u16 {
         self.count
+    }
+
+    /// `true` when [`Self::update`] with `observation` would change
+    /// nothing: no evidence and a counter already at zero (or an inactive
+    /// alarm facing an unknown sample).
+    #[inline]
+    fn is_settled(&self, observation: Observation) -> bool {
+        match (self.active, observation) {
+            (false, Observation::Unknown) => true,
+            (false, obs) => self.count == 0 && obs != Observation::Above,
+            (true, obs) => self.count == 0 && obs != Observation::Below,
+        }
     }
 
     fn update(
@@ -366,6 +379,63 @@ impl ElementAlarm {
     }
 }
 
+impl ElementAlarm {
+    /// The full update of one element whose alarms may move, out of line:
+    /// most elements are settled, and keeping this out of the element loop
+    /// leaves the loop its registers. `observations` are those of the
+    /// warning, the shutdown and the predictive alarm.
+    #[cold]
+    #[inline(never)]
+    fn update<const CAP: usize>(
+        &mut self,
+        index: usize,
+        valid: bool,
+        observations: [Observation; 3],
+        debounce: u16,
+        tick: u64,
+        events: &mut EventQueue<CAP>,
+    ) {
+        let mut push = |kind: EventKind| {
+            // A full queue counts the drop itself; the state stays the truth.
+            let _ = events.push(AlarmEvent {
+                tick,
+                element: Some(index),
+                kind,
+            });
+        };
+        if valid == self.sensor_invalid {
+            push(sensor_event(valid));
+        }
+        self.sensor_invalid = !valid;
+        let [warning_obs, shutdown_obs, time_obs] = observations;
+        let changes = [
+            (
+                self.warning.update(warning_obs, debounce, false),
+                EventKind::WarningRaised,
+                EventKind::WarningCleared,
+            ),
+            (
+                self.shutdown.update(shutdown_obs, debounce, true),
+                EventKind::ShutdownLatched,
+                // Never produced: the shutdown is latched.
+                EventKind::Reset,
+            ),
+            (
+                self.predictive.update(time_obs, debounce, false),
+                EventKind::PredictiveRaised,
+                EventKind::PredictiveCleared,
+            ),
+        ];
+        for (transition, raised, cleared) in changes {
+            match transition {
+                Transition::Raised => push(raised),
+                Transition::Cleared => push(cleared),
+                Transition::None => {}
+            }
+        }
+    }
+}
+
 /// A summary of all elements after a tick: `true` if any element has it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -382,6 +452,22 @@ pub struct AlarmStatus {
     pub ambient_invalid: bool,
     /// The event queue has dropped events since its last acknowledgement.
     pub events_dropped: bool,
+}
+
+impl AlarmStatus {
+    /// Both statuses in one: each flag set if it is set in either (for the
+    /// parts of [`AlarmState::tick_part`]).
+    #[must_use]
+    pub fn union(self, other: Self) -> Self {
+        Self {
+            warning: self.warning || other.warning,
+            shutdown: self.shutdown || other.shutdown,
+            predictive: self.predictive || other.predictive,
+            sensor_invalid: self.sensor_invalid || other.sensor_invalid,
+            ambient_invalid: self.ambient_invalid || other.ambient_invalid,
+            events_dropped: self.events_dropped || other.events_dropped,
+        }
+    }
 }
 
 /// Why [`AlarmState::reset`] refused.
@@ -465,89 +551,121 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         time_to_limit_s: &[Option<S>; N],
         events: &mut EventQueue<CAP>,
     ) -> AlarmStatus {
-        self.tick = self.tick.wrapping_add(1);
-        let tick = self.tick;
-        let mut push = |element: Option<usize>, kind: EventKind| {
-            // A full queue counts the drop itself; the state stays the truth.
-            let _ = events.push(AlarmEvent {
-                tick,
-                element,
-                kind,
-            });
-        };
+        self.tick_part(config, temps_c, ambient_c, time_to_limit_s, events, 0..N)
+    }
 
-        let ambient_valid = ambient_c.is_finite();
-        if ambient_valid {
-            self.ambient_c = ambient_c;
+    /// [`Self::tick`] for the elements in `elements` only, for a caller that
+    /// spreads one tick over several control ticks to bound the work of each:
+    /// the part that starts at element 0 counts the tick and takes
+    /// `ambient_c`; the other parts use that tick and ambient (their
+    /// `ambient_c` is ignored). Each element must be in exactly one part per
+    /// tick. The status covers the part's elements and the ambient; combine
+    /// the parts' with [`AlarmStatus::union`]. A range beyond `N` is cut to it.
+    pub fn tick_part<const CAP: usize>(
+        &mut self,
+        config: &AlarmConfig<S, N>,
+        temps_c: &[S; N],
+        ambient_c: S,
+        time_to_limit_s: &[Option<S>; N],
+        events: &mut EventQueue<CAP>,
+        elements: Range<usize>,
+    ) -> AlarmStatus {
+        let first = elements.start;
+        if first == 0 {
+            self.tick = self.tick.wrapping_add(1);
         }
-        if ambient_valid == self.ambient_invalid {
-            push(None, sensor_event(ambient_valid));
+        let tick = self.tick;
+        if first == 0 {
+            let ambient_valid = ambient_c.is_finite();
+            if ambient_valid {
+                self.ambient_c = ambient_c;
+            }
+            if ambient_valid == self.ambient_invalid {
+                // A full queue counts the drop itself; the state stays the truth.
+                let _ = events.push(AlarmEvent {
+                    tick,
+                    element: None,
+                    kind: sensor_event(ambient_valid),
+                });
+            }
+            self.ambient_invalid = !ambient_valid;
         }
-        self.ambient_invalid = !ambient_valid;
 
         let debounce = config.debounce_ticks;
         let mut status = AlarmStatus {
-            ambient_invalid: !ambient_valid,
+            ambient_invalid: self.ambient_invalid,
             ..AlarmStatus::default()
+        };
+        let (mut warning, mut shutdown, mut predictive, mut sensor_invalid) =
+            (false, false, false, false);
+        let elements = first.min(N)..elements.end.min(N);
+        let (Some(alarms), Some(temps_c), Some(critical_c), Some(time_to_limit_s)) = (
+            self.elements.get_mut(elements.clone()),
+            temps_c.get(elements.clone()),
+            config.critical_c.get(elements.clone()),
+            time_to_limit_s.get(elements),
+        ) else {
+            return status;
         };
         let inputs = temps_c
             .iter()
-            .zip(config.critical_c.iter())
+            .zip(critical_c.iter())
             .zip(time_to_limit_s.iter());
-        for (index, (element, ((&temp_c, &critical_c), &time_s))) in
-            self.elements.iter_mut().zip(inputs).enumerate()
+        for (offset, (element, ((&temp_c, &critical_c), &time_s))) in
+            alarms.iter_mut().zip(inputs).enumerate()
         {
+            let index = first + offset;
             let limit_c = derated_limit_c(critical_c, self.ambient_c, config.product);
             let warning_c = limit_c - config.warning_margin_k;
             let valid = temp_c.is_finite();
-            if valid == element.sensor_invalid {
-                push(Some(index), sensor_event(valid));
-            }
-            element.sensor_invalid = !valid;
-
-            let (warning_obs, shutdown_obs) = if valid {
-                (
-                    observe(temp_c, warning_c, config.hysteresis_k),
-                    observe(temp_c, limit_c, config.hysteresis_k),
-                )
-            } else {
-                (Observation::Above, Observation::Unknown)
-            };
-            element.below_reset = shutdown_obs == Observation::Below;
-
-            let changes = [
-                (
-                    element.warning.update(warning_obs, debounce, false),
-                    EventKind::WarningRaised,
-                    EventKind::WarningCleared,
-                ),
-                (
-                    element.shutdown.update(shutdown_obs, debounce, true),
-                    EventKind::ShutdownLatched,
-                    // Never produced: the shutdown is latched.
-                    EventKind::Reset,
-                ),
-                (
-                    element
-                        .predictive
-                        .update(observe_time(time_s, config), debounce, false),
-                    EventKind::PredictiveRaised,
-                    EventKind::PredictiveCleared,
-                ),
-            ];
-            for (transition, raised, cleared) in changes {
-                match transition {
-                    Transition::Raised => push(Some(index), raised),
-                    Transition::Cleared => push(Some(index), cleared),
-                    Transition::None => {}
+            let time_obs = observe_time(time_s, config);
+            let hysteresis_k = config.hysteresis_k;
+            // A valid sample below `limit - hysteresis` is below the limit
+            // too (the hysteresis is not negative): `Below` for the shutdown.
+            let below_reset = valid && temp_c < limit_c - hysteresis_k;
+            element.below_reset = below_reset;
+            // The usual element, in plain comparisons: a valid sample as
+            // before, every counter at zero and no evidence for any alarm
+            // (see `Debounced::is_settled`). The full update would change
+            // nothing; anything else (including a NaN level) takes it.
+            let (w, s, p) = (&element.warning, &element.shutdown, &element.predictive);
+            let settled = valid
+                && !element.sensor_invalid
+                && w.count == 0
+                && s.count == 0
+                && if w.active {
+                    temp_c >= warning_c - hysteresis_k
+                } else {
+                    temp_c <= warning_c
                 }
+                && if s.active {
+                    !below_reset
+                } else {
+                    temp_c <= limit_c
+                }
+                && p.is_settled(time_obs);
+            if !settled {
+                let (warning_obs, shutdown_obs) = if valid {
+                    (
+                        observe(temp_c, warning_c, hysteresis_k),
+                        observe(temp_c, limit_c, hysteresis_k),
+                    )
+                } else {
+                    (Observation::Above, Observation::Unknown)
+                };
+                let observations = [warning_obs, shutdown_obs, time_obs];
+                element.update(index, valid, observations, debounce, tick, events);
             }
-
-            status.warning |= element.warning.active;
-            status.shutdown |= element.shutdown.active;
-            status.predictive |= element.predictive.active;
-            status.sensor_invalid |= element.sensor_invalid;
+            // Locals, not `status` fields: kept in registers across the loop.
+            warning |= element.warning.active;
+            shutdown |= element.shutdown.active;
+            predictive |= element.predictive.active;
+            sensor_invalid |= element.sensor_invalid;
         }
+        status.warning = warning;
+        status.shutdown = shutdown;
+        status.predictive = predictive;
+        status.sensor_invalid = sensor_invalid;
         status.events_dropped = events.overflowed();
         status
     }
@@ -755,6 +873,47 @@ mod tests {
                 assert_eq!(status.warning, k != debounce);
             }
             assert_eq!(events.pop().unwrap().kind, EventKind::WarningCleared);
+        }
+    }
+
+    #[test]
+    fn a_tick_in_parts_is_the_whole_tick() {
+        // Noisy temperatures through every level, a NaN now and then, times
+        // around the horizon and an ambient that fails once: the state, the
+        // events and the combined status must be those of whole ticks.
+        let cfg = config::<f32, 6>(3);
+        let mut rng = Rng(0x1234_5678);
+        let (mut whole, mut parts) = (AlarmState::new(&cfg), AlarmState::new(&cfg));
+        let (mut events_whole, mut events_parts) =
+            (EventQueue::<64>::new(), EventQueue::<64>::new());
+        for k in 0..400 {
+            let temps: [f32; 6] = core::array::from_fn(|i| {
+                let t = 55.0
+                    + 12.0 * ((k as f32 + 9.0 * i as f32) * 0.05).sin()
+                    + rng.symmetric() as f32;
+                if (k + i) % 61 == 0 {
+                    f32::NAN
+                } else {
+                    t
+                }
+            });
+            let times: [Option<f32>; 6] = core::array::from_fn(|i| match (k + 2 * i) % 7 {
+                0 => None,
+                1 => Some(f32::NAN),
+                x => Some(x as f32 * 15.0),
+            });
+            let ambient = if k == 100 { f32::NAN } else { 20.0 };
+            let a = whole.tick(&cfg, &temps, ambient, &times, &mut events_whole);
+            let b = parts
+                .tick_part(&cfg, &temps, ambient, &times, &mut events_parts, 0..2)
+                .union(parts.tick_part(&cfg, &temps, f32::NAN, &times, &mut events_parts, 2..5))
+                .union(parts.tick_part(&cfg, &temps, f32::NAN, &times, &mut events_parts, 5..9));
+            assert_eq!(a, b, "tick {k}");
+            assert_eq!(whole, parts, "tick {k}");
+            while let Some(e) = events_whole.pop() {
+                assert_eq!(Some(e), events_parts.pop(), "tick {k}");
+            }
+            assert!(events_parts.is_empty());
         }
     }
 
