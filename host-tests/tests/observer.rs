@@ -176,6 +176,54 @@ fn limits_and_alarms_follow_the_model_within_protection_ticks() {
     assert_eq!(saw_update, Some(9));
 }
 
+/// A controller ticking every 2 ms (two 1 ms model steps a tick) updates the
+/// grid every 5 ticks, less than a protection pass: the passes must still
+/// complete (restarting them on each update would starve the limiter for
+/// good), with outputs at most two passes old.
+#[test]
+fn protection_completes_when_updates_come_faster_than_a_pass() {
+    let grid = grid();
+    let mut state = grid.conservative_state(20.0);
+    let currents = hot_currents();
+    let start_limit_a = state.outputs().limits[3 * 12 + 5].current_a;
+    assert_eq!(
+        start_limit_a, 3.0,
+        "the taper band's start allows full current"
+    );
+    for _ in 0..400 {
+        tick(&grid, &mut state, &currents, 2000);
+    }
+    let out = state.outputs();
+    assert!(
+        out.limits[3 * 12 + 5].current_a < 3.0,
+        "the limiter never ran"
+    );
+    assert_eq!(out.limits[6 * 12].current_a, 3.0);
+    // Published temperatures lag the model by at most two passes (~40 ms
+    // here), which the powered coil heats through by far less than 0.1 K.
+    let lag_k = state.grid.temps_c[3][5] - out.temps_c[3][5];
+    assert!((0.0..0.1).contains(&lag_k), "lag {lag_k} K");
+}
+
+/// `ticks_per_update` below `2 * max_steps_per_tick` could leave no tick
+/// free of a grid update for the protection stages: refused at build time.
+#[test]
+fn too_few_ticks_per_update_for_the_catch_up_bound_is_refused() {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+        .build()
+        .unwrap();
+    let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).unwrap();
+    let config = GridConfig {
+        ticks_per_update: 7,
+        ..GridConfig::hppa(GridParams::FDM_FITTED)
+    };
+    assert!(matches!(
+        Grid::new(&config, alarm.clone(), limiter.clone(), 4),
+        Err(coil_thermal::BuildError::InvalidParameter { .. })
+    ));
+    assert!(Grid::new(&config, alarm, limiter, 3).is_ok());
+}
+
 #[test]
 fn grid_snapshot_round_trip_is_exact_and_keeps_the_latch() {
     let grid = grid();

@@ -25,10 +25,16 @@
 //!    depend on has changed except the currents, which the limiter does not
 //!    take. So the limits lag the model by at most eight ticks (8 ms at the
 //!    HPPA's rate, against thermal time constants of minutes), and the
-//!    alarm's debounce counts grid updates, not ticks. `ticks_per_update`
-//!    should exceed 8 (and `max_steps_per_tick`) for every update to be
-//!    followed by a complete protection pass; otherwise a newer update
-//!    restarts the stages.
+//!    alarm's debounce counts protection passes, not ticks. A pass is never
+//!    restarted: an update during a pass marks it stale, and another pass
+//!    follows as soon as it ends (the later stages then read the newer
+//!    temperatures, which the bound `U` below still covers at the held
+//!    currents). With `ticks_per_update` above 8 every update gets its own
+//!    pass; with fewer, passes run back to back and the limits lag by at
+//!    most two passes. The stages skip update ticks, so
+//!    [`GridObserver::new`] requires `ticks_per_update >= 2 *
+//!    max_steps_per_tick`: then no two ticks in a row update the grid and
+//!    the protection can never be starved, whatever the tick pattern.
 //!
 //! # Time to limit per coil
 //!
@@ -268,6 +274,8 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     pub events: EventQueue<EVENT_CAPACITY>,
     /// Next protection stage, from 1 (0: none pending; see [`STAGES`]).
     stage: u8,
+    /// The grid updated while a pass was running: run another when it ends.
+    pass_stale: bool,
     /// What the protection stages hand on to each other.
     pass: ProtectPass<S, N>,
     outputs: GridOutputs<S, ROWS, COLS, N>,
@@ -297,7 +305,9 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// # Errors
     /// Those of [`CoilGrid::new`] and [`StepClock::new`];
     /// [`BuildError::InvalidTimeStep`] for a tick that is not a whole number
-    /// of microseconds.
+    /// of microseconds; [`BuildError::InvalidParameter`] when
+    /// `grid.ticks_per_update < 2 * max_steps_per_tick` (see the module docs:
+    /// the protection stages need ticks without a grid update).
     pub fn new(
         grid: &GridConfig,
         alarm: AlarmConfig<S, N>,
@@ -313,6 +323,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             return Err(BuildError::InvalidTimeStep);
         }
         let clock = StepClock::new(step_us as u32, max_steps_per_tick)?;
+        // At least every other tick must be free of a grid update, or the
+        // protection stages (which skip update ticks) could wait forever.
+        if grid.ticks_per_update < max_steps_per_tick.saturating_mul(2) {
+            return Err(BuildError::InvalidParameter {
+                name: "GridConfig::ticks_per_update (below 2 * max_steps_per_tick)",
+            });
+        }
         let mut ttl = TimeToLimit {
             neighbour_g: [[0.0; COLS]; ROWS],
             ambient_g: [[0.0; COLS]; ROWS],
@@ -408,6 +425,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             clock: ClockState::default(),
             events: EventQueue::new(),
             stage: 0,
+            pass_stale: false,
             pass: ProtectPass {
                 limits_c: [S::ZERO; N],
                 power_w: [0.0; N],
@@ -448,8 +466,15 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let flags = steps.flags | outcome.flags;
         let updated = outcome.updated;
         if updated {
-            // Temperatures changed: the protection runs in the next ticks.
-            state.stage = 1;
+            // Temperatures changed: the protection runs in the next ticks. A
+            // pass under way is finished first (restarting it could starve
+            // the limiter whenever updates come less than a pass apart, e.g.
+            // a controller ticking every 2 ms), then another one follows.
+            if state.stage == 0 {
+                state.stage = 1;
+            } else {
+                state.pass_stale = true;
+            }
         } else {
             self.protect_stage(state);
         }
@@ -473,10 +498,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             return;
         };
         self.run_stage(state, stage, true);
-        state.stage = if usize::from(state.stage) >= STAGES.len() {
-            0
-        } else {
+        state.stage = if usize::from(state.stage) < STAGES.len() {
             state.stage + 1
+        } else if state.pass_stale {
+            state.pass_stale = false;
+            1
+        } else {
+            0
         };
     }
 
@@ -487,6 +515,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             self.run_stage(state, stage, alarm);
         }
         state.stage = 0;
+        state.pass_stale = false;
     }
 
     fn run_stage(
