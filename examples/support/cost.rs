@@ -7,9 +7,9 @@
 //! instructions executed, independent of the host's speed. The ratio is
 //! calibrated at boot with a block of 1000 `nop`s (minus an empty call), so
 //! the figures are instructions, not ticks. SysTick is 24 bits: at
-//! `shift=7` it wraps after about 10 000 instructions, so each measured span
-//! is one tick (the worst ticks stay below that; a wrap would show as a
-//! figure near 10 000 and is checked against by the caller's budget).
+//! `shift=7` (about 1 600 SysTick counts per 1 000 instructions) it wraps
+//! after about 10 million instructions, far beyond any measured span, and
+//! the modular difference of two readings is exact below that.
 
 use core::ptr::addr_of;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
