@@ -24,6 +24,7 @@ use coil_thermal::filter::{predict, update, KalmanConfig, KalmanState};
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, OmniObserver};
+use coil_thermal::omnimagnet::observer::MeanModel;
 use coil_thermal::omnimagnet::NODES;
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
@@ -66,16 +67,27 @@ fn grid_observer() -> Result<Grid, coil_thermal::BuildError> {
 /// real build.
 #[inline(never)]
 fn omni_config() -> Option<OmniObserver> {
-    // SAFETY: every field of `OmniObserver` (f32 matrices and arrays,
-    // integers, bools, `Option`s of those; no references, no `NonZero`, no
-    // enum without a zero variant) has all-zero bits as a valid value. The
-    // value is hidden behind `black_box`.
+    // SAFETY: every field of `OmniObserver` (f32 and f64 matrices and
+    // arrays, integers, bools, `Option`s of those, `GainMode` whose first
+    // variant is 0; no references, no `NonZero`, no enum without a zero
+    // variant) has all-zero bits as a valid value. The value is hidden
+    // behind `black_box`.
     Some(black_box(unsafe { core::mem::zeroed() }))
+}
+
+/// A re-linearised model the optimiser knows nothing about, for
+/// `OmniObserver::install_model` (built by `prepare_model` off the tick).
+#[inline(never)]
+fn omni_model() -> MeanModel<f32> {
+    // SAFETY: `MeanModel` holds f32 matrices and an f64; all-zero bits are
+    // a valid value of each. Hidden behind `black_box`.
+    black_box(unsafe { core::mem::zeroed() })
 }
 
 /// The observers' ticks with hostile inputs.
 #[inline(never)]
 fn observers() -> bool {
+    let model = omni_model();
     let (Ok(grid), Some(omni)) = (grid_observer(), omni_config()) else {
         return false;
     };
@@ -106,6 +118,9 @@ fn observers() -> bool {
             },
             sampled_at_us: k,
         });
+        if k % 97 == 0 {
+            black_box(omni.install_model(&mut os, &model).is_ok());
+        }
         black_box(omni.tick(
             &mut os,
             &OmniInputs {

@@ -25,6 +25,7 @@ use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{
     GridInputs, GridObserver, OmniInputs, OmniObserver, OmniObserverState, OmniSettings,
 };
+use coil_thermal::omnimagnet::observer::ObserverSettings;
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
@@ -292,10 +293,14 @@ fn omni_readings(plant_c: &[f64], now_us: u32) -> [Option<TimedReading>; 6] {
 }
 
 fn omni_run(protected: bool) -> Run {
+    let defaults = OmniSettings::default();
     let settings = OmniSettings {
         step_us: OMNI_STEP_US,
-        reading_period_steps: OMNI_READING_EVERY,
-        ..OmniSettings::default()
+        filter: ObserverSettings {
+            correction_period_s: f64::from(OMNI_READING_EVERY * OMNI_STEP_US) * 1e-6,
+            ..defaults.filter
+        },
+        ..defaults
     };
     let observer = OmniObserver::new(
         &Omnimagnet::PAPER,

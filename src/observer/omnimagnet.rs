@@ -1,12 +1,64 @@
-//! One observer per Omnimagnet: a thin adapter that composes the library's
-//! pieces behind the same tick API as [`super::grid`].
+//! One observer per Omnimagnet behind the same tick API as [`super::grid`]:
+//! the Kalman observer of [`crate::omnimagnet::observer`] with its
+//! protection.
 //!
-//! * model: [`Omnimagnet::linearize`] at one operating point, in `f32`;
-//! * filter: steady-state Kalman ([`predict_mean`] every model step,
-//!   [`update_steady`] when thermocouple readings arrive);
+//! * model and filter: the 19-state steady-state filter of
+//!   [`OmnimagnetObserver`](crate::omnimagnet::observer::OmnimagnetObserver)
+//!   (16 element temperatures and a heat-input bias per solenoid, Joule
+//!   power `R(T) I^2` at the estimated solenoid temperatures), in `f32`:
+//!   [`MeanModel::predict`] every model step and
+//!   [`update_steady`] when thermocouple readings arrive. The configuration
+//!   holds the gain, the measurement model and the gate; the *state* holds
+//!   the [`MeanModel`] (the linearisation the predict runs on), because
+//!   the operating point is a property of the device, not of its type;
+//! * re-linearisation off the tick: a lower-priority task runs a
+//!   [`Relinearizer`](crate::omnimagnet::Relinearizer) on the published
+//!   estimate, turns each new [`Linearization`] into a model with
+//!   [`OmniObserver::prepare_model`] and hands it over (a
+//!   [`Mailbox`](super::Mailbox)); the control loop installs it between two
+//!   ticks with [`OmniObserver::install_model`] (`O(N)`: the estimate is
+//!   re-based, the temperatures do not jump). The steady-state gain stays the
+//!   build-time one: a gain for a model some kelvin away is suboptimal, not
+//!   unstable (see the filter's module docs for the measured effect);
 //! * protection: alarms on the wire and cover insulation of each solenoid
 //!   (nodes 7 .. 12, [`ALARM_NODES`]), the current limiter on the three
 //!   solenoid currents, and the sliced modal time-to-limit predictor.
+//!
+//! The time-varying filter is not offered here: one of its corrections costs
+//! about 12 000 multiply-adds, beyond a 1 ms tick's budget on a Cortex-M4F,
+//! so the steady-state gain runs from the first tick
+//! ([`OmniObserver::new`] refuses `GainMode::TimeVarying` and a warm-up).
+//!
+//! ```
+//! use coil_thermal::observer::omnimagnet::{OmniObserver, OmniSettings, OmniInputs};
+//! use coil_thermal::omnimagnet::{Omnimagnet, Relinearizer, RelinearizeConfig, RelinearizePoll, NODES};
+//!
+//! let model = Omnimagnet::PAPER;
+//! let omni = OmniObserver::new(&model, &[22.0; NODES], 22.0, &OmniSettings::default())?;
+//! let mut state = omni.state(&[22.0; NODES], 22.0);
+//! // Background task: re-linearise 5 K away from the active point.
+//! let mut relinearizer =
+//!     Relinearizer::new(model, RelinearizeConfig::default(), &[22.0; NODES], 22.0)?;
+//! let inputs = OmniInputs {
+//!     currents_a: [3.8; 3],
+//!     ambient_c: 22.0,
+//!     readings: [None; 6],
+//!     now_us: 0,
+//!     elapsed_us: 1000,
+//! };
+//! for _ in 0..1000 {
+//!     omni.tick(&mut state, &inputs); // the control interrupt
+//! }
+//! // Far from the active point (here forced by asking at +10 K):
+//! let hot = state.outputs().temps_c.map(|t| f64::from(t) + 10.0);
+//! while relinearizer.poll(&hot, 22.0) != RelinearizePoll::Swapped {}
+//! let next = omni.prepare_model(relinearizer.active())?; // background
+//! let before = state.outputs().temps_c;
+//! omni.install_model(&mut state, &next)?; // between two ticks
+//! assert_eq!(state.model.origin_c()[0], hot[0] as f32);
+//! assert!((omni.temps_c(&state)[0] - before[0]).abs() < 1e-4);
+//! # Ok::<(), coil_thermal::BuildError>(())
+//! ```
 //!
 //! # Protection cycle
 //!
@@ -30,10 +82,6 @@
 //! from the published times to limit, so they stay never later than the
 //! model's.
 //!
-//! It does not re-linearise: a full Omnimagnet observer with re-linearisation
-//! lives in `omnimagnet::observer`, and this adapter is meant to be replaced
-//! by it; only the tick API here is meant to last.
-//!
 //! # Readings
 //!
 //! Each thermocouple reading arrives on its own, as a [`TimedReading`]: the
@@ -54,18 +102,19 @@
 //! insulation (node `8 + 2m`) has less headroom to its alarm limit; the
 //! limiter sees that headroom below the cover's limit.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
-use crate::filter::{
-    predict_mean, update_steady, KalmanConfig, SensorVerdict, SteadyEstimate, SteadyStateGain,
-};
+use crate::filter::{update_steady, SensorVerdict, SteadyEstimate};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
+use crate::omnimagnet::observer::{
+    GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
+};
 use crate::omnimagnet::{
-    measurement_matrix, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS, THERMOCOUPLES,
+    Linearization, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS, THERMOCOUPLES,
     THERMOCOUPLE_NODES, WIRE_INSULATION_LIMIT_C,
 };
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
@@ -75,9 +124,6 @@ use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use crate::sensors::{SensorFault, SensorResult};
 
-/// Filter inputs per step: the three `I^2` \[A^2\], the ambient \[degC\] and 1
-/// (the constant term).
-pub const INPUTS: usize = SOLENOIDS + 2;
 /// Elements with an alarm: wire and cover insulation of each solenoid.
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
 /// Horizons of the time-to-limit predictor.
@@ -88,19 +134,23 @@ const NO_LIMIT_C: f32 = 1000.0;
 
 /// Build settings, each with a default.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OmniSettings {
     /// Model step \[us\]. Default 1000.
     pub step_us: u32,
     /// Catch-up bound, model steps per tick. Default 4.
     pub max_steps_per_tick: u32,
-    /// Process noise variance per step and node \[K^2\]. Default `1e-6`.
-    pub process_var_k2: f64,
-    /// Thermocouple noise variance \[K^2\]. Default `0.0625` (0.25 K).
-    pub reading_var_k2: f64,
-    /// Model steps between corrections the steady gain is solved for.
-    /// Default 500 (2 Hz readings at 1 ms).
-    pub reading_period_steps: u32,
+    /// The Kalman filter: sensor subset, noise, gate, correction period
+    /// (the steady-state gain is solved for one correction every
+    /// `correction_period_s`). `mode` must be [`GainMode::SteadyState`] and
+    /// `warmup_corrections` 0: the tick API runs no time-varying warm-up
+    /// (see the module docs). Default: [`ObserverSettings::DEFAULT`] with
+    /// those two and a thermocouple noise of 0.25 K instead of the paper's
+    /// calibrated 0.1 K. Without the warm-up the gate judges the first
+    /// readings against the *converged* covariance, and 0.25 K lets a start
+    /// some tenths of a kelvin off (a state made from the readings, a
+    /// snapshot a few seconds old) be corrected at once instead of waiting
+    /// for the gate's recovery (`recover_after` corrections, 2.5 s).
+    pub filter: ObserverSettings,
     /// Oldest reading still fused \[us\]. Default 100 000.
     pub max_reading_age_us: u32,
     /// Hardware current limit of each solenoid \[A\]. Default 8.
@@ -119,9 +169,11 @@ impl Default for OmniSettings {
         Self {
             step_us: 1000,
             max_steps_per_tick: 4,
-            process_var_k2: 1e-6,
-            reading_var_k2: 0.0625,
-            reading_period_steps: 500,
+            filter: ObserverSettings {
+                thermocouple_sigma_k: 0.25,
+                warmup_corrections: 0,
+                ..ObserverSettings::DEFAULT
+            },
             max_reading_age_us: 100_000,
             hardware_limit_a: 8.0,
             taper_k: 10.0,
@@ -214,8 +266,7 @@ pub struct OmniOutputs {
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone)]
 pub struct OmniObserver {
-    kalman: KalmanConfig<f32, NODES, INPUTS, THERMOCOUPLES>,
-    gain: SteadyStateGain<f32, NODES, THERMOCOUPLES>,
+    filter: ObserverConfig<f32>,
     alarm: AlarmConfig<f32, 6>,
     limiter: LimiterConfig<f32, SOLENOIDS>,
     predictor: LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>,
@@ -234,8 +285,14 @@ pub struct OmniObserver {
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone)]
 pub struct OmniObserverState {
-    /// The filter's estimate and gate memory.
-    pub estimate: SteadyEstimate<f32, NODES, THERMOCOUPLES>,
+    /// The filter's estimate (deviations from `model`'s origin \[K\], then
+    /// the heat-input biases \[W\]) and gate memory.
+    pub estimate: SteadyEstimate<f32, STATES, THERMOCOUPLES>,
+    /// The linear model the predict runs on (see
+    /// [`OmniObserver::install_model`]).
+    pub model: MeanModel<f32>,
+    /// The filter input of the last step (powers \[W\], ambient \[degC\], 1).
+    input: SVector<f32, INPUTS>,
     /// The alarm's state.
     pub alarm: AlarmState<f32, 6>,
     /// The predictor's sweep.
@@ -268,12 +325,14 @@ impl OmniObserverState {
 
 impl OmniObserver {
     /// Linearises `model` at `op_temps_c` and `ambient_c` \[degC\], builds the
-    /// filter (solving the steady gain: ~20 KiB of stack in `f32`), the
+    /// filter (solving the steady gain: tens of KiB of stack in `f64`), the
     /// predictor and the protection.
     ///
     /// # Errors
     /// Those of the linearisation, the filter, the gain solver, the
-    /// predictor, the alarm, the limiter and the clock, naming the parameter.
+    /// predictor, the alarm, the limiter and the clock, naming the parameter;
+    /// `filter.mode` or `filter.warmup_corrections` asking for the
+    /// time-varying filter.
     pub fn new(
         model: &Omnimagnet,
         op_temps_c: &[f64; NODES],
@@ -291,8 +350,17 @@ impl OmniObserver {
                 name: "protect_period_steps",
             });
         };
-        let (kalman, gain, fingerprint) =
-            Self::filter(model, op_temps_c, ambient_c, dt_s, settings)?;
+        if settings.filter.mode != GainMode::SteadyState {
+            return Err(BuildError::InvalidParameter {
+                name: "filter.mode",
+            });
+        }
+        if settings.filter.warmup_corrections != 0 {
+            return Err(BuildError::InvalidParameter {
+                name: "filter.warmup_corrections",
+            });
+        }
+        let filter = Self::build_filter(model, op_temps_c, ambient_c, dt_s, &settings.filter)?;
         let rule = DeratingRule::omnimagnet();
         let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
         let alarm = AlarmBuilder::new(&rule, [w, c, w, c, w, c]).build::<f32>()?;
@@ -302,9 +370,9 @@ impl OmniObserver {
             0.0,
         )?;
         let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
+        let fingerprint = Self::fingerprint_of(&filter, settings);
         Ok(Self {
-            kalman,
-            gain,
+            filter,
             alarm,
             limiter,
             predictor,
@@ -332,59 +400,35 @@ impl OmniObserver {
     }
 
     #[inline(never)]
-    #[allow(clippy::type_complexity)]
-    fn filter(
+    fn build_filter(
         model: &Omnimagnet,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
         dt_s: f64,
-        settings: &OmniSettings,
-    ) -> Result<
-        (
-            KalmanConfig<f32, NODES, INPUTS, THERMOCOUPLES>,
-            SteadyStateGain<f32, NODES, THERMOCOUPLES>,
-            u32,
-        ),
-        BuildError,
-    > {
+        settings: &ObserverSettings,
+    ) -> Result<ObserverConfig<f32>, BuildError> {
         let lin = model.linearize(op_temps_c, ambient_c, dt_s)?;
-        let d = &lin.discrete;
-        let mut g = SMatrix::<f64, NODES, INPUTS>::zeros();
-        for i in 0..NODES {
-            for m in 0..SOLENOIDS {
-                g[(i, m)] = lin.bd_current_squared[(i, m)];
-            }
-            g[(i, SOLENOIDS)] = d.gd_boundary[(i, 0)];
-            g[(i, SOLENOIDS + 1)] = d.dd[i];
-        }
-        let positive = |v: f64, name| {
-            if v.is_finite() && v > 0.0 {
-                Ok(v)
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
-        let q = positive(settings.process_var_k2, "process_var_k2")?;
-        let r = positive(settings.reading_var_k2, "reading_var_k2")?;
-        let kalman = KalmanConfig::new(
-            d.ad.cast::<f32>(),
-            g.cast::<f32>(),
-            measurement_matrix().cast::<f32>(),
-            SMatrix::<f32, NODES, NODES>::identity() * q as f32,
-            SVector::<f32, THERMOCOUPLES>::repeat(r as f32),
-        )?;
-        let gain = SteadyStateGain::solve(&kalman, settings.reading_period_steps)?;
+        ObserverConfig::new(model, &lin, settings)
+    }
+
+    /// What a snapshot must have been made with: the filter's matrices and
+    /// gain, and the protection settings.
+    #[inline(never)]
+    fn fingerprint_of(filter: &ObserverConfig<f32>, settings: &OmniSettings) -> u32 {
+        let kalman = filter.kalman();
+        let widen = |m: &[f32], f: Fingerprint| m.iter().fold(f, |f, v| f.f64(f64::from(*v)));
         let mut fingerprint = Fingerprint::new()
             .u32(settings.step_us)
-            .f64s(d.ad.as_slice())
-            .f64s(g.as_slice())
-            .f64(q)
-            .f64(r)
-            .u32(settings.reading_period_steps);
-        fingerprint = fingerprint
+            .u32(filter.period());
+        fingerprint = widen(kalman.f().as_slice(), fingerprint);
+        fingerprint = widen(kalman.g().as_slice(), fingerprint);
+        fingerprint = widen(kalman.q().as_slice(), fingerprint);
+        fingerprint = widen(kalman.r().as_slice(), fingerprint);
+        fingerprint = widen(filter.gain().gain().as_slice(), fingerprint);
+        fingerprint
             .f64s(&[settings.hardware_limit_a, settings.taper_k])
-            .u32(settings.protect_period_steps);
-        Ok((kalman, gain, fingerprint.finish()))
+            .u32(settings.protect_period_steps)
+            .finish()
     }
 
     /// The configuration fingerprint that snapshots carry.
@@ -392,18 +436,34 @@ impl OmniObserver {
         self.fingerprint
     }
 
-    /// The filter configuration.
-    pub fn kalman(&self) -> &KalmanConfig<f32, NODES, INPUTS, THERMOCOUPLES> {
-        &self.kalman
+    /// The filter configuration (measurement model, gate, steady gain, the
+    /// build-time model).
+    pub fn filter(&self) -> &ObserverConfig<f32> {
+        &self.filter
     }
 
-    /// A state with every node at `temps_c` \[degC\] and the ambient at
-    /// `ambient_c` \[degC\], no current, no alarm.
+    /// The model step \[s\].
+    pub fn step_s(&self) -> f64 {
+        self.clock.step_s()
+    }
+
+    /// A state with every node at `temps_c` \[degC\], the build-time model,
+    /// zero heat-input biases, the ambient at `ambient_c` \[degC\], no
+    /// current, no alarm.
     pub fn state(&self, temps_c: &[f32; NODES], ambient_c: f32) -> OmniObserverState {
-        let x = SVector::from_column_slice(temps_c);
+        let model = *self.filter.model();
+        let mut x = SVector::<f32, STATES>::zeros();
+        for (i, t) in temps_c.iter().enumerate() {
+            x[i] = *t - model.origin_c()[i];
+        }
+        let mut input = SVector::<f32, INPUTS>::zeros();
+        input[SOLENOIDS] = ambient_c;
+        input[INPUTS - 1] = 1.0;
         let op = self.operating(temps_c, &[0.0; SOLENOIDS], ambient_c);
         let mut state = OmniObserverState {
             estimate: SteadyEstimate::new(x),
+            model,
+            input,
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             clock: ClockState::default(),
@@ -433,6 +493,62 @@ impl OmniObserver {
         // the default zero-current limit.
         self.limit(&mut state.outputs, ambient_c);
         state
+    }
+
+    /// The estimated temperature of every element \[degC\] now (the
+    /// outputs carry the same after each tick).
+    pub fn temps_c(&self, state: &OmniObserverState) -> [f32; NODES] {
+        let origin = state.model.origin_c();
+        core::array::from_fn(|i| origin[i] + state.estimate.x[i])
+    }
+
+    /// The estimated heat-input bias of each solenoid \[W\]: what the
+    /// model misses in its heat balance.
+    pub fn heat_bias_w(&self, state: &OmniObserverState) -> [f32; SOLENOIDS] {
+        core::array::from_fn(|m| state.estimate.x[NODES + m])
+    }
+
+    /// Turns a linearisation made off the tick (a
+    /// [`Relinearizer`](crate::omnimagnet::Relinearizer) in a lower-priority
+    /// task) into a model for [`Self::install_model`]. `O(N^3)` in `f64`:
+    /// not for the tick.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidTimeStep`] when `lin` is not for this
+    /// observer's step; [`BuildError::InvalidParameter`] (`"model"`) for a
+    /// model with a non-finite entry.
+    pub fn prepare_model(&self, lin: &Linearization) -> Result<MeanModel<f32>, BuildError> {
+        let model = MeanModel::<f32>::new(lin);
+        self.check_model(&model)?;
+        Ok(model)
+    }
+
+    fn check_model(&self, model: &MeanModel<f32>) -> Result<(), BuildError> {
+        if model.dt_s() != self.clock.step_s() {
+            return Err(BuildError::InvalidTimeStep);
+        }
+        if !model.is_finite() {
+            return Err(BuildError::InvalidParameter { name: "model" });
+        }
+        Ok(())
+    }
+
+    /// Makes `model` the one `state` predicts with, between two ticks:
+    /// the estimate is re-based on the new origin (the temperatures do not
+    /// move), the biases and the gate memory are kept. `O(N)`, bounded,
+    /// allocation-free, panic-free (about 1.4 KiB copied).
+    ///
+    /// # Errors
+    /// As [`Self::prepare_model`]; nothing changes then.
+    pub fn install_model(
+        &self,
+        state: &mut OmniObserverState,
+        model: &MeanModel<f32>,
+    ) -> Result<(), BuildError> {
+        self.check_model(model)?;
+        state.model.rebase(&mut state.estimate.x, model);
+        state.model = *model;
+        Ok(())
     }
 
     fn operating(
@@ -474,11 +590,16 @@ impl OmniObserver {
         flags |= self
             .limits
             .accept_temperature(inputs.ambient_c, &mut state.held_ambient_c);
-        let [i1, i2, i3] = state.held_currents_a;
-        let u =
-            SVector::<f32, INPUTS>::from([i1 * i1, i2 * i2, i3 * i3, state.held_ambient_c, 1.0]);
         for _ in 0..steps.steps {
-            predict_mean(&self.kalman, &mut state.estimate.x, &u);
+            // The held inputs are finite, so the input is always renewed.
+            self.filter.joule_input(
+                &state.model,
+                &state.estimate.x,
+                &state.held_currents_a,
+                state.held_ambient_c,
+                &mut state.input,
+            );
+            state.model.predict(&mut state.estimate.x, &state.input);
         }
         if steps.steps > 0 {
             for (peak, i) in state.peak_currents_a.iter_mut().zip(state.held_currents_a) {
@@ -490,9 +611,8 @@ impl OmniObserver {
             .saturating_add(steps.steps.saturating_mul(self.step_us))
             .saturating_add(steps.dropped_us);
         let corrected = self.correct(state, inputs);
-        let out = &mut state.outputs;
-        out.corrected = corrected;
-        out.temps_c.copy_from_slice(state.estimate.x.as_slice());
+        state.outputs.temps_c = self.temps_c(state);
+        state.outputs.corrected = corrected;
 
         if state.stage == 0 && state.predictor_lag_us >= self.protect_period_us {
             state.stage = 1;
@@ -597,9 +717,13 @@ impl OmniObserver {
     /// Sorts the readings and runs one steady-state correction if any is
     /// usable; returns whether it ran.
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> bool {
-        let mut z = [None; THERMOCOUPLES];
+        let mut samples = [None; THERMOCOUPLES];
         let statuses = &mut state.outputs.sensors;
-        for ((zj, status), reading) in z.iter_mut().zip(statuses.iter_mut()).zip(&inputs.readings) {
+        for ((sample, status), reading) in samples
+            .iter_mut()
+            .zip(statuses.iter_mut())
+            .zip(&inputs.readings)
+        {
             *status = match reading {
                 None => SensorStatus::NoReading,
                 Some(TimedReading {
@@ -615,16 +739,22 @@ impl OmniObserver {
                     } else if !r.temp_c.is_finite() {
                         SensorStatus::Fault(SensorFault::NotFinite)
                     } else {
-                        *zj = Some(r.temp_c);
+                        *sample = Some(Ok(r.temp_c));
                         SensorStatus::NoReading
                     }
                 }
             };
         }
+        let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
             return false;
         }
-        let report = update_steady(&self.kalman, &self.gain, &mut state.estimate, &z);
+        let report = update_steady(
+            self.filter.kalman(),
+            self.filter.gain(),
+            &mut state.estimate,
+            &z,
+        );
         for ((status, verdict), zj) in statuses.iter_mut().zip(report.verdicts).zip(z) {
             if zj.is_some() {
                 *status = match verdict {
@@ -637,16 +767,18 @@ impl OmniObserver {
         true
     }
 
-    /// Writes a snapshot of the node estimates and the latched shutdown,
-    /// stamped `now_s` \[s\]; returns its length (`snapshot_len(16)` bytes).
+    /// Writes a snapshot of the node estimates \[degC\] and the latched
+    /// shutdown, stamped `now_s` \[s\]; returns its length
+    /// (`snapshot_len(16)` bytes). The heat-input biases are not saved: a
+    /// restored state starts them at zero with the build-time model, and the
+    /// thermocouples bring them back within minutes.
     pub fn save(
         &self,
         state: &OmniObserverState,
         now_s: u32,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
-        let mut temps_c = [0.0f32; NODES];
-        temps_c.copy_from_slice(state.estimate.x.as_slice());
+        let temps_c = self.temps_c(state);
         let meta = SnapshotMeta {
             fingerprint: self.fingerprint,
             saved_at_s: now_s,

@@ -72,8 +72,9 @@
 //!
 //! # Gain modes
 //!
-//! * [`GainMode::SteadyState`] (default): [`predict_mean`] every tick
-//!   (19 x 19 + 19 x 5 multiply-adds) and [`update_steady`] per correction,
+//! * [`GainMode::SteadyState`] (default): [`MeanModel::predict`] every
+//!   tick (the mean predict of `F`'s structure, 16 x 16 + 16 x 5
+//!   multiply-adds) and [`update_steady`] per correction,
 //!   with the gain solved at build time for one correction every
 //!   `period = correction_period_s / dt` predicts (the thermocouples' 2 Hz).
 //!   A correction with a sensor missing, rejected, faulted or disabled uses
@@ -114,7 +115,7 @@
 //!
 //! | call | work (N = 19, P = 6) |
 //! |---|---|
-//! | [`OmnimagnetObserver::predict`], steady | 3 `R(T)`, 456 multiply-adds |
+//! | [`OmnimagnetObserver::predict`], steady | 3 `R(T)`, 336 multiply-adds ([`MeanModel::predict`]) |
 //! | [`OmnimagnetObserver::predict`], time-varying | about 8.8 k multiply-adds (bias rows of `F` are unit rows) |
 //! | [`OmnimagnetObserver::correct`], steady, all six fused | 6 gate tests, 228 multiply-adds |
 //! | [`OmnimagnetObserver::correct`], steady, a subset | 6 gate tests, about 300 multiply-adds |
@@ -122,9 +123,10 @@
 //!
 //! Measured on the host: see the README's "Omnimagnet observer" section
 //! (steady predict 0.04-0.07 us, time-varying predict 1.3-2 us, in f32).
-//! [`ObserverConfig`] holds `F`, `G`, `H^T`, `Q` and the steady gain (at
-//! most 8 KiB in f32, checked by a test); [`ObserverState`] the estimate and
-//! its covariance (at most 2 KiB in f32).
+//! [`ObserverConfig`] holds `F`, `G`, `H^T`, `Q`, the steady gain and the
+//! [`MeanModel`] (at most 10 KiB in f32, checked by a test);
+//! [`ObserverState`] the estimate and its covariance (at most 2 KiB in
+//! f32).
 //!
 //! [`predict_mean`]: crate::filter::predict_mean
 //! [`predict`]: crate::filter::predict
@@ -157,6 +159,100 @@ pub const STEADY_SWITCH_TOLERANCE: f64 = 1.0;
 pub type ObserverKalman<T> = KalmanConfig<T, STATES, INPUTS, THERMOCOUPLES>;
 /// The steady-state solution type the observer uses.
 pub type ObserverGain<T> = SteadyStateGain<T, STATES, THERMOCOUPLES>;
+
+/// The steady-state predict's model: the temperature rows of `F` and `G`
+/// in deviation coordinates, and their origin (the operating point).
+///
+/// `F = [[Phi, Gamma], [0, I]]` and the biases enter like the Joule powers
+/// (`Gamma` is `G`'s power columns), so the mean predict
+/// `x' = F x + G u` is, for the temperatures, `Phi x_T + G (u + [b, 0, 0])`
+/// and the biases stay: 16 x 16 + 16 x 5 multiply-adds instead of the
+/// 19 x 19 + 19 x 5 of the general product, with the same result.
+///
+/// Small and `Copy` (1.4 KiB in `f32`), so a model re-linearised in a
+/// background task can be handed to the control loop (for example through
+/// a [`Mailbox`](crate::observer::Mailbox)) and installed in `O(N)`.
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeanModel<T: RealField + Copy> {
+    /// `Ad` (dimensionless).
+    phi: SMatrix<T, NODES, NODES>,
+    /// Columns: per solenoid `Bd_p` \[K/J\], `Gd` (dimensionless), then the
+    /// constant term with the origin shift \[K\].
+    g: SMatrix<T, NODES, INPUTS>,
+    /// The operating point \[degC\].
+    origin_c: SVector<T, NODES>,
+    /// Step \[s\].
+    dt_s: f64,
+}
+
+impl<T: RealField + Copy> MeanModel<T> {
+    /// The model of `lin` (its step, its operating point as the origin).
+    pub fn new(lin: &Linearization) -> Self {
+        Self {
+            phi: lin.discrete.ad.cast(),
+            g: deviation_inputs(lin).cast(),
+            origin_c: SVector::from_fn(|i, _| cast(lin.op_temps_c[i])),
+            dt_s: lin.discrete.dt_s,
+        }
+    }
+
+    /// The operating point \[degC\]: temperatures are `origin_c + x`.
+    pub fn origin_c(&self) -> &SVector<T, NODES> {
+        &self.origin_c
+    }
+
+    /// The step \[s\].
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Every entry is finite.
+    pub fn is_finite(&self) -> bool {
+        let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
+        finite(self.phi.as_slice()) && finite(self.g.as_slice()) && finite(self.origin_c.as_slice())
+    }
+
+    /// One mean-only predict of the observer state `x` (deviations \[K\],
+    /// biases \[W\]) with the input `u` (powers \[W\], ambient \[degC\], 1).
+    /// A non-finite `u` drops the input term, as [`filter::predict_mean`].
+    pub fn predict(&self, x: &mut SVector<T, STATES>, u: &SVector<T, INPUTS>) {
+        let temps = x.fixed_rows::<NODES>(0).into_owned();
+        let mut next = SVector::<T, NODES>::zeros();
+        next.gemv(T::one(), &self.phi, &temps, T::zero());
+        let mut v = *u;
+        for m in 0..SOLENOIDS {
+            v[m] += x[NODES + m];
+        }
+        if v.iter().all(|e| e.is_finite()) {
+            next.gemv(T::one(), &self.g, &v, T::one());
+        }
+        x.fixed_rows_mut::<NODES>(0).copy_from(&next);
+    }
+
+    /// Moves the deviations in `x` from this model's origin to `to`'s, so
+    /// that the temperatures `origin + x` are unchanged (biases untouched).
+    pub fn rebase(&self, x: &mut SVector<T, STATES>, to: &Self) {
+        for i in 0..NODES {
+            x[i] += self.origin_c[i] - to.origin_c[i];
+        }
+    }
+}
+
+/// `G` of the deviation coordinates, in f64: the ZOH input matrix with the
+/// shift of the origin in the constant column,
+/// `T_op + dx' = Ad (T_op + dx) + ...` so `dx' = Ad dx + ... + (Ad - I) T_op`.
+fn deviation_inputs(lin: &Linearization) -> SMatrix<f64, NODES, INPUTS> {
+    let d = &lin.discrete;
+    let op = SVector::<f64, NODES>::from_column_slice(&lin.op_temps_c);
+    let mut g = d.input_matrix::<INPUTS>();
+    let shift = d.ad * op - op;
+    for i in 0..NODES {
+        g[(i, INPUTS - 1)] += shift[i];
+    }
+    g
+}
 
 /// Which Kalman gain the corrections use (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -312,9 +408,9 @@ pub struct ObserverConfig<T: RealField + Copy> {
     settings: ObserverSettings,
     kalman: ObserverKalman<T>,
     gain: ObserverGain<T>,
-    /// Operating point of the linearisation \[degC\]: the origin of the
-    /// deviation coordinates.
-    origin_c: SVector<T, NODES>,
+    /// The steady-state predict's model, whose origin is the operating point
+    /// of the linearisation.
+    model: MeanModel<T>,
     /// `R(T) = r_at_0c + slope T` of each solenoid \[ohm, ohm/K\].
     resistance: [(T, T); SOLENOIDS],
     solenoid_nodes: [usize; SOLENOIDS],
@@ -414,7 +510,7 @@ impl<T: RealField + Copy> ObserverConfig<T> {
             settings: *settings,
             kalman,
             gain,
-            origin_c: SVector::from_fn(|i, _| cast(lin.op_temps_c[i])),
+            model: MeanModel::new(lin),
             resistance,
             solenoid_nodes,
             period,
@@ -434,15 +530,9 @@ impl<T: RealField + Copy> ObserverConfig<T> {
         // The bias adds to the Joule power, so it enters like the power.
         f.fixed_view_mut::<NODES, SOLENOIDS>(0, NODES)
             .copy_from(&d.bd_power);
-        let op = SVector::<f64, NODES>::from_column_slice(&lin.op_temps_c);
         let mut g = SMatrix::<f64, STATES, INPUTS>::zeros();
         g.fixed_view_mut::<NODES, INPUTS>(0, 0)
-            .copy_from(&d.input_matrix::<INPUTS>());
-        // Deviation coordinates: dx' = Ad dx + ... + (Ad - I) T_op.
-        let shift = d.ad * op - op;
-        for i in 0..NODES {
-            g[(i, INPUTS - 1)] += shift[i];
-        }
+            .copy_from(&deviation_inputs(lin));
         let mut h = SMatrix::<f64, THERMOCOUPLES, STATES>::zeros();
         let h16 = measurement_matrix();
         for (row, on) in settings.sensors.iter().enumerate() {
@@ -516,7 +606,62 @@ impl<T: RealField + Copy> ObserverConfig<T> {
 
     /// The operating point \[degC\] the deviations are taken from.
     pub fn origin_c(&self) -> &SVector<T, NODES> {
-        &self.origin_c
+        &self.model.origin_c
+    }
+
+    /// The steady-state predict's model (the build-time linearisation, or
+    /// the last one installed).
+    pub fn model(&self) -> &MeanModel<T> {
+        &self.model
+    }
+
+    /// The filter input of one step into `u`: the Joule power
+    /// `R(T) I^2` \[W\] of each solenoid at its estimated temperature
+    /// (`x` in deviations from `model`'s origin), the ambient \[degC\] and
+    /// the constant 1. Returns `false` and leaves `u` (the last finite
+    /// input) as it was when a current or the ambient is not finite.
+    pub fn joule_input(
+        &self,
+        model: &MeanModel<T>,
+        x: &SVector<T, STATES>,
+        currents_a: &[T; SOLENOIDS],
+        ambient_c: T,
+        u: &mut SVector<T, INPUTS>,
+    ) -> bool {
+        if !(ambient_c.is_finite() && currents_a.iter().all(|i| i.is_finite())) {
+            return false;
+        }
+        let solenoids = currents_a
+            .iter()
+            .zip(&self.resistance)
+            .zip(&self.solenoid_nodes);
+        for (power, ((current, (r0, slope)), node)) in u.iter_mut().zip(solenoids) {
+            // `get` keeps the tick free of a panic path: a node index outside
+            // the model (a malformed geometry table) reads as 0 degC.
+            let origin = model.origin_c.get(*node).copied().unwrap_or(T::zero());
+            let deviation = x.get(*node).copied().unwrap_or(T::zero());
+            let r_ohm = (*r0 + *slope * (origin + deviation)).max(T::zero());
+            *power = r_ohm * *current * *current;
+        }
+        u[SOLENOIDS] = ambient_c;
+        u[INPUTS - 1] = T::one();
+        true
+    }
+
+    /// The readings of the configured sensors as deviations from `model`'s
+    /// origin (`None` for a disabled sensor, a missing reading or a fault).
+    pub fn deviations(
+        &self,
+        model: &MeanModel<T>,
+        samples_c: &[Option<Result<T, SensorFault>>; THERMOCOUPLES],
+    ) -> [Option<T>; THERMOCOUPLES] {
+        let mut z = [None; THERMOCOUPLES];
+        for (j, (zj, s)) in z.iter_mut().zip(samples_c).enumerate() {
+            if let (true, Some(Ok(v))) = (self.settings.sensors[j], s) {
+                *zj = Some(*v - model.origin_c[THERMOCOUPLE_NODES[j]]);
+            }
+        }
+        z
     }
 
     /// Per-element (and per-bias) observability of the augmented model from
@@ -565,7 +710,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
         let config = ObserverConfig::new(model, lin, settings)?;
         let mut x = SVector::<T, STATES>::zeros();
         for i in 0..NODES {
-            x[i] = cast::<T>(initial_temps_c[i]) - config.origin_c[i];
+            x[i] = cast::<T>(initial_temps_c[i]) - config.model.origin_c[i];
         }
         let mut p0 = SMatrix::<T, STATES, STATES>::zeros();
         let common: T = cast(settings.initial_common_sigma_k * settings.initial_common_sigma_k);
@@ -624,7 +769,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
 
     /// Estimated temperature of every element \[degC\], node order.
     pub fn temperatures_c(&self) -> [T; NODES] {
-        core::array::from_fn(|i| self.config.origin_c[i] + self.state.filter.x[i])
+        core::array::from_fn(|i| self.config.model.origin_c[i] + self.state.filter.x[i])
     }
 
     /// Estimated heat-input bias of each solenoid \[W\] (what the model
@@ -669,26 +814,19 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
     /// temperatures. Non-finite inputs are replaced by the last finite ones
     /// (reported as [`InputStatus::Dropped`]).
     pub fn predict(&mut self, currents_a: &[T; SOLENOIDS], ambient_c: T) -> InputStatus {
-        let x = &self.state.filter.x;
-        let mut u = self.state.last_input;
-        let finite = ambient_c.is_finite() && currents_a.iter().all(|i| i.is_finite());
-        if finite {
-            for m in 0..SOLENOIDS {
-                let node = self.config.solenoid_nodes[m];
-                let temp_c = self.config.origin_c[node] + x[node];
-                let (r0, slope) = self.config.resistance[m];
-                let r_ohm = (r0 + slope * temp_c).max(T::zero());
-                u[m] = r_ohm * currents_a[m] * currents_a[m];
-            }
-            u[SOLENOIDS] = ambient_c;
-            self.state.last_input = u;
-        }
-        match self.state.mode {
-            GainMode::SteadyState => {
-                filter::predict_mean(&self.config.kalman, &mut self.state.filter.x, &u);
-            }
+        let config = &self.config;
+        let state = &mut self.state;
+        let finite = config.joule_input(
+            &config.model,
+            &state.filter.x,
+            currents_a,
+            ambient_c,
+            &mut state.last_input,
+        );
+        match state.mode {
+            GainMode::SteadyState => config.model.predict(&mut state.filter.x, &state.last_input),
             GainMode::TimeVarying => {
-                filter::predict(&self.config.kalman, &mut self.state.filter, &u);
+                filter::predict(&config.kalman, &mut state.filter, &state.last_input);
             }
         }
         if finite {
@@ -712,12 +850,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
         samples_c: &[Option<Result<T, SensorFault>>; THERMOCOUPLES],
     ) -> CorrectionReport {
         let sensors = self.config.settings.sensors;
-        let mut z = [None; THERMOCOUPLES];
-        for (j, (zj, s)) in z.iter_mut().zip(samples_c).enumerate() {
-            if let (true, Some(Ok(v))) = (sensors[j], s) {
-                *zj = Some(*v - self.config.origin_c[THERMOCOUPLE_NODES[j]]);
-            }
-        }
+        let z = self.config.deviations(&self.config.model, samples_c);
         let report = match self.state.mode {
             GainMode::SteadyState => {
                 let f = &mut self.state.filter;
@@ -770,11 +903,9 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
             return Err(BuildError::InvalidTimeStep);
         }
         let kalman = ObserverConfig::<T>::build_kalman(lin, &self.config.settings)?;
-        let new_origin = SVector::<T, NODES>::from_fn(|i, _| cast(lin.op_temps_c[i]));
-        for i in 0..NODES {
-            self.state.filter.x[i] += self.config.origin_c[i] - new_origin[i];
-        }
-        self.config.origin_c = new_origin;
+        let model = MeanModel::new(lin);
+        self.config.model.rebase(&mut self.state.filter.x, &model);
+        self.config.model = model;
         self.config.kalman = kalman;
         self.config.gain_stale = true;
         Ok(())

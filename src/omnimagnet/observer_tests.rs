@@ -888,5 +888,43 @@ fn inputs_readings_and_settings_are_validated() {
         core::mem::size_of::<ObserverState<f32>>(),
     );
     println!("f32 sizes: config {cfg} B, state {st} B");
-    assert!(cfg <= 8 * 1024 && st <= 2 * 1024, "{cfg} {st}");
+    assert!(cfg <= 10 * 1024 && st <= 2 * 1024, "{cfg} {st}");
+}
+
+/// The structured mean predict is the general `F x + G u` of the augmented
+/// model: the same numbers for any state (biases included) and input, at
+/// the cold and at a hot operating point.
+#[test]
+fn mean_model_predict_is_the_full_product() {
+    let mut rng = Rng::new(7);
+    for op_c in [AMBIENT_C, 90.0] {
+        let model = Omnimagnet::PAPER;
+        let lin = model.linearize(&[op_c; NODES], AMBIENT_C, 0.5).unwrap();
+        let cfg = ObserverConfig::<f64>::new(&model, &lin, &ObserverSettings::DEFAULT).unwrap();
+        for _ in 0..20 {
+            let x0 = SVector::<f64, STATES>::from_fn(|i, _| {
+                if i < NODES {
+                    10.0 * rng.gauss()
+                } else {
+                    3.0 * rng.gauss()
+                }
+            });
+            let u = SVector::<f64, INPUTS>::from([
+                20.0 * rng.uniform(),
+                5.0 * rng.uniform(),
+                40.0 * rng.uniform(),
+                AMBIENT_C + rng.gauss(),
+                1.0,
+            ]);
+            let mut full = x0;
+            crate::filter::predict_mean(cfg.kalman(), &mut full, &u);
+            let mut structured = x0;
+            cfg.model().predict(&mut structured, &u);
+            let diff = (full - structured).abs().max();
+            assert!(
+                diff < 1e-12 * (1.0 + full.abs().max()),
+                "{op_c} degC: {diff}"
+            );
+        }
+    }
 }
