@@ -8,8 +8,9 @@
 //!   a copy;
 //! * [`grid`]: one observer per coil grid (model, alarms, limiter, time to
 //!   limit) behind `tick(inputs) -> outputs`;
-//! * [`omnimagnet`]: the same for an Omnimagnet (model, steady-state Kalman
-//!   filter fed by thermocouples, protection), a thin adapter;
+//! * [`omnimagnet`]: the same for an Omnimagnet (the 19-state steady-state
+//!   Kalman observer fed by thermocouples, protection), with re-linearised
+//!   models made off the tick and installed between ticks;
 //! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
 //!   the conservative start when a snapshot is refused.
 

@@ -134,6 +134,7 @@ const NO_LIMIT_C: f32 = 1000.0;
 
 /// Build settings, each with a default.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OmniSettings {
     /// Model step \[us\]. Default 1000.
     pub step_us: u32,

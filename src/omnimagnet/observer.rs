@@ -267,6 +267,7 @@ pub enum GainMode {
 
 /// Build-time settings of the observer, in SI units.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ObserverSettings {
     /// Which thermocouples are fitted and used (order of
     /// [`THERMOCOUPLE_NODES`]); at least one.
