@@ -16,14 +16,17 @@
 //! Everything starts from equilibrium with no current at the given boundary
 //! temperatures, and the currents are held from `t = 0`.
 
-use anyhow::{bail, Result};
-use coil_thermal::protect::predict::{Operating, PredictorBuilder, DEFAULT_GRID_POINTS};
+use anyhow::{bail, Context, Result};
+use coil_thermal::protect::predict::{
+    LimitPredictor, Operating, PredictorBuilder, DEFAULT_GRID_POINTS,
+};
 use coil_thermal::protect::runaway::{hot_spot_current_a, runaway_current_a};
 use coil_thermal::protect::safe_current::Horizon;
 use coil_thermal::{Network, Resistance};
 use serde::Serialize;
 
 use crate::dynamic_network::DynNetwork;
+use crate::model_file::Model;
 
 /// The padded sizes `P` (nodes and sources) that are instantiated.
 pub const SIZE_CLASSES: [usize; 6] = [4, 8, 16, 32, 64, 96];
@@ -99,39 +102,57 @@ pub struct LimitsReport {
     pub slowest_time_constant_s: f64,
 }
 
+/// The smallest size class that holds `nodes` nodes and `sources` sources.
+fn size_class(network: &DynNetwork, what: &str) -> Result<usize> {
+    let n = network.nodes();
+    let m = network.sources().len();
+    if network.boundaries() > 2 {
+        bail!(
+            "{what}: the model has {} boundaries; at most 2 are supported",
+            network.boundaries()
+        );
+    }
+    if network.boundaries() == 0 {
+        bail!("{what}: the model has no boundary, so no steady state");
+    }
+    SIZE_CLASSES
+        .iter()
+        .copied()
+        .find(|&p| p >= n.max(m))
+        .with_context(|| {
+            format!(
+                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported",
+                SIZE_CLASSES[SIZE_CLASSES.len() - 1]
+            )
+        })
+}
+
+/// Runs `job` on a thread with a large stack: the padded matrices of the
+/// larger size classes live on the stack while they are built.
+fn on_big_stack<R: Send + 'static>(
+    what: &str,
+    job: impl FnOnce() -> Result<R> + Send + 'static,
+) -> Result<R> {
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(job)?
+        .join()
+        .map_err(|_| anyhow::anyhow!("{what}: the computation panicked"))?
+}
+
 /// Computes the limits, on a thread with a large stack (the padded
 /// matrices live on the stack).
 pub fn compute(query: &LimitsQuery) -> Result<LimitsReport> {
-    let n = query.network.nodes();
-    let m = query.network.sources().len();
-    if query.network.boundaries() > 2 {
-        bail!(
-            "limits: the model has {} boundaries; at most 2 are supported",
-            query.network.boundaries()
-        );
-    }
-    if query.network.boundaries() == 0 {
-        bail!("limits: the model has no boundary, so no steady state");
-    }
-    let Some(&class) = SIZE_CLASSES.iter().find(|&&p| p >= n.max(m)) else {
-        bail!(
-            "limits: the model has {n} nodes and {m} sources; at most {} of each are supported",
-            SIZE_CLASSES[SIZE_CLASSES.len() - 1]
-        );
-    };
+    let class = size_class(&query.network, "limits")?;
     let q = query.clone();
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(move || match class {
-            4 => sized::<4>(&q),
-            8 => sized::<8>(&q),
-            16 => sized::<16>(&q),
-            32 => sized::<32>(&q),
-            64 => sized::<64>(&q),
-            _ => sized::<96>(&q),
-        })?
-        .join()
-        .map_err(|_| anyhow::anyhow!("limits: the computation panicked"))?
+    on_big_stack("limits", move || match class {
+        4 => sized::<4>(&q),
+        8 => sized::<8>(&q),
+        16 => sized::<16>(&q),
+        32 => sized::<32>(&q),
+        64 => sized::<64>(&q),
+        _ => sized::<96>(&q),
+    })
 }
 
 fn lib_err(what: &str) -> impl Fn(coil_thermal::BuildError) -> anyhow::Error + '_ {
@@ -178,6 +199,25 @@ pub fn padded<const P: usize>(net: &DynNetwork) -> Result<Network<P, 2, P>> {
     Ok(lib)
 }
 
+/// The time-to-limit predictor of a padded network, with horizons up to ten
+/// times its slowest time constant (at least 4 h) so that "never" is tight,
+/// and that time constant \[s\].
+fn predictor_for<const P: usize>(
+    lib: &Network<P, 2, P>,
+) -> Result<(LimitPredictor<f64, P, 2, P>, f64)> {
+    let probe = PredictorBuilder::new()
+        .build::<f64, P, 2, P, DEFAULT_GRID_POINTS>(lib)
+        .map_err(lib_err("predictor"))?;
+    let slowest = probe.slowest_time_constant_s();
+    let last = (10.0 * slowest).max(14_400.0);
+    let first = (last * 1e-6).min(1.0);
+    let predictor = PredictorBuilder::new()
+        .grid_s(first, last)
+        .build::<f64, P, 2, P, DEFAULT_GRID_POINTS>(lib)
+        .map_err(lib_err("predictor"))?;
+    Ok((predictor, slowest))
+}
+
 fn safe(s: coil_thermal::protect::safe_current::SafeLimit<f64>, n: usize) -> Safe {
     Safe {
         value: s.value.is_finite().then_some(s.value),
@@ -201,18 +241,7 @@ fn sized<const P: usize>(q: &LimitsQuery) -> Result<LimitsReport> {
         .steady_state(&[0.0; P], &boundary)
         .map_err(lib_err("equilibrium without current"))?;
     let steady = lib.steady_state(&currents, &boundary).ok();
-    // Horizons up to ten times the slowest time constant, so "never" is
-    // tight.
-    let probe = PredictorBuilder::new()
-        .build::<f64, P, 2, P, DEFAULT_GRID_POINTS>(&lib)
-        .map_err(lib_err("predictor"))?;
-    let slowest = probe.slowest_time_constant_s();
-    let last = (10.0 * slowest).max(14_400.0);
-    let first = (last * 1e-6).min(1.0);
-    let predictor = PredictorBuilder::new()
-        .grid_s(first, last)
-        .build::<f64, P, 2, P, DEFAULT_GRID_POINTS>(&lib)
-        .map_err(lib_err("predictor"))?;
+    let (predictor, slowest) = predictor_for(&lib)?;
     let op = Operating {
         temps_c: start,
         currents_a: currents,
@@ -264,4 +293,158 @@ fn sized<const P: usize>(q: &LimitsQuery) -> Result<LimitsReport> {
         coils,
         slowest_time_constant_s: slowest,
     })
+}
+
+/// The size-independent face of a padded [`LimitPredictor`] with its
+/// operating point.
+trait PaddedPredictor: Send {
+    /// One full sweep (see `LimitPredictor::predict`) over the first
+    /// `temps_c.len()` nodes; the answers of those nodes go to `out`.
+    fn predict(
+        &mut self,
+        temps_c: &[f64],
+        currents_a: &[f64],
+        boundary_c: &[f64],
+        limits_c: &[f64],
+        out: &mut [Option<f64>],
+    );
+}
+
+struct Padded<const P: usize> {
+    predictor: LimitPredictor<f64, P, 2, P>,
+    op: Operating<f64, P, 2, P>,
+    out: [Option<f64>; P],
+}
+
+impl<const P: usize> Padded<P> {
+    fn build(network: &DynNetwork) -> Result<Box<dyn PaddedPredictor>> {
+        let lib = padded::<P>(network)?;
+        let (predictor, _) = predictor_for(&lib)?;
+        Ok(Box::new(Self {
+            predictor,
+            op: Operating {
+                temps_c: [0.0; P],
+                currents_a: [0.0; P],
+                boundary_c: [0.0; 2],
+                limits_c: [NO_LIMIT_C; P],
+            },
+            out: [None; P],
+        }))
+    }
+}
+
+impl<const P: usize> PaddedPredictor for Padded<P> {
+    fn predict(
+        &mut self,
+        temps_c: &[f64],
+        currents_a: &[f64],
+        boundary_c: &[f64],
+        limits_c: &[f64],
+        out: &mut [Option<f64>],
+    ) {
+        let n = temps_c.len();
+        let op = &mut self.op;
+        op.boundary_c = [boundary_c[0]; 2];
+        op.boundary_c[..boundary_c.len()].copy_from_slice(boundary_c);
+        // Padding nodes sit at their equilibrium with boundary 0 and never
+        // reach their limit; padding sources carry no current.
+        op.temps_c = [op.boundary_c[0]; P];
+        op.temps_c[..n].copy_from_slice(temps_c);
+        op.currents_a = [0.0; P];
+        op.currents_a[..currents_a.len()].copy_from_slice(currents_a);
+        op.limits_c = [NO_LIMIT_C; P];
+        op.limits_c[..n].copy_from_slice(limits_c);
+        self.predictor.predict(op, &mut self.out);
+        out.copy_from_slice(&self.out[..n]);
+    }
+}
+
+/// Time to limit of every node of a model at a moving operating point: the
+/// library's [`LimitPredictor`] on the padded network (see the module docs),
+/// one full sweep per call, for the replay's predictive alarm.
+///
+/// Each call holds the given currents and boundary temperatures from now
+/// on, so the answer is the library's: never later than the linear model's
+/// true first crossing, with `R(T)` evaluated conservatively.
+pub struct TimeToLimit {
+    model: Model,
+    predictor: Box<dyn PaddedPredictor>,
+    currents_a: Vec<f64>,
+    limits_c: Vec<f64>,
+    out: Vec<Option<f64>>,
+}
+
+impl TimeToLimit {
+    /// Builds the predictor of `model` (on a large stack; the answer is
+    /// boxed).
+    ///
+    /// # Errors
+    /// More than 2 boundaries, none, more nodes or sources than the
+    /// largest size class, or a network the library refuses.
+    pub fn new(model: &Model) -> Result<Self> {
+        let class = size_class(&model.network, "time to limit")?;
+        let network = model.network.clone();
+        let predictor = on_big_stack("time to limit", move || match class {
+            4 => Padded::<4>::build(&network),
+            8 => Padded::<8>::build(&network),
+            16 => Padded::<16>::build(&network),
+            32 => Padded::<32>::build(&network),
+            64 => Padded::<64>::build(&network),
+            _ => Padded::<96>::build(&network),
+        })?;
+        let n = model.nodes.len();
+        Ok(Self {
+            model: model.clone(),
+            predictor,
+            currents_a: Vec::new(),
+            limits_c: vec![NO_LIMIT_C; n],
+            out: vec![None; n],
+        })
+    }
+
+    /// The model it predicts for.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Every node's time to its limit \[s\] from the temperatures `temps_c`
+    /// \[degC\] with the model's inputs `inputs_a` \[A\], `boundary_c`
+    /// \[degC\] and `signals` held from now on (`None`: never, or the node
+    /// has no limit in `limits_c`; `Some(0)`: at or past it; `Some(NaN)`:
+    /// an input was not finite).
+    ///
+    /// A node without a limit is given the highest limit of the others for
+    /// the predictor, which evaluates each winding's `R(T)` at its node's
+    /// limit; its own answer is reported as `None`.
+    pub fn predict(
+        &mut self,
+        temps_c: &[f64],
+        inputs_a: &[f64],
+        boundary_c: &[f64],
+        signals: &[f64],
+        limits_c: &[Option<f64>],
+    ) -> &[Option<f64>] {
+        let Some(highest) = limits_c.iter().flatten().copied().reduce(f64::max) else {
+            self.out.fill(None);
+            return &self.out;
+        };
+        for (l, given) in self.limits_c.iter_mut().zip(limits_c) {
+            *l = given.unwrap_or(highest);
+        }
+        self.model
+            .effective_currents(inputs_a, signals, &mut self.currents_a);
+        self.predictor.predict(
+            temps_c,
+            &self.currents_a,
+            boundary_c,
+            &self.limits_c,
+            &mut self.out,
+        );
+        for (t, given) in self.out.iter_mut().zip(limits_c) {
+            if given.is_none() {
+                *t = None;
+            }
+        }
+        &self.out
+    }
 }

@@ -25,7 +25,7 @@ use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::events::{AlarmEvent as LibEvent, EventKind, EventQueue};
 use serde::Serialize;
 
-use crate::limits::{NO_LIMIT_C, SIZE_CLASSES};
+use crate::limits::{TimeToLimit, NO_LIMIT_C, SIZE_CLASSES};
 
 use crate::sim::{initial_temps, Drive, Plant, PlantInfo};
 
@@ -99,15 +99,16 @@ pub struct AlarmEvent {
 /// A protection stage: looks at each estimate, reports alarm events.
 pub trait Protection {
     /// Checks the estimate `estimate_c` \[degC\] of the row at `time_s` \[s\]
-    /// with that row's boundary temperatures `boundary_c` \[degC\] and, when
-    /// the estimator predicts them, each node's time to its alarm limit
-    /// \[s\] (`None` inside: never); pushes what changed to `events`.
+    /// with that row's inputs (held from now on): `currents_a` per model
+    /// input \[A\], `boundary_c` per boundary \[degC\] and `signals`; pushes
+    /// what changed to `events`.
     fn check(
         &mut self,
         time_s: f64,
         estimate_c: &[f64],
+        currents_a: &[f64],
         boundary_c: &[f64],
-        time_to_limit_s: Option<&[Option<f64>]>,
+        signals: &[f64],
         events: &mut Vec<AlarmEvent>,
     );
 }
@@ -128,7 +129,9 @@ pub struct AlarmSettings {
     /// Rows of evidence to raise or clear an alarm (the alarm's tick is one
     /// replay row).
     pub debounce_rows: u16,
-    /// Predictive alarm horizon \[s\] (used only with times to limit).
+    /// Predictive alarm horizon \[s\]: the predictive alarm rises when a
+    /// node's time to limit falls below it (only with
+    /// [`LibraryAlarm::with_time_to_limit`]).
     pub horizon_s: f64,
     /// The boundary whose temperature is the measured ambient of the
     /// derating rule; `None`: `nominal_ambient_c` throughout.
@@ -242,6 +245,41 @@ pub struct LibraryAlarm {
     /// This row's library events, drained from the queue.
     pending: Vec<LibEvent>,
     shutdown: bool,
+    prediction: Option<Prediction>,
+}
+
+/// The time to limit feeding the predictive alarm, and its record.
+struct Prediction {
+    predictor: TimeToLimit,
+    horizon_s: f64,
+    /// Each node's alarm limit of this row (`None`: not watched) \[degC\].
+    limits_c: Vec<Option<f64>>,
+    summary: TimeToLimitSummary,
+    sweep_ns: Vec<f64>,
+}
+
+/// What the time-to-limit prediction saw over a replay.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct TimeToLimitSummary {
+    /// The predictive alarm's horizon \[s\].
+    pub horizon_s: f64,
+    /// The shortest predicted time to limit of any watched node \[s\]
+    /// (`None`: every node was "never" on every row).
+    pub min_s: Option<f64>,
+    /// The node that had it.
+    pub min_node: Option<String>,
+    /// The row time at which it was predicted \[s\].
+    pub min_at_time_s: Option<f64>,
+    /// The first row at which any node's time to limit was below the
+    /// horizon \[s\] (the predictive alarm rises `--debounce-rows` later).
+    pub first_below_horizon_time_s: Option<f64>,
+    /// Rows whose prediction was unknown (`NaN`: an input was not finite).
+    pub unknown_rows: usize,
+    /// Host time of one full prediction sweep \[ns\]: median and maximum
+    /// (the library's 1 ms tick runs it in slices; not in the step time).
+    pub sweep_p50_ns: f64,
+    /// ... maximum.
+    pub sweep_max_ns: f64,
 }
 
 impl LibraryAlarm {
@@ -301,7 +339,116 @@ impl LibraryAlarm {
             time_to_limit_s: vec![None; n],
             pending: Vec::new(),
             shutdown: false,
+            prediction: None,
         })
+    }
+
+    /// Feeds the predictive alarm: every row, each watched node's time to
+    /// its alarm limit (the library's derated limit at the alarm's
+    /// ambient) is predicted by `predictor` with that row's inputs held,
+    /// and the alarm compares it with `horizon_s` \[s\].
+    ///
+    /// # Errors
+    /// `predictor`'s model has other nodes, inputs, boundaries or signals
+    /// than the replayed plant `info`, or `horizon_s` is not finite and
+    /// positive.
+    pub fn with_time_to_limit(
+        mut self,
+        info: &PlantInfo,
+        predictor: TimeToLimit,
+        horizon_s: f64,
+    ) -> Result<Self> {
+        if !(horizon_s.is_finite() && horizon_s > 0.0) {
+            bail!("time to limit: the horizon must be finite and > 0 s, got {horizon_s}");
+        }
+        let model = predictor.model();
+        let names = |v: &mut dyn Iterator<Item = String>| v.collect::<Vec<_>>();
+        let same = model.nodes == info.nodes
+            && names(&mut model.inputs.iter().map(|i| i.name.clone()))
+                == names(&mut info.inputs.iter().map(|i| i.name.clone()))
+            && names(&mut model.boundaries.iter().map(|b| b.name.clone()))
+                == names(&mut info.boundaries.iter().map(|b| b.name.clone()))
+            && model.signals == info.signals;
+        if !same {
+            bail!(
+                "time to limit: model `{}` does not have the nodes, inputs, boundaries and signals of the replayed `{}`",
+                model.name,
+                info.name
+            );
+        }
+        self.prediction = Some(Prediction {
+            predictor,
+            horizon_s,
+            limits_c: vec![None; info.nodes.len()],
+            summary: TimeToLimitSummary {
+                horizon_s,
+                ..Default::default()
+            },
+            sweep_ns: Vec::new(),
+        });
+        Ok(self)
+    }
+
+    /// What the time-to-limit prediction saw so far (`None` without
+    /// [`Self::with_time_to_limit`]).
+    pub fn time_to_limit(&self) -> Option<TimeToLimitSummary> {
+        self.prediction.as_ref().map(|p| {
+            let mut summary = p.summary.clone();
+            let mut ns = p.sweep_ns.clone();
+            ns.sort_by(f64::total_cmp);
+            summary.sweep_p50_ns = ns.get(ns.len() / 2).copied().unwrap_or(0.0);
+            summary.sweep_max_ns = ns.last().copied().unwrap_or(0.0);
+            summary
+        })
+    }
+
+    /// Each node's time to limit at this row, into `self.time_to_limit_s`
+    /// (per watched node; all `None` without a predictor).
+    fn predict(
+        &mut self,
+        time_s: f64,
+        estimate_c: &[f64],
+        currents_a: &[f64],
+        boundary_c: &[f64],
+        signals: &[f64],
+    ) {
+        let Some(p) = self.prediction.as_mut() else {
+            self.time_to_limit_s.fill(None);
+            return;
+        };
+        for (e, &node) in self.nodes.iter().enumerate() {
+            p.limits_c[node] = self.alarm.limit_c(e);
+        }
+        let start = Instant::now();
+        let ttl = p
+            .predictor
+            .predict(estimate_c, currents_a, boundary_c, signals, &p.limits_c);
+        p.sweep_ns.push(start.elapsed().as_nanos() as f64);
+        let s = &mut p.summary;
+        let mut unknown = false;
+        for ((out, &node), name) in self
+            .time_to_limit_s
+            .iter_mut()
+            .zip(&self.nodes)
+            .zip(&self.names)
+        {
+            *out = ttl[node];
+            match ttl[node] {
+                Some(t) if t.is_nan() => unknown = true,
+                Some(t) => {
+                    if s.min_s.is_none_or(|m| t < m) {
+                        s.min_s = Some(t);
+                        s.min_node = Some(name.clone());
+                        s.min_at_time_s = Some(time_s);
+                    }
+                    if t < p.horizon_s && s.first_below_horizon_time_s.is_none() {
+                        s.first_below_horizon_time_s = Some(time_s);
+                    }
+                }
+                None => {}
+            }
+        }
+        s.unknown_rows += usize::from(unknown);
     }
 
     /// Nodes watched (those with a critical temperature), in node order.
@@ -320,19 +467,15 @@ impl Protection for LibraryAlarm {
         &mut self,
         time_s: f64,
         estimate_c: &[f64],
+        currents_a: &[f64],
         boundary_c: &[f64],
-        time_to_limit_s: Option<&[Option<f64>]>,
+        signals: &[f64],
         events: &mut Vec<AlarmEvent>,
     ) {
-        for ((t, ttl), &node) in self
-            .temps_c
-            .iter_mut()
-            .zip(self.time_to_limit_s.iter_mut())
-            .zip(&self.nodes)
-        {
+        for (t, &node) in self.temps_c.iter_mut().zip(&self.nodes) {
             *t = estimate_c[node];
-            *ttl = time_to_limit_s.and_then(|v| v[node]);
         }
+        self.predict(time_s, estimate_c, currents_a, boundary_c, signals);
         let ambient_c = self
             .ambient_boundary
             .map_or(self.nominal_ambient_c, |b| boundary_c[b]);
@@ -531,8 +674,9 @@ pub fn replay(
         protection.check(
             drive.time_s[k],
             estimator.estimate_c(),
+            &c,
             &b,
-            None,
+            &s,
             &mut alarms,
         );
         if k + 1 < rows {
@@ -594,7 +738,7 @@ mod tests {
             let mut temps = vec![20.0; n];
             temps[n - 1] = 65.37;
             let mut events = Vec::new();
-            alarm.check(0.0, &temps, &[], None, &mut events);
+            alarm.check(0.0, &temps, &[], &[], &[], &mut events);
             let levels: Vec<_> = events.iter().map(|e| (e.level, e.kind)).collect();
             assert_eq!(
                 levels,

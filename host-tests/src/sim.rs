@@ -161,6 +161,9 @@ pub struct Bindings {
     pub boundaries: Vec<(ColumnExpr, String)>,
     /// `--const COL=VALUE`: a constant for a column the trace lacks.
     pub constants: Vec<(String, f64)>,
+    /// `--current-scale K`: every current input multiplied by `K` (a
+    /// harder or lighter duty on the same trajectory); `None`: 1.
+    pub current_scale: Option<f64>,
 }
 
 /// Input series of a run, one value per row: `[channel][row]`.
@@ -246,7 +249,11 @@ impl Drive {
                 .rev()
                 .find(|(_, n)| *n == input.name)
                 .map_or(input.column.clone(), |(e, _)| e.to_string());
-            currents.push(column(&text, &format!("current input `{}`", input.name))?);
+            let mut series = column(&text, &format!("current input `{}`", input.name))?;
+            if let Some(k) = bind.current_scale {
+                series.iter_mut().for_each(|i| *i *= k);
+            }
+            currents.push(series);
         }
         let mut boundaries = Vec::new();
         for b in &info.boundaries {

@@ -247,13 +247,16 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     assert!(truth["rmse_k"].as_f64().is_some() && truth["max_abs_error_k"].as_f64().is_some());
     // 4 A heats the coil past its 155 degC critical temperature (a model
     // file has no derating by default): warning first, then the shutdown.
-    let alarms = j["alarms"].as_array().unwrap();
-    assert_eq!(alarms[0]["level"], "warning");
-    assert_eq!(alarms[0]["kind"], "raised");
-    assert_eq!(alarms[0]["node"], "coil");
-    assert_eq!(alarms[0]["limit_c"], 150.0);
-    assert_eq!(alarms[1]["level"], "shutdown");
-    assert_eq!(alarms[1]["limit_c"], 155.0);
+    let (warnings, shutdowns) = (events_of(&j, "warning"), events_of(&j, "shutdown"));
+    assert_eq!(warnings[0]["kind"], "raised");
+    assert_eq!(warnings[0]["node"], "coil");
+    assert_eq!(warnings[0]["limit_c"], 150.0);
+    assert_eq!(shutdowns[0]["limit_c"], 155.0);
+    let predictive_s = events_of(&j, "predictive")[0]["time_s"].as_f64().unwrap();
+    assert!(
+        predictive_s < warnings[0]["time_s"].as_f64().unwrap(),
+        "{j}"
+    );
     let st = &j["step_time"];
     assert_eq!(st["budget_ns"], 100000.0);
     assert!(st["p50_ns"].as_f64().unwrap() <= st["p99_ns"].as_f64().unwrap());
@@ -272,6 +275,8 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     .success()
     .stdout(
         contains("MSE [K^2]")
+            .and(contains("time to limit: shortest"))
+            .and(contains("first predictive raised at t ="))
             .and(contains("warning raised at t ="))
             .and(contains("shutdown latched at t ="))
             .and(contains("0.1 ms budget")),
@@ -323,8 +328,17 @@ fn debounced_crossing(temp_c: &[f64], level_c: f64, debounce: usize) -> Option<u
 }
 
 /// Replays the two-node coil under the HPPA derating rule, debounced over
-/// 3 rows; returns the JSON summary, the coil estimate and the times.
+/// 3 rows, with a 60 s predictive horizon; returns the JSON summary, the
+/// coil estimate and the times.
 fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>) {
+    replay_derated_with_horizon(dir, current_a, 60.0)
+}
+
+fn replay_derated_with_horizon(
+    dir: &TempDir,
+    current_a: f64,
+    horizon_s: f64,
+) -> (Value, Vec<f64>, Vec<f64>) {
     // On for 400 s, then 1200 s of cooling, 1 s rows.
     let mut text = String::from("time_s,current\n");
     for k in 0..=1600 {
@@ -343,6 +357,7 @@ fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>) 
             s(&trace),
         ])
         .args(["--factors", "0.875,0.9,0.9,0.8", "--debounce-rows", "3"])
+        .args(["--horizon-s", &horizon_s.to_string()])
         .args(["--out", s(&est), "--plot", s(&png), "--json"])
         .assert()
         .success();
@@ -364,18 +379,29 @@ fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>) 
 const DERATED_LIMIT_C: f64 = 20.0 + (155.0 - 20.0) * 0.567;
 const WARNING_C: f64 = DERATED_LIMIT_C - 5.0;
 
+/// The events of one level, in order.
+fn events_of<'a>(j: &'a Value, level: &str) -> Vec<&'a Value> {
+    j["alarms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["level"] == level)
+        .collect()
+}
+
 #[test]
 fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
     let dir = TempDir::new().unwrap();
     // 4 A for 400 s, then off: the coil passes 96.5 degC, then cools.
     let (j, coil_c, time_s) = replay_derated(&dir, 4.0);
-    let events = j["alarms"].as_array().unwrap();
     let warn_row = debounced_crossing(&coil_c, WARNING_C, 3).unwrap();
     let shut_row = debounced_crossing(&coil_c, DERATED_LIMIT_C, 3).unwrap();
-    let (w, sd) = (&events[0], &events[1]);
+    let warnings = events_of(&j, "warning");
+    let shutdowns = events_of(&j, "shutdown");
+    let (w, sd) = (warnings[0], shutdowns[0]);
     assert_eq!(
-        (&w["level"], &w["kind"], &w["node"]),
-        (&"warning".into(), &"raised".into(), &"coil".into()),
+        (&w["kind"], &w["node"]),
+        (&"raised".into(), &"coil".into()),
         "{j}"
     );
     assert_eq!(w["time_s"].as_f64().unwrap(), time_s[warn_row], "{j}");
@@ -383,11 +409,7 @@ fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
         (w["limit_c"].as_f64().unwrap() - WARNING_C).abs() < 1e-9,
         "{w}"
     );
-    assert_eq!(
-        (&sd["level"], &sd["kind"]),
-        (&"shutdown".into(), &"latched".into()),
-        "{j}"
-    );
+    assert_eq!(sd["kind"], "latched", "{j}");
     assert_eq!(sd["time_s"].as_f64().unwrap(), time_s[shut_row], "{j}");
     assert!(
         (sd["limit_c"].as_f64().unwrap() - DERATED_LIMIT_C).abs() < 1e-9,
@@ -404,27 +426,76 @@ fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
         .nth(2)
         .map(|(k, _)| k)
         .unwrap();
-    assert_eq!(events.len(), 3, "{j}");
-    assert_eq!(
-        (&events[2]["level"], &events[2]["kind"]),
-        (&"warning".into(), &"cleared".into())
-    );
-    assert_eq!(events[2]["time_s"].as_f64().unwrap(), time_s[clear_row]);
+    assert_eq!((warnings.len(), shutdowns.len()), (2, 1), "{j}");
+    assert_eq!(warnings[1]["kind"], "cleared");
+    assert_eq!(warnings[1]["time_s"].as_f64().unwrap(), time_s[clear_row]);
     assert_eq!(j["alarm"]["shutdown_latched"], true);
     assert!((j["alarm"]["derating_product"].as_f64().unwrap() - 0.567).abs() < 1e-12);
+}
+
+#[test]
+fn replay_predictive_alarm_leads_the_limit_by_the_horizon() {
+    let dir = TempDir::new().unwrap();
+    // The current is held from the start, as the prediction assumes, so the
+    // predictive alarm must lead the crossing by the horizon (less one row
+    // of the debounced alarm's sampling) and not by absurdly more.
+    for horizon_s in [60.0, 120.0] {
+        let (j, coil_c, time_s) = replay_derated_with_horizon(&dir, 4.0, horizon_s);
+        let predictive = events_of(&j, "predictive");
+        assert_eq!(predictive.len(), 2, "raised once, cleared once: {j}");
+        let (raised, cleared) = (predictive[0], predictive[1]);
+        assert_eq!(
+            (&raised["kind"], &raised["node"]),
+            (&"raised".into(), &"coil".into())
+        );
+        // Debounced like the shutdown: 3 rows after the first row below the
+        // horizon.
+        let ttl = &j["alarm"]["time_to_limit"];
+        assert_eq!(ttl["horizon_s"], horizon_s);
+        let first_below = ttl["first_below_horizon_time_s"].as_f64().unwrap();
+        assert_eq!(raised["time_s"].as_f64().unwrap(), first_below + 2.0, "{j}");
+        let shutdown_s = events_of(&j, "shutdown")[0]["time_s"].as_f64().unwrap();
+        let lead_s = shutdown_s - raised["time_s"].as_f64().unwrap();
+        // The undebounced view gives the same lead: first row past the limit
+        // against the first row predicted within the horizon.
+        let crossing_s = time_s[coil_c.iter().position(|t| *t > DERATED_LIMIT_C).unwrap()];
+        assert_eq!(crossing_s - first_below, lead_s, "{j}");
+        assert!(
+            lead_s >= horizon_s - 1.0 && lead_s < 1.5 * horizon_s,
+            "horizon {horizon_s} s: lead {lead_s} s"
+        );
+        assert_eq!(ttl["min_s"], 0.0, "the coil passes its limit: {ttl}");
+        // Off at 400 s: "at or past the limit" (0 s) until the coil is below
+        // it again, then "never", which clears the alarm.
+        assert_eq!(cleared["kind"], "cleared");
+        let below_again_s = time_s[400
+            + coil_c[400..]
+                .iter()
+                .position(|t| *t < DERATED_LIMIT_C)
+                .unwrap()];
+        assert_eq!(
+            cleared["time_s"].as_f64().unwrap(),
+            below_again_s + 2.0,
+            "{j}"
+        );
+    }
 }
 
 #[test]
 fn replay_below_the_derated_limit_raises_nothing() {
     let dir = TempDir::new().unwrap();
     // 3.3 A for 400 s: the coil heats well above ambient but stays below
-    // the warning level of the same rule.
+    // the warning level of the same rule, and its steady state at 3.3 A
+    // would too, so the predictive alarm stays quiet as well.
     let (j, coil_c, _) = replay_derated(&dir, 3.3);
     let peak_c = coil_c.iter().copied().fold(f64::MIN, f64::max);
     assert!(peak_c < WARNING_C && peak_c > 50.0, "peak {peak_c} degC");
     assert_eq!(j["alarms"].as_array().unwrap().len(), 0, "{j}");
     assert_eq!(j["alarm"]["shutdown_latched"], false);
     assert_eq!(j["alarm"]["watched_nodes"], 1);
+    let ttl = &j["alarm"]["time_to_limit"];
+    assert!(ttl["first_below_horizon_time_s"].is_null(), "{ttl}");
+    assert!(ttl["min_s"].as_f64().unwrap() > 60.0, "{ttl}");
 }
 
 #[test]
@@ -808,6 +879,49 @@ fn bad_models_and_arguments_are_refused() {
     .assert()
     .failure()
     .stderr(contains("--duration-s"));
+    // Replay: the predictive horizon and the current scale.
+    let trace = coil_trace(&dir, 1.0);
+    for (flag, value, msg) in [
+        ("--horizon-s", "0", "--horizon-s must be finite and > 0 s"),
+        ("--horizon-s", "-60", "--horizon-s must be finite and > 0 s"),
+        ("--horizon-s", "nan", "--horizon-s must be finite and > 0 s"),
+        ("--horizon-s", "inf", "--horizon-s must be finite and > 0 s"),
+        (
+            "--current-scale",
+            "-1",
+            "--current-scale must be finite and >= 0",
+        ),
+        (
+            "--current-scale",
+            "nan",
+            "--current-scale must be finite and >= 0",
+        ),
+    ] {
+        ct().args(["replay", "--model", &two, "--trace", s(&trace)])
+            .args([flag, value, "--out", s(&o)])
+            .assert()
+            .failure()
+            .stderr(contains(msg));
+    }
+}
+
+#[test]
+fn current_scale_multiplies_every_current_of_the_trace() {
+    let dir = TempDir::new().unwrap();
+    let two = models("two-node-coil.toml");
+    let run = |current_a: f64, scale: &str| {
+        let trace = coil_trace(&dir, current_a);
+        let out = dir.path().join(format!("sim-{current_a}-{scale}.csv"));
+        ct().args(["simulate", "--model", &two, "--trace", s(&trace)])
+            .args(["--current-scale", scale, "--out", s(&out)])
+            .assert()
+            .success();
+        csv_column(&out, "coil")
+    };
+    let scaled = run(2.0, "1.5");
+    let direct = run(3.0, "1");
+    assert_eq!(scaled, direct);
+    assert!(scaled.iter().copied().fold(f64::MIN, f64::max) > 60.0);
 }
 
 /// Opt-in: the real HUST motor data (set `COIL_THERMAL_HUST_DIR` to the

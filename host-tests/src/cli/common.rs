@@ -156,6 +156,12 @@ pub fn split_mapping<'a>(text: &'a str, flag: &str, form: &str) -> Result<(&'a s
 /// The trace bindings from the flags.
 pub fn bindings(args: &TraceArgs) -> Result<Bindings> {
     let mut b = Bindings::default();
+    if let Some(k) = args.current_scale {
+        if !(k.is_finite() && k >= 0.0) {
+            bail!("--current-scale must be finite and >= 0, got {k}");
+        }
+        b.current_scale = Some(k);
+    }
     for c in &args.currents {
         let (e, input) = split_mapping(c, "--current", "EXPR=INPUT")?;
         b.currents.push((

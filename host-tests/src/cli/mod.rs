@@ -105,6 +105,10 @@ pub struct TraceArgs {
     /// `speed=1500` [rpm] for a speed-dependent source.
     #[arg(long = "const", value_name = "COL=VALUE")]
     pub constants: Vec<String>,
+    /// Multiplies every current input by K (dimensionless, >= 0): the same
+    /// trajectory at a harder or lighter duty (power goes with K^2).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    pub current_scale: Option<f64>,
 }
 
 /// HPPA grid drive patterns: the report's four calibration patterns.
@@ -323,6 +327,16 @@ pub struct ReplayArgs {
     /// an alarm; 1 raises on the first row beyond the level.
     #[arg(long, value_name = "ROWS", default_value_t = 3)]
     debounce_rows: u16,
+    /// Alarm: the predictive alarm rises when a watched node's predicted
+    /// time to its alarm limit, with the row's currents and boundaries held,
+    /// falls below this horizon [s] (and clears 10 s above it).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 60.0,
+        allow_negative_numbers = true
+    )]
+    horizon_s: f64,
     /// Alarm: the boundary whose temperature is the measured ambient of the
     /// derating rule. Default: the boundary named `ambient`, else the first.
     #[arg(long, value_name = "BOUNDARY")]

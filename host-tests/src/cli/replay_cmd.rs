@@ -7,6 +7,7 @@ use super::common;
 use super::ReplayArgs;
 use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
+use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, OpenLoop};
 use crate::plot::{render, PlotData, Series};
@@ -28,6 +29,13 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
             Ok(v)
         } else {
             bail!("{flag} must be finite and >= 0 K, got {v}")
+        }
+    };
+    let positive = |v: f64, flag: &str| {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            bail!("{flag} must be finite and > 0 s, got {v}")
         }
     };
     if a.debounce_rows == 0 {
@@ -72,7 +80,7 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
         warning_margin_k: non_negative(a.warning_margin_k, "--warning-margin-k")?,
         hysteresis_k: non_negative(a.hysteresis_k, "--hysteresis-k")?,
         debounce_rows: a.debounce_rows,
-        horizon_s: 60.0,
+        horizon_s: positive(a.horizon_s, "--horizon-s")?,
         ambient_boundary,
         nominal_ambient_c,
     })
@@ -115,6 +123,54 @@ fn alarm_lines(settings: &AlarmSettings) -> Vec<(String, f64)> {
     ]
 }
 
+/// Prints the event counts per level and kind, the first predictive
+/// alarm, and the other events (at most [`MAX_PRINTED_EVENTS`]): with
+/// currents that move every row the predictive alarm can rise and clear
+/// often, and it would hide the rest.
+fn print_events(events: &[AlarmEvent]) {
+    if events.is_empty() {
+        println!("alarm events: none");
+        return;
+    }
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for e in events {
+        let key = format!("{} {}", e.level, e.kind);
+        match counts.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((key, 1)),
+        }
+    }
+    println!(
+        "alarm events: {} ({})",
+        events.len(),
+        counts
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let line = |e: &AlarmEvent| {
+        let at = match (&e.node, e.temp_c, e.limit_c) {
+            (Some(n), Some(t), Some(l)) => format!(": {n} at {t:.2} degC (level {l:.2} degC)"),
+            (Some(n), _, _) => format!(": {n}"),
+            _ => String::new(),
+        };
+        println!("{} {} at t = {:.1} s{at}", e.level, e.kind, e.time_s);
+    };
+    if let Some(first) = events.iter().find(|e| e.level == "predictive") {
+        print!("first ");
+        line(first);
+    }
+    let others: Vec<&AlarmEvent> = events.iter().filter(|e| e.level != "predictive").collect();
+    others.iter().take(MAX_PRINTED_EVENTS).for_each(|e| line(e));
+    if others.len() > MAX_PRINTED_EVENTS {
+        println!(
+            "... and {} more (--json lists every event)",
+            others.len() - MAX_PRINTED_EVENTS
+        );
+    }
+}
+
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let plant = common::plant(&a.model)?;
@@ -127,7 +183,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
     let settings = alarm_settings(&a, &info, &drive)?;
     let rule_product = settings.rule.product();
-    let mut protection = LibraryAlarm::new(&info, &settings)?;
+    let predictor = TimeToLimit::new(&Model::build(&common::model_file(&a.model)?)?)?;
+    let mut protection = LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
+        &info,
+        predictor,
+        settings.horizon_s,
+    )?;
     // With fused sensors the estimator is the Kalman filter on the model
     // file; the open-loop model otherwise.
     let mut open_loop = None;
@@ -232,6 +293,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         render(&data, path, 1200, 800)?;
     }
     let hot = common::hot_spot(&result.estimate, &drive.time_s);
+    let ttl = protection.time_to_limit();
     let summary = json!({
         "command": "replay",
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
@@ -245,6 +307,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "watched_nodes": protection.watched().len(),
             "derating_product": rule_product,
             "shutdown_latched": protection.shutdown_latched(),
+            "time_to_limit": ttl,
         },
         "alarms": result.alarms,
         "step_time": result.times,
@@ -299,23 +362,26 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "not latched"
         }
     );
-    if result.alarms.is_empty() {
-        println!("alarm events: none");
-    }
-    for e in result.alarms.iter().take(MAX_PRINTED_EVENTS) {
-        let at = match (&e.node, e.temp_c, e.limit_c) {
-            (Some(n), Some(t), Some(l)) => format!(": {n} at {t:.2} degC (level {l:.2} degC)"),
-            (Some(n), _, _) => format!(": {n}"),
-            _ => String::new(),
+    if let Some(t) = &ttl {
+        let shortest = match (t.min_s, &t.min_node, t.min_at_time_s) {
+            (Some(m), Some(n), Some(at)) => format!("shortest {m:.1} s ({n} at t = {at:.1} s)"),
+            _ => "never reached on any row".into(),
         };
-        println!("{} {} at t = {:.1} s{at}", e.level, e.kind, e.time_s);
-    }
-    if result.alarms.len() > MAX_PRINTED_EVENTS {
+        let below = t
+            .first_below_horizon_time_s
+            .map_or("never".into(), |at| format!("first at t = {at:.1} s"));
         println!(
-            "... and {} more alarm events (--json lists them all)",
-            result.alarms.len() - MAX_PRINTED_EVENTS
+            "time to limit: {shortest}; below the {} s horizon: {below}; one full sweep p50 {:.0} ns, max {:.0} ns",
+            t.horizon_s, t.sweep_p50_ns, t.sweep_max_ns
         );
+        if t.unknown_rows > 0 {
+            println!(
+                "time to limit unknown (non-finite input) on {} rows",
+                t.unknown_rows
+            );
+        }
     }
+    print_events(&result.alarms);
     let t = &result.times;
     println!(
         "step time [ns]: p50 {:.0}, p90 {:.0}, p99 {:.0}, max {:.0}; p99 is {:.4} of the 0.1 ms budget",
