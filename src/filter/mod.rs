@@ -39,6 +39,11 @@
 //! `suspect_after` (default 3) times in a row is reported suspect
 //! ([`UpdateReport::suspect`]); one fused reading clears it.
 //!
+//! # Virtual sensors
+//! [`update_virtual`] fuses a reading outside the configured sensors with its
+//! own row and variance (a winding's temperature from its resistance, whose
+//! variance changes with the current); see [`virtual_sensor`].
+//!
 //! # Recovery
 //! After a large model error the estimate can be far off with a small `P`:
 //! then every healthy reading fails the gate and the filter would never
@@ -108,11 +113,13 @@ mod gate;
 mod kalman;
 pub mod observability;
 mod riccati;
+pub mod virtual_sensor;
 
 pub use gate::{GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999};
 pub use kalman::{predict, predict_mean, update, InputStatus, KalmanConfig, KalmanState};
 pub use observability::{observability, Observability};
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};
+pub use virtual_sensor::update_virtual;
 
 #[cfg(test)]
 pub(crate) mod testutil;

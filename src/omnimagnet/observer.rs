@@ -144,6 +144,7 @@ use crate::filter::{
     self, InputStatus, KalmanConfig, KalmanState, Observability, SensorVerdict, SteadyEstimate,
     SteadyStateGain, CHI2_1DOF_999,
 };
+use crate::protect::resistance_sensor::MeanTemperatureReading;
 use crate::sensors::SensorFault;
 
 /// Filter states: 16 element temperatures and 3 heat-input biases.
@@ -435,6 +436,9 @@ pub struct ObserverState<T: RealField + Copy> {
     pub last_input: SVector<T, INPUTS>,
     /// Corrections so far (saturating).
     pub corrections: u32,
+    /// A virtual reading ([`OmnimagnetObserver::correct_winding`]) has been
+    /// fused: the observer stays time-varying.
+    pub virtual_readings: bool,
 }
 
 /// The Omnimagnet observer: configuration and state of one device.
@@ -738,6 +742,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
                 mode,
                 last_input,
                 corrections: 0,
+                virtual_readings: false,
             },
             config,
         })
@@ -872,6 +877,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
         self.state.corrections = self.state.corrections.saturating_add(1);
         if self.state.mode == GainMode::TimeVarying
             && self.config.settings.mode == GainMode::SteadyState
+            && !self.state.virtual_readings
             && self.state.corrections >= self.config.settings.warmup_corrections
             && self.covariance_converged()
         {
@@ -893,6 +899,50 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
             out.suspect[j] = sensors[j] && report.suspect[j];
         }
         out
+    }
+
+    /// Fuses solenoid `solenoid`'s mean winding temperature from its
+    /// resistance (a [`MeanTemperatureReading`] from
+    /// [`ResistanceSensor::read`](crate::protect::resistance_sensor::ResistanceSensor::read),
+    /// built on that solenoid's `R(T)`) like a thermocouple on the solenoid,
+    /// with the reading's own variance: a virtual sensor
+    /// ([`crate::filter::virtual_sensor`]). Gated like the thermocouples;
+    /// call it after [`Self::predict`] on a tick whose current gave a
+    /// reading. A solenoid index out of range or a non-finite reading is
+    /// [`SensorVerdict::Missing`] and changes nothing. It does not count as
+    /// a thermocouple correction.
+    ///
+    /// The reading is outside the steady-state gain's design, so the first
+    /// one switches the observer to the time-varying filter (covariance
+    /// started at the steady prior, [`Self::set_mode`]) and it stays there
+    /// ([`ObserverState::virtual_readings`]): the per-tick cost becomes the
+    /// time-varying predict's.
+    ///
+    /// With thermocouples on some solenoids only, this makes the others'
+    /// heat-input biases observable (see the README's observability table).
+    pub fn correct_winding(
+        &mut self,
+        solenoid: usize,
+        reading: &MeanTemperatureReading,
+    ) -> SensorVerdict {
+        let Some(&node) = self.config.solenoid_nodes.get(solenoid) else {
+            return SensorVerdict::Missing;
+        };
+        let Some(&origin) = self.config.model.origin_c.get(node) else {
+            return SensorVerdict::Missing;
+        };
+        let mut h = SVector::<T, STATES>::zeros();
+        if let Some(hn) = h.get_mut(node) {
+            *hn = T::one();
+        }
+        let z = cast::<T>(f64::from(reading.temp_c)) - origin;
+        let r = cast::<T>(f64::from(reading.variance_k2));
+        if !(z.is_finite() && r.is_finite() && r > T::zero()) {
+            return SensorVerdict::Missing;
+        }
+        self.set_mode(GainMode::TimeVarying);
+        self.state.virtual_readings = true;
+        filter::update_virtual(&self.config.kalman, &mut self.state.filter, &h, z, r)
     }
 
     /// Replaces `F` and `G` by those of `lin` (same step) and re-bases the

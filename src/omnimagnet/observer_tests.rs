@@ -928,3 +928,111 @@ fn mean_model_predict_is_the_full_product() {
         }
     }
 }
+
+/// Temperature from resistance as a virtual sensor: with thermocouples on
+/// solenoid 1 only, solenoid 2 carries a heat the model does not know (a
+/// 2 W bias the thermocouples cannot attribute: see the observability
+/// test). Its resistance reading (the drive's voltage and current through
+/// [`ResistanceSensor`], 10 mV and 1 mA noise) makes it observable: the
+/// estimate of solenoid 2 and its bias converge, whatever the configured gain mode, while
+/// the thermocouple-only filter keeps the error. The first reading moves a
+/// steady-state observer to the time-varying filter for good. A reading 15 K off (a
+/// resistance that does not fit the model) is rejected by the gate.
+#[test]
+fn resistance_readings_are_fused_like_a_thermocouple() {
+    use crate::protect::resistance_sensor::ResistanceSensor;
+    const BIAS_W: f64 = 2.0;
+    const CURRENT_A: f64 = 3.0;
+    let op = [40.0; NODES];
+    let lin = Omnimagnet::PAPER
+        .linearize(&op, AMBIENT_C, SAMPLE_S)
+        .unwrap();
+    let solenoid = |m: usize| Omnimagnet::PAPER.geometry().solenoids[m];
+    let sensors = [true, true, false, false, false, false];
+    assert!(THERMOCOUPLE_NODES[..2]
+        .iter()
+        .all(|n| *n == solenoid(0).node));
+    let virtual_sensor =
+        |m: usize| ResistanceSensor::new(solenoid(m).resistance(), 0.01, 1e-3, 0.5).unwrap();
+    for mode in [GainMode::TimeVarying, GainMode::SteadyState] {
+        let mut settings = ObserverSettings::with_sensors(sensors);
+        settings.mode = mode;
+        settings.warmup_corrections = 0;
+        let build = || {
+            OmnimagnetObserver::<f64>::new(&Omnimagnet::PAPER, &lin, &settings, &op, AMBIENT_C)
+                .unwrap()
+        };
+        let (mut plain, mut fused) = (build(), build());
+        let config = plain.config().clone();
+        let k = config.kalman();
+        let (f, g) = (*k.f(), *k.g());
+        let origin = *config.origin_c();
+        // Truth: the filter's own linear model with the unknown heat.
+        let mut truth = plain.state().filter.x;
+        truth[NODES + 1] = BIAS_W;
+        let mut rng = Rng::new(5);
+        let currents = [CURRENT_A; SOLENOIDS];
+        let mut u = SVector::<f64, INPUTS>::zeros();
+        let steps = 7200; // 1 h at 0.5 s
+        let (mut plain_err, mut fused_err, mut n) = (0.0, 0.0, 0);
+        let mut verdicts = [0usize; 2];
+        for step in 0..steps {
+            config.joule_input(config.model(), &truth, &currents, AMBIENT_C, &mut u);
+            truth = f * truth + g * u;
+            let tc: [Option<f64>; THERMOCOUPLES] = core::array::from_fn(|j| {
+                let node = THERMOCOUPLE_NODES[j];
+                Some(origin[node] + truth[node] + 0.1 * rng.gauss())
+            });
+            for obs in [&mut plain, &mut fused] {
+                obs.predict(&currents.map(|c| c), AMBIENT_C);
+                obs.correct(&tc);
+            }
+            for m in 1..SOLENOIDS {
+                let node = solenoid(m).node;
+                let true_c = origin[node] + truth[node];
+                let r_ohm = solenoid(m).resistance().at_c(true_c);
+                let volts = r_ohm * CURRENT_A + 0.01 * rng.gauss();
+                let amps = CURRENT_A + 1e-3 * rng.gauss();
+                let reading = virtual_sensor(m).read(volts as f32, amps as f32).unwrap();
+                let v = fused.correct_winding(m, &reading);
+                verdicts[usize::from(v.is_fused())] += 1;
+            }
+            if step >= steps * 2 / 3 {
+                let node = solenoid(1).node;
+                plain_err += (plain.state().filter.x[node] - truth[node]).powi(2);
+                fused_err += (fused.state().filter.x[node] - truth[node]).powi(2);
+                n += 1;
+            }
+        }
+        let plain_rms = (plain_err / n as f64).sqrt();
+        let fused_rms = (fused_err / n as f64).sqrt();
+        let bias = fused.heat_bias_w()[1];
+        let plain_bias = plain.heat_bias_w()[1];
+        println!(
+            "{mode:?}: solenoid 2 RMS {plain_rms:.3} K without, {fused_rms:.3} K with its resistance; bias {plain_bias:.2} W without, {bias:.2} W with (true {BIAS_W}); {} of {} readings fused",
+            verdicts[1],
+            verdicts[0] + verdicts[1]
+        );
+        assert_eq!(plain.mode(), mode);
+        assert_eq!(fused.mode(), GainMode::TimeVarying);
+        assert!(fused.state().virtual_readings);
+        assert!(plain_rms > 0.2, "{mode:?}: the premise: {plain_rms} K");
+        assert!(fused_rms < plain_rms / 5.0, "{mode:?}: {fused_rms} K");
+        assert!((bias - BIAS_W).abs() < 0.3, "{mode:?}: bias {bias} W");
+        assert!(verdicts[0] * 100 < verdicts[1], "{mode:?}: {verdicts:?}");
+        // A resistance that reads 15 K hot is not the winding's: rejected.
+        let node = solenoid(1).node;
+        let hot_c = origin[node] + truth[node] + 15.0;
+        let r_ohm = solenoid(1).resistance().at_c(hot_c);
+        let reading = virtual_sensor(1)
+            .read((r_ohm * CURRENT_A) as f32, CURRENT_A as f32)
+            .unwrap();
+        let before = fused.state().filter.x;
+        assert!(fused.correct_winding(1, &reading).is_rejected());
+        assert_eq!(fused.state().filter.x, before);
+        assert_eq!(
+            fused.correct_winding(SOLENOIDS, &reading),
+            SensorVerdict::Missing
+        );
+    }
+}
