@@ -1,14 +1,23 @@
-//! Links the firmware examples for their QEMU machine, and nothing else.
+//! Two jobs, both keyed on the target:
 //!
-//! Acts only when building for a bare-metal target (`target_os = "none"`), and
-//! only for examples (`rustc-link-arg-examples`), so the memory layout never reaches
-//! host builds or a downstream firmware crate that depends on this library.
+//! * `cfg(no_long_multiply)` for cores without a 32x32 -> 64 multiply
+//!   (ARMv6-M, ARMv8-M Baseline), which picks `Q32`'s multiply from 16-bit
+//!   halves (stable Rust has no `target_feature` for this);
+//! * the memory layout of the firmware examples' QEMU machine. Only when
+//!   building for a bare-metal target (`target_os = "none"`), and only for
+//!   examples (`rustc-link-arg-examples`), so the layout never reaches host
+//!   builds or a downstream firmware crate that depends on this library.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory-m4.x");
     println!("cargo:rerun-if-changed=memory-m0.x");
+    println!("cargo::rustc-check-cfg=cfg(no_long_multiply)");
+    let target = env::var("TARGET").unwrap_or_default();
+    if target.starts_with("thumbv6m") || target.starts_with("thumbv8m.base") {
+        println!("cargo:rustc-cfg=no_long_multiply");
+    }
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }

@@ -117,20 +117,32 @@ pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize>
     fingerprint: u32,
 }
 
-/// Per-coil constants of the time-to-limit bound, `f32`.
+/// Constants of the time-to-limit bound, `f32`.
 #[derive(Debug, Clone)]
 struct TimeToLimit<const ROWS: usize, const COLS: usize> {
-    /// Sum of the conductances to neighbouring coils \[W/K\].
-    neighbour_g: [[f32; COLS]; ROWS],
-    /// Conductance to the ambient padding \[W/K\].
-    ambient_g: [[f32; COLS]; ROWS],
+    coils: [[TtlCoil; COLS]; ROWS],
     /// Conductance to the base \[W/K\].
     base_g: f32,
-    /// Heat capacity \[J/K\].
-    capacity: f32,
     /// `R(0 degC)` \[ohm\] and `dR/dT` \[ohm/K\].
     r0_ohm: f32,
     slope_ohm_per_k: f32,
+}
+
+/// One coil's constants of the bound. The reciprocals and `tau` are kept so
+/// that the per-coil passes have no division but the crossing time's: each
+/// is a software routine on an MCU without an FPU.
+#[derive(Debug, Clone, Copy, Default)]
+struct TtlCoil {
+    /// Sum of the conductances to neighbouring coils, `G_n,i` \[W/K\].
+    neighbour_g: f32,
+    /// Conductance to the ambient padding, `G_a,i` \[W/K\].
+    ambient_g: f32,
+    /// `1 / (G_z + G_a,i)` \[K/W\], of the isolated steady state.
+    isolated_r: f32,
+    /// `1 / (G_n,i + G_z + G_a,i)` \[K/W\].
+    total_r: f32,
+    /// `C / (G_n,i + G_z + G_a,i)` \[s\], the coil's time constant.
+    tau_s: f32,
 }
 
 /// What a protection stage does.
@@ -177,14 +189,12 @@ fn part_of(n: usize, part: u8, parts: u8) -> core::ops::Range<usize> {
 struct ProtectPass<S, const N: usize> {
     /// Alarm limits at the held ambient \[degC\].
     limits_c: [S; N],
-    /// Coil powers of the bound \[W\], fixed at the first stage so that the
-    /// bound `U` holds for the powers the later stages use.
-    power_w: [f32; N],
+    /// Each coil's heat input from its power and the boundaries,
+    /// `p_i + G_z T_c + G_a,i T_a` \[W\], fixed at the first stage so that
+    /// the bound `U` holds for the powers the later stages use.
+    own_inflow_w: [f32; N],
     /// The bound `U` \[degC\].
     bound_c: f32,
-    /// Coolant and ambient temperatures of the bound \[degC\].
-    coolant_c: f32,
-    ambient_c: f32,
     /// The alarm status of the parts so far.
     alarm: AlarmStatus,
 }
@@ -330,11 +340,10 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 name: "GridConfig::ticks_per_update (below 2 * max_steps_per_tick)",
             });
         }
+        let base_g = model.base_conductance_w_per_k();
         let mut ttl = TimeToLimit {
-            neighbour_g: [[0.0; COLS]; ROWS],
-            ambient_g: [[0.0; COLS]; ROWS],
-            base_g: model.base_conductance_w_per_k() as f32,
-            capacity: model.capacity_j_per_k() as f32,
+            coils: [[TtlCoil::default(); COLS]; ROWS],
+            base_g: base_g as f32,
             r0_ohm: grid.resistance.r_at_0c_ohm as f32,
             slope_ohm_per_k: grid.resistance.slope_ohm_per_k as f32,
         };
@@ -357,8 +366,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                     .map(|&(dr, dc)| model.neighbour_conductance_w_per_k(row, col, dr, dc))
                     .sum();
                 let g_amb = model.ambient_conductance_w_per_k(row, col);
-                ttl.neighbour_g[row][col] = g as f32;
-                ttl.ambient_g[row][col] = g_amb as f32;
+                ttl.coils[row][col] = TtlCoil {
+                    neighbour_g: g as f32,
+                    ambient_g: g_amb as f32,
+                    isolated_r: (1.0 / (base_g + g_amb)) as f32,
+                    total_r: (1.0 / (g + base_g + g_amb)) as f32,
+                    tau_s: (model.capacity_j_per_k() / (g + base_g + g_amb)) as f32,
+                };
                 fingerprint = fingerprint.f64(g).f64(g_amb);
             }
         }
@@ -428,10 +442,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             pass_stale: false,
             pass: ProtectPass {
                 limits_c: [S::ZERO; N],
-                power_w: [0.0; N],
+                own_inflow_w: [0.0; N],
                 bound_c: 0.0,
-                coolant_c: 0.0,
-                ambient_c: 0.0,
                 alarm: AlarmStatus::default(),
             },
         };
@@ -593,16 +605,17 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             .as_flattened()
             .iter()
             .zip(grid.held_currents_a.as_flattened())
-            .zip(t.ambient_g.as_flattened())
+            .zip(t.coils.as_flattened())
             .zip(pass.limits_c.iter())
-            .zip(pass.power_w.iter_mut());
-        for ((((temp, current), g_amb), limit), p) in coils {
+            .zip(pass.own_inflow_w.iter_mut());
+        for ((((temp, current), coil), limit), inflow_w) in coils {
             let (temp, current) = (temp.to_f32(), current.to_f32());
             // `Scalar::max`, a comparison: the inherent `f32::max` is a call
             // to `fmaxf` on ARMv7E-M, four per coil here.
             let r_ohm = t.r0_ohm + t.slope_ohm_per_k * Scalar::max(temp, limit.to_f32());
-            *p = Scalar::max(r_ohm, 0.0) * current * current;
-            let isolated = (*p + t.base_g * coolant + g_amb * ambient) / (t.base_g + g_amb);
+            let power_w = Scalar::max(r_ohm, 0.0) * current * current;
+            *inflow_w = power_w + t.base_g * coolant + coil.ambient_g * ambient;
+            let isolated = *inflow_w * coil.isolated_r;
             // `bound_c` is never NaN, so these are `Scalar::max` (a NaN
             // loses) in half the instructions.
             if isolated > bound_c {
@@ -613,13 +626,11 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             }
         }
         pass.bound_c = bound_c;
-        pass.coolant_c = coolant;
-        pass.ambient_c = ambient;
     }
 
     /// Second pass of the bound for the coils in `coils` (row-major): each
-    /// coil's crossing time with every neighbour at `U`, from the powers and
-    /// boundaries of the first pass.
+    /// coil's crossing time with every neighbour at `U`, from the heat
+    /// inputs of the first pass.
     fn ttl_coils(
         &self,
         grid: &GridState<S, ROWS, COLS>,
@@ -628,28 +639,25 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         range: core::ops::Range<usize>,
     ) {
         let t = &self.ttl;
-        let (coolant, ambient, bound_c) = (pass.coolant_c, pass.ambient_c, pass.bound_c);
-        let (Some(temps), Some(g_n), Some(g_amb), Some(limits), Some(power), Some(out)) = (
+        let bound_c = pass.bound_c;
+        let (Some(temps), Some(constants), Some(limits), Some(own_inflow_w), Some(out)) = (
             grid.temps_c.as_flattened().get(range.clone()),
-            t.neighbour_g.as_flattened().get(range.clone()),
-            t.ambient_g.as_flattened().get(range.clone()),
+            t.coils.as_flattened().get(range.clone()),
             pass.limits_c.get(range.clone()),
-            pass.power_w.get(range.clone()),
+            pass.own_inflow_w.get(range.clone()),
             out.get_mut(range),
         ) else {
             return;
         };
         let coils = temps
             .iter()
-            .zip(g_n)
-            .zip(g_amb)
+            .zip(constants)
             .zip(limits)
-            .zip(power)
+            .zip(own_inflow_w)
             .zip(out.iter_mut());
-        for (((((temp, g_n), g_amb), limit), p), out) in coils {
+        for ((((temp, coil), limit), own_inflow_w), out) in coils {
             let (temp, limit) = (temp.to_f32(), limit.to_f32());
-            let g_total = g_n + t.base_g + g_amb;
-            let steady = (p + g_n * bound_c + t.base_g * coolant + g_amb * ambient) / g_total;
+            let steady = (own_inflow_w + coil.neighbour_g * bound_c) * coil.total_r;
             // A NaN anywhere reads "no time left", the conservative answer:
             // `below` is false for a NaN temperature or limit, and a NaN
             // steady state leads to a NaN time, which the alarm counts as
@@ -662,8 +670,9 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             } else if !crosses {
                 None
             } else {
-                let tau_s = t.capacity / g_total;
-                Some(S::from_f32(tau_s * ln((steady - temp) / (steady - limit))))
+                Some(S::from_f32(
+                    coil.tau_s * ln((steady - temp) / (steady - limit)),
+                ))
             };
         }
     }

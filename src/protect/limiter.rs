@@ -56,6 +56,9 @@ use crate::scalar::Scalar;
 pub struct LimiterConfig<S, const N: usize> {
     hardware_limit_a: [S; N],
     taper_k: S,
+    /// `1 / taper_k` \[1/K\]: the taper is a multiply per coil, where a
+    /// division is a software routine on a core without an FPU.
+    taper_per_k: S,
     floor_a: S,
 }
 
@@ -107,6 +110,7 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
         let config = Self {
             hardware_limit_a: hardware_limit_a.map(S::from_f64),
             taper_k: S::from_f64(taper_k),
+            taper_per_k: S::from_f64(1.0 / taper_k),
             floor_a: S::from_f64(floor_a),
         };
         let positive = |raw: f64, converted: S| raw.is_finite() && converted > S::ZERO;
@@ -114,7 +118,7 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
             .iter()
             .zip(config.hardware_limit_a.iter())
             .all(|(&raw, &converted)| positive(raw, converted) && converted >= config.floor_a);
-        if !positive(taper_k, config.taper_k) {
+        if !(positive(taper_k, config.taper_k) && config.taper_per_k > S::ZERO) {
             return Err(BuildError::InvalidParameter { name: "taper_k" });
         }
         if !(floor_a.is_finite() && floor_a >= 0.0) {
@@ -196,7 +200,7 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
         // or infinite margin over a positive taper; a root in [0, 1]), so
         // they are plain comparisons: `Scalar::max`'s NaN test is a third of
         // a float comparison's cost on an M4F, twice per clamp.
-        let headroom = ordered_clamp(margin_k / self.taper_k, S::ZERO, S::ONE);
+        let headroom = ordered_clamp(margin_k * self.taper_per_k, S::ZERO, S::ONE);
         // Below the taper band (most coils, most of the time) the root is 1
         // exactly: no square root, which is software on an M0.
         let root = if headroom >= S::ONE {

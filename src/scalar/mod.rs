@@ -7,9 +7,9 @@
 //!
 //! # Which fixed format, and why
 //!
-//! The one fixed-point scalar is [`Q32`]: `I32F32` (64-bit, 32 integer bits,
-//! 32 fraction bits) wrapped in [`fixed::Saturating`], so arithmetic saturates
-//! instead of wrapping or panicking. It holds every quantity the models use in
+//! The one fixed-point scalar is [`Q32`]: the `fixed` crate's `I32F32`
+//! (64-bit, 32 integer bits, 32 fraction bits) with saturating arithmetic,
+//! so nothing wraps or panics. It holds every quantity the models use in
 //! one format:
 //!
 //! | quantity | typical value | Q32.32 |
@@ -22,16 +22,17 @@
 //! A 32-bit format cannot: Q16.16 resolves 1.5e-5, so a 1 ms temperature
 //! increment of a coil (about 4e-5 K) is rounded by a third of itself every
 //! tick, and `dt/C = 1e-5` is a single LSB. The tests in this module show it.
-//! On a Cortex-M0 a Q32.32 multiply costs a 64x64 multiply in software; the
-//! grid's multi-rate update (see `grid`) is the lever that keeps that cheap.
+//! On a Cortex-M0 a Q32.32 multiply is a 64x64 multiply in software, so
+//! [`Q32`] carries its own: four 32x32 partial products, each from four
+//! 16x16 `MULS` on ARMv6-M, about a tenth of the generic 128-bit multiply's
+//! instructions (see the `q32` module). The grid's multi-rate update (see
+//! `grid`) is the other lever that keeps the fixed-point tick cheap.
 
 use core::fmt::Debug;
 use core::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
 
-use fixed::types::I32F32;
-
-/// Saturating Q32.32 fixed point: the scalar for MCUs without an FPU.
-pub type Q32 = fixed::Saturating<I32F32>;
+mod q32;
+pub use q32::Q32;
 
 /// The arithmetic the thermal models need, for `f32`, `f64` and [`Q32`].
 ///
@@ -150,66 +151,6 @@ macro_rules! impl_float_scalar {
 
 impl_float_scalar!(f32, libm::sqrtf);
 impl_float_scalar!(f64, libm::sqrt);
-
-/// `2^32`: one in Q32.32 bits.
-const Q32_ONE_BITS: f64 = 4_294_967_296.0;
-
-impl Scalar for Q32 {
-    const ZERO: Self = fixed::Saturating(I32F32::ZERO);
-    const ONE: Self = fixed::Saturating(I32F32::ONE);
-    const MAX: Self = fixed::Saturating(I32F32::MAX);
-    #[inline]
-    fn from_f64(value: f64) -> Self {
-        // Rust's float-to-int `as` saturates and maps NaN to 0, so this path
-        // has no panic (fixed's `saturating_from_num` panics on NaN).
-        let bits = libm::round(value * Q32_ONE_BITS) as i64;
-        fixed::Saturating(I32F32::from_bits(bits))
-    }
-    #[inline]
-    fn from_f32(value: f32) -> Self {
-        Self::from_f64(value as f64)
-    }
-    #[inline]
-    fn to_f64(self) -> f64 {
-        self.0.to_num::<f64>()
-    }
-    #[inline]
-    fn to_f32(self) -> f32 {
-        self.0.to_num::<f32>()
-    }
-    #[inline]
-    fn is_finite(self) -> bool {
-        true
-    }
-    #[inline]
-    fn max(self, other: Self) -> Self {
-        if self >= other {
-            self
-        } else {
-            other
-        }
-    }
-    #[inline]
-    fn min(self, other: Self) -> Self {
-        if self <= other {
-            self
-        } else {
-            other
-        }
-    }
-    #[inline]
-    fn abs(self) -> Self {
-        fixed::Saturating(self.0.saturating_abs())
-    }
-    #[inline]
-    fn sqrt(self) -> Self {
-        if self.0 > I32F32::ZERO {
-            fixed::Saturating(self.0.sqrt())
-        } else {
-            Self::ZERO
-        }
-    }
-}
 
 #[cfg(test)]
 mod tests {
