@@ -27,7 +27,7 @@ use exit::fail;
 mod cost;
 
 use coil_thermal::grid::GridConfig;
-use coil_thermal::observer::{GridInputs, GridObserver, PROTECTION_TICKS};
+use coil_thermal::observer::{GridInputs, GridObserver, ProtectionPlan};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
@@ -40,6 +40,17 @@ const COLS: usize = 4;
 const N: usize = ROWS * COLS;
 const TICKS: u32 = 30_000;
 const HOT: (usize, usize) = (1, 2);
+
+/// Without an FPU the `f32` time to limit (a division and a short `ln`
+/// series per coil, all in software) is the heaviest stage: four parts of
+/// three coils, and the bound in two. Nine ticks, within the ten of an
+/// update interval, so every update still gets its own pass.
+const M0_PLAN: ProtectionPlan = ProtectionPlan {
+    bound_parts: 2,
+    time_to_limit_parts: 4,
+    alarm_parts: 1,
+    limiter_parts: 2,
+};
 
 #[entry]
 fn main() -> ! {
@@ -67,6 +78,7 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         LimiterConfig::new([6.0; N], 10.0, 0.0).map_err(|_| "limiter")?,
         4,
     )
+    .and_then(|observer| observer.with_protection_plan(M0_PLAN))
     .map_err(|_| "observer")?;
     let reference = CoilGrid::<f32, ROWS, COLS>::new(&config).map_err(|_| "f32 grid")?;
     let reference_limiter =
@@ -94,7 +106,7 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         reference.tick(&mut ref_state, &ref_currents, 20.0, 20.0);
     }
     // Let the staged protection finish on the last temperatures.
-    for _ in 0..PROTECTION_TICKS {
+    for _ in 0..observer.protection_ticks() {
         let inputs = GridInputs {
             currents_a: &currents,
             coolant_c: twenty,

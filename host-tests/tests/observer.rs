@@ -10,7 +10,7 @@ use coil_thermal::observer::omnimagnet::{SensorStatus, TimedReading};
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::{
     GridInputs, GridObserver, GridObserverState, GridOutputs, Mailbox, OmniInputs, OmniObserver,
-    OmniObserverState, OmniSettings, Shared, SnapshotError, PROTECTION_TICKS,
+    OmniObserverState, OmniSettings, ProtectionPlan, Shared, SnapshotError, PROTECTION_TICKS,
 };
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -203,6 +203,88 @@ fn protection_completes_when_updates_come_faster_than_a_pass() {
     // here), which the powered coil heats through by far less than 0.1 K.
     let lag_k = state.grid.temps_c[3][5] - out.temps_c[3][5];
     assert!((0.0..0.1).contains(&lag_k), "lag {lag_k} K");
+}
+
+/// How the pass is cut changes when its outputs appear, never what they
+/// are: with a pass shorter than the update interval, every plan publishes
+/// the same limits, times, alarm and events (queued or counted as dropped)
+/// as the default once its pass is done, through coils that cross the alarm and shutdown levels (and raise
+/// events) on the way. The alarm is per coil, the bound `U` a maximum, so
+/// the parts combine exactly.
+#[test]
+fn every_protection_plan_publishes_what_the_default_plan_does() {
+    let plans = [
+        ProtectionPlan::DEFAULT,
+        ProtectionPlan {
+            bound_parts: 2,
+            time_to_limit_parts: 4,
+            alarm_parts: 1,
+            limiter_parts: 2,
+        },
+        ProtectionPlan {
+            bound_parts: 3,
+            time_to_limit_parts: 1,
+            alarm_parts: 2,
+            limiter_parts: 3,
+        },
+    ];
+    let grids = plans.map(|plan| grid().with_protection_plan(plan).unwrap());
+    assert_eq!(grids.each_ref().map(|g| g.protection_ticks()), [8, 9, 9]);
+    let mut states = grids.each_ref().map(|g| g.state(60.0));
+    let mut currents = hot_currents();
+    currents[2][2] = 9.0;
+    currents[5][8] = 6.0;
+    let mut events = [0usize; 3];
+    let mut compared = 0;
+    for k in 0..4000u32 {
+        let outs: Vec<GridOut> = grids
+            .iter()
+            .zip(states.iter_mut())
+            .map(|(g, s)| tick(g, s, &currents, 1000))
+            .collect();
+        for (count, state) in events.iter_mut().zip(states.iter_mut()) {
+            // All 84 coils start warm: a pass can raise more events than
+            // the queue holds, and how many overflow depends on the parts.
+            while state.events.pop().is_some() {
+                *count += 1;
+            }
+            *count += state.events.take_dropped() as usize;
+        }
+        // Updates at k = 9, 19, ...; every pass is done by k = 18, 28, ...
+        if k % 10 == 8 && k > 10 {
+            let strip = |o: &GridOut| GridOut {
+                steps: 0,
+                updated: false,
+                ..*o
+            };
+            assert_eq!(strip(&outs[1]), strip(&outs[0]), "tick {k}");
+            assert_eq!(strip(&outs[2]), strip(&outs[0]), "tick {k}");
+            assert_eq!(events[1], events[0], "tick {k}: {events:?}");
+            assert_eq!(events[2], events[0], "tick {k}");
+            compared += 1;
+        }
+    }
+    assert!(compared > 390);
+    assert!(states[0].alarm.shutdown_latched(), "the 9 A coil must trip");
+    assert!(events[0] >= 2, "warning and shutdown events");
+}
+
+/// A plan with a step in no parts, or a pass the stage counter cannot
+/// count, is refused.
+#[test]
+fn a_protection_plan_without_parts_or_too_long_is_refused() {
+    let plan = |bound_parts, alarm_parts| ProtectionPlan {
+        bound_parts,
+        alarm_parts,
+        ..ProtectionPlan::DEFAULT
+    };
+    for bad in [plan(0, 3), plan(1, 0), plan(200, 51)] {
+        assert!(matches!(
+            grid().with_protection_plan(bad),
+            Err(coil_thermal::BuildError::InvalidParameter { .. })
+        ));
+    }
+    assert!(grid().with_protection_plan(plan(200, 50)).is_ok());
 }
 
 /// `ticks_per_update` below `2 * max_steps_per_tick` could leave no tick

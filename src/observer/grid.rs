@@ -16,22 +16,23 @@
 //!    [`CoilGrid::tick`]s to the bit, without a tick that carries the whole
 //!    update;
 //! 3. after a tick in which the grid updated (temperatures change only then),
-//!    the protection runs once, spread over the next eight ticks so that no
-//!    tick carries both a grid update and a large share of the protection:
-//!    coil powers and the bound `U`, then the per-coil time to limit (two
-//!    parts of the coils), the alarm (three) and the current limiter (two),
-//!    and the hottest coil.
+//!    the protection runs once, spread over the next ticks (eight with the
+//!    default [`ProtectionPlan`]) so that no tick carries both a grid update
+//!    and a large share of the protection: coil powers and the bound `U`,
+//!    then the per-coil time to limit (by default in two parts of the
+//!    coils), the alarm (three) and the current limiter (two), and the
+//!    hottest coil.
 //!    Between updates the protection outputs stand, because nothing they
 //!    depend on has changed except the currents, which the limiter does not
-//!    take. So the limits lag the model by at most eight ticks (8 ms at the
-//!    HPPA's rate, against thermal time constants of minutes), and the
+//!    take. So the limits lag the model by at most the plan's ticks (8 ms at
+//!    the HPPA's rate, against thermal time constants of minutes), and the
 //!    alarm's debounce counts protection passes, not ticks. A pass is never
 //!    restarted: an update during a pass marks it stale, and another pass
 //!    follows as soon as it ends (the later stages then read the newer
 //!    temperatures, which the bound `U` below still covers at the held
-//!    currents). With `ticks_per_update` above 8 every update gets its own
-//!    pass; with fewer, passes run back to back and the limits lag by at
-//!    most two passes. The stages skip update ticks, so
+//!    currents). With `ticks_per_update` above the plan's ticks every update
+//!    gets its own pass; with fewer, passes run back to back and the limits
+//!    lag by at most two passes. The stages skip update ticks, so
 //!    [`GridObserver::new`] requires `ticks_per_update >= 2 *
 //!    max_steps_per_tick`: then no two ticks in a row update the grid and
 //!    the protection can never be starved, whatever the tick pattern.
@@ -88,9 +89,78 @@ use crate::scalar::Scalar;
 /// Capacity of each observer's alarm event queue.
 pub const EVENT_CAPACITY: usize = 16;
 
-/// Ticks after a grid update until its protection pass is complete (the
-/// outputs lag the model by at most this many ticks; see the module docs).
-pub const PROTECTION_TICKS: u32 = 8;
+/// Ticks after a grid update until its protection pass is complete with the
+/// default [`ProtectionPlan`] (the outputs lag the model by at most this many
+/// ticks; see the module docs).
+pub const PROTECTION_TICKS: u32 = ProtectionPlan::DEFAULT.ticks();
+
+/// How the protection pass after each grid update is cut into ticks, one
+/// stage per tick, in order: the bound `U` (with the coil powers and alarm
+/// limits), the time to limit, the alarm and the current limiter, each in
+/// `*_parts` row-major shares of the coils.
+///
+/// More parts make each tick lighter and the pass longer: the limits lag
+/// the model by [`ProtectionPlan::ticks`] ticks (see the module docs). The
+/// [default](ProtectionPlan::DEFAULT) suits an 84-coil grid on a
+/// Cortex-M4F, whose alarm ticks are the heaviest (each element can raise
+/// events in the same pass). Without an FPU the `f32` time to limit
+/// dominates instead: `examples/observer_m0.rs` cuts it in four.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ProtectionPlan {
+    /// Parts of the first step: alarm limits, coil powers and the bound.
+    pub bound_parts: u8,
+    /// Parts of the per-coil time to limit.
+    pub time_to_limit_parts: u8,
+    /// Parts of the alarm.
+    pub alarm_parts: u8,
+    /// Parts of the current limiter (the last also publishes the
+    /// temperatures and the hottest coil).
+    pub limiter_parts: u8,
+}
+
+impl ProtectionPlan {
+    /// One tick for the bound, two for the time to limit, three for the
+    /// alarm and two for the limiter: eight ticks.
+    pub const DEFAULT: Self = Self {
+        bound_parts: 1,
+        time_to_limit_parts: 2,
+        alarm_parts: 3,
+        limiter_parts: 2,
+    };
+
+    /// Ticks of one protection pass: the sum of the parts.
+    pub const fn ticks(&self) -> u32 {
+        self.bound_parts as u32
+            + self.time_to_limit_parts as u32
+            + self.alarm_parts as u32
+            + self.limiter_parts as u32
+    }
+
+    /// Stage `index` of the pass (from 0): its step, part and parts.
+    fn stage(&self, index: u32) -> Option<(Step, u8, u8)> {
+        let steps = [
+            (Step::Bound, self.bound_parts),
+            (Step::TimeToLimit, self.time_to_limit_parts),
+            (Step::Alarm, self.alarm_parts),
+            (Step::Limiter, self.limiter_parts),
+        ];
+        let mut index = index;
+        for (step, parts) in steps {
+            match u8::try_from(index) {
+                Ok(part) if part < parts => return Some((step, part, parts)),
+                _ => index -= u32::from(parts),
+            }
+        }
+        None
+    }
+}
+
+impl Default for ProtectionPlan {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
 
 /// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
 const DIRECTIONS: [(isize, isize); 8] = [
@@ -112,6 +182,7 @@ pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize>
     alarm: AlarmConfig<S, N>,
     limiter: LimiterConfig<S, N>,
     clock: StepClock,
+    plan: ProtectionPlan,
     ttl: TimeToLimit<ROWS, COLS>,
     restart_c: f64,
     fingerprint: u32,
@@ -158,24 +229,6 @@ enum Step {
     /// published temperatures and the hottest coil.
     Limiter,
 }
-
-/// The protection stages after a grid update, one per tick, in order: a
-/// step and its part `(step, part, parts)`. The per-coil steps are cut into
-/// parts of the coils (row-major) so that no tick carries the whole 84-coil
-/// work of one of them; the alarm, whose elements can each raise events in
-/// the same pass, in three.
-const STAGES: [(Step, u8, u8); 8] = [
-    (Step::Bound, 0, 1),
-    (Step::TimeToLimit, 0, 2),
-    (Step::TimeToLimit, 1, 2),
-    (Step::Alarm, 0, 3),
-    (Step::Alarm, 1, 3),
-    (Step::Alarm, 2, 3),
-    (Step::Limiter, 0, 2),
-    (Step::Limiter, 1, 2),
-];
-
-const _: () = assert!(STAGES.len() as u32 == PROTECTION_TICKS);
 
 /// The coils of part `part` of `parts` of `n`, row-major.
 fn part_of(n: usize, part: u8, parts: u8) -> core::ops::Range<usize> {
@@ -260,7 +313,7 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
     /// Time dropped by the catch-up limit this tick \[us\].
     pub dropped_us: u32,
     /// The grid updated this tick (the protection follows in the next
-    /// [`PROTECTION_TICKS`]).
+    /// [`GridObserver::protection_ticks`]).
     pub updated: bool,
     /// Ticks since the state was made.
     pub tick: u32,
@@ -282,7 +335,8 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     pub clock: ClockState,
     /// Alarm events not yet drained by the application.
     pub events: EventQueue<EVENT_CAPACITY>,
-    /// Next protection stage, from 1 (0: none pending; see [`STAGES`]).
+    /// Next protection stage, from 1 (0: none pending; see
+    /// [`ProtectionPlan`]).
     stage: u8,
     /// The grid updated while a pass was running: run another when it ends.
     pass_stale: bool,
@@ -386,10 +440,39 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             alarm,
             limiter,
             clock,
+            plan: ProtectionPlan::DEFAULT,
             ttl,
             restart_c,
             fingerprint: fingerprint.finish(),
         })
+    }
+
+    /// This observer with the protection pass cut as `plan` says (the
+    /// default is [`ProtectionPlan::DEFAULT`]).
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] when a step has no part or the pass
+    /// would take more than 254 ticks.
+    pub fn with_protection_plan(mut self, plan: ProtectionPlan) -> Result<Self, BuildError> {
+        let parts = [
+            plan.bound_parts,
+            plan.time_to_limit_parts,
+            plan.alarm_parts,
+            plan.limiter_parts,
+        ];
+        if parts.contains(&0) || plan.ticks() > u32::from(u8::MAX - 1) {
+            return Err(BuildError::InvalidParameter {
+                name: "ProtectionPlan (a step without parts, or above 254 ticks)",
+            });
+        }
+        self.plan = plan;
+        Ok(self)
+    }
+
+    /// Ticks after a grid update until its protection pass is complete: the
+    /// outputs lag the model by at most this many ticks.
+    pub fn protection_ticks(&self) -> u32 {
+        self.plan.ticks()
     }
 
     /// The grid model.
@@ -500,17 +583,18 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// One stage of the protection after a grid update, so that no tick
-    /// carries both the update and the whole protection (see [`STAGES`]).
-    /// `state.stage` is the next stage's number from 1 (0: none pending).
+    /// carries both the update and the whole protection (see
+    /// [`ProtectionPlan`]). `state.stage` is the next stage's number from 1
+    /// (0: none pending).
     fn protect_stage(&self, state: &mut GridObserverState<S, ROWS, COLS, N>) {
-        let Some(&stage) = usize::from(state.stage)
+        let Some(stage) = u32::from(state.stage)
             .checked_sub(1)
-            .and_then(|i| STAGES.get(i))
+            .and_then(|i| self.plan.stage(i))
         else {
             return;
         };
         self.run_stage(state, stage, true);
-        state.stage = if usize::from(state.stage) < STAGES.len() {
+        state.stage = if u32::from(state.stage) < self.plan.ticks() {
             state.stage + 1
         } else if state.pass_stale {
             state.pass_stale = false;
@@ -523,8 +607,10 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// Every stage at once on the present temperatures, the alarm only when
     /// `alarm` (for a fresh or restored state).
     fn protect(&self, state: &mut GridObserverState<S, ROWS, COLS, N>, alarm: bool) {
-        for stage in STAGES {
-            self.run_stage(state, stage, alarm);
+        for index in 0..self.plan.ticks() {
+            if let Some(stage) = self.plan.stage(index) {
+                self.run_stage(state, stage, alarm);
+            }
         }
         state.stage = 0;
         state.pass_stale = false;
@@ -543,8 +629,11 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let last = part + 1 >= parts;
         match step {
             Step::Bound => {
-                pass.limits_c = self.alarm.alarm_limits_c(ambient_c);
-                self.ttl_bound(&state.grid, pass);
+                if part == 0 {
+                    pass.limits_c = self.alarm.alarm_limits_c(ambient_c);
+                    pass.bound_c = f32::NEG_INFINITY;
+                }
+                self.ttl_bound(&state.grid, pass, coils);
                 // The answers are computed in the ticks after the update
                 // they describe; the next stages use them as they are (ms).
             }
@@ -592,22 +681,35 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         }
     }
 
-    /// First pass of the bound of the module docs: each coil's power at the
-    /// resistance of its limit (or temperature, if higher) and the bound `U`
-    /// on every coil, kept with the boundaries in `pass` for the second.
-    fn ttl_bound(&self, grid: &GridState<S, ROWS, COLS>, pass: &mut ProtectPass<S, N>) {
+    /// First pass of the bound of the module docs for the coils in `coils`
+    /// (row-major): each coil's power at the resistance of its limit (or
+    /// temperature, if higher) and heat input, kept in `pass` with the bound
+    /// `U` so far (the maximum over the parts).
+    fn ttl_bound(
+        &self,
+        grid: &GridState<S, ROWS, COLS>,
+        pass: &mut ProtectPass<S, N>,
+        range: core::ops::Range<usize>,
+    ) {
         let t = &self.ttl;
         let coolant = grid.held_coolant_c.to_f32();
         let ambient = grid.held_ambient_c.to_f32();
-        let mut bound_c = f32::NEG_INFINITY;
-        let coils = grid
-            .temps_c
-            .as_flattened()
+        let (Some(temps), Some(currents), Some(constants), Some(limits), Some(own_inflow_w)) = (
+            grid.temps_c.as_flattened().get(range.clone()),
+            grid.held_currents_a.as_flattened().get(range.clone()),
+            t.coils.as_flattened().get(range.clone()),
+            pass.limits_c.get(range.clone()),
+            pass.own_inflow_w.get_mut(range),
+        ) else {
+            return;
+        };
+        let mut bound_c = pass.bound_c;
+        let coils = temps
             .iter()
-            .zip(grid.held_currents_a.as_flattened())
-            .zip(t.coils.as_flattened())
-            .zip(pass.limits_c.iter())
-            .zip(pass.own_inflow_w.iter_mut());
+            .zip(currents)
+            .zip(constants)
+            .zip(limits)
+            .zip(own_inflow_w.iter_mut());
         for ((((temp, current), coil), limit), inflow_w) in coils {
             let (temp, current) = (temp.to_f32(), current.to_f32());
             // `Scalar::max`, a comparison: the inherent `f32::max` is a call

@@ -21,7 +21,9 @@ pub mod shared;
 pub mod snapshot;
 
 pub use clock::{ClockState, StepClock, TickSteps};
-pub use grid::{GridInputs, GridObserver, GridObserverState, GridOutputs, PROTECTION_TICKS};
+pub use grid::{
+    GridInputs, GridObserver, GridObserverState, GridOutputs, ProtectionPlan, PROTECTION_TICKS,
+};
 pub use omnimagnet::{
     OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
     TimedReading,

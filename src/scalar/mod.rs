@@ -24,8 +24,8 @@
 //! tick, and `dt/C = 1e-5` is a single LSB. The tests in this module show it.
 //! On a Cortex-M0 a Q32.32 multiply is a 64x64 multiply in software, so
 //! [`Q32`] carries its own: four 32x32 partial products, each from four
-//! 16x16 `MULS` on ARMv6-M, about a tenth of the generic 128-bit multiply's
-//! instructions (see the `q32` module). The grid's multi-rate update (see
+//! 16x16 `MULS` on ARMv6-M, a seventh of the generic 128-bit multiply's
+//! instructions (see [`Q32`]). The grid's multi-rate update (see
 //! `grid`) is the other lever that keeps the fixed-point tick cheap.
 
 use core::fmt::Debug;

@@ -1,23 +1,5 @@
-//! [`Q32`]: saturating Q32.32 fixed point with a multiply that suits
-//! Cortex-M0.
-//!
-//! The arithmetic is the `fixed` crate's `Saturating<I32F32>` to the bit
-//! (the tests compare every operator with it), with two differences:
-//!
-//! * **Multiply.** `fixed` forms the product as an `i128` multiply with an
-//!   overflow check. ARMv6-M has no 32x32 -> 64 multiply, so LLVM lowers that
-//!   to about twenty calls of `__aeabi_lmul`, some 750 instructions per
-//!   multiply (measured in QEMU). [`Q32`] multiplies the magnitudes from four
-//!   32x32 -> 64 partial products and, on ARMv6-M and ARMv8-M Baseline (the
-//!   build script sets `no_long_multiply` for them), forms each of those
-//!   from four 16x16 `MULS`. Same bits, roughly a seventh of the
-//!   instructions. Elsewhere the partial products are single `UMULL`s.
-//! * **Divide.** `fixed` divides a 128-bit dividend by a 128-bit divisor;
-//!   [`Q32`] takes the integer part with one 64-bit division and the 32
-//!   fraction bits by long division on the remainder: same bits, about a
-//!   fifth of the instructions on a Cortex-M0. Division by zero saturates
-//!   (`x / 0` is `MAX` or `MIN` by the sign of `x`, `0 / 0` is zero) where
-//!   `fixed` panics, so no operator of the hot path has a panic path.
+//! [`Q32`]: saturating Q32.32 fixed point whose multiply and divide suit a
+//! Cortex-M0 (see the type's docs).
 
 use core::fmt;
 use core::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
@@ -30,6 +12,27 @@ use super::Scalar;
 /// FPU. Arithmetic saturates at `±2^31` instead of wrapping or panicking;
 /// see the [module docs](crate::scalar) for the range and resolution of each
 /// quantity.
+///
+/// The arithmetic is the `fixed` crate's `Saturating<I32F32>` to the bit
+/// (the tests compare every operator with it, and the Cortex-M0 example's
+/// outputs did not move by a bit when it changed). Two operators are
+/// computed differently, for an MCU without an FPU (instruction counts from
+/// the Cortex-M0 example under QEMU):
+///
+/// * **Multiply.** `fixed` forms the product as an `i128` multiply with an
+///   overflow check. ARMv6-M has no 32x32 -> 64 multiply, so LLVM lowers that
+///   to about twenty calls of `__aeabi_lmul`, some 1 000 instructions per
+///   multiply. [`Q32`] multiplies the magnitudes from four 32x32 -> 64
+///   partial products and, on ARMv6-M and ARMv8-M Baseline (the build
+///   script sets `no_long_multiply` for them), forms each of those from four
+///   16x16 `MULS`: 152 instructions. Elsewhere the partial products are
+///   single `UMULL`s.
+/// * **Divide.** `fixed` divides a 128-bit dividend by a 128-bit divisor,
+///   about 3 500 instructions; [`Q32`] takes the integer part with one
+///   64-bit division and the 32 fraction bits by long division on the
+///   remainder, about 800. Division by zero saturates (`x / 0` is `MAX` or
+///   `MIN` by the sign of `x`, `0 / 0` is zero) where `fixed` panics, so no
+///   operator of the hot path has a panic path.
 #[derive(Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[repr(transparent)]
 pub struct Q32(I32F32);
@@ -181,9 +184,7 @@ impl Div for Q32 {
 ///
 /// The integer part is one `u64` division; the 32 fraction bits come from
 /// restoring long division on the remainder, a fixed 32 rounds of shift,
-/// compare and subtract. `fixed` divides 128 by 128 bits instead, some
-/// 3 500 instructions on a Cortex-M0 against about 700 here (measured in
-/// QEMU).
+/// compare and subtract (see the module docs for the cost).
 #[inline]
 fn div_shift_32(n: u64, d: u64) -> Option<u64> {
     let whole = n.checked_div(d)?;
