@@ -13,6 +13,7 @@ fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory-m4.x");
     println!("cargo:rerun-if-changed=memory-m0.x");
+    println!("cargo:rerun-if-changed=memory.x");
     println!("cargo::rustc-check-cfg=cfg(no_long_multiply)");
     let target = env::var("TARGET").unwrap_or_default();
     if target.starts_with("thumbv6m") || target.starts_with("thumbv8m.base") {
@@ -22,15 +23,15 @@ fn main() {
         return;
     }
     // ARMv6-M (Cortex-M0) examples run on QEMU's microbit, the others on
-    // mps2-an386; each machine has its own memory map. Neither file may be
-    // called `memory.x` in the package root: the linker looks in its working
-    // directory (the package root) before the search path.
-    let source = match env::var("TARGET").as_deref() {
-        Ok(t) if t.starts_with("thumbv6m") => "memory-m0.x",
+    // mps2-an386; each machine has its own memory map. The root `memory.x`
+    // (which cortex-m-rt's `link.x` includes, found in the package root
+    // before the search path) includes `memory-target.x`, copied here.
+    let source = match target.as_str() {
+        t if t.starts_with("thumbv6m") => "memory-m0.x",
         _ => "memory-m4.x",
     };
     let out = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
-    fs::copy(source, out.join("memory.x")).expect("copy the memory layout to OUT_DIR");
+    fs::copy(source, out.join("memory-target.x")).expect("copy the memory layout to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-examples=-Tlink.x");
 }
