@@ -66,6 +66,23 @@ impl Q32 {
     pub const fn to_fixed(self) -> I32F32 {
         self.0
     }
+
+    /// The value of sign `negative` and magnitude `magnitude` in bits,
+    /// saturated to `MIN` or `MAX` beyond the range.
+    #[inline(always)]
+    fn saturated(negative: bool, magnitude: u128) -> Self {
+        if negative {
+            if magnitude <= 1 << 63 {
+                Self::from_bits((magnitude as u64).wrapping_neg() as i64)
+            } else {
+                Self::MIN
+            }
+        } else if magnitude < 1 << 63 {
+            Self::from_bits(magnitude as i64)
+        } else {
+            Self::MAX
+        }
+    }
 }
 
 impl fmt::Debug for Q32 {
@@ -133,21 +150,10 @@ impl Mul for Q32 {
     fn mul(self, rhs: Self) -> Self {
         let (a, b) = (self.to_bits(), rhs.to_bits());
         let negative = (a < 0) != (b < 0);
-        let magnitude = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
-        // floor of a negative quotient: one more when bits were shifted out.
-        let (quotient, inexact) = magnitude;
-        if negative {
-            let q = quotient + u128::from(inexact);
-            if q <= 1 << 63 {
-                Self::from_bits((q as u64).wrapping_neg() as i64)
-            } else {
-                Self::MIN
-            }
-        } else if quotient < 1 << 63 {
-            Self::from_bits(quotient as i64)
-        } else {
-            Self::MAX
-        }
+        let (quotient, inexact) = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
+        // The floor of a negative quotient: one more when bits were shifted
+        // out.
+        Self::saturated(negative, quotient + u128::from(negative && inexact))
     }
 }
 
@@ -160,21 +166,10 @@ impl Div for Q32 {
     fn div(self, rhs: Self) -> Self {
         let (a, b) = (self.to_bits(), rhs.to_bits());
         let negative = (a < 0) != (b < 0);
-        let quotient = match div_shift_32(a.unsigned_abs(), b.unsigned_abs()) {
-            Some(q) => q,
-            None if a == 0 => return Self::ZERO,
-            None => u64::MAX,
-        };
-        if negative {
-            if quotient <= 1 << 63 {
-                Self::from_bits(quotient.wrapping_neg() as i64)
-            } else {
-                Self::MIN
-            }
-        } else if quotient < 1 << 63 {
-            Self::from_bits(quotient as i64)
-        } else {
-            Self::MAX
+        match div_shift_32(a.unsigned_abs(), b.unsigned_abs()) {
+            Some(quotient) => Self::saturated(negative, u128::from(quotient)),
+            None if a == 0 => Self::ZERO,
+            None => Self::saturated(negative, u128::MAX),
         }
     }
 }
@@ -184,7 +179,7 @@ impl Div for Q32 {
 ///
 /// The integer part is one `u64` division; the 32 fraction bits come from
 /// restoring long division on the remainder, a fixed 32 rounds of shift,
-/// compare and subtract (see the module docs for the cost).
+/// compare and subtract (see [`Q32`] for the cost).
 #[inline]
 fn div_shift_32(n: u64, d: u64) -> Option<u64> {
     let whole = n.checked_div(d)?;
