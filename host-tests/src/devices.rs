@@ -169,13 +169,20 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
     for a in 0..N {
         for b in (a + 1)..N {
             if net.conductance_w_per_k(a, b) != 0.0 {
-                let x = x_only.conductance_w_per_k(a, b) > 0.5;
-                let (kind, r) = if x { ("gx", rx) } else { ("gy", ry) };
-                conductances.push(link(kind, &names[a], &names[b], r, 1.0));
+                // With unit R the other net's conductance is the link's
+                // share of `1/R` (1 for Rx; 1/2 for each herringbone contact,
+                // which shares its side's Ry with one other).
+                let share_x = x_only.conductance_w_per_k(a, b);
+                let (kind, r, share) = if share_x > 0.25 {
+                    ("gx", rx, share_x)
+                } else {
+                    ("gy", ry, y_only.conductance_w_per_k(a, b))
+                };
+                conductances.push(link(kind, &names[a], &names[b], r, share));
             }
         }
-        let nx = x_only.boundary_conductance_w_per_k(a, 1).round();
-        let ny = y_only.boundary_conductance_w_per_k(a, 1).round();
+        let nx = x_only.boundary_conductance_w_per_k(a, 1);
+        let ny = y_only.boundary_conductance_w_per_k(a, 1);
         if nx > 0.0 {
             conductances.push(link("gx", &names[a], "ambient", rx, nx));
         }
@@ -209,7 +216,8 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
         name: Some(format!("hppa-{R}x{C}")),
         description: Some(format!(
             "HPPA coil grid, {R} rows x {C} columns (coil_thermal::grid, herringbone stencil, ambient padding); \
-             r_k_per_w of gx/gy links between two coils (half the report's per-element values)"
+             r_k_per_w of gx/gy links between two coils (the report's Table 7 convention), \
+             each herringbone cross-row contact with factor 0.5 (a side's Ry shared by its two contacts)"
         )),
         max_step_ratio: None,
         nodes: names

@@ -34,7 +34,8 @@ pub struct GridReference {
 pub struct ReferenceParams {
     /// Between-coils `Rx` \[K/W\].
     pub rx_k_per_w: f64,
-    /// Between-coils `Ry` \[K/W\].
+    /// Between-coils `Ry` \[K/W\]: a coil to the next row, shared by the
+    /// stencil's contacts on that side.
     pub ry_k_per_w: f64,
     /// Coil to base \[K/W\].
     pub rz_k_per_w: f64,
@@ -49,11 +50,11 @@ pub struct ReferenceParams {
 }
 
 impl ReferenceParams {
-    /// The report's FDM fit, Table 7 per element halved by hand, with the HPPA
-    /// resistance fit and the ambient padding.
+    /// The report's FDM fit, Table 7 (between coils) as printed, with the
+    /// HPPA resistance fit and the ambient padding.
     pub const HPPA_FDM: Self = Self {
-        rx_k_per_w: 19.8 / 2.0,
-        ry_k_per_w: 6.99 / 2.0,
+        rx_k_per_w: 19.8,
+        ry_k_per_w: 6.99,
         rz_k_per_w: 5.74,
         capacity_j_per_k: 68.7,
         r_at_0c_ohm: 5.166,
@@ -80,11 +81,13 @@ impl GridReference {
             for c in 0..cols {
                 let i = r * cols + c;
                 for (a, line) in matrix.iter().enumerate() {
+                    // A side's 1/Ry is shared by its cross-row contacts.
+                    let contacts = line.iter().filter(|l| **l == Link::Y).count().max(1);
                     for (b, link) in line.iter().enumerate() {
                         let g = match link {
                             Link::None => continue,
                             Link::X => 1.0 / p.rx_k_per_w,
-                            Link::Y => 1.0 / p.ry_k_per_w,
+                            Link::Y => 1.0 / (p.ry_k_per_w * contacts as f64),
                         };
                         let (rr, cc) = (r as i64 + a as i64 - 1, c as i64 + b as i64 - 1);
                         if rr >= 0 && cc >= 0 && (rr as usize) < rows && (cc as usize) < cols {

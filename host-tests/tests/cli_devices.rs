@@ -614,10 +614,10 @@ fn calibrating_the_hppa_patterns_recovers_rx_ry_rz_c() {
         s(&fitted),
     ]);
     let j = json_of(&cmd.assert().success().get_output().stdout);
-    // The FDM fit between coils: Rx 19.8 / 2, Ry 6.99 / 2, Rz 5.74, C 68.7.
+    // The FDM fit between coils (Table 7): Rx 19.8, Ry 6.99, Rz 5.74, C 68.7.
     let truth = [
-        ("grid.rx_k_per_w", 9.9, 0.03),
-        ("grid.ry_k_per_w", 3.495, 0.02),
+        ("grid.rx_k_per_w", 19.8, 0.03),
+        ("grid.ry_k_per_w", 6.99, 0.02),
         ("grid.rz_k_per_w", 5.74, 0.02),
         ("grid.capacity_j_per_k", 68.7, 0.02),
     ];

@@ -11,9 +11,11 @@
 //! ```
 //!
 //! * neighbours `k` from a [`Stencil`] per row parity (herringbone by
-//!   default), joined by `G = 1/Rx` in a row and `1/Ry` across rows, the
-//!   resistances *between two coils* (see [`params`] for the factor 2 of the
-//!   report's per-element tables);
+//!   default), joined by `G = 1/Rx` in a row and `1/Ry` to each neighbouring
+//!   row, shared by that side's contacts (`1/(2 Ry)` each in the
+//!   herringbone, see [`stencil`]); `Rx`, `Ry` are the resistances *between
+//!   two coils* (see [`params`] for how each of the report's tables is
+//!   read);
 //! * a neighbour outside the grid is the report's padding cell at the
 //!   measured ambient temperature, joined through the same resistance, or
 //!   nothing at all with [`Border::Adiabatic`];
@@ -294,7 +296,12 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         match self.config.stencil.link(row, d_row, d_col) {
             Link::None => 0.0,
             Link::X => self.config.params.gx_w_per_k(),
-            Link::Y => self.config.params.gy_w_per_k(),
+            // The side's `1 / Ry` shared by its contacts (stencil docs);
+            // `validate` has checked the count at build.
+            Link::Y => {
+                let contacts = self.config.stencil.cross_row_contacts().unwrap_or(1).max(1);
+                self.config.params.gy_w_per_k() / f64::from(contacts)
+            }
         }
     }
 

@@ -25,6 +25,26 @@
 //!
 //! [`Stencil::RECTANGULAR`] is the plain 4-neighbour grid.
 //!
+//! # How `Ry` is shared between the contacts of one side
+//!
+//! A fitted `Ry` is the resistance from a coil to the *row* beside it: the
+//! report fitted one number per direction, whatever the stencil. A
+//! herringbone coil meets that row through two contacts, each along half of
+//! its side, so each contact carries half the area and twice the
+//! resistance: `2 Ry` each, `Ry` for the side. In general a stencil with `k`
+//! cross-row contacts on a side joins each through `k Ry`
+//! ([`Stencil::cross_row_contacts`]), so every stencil gives a coil the same
+//! cross-row conductance `1 / Ry` per side and a parameter set means the
+//! same physics with the brick and the rectangular stencil.
+//!
+//! The measurement decides it (hppa-coil-grid.md, the report's Figure 26:
+//! one coil alone rises about 0.35 times as much as all coils on, at equal
+//! power per coil). With the report's FDM fit on the 7 x 12 grid, sharing
+//! gives 0.36; the full `Ry` on each of the two contacts (twice the
+//! cross-row conductance) gives 0.28, and with the digest's halved values
+//! 0.20: half the single-coil rise, the unsafe direction for hottest-coil
+//! limiting (`grid::tests::one_coil_rises_a_third_of_all_coils_as_measured`).
+//!
 //! # Symmetry
 //!
 //! A link from `(r, c)` to `(r', c')` must have its reverse, through the same
@@ -93,8 +113,35 @@ impl Stencil {
         }
     }
 
-    /// Checks that no coil links to itself and that every link has its
-    /// reverse through the same resistance, for both parities.
+    /// The number `k` of cross-row contacts a coil has on one side, over
+    /// which its `Ry` is shared (each contact `k Ry`, see the module docs);
+    /// zero for a stencil without cross-row links.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] when the sides or the parities have
+    /// different counts: the contacts' conductances could not be symmetric.
+    pub fn cross_row_contacts(&self) -> Result<u8, BuildError> {
+        let count = |matrix: &[[Link; 3]; 3], side: usize| {
+            matrix[side].iter().filter(|&&l| l == Link::Y).count() as u8
+        };
+        let k = count(&self.even, 0);
+        let all = [
+            count(&self.even, 2),
+            count(&self.odd, 0),
+            count(&self.odd, 2),
+        ];
+        if all.iter().any(|&c| c != k) {
+            return Err(BuildError::InvalidParameter {
+                name: "stencil: sides with different numbers of cross-row contacts",
+            });
+        }
+        Ok(k)
+    }
+
+    /// Checks that no coil links to itself, that every link has its reverse
+    /// through the same resistance, for both parities, that no in-row link
+    /// goes through `Ry` (nor a cross-row one through `Rx`), and that every
+    /// side has the same number of cross-row contacts.
     pub fn validate(&self) -> Result<(), BuildError> {
         if self.even[1][1] != Link::None || self.odd[1][1] != Link::None {
             return Err(BuildError::InvalidParameter {
@@ -114,7 +161,16 @@ impl Stencil {
                 }
             }
         }
-        Ok(())
+        for matrix in [&self.even, &self.odd] {
+            let in_row_y = matrix[1].contains(&Link::Y);
+            let cross_x = matrix[0].contains(&Link::X) || matrix[2].contains(&Link::X);
+            if in_row_y || cross_x {
+                return Err(BuildError::InvalidParameter {
+                    name: "stencil: Rx links a row, Ry links rows",
+                });
+            }
+        }
+        self.cross_row_contacts().map(|_| ())
     }
 }
 
@@ -145,6 +201,17 @@ mod tests {
         assert_eq!(s.link(1, -1, -1), Link::None);
         assert_eq!(s.link(3, 0, -1), Link::X);
         assert_eq!(s.link(0, 2, 0), Link::None);
+    }
+
+    #[test]
+    fn herringbone_shares_ry_between_two_contacts_per_side() {
+        assert_eq!(Stencil::HPPA_HERRINGBONE.cross_row_contacts(), Ok(2));
+        assert_eq!(Stencil::RECTANGULAR.cross_row_contacts(), Ok(1));
+        let mut one_sided = Stencil::HPPA_HERRINGBONE;
+        one_sided.even[0][0] = Link::None;
+        one_sided.odd[2][2] = Link::None;
+        assert!(one_sided.cross_row_contacts().is_err());
+        assert!(one_sided.validate().is_err());
     }
 
     #[test]
