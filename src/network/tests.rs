@@ -282,11 +282,13 @@ fn f32_and_fixed_point_steps_track_f64() {
     assert!(x64.temps_c[1] > 21.0, "must heat: {}", x64.temps_c[1]);
     for i in 0..3 {
         // f32 at 1 ms: each increment (~1e-5 K) is rounded against a ~20 degC
-        // state, which f32 resolves to 2e-6 K: a few percent of an increment.
-        assert!(
-            (x64.temps_c[i] - x32.temps_c[i] as f64).abs() < 0.1,
-            "f32 node {i}"
-        );
+        // state, which f32 resolves to 2e-6 K: a few percent of an increment,
+        // which the rounding carry hands on to the next step. README's claim
+        // (f32 within 0.01 mK of f64) is this bound; without the carry the
+        // error is hundreds of times larger.
+        let err_k = (x64.temps_c[i] - x32.temps_c[i] as f64).abs();
+        println!("f32 node {i}: {err_k:.2e} K from f64");
+        assert!(err_k < 1e-5, "f32 node {i}: {err_k} K");
         assert!(
             (x64.temps_c[i] - xq.temps_c[i].to_f64()).abs() < 1e-3,
             "Q32 node {i}"
