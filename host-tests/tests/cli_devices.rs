@@ -625,6 +625,7 @@ fn calibrating_the_hppa_patterns_recovers_rx_ry_rz_c() {
     for ((name, want, tol), p) in truth.iter().zip(params) {
         assert_eq!(p["name"], *name);
         let got = p["fitted"].as_f64().unwrap();
+        println!("{name}: fitted {got:.4}, generated with {want}");
         assert!(
             ((got - want) / want).abs() < *tol,
             "{name}: fitted {got}, generated with {want} (tolerance {tol})"

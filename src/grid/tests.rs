@@ -260,6 +260,7 @@ fn one_coil_rises_a_third_of_all_coils_as_measured() {
     let all = steady_peak_rise_k(p, r, current_a, |_, _| true);
     let one = steady_peak_rise_k(p, r, current_a, |row, col| (row, col) == (3, 5));
     let ratio = one / all;
+    println!("3.6 W per coil: one coil {one:.2} K, all coils {all:.2} K, ratio {ratio:.3} (measured about 0.35)");
     assert!((0.30..=0.40).contains(&ratio), "{one} / {all} = {ratio}");
     // No heat crosses between equally hot coils: the middle of the
     // all-coils pattern sits at P Rz, less what the border draws.
