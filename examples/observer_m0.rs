@@ -10,7 +10,7 @@
 //!   -semihosting-config enable=on,target=native -kernel target/thumbv6m-none-eabi/firmware/examples/observer_m0
 //! ```
 //!
-//! Coil (1, 2) carries 4.5 A for 30 s, enough to enter the limiter's taper
+//! Coil (1, 2) carries 4.1 A for 30 s, enough to enter the limiter's taper
 //! band. Checks (exit 1 on a mismatch): the Q32 temperatures agree with the
 //! same grid stepped in `f32` to 5 mK; the Q32 limits agree with the `f32`
 //! limiter applied to the `f32` temperatures to 0.02 A; the hot coil's limit
@@ -88,9 +88,9 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     let mut state = observer.state(20.0);
     let mut ref_state = GridState::<f32, ROWS, COLS>::uniform(20.0);
     let mut currents = [[Q32::ZERO; COLS]; ROWS];
-    currents[HOT.0][HOT.1] = Q32::from_f64(4.5);
+    currents[HOT.0][HOT.1] = Q32::from_f64(4.1);
     let mut ref_currents = [[0.0f32; COLS]; ROWS];
-    ref_currents[HOT.0][HOT.1] = 4.5;
+    ref_currents[HOT.0][HOT.1] = 4.1;
     let twenty = Q32::from_f64(20.0);
 
     let mut stats = cost::Stats::default();
@@ -146,7 +146,7 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         .enumerate()
         .all(|(i, l)| i == hot || l.current_a.to_f32() == 6.0);
     hprintln!(
-        "q32 grid after 30 s at 4.5 A: coil ({}, {}) at {} degC (f32 {} degC), max |q32 - f32| {} K",
+        "q32 grid after 30 s at 4.1 A: coil ({}, {}) at {} degC (f32 {} degC), max |q32 - f32| {} K",
         HOT.0,
         HOT.1,
         out.temps_c[HOT.0][HOT.1].to_f32(),
