@@ -164,15 +164,17 @@ impl Omnimagnet {
     }
 
     /// Symmetric conduction conductance of a solid-solid contact \[W/K\]:
-    /// half-thickness resistances in series, per direction, times `CF`.
+    /// per direction, the two printed one-sided conductances `k S / dx` in
+    /// series (full thicknesses), times `CF`; see the module docs of
+    /// [`super`] for why full and not half thicknesses.
     fn conduction_w_per_k(&self, c: &Contact, j: usize, temps_c: &[f64; NODES]) -> f64 {
         let (i, e) = (c.node, &self.geometry.elements);
-        let half_i = 0.5 / self.conductivity_w_per_m_k(i, temps_c[i]);
-        let half_j = 0.5 / self.conductivity_w_per_m_k(j, temps_c[j]);
+        let inv_k_i = 1.0 / self.conductivity_w_per_m_k(i, temps_c[i]);
+        let inv_k_j = 1.0 / self.conductivity_w_per_m_k(j, temps_c[j]);
         let mut g = 0.0;
         for m in 0..3 {
             if c.area_m2[m] > 0.0 {
-                let r = e[i].thickness_m[m] * half_i + e[j].thickness_m[m] * half_j;
+                let r = e[i].thickness_m[m] * inv_k_i + e[j].thickness_m[m] * inv_k_j;
                 g += c.conduction_cf[m] * c.area_m2[m] / r;
             }
         }

@@ -285,7 +285,7 @@ fn symmetric_conductances_conserve_energy_the_literal_reading_does_not() {
     assert!(worst_sym < 1e-9);
     assert!(worst_lit > 1000.0);
     // The literal generator leaks almost nothing to the ambient: its slowest
-    // mode is numerically undamped, the symmetric one decays in ~3 h.
+    // mode is numerically undamped, the symmetric one decays in hours.
     let slowest = |a: &nalgebra::SMatrix<f64, NODES, NODES>| {
         a.complex_eigenvalues()
             .iter()
@@ -297,12 +297,12 @@ fn symmetric_conductances_conserve_energy_the_literal_reading_does_not() {
         slowest(&sym.a),
         slowest(&lit.a)
     );
-    assert!(slowest(&sym.a) > 5e-5);
+    assert!(slowest(&sym.a) > 2e-5);
     assert!(slowest(&lit.a) < 1e-9);
 }
 
 #[test]
-fn literal_reading_runs_away_where_the_symmetric_one_settles() {
+fn literal_reading_has_no_steady_state_the_symmetric_one_has() {
     let cur = [3.8; 3];
     let (mut lit, mut sym) = ([AMBIENT_C; NODES], [AMBIENT_C; NODES]);
     let mut reference = [AMBIENT_C; NODES];
@@ -317,19 +317,28 @@ fn literal_reading_runs_away_where_the_symmetric_one_settles() {
     for _ in 0..7200 {
         PAPER.step_rk4(&mut reference, &cur, AMBIENT_C, 0.5);
     }
-    let steady = PAPER
-        .network(&sym, AMBIENT_C)
-        .unwrap()
-        .steady_state(&cur, &[AMBIENT_C])
-        .unwrap();
+    // The symmetric network's steady state with R(T): fixed point of the
+    // frozen-conductance network, checked by the nonlinear residual.
+    let mut steady = sym;
+    for _ in 0..40 {
+        steady = PAPER
+            .network(&steady, AMBIENT_C)
+            .unwrap()
+            .steady_state(&cur, &[AMBIENT_C])
+            .unwrap();
+    }
+    let residual = PAPER.derivative_k_per_s(&steady, &cur, AMBIENT_C);
     println!(
         "all three at 3.8 A, 1 h: symmetric {:.1} degC (nonlinear {:.1}), literal {:.1} degC; \
          literal reaches 115 degC at {:?} s; symmetric steady state {:.1} degC",
         sym[0], reference[0], lit[0], lit_t115, steady[0]
     );
+    // The piecewise-linear symmetric run is the nonlinear model.
     assert!((sym[0] - reference[0]).abs() < 0.5);
+    assert!(residual.iter().all(|r| r.abs() < 1e-6), "{residual:?}");
+    assert!(steady[0].is_finite() && steady[0] > reference[0]);
+    // The literal one creates heat: far above the conserving model.
     assert!(lit[0] - sym[0] > 50.0);
-    assert!(steady[0] < EXPERIMENT_STOP_C);
 }
 
 /// Polls until the relinearizer is idle again; returns the slices used.
@@ -466,71 +475,224 @@ fn linearised_error_grows_with_distance_and_relinearisation_bounds_it() {
     assert!(err_relin < 0.5 && err_relin < err_once[2] / 10.0);
 }
 
-#[test]
-fn plausibility_against_the_paper_and_sensitivity_to_h() {
-    // State after the full 2 h run.
-    let t_after = |model: &Omnimagnet, p: Preset| {
-        let mut t = [AMBIENT_C; NODES];
-        p.run(model, &mut t, AMBIENT_C, |_| false);
-        t
-    };
-    let all = t_after(&PAPER, Preset::ALL_THREE);
-    let one = t_after(&PAPER, Preset::SOLENOID_1);
-    let two_three = t_after(&PAPER, Preset::SOLENOIDS_2_AND_3);
-    println!(
-        "after 2 h, hottest solenoid: all three {:.1}, solenoid 1 {:.1}, 2+3 {:.1} degC",
-        hottest_solenoid_c(&PAPER, &all),
-        hottest_solenoid_c(&PAPER, &one),
-        hottest_solenoid_c(&PAPER, &two_three)
-    );
-    // Worst case all three; the inner solenoid hottest (it sees no ambient).
-    assert!(hottest_solenoid_c(&PAPER, &all) > hottest_solenoid_c(&PAPER, &one) + 20.0);
-    assert!(hottest_solenoid_c(&PAPER, &all) > hottest_solenoid_c(&PAPER, &two_three) + 20.0);
-    assert!(all[0] > all[1] && all[1] > all[2]);
-    // Cover insulation stays below its solenoid (it is the limiting element
-    // without a thermocouple).
-    assert!(all[8] < all[0] && all[10] < all[1] && all[12] < all[2]);
-
-    // t_max to 115 degC and to 50 degC with h x0.5, x1, x2.
-    let mut previous = (0.0, 0.0);
-    for scale in [2.0, 1.0, 0.5] {
-        let m = PAPER
-            .with_convection(ConvectionParams::scaled(scale))
-            .unwrap();
-        let t115 = Preset::ALL_THREE.time_to_limit_s(&m, AMBIENT_C, EXPERIMENT_STOP_C);
-        let t60 = Preset::ALL_THREE
-            .time_to_limit_s(&m, AMBIENT_C, 50.0)
-            .unwrap();
-        let end = hottest_solenoid_c(&m, &t_after(&m, Preset::ALL_THREE));
-        println!(
-            "h x{scale}: t_max(115 degC) {t115:?} s, t(50 degC) {t60:.0} s, 2 h: {end:.1} degC"
-        );
-        // With the paper's CFs on a conservative network the device does not
-        // reach 115 degC in 2 h (see the README); less convection is hotter.
-        assert_eq!(t115, None);
-        if scale < 2.0 {
-            assert!(t60 < previous.0 && end > previous.1);
+/// State after a full 2 h run (no stop), and the first time the hottest
+/// solenoid reached 115 degC, if it did.
+fn two_hours(model: &Omnimagnet, currents_a: [f64; 3]) -> ([f64; NODES], Option<f64>) {
+    let mut t = [AMBIENT_C; NODES];
+    let mut t115 = None;
+    let dt = 0.5;
+    for k in 0..(Preset::DURATION_S / dt) as usize {
+        if t115.is_none() && hottest_solenoid_c(model, &t) >= EXPERIMENT_STOP_C {
+            t115 = Some(k as f64 * dt);
         }
-        previous = (t60, end);
+        model.step_rk4(&mut t, &currents_a, AMBIENT_C, dt);
     }
-    // Steady states (fixed point of the frozen-conductance network, which
-    // includes R(T)), down to h x0.25, where 115 degC is barely exceeded.
-    for scale in [2.0, 1.0, 0.5, 0.25] {
-        let m = PAPER
-            .with_convection(ConvectionParams::scaled(scale))
-            .unwrap();
-        let mut t = [AMBIENT_C; NODES];
-        for _ in 0..40 {
-            t = m
-                .network(&t, AMBIENT_C)
-                .unwrap()
-                .steady_state(&[3.8; 3], &[AMBIENT_C])
-                .unwrap();
+    (t, t115)
+}
+
+#[test]
+fn reaches_what_the_papers_experiments_reached() {
+    // The paper ran all three solenoids at 3.8 A from the ambient until the
+    // hottest solenoid reached 115 degC (or 2 h); its fitted model matched
+    // that run with an NRMSE of 2.1 %. So the device reached 115 degC within
+    // 2 h, and a model that does not reads cold.
+    let t_max = Preset::ALL_THREE
+        .time_to_limit_s(&PAPER, AMBIENT_C, EXPERIMENT_STOP_C)
+        .expect("all three at 3.8 A must reach 115 degC within 2 h");
+    let mut at_stop = [AMBIENT_C; NODES];
+    Preset::ALL_THREE.run(&PAPER, &mut at_stop, AMBIENT_C, |t| {
+        hottest_solenoid_c(&PAPER, t) >= EXPERIMENT_STOP_C
+    });
+    println!(
+        "all three at 3.8 A: 115 degC after {t_max:.0} s; solenoids {:.1} {:.1} {:.1}, \
+         covers {:.1} {:.1} {:.1} degC",
+        at_stop[0], at_stop[1], at_stop[2], at_stop[8], at_stop[10], at_stop[12]
+    );
+    assert!(t_max < Preset::DURATION_S);
+    // The inner solenoid is the hottest (it sees no ambient), then the
+    // middle; each cover stays below its solenoid (the cover carries the
+    // 120 degC limit but no thermocouple).
+    assert!(at_stop[0] > at_stop[1] && at_stop[1] > at_stop[2]);
+    assert!(at_stop[8] < at_stop[0] && at_stop[10] < at_stop[1] && at_stop[12] < at_stop[2]);
+    assert!(at_stop[8] < COVER_INSULATION_LIMIT_C);
+
+    // The seven combinations of powered solenoids at 3.8 A (the paper's
+    // experiment design), ranked by the hottest solenoid after 2 h: all
+    // three is the worst case, every pair is worse than either of its
+    // members alone, and alone the inner solenoid heats fastest, then the
+    // middle one. Whenever the inner one is powered it is the hottest.
+    let hottest = |mask: usize| {
+        let cur = [0, 1, 2].map(|k| if mask & (1 << k) != 0 { 3.8 } else { 0.0 });
+        let (t, _) = two_hours(&PAPER, cur);
+        if mask & 1 != 0 {
+            assert!(t[0] >= t[1] && t[0] >= t[2], "{mask:03b}: {:?}", &t[..3]);
         }
-        let residual = m.derivative_k_per_s(&t, &[3.8; 3], AMBIENT_C);
-        assert!(residual.iter().all(|r| r.abs() < 1e-6), "{residual:?}");
-        println!("h x{scale}: steady state, solenoid 1 {:.1} degC", t[0]);
-        assert_eq!(t[0] > EXPERIMENT_STOP_C, scale < 0.3);
+        hottest_solenoid_c(&PAPER, &t)
+    };
+    let end: Vec<f64> = (0..8)
+        .map(|m| if m == 0 { AMBIENT_C } else { hottest(m) })
+        .collect();
+    println!(
+        "hottest solenoid after 2 h at 3.8 A, by powered set (bit k = solenoid k+1): {end:.1?}"
+    );
+    for mask in 1..7 {
+        assert!(end[7] > end[mask], "{mask:03b}");
+    }
+    for (pair, a, b) in [
+        (0b011, 0b001, 0b010),
+        (0b101, 0b001, 0b100),
+        (0b110, 0b010, 0b100),
+    ] {
+        assert!(end[pair] > end[a] && end[pair] > end[b], "{pair:03b}");
+    }
+    assert!(end[0b001] > end[0b010] && end[0b010] > end[0b100]);
+}
+
+/// The module docs' sensitivity table: each reading the paper leaves open,
+/// and each estimated quantity, changed alone from [`Omnimagnet::PAPER`];
+/// `t_max` to 115 degC with all three at 3.8 A \[s\] and the hottest
+/// solenoid after 2 h without the stop \[degC\]. Keeps the docs the tested
+/// figures.
+#[test]
+fn sensitivity_table_of_the_module_docs() {
+    fn leak<T>(v: Vec<T>) -> &'static [T] {
+        Box::leak(v.into_boxed_slice())
+    }
+    let base = data::PAPER_OMNIMAGNET;
+    let scaled = |f: &dyn Fn(&mut OmnimagnetGeometry)| {
+        let mut g = base;
+        f(&mut g);
+        Omnimagnet::new(g, ConvectionParams::PAPER).unwrap()
+    };
+    let h = |factor: f64| {
+        PAPER
+            .with_convection(ConvectionParams::scaled(factor))
+            .unwrap()
+    };
+    let rows: [(&str, Omnimagnet, Option<f64>, f64); 15] = [
+        ("this crate", PAPER, Some(4256.0), 132.7),
+        (
+            "half thicknesses",
+            scaled(&|g| {
+                g.elements
+                    .iter_mut()
+                    .for_each(|e| e.thickness_m = e.thickness_m.map(|d| d * 0.5))
+            }),
+            None,
+            110.8,
+        ),
+        (
+            "Table 7 convection CFs",
+            scaled(&|g| g.convection_cf = data::TABLE_7_CONVECTION_CF),
+            None,
+            92.1,
+        ),
+        (
+            "no Table 6 conduction CFs",
+            scaled(&|g| {
+                g.contacts = leak(
+                    g.contacts
+                        .iter()
+                        .map(|c| Contact {
+                            conduction_cf: [1.0; 3],
+                            ..*c
+                        })
+                        .collect(),
+                )
+            }),
+            Some(7184.0),
+            115.1,
+        ),
+        (
+            "solenoid 3 radiates as well",
+            scaled(&|g| {
+                let mut r = g.radiators.to_vec();
+                r.push(data::SOLENOID_3_RADIATOR);
+                g.radiators = leak(r);
+            }),
+            Some(5398.0),
+            121.1,
+        ),
+        (
+            "solenoid 3 radiates instead of cover 3",
+            scaled(&|g| {
+                let mut r: Vec<Radiator> = g
+                    .radiators
+                    .iter()
+                    .filter(|r| r.node != 12)
+                    .copied()
+                    .collect();
+                r.push(data::SOLENOID_3_RADIATOR);
+                g.radiators = leak(r);
+            }),
+            Some(4327.0),
+            131.2,
+        ),
+        (
+            "no radiation",
+            scaled(&|g| g.radiators = &[]),
+            Some(3412.0),
+            159.5,
+        ),
+        (
+            "convection lengths x0.5",
+            scaled(&|g| {
+                g.elements
+                    .iter_mut()
+                    .filter_map(|e| e.convection.as_mut())
+                    .for_each(|c| c.length_m *= 0.5)
+            }),
+            Some(5113.0),
+            123.6,
+        ),
+        (
+            "convection lengths x2",
+            scaled(&|g| {
+                g.elements
+                    .iter_mut()
+                    .filter_map(|e| e.convection.as_mut())
+                    .for_each(|c| c.length_m *= 2.0)
+            }),
+            Some(3976.0),
+            137.9,
+        ),
+        ("h x0.8", h(0.8), Some(3804.0), 142.4),
+        ("h x1.2", h(1.2), Some(4924.0), 124.6),
+        (
+            "capacities x0.8",
+            scaled(&|g| g.elements.iter_mut().for_each(|e| e.volume_m3 *= 0.8)),
+            Some(3405.0),
+            137.2,
+        ),
+        (
+            "capacities x1.2",
+            scaled(&|g| g.elements.iter_mut().for_each(|e| e.volume_m3 *= 1.2)),
+            Some(5107.0),
+            127.6,
+        ),
+        (
+            "frame volumes read as totals (x0.5)",
+            scaled(&|g| g.elements[3..7].iter_mut().for_each(|e| e.volume_m3 *= 0.5)),
+            Some(4013.0),
+            134.0,
+        ),
+        (
+            "R0 x0.9",
+            scaled(&|g| g.solenoids.iter_mut().for_each(|s| s.r0_ohm *= 0.9)),
+            Some(5822.0),
+            120.2,
+        ),
+    ];
+    for (name, model, doc_t_max, doc_end) in rows {
+        let (end, t_max) = two_hours(&model, [3.8; 3]);
+        let end = hottest_solenoid_c(&model, &end);
+        println!("{name:40} t_max {t_max:?} s, after 2 h {end:.1} degC");
+        match (t_max, doc_t_max) {
+            (Some(got), Some(doc)) => assert!((got - doc).abs() <= 1.0, "{name}: {got}"),
+            (None, None) => {}
+            _ => panic!("{name}: t_max {t_max:?} against the docs' {doc_t_max:?}"),
+        }
+        assert!((end - doc_end).abs() < 0.06, "{name}: {end}");
     }
 }
 
@@ -563,7 +725,7 @@ fn presets_are_the_papers_experiments() {
     }
     // Passive cooling starts where all-three heating ended, and cools.
     let hot = Preset::PASSIVE_COOLING.initial_temps_c(&PAPER, AMBIENT_C);
-    assert!(hot[0] > 60.0);
+    assert!(hot[0] >= EXPERIMENT_STOP_C);
     let mut t = hot;
     let mut last = t[0];
     Preset::PASSIVE_COOLING.run(&PAPER, &mut t, AMBIENT_C, |t| {
@@ -571,7 +733,9 @@ fn presets_are_the_papers_experiments() {
         last = t[0];
         !ok
     });
-    assert!(t[0] < AMBIENT_C + 5.0, "{}", t[0]);
+    // Two hours later the inner solenoid is within 8 K of the ambient (the
+    // thermally isolated core, 2.2 kJ/K, cools slowest).
+    assert!(t[0] < AMBIENT_C + 8.0, "{}", t[0]);
     let names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
     assert_eq!(
         names,
