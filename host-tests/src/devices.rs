@@ -302,8 +302,9 @@ pub const OMNIMAGNET_MAX_STEP_S: f64 = 0.25;
 pub const OMNIMAGNET_INPUTS: [&str; SOLENOIDS] = ["current_1", "current_2", "current_3"];
 /// Default trace columns of the Omnimagnet currents \[A\].
 pub const OMNIMAGNET_COLUMNS: [&str; SOLENOIDS] = ["I1_a", "I2_a", "I3_a"];
-/// Default Omnimagnet ambient \[degC\].
-pub const OMNIMAGNET_DEFAULT_AMBIENT_C: f64 = 20.0;
+/// Default Omnimagnet ambient \[degC\]: the paper's experiments' (the
+/// all-three run at 3.8 A from 22 degC reached 115 degC within 2 h).
+pub const OMNIMAGNET_DEFAULT_AMBIENT_C: f64 = 22.0;
 
 /// The Omnimagnet's channels and names.
 pub fn omnimagnet_info() -> PlantInfo {

@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use serde_json::json;
 
-use coil_thermal::omnimagnet::{Omnimagnet, Preset};
+use coil_thermal::omnimagnet::{Omnimagnet, Preset, EXPERIMENT_STOP_C};
 
 use super::common::{self, ModelSpec};
 use super::SimulateArgs;
@@ -32,6 +32,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         bail!("--ambient-c must be finite, got {t}");
     }
     let mut preset_init = None;
+    let mut preset_name = None;
     let drive = if let Some(path) = &a.trace {
         if a.ambient_c.is_some() {
             bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
@@ -62,6 +63,9 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         Drive::constant(&info, duration, a.dt_s, &currents, a.ambient_c, &bind)?
     } else if let Some(name) = &a.preset {
         let preset = devices::omnimagnet_preset(name)?;
+        if preset != Preset::PassiveCooling {
+            preset_name = Some(preset.name());
+        }
         let ambient = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
         let default_duration = if matches!(preset, Preset::RotatingDipole { .. }) {
             600.0
@@ -166,6 +170,33 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         max_c.insert(info.nodes[i].clone(), json!(m));
         final_c.insert(info.nodes[i].clone(), json!(s[last]));
     }
+    // First time each node passes its critical temperature, and for an
+    // Omnimagnet heating preset the paper's experiment stop (115 degC on a
+    // solenoid): what a reader checks the model against.
+    let first_at = |series: &[f64], limit_c: f64| {
+        series
+            .iter()
+            .position(|v| *v >= limit_c)
+            .map(|k| drive.time_s[k])
+    };
+    let mut critical = serde_json::Map::new();
+    for (i, limit) in info.critical_c.iter().enumerate() {
+        if let Some(limit_c) = limit {
+            critical.insert(
+                info.nodes[i].clone(),
+                json!({"critical_c": limit_c, "first_time_s": first_at(&states[i], *limit_c)}),
+            );
+        }
+    }
+    let experiment_stop = preset_name.map(|_| {
+        let stop_s = Omnimagnet::PAPER
+            .geometry()
+            .solenoids
+            .iter()
+            .filter_map(|s| first_at(&states[s.node], EXPERIMENT_STOP_C))
+            .reduce(f64::min);
+        json!({"stop_c": EXPERIMENT_STOP_C, "first_time_s": stop_s})
+    });
     let summary = json!({
         "command": "simulate",
         "model": info.name,
@@ -175,6 +206,8 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         "final_c": final_c,
         "max_c": max_c,
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
+        "critical": critical,
+        "experiment_stop": experiment_stop,
         "out": a.out.display().to_string(),
         "plot": a.plot.as_ref().map(|p| p.display().to_string()),
     });
@@ -202,6 +235,23 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             "hot spot: {} at {:.3} degC (t = {:.1} s)",
             info.nodes[hot.0], hot.1, hot.2
         );
+        for (name, c) in &critical {
+            if let Some(t) = c["first_time_s"].as_f64() {
+                println!(
+                    "critical: {name} reaches {:.1} degC at t = {t:.1} s",
+                    c["critical_c"].as_f64().unwrap_or(f64::NAN)
+                );
+            }
+        }
+        if let Some(stop) = &experiment_stop {
+            match stop["first_time_s"].as_f64() {
+                Some(t) => println!(
+                    "experiment stop: a solenoid reaches {EXPERIMENT_STOP_C} degC at t = {t:.1} s \
+                     (the paper's heating runs stopped there, or after 2 h)"
+                ),
+                None => println!("experiment stop: no solenoid reaches {EXPERIMENT_STOP_C} degC"),
+            }
+        }
     }
     Ok(())
 }
