@@ -831,6 +831,14 @@ fn omni_follows_relinearisations_handed_in_from_a_background_task() {
         err_following < 0.5 * err_cold,
         "{err_following} K following against {err_cold} K cold"
     );
+    // README's figures in absolute terms (the relative check alone let a
+    // Joule power at R(20 degC) through on the cooler model): measured
+    // 0.300 K following, 23.7 K cold; 14.5 K following with that bug.
+    assert!(
+        err_following < 0.35,
+        "{err_following} K from the nonlinear plant"
+    );
+    assert!(err_cold > 20.0, "the cold model is only {err_cold} K off");
 }
 
 /// A start several kelvin off (a stale snapshot, a device that cooled or

@@ -994,3 +994,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
 #[cfg(test)]
 #[path = "observer_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "observer_physics_tests.rs"]
+mod observer_physics_tests;
