@@ -749,13 +749,16 @@ fn relinearization_swaps_the_model_and_keeps_the_estimate() {
     let worst = (0..NODES)
         .map(|i| (fresh.rms_k[i] - stale.rms_k[i]).abs())
         .fold(0.0, f64::max);
-    println!("stale vs refreshed gain: largest RMS difference {worst:.3} K");
-    assert!(worst < 0.05, "{worst}");
+    println!("stale vs refreshed gain: largest RMS difference {worst:.4} K");
+    // Measured 0.015 K on the model that reaches 115 degC (0.001 K, README's
+    // figure, on the cooler one before it): a gain a few kelvin stale is
+    // suboptimal, not wrong.
+    assert!(worst < 0.02, "{worst}");
 }
 
 /// f32 and f64 observers on the same 1 ms inputs and readings, 10 min of
 /// heating without re-linearisation (so the deviations grow to 15 K), agree
-/// within 0.1 K (measured: 0.050 K). The difference is f32's rounding of
+/// within README's 0.05 K (measured: 0.035 K). The difference is f32's rounding of
 /// `F = I + A dt` (about three digits of `A dt`) and of the solved gain, a
 /// model error far below the parameter uncertainty.
 #[test]
@@ -791,7 +794,7 @@ fn f32_matches_f64_at_1_ms() {
         }
     }
     println!("f32 vs f64 over 10 min at 1 ms: largest difference {worst:.4} K");
-    assert!(worst < 0.1, "{worst}");
+    assert!(worst < 0.05, "{worst}");
 }
 
 #[test]
