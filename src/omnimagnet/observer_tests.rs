@@ -344,7 +344,7 @@ fn fmt_row(v: &[f64]) -> String {
 const BOUND_SLACK_K: f64 = 0.3;
 const TARGET_K: f64 = 0.5;
 
-/// Checks one run: the solenoids within 0.1 K, every element within the
+/// Checks one run: the solenoids within 0.05 K (README: 0.01-0.02 K), every element within the
 /// 0.5 K target or, where the information bound makes that impossible,
 /// within the bound plus the slack. Returns the elements that missed 0.5 K.
 fn check_accuracy(label: &str, o: &Outcome) -> Vec<usize> {
@@ -353,7 +353,7 @@ fn check_accuracy(label: &str, o: &Outcome) -> Vec<usize> {
     for i in 0..NODES {
         let rms = o.rms_k[i];
         if i < SOLENOIDS {
-            assert!(rms < 0.1, "{label}: {} rms {rms:.3} K", NODE_NAMES[i]);
+            assert!(rms < 0.05, "{label}: {} rms {rms:.3} K", NODE_NAMES[i]);
         }
         if rms >= TARGET_K {
             missed.push(i);
@@ -548,7 +548,8 @@ fn stuck_thermocouple_is_flagged_and_does_not_drag() {
         o.flagged_after_s, o.max_after_failure_k
     );
     let latency = o.flagged_after_s.expect("never flagged");
-    assert!(latency <= 60.0, "flagged after {latency} s");
+    // README: after 15 s of heating (14.8 s measured).
+    assert!(latency <= 20.0, "flagged after {latency} s");
     assert!(o.max_after_failure_k < 2.0, "{}", o.max_after_failure_k);
     assert_eq!(o.false_flags, 0);
 }
