@@ -13,6 +13,10 @@
 //!   every change.
 //! * [`limiter`]: per-coil current limits that taper towards the alarm limit,
 //!   and weights that favour cooler coils.
+//! * [`margin`]: the protective upper bound the limiter, the alarm and the
+//!   time to limit act on (the estimate plus `k sigma` of a filter and a
+//!   model-uncertainty margin), so that protection errs hot when the model
+//!   is wrong.
 //!
 //! A tick of a protected loop, after the model's update:
 //!
@@ -56,6 +60,7 @@ pub mod alarm;
 pub mod derating;
 pub mod events;
 pub mod limiter;
+pub mod margin;
 mod modal;
 pub mod predict;
 pub mod resistance_sensor;
