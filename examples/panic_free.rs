@@ -15,8 +15,10 @@
 //! observer's tick (the spread grid step, one step or a catch-up of several,
 //! the update, time to limit, the alarm and the limiter in parts, hottest
 //! coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
-//! `update_steady`, predictor slice, alarm, limiter), and the time-varying
-//! Kalman `predict` and `update`.
+//! `update_steady`, predictor slice, alarm, limiter), the protective upper
+//! bounds and mean limits of `protect::margin` on their own (`f32` and
+//! `Q32`, parts out of range), and the time-varying Kalman `predict` and
+//! `update`.
 #![no_std]
 #![no_main]
 
@@ -29,6 +31,7 @@ use coil_thermal::omnimagnet::NODES;
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::protect::margin::{UncertaintyMargin, UpperBoundBuilder};
 use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Reading, Resistance, SensorFault, Q32,
 };
@@ -161,9 +164,42 @@ fn time_varying_filter() -> bool {
     true
 }
 
+/// The upper bounds and mean limits, in `f32` and `Q32`, with NaN,
+/// infinities and parts beyond the elements.
+#[inline(never)]
+fn margins() -> bool {
+    let builder = UpperBoundBuilder::new(UncertaintyMargin::new(black_box(0.65), black_box(0.5)))
+        .sigma(black_box(3.0), black_box([0.1, 0.2, 0.3, 0.0]));
+    let (Ok(float_bound), Ok(fixed_bound)) = (builder.build::<f32>(), builder.build::<Q32>())
+    else {
+        return false;
+    };
+    let mut upper = [0.0f32; 4];
+    let mut fixed_upper = [<Q32 as coil_thermal::Scalar>::ZERO; 4];
+    for k in 0..black_box(100u32) {
+        let temp = black_box(if k % 7 == 0 { f32::NAN } else { 60.0 });
+        let reference = black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 });
+        let temps = [temp, -temp, 1e30, 20.0];
+        let range = black_box(k as usize % 6)..black_box(k as usize % 9);
+        float_bound.upper_part(&temps, reference, &mut upper, range.clone());
+        float_bound.upper_c(&temps, reference, &mut upper);
+        black_box(float_bound.mean_limits_c(&temps, reference));
+        let fixed_temps = temps.map(<Q32 as coil_thermal::Scalar>::from_f32);
+        let fixed_reference = <Q32 as coil_thermal::Scalar>::from_f32(reference);
+        fixed_bound.upper_part(&fixed_temps, fixed_reference, &mut fixed_upper, range);
+        black_box(fixed_bound.mean_limits_c(&fixed_temps, fixed_reference));
+        if let Some(e) = float_bound.element(black_box(k as usize % 6)) {
+            black_box(e.mean_limit_c(temp, reference));
+        }
+    }
+    black_box(&upper);
+    black_box(&fixed_upper);
+    true
+}
+
 #[entry]
 fn main() -> ! {
-    let ok = observers() && time_varying_filter() && steppers();
+    let ok = observers() && time_varying_filter() && steppers() && margins();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
     } else {

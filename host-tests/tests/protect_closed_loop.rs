@@ -19,6 +19,12 @@
 //! observer and the plant. The limits are checked on the *plant*, against
 //! the derating rule computed here by hand.
 //!
+//! The plants here are the observers' own models (the matched case), so the
+//! observers run without the model-uncertainty margin and `k sigma`
+//! ([`UncertaintyMargin::ZERO`]): this is the protection on the mean.
+//! `protect_margin.rs` runs the default margins against plants whose
+//! parameters are off by up to +-20 %, and prices them on the matched plant.
+//!
 //! `cargo test --release -p coil-thermal-host --test protect_closed_loop -- --nocapture`
 
 use coil_thermal::observer::omnimagnet::TimedReading;
@@ -31,6 +37,7 @@ use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::events::{EventKind, EventQueue};
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
+use coil_thermal::protect::margin::UncertaintyMargin;
 use coil_thermal::{GridConfig, GridParams, Reading, Stencil};
 use coil_thermal_host::devices::OmnimagnetPlant;
 use coil_thermal_host::grid_reference::{GridReference, ReferenceParams};
@@ -148,7 +155,10 @@ fn hppa_run(protected: bool) -> Run {
         ticks_per_update: 10,
         ..GridConfig::hppa(GridParams::FDM_FITTED)
     };
-    let observer = GridObserver::<f32, ROWS, COLS, COILS>::new(&config, alarm, limiter, 4).unwrap();
+    let observer = GridObserver::<f32, ROWS, COLS, COILS>::new(&config, alarm, limiter, 4)
+        .unwrap()
+        .with_margin(UncertaintyMargin::ZERO)
+        .unwrap();
     let mut state = observer.state(AMBIENT_C);
     let plant = GridReference::assemble(
         ROWS,
@@ -252,10 +262,9 @@ fn hppa_trajectory_at_3a_crosses_unprotected_and_stays_below_protected() {
 
 // ------------------------------------------------------------ Omnimagnet
 
-/// Every solenoid at 5 A: with the paper's correction factors the model
-/// settles near 74 degC at 3.8 A on all three, below the cover
-/// insulation's 84.8 degC alarm limit; 5 A (1.7 times the power) takes the
-/// inner solenoid's cover past it within the first hour.
+/// Every solenoid at 5 A, 1.7 times the power of the paper's 3.8 A (which
+/// takes the model to 115 degC in 71 min): the inner solenoid's cover
+/// passes its 84.8 degC alarm limit within the first half hour.
 const OMNI_DEMAND_A: f32 = 5.0;
 /// Two hours at 0.1 s ticks: the cover crosses after about half an hour
 /// unprotected, and the protected run has time to settle.
@@ -300,6 +309,8 @@ fn omni_run(protected: bool) -> Run {
             correction_period_s: f64::from(OMNI_READING_EVERY * OMNI_STEP_US) * 1e-6,
             ..defaults.filter
         },
+        k_sigma: 0.0,
+        unmeasured_margin: UncertaintyMargin::ZERO,
         ..defaults
     };
     let observer = OmniObserver::new(

@@ -37,6 +37,27 @@
 //!    max_steps_per_tick`: then no two ticks in a row update the grid and
 //!    the protection can never be starved, whatever the tick pattern.
 //!
+//! # Acting on an upper bound
+//!
+//! The grid runs open loop: no sensor corrects a coil, so every estimate
+//! carries the model's whole parameter error, and a protection that held
+//! the estimates at the alarm limit would let a coil whose capacity and
+//! conductances are 20 % low and resistance 20 % high run 27 K past it
+//! (measured; see [`crate::protect::margin`]). The alarm, the limiter and
+//! the time to limit therefore act on each coil's protective upper bound,
+//! `T + f max(T - T_ref, 0) + offset_k`, the estimate plus a
+//! model-uncertainty margin on its rise above the colder of the coolant and
+//! the ambient: [`DEFAULT_MARGIN`] (`f` = 0.65, which bounds +-20 % on every
+//! parameter), set by [`GridObserver::with_margin`] or per coil by
+//! [`GridObserver::with_upper_bound`]. The outputs carry both the mean
+//! (`temps_c`) and the bound (`upper_c`); the alarm's events report the
+//! bound. The bound is taken once per pass, by the time-to-limit stage
+//! (the alarm and the limiter read it from there, so within a pass they act
+//! on the temperatures the time to limit saw); [`UncertaintyMargin::ZERO`]
+//! skips it and gives the protection on the mean, to the bit. The bound costs a comparison, a
+//! multiply and two additions per coil and pass, and the mean limit as much
+//! again in the time to limit.
+//!
 //! # Time to limit per coil
 //!
 //! The full modal predictor of [`crate::protect::predict`] needs `N x N`
@@ -53,7 +74,12 @@
 //! * coil `i` with every neighbour held at `U` obeys
 //!   `C y' = p_i + G_n,i (U - y) + G_z (T_c - y) + G_a,i (T_a - y)`, and by
 //!   comparison `T_i(t) <= y(t)`: its crossing of `L_i`,
-//!   `tau ln((y_ss - T_i) / (y_ss - L_i))`, is never later than the truth.
+//!   `tau ln((y_ss - T_i) / (y_ss - L_i))`, is never later than the truth;
+//! * with a margin, `L_i` is the coil's *mean limit*, the estimate at which
+//!   its upper bound reaches the alarm limit
+//!   ([`ElementBound::mean_limit_c`](crate::protect::margin::ElementBound::mean_limit_c)),
+//!   so the time is the bound's (the powers stay at the resistance of the
+//!   alarm limit itself, the higher one).
 //!
 //! The bound is tight for the hottest coil of a uniformly heated region and
 //! pessimistic for cold coils beside a hot one (they are assumed to sit next
@@ -71,8 +97,9 @@
 //! against this configuration's [`fingerprint`](GridObserver::fingerprint)
 //! and refuses anything else; [`GridObserver::conservative_state`] is the
 //! documented start after a refusal: the grid has no sensors, so every coil
-//! starts at the start of its limiter's taper band (alarm limit at the
-//! nominal ambient minus `taper_k`). The full current is still allowed there,
+//! starts where its upper bound is at the start of its limiter's taper band
+//! (alarm limit at the nominal ambient minus `taper_k`). The full current is
+//! still allowed there,
 //! but no coil has more headroom than the taper, and the model cools the coils
 //! at the modelled rate until it knows better.
 
@@ -84,10 +111,16 @@ use crate::input::InputFlags;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus};
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
 
 /// Capacity of each observer's alarm event queue.
 pub const EVENT_CAPACITY: usize = 16;
+
+/// The model-uncertainty margin [`GridObserver::new`] sets:
+/// [`UncertaintyMargin::GRID_20_PERCENT`] (the grid runs open loop, so every
+/// coil's estimate carries the model's whole parameter error).
+pub const DEFAULT_MARGIN: UncertaintyMargin = UncertaintyMargin::GRID_20_PERCENT;
 
 /// Ticks after a grid update until its protection pass is complete with the
 /// default [`ProtectionPlan`] (the outputs lag the model by at most this many
@@ -184,6 +217,10 @@ pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize>
     clock: StepClock,
     plan: ProtectionPlan,
     ttl: TimeToLimit<ROWS, COLS>,
+    /// Each coil's protective upper bound (see [`GridObserver::with_margin`]).
+    bound: UpperBound<S, N>,
+    /// `bound` is zero: the protection reads the temperatures themselves.
+    bound_is_zero: bool,
     restart_c: f64,
     fingerprint: u32,
 }
@@ -250,6 +287,9 @@ struct ProtectPass<S, const N: usize> {
     bound_c: f32,
     /// The alarm status of the parts so far.
     alarm: AlarmStatus,
+    /// Each coil's protective upper bound \[degC\], written by the time
+    /// to limit parts for their coils; unused without a margin.
+    upper_c: [S; N],
 }
 
 /// `ln(x)` for the time-to-limit ratio (`x >= 1`), within a few ulps of
@@ -293,13 +333,18 @@ pub struct GridInputs<'a, S, const ROWS: usize, const COLS: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> {
-    /// Coil temperature estimates \[degC\].
+    /// Coil temperature estimates \[degC\]: the model's mean.
     pub temps_c: [[S; COLS]; ROWS],
+    /// Each coil's protective upper bound \[degC\], what the limiter and
+    /// the alarm act on: the estimate plus the model-uncertainty margin
+    /// ([`GridObserver::with_margin`]); equal to `temps_c` with
+    /// [`UncertaintyMargin::ZERO`].
+    pub upper_c: [[S; COLS]; ROWS],
     /// Per-coil current limit and preference weight, index `row * COLS + col`.
     pub limits: [CoilLimit<S>; N],
-    /// Per-coil time to the alarm limit at the present currents \[s\]
-    /// (`None`: never), index `row * COLS + col`; never later than the truth
-    /// (see the module docs).
+    /// Per-coil time until the upper bound reaches the alarm limit at the
+    /// present currents \[s\] (`None`: never), index `row * COLS + col`;
+    /// never later than the model's (see the module docs).
     pub time_to_limit_s: [Option<S>; N],
     /// The alarm summary.
     pub alarm: AlarmStatus,
@@ -430,21 +475,75 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 fingerprint = fingerprint.f64(g).f64(g_amb);
             }
         }
-        let nominal_limit = alarm
-            .alarm_limits_c(S::from_f64(20.0))
-            .iter()
-            .fold(f64::INFINITY, |lo, l| lo.min(l.to_f64()));
-        let restart_c = nominal_limit - limiter.taper_k().to_f64();
-        Ok(Self {
+        let bound = UpperBoundBuilder::new(DEFAULT_MARGIN).build()?;
+        let mut observer = Self {
             grid: model,
             alarm,
             limiter,
             clock,
             plan: ProtectionPlan::DEFAULT,
             ttl,
-            restart_c,
+            bound_is_zero: bound.is_zero(),
+            bound,
+            restart_c: 0.0,
             fingerprint: fingerprint.finish(),
-        })
+        };
+        observer.restart_c = observer.restart_temp();
+        Ok(observer)
+    }
+
+    /// The mean temperature of [`Self::conservative_state`] \[degC\]: the
+    /// lowest over the coils of the temperature whose upper bound is at the
+    /// start of the limiter's taper band (alarm limit at 20 degC minus
+    /// `taper_k`), with coolant and ambient at 20 degC. With a margin it is
+    /// put 1 mK lower, so that rounding cannot place the bound inside the
+    /// band.
+    fn restart_temp(&self) -> f64 {
+        let nominal_c = S::from_f64(20.0);
+        let taper_k = self.limiter.taper_k();
+        let limits_c = self.alarm.alarm_limits_c(nominal_c);
+        if self.bound.is_zero() {
+            let lowest_c = limits_c
+                .iter()
+                .fold(f64::INFINITY, |lo, l| lo.min(l.to_f64()));
+            return lowest_c - taper_k.to_f64();
+        }
+        let start_c = limits_c
+            .iter()
+            .zip(self.bound.elements())
+            .fold(f64::INFINITY, |lo, (l, b)| {
+                lo.min(b.mean_limit_c(*l - taper_k, nominal_c).to_f64())
+            });
+        start_c - 1e-3
+    }
+
+    /// This observer with every coil's protective upper bound (what the
+    /// limiter, the alarm and the time to limit act on; see
+    /// [`crate::protect::margin`]) given the model-uncertainty margin
+    /// `margin`, taken on each coil's rise above the colder of the coolant
+    /// and the ambient. [`Self::new`] sets [`DEFAULT_MARGIN`];
+    /// [`UncertaintyMargin::ZERO`] makes the protection act on the estimate
+    /// itself (as before the margin existed, to the bit).
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] naming a fraction or offset that is
+    /// not finite or is negative.
+    pub fn with_margin(self, margin: UncertaintyMargin) -> Result<Self, BuildError> {
+        Ok(self.with_upper_bound(UpperBoundBuilder::new(margin).build()?))
+    }
+
+    /// This observer with a bound per coil (index `row * COLS + col`), e.g.
+    /// no margin on a coil that carries a sensor; see [`Self::with_margin`].
+    pub fn with_upper_bound(mut self, bound: UpperBound<S, N>) -> Self {
+        self.bound_is_zero = bound.is_zero();
+        self.bound = bound;
+        self.restart_c = self.restart_temp();
+        self
+    }
+
+    /// Each coil's protective upper bound.
+    pub fn upper_bound(&self) -> &UpperBound<S, N> {
+        &self.bound
     }
 
     /// This observer with the protection pass cut as `plan` says (the
@@ -506,6 +605,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let mut state = GridObserverState {
             outputs: GridOutputs {
                 temps_c: grid.temps_c,
+                upper_c: grid.temps_c,
                 limits: [CoilLimit::default(); N],
                 time_to_limit_s: [None; N],
                 alarm: AlarmStatus::default(),
@@ -528,6 +628,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 own_inflow_w: [0.0; N],
                 bound_c: 0.0,
                 alarm: AlarmStatus::default(),
+                upper_c: [S::ZERO; N],
             },
         };
         self.protect(&mut state, false);
@@ -623,6 +724,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         alarm: bool,
     ) {
         let ambient_c = state.grid.held_ambient_c;
+        // The rise the margin scales is taken above the colder boundary.
+        let reference_c = Scalar::min(state.grid.held_coolant_c, ambient_c);
         let out = &mut state.outputs;
         let pass = &mut state.pass;
         let coils = part_of(N, part, parts);
@@ -638,13 +741,24 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 // they describe; the next stages use them as they are (ms).
             }
             Step::TimeToLimit => {
-                self.ttl_coils(&state.grid, pass, &mut out.time_to_limit_s, coils);
+                self.ttl_coils(
+                    &state.grid,
+                    pass,
+                    reference_c,
+                    &mut out.time_to_limit_s,
+                    coils,
+                );
             }
             Step::Alarm => {
                 if let (true, Ok(temps)) = (
                     alarm,
                     <&[S; N]>::try_from(state.grid.temps_c.as_flattened()),
                 ) {
+                    let temps = if self.bound_is_zero {
+                        temps
+                    } else {
+                        &pass.upper_c
+                    };
                     let status = state.alarm.tick_part(
                         &self.alarm,
                         temps,
@@ -665,6 +779,11 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             }
             Step::Limiter => {
                 if let Ok(temps) = <&[S; N]>::try_from(state.grid.temps_c.as_flattened()) {
+                    let temps = if self.bound_is_zero {
+                        temps
+                    } else {
+                        &pass.upper_c
+                    };
                     self.limiter.apply_part(
                         temps,
                         &pass.limits_c,
@@ -675,6 +794,14 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 }
                 if last {
                     out.temps_c = state.grid.temps_c;
+                    if self.bound_is_zero {
+                        out.upper_c = state.grid.temps_c;
+                    } else {
+                        let published = out.upper_c.as_flattened_mut().iter_mut();
+                        for (out, upper) in published.zip(&pass.upper_c) {
+                            *out = *upper;
+                        }
+                    }
                     out.hottest = state.grid.hottest();
                 }
             }
@@ -732,32 +859,54 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
 
     /// Second pass of the bound for the coils in `coils` (row-major): each
     /// coil's crossing time with every neighbour at `U`, from the heat
-    /// inputs of the first pass.
+    /// inputs of the first pass. The crossing is the mean's of the coil's
+    /// mean limit (where its upper bound reaches the alarm limit; see
+    /// [`crate::protect::margin`]), the powers stay at the resistance of the
+    /// alarm limit itself (higher, so the bound holds). With a margin, also
+    /// each coil's protective upper bound, for the alarm and the limiter of
+    /// the pass (the bound's constants are loaded here anyway).
     fn ttl_coils(
         &self,
         grid: &GridState<S, ROWS, COLS>,
-        pass: &ProtectPass<S, N>,
+        pass: &mut ProtectPass<S, N>,
+        reference_c: S,
         out: &mut [Option<S>; N],
         range: core::ops::Range<usize>,
     ) {
         let t = &self.ttl;
         let bound_c = pass.bound_c;
-        let (Some(temps), Some(constants), Some(limits), Some(own_inflow_w), Some(out)) = (
+        let with_upper = !self.bound_is_zero;
+        let (
+            Some(temps),
+            Some(constants),
+            Some(limits),
+            Some(bounds),
+            Some(own_inflow_w),
+            Some(upper_c),
+            Some(out),
+        ) = (
             grid.temps_c.as_flattened().get(range.clone()),
             t.coils.as_flattened().get(range.clone()),
             pass.limits_c.get(range.clone()),
+            self.bound.elements().get(range.clone()),
             pass.own_inflow_w.get(range.clone()),
+            pass.upper_c.get_mut(range.clone()),
             out.get_mut(range),
-        ) else {
+        )
+        else {
             return;
         };
         let coils = temps
             .iter()
             .zip(constants)
-            .zip(limits)
-            .zip(own_inflow_w)
+            .zip(limits.iter().zip(bounds))
+            .zip(own_inflow_w.iter().zip(upper_c.iter_mut()))
             .zip(out.iter_mut());
-        for ((((temp, coil), limit), own_inflow_w), out) in coils {
+        for ((((temp, coil), (limit, bound)), (own_inflow_w, upper_c)), out) in coils {
+            if with_upper {
+                *upper_c = bound.upper_c(*temp, reference_c);
+            }
+            let limit = bound.mean_limit_c(*limit, reference_c);
             let (temp, limit) = (temp.to_f32(), limit.to_f32());
             let steady = (own_inflow_w + coil.neighbour_g * bound_c) * coil.total_r;
             // A NaN anywhere reads "no time left", the conservative answer:
@@ -833,10 +982,12 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         Ok(state)
     }
 
-    /// The documented start when no snapshot can be trusted: every coil at
-    /// the start of the limiter's taper band (the lowest alarm limit at
-    /// 20 degC ambient minus `taper_k`), or at `ambient_c` \[degC\] if that
-    /// is hotter; coolant and ambient at `ambient_c`. No latched shutdown.
+    /// The documented start when no snapshot can be trusted: every coil
+    /// where its upper bound is at the start of the limiter's taper band
+    /// (the lowest alarm limit at 20 degC ambient minus `taper_k`; the
+    /// estimate itself there with no margin), or at `ambient_c` \[degC\] if
+    /// that is hotter; coolant and ambient at `ambient_c`. No latched
+    /// shutdown.
     pub fn conservative_state(&self, ambient_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
         let mut grid = GridState::uniform(ambient_c);
         let hot = S::from_f64(self.restart_c.max(ambient_c));

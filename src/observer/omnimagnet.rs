@@ -101,6 +101,31 @@
 //! Solenoid `m` is limited by whichever of its wire (node `7 + 2m`) or cover
 //! insulation (node `8 + 2m`) has less headroom to its alarm limit; the
 //! limiter sees that headroom below the cover's limit.
+//!
+//! # Acting on an upper bound
+//!
+//! The alarm, the limiter and the time to limit act on each node's
+//! protective upper bound (see [`crate::protect::margin`]), published next
+//! to the mean as [`OmniOutputs::upper_c`]:
+//!
+//! * `k sigma` on every node, `sigma` the node's standard deviation in the
+//!   steady-state prior (just before a correction, the largest of the
+//!   cycle), computed once at build time: with the steady-state gain it is
+//!   constant. [`OmniSettings::k_sigma`], default 3;
+//! * the model-uncertainty margin on every node no thermocouple in use
+//!   measures ([`OmniSettings::unmeasured_margin`], default
+//!   [`UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT`], 5 % of the
+//!   rise above the ambient), because the covariance reports the noise the
+//!   filter was told about, not the model's parameter error (NEES about
+//!   8 800 at +-20 %). Every alarm node is unmeasured: the covers carry the
+//!   critical 120 degC and no thermocouple.
+//!
+//! The predictor runs on the mean, towards each node's mean limit (where
+//! its bound reaches the alarm limit). The bound is taken in the alarm and
+//! limiter stages of each cycle (16 nodes' comparison, multiply and
+//! additions, twice per cycle, not per tick); with `k_sigma` 0 and
+//! [`UncertaintyMargin::ZERO`] the protection acts on the mean, to the
+//! bit.
 
 use nalgebra::SVector;
 
@@ -121,6 +146,7 @@ use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use crate::sensors::{SensorFault, SensorResult};
 
@@ -163,6 +189,19 @@ pub struct OmniSettings {
     /// slice and three stages), so it always ends before the next is due
     /// and the predictor's lag stays bounded. Default 16.
     pub protect_period_steps: u32,
+    /// How many steady-state standard deviations of the filter are added
+    /// to every element's estimate in its protective upper bound
+    /// (dimensionless, finite, `>= 0`; see [`crate::protect::margin`]).
+    /// Default 3 (a Gaussian error exceeds it 0.13 % of the time).
+    pub k_sigma: f64,
+    /// The model-uncertainty margin of the elements without a
+    /// thermocouple, on their rise above the ambient (the filter's
+    /// covariance does not describe parameter error; see
+    /// [`crate::protect::margin`]). Default
+    /// [`UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT`]. With `k_sigma`
+    /// 0 and [`UncertaintyMargin::ZERO`] the protection acts on the
+    /// estimate itself.
+    pub unmeasured_margin: UncertaintyMargin,
 }
 
 impl Default for OmniSettings {
@@ -179,6 +218,8 @@ impl Default for OmniSettings {
             hardware_limit_a: 8.0,
             taper_k: 10.0,
             protect_period_steps: 16,
+            k_sigma: 3.0,
+            unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
         }
     }
 }
@@ -238,13 +279,20 @@ pub struct OmniInputs {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OmniOutputs {
-    /// Node temperature estimates \[degC\] (see
+    /// Node temperature estimates \[degC\]: the filter's mean (see
     /// [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES)).
     pub temps_c: [f32; NODES],
+    /// Each node's protective upper bound \[degC\], what the limiter and
+    /// the alarm act on: the estimate plus `k_sigma` steady-state standard
+    /// deviations and, on the unmeasured nodes, the model-uncertainty
+    /// margin (see [`OmniSettings`]). Taken with the protection cycle (by
+    /// its alarm and limiter stages), so it lags `temps_c` by up to a
+    /// cycle, as the limits do.
+    pub upper_c: [f32; NODES],
     /// Current limit per solenoid.
     pub limits: [CoilLimit<f32>; SOLENOIDS],
-    /// Time to the alarm limit of each [`ALARM_NODES`] element \[s\]
-    /// (`None`: never).
+    /// Time until the upper bound of each [`ALARM_NODES`] element reaches
+    /// its alarm limit \[s\] (`None`: never).
     pub time_to_limit_s: [Option<f32>; ALARM_NODES.len()],
     /// The alarm summary.
     pub alarm: AlarmStatus,
@@ -271,6 +319,8 @@ pub struct OmniObserver {
     alarm: AlarmConfig<f32, 6>,
     limiter: LimiterConfig<f32, SOLENOIDS>,
     predictor: LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>,
+    /// Each node's protective upper bound, on its rise above the ambient.
+    bound: UpperBound<f32, NODES>,
     clock: StepClock,
     limits: ScalarLimits<f32>,
     max_reading_age_us: u32,
@@ -371,12 +421,14 @@ impl OmniObserver {
             0.0,
         )?;
         let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
+        let bound = Self::build_bound(&filter, settings)?;
         let fingerprint = Self::fingerprint_of(&filter, settings);
         Ok(Self {
             filter,
             alarm,
             limiter,
             predictor,
+            bound,
             clock,
             limits: InputLimits::default().to_scalar(),
             max_reading_age_us: settings.max_reading_age_us,
@@ -410,6 +462,36 @@ impl OmniObserver {
     ) -> Result<ObserverConfig<f32>, BuildError> {
         let lin = model.linearize(op_temps_c, ambient_c, dt_s)?;
         ObserverConfig::new(model, &lin, settings)
+    }
+
+    /// The protective upper bound: `k_sigma` times each node's standard
+    /// deviation in the steady-state prior (just before a correction, the
+    /// largest of the cycle; constant with the steady gain), and the
+    /// unmeasured margin on every node no thermocouple in use measures.
+    #[inline(never)]
+    fn build_bound(
+        filter: &ObserverConfig<f32>,
+        settings: &OmniSettings,
+    ) -> Result<UpperBound<f32, NODES>, BuildError> {
+        let prior = filter.gain().prior();
+        let sigma_k: [f64; NODES] =
+            core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
+        let mut margins = [settings.unmeasured_margin; NODES];
+        let used = filter.settings().sensors.iter();
+        for (node, used) in THERMOCOUPLE_NODES.iter().zip(used) {
+            if let (true, Some(margin)) = (*used, margins.get_mut(*node)) {
+                *margin = UncertaintyMargin::ZERO;
+            }
+        }
+        UpperBoundBuilder::per_element(margins)
+            .sigma(settings.k_sigma, sigma_k)
+            .build()
+    }
+
+    /// Each node's protective upper bound (see [`OmniSettings::k_sigma`]
+    /// and [`OmniSettings::unmeasured_margin`]).
+    pub fn upper_bound(&self) -> &UpperBound<f32, NODES> {
+        &self.bound
     }
 
     /// What a snapshot must have been made with: the filter's matrices and
@@ -478,6 +560,7 @@ impl OmniObserver {
             slice_put_off: false,
             outputs: OmniOutputs {
                 temps_c: *temps_c,
+                upper_c: *temps_c,
                 limits: [CoilLimit::default(); SOLENOIDS],
                 time_to_limit_s: [None; ALARM_NODES.len()],
                 alarm: AlarmStatus::default(),
@@ -561,8 +644,12 @@ impl OmniObserver {
         let alarm_limits = self.alarm.alarm_limits_c(ambient_c);
         let mut limits_c = [NO_LIMIT_C; NODES];
         for (node, limit) in ALARM_NODES.iter().zip(alarm_limits) {
-            if let Some(slot) = limits_c.get_mut(*node) {
-                *slot = limit;
+            // The predictor follows the mean: it is asked when the mean
+            // reaches the temperature at which the upper bound reaches the
+            // limit.
+            if let (Some(slot), Some(bound)) = (limits_c.get_mut(*node), self.bound.element(*node))
+            {
+                *slot = bound.mean_limit_c(limit, ambient_c);
             }
         }
         Operating {
@@ -638,7 +725,9 @@ impl OmniObserver {
             2 => {
                 self.age_time_to_limit(state);
                 let out = &mut state.outputs;
-                let temps = alarm_temps(&out.temps_c);
+                self.bound
+                    .upper_c(&out.temps_c, state.held_ambient_c, &mut out.upper_c);
+                let temps = alarm_temps(&out.upper_c);
                 out.alarm = state.alarm.tick(
                     &self.alarm,
                     &temps,
@@ -681,9 +770,12 @@ impl OmniObserver {
         }
     }
 
-    /// The limiter on the three solenoids at the present estimate.
+    /// The limiter on the three solenoids at the upper bounds of the
+    /// present estimate (which it publishes).
     fn limit(&self, out: &mut OmniOutputs, ambient_c: f32) {
-        let temps = alarm_temps(&out.temps_c);
+        self.bound
+            .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
+        let temps = alarm_temps(&out.upper_c);
         let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let mut solenoid_c = [f32::NAN; SOLENOIDS];
         let mut solenoid_limit_c = [f32::NAN; SOLENOIDS];
