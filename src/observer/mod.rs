@@ -11,6 +11,10 @@
 //! * [`omnimagnet`]: the same for an Omnimagnet (the 19-state steady-state
 //!   Kalman observer fed by thermocouples, protection), with re-linearised
 //!   models made off the tick and installed between ticks;
+//! * both protect on an upper bound of each element's temperature, not on
+//!   the mean estimate: the estimate plus a model-uncertainty margin (and,
+//!   for the filtered Omnimagnet, `k sigma`), see
+//!   [`crate::protect::margin`]; the outputs carry both;
 //! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
 //!   the conservative start when a snapshot is refused.
 

@@ -495,7 +495,8 @@ impl OmniObserver {
     }
 
     /// What a snapshot must have been made with: the filter's matrices and
-    /// gain, and the protection settings.
+    /// gain, and the protection settings. Not `k_sigma` nor the margin: a
+    /// snapshot holds mean temperatures, which they do not change.
     #[inline(never)]
     fn fingerprint_of(filter: &ObserverConfig<f32>, settings: &OmniSettings) -> u32 {
         let kalman = filter.kalman();
