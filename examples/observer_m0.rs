@@ -10,11 +10,13 @@
 //!   -semihosting-config enable=on,target=native -kernel target/thumbv6m-none-eabi/firmware/examples/observer_m0
 //! ```
 //!
-//! Coil (1, 2) carries 4.1 A for 30 s, enough to enter the limiter's taper
-//! band. Checks (exit 1 on a mismatch): the Q32 temperatures agree with the
-//! same grid stepped in `f32` to 5 mK; the Q32 limits agree with the `f32`
-//! limiter applied to the `f32` temperatures to 0.02 A; the hot coil's limit
-//! is tapered and every other coil's is the full hardware limit. The cost
+//! Coil (1, 2) carries 3.3 A for 30 s, enough for its protective upper bound
+//! (the estimate plus the default model-uncertainty margin, 0.65 of the rise)
+//! to enter the limiter's taper band. Checks (exit 1 on a mismatch): the Q32
+//! temperatures agree with the same grid stepped in `f32` to 5 mK; the Q32
+//! limits agree with the `f32` limiter applied to the `f32` upper bound of the
+//! `f32` temperatures to 0.02 A; the hot coil's limit is tapered and every
+//! other coil's is the full hardware limit. The cost
 //! line is printed but not part of the expected output.
 #![no_std]
 #![no_main]
@@ -27,10 +29,12 @@ use exit::fail;
 mod cost;
 
 use coil_thermal::grid::GridConfig;
+use coil_thermal::observer::grid::DEFAULT_MARGIN;
 use coil_thermal::observer::{GridInputs, GridObserver, ProtectionPlan};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
+use coil_thermal::protect::margin::UpperBoundBuilder;
 use coil_thermal::{CoilGrid, GridState, Scalar, Q32};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
@@ -40,6 +44,8 @@ const COLS: usize = 4;
 const N: usize = ROWS * COLS;
 const TICKS: u32 = 30_000;
 const HOT: (usize, usize) = (1, 2);
+/// The hot coil's current \[A\].
+const HOT_A: f32 = 3.3;
 
 /// Without an FPU the `f32` time to limit (a division and a short `ln`
 /// series per coil, all in software) is the heaviest stage: four parts of
@@ -84,13 +90,16 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     let reference_limiter =
         LimiterConfig::<f32, N>::new([6.0; N], 10.0, 0.0).map_err(|_| "f32 limiter")?;
     let reference_alarm = alarm.build::<f32>().map_err(|_| "f32 alarm")?;
+    let reference_bound = UpperBoundBuilder::<N>::new(DEFAULT_MARGIN)
+        .build::<f32>()
+        .map_err(|_| "f32 bound")?;
 
     let mut state = observer.state(20.0);
     let mut ref_state = GridState::<f32, ROWS, COLS>::uniform(20.0);
     let mut currents = [[Q32::ZERO; COLS]; ROWS];
-    currents[HOT.0][HOT.1] = Q32::from_f64(4.1);
+    currents[HOT.0][HOT.1] = Q32::from_f32(HOT_A);
     let mut ref_currents = [[0.0f32; COLS]; ROWS];
-    ref_currents[HOT.0][HOT.1] = 4.1;
+    ref_currents[HOT.0][HOT.1] = HOT_A;
     let twenty = Q32::from_f64(20.0);
 
     let mut stats = cost::Stats::default();
@@ -127,8 +136,12 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     let Ok(ref_temps) = <&[f32; N]>::try_from(ref_state.temps_c.as_flattened()) else {
         return Err("flatten");
     };
+    // The grid observer's margin is taken above the colder of coolant and
+    // ambient, both 20 degC here.
+    let mut ref_upper = [0.0f32; N];
+    reference_bound.upper_c(ref_temps, 20.0, &mut ref_upper);
     reference_limiter.apply(
-        ref_temps,
+        &ref_upper,
         &reference_alarm.alarm_limits_c(20.0),
         20.0,
         &mut ref_limits,
@@ -146,7 +159,8 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         .enumerate()
         .all(|(i, l)| i == hot || l.current_a.to_f32() == 6.0);
     hprintln!(
-        "q32 grid after 30 s at 4.1 A: coil ({}, {}) at {} degC (f32 {} degC), max |q32 - f32| {} K",
+        "q32 grid after 30 s at {} A: coil ({}, {}) at {} degC (f32 {} degC), max |q32 - f32| {} K",
+        HOT_A,
         HOT.0,
         HOT.1,
         out.temps_c[HOT.0][HOT.1].to_f32(),
