@@ -117,7 +117,7 @@
 //!   [`UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT`], 5 % of the
 //!   rise above the ambient), because the covariance reports the noise the
 //!   filter was told about, not the model's parameter error (NEES about
-//!   8 800 at +-20 %). Every alarm node is unmeasured: the covers carry the
+//!   13 000 at +-20 %). Every alarm node is unmeasured: the covers carry the
 //!   critical 120 degC and no thermocouple.
 //!
 //! The predictor runs on the mean, towards each node's mean limit (where

@@ -10,7 +10,7 @@
 //! winding resistances are fitted or tabulated to about +-20 %, convection
 //! coefficients to worse. A Kalman filter does not help with that: its
 //! covariance describes the noise it was told about, not the parameter
-//! error (the Omnimagnet filter's NEES is about 8 800 for 16 states at
+//! error (the Omnimagnet filter's NEES is about 13 000 for 16 states at
 //! +-20 %; see the README). So the bound has two parts:
 //!
 //! ```text
