@@ -28,11 +28,12 @@
 //! `cargo test --release -p coil-thermal-host --test protect_closed_loop -- --nocapture`
 
 use coil_thermal::observer::omnimagnet::TimedReading;
+use coil_thermal::observer::omnimagnet::ALARM_NODES;
 use coil_thermal::observer::{
     GridInputs, GridObserver, OmniInputs, OmniObserver, OmniObserverState, OmniSettings,
 };
 use coil_thermal::omnimagnet::observer::ObserverSettings;
-use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
+use coil_thermal::omnimagnet::{Omnimagnet, CRITICAL_TEMPS_C, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::events::{EventKind, EventQueue};
@@ -280,14 +281,18 @@ const OMNI_LINEARISED_AT_C: f64 = 80.0;
 
 /// The watched Omnimagnet nodes: wire and cover insulation of each
 /// solenoid, and their critical temperatures \[degC\].
-const OMNI_WATCHED: [(usize, f64); 6] = [
-    (7, 240.0),
-    (8, 120.0),
-    (9, 240.0),
-    (10, 120.0),
-    (11, 240.0),
-    (12, 120.0),
-];
+const OMNI_WATCHED: [(usize, f64); 6] = {
+    let mut watched = [(0, 0.0); 6];
+    let mut k = 0;
+    while k < watched.len() {
+        let node = ALARM_NODES[k];
+        if let Some(critical_c) = CRITICAL_TEMPS_C[node] {
+            watched[k] = (node, critical_c);
+        }
+        k += 1;
+    }
+    watched
+};
 
 fn omni_readings(plant_c: &[f64], now_us: u32) -> [Option<TimedReading>; 6] {
     THERMOCOUPLE_NODES.map(|node| {

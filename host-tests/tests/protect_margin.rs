@@ -47,12 +47,13 @@ use std::f64::consts::PI;
 use coil_thermal::grid::{Link, Stencil};
 use coil_thermal::observer::grid::DEFAULT_MARGIN;
 use coil_thermal::observer::omnimagnet::TimedReading;
+use coil_thermal::observer::omnimagnet::ALARM_NODES;
 use coil_thermal::observer::{GridInputs, GridObserver};
 use coil_thermal::observer::{OmniInputs, OmniObserver, OmniSettings};
 use coil_thermal::omnimagnet::observer::ObserverSettings;
 use coil_thermal::omnimagnet::{
-    Contact, ConvectionParams, Omnimagnet, Peer, Radiator, NODES, PAPER_OMNIMAGNET,
-    THERMOCOUPLE_NODES,
+    Contact, ConvectionParams, Omnimagnet, Peer, Radiator, CRITICAL_TEMPS_C, NODES,
+    PAPER_OMNIMAGNET, THERMOCOUPLE_NODES,
 };
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
@@ -61,6 +62,7 @@ use coil_thermal::protect::margin::UncertaintyMargin;
 use coil_thermal::{GridConfig, GridParams, Reading};
 use coil_thermal_host::devices::OmnimagnetPlant;
 use coil_thermal_host::sim::Plant;
+use coil_thermal_host::synth::Rng;
 
 /// Ambient and coolant \[degC\].
 const AMBIENT_C: f64 = 20.0;
@@ -69,36 +71,18 @@ const DELTA: f64 = 0.2;
 /// Random plants per device, besides the corners.
 const RANDOM_PLANTS: usize = 92;
 
-/// splitmix64: a fixed-seed generator, no dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in (0, 1).
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    /// A factor in `[1 - DELTA, 1 + DELTA]`: uniform, or at one of the two
-    /// ends (`vertex`).
-    fn factor(&mut self, vertex: bool) -> f64 {
-        let u = self.uniform();
-        if vertex {
-            if u < 0.5 {
-                1.0 - DELTA
-            } else {
-                1.0 + DELTA
-            }
+/// A factor in `[1 - DELTA, 1 + DELTA]` from the host crate's seeded
+/// generator: uniform, or at one of the two ends (`vertex`).
+fn factor(rng: &mut Rng, vertex: bool) -> f64 {
+    let u = rng.uniform();
+    if vertex {
+        if u < 0.5 {
+            1.0 - DELTA
         } else {
-            1.0 + DELTA * (2.0 * u - 1.0)
+            1.0 + DELTA
         }
+    } else {
+        1.0 + DELTA * (2.0 * u - 1.0)
     }
 }
 
@@ -165,7 +149,7 @@ impl Factors {
         };
         Self {
             draw,
-            rng: Rng(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x005e_ed15),
+            rng: Rng::new(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x005e_ed15),
         }
     }
 
@@ -177,8 +161,8 @@ impl Factors {
                 boundary,
                 resistance,
             } => [capacity, links, boundary, resistance][kind],
-            Draw::Uniform(_) => self.rng.factor(false),
-            Draw::Vertex(_) => self.rng.factor(true),
+            Draw::Uniform(_) => factor(&mut self.rng, false),
+            Draw::Vertex(_) => factor(&mut self.rng, true),
         }
     }
 }
@@ -553,14 +537,18 @@ const OMNI_DEMAND_A: f64 = 5.0;
 const OMNI_LINEARISED_AT_C: f64 = 80.0;
 /// Watched nodes: wire and cover insulation of each solenoid, and their
 /// critical temperatures \[degC\].
-const OMNI_WATCHED: [(usize, f64); 6] = [
-    (7, 240.0),
-    (8, 120.0),
-    (9, 240.0),
-    (10, 120.0),
-    (11, 240.0),
-    (12, 120.0),
-];
+const OMNI_WATCHED: [(usize, f64); 6] = {
+    let mut watched = [(0, 0.0); 6];
+    let mut k = 0;
+    while k < watched.len() {
+        let node = ALARM_NODES[k];
+        if let Some(critical_c) = CRITICAL_TEMPS_C[node] {
+            watched[k] = (node, critical_c);
+        }
+        k += 1;
+    }
+    watched
+};
 
 /// The paper's Omnimagnet with its parameters scaled as `draw` says
 /// (kinds: 0 each element's capacity through its volume; 1 each conductive
