@@ -98,17 +98,21 @@
 //! and refuses anything else; [`GridObserver::conservative_state`] is the
 //! documented start after a refusal: the grid has no sensors, so every coil
 //! starts where its upper bound is at the start of its limiter's taper band
-//! (alarm limit at the nominal ambient minus `taper_k`). The full current is
-//! still allowed there,
-//! but no coil has more headroom than the taper, and the model cools the coils
-//! at the modelled rate until it knows better.
+//! (alarm limit at the nominal ambient minus `taper_k`), and the shutdown
+//! starts latched. A restored latch, and the conservative state's, shows in
+//! the state's outputs at once (`outputs().alarm.shutdown`), before the
+//! first tick, and survives every tick: only the deliberate
+//! [`GridObserver::clear_shutdown`], which the application calls after
+//! inspecting the device, clears it. Once cleared, no coil has more
+//! headroom than the taper, and the model cools the coils at the modelled
+//! rate until it knows better.
 
 use super::clock::{ClockState, StepClock};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
-use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus};
+use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
@@ -986,13 +990,43 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// where its upper bound is at the start of the limiter's taper band
     /// (the lowest alarm limit at 20 degC ambient minus `taper_k`; the
     /// estimate itself there with no margin), or at `ambient_c` \[degC\] if
-    /// that is hotter; coolant and ambient at `ambient_c`. No latched
-    /// shutdown.
+    /// that is hotter; coolant and ambient at `ambient_c`. The shutdown is
+    /// *latched* (and `outputs().alarm.shutdown` is `true` from the start):
+    /// a refused snapshot may have been the record of a latched shutdown,
+    /// and the coils may be hotter than assumed, so the current stays cut
+    /// until the application has inspected the device and calls
+    /// [`Self::clear_shutdown`].
     pub fn conservative_state(&self, ambient_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
         let mut grid = GridState::uniform(ambient_c);
         let hot = S::from_f64(self.restart_c.max(ambient_c));
         grid.temps_c = [[hot; COLS]; ROWS];
-        self.state_from(grid)
+        let mut state = self.state_from(grid);
+        state.alarm.latch_shutdown();
+        state.outputs.alarm.shutdown = true;
+        state
+    }
+
+    /// The deliberate clear of a latched shutdown (one restored from a
+    /// snapshot, set by [`Self::conservative_state`], or raised by the
+    /// alarm), for the application to call after inspecting the device.
+    /// Nothing else clears it: not a tick, not a reset of the MCU (the
+    /// latch is saved in the snapshot). It is [`AlarmState::reset`] under
+    /// its conditions: every coil's upper bound valid and below its alarm
+    /// limit minus the hysteresis for the alarm's `debounce_ticks`
+    /// protection passes (so a state must have ticked that long). On
+    /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
+    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// Not for the tick: call it between two ticks.
+    ///
+    /// # Errors
+    /// Why not, naming the first coil that blocks it; nothing changes then.
+    pub fn clear_shutdown(
+        &self,
+        state: &mut GridObserverState<S, ROWS, COLS, N>,
+    ) -> Result<(), ResetError> {
+        state.alarm.reset(&self.alarm, &mut state.events)?;
+        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
+        Ok(())
     }
 
     /// The temperature [`Self::conservative_state`] assumes \[degC\].

@@ -82,6 +82,19 @@
 //! from the published times to limit, so they stay never later than the
 //! model's.
 //!
+//! # Warm restart and the latch
+//!
+//! [`OmniObserver::save`] writes the node estimates and the latched
+//! shutdown; [`OmniObserver::restore`] checks them against this
+//! configuration and refuses anything else, and
+//! [`OmniObserver::conservative_state`] is the start after a refusal (the
+//! thermocouples' readings, every other node no cooler than the hottest).
+//! A restored latch shows in the state's outputs at once
+//! (`outputs().alarm.shutdown`, before the first tick), and the
+//! conservative state starts latched: a refused snapshot may have held a
+//! latch. Only the deliberate [`OmniObserver::clear_shutdown`], called by
+//! the application after inspecting the device, clears it.
+//!
 //! # Readings
 //!
 //! Each thermocouple reading arrives on its own, as a [`TimedReading`]: the
@@ -142,7 +155,7 @@ use crate::omnimagnet::{
     Linearization, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS, THERMOCOUPLES,
     THERMOCOUPLE_NODES, WIRE_INSULATION_LIMIT_C,
 };
-use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
+use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
@@ -904,6 +917,7 @@ impl OmniObserver {
         let mut state = self.state(&temps_c, ambient_c);
         if meta.shutdown_latched {
             state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
         }
         Ok(state)
     }
@@ -911,7 +925,11 @@ impl OmniObserver {
     /// The documented start when no snapshot can be trusted
     /// ([`snapshot::conservative_start`]): measured nodes at their readings
     /// \[degC\], every other node no cooler than the hottest reading or the
-    /// ambient `ambient_c` \[degC\].
+    /// ambient `ambient_c` \[degC\]. The shutdown is *latched* (and
+    /// `outputs().alarm.shutdown` is `true` from the start): the refused
+    /// snapshot may have recorded a latched shutdown, and the unmeasured
+    /// windings may be hotter than any thermocouple, so the current stays
+    /// cut until the application calls [`Self::clear_shutdown`].
     pub fn conservative_state(
         &self,
         readings_c: &[Option<f32>; THERMOCOUPLES],
@@ -922,7 +940,30 @@ impl OmniObserver {
             &THERMOCOUPLE_NODES,
             ambient_c,
         );
-        self.state(&temps, ambient_c)
+        let mut state = self.state(&temps, ambient_c);
+        state.alarm.latch_shutdown();
+        state.outputs.alarm.shutdown = true;
+        state
+    }
+
+    /// The deliberate clear of a latched shutdown (restored from a
+    /// snapshot, set by [`Self::conservative_state`], or raised by the
+    /// alarm), for the application to call after inspecting the device;
+    /// nothing else clears it (see [`GridObserver::clear_shutdown`](super::GridObserver::clear_shutdown)).
+    /// It is [`AlarmState::reset`] under its conditions: every alarm
+    /// element's upper bound valid and below its alarm limit minus the
+    /// hysteresis for the alarm's `debounce_ticks` protection cycles. On
+    /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
+    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// Not for the tick: call it between two ticks.
+    ///
+    /// # Errors
+    /// Why not, naming the first element that blocks it; nothing changes
+    /// then.
+    pub fn clear_shutdown(&self, state: &mut OmniObserverState) -> Result<(), ResetError> {
+        state.alarm.reset(&self.alarm, &mut state.events)?;
+        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
+        Ok(())
     }
 }
 
