@@ -7,13 +7,15 @@ use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::{
     GridInputs, GridObserver, GridObserverState, OmniInputs, OmniObserver, OmniSettings,
+    SnapshotError,
 };
 use coil_thermal::omnimagnet::observer::{ObserverSettings, OmnimagnetObserver};
 use coil_thermal::omnimagnet::{Omnimagnet, NODES};
 use coil_thermal::protect::alarm::{AlarmBuilder, ResetError};
-use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
+use coil_thermal::protect::derating::{DeratingFactor, DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::events::EventKind;
 use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::protect::margin::UncertaintyMargin;
 use coil_thermal::{GridParams, InputFlags};
 
 type Grid = GridObserver<f32, 7, 12, 84>;
@@ -272,4 +274,139 @@ fn omni_tick_without_a_step_validates_and_holds_its_inputs() {
     );
     assert_eq!(out.steps, 0);
     assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+}
+
+fn grid_built(
+    critical_c: [f64; 84],
+    rule: &DeratingRule,
+    hardware_a: f64,
+    taper_k: f64,
+    margin: UncertaintyMargin,
+) -> Grid {
+    let alarm = AlarmBuilder::new(rule, critical_c).build().unwrap();
+    let limiter = LimiterConfig::new([hardware_a; 84], taper_k, 0.0).unwrap();
+    let config = GridConfig {
+        ticks_per_update: 10,
+        ..GridConfig::hppa(GridParams::FDM_FITTED)
+    };
+    Grid::new(&config, alarm, limiter, 4)
+        .unwrap()
+        .with_margin(margin)
+        .unwrap()
+}
+
+/// The grid's fingerprint covers the protection: a snapshot written under
+/// another critical temperature, derating, limiter or margin is refused
+/// (it was accepted: the fingerprint covered the model only).
+#[test]
+fn grid_snapshot_from_another_protection_is_refused() {
+    let rule = DeratingRule::hppa();
+    let margin = UncertaintyMargin::GRID_20_PERCENT;
+    let writer = grid_built([HPPA_CRITICAL_C; 84], &rule, 3.0, 10.0, margin);
+    let mut buf = [0u8; snapshot_len(84)];
+    writer.save(&writer.state(30.0), 100, &mut buf).unwrap();
+    let same = grid_built([HPPA_CRITICAL_C; 84], &rule, 3.0, 10.0, margin);
+    assert!(
+        same.restore(&buf, 110, 600, 20.0).is_ok(),
+        "same configuration"
+    );
+    let mut one_coil = [HPPA_CRITICAL_C; 84];
+    one_coil[40] -= 10.0;
+    let derated = DeratingRule::new(&[DeratingFactor::new("test", 0.9)]).unwrap();
+    let others = [
+        (
+            "a critical temperature",
+            grid_built(one_coil, &rule, 3.0, 10.0, margin),
+        ),
+        (
+            "the derating",
+            grid_built([HPPA_CRITICAL_C; 84], &derated, 3.0, 10.0, margin),
+        ),
+        (
+            "the hardware limit",
+            grid_built([HPPA_CRITICAL_C; 84], &rule, 2.5, 10.0, margin),
+        ),
+        (
+            "the taper",
+            grid_built([HPPA_CRITICAL_C; 84], &rule, 3.0, 8.0, margin),
+        ),
+        (
+            "the margin",
+            grid_built(
+                [HPPA_CRITICAL_C; 84],
+                &rule,
+                3.0,
+                10.0,
+                UncertaintyMargin::ZERO,
+            ),
+        ),
+    ];
+    for (what, other) in others {
+        assert_eq!(
+            other.restore(&buf, 110, 600, 20.0).err(),
+            Some(SnapshotError::ConfigMismatch),
+            "{what}"
+        );
+    }
+}
+
+/// The Omnimagnet's fingerprint covers `k_sigma`, the margin and the
+/// limiter as well as the filter.
+#[test]
+fn omni_snapshot_from_another_protection_is_refused() {
+    let writer = omni();
+    let mut buf = [0u8; snapshot_len(NODES)];
+    writer
+        .save(&writer.state(&[30.0; NODES], 22.0), 100, &mut buf)
+        .unwrap();
+    assert!(omni().restore(&buf, 110, 600, 22.0).is_ok());
+    let build = |settings: OmniSettings| {
+        OmniObserver::new(&Omnimagnet::PAPER, &[22.0; NODES], 22.0, &settings).unwrap()
+    };
+    let others = [
+        (
+            "k_sigma",
+            OmniSettings {
+                k_sigma: 2.0,
+                ..OmniSettings::default()
+            },
+        ),
+        (
+            "the margin",
+            OmniSettings {
+                unmeasured_margin: UncertaintyMargin::ZERO,
+                ..OmniSettings::default()
+            },
+        ),
+        (
+            "the hardware limit",
+            OmniSettings {
+                hardware_limit_a: 6.0,
+                ..OmniSettings::default()
+            },
+        ),
+    ];
+    for (what, settings) in others {
+        assert_eq!(
+            build(settings).restore(&buf, 110, 600, 22.0).err(),
+            Some(SnapshotError::ConfigMismatch),
+            "{what}"
+        );
+    }
+}
+
+/// Nonzero reserved bytes refuse a snapshot through the observers too.
+#[test]
+fn observer_snapshot_with_reserved_bytes_set_is_refused() {
+    let grid = grid();
+    let mut buf = [0u8; snapshot_len(84)];
+    grid.save(&grid.state(30.0), 100, &mut buf).unwrap();
+    buf[18] = 0x5A;
+    let crc = coil_thermal::observer::snapshot::crc32(&buf[..buf.len() - 4]);
+    let at = buf.len() - 4;
+    buf[at..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        grid.restore(&buf, 110, 600, 20.0).err(),
+        Some(SnapshotError::ReservedNotZero { offset: 18 })
+    );
 }

@@ -95,7 +95,8 @@
 //! [`GridObserver::save`] writes the coil temperatures and the latched
 //! shutdown with [`snapshot::save`]; [`GridObserver::restore`] checks them
 //! against this configuration's [`fingerprint`](GridObserver::fingerprint)
-//! and refuses anything else; [`GridObserver::conservative_state`] is the
+//! (the model *and* the protection: alarm, derating, limiter, margin) and
+//! refuses anything else; [`GridObserver::conservative_state`] is the
 //! documented start after a refusal: the grid has no sensors, so every coil
 //! starts where its upper bound is at the start of its limiter's taper band
 //! (alarm limit at the nominal ambient minus `taper_k`), and the shutdown
@@ -226,6 +227,9 @@ pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize>
     /// `bound` is zero: the protection reads the temperatures themselves.
     bound_is_zero: bool,
     restart_c: f64,
+    /// The fingerprint of the model alone; [`Self::fingerprint`] adds the
+    /// protection to it.
+    model_fingerprint: Fingerprint,
     fingerprint: u32,
 }
 
@@ -490,10 +494,22 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             bound_is_zero: bound.is_zero(),
             bound,
             restart_c: 0.0,
-            fingerprint: fingerprint.finish(),
+            model_fingerprint: fingerprint,
+            fingerprint: 0,
         };
         observer.restart_c = observer.restart_temp();
+        observer.fingerprint = observer.protected_fingerprint();
         Ok(observer)
+    }
+
+    /// The model's fingerprint with the protection added: the alarm
+    /// (critical temperatures, derating, margins, debounce, horizons), the
+    /// limiter (hardware limits, taper, floor) and every coil's upper
+    /// bound (the model-uncertainty margin).
+    fn protected_fingerprint(&self) -> u32 {
+        let fp = self.alarm.fingerprint(self.model_fingerprint);
+        let fp = self.limiter.fingerprint(fp);
+        self.bound.fingerprint(fp).finish()
     }
 
     /// The mean temperature of [`Self::conservative_state`] \[degC\]: the
@@ -542,6 +558,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         self.bound_is_zero = bound.is_zero();
         self.bound = bound;
         self.restart_c = self.restart_temp();
+        self.fingerprint = self.protected_fingerprint();
         self
     }
 
@@ -593,7 +610,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         &self.clock
     }
 
-    /// The configuration fingerprint that snapshots carry.
+    /// The configuration fingerprint that snapshots carry: the model
+    /// (size, capacity, conductances, resistance, step, update interval,
+    /// border) and the protection (the alarm's critical temperatures,
+    /// derating, margins and debounce; the limiter's hardware limits, taper
+    /// and floor; every coil's model-uncertainty margin). A snapshot taken
+    /// under another protection is refused: its latch and temperatures were
+    /// judged against other limits.
     pub fn fingerprint(&self) -> u32 {
         self.fingerprint
     }

@@ -86,7 +86,8 @@
 //!
 //! [`OmniObserver::save`] writes the node estimates and the latched
 //! shutdown; [`OmniObserver::restore`] checks them against this
-//! configuration and refuses anything else, and
+//! configuration's fingerprint (the filter *and* the protection: alarm,
+//! derating, limiter, `k_sigma`, margin) and refuses anything else, and
 //! [`OmniObserver::conservative_state`] is the start after a refusal (the
 //! thermocouples' readings, every other node no cooler than the hottest).
 //! A restored latch shows in the state's outputs at once
@@ -435,7 +436,7 @@ impl OmniObserver {
         )?;
         let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
         let bound = Self::build_bound(&filter, settings)?;
-        let fingerprint = Self::fingerprint_of(&filter, settings);
+        let fingerprint = Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound);
         Ok(Self {
             filter,
             alarm,
@@ -508,10 +509,20 @@ impl OmniObserver {
     }
 
     /// What a snapshot must have been made with: the filter's matrices and
-    /// gain, and the protection settings. Not `k_sigma` nor the margin: a
-    /// snapshot holds mean temperatures, which they do not change.
+    /// gain, and the whole protection: the protection period, the alarm
+    /// (critical temperatures, derating, margins, debounce), the limiter
+    /// (hardware limit, taper, floor) and every node's upper bound
+    /// (`k_sigma` and the model-uncertainty margin). The mean temperatures
+    /// a snapshot holds do not depend on the protection, but its latch was
+    /// judged against it: a snapshot from another protection is refused.
     #[inline(never)]
-    fn fingerprint_of(filter: &ObserverConfig<f32>, settings: &OmniSettings) -> u32 {
+    fn fingerprint_of(
+        filter: &ObserverConfig<f32>,
+        settings: &OmniSettings,
+        alarm: &AlarmConfig<f32, 6>,
+        limiter: &LimiterConfig<f32, SOLENOIDS>,
+        bound: &UpperBound<f32, NODES>,
+    ) -> u32 {
         let kalman = filter.kalman();
         let widen = |m: &[f32], f: Fingerprint| m.iter().fold(f, |f, v| f.f64(f64::from(*v)));
         let mut fingerprint = Fingerprint::new()
@@ -522,10 +533,12 @@ impl OmniObserver {
         fingerprint = widen(kalman.q().as_slice(), fingerprint);
         fingerprint = widen(kalman.r().as_slice(), fingerprint);
         fingerprint = widen(filter.gain().gain().as_slice(), fingerprint);
-        fingerprint
+        fingerprint = fingerprint
             .f64s(&[settings.hardware_limit_a, settings.taper_k])
-            .u32(settings.protect_period_steps)
-            .finish()
+            .u32(settings.protect_period_steps);
+        let fingerprint = alarm.fingerprint(fingerprint);
+        let fingerprint = limiter.fingerprint(fingerprint);
+        bound.fingerprint(fingerprint).finish()
     }
 
     /// The configuration fingerprint that snapshots carry.
