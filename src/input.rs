@@ -38,6 +38,10 @@ impl InputFlags {
     /// The elapsed time was invalid (NaN, negative, or beyond the allowed
     /// catch-up) and was replaced as documented by the stepper.
     pub const ELAPSED_INVALID: Self = Self(8);
+    /// The clock has given no elapsed time for the configured number of
+    /// consecutive ticks (see [`crate::observer::clock`]): the model is
+    /// standing still.
+    pub const CLOCK_FROZEN: Self = Self(16);
 
     /// `true` when no rule fired.
     #[inline]

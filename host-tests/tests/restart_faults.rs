@@ -410,3 +410,94 @@ fn observer_snapshot_with_reserved_bytes_set_is_refused() {
         Some(SnapshotError::ReservedNotZero { offset: 18 })
     );
 }
+
+fn count_kind(
+    events: &mut coil_thermal::protect::events::EventQueue<16>,
+    kind: EventKind,
+) -> usize {
+    let mut n = 0;
+    while let Some(event) = events.pop() {
+        n += usize::from(event.kind == kind);
+    }
+    n
+}
+
+/// The timer freezes (`elapsed_us = 0` forever) at 9 A: the model stands
+/// still at 20 degC, so the ticks are flagged from the 100th and the
+/// shutdown latches at the 1000th, with one `ClockFrozen` event (it was
+/// never flagged nor latched). Time coming back ends the flag, not the
+/// latch.
+#[test]
+fn grid_frozen_clock_is_flagged_then_latches_the_shutdown() {
+    let grid = grid();
+    assert_eq!(grid.clock().frozen_flag_ticks(), 100);
+    assert_eq!(grid.clock().frozen_loss_ticks(), 1000);
+    let mut state = grid.state(20.0);
+    let currents = [[9.0f32; 12]; 7];
+    for k in 1..=1200u32 {
+        let out = *grid.tick(
+            &mut state,
+            &GridInputs {
+                currents_a: &currents,
+                coolant_c: 20.0,
+                ambient_c: 20.0,
+                elapsed_us: 0,
+            },
+        );
+        assert_eq!(
+            out.flags.contains(InputFlags::CLOCK_FROZEN),
+            k >= 100,
+            "tick {k}"
+        );
+        assert_eq!(out.alarm.shutdown, k >= 1000, "tick {k}");
+        assert_eq!(state.alarm.shutdown_latched(), k >= 1000, "tick {k}");
+    }
+    assert_eq!(state.grid.temps_c[3][5], 20.0, "the model stood still");
+    assert_eq!(count_kind(&mut state.events, EventKind::ClockFrozen), 1);
+    grid_tick(&grid, &mut state, &currents, 1000);
+    let out = state.outputs();
+    assert!(!out.flags.contains(InputFlags::CLOCK_FROZEN));
+    assert!(out.alarm.shutdown, "the latch stays");
+    // Configurable, validated.
+    let quick = self::grid().with_frozen_clock(3, 5).unwrap();
+    let mut state = quick.state(20.0);
+    for _ in 0..5 {
+        grid_tick(&quick, &mut state, &currents, 0);
+    }
+    assert!(state.outputs().alarm.shutdown);
+    assert!(self::grid().with_frozen_clock(0, 5).is_err());
+    assert!(self::grid().with_frozen_clock(6, 5).is_err());
+}
+
+/// The same for the Omnimagnet observer, with its settings.
+#[test]
+fn omni_frozen_clock_is_flagged_then_latches_the_shutdown() {
+    let omni = omni();
+    let mut state = omni.state(&[22.0; NODES], 22.0);
+    for k in 1..=1100u32 {
+        let out = *omni.tick(&mut state, &omni_inputs([8.0; 3], 0));
+        assert_eq!(
+            out.flags.contains(InputFlags::CLOCK_FROZEN),
+            k >= 100,
+            "tick {k}"
+        );
+        assert_eq!(out.alarm.shutdown, k >= 1000, "tick {k}");
+    }
+    assert_eq!(count_kind(&mut state.events, EventKind::ClockFrozen), 1);
+    let settings = OmniSettings {
+        frozen_flag_ticks: 2,
+        frozen_loss_ticks: 4,
+        ..OmniSettings::default()
+    };
+    let quick = OmniObserver::new(&Omnimagnet::PAPER, &[22.0; NODES], 22.0, &settings).unwrap();
+    let mut state = quick.state(&[22.0; NODES], 22.0);
+    for _ in 0..4 {
+        quick.tick(&mut state, &omni_inputs([0.0; 3], 0));
+    }
+    assert!(state.outputs().alarm.shutdown);
+    let bad = OmniSettings {
+        frozen_loss_ticks: 1,
+        ..settings
+    };
+    assert!(OmniObserver::new(&Omnimagnet::PAPER, &[22.0; NODES], 22.0, &bad).is_err());
+}

@@ -9,7 +9,10 @@
 //!    (`tick_dt_s`, stable by construction) through the [`StepClock`]: a late
 //!    tick sub-steps, an early one carries its time, a stall beyond
 //!    `max_steps_per_tick` is dropped and flagged
-//!    ([`InputFlags::ELAPSED_INVALID`]);
+//!    ([`InputFlags::ELAPSED_INVALID`]); a clock that gives no time for
+//!    100 ticks in a row is flagged ([`InputFlags::CLOCK_FROZEN`]) and for
+//!    1000 latches the shutdown (the model is lost; see
+//!    [`super::clock`] and [`GridObserver::with_frozen_clock`]);
 //! 2. the steps are [`CoilGrid::ticks_spread`] (Joule energy accumulated,
 //!    a slice of the next update done, the grid updated every
 //!    `ticks_per_update` steps): the temperatures of as many
@@ -114,7 +117,7 @@ use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
-use crate::protect::events::EventQueue;
+use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
@@ -562,6 +565,25 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         self
     }
 
+    /// This observer with a frozen clock (no elapsed time on consecutive
+    /// ticks) flagged [`InputFlags::CLOCK_FROZEN`] from `flag_ticks` and
+    /// taken as a loss of the model from `loss_ticks` ticks on: the
+    /// shutdown latches with a
+    /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
+    /// event. [`Self::new`] sets 100 and 1000 ticks (see
+    /// [`StepClock::with_frozen_limits`]).
+    ///
+    /// # Errors
+    /// Those of [`StepClock::with_frozen_limits`].
+    pub fn with_frozen_clock(
+        mut self,
+        flag_ticks: u32,
+        loss_ticks: u32,
+    ) -> Result<Self, BuildError> {
+        self.clock = self.clock.with_frozen_limits(flag_ticks, loss_ticks)?;
+        Ok(self)
+    }
+
     /// Each coil's protective upper bound.
     pub fn upper_bound(&self) -> &UpperBound<S, N> {
         &self.bound
@@ -671,6 +693,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         inputs: &GridInputs<'_, S, ROWS, COLS>,
     ) -> &'s GridOutputs<S, ROWS, COLS, N> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if steps.clock_lost {
+            // The model stands still: latched until the deliberate clear.
+            state
+                .alarm
+                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
+            state.outputs.alarm.shutdown = true;
+        }
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
         let outcome = if steps.steps == 1 {
             self.grid

@@ -95,6 +95,10 @@
 //! conservative state starts latched: a refused snapshot may have held a
 //! latch. Only the deliberate [`OmniObserver::clear_shutdown`], called by
 //! the application after inspecting the device, clears it.
+//! A clock that gives no elapsed time for
+//! [`OmniSettings::frozen_loss_ticks`] ticks in a row (1000 by default;
+//! flagged [`InputFlags::CLOCK_FROZEN`] from `frozen_flag_ticks`, 100)
+//! latches it too: the model is lost (see [`super::clock`]).
 //!
 //! # Readings
 //!
@@ -158,7 +162,7 @@ use crate::omnimagnet::{
 };
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
-use crate::protect::events::EventQueue;
+use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
@@ -216,6 +220,15 @@ pub struct OmniSettings {
     /// 0 and [`UncertaintyMargin::ZERO`] the protection acts on the
     /// estimate itself.
     pub unmeasured_margin: UncertaintyMargin,
+    /// Consecutive ticks without elapsed time from which every tick is
+    /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
+    /// 100 (0.1 s at a 1 ms loop).
+    pub frozen_flag_ticks: u32,
+    /// Consecutive ticks without elapsed time from which the model is taken
+    /// as lost: the shutdown latches with a
+    /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
+    /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
+    pub frozen_loss_ticks: u32,
 }
 
 impl Default for OmniSettings {
@@ -234,6 +247,8 @@ impl Default for OmniSettings {
             protect_period_steps: 16,
             k_sigma: 3.0,
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
+            frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
+            frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
         }
     }
 }
@@ -404,7 +419,8 @@ impl OmniObserver {
         ambient_c: f64,
         settings: &OmniSettings,
     ) -> Result<Self, BuildError> {
-        let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?;
+        let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?
+            .with_frozen_limits(settings.frozen_flag_ticks, settings.frozen_loss_ticks)?;
         let dt_s = clock.step_s();
         let period = settings.protect_period_steps;
         let protect_period_us = period.checked_mul(settings.step_us);
@@ -698,6 +714,13 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if steps.clock_lost {
+            // The model stands still: latched until the deliberate clear.
+            state
+                .alarm
+                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
+            state.outputs.alarm.shutdown = true;
+        }
         let mut flags = steps.flags;
         flags |= self
             .limits

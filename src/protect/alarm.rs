@@ -744,6 +744,27 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         }
     }
 
+    /// Latches the shutdown of every element for a fault outside the
+    /// elements (e.g. [`EventKind::ClockFrozen`]: the model is lost) and,
+    /// if it was not latched yet, pushes a `kind` event with no element.
+    /// [`Self::reset`] clears it under its usual conditions. Bounded,
+    /// panic-free: for the tick.
+    pub fn latch_shutdown_for<const CAP: usize>(
+        &mut self,
+        kind: EventKind,
+        events: &mut EventQueue<CAP>,
+    ) {
+        if self.shutdown_latched() {
+            return;
+        }
+        self.latch_shutdown();
+        let _ = events.push(AlarmEvent {
+            tick: self.tick,
+            element: None,
+            kind,
+        });
+    }
+
     /// `true` while any element's shutdown is latched.
     pub fn shutdown_latched(&self) -> bool {
         self.elements.iter().any(|e| e.shutdown.active)
