@@ -14,7 +14,10 @@
 //! | temperature \[degC\] | NaN, infinite, or outside `[min_temp_c, max_temp_c]` | the last valid temperature (held) | [`InputFlags::TEMPERATURE_INVALID`] |
 //!
 //! Holding the last valid current, rather than assuming zero, keeps the heat
-//! input of a coil whose current sensor dropped out.
+//! input of a coil whose current sensor dropped out. The observers apply
+//! the rules on every tick, also on one that takes no model step (no
+//! elapsed time, or an early tick): its bad inputs are flagged and its good
+//! ones held, so the next step uses them.
 
 use crate::scalar::Scalar;
 
@@ -35,6 +38,10 @@ impl InputFlags {
     /// The elapsed time was invalid (NaN, negative, or beyond the allowed
     /// catch-up) and was replaced as documented by the stepper.
     pub const ELAPSED_INVALID: Self = Self(8);
+    /// The clock has given no elapsed time for the configured number of
+    /// consecutive ticks (see [`crate::observer::clock`]): the model is
+    /// standing still.
+    pub const CLOCK_FROZEN: Self = Self(16);
 
     /// `true` when no rule fired.
     #[inline]

@@ -522,6 +522,7 @@ fn describe(kind: EventKind) -> (&'static str, &'static str) {
         EventKind::SensorInvalid => ("sensor", "invalid"),
         EventKind::SensorValid => ("sensor", "valid"),
         EventKind::Reset => ("reset", "reset"),
+        EventKind::ClockFrozen => ("clock", "frozen"),
     }
 }
 

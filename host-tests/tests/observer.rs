@@ -351,7 +351,7 @@ fn grid_snapshot_round_trip_is_exact_and_keeps_the_latch() {
         grid.restore(&buf[..50], 1_010, 600, 20.0),
         Err(SnapshotError::BufferTooSmall { .. })
     ));
-    // The documented fallback: every coil at the taper start, no latch.
+    // The documented fallback: every coil at the taper start, latched.
     let fallback = grid.conservative_state(20.0);
     let start = grid.restart_temp_c() as f32;
     assert!(fallback
@@ -361,7 +361,8 @@ fn grid_snapshot_round_trip_is_exact_and_keeps_the_latch() {
         .iter()
         .all(|t| *t == start));
     assert!(start > 40.0);
-    assert!(!fallback.alarm.shutdown_latched());
+    assert!(fallback.alarm.shutdown_latched());
+    assert!(fallback.outputs().alarm.shutdown);
 }
 
 #[test]

@@ -37,6 +37,9 @@ pub enum InputStatus {
     /// Some input was NaN or infinite: the input term `G u` was dropped for
     /// this step (`x = F x`) so the estimate is not poisoned.
     Dropped,
+    /// Some input was out of its plausible range and was clamped to it
+    /// (the input rules of [`crate::input`]); the clamped value was used.
+    Clamped,
 }
 
 /// Per-device filter state: the estimate, its covariance and the gate memory.

@@ -135,7 +135,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     /// coil's Joule energy of one tick is computed once and added `ticks`
     /// times, and only one slice of neighbour heat is summed (the update
     /// tick sums what is left). `updated` is true if any of the ticks
-    /// updated the grid.
+    /// updated the grid. `ticks == 0` only applies the input rules
+    /// ([`CoilGrid::accept_inputs`]): the inputs are flagged and held.
     pub fn ticks_spread(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
@@ -149,6 +150,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             flags: InputFlags::NONE,
             updated: false,
         };
+        if ticks == 0 {
+            // No step (an early tick, or no elapsed time): the inputs are
+            // still checked, flagged and held, so that the next step uses
+            // them and a bad one is never silent.
+            outcome.flags = self.accept_inputs(state, currents_a, coolant_c, ambient_c);
+            return outcome;
+        }
         let mut remaining = ticks;
         let mut sliced = false;
         // At most two passes for a catch-up shorter than an update interval,
@@ -227,6 +235,24 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         } else {
             S::ZERO
         }
+    }
+
+    /// Applies the input rules of [`crate::input`] to every current and to
+    /// the coolant and ambient, updating the held values the next step
+    /// uses, without stepping or accumulating anything; says which rules
+    /// fired. What [`CoilGrid::ticks_spread`] does for `ticks == 0`.
+    pub fn accept_inputs(
+        &self,
+        state: &mut GridState<S, ROWS, COLS>,
+        currents_a: &[[S; COLS]; ROWS],
+        coolant_c: S,
+        ambient_c: S,
+    ) -> InputFlags {
+        let mut flags = self.accept_boundaries(state, coolant_c, ambient_c);
+        for (incoming, held) in currents_a.iter().zip(state.held_currents_a.iter_mut()) {
+            flags |= self.limits.accept_currents(incoming, held);
+        }
+        flags
     }
 
     fn accept_boundaries(

@@ -539,6 +539,10 @@ fn spread_matches_whole<S: Scalar, const R: usize, const C: usize>(
                 expected.flags |= o.flags;
                 expected.updated |= o.updated;
             }
+            if burst == 0 {
+                // No step: the inputs are only checked, flagged and held.
+                expected.flags = grid.accept_inputs(&mut whole, &currents, coolant, ambient);
+            }
             let got = grid.ticks_spread(&mut spread, &mut work, &currents, coolant, ambient, burst);
             assert_eq!(expected, got, "burst of {burst} at tick {k}");
             assert_eq!(whole, spread, "burst of {burst} at tick {k}");

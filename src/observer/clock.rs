@@ -16,6 +16,25 @@
 //! (a stall of the control loop) is dropped and reported with
 //! [`InputFlags::ELAPSED_INVALID`](crate::InputFlags::ELAPSED_INVALID), so the
 //! caller knows the estimate skipped a stretch of time.
+//!
+//! # A frozen clock
+//!
+//! A timer that stops (`elapsed_us = 0` on every tick) would stop the model:
+//! the coils heat at 9 A while the estimate stands still, with nothing
+//! flagged. So the clock counts the consecutive ticks with no elapsed time
+//! ([`ClockState::frozen_ticks`]); an early tick (some time, less than a
+//! step) is not frozen: its time is carried. From
+//! [`StepClock::frozen_flag_ticks`] such ticks on (default
+//! [`DEFAULT_FROZEN_FLAG_TICKS`], 100: 0.1 s at a 1 ms loop) every tick is
+//! flagged [`InputFlags::CLOCK_FROZEN`]; from
+//! [`StepClock::frozen_loss_ticks`] on (default
+//! [`DEFAULT_FROZEN_LOSS_TICKS`], 1000: 1 s, against thermal time constants
+//! of seconds to minutes) the model is taken as lost
+//! ([`TickSteps::clock_lost`]) and the observers latch the shutdown through
+//! the alarm's latch, with a
+//! [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen) event.
+//! Set both with [`StepClock::with_frozen_limits`]. One tick with elapsed
+//! time ends the count (the latch stays until its deliberate clear).
 
 use crate::error::BuildError;
 use crate::input::InputFlags;
@@ -26,7 +45,16 @@ use crate::input::InputFlags;
 pub struct StepClock {
     step_us: u32,
     max_steps_per_tick: u32,
+    frozen_flag_ticks: u32,
+    frozen_loss_ticks: u32,
 }
+
+/// Consecutive ticks without elapsed time from which every tick is flagged
+/// [`InputFlags::CLOCK_FROZEN`] (0.1 s at a 1 ms loop).
+pub const DEFAULT_FROZEN_FLAG_TICKS: u32 = 100;
+/// Consecutive ticks without elapsed time from which the model is taken as
+/// lost and the shutdown latches (1 s at a 1 ms loop).
+pub const DEFAULT_FROZEN_LOSS_TICKS: u32 = 1000;
 
 /// The time not yet simulated (per-device state) \[us\].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -34,6 +62,9 @@ pub struct StepClock {
 pub struct ClockState {
     /// Elapsed time carried to the next tick, below one step \[us\].
     pub debt_us: u32,
+    /// Consecutive ticks with no elapsed time (saturating; see the module
+    /// docs).
+    pub frozen_ticks: u32,
 }
 
 /// How many model steps a tick takes, and what was dropped.
@@ -44,8 +75,13 @@ pub struct TickSteps {
     pub steps: u32,
     /// Time dropped because it exceeded the catch-up limit \[us\].
     pub dropped_us: u32,
-    /// [`InputFlags::ELAPSED_INVALID`] when time was dropped.
+    /// [`InputFlags::ELAPSED_INVALID`] when time was dropped,
+    /// [`InputFlags::CLOCK_FROZEN`] when the clock has stood still for
+    /// [`StepClock::frozen_flag_ticks`] ticks or more.
     pub flags: InputFlags,
+    /// The clock has stood still for [`StepClock::frozen_loss_ticks`] ticks
+    /// or more: the model is lost (the observers latch the shutdown).
+    pub clock_lost: bool,
 }
 
 impl StepClock {
@@ -63,7 +99,48 @@ impl StepClock {
         Ok(Self {
             step_us,
             max_steps_per_tick,
+            frozen_flag_ticks: DEFAULT_FROZEN_FLAG_TICKS,
+            frozen_loss_ticks: DEFAULT_FROZEN_LOSS_TICKS,
         })
+    }
+
+    /// This clock with a frozen clock flagged after `flag_ticks` and taken
+    /// as a loss of the model after `loss_ticks` consecutive ticks without
+    /// elapsed time (see the module docs; defaults
+    /// [`DEFAULT_FROZEN_FLAG_TICKS`] and [`DEFAULT_FROZEN_LOSS_TICKS`]).
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] naming `frozen_flag_ticks` when it
+    /// is 0, or `frozen_loss_ticks` when it is below `flag_ticks`.
+    pub fn with_frozen_limits(
+        mut self,
+        flag_ticks: u32,
+        loss_ticks: u32,
+    ) -> Result<Self, BuildError> {
+        if flag_ticks == 0 {
+            return Err(BuildError::InvalidParameter {
+                name: "frozen_flag_ticks",
+            });
+        }
+        if loss_ticks < flag_ticks {
+            return Err(BuildError::InvalidParameter {
+                name: "frozen_loss_ticks (below frozen_flag_ticks)",
+            });
+        }
+        self.frozen_flag_ticks = flag_ticks;
+        self.frozen_loss_ticks = loss_ticks;
+        Ok(self)
+    }
+
+    /// Consecutive ticks without elapsed time from which ticks are flagged
+    /// [`InputFlags::CLOCK_FROZEN`].
+    pub fn frozen_flag_ticks(&self) -> u32 {
+        self.frozen_flag_ticks
+    }
+
+    /// Consecutive ticks without elapsed time from which the model is lost.
+    pub fn frozen_loss_ticks(&self) -> u32 {
+        self.frozen_loss_ticks
     }
 
     /// The model step \[us\].
@@ -79,6 +156,20 @@ impl StepClock {
     /// Adds `elapsed_us` \[us\] of real time and returns the steps to take.
     /// Never panics; saturating arithmetic throughout.
     pub fn advance(&self, state: &mut ClockState, elapsed_us: u32) -> TickSteps {
+        state.frozen_ticks = if elapsed_us == 0 {
+            state.frozen_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let mut steps = self.advance_time(state, elapsed_us);
+        if state.frozen_ticks >= self.frozen_flag_ticks {
+            steps.flags |= InputFlags::CLOCK_FROZEN;
+        }
+        steps.clock_lost = state.frozen_ticks >= self.frozen_loss_ticks;
+        steps
+    }
+
+    fn advance_time(&self, state: &mut ClockState, elapsed_us: u32) -> TickSteps {
         // `new` refuses a zero step; `max(1)` lets the compiler see it, so no
         // division check (and no panic path) is left in the tick.
         let step_us = self.step_us.max(1);
@@ -99,6 +190,7 @@ impl StepClock {
                 steps: due as u32,
                 dropped_us: 0,
                 flags: InputFlags::NONE,
+                clock_lost: false,
             }
         } else {
             let excess_steps = due - self.max_steps_per_tick as u64;
@@ -108,6 +200,7 @@ impl StepClock {
                 steps: self.max_steps_per_tick,
                 dropped_us: u32::try_from(dropped).unwrap_or(u32::MAX),
                 flags: InputFlags::ELAPSED_INVALID,
+                clock_lost: false,
             }
         }
     }
@@ -158,5 +251,32 @@ mod tests {
     fn invalid_clocks_are_refused() {
         assert_eq!(StepClock::new(0, 1), Err(BuildError::InvalidTimeStep));
         assert!(StepClock::new(1000, 0).is_err());
+        let clock = StepClock::new(1000, 4).unwrap();
+        assert!(clock.with_frozen_limits(0, 10).is_err());
+        assert!(clock.with_frozen_limits(10, 9).is_err());
+        assert!(clock.with_frozen_limits(10, 10).is_ok());
+    }
+
+    #[test]
+    fn a_frozen_clock_is_flagged_then_lost_and_one_tick_of_time_ends_it() {
+        let clock = StepClock::new(1000, 4).unwrap();
+        assert_eq!(clock.frozen_flag_ticks(), DEFAULT_FROZEN_FLAG_TICKS);
+        assert_eq!(clock.frozen_loss_ticks(), DEFAULT_FROZEN_LOSS_TICKS);
+        let clock = clock.with_frozen_limits(3, 5).unwrap();
+        let mut state = ClockState::default();
+        let mut seen = [(false, false); 6];
+        for s in &mut seen {
+            let t = clock.advance(&mut state, 0);
+            *s = (t.flags.contains(InputFlags::CLOCK_FROZEN), t.clock_lost);
+        }
+        let (f, t) = (false, true);
+        assert_eq!(seen, [(f, f), (f, f), (t, f), (t, f), (t, t), (t, t)]);
+        // An early tick (time below a step) is not frozen.
+        let t = clock.advance(&mut state, 1);
+        assert_eq!(
+            (t.steps, t.flags, t.clock_lost),
+            (0, InputFlags::NONE, false)
+        );
+        assert_eq!(state.frozen_ticks, 0);
     }
 }

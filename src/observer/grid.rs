@@ -9,7 +9,10 @@
 //!    (`tick_dt_s`, stable by construction) through the [`StepClock`]: a late
 //!    tick sub-steps, an early one carries its time, a stall beyond
 //!    `max_steps_per_tick` is dropped and flagged
-//!    ([`InputFlags::ELAPSED_INVALID`]);
+//!    ([`InputFlags::ELAPSED_INVALID`]); a clock that gives no time for
+//!    100 ticks in a row is flagged ([`InputFlags::CLOCK_FROZEN`]) and for
+//!    1000 latches the shutdown (the model is lost; see
+//!    [`super::clock`] and [`GridObserver::with_frozen_clock`]);
 //! 2. the steps are [`CoilGrid::ticks_spread`] (Joule energy accumulated,
 //!    a slice of the next update done, the grid updated every
 //!    `ticks_per_update` steps): the temperatures of as many
@@ -95,21 +98,26 @@
 //! [`GridObserver::save`] writes the coil temperatures and the latched
 //! shutdown with [`snapshot::save`]; [`GridObserver::restore`] checks them
 //! against this configuration's [`fingerprint`](GridObserver::fingerprint)
-//! and refuses anything else; [`GridObserver::conservative_state`] is the
+//! (the model *and* the protection: alarm, derating, limiter, margin) and
+//! refuses anything else; [`GridObserver::conservative_state`] is the
 //! documented start after a refusal: the grid has no sensors, so every coil
 //! starts where its upper bound is at the start of its limiter's taper band
-//! (alarm limit at the nominal ambient minus `taper_k`). The full current is
-//! still allowed there,
-//! but no coil has more headroom than the taper, and the model cools the coils
-//! at the modelled rate until it knows better.
+//! (alarm limit at the nominal ambient minus `taper_k`), and the shutdown
+//! starts latched. A restored latch, and the conservative state's, shows in
+//! the state's outputs at once (`outputs().alarm.shutdown`), before the
+//! first tick, and survives every tick: only the deliberate
+//! [`GridObserver::clear_shutdown`], which the application calls after
+//! inspecting the device, clears it. Once cleared, no coil has more
+//! headroom than the taper, and the model cools the coils at the modelled
+//! rate until it knows better.
 
 use super::clock::{ClockState, StepClock};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
-use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus};
-use crate::protect::events::EventQueue;
+use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
+use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
@@ -222,6 +230,9 @@ pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize>
     /// `bound` is zero: the protection reads the temperatures themselves.
     bound_is_zero: bool,
     restart_c: f64,
+    /// The fingerprint of the model alone; [`Self::fingerprint`] adds the
+    /// protection to it.
+    model_fingerprint: Fingerprint,
     fingerprint: u32,
 }
 
@@ -486,10 +497,22 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             bound_is_zero: bound.is_zero(),
             bound,
             restart_c: 0.0,
-            fingerprint: fingerprint.finish(),
+            model_fingerprint: fingerprint,
+            fingerprint: 0,
         };
         observer.restart_c = observer.restart_temp();
+        observer.fingerprint = observer.protected_fingerprint();
         Ok(observer)
+    }
+
+    /// The model's fingerprint with the protection added: the alarm
+    /// (critical temperatures, derating, margins, debounce, horizons), the
+    /// limiter (hardware limits, taper, floor) and every coil's upper
+    /// bound (the model-uncertainty margin).
+    fn protected_fingerprint(&self) -> u32 {
+        let fp = self.alarm.fingerprint(self.model_fingerprint);
+        let fp = self.limiter.fingerprint(fp);
+        self.bound.fingerprint(fp).finish()
     }
 
     /// The mean temperature of [`Self::conservative_state`] \[degC\]: the
@@ -538,7 +561,27 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         self.bound_is_zero = bound.is_zero();
         self.bound = bound;
         self.restart_c = self.restart_temp();
+        self.fingerprint = self.protected_fingerprint();
         self
+    }
+
+    /// This observer with a frozen clock (no elapsed time on consecutive
+    /// ticks) flagged [`InputFlags::CLOCK_FROZEN`] from `flag_ticks` and
+    /// taken as a loss of the model from `loss_ticks` ticks on: the
+    /// shutdown latches with a
+    /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
+    /// event. [`Self::new`] sets 100 and 1000 ticks (see
+    /// [`StepClock::with_frozen_limits`]).
+    ///
+    /// # Errors
+    /// Those of [`StepClock::with_frozen_limits`].
+    pub fn with_frozen_clock(
+        mut self,
+        flag_ticks: u32,
+        loss_ticks: u32,
+    ) -> Result<Self, BuildError> {
+        self.clock = self.clock.with_frozen_limits(flag_ticks, loss_ticks)?;
+        Ok(self)
     }
 
     /// Each coil's protective upper bound.
@@ -589,7 +632,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         &self.clock
     }
 
-    /// The configuration fingerprint that snapshots carry.
+    /// The configuration fingerprint that snapshots carry: the model
+    /// (size, capacity, conductances, resistance, step, update interval,
+    /// border) and the protection (the alarm's critical temperatures,
+    /// derating, margins and debounce; the limiter's hardware limits, taper
+    /// and floor; every coil's model-uncertainty margin). A snapshot taken
+    /// under another protection is refused: its latch and temperatures were
+    /// judged against other limits.
     pub fn fingerprint(&self) -> u32 {
         self.fingerprint
     }
@@ -644,6 +693,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         inputs: &GridInputs<'_, S, ROWS, COLS>,
     ) -> &'s GridOutputs<S, ROWS, COLS, N> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if steps.clock_lost {
+            // The model stands still: latched until the deliberate clear.
+            state
+                .alarm
+                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
+            state.outputs.alarm.shutdown = true;
+        }
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
         let outcome = if steps.steps == 1 {
             self.grid
@@ -986,13 +1042,43 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// where its upper bound is at the start of the limiter's taper band
     /// (the lowest alarm limit at 20 degC ambient minus `taper_k`; the
     /// estimate itself there with no margin), or at `ambient_c` \[degC\] if
-    /// that is hotter; coolant and ambient at `ambient_c`. No latched
-    /// shutdown.
+    /// that is hotter; coolant and ambient at `ambient_c`. The shutdown is
+    /// *latched* (and `outputs().alarm.shutdown` is `true` from the start):
+    /// a refused snapshot may have been the record of a latched shutdown,
+    /// and the coils may be hotter than assumed, so the current stays cut
+    /// until the application has inspected the device and calls
+    /// [`Self::clear_shutdown`].
     pub fn conservative_state(&self, ambient_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
         let mut grid = GridState::uniform(ambient_c);
         let hot = S::from_f64(self.restart_c.max(ambient_c));
         grid.temps_c = [[hot; COLS]; ROWS];
-        self.state_from(grid)
+        let mut state = self.state_from(grid);
+        state.alarm.latch_shutdown();
+        state.outputs.alarm.shutdown = true;
+        state
+    }
+
+    /// The deliberate clear of a latched shutdown (one restored from a
+    /// snapshot, set by [`Self::conservative_state`], or raised by the
+    /// alarm), for the application to call after inspecting the device.
+    /// Nothing else clears it: not a tick, not a reset of the MCU (the
+    /// latch is saved in the snapshot). It is [`AlarmState::reset`] under
+    /// its conditions: every coil's upper bound valid and below its alarm
+    /// limit minus the hysteresis for the alarm's `debounce_ticks`
+    /// protection passes (so a state must have ticked that long). On
+    /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
+    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// Not for the tick: call it between two ticks.
+    ///
+    /// # Errors
+    /// Why not, naming the first coil that blocks it; nothing changes then.
+    pub fn clear_shutdown(
+        &self,
+        state: &mut GridObserverState<S, ROWS, COLS, N>,
+    ) -> Result<(), ResetError> {
+        state.alarm.reset(&self.alarm, &mut state.events)?;
+        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
+        Ok(())
     }
 
     /// The temperature [`Self::conservative_state`] assumes \[degC\].

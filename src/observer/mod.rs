@@ -24,7 +24,9 @@ pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
 
-pub use clock::{ClockState, StepClock, TickSteps};
+pub use clock::{
+    ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,
+};
 pub use grid::{
     GridInputs, GridObserver, GridObserverState, GridOutputs, ProtectionPlan, PROTECTION_TICKS,
 };

@@ -82,6 +82,24 @@
 //! from the published times to limit, so they stay never later than the
 //! model's.
 //!
+//! # Warm restart and the latch
+//!
+//! [`OmniObserver::save`] writes the node estimates and the latched
+//! shutdown; [`OmniObserver::restore`] checks them against this
+//! configuration's fingerprint (the filter *and* the protection: alarm,
+//! derating, limiter, `k_sigma`, margin) and refuses anything else, and
+//! [`OmniObserver::conservative_state`] is the start after a refusal (the
+//! thermocouples' readings, every other node no cooler than the hottest).
+//! A restored latch shows in the state's outputs at once
+//! (`outputs().alarm.shutdown`, before the first tick), and the
+//! conservative state starts latched: a refused snapshot may have held a
+//! latch. Only the deliberate [`OmniObserver::clear_shutdown`], called by
+//! the application after inspecting the device, clears it.
+//! A clock that gives no elapsed time for
+//! [`OmniSettings::frozen_loss_ticks`] ticks in a row (1000 by default;
+//! flagged [`InputFlags::CLOCK_FROZEN`] from `frozen_flag_ticks`, 100)
+//! latches it too: the model is lost (see [`super::clock`]).
+//!
 //! # Readings
 //!
 //! Each thermocouple reading arrives on its own, as a [`TimedReading`]: the
@@ -142,9 +160,9 @@ use crate::omnimagnet::{
     Linearization, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS, THERMOCOUPLES,
     THERMOCOUPLE_NODES, WIRE_INSULATION_LIMIT_C,
 };
-use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
+use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
-use crate::protect::events::EventQueue;
+use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
@@ -202,6 +220,15 @@ pub struct OmniSettings {
     /// 0 and [`UncertaintyMargin::ZERO`] the protection acts on the
     /// estimate itself.
     pub unmeasured_margin: UncertaintyMargin,
+    /// Consecutive ticks without elapsed time from which every tick is
+    /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
+    /// 100 (0.1 s at a 1 ms loop).
+    pub frozen_flag_ticks: u32,
+    /// Consecutive ticks without elapsed time from which the model is taken
+    /// as lost: the shutdown latches with a
+    /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
+    /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
+    pub frozen_loss_ticks: u32,
 }
 
 impl Default for OmniSettings {
@@ -220,6 +247,8 @@ impl Default for OmniSettings {
             protect_period_steps: 16,
             k_sigma: 3.0,
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
+            frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
+            frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
         }
     }
 }
@@ -390,7 +419,8 @@ impl OmniObserver {
         ambient_c: f64,
         settings: &OmniSettings,
     ) -> Result<Self, BuildError> {
-        let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?;
+        let clock = StepClock::new(settings.step_us, settings.max_steps_per_tick)?
+            .with_frozen_limits(settings.frozen_flag_ticks, settings.frozen_loss_ticks)?;
         let dt_s = clock.step_s();
         let period = settings.protect_period_steps;
         let protect_period_us = period.checked_mul(settings.step_us);
@@ -422,7 +452,7 @@ impl OmniObserver {
         )?;
         let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
         let bound = Self::build_bound(&filter, settings)?;
-        let fingerprint = Self::fingerprint_of(&filter, settings);
+        let fingerprint = Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound);
         Ok(Self {
             filter,
             alarm,
@@ -495,10 +525,20 @@ impl OmniObserver {
     }
 
     /// What a snapshot must have been made with: the filter's matrices and
-    /// gain, and the protection settings. Not `k_sigma` nor the margin: a
-    /// snapshot holds mean temperatures, which they do not change.
+    /// gain, and the whole protection: the protection period, the alarm
+    /// (critical temperatures, derating, margins, debounce), the limiter
+    /// (hardware limit, taper, floor) and every node's upper bound
+    /// (`k_sigma` and the model-uncertainty margin). The mean temperatures
+    /// a snapshot holds do not depend on the protection, but its latch was
+    /// judged against it: a snapshot from another protection is refused.
     #[inline(never)]
-    fn fingerprint_of(filter: &ObserverConfig<f32>, settings: &OmniSettings) -> u32 {
+    fn fingerprint_of(
+        filter: &ObserverConfig<f32>,
+        settings: &OmniSettings,
+        alarm: &AlarmConfig<f32, 6>,
+        limiter: &LimiterConfig<f32, SOLENOIDS>,
+        bound: &UpperBound<f32, NODES>,
+    ) -> u32 {
         let kalman = filter.kalman();
         let widen = |m: &[f32], f: Fingerprint| m.iter().fold(f, |f, v| f.f64(f64::from(*v)));
         let mut fingerprint = Fingerprint::new()
@@ -509,10 +549,12 @@ impl OmniObserver {
         fingerprint = widen(kalman.q().as_slice(), fingerprint);
         fingerprint = widen(kalman.r().as_slice(), fingerprint);
         fingerprint = widen(filter.gain().gain().as_slice(), fingerprint);
-        fingerprint
+        fingerprint = fingerprint
             .f64s(&[settings.hardware_limit_a, settings.taper_k])
-            .u32(settings.protect_period_steps)
-            .finish()
+            .u32(settings.protect_period_steps);
+        let fingerprint = alarm.fingerprint(fingerprint);
+        let fingerprint = limiter.fingerprint(fingerprint);
+        bound.fingerprint(fingerprint).finish()
     }
 
     /// The configuration fingerprint that snapshots carry.
@@ -672,6 +714,13 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if steps.clock_lost {
+            // The model stands still: latched until the deliberate clear.
+            state
+                .alarm
+                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
+            state.outputs.alarm.shutdown = true;
+        }
         let mut flags = steps.flags;
         flags |= self
             .limits
@@ -904,6 +953,7 @@ impl OmniObserver {
         let mut state = self.state(&temps_c, ambient_c);
         if meta.shutdown_latched {
             state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
         }
         Ok(state)
     }
@@ -911,7 +961,11 @@ impl OmniObserver {
     /// The documented start when no snapshot can be trusted
     /// ([`snapshot::conservative_start`]): measured nodes at their readings
     /// \[degC\], every other node no cooler than the hottest reading or the
-    /// ambient `ambient_c` \[degC\].
+    /// ambient `ambient_c` \[degC\]. The shutdown is *latched* (and
+    /// `outputs().alarm.shutdown` is `true` from the start): the refused
+    /// snapshot may have recorded a latched shutdown, and the unmeasured
+    /// windings may be hotter than any thermocouple, so the current stays
+    /// cut until the application calls [`Self::clear_shutdown`].
     pub fn conservative_state(
         &self,
         readings_c: &[Option<f32>; THERMOCOUPLES],
@@ -922,7 +976,30 @@ impl OmniObserver {
             &THERMOCOUPLE_NODES,
             ambient_c,
         );
-        self.state(&temps, ambient_c)
+        let mut state = self.state(&temps, ambient_c);
+        state.alarm.latch_shutdown();
+        state.outputs.alarm.shutdown = true;
+        state
+    }
+
+    /// The deliberate clear of a latched shutdown (restored from a
+    /// snapshot, set by [`Self::conservative_state`], or raised by the
+    /// alarm), for the application to call after inspecting the device;
+    /// nothing else clears it (see [`GridObserver::clear_shutdown`](super::GridObserver::clear_shutdown)).
+    /// It is [`AlarmState::reset`] under its conditions: every alarm
+    /// element's upper bound valid and below its alarm limit minus the
+    /// hysteresis for the alarm's `debounce_ticks` protection cycles. On
+    /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
+    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// Not for the tick: call it between two ticks.
+    ///
+    /// # Errors
+    /// Why not, naming the first element that blocks it; nothing changes
+    /// then.
+    pub fn clear_shutdown(&self, state: &mut OmniObserverState) -> Result<(), ResetError> {
+        state.alarm.reset(&self.alarm, &mut state.events)?;
+        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
+        Ok(())
     }
 }
 

@@ -8,7 +8,7 @@
 //! boot. A snapshot that cannot be trusted is refused, and the observer then
 //! starts from [`conservative_start`].
 //!
-//! # Format (version 1, little endian)
+//! # Format (version 2, little endian)
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -17,18 +17,28 @@
 //! | 6 | 2 | node count `N` |
 //! | 8 | 4 | configuration fingerprint (see [`Fingerprint`]) |
 //! | 12 | 4 | saved-at time \[s\], the application's clock |
-//! | 16 | 1 | flags: bit 0 = shutdown latched |
+//! | 16 | 1 | flags: bit 0 = shutdown latched, bits 1 .. 7 reserved, zero |
 //! | 17 | 3 | reserved, zero |
 //! | 20 | 4 N | node temperatures \[degC\], `f32` |
 //! | 20 + 4 N | 4 | CRC-32 (IEEE 802.3) of every byte before it |
+//!
+//! Version 2 has version 1's layout; what changed is what the bytes must
+//! hold: the fingerprint covers the protection as well as the model (the
+//! observers' `fingerprint` docs), and the reserved bits and bytes are
+//! checked. A version 1 snapshot is refused as
+//! [`SnapshotError::UnsupportedVersion`] `{ found: 1 }` (its fingerprint
+//! would not match anyway; the version says why): the observer then starts
+//! from its conservative state.
 //!
 //! # What is refused
 //!
 //! Every check returns its own [`SnapshotError`]: a buffer too short, a wrong
 //! magic, another version, another node count, a CRC mismatch (any flipped
-//! bit), another configuration (the fingerprint of the model that wrote it
-//! differs), a snapshot older than the allowed age or from the future, and
-//! any temperature that is not finite or outside -60 .. 400 degC.
+//! bit), a reserved bit or byte that is not zero (written by another
+//! format; [`SnapshotError::ReservedNotZero`]), another configuration (the
+//! fingerprint of the model and protection that wrote it differs), a
+//! snapshot older than the allowed age or from the future, and any
+//! temperature that is not finite or outside -60 .. 400 degC.
 //!
 //! A latched shutdown is part of the snapshot on purpose: a reset must not be
 //! a way around the latch.
@@ -36,7 +46,7 @@
 use core::fmt;
 
 /// Format version written by [`save`].
-pub const SNAPSHOT_VERSION: u16 = 1;
+pub const SNAPSHOT_VERSION: u16 = 2;
 const MAGIC: [u8; 4] = *b"CTHS";
 const HEADER_LEN: usize = 20;
 const CRC_LEN: usize = 4;
@@ -76,6 +86,12 @@ pub enum SnapshotError {
         /// The version found.
         found: u16,
     },
+    /// A reserved flag bit or reserved byte is not zero: written by
+    /// another format (or by a writer that does not follow this one).
+    ReservedNotZero {
+        /// Offset of the first offending byte.
+        offset: usize,
+    },
     /// Written for another number of nodes.
     WrongNodeCount {
         /// The node count found.
@@ -104,7 +120,13 @@ impl fmt::Display for SnapshotError {
         match *self {
             Self::BufferTooSmall { needed } => write!(f, "snapshot buffer needs {needed} bytes"),
             Self::BadMagic => write!(f, "not a snapshot (bad magic)"),
-            Self::UnsupportedVersion { found } => write!(f, "snapshot version {found} unsupported"),
+            Self::UnsupportedVersion { found } => write!(
+                f,
+                "snapshot version {found} unsupported (this build reads version {SNAPSHOT_VERSION})"
+            ),
+            Self::ReservedNotZero { offset } => {
+                write!(f, "snapshot reserved byte {offset} not zero")
+            }
             Self::WrongNodeCount { found } => write!(f, "snapshot holds {found} nodes"),
             Self::CrcMismatch => write!(f, "snapshot CRC mismatch"),
             Self::ConfigMismatch => write!(f, "snapshot from another configuration"),
@@ -266,6 +288,14 @@ pub fn restore<const N: usize>(
     let nodes = read_u16(bytes, 6);
     if nodes as usize != N {
         return Err(SnapshotError::WrongNodeCount { found: nodes });
+    }
+    // Flags: only bit 0 is defined; bytes 17 .. 20 are reserved.
+    let flags = bytes.get(16).copied().unwrap_or(0);
+    if flags & !1 != 0 {
+        return Err(SnapshotError::ReservedNotZero { offset: 16 });
+    }
+    if let Some(offset) = (17..HEADER_LEN).find(|at| bytes.get(*at).is_some_and(|b| *b != 0)) {
+        return Err(SnapshotError::ReservedNotZero { offset });
     }
     let meta = SnapshotMeta {
         fingerprint: read_u32(bytes, 8),
@@ -429,6 +459,49 @@ mod tests {
             restore::<4>(&versioned, &POLICY),
             Err(SnapshotError::UnsupportedVersion { found: 9 })
         );
+    }
+
+    /// Rewrites byte `at` of a good snapshot to `value` and fixes the CRC,
+    /// so that only the field's own check can refuse it.
+    fn with_byte(at: usize, value: u8) -> [u8; snapshot_len(4)] {
+        let mut buf = saved();
+        buf[at] = value;
+        let crc = crc32(&buf[..36]);
+        buf[36..].copy_from_slice(&crc.to_le_bytes());
+        buf
+    }
+
+    #[test]
+    fn nonzero_reserved_bits_and_bytes_are_refused() {
+        for bit in 1..8 {
+            assert_eq!(
+                restore::<4>(&with_byte(16, 1 | 1 << bit), &POLICY),
+                Err(SnapshotError::ReservedNotZero { offset: 16 }),
+                "flag bit {bit}"
+            );
+        }
+        for at in 17..20 {
+            for value in [1u8, 0x80, 0xFF] {
+                assert_eq!(
+                    restore::<4>(&with_byte(at, value), &POLICY),
+                    Err(SnapshotError::ReservedNotZero { offset: at }),
+                    "byte {at} = {value}"
+                );
+            }
+        }
+        // The defined bit alone is fine either way.
+        assert!(restore::<4>(&with_byte(16, 0), &POLICY).is_ok());
+        assert!(restore::<4>(&with_byte(16, 1), &POLICY).is_ok());
+    }
+
+    #[test]
+    fn a_version_1_snapshot_is_refused_by_its_version() {
+        assert_eq!(SNAPSHOT_VERSION, 2);
+        let old = with_byte(4, 1);
+        let refused = restore::<4>(&old, &POLICY);
+        assert_eq!(refused, Err(SnapshotError::UnsupportedVersion { found: 1 }));
+        let message = std::format!("{}", refused.unwrap_err());
+        assert!(message.contains("version 1") && message.contains("version 2"));
     }
 
     #[test]

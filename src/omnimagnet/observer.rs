@@ -144,6 +144,7 @@ use crate::filter::{
     self, InputStatus, KalmanConfig, KalmanState, Observability, SensorVerdict, SteadyEstimate,
     SteadyStateGain, CHI2_1DOF_999,
 };
+use crate::input::InputLimits;
 use crate::protect::resistance_sensor::MeanTemperatureReading;
 use crate::sensors::SensorFault;
 
@@ -817,28 +818,55 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
 
     /// One tick: solenoid currents \[A\] and ambient \[degC\] held over the
     /// step. The Joule power uses `R(T)` at the estimated solenoid
-    /// temperatures. Non-finite inputs are replaced by the last finite ones
-    /// (reported as [`InputStatus::Dropped`]).
+    /// temperatures. The input rules of [`crate::input`] at
+    /// [`InputLimits::default`] apply: a current beyond +-100 A is clamped
+    /// to it and used (reported as [`InputStatus::Clamped`]: a huge finite
+    /// current, whose `R I^2` would overflow, heats as the clamp, never
+    /// less); a non-finite current, or an ambient that is not finite or
+    /// outside -60 .. 400 degC, leaves the last input in use (the powers
+    /// and ambient of the last valid step, reported as
+    /// [`InputStatus::Dropped`]).
     pub fn predict(&mut self, currents_a: &[T; SOLENOIDS], ambient_c: T) -> InputStatus {
         let config = &self.config;
         let state = &mut self.state;
-        let finite = config.joule_input(
-            &config.model,
-            &state.filter.x,
-            currents_a,
-            ambient_c,
-            &mut state.last_input,
-        );
+        let limits = InputLimits::default();
+        let max_a: T = cast(limits.max_current_a);
+        let ambient_ok =
+            ambient_c >= cast(limits.min_temp_c) && ambient_c <= cast(limits.max_temp_c);
+        let mut clamped = false;
+        let currents = currents_a.map(|i| {
+            if i.is_finite() && i.abs() > max_a {
+                clamped = true;
+                if i > T::zero() {
+                    max_a
+                } else {
+                    -max_a
+                }
+            } else {
+                i
+            }
+        });
+        // A NaN ambient fails `ambient_ok` as well.
+        let finite = ambient_ok
+            && config.joule_input(
+                &config.model,
+                &state.filter.x,
+                &currents,
+                ambient_c,
+                &mut state.last_input,
+            );
         match state.mode {
             GainMode::SteadyState => config.model.predict(&mut state.filter.x, &state.last_input),
             GainMode::TimeVarying => {
                 filter::predict(&config.kalman, &mut state.filter, &state.last_input);
             }
         }
-        if finite {
-            InputStatus::Used
-        } else {
+        if !finite {
             InputStatus::Dropped
+        } else if clamped {
+            InputStatus::Clamped
+        } else {
+            InputStatus::Used
         }
     }
 

@@ -210,6 +210,25 @@ impl<S: Scalar, const N: usize> AlarmConfig<S, N> {
     pub fn debounce_ticks(&self) -> u16 {
         self.debounce_ticks
     }
+
+    /// Feeds every parameter (critical temperatures, the derating
+    /// product, margins, debounce, horizons, nominal ambient) to a
+    /// snapshot fingerprint.
+    #[must_use]
+    pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
+        self.critical_c
+            .iter()
+            .fold(fp, |fp, c| fp.f64(c.to_f64()))
+            .f64s(&[
+                self.product.to_f64(),
+                self.warning_margin_k.to_f64(),
+                self.hysteresis_k.to_f64(),
+                self.horizon_s.to_f64(),
+                self.horizon_clear_s.to_f64(),
+                self.nominal_ambient_c.to_f64(),
+            ])
+            .u32(u32::from(self.debounce_ticks))
+    }
 }
 
 /// Builds an [`AlarmConfig`]; every parameter has a documented default.
@@ -723,6 +742,27 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
                 count: 0,
             };
         }
+    }
+
+    /// Latches the shutdown of every element for a fault outside the
+    /// elements (e.g. [`EventKind::ClockFrozen`]: the model is lost) and,
+    /// if it was not latched yet, pushes a `kind` event with no element.
+    /// [`Self::reset`] clears it under its usual conditions. Bounded,
+    /// panic-free: for the tick.
+    pub fn latch_shutdown_for<const CAP: usize>(
+        &mut self,
+        kind: EventKind,
+        events: &mut EventQueue<CAP>,
+    ) {
+        if self.shutdown_latched() {
+            return;
+        }
+        self.latch_shutdown();
+        let _ = events.push(AlarmEvent {
+            tick: self.tick,
+            element: None,
+            kind,
+        });
     }
 
     /// `true` while any element's shutdown is latched.

@@ -41,6 +41,10 @@ pub enum EventKind {
     SensorValid,
     /// The latched shutdown was reset (no element).
     Reset,
+    /// The observer's clock gave no elapsed time for its loss limit of
+    /// ticks: the model is lost, and the shutdown was latched (no element;
+    /// see [`crate::observer::clock`]).
+    ClockFrozen,
 }
 
 /// One alarm event.

@@ -232,6 +232,16 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     pub fn floor_a(&self) -> S {
         self.floor_a
     }
+
+    /// Feeds every parameter (hardware limits, taper, floor) to a snapshot
+    /// fingerprint.
+    #[must_use]
+    pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
+        self.hardware_limit_a
+            .iter()
+            .fold(fp, |fp, a| fp.f64(a.to_f64()))
+            .f64s(&[self.taper_k.to_f64(), self.floor_a.to_f64()])
+    }
 }
 
 /// `x` clamped to `[lo, hi]` (`lo <= hi`) for an `x` that is not NaN: the

@@ -292,6 +292,15 @@ impl<S: Scalar, const N: usize> UpperBound<S, N> {
         self.elements.iter().all(|e| *e == ElementBound::ZERO)
     }
 
+    /// Feeds every element's margin (fraction of the rise and offset) to a
+    /// snapshot fingerprint.
+    #[must_use]
+    pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
+        self.elements.iter().fold(fp, |fp, e| {
+            fp.f64(e.rise_fraction.to_f64()).f64(e.offset_k.to_f64())
+        })
+    }
+
     /// The upper bound of every element \[degC\] from the estimates
     /// `temps_c` \[degC\] and the reference `reference_c` \[degC\], into
     /// `out`. O(N), allocation-free, panic-free.
