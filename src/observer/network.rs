@@ -971,23 +971,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ) -> bool {
         let mut z = [None; P];
         let statuses = &mut state.outputs.sensors;
-        for (((zj, status), reading), node) in z
-            .iter_mut()
-            .zip(statuses.iter_mut())
-            .zip(&inputs.readings)
-            .zip(&self.sensor_nodes)
-        {
-            *status = SensorStatus::NoReading;
-            let Some(reading) = reading else { continue };
-            match reading.sample_c(inputs.now_us, self.max_reading_age_us) {
-                Ok(t) => {
-                    // Deviation of the reading from the origin; the node
-                    // index was checked at build time.
-                    let _ = node;
+        // `H` holds the sensor map: a reading only needs the origin taken
+        // off to be a deviation.
+        for ((zj, status), reading) in z.iter_mut().zip(statuses.iter_mut()).zip(&inputs.readings) {
+            *status = match reading.map(|r| r.sample_c(inputs.now_us, self.max_reading_age_us)) {
+                None => SensorStatus::NoReading,
+                Some(Ok(t)) => {
                     *zj = Some(t - self.origin_c);
+                    SensorStatus::NoReading
                 }
-                Err(s) => *status = s,
-            }
+                Some(Err(s)) => s,
+            };
         }
         if z.iter().all(Option::is_none) {
             return false;
