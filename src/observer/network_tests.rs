@@ -444,3 +444,20 @@ fn the_thermocouple_pulls_a_wrong_start_in() {
         );
     }
 }
+
+#[test]
+fn biases_the_sensors_cannot_tell_apart_are_refused() {
+    // Three identical phases and one thermocouple on the housing: the three
+    // bias random walks are not observable, no steady gain exists, and the
+    // build says so (the module docs' advice: bias noise 0).
+    let net = three_phase();
+    let refused = NetworkObserverBuilder::new(&net, [3])
+        .build::<8>()
+        .map(|_| ());
+    assert_eq!(
+        refused,
+        Err(BuildError::NotConverged {
+            name: "steady_state_gain"
+        })
+    );
+}
