@@ -15,7 +15,9 @@
 //! observer's tick (the spread grid step, one step or a catch-up of several,
 //! the update, time to limit, the alarm and the limiter in parts, hottest
 //! coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
-//! `update_steady`, predictor slice, alarm, limiter), the protective upper
+//! `update_steady`, predictor slice, alarm, limiter), the generic
+//! `NetworkObserver`'s tick (the carried deviation predict, `R(T)` at the
+//! estimate, the correction, the incidence limiter), the protective upper
 //! bounds and mean limits of `protect::margin` on their own (`f32` and
 //! `Q32`, parts out of range), and the time-varying Kalman `predict` and
 //! `update`.
@@ -25,7 +27,9 @@
 use coil_thermal::filter::{predict, update, KalmanConfig, KalmanState};
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::TimedReading;
-use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, OmniObserver};
+use coil_thermal::observer::{
+    GridInputs, GridObserver, NetworkInputs, NetworkObserver, OmniInputs, OmniObserver,
+};
 use coil_thermal::omnimagnet::observer::MeanModel;
 use coil_thermal::omnimagnet::NODES;
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -76,6 +80,53 @@ fn omni_config() -> Option<OmniObserver> {
     // variant) has all-zero bits as a valid value. The value is hidden
     // behind `black_box`.
     Some(black_box(unsafe { core::mem::zeroed() }))
+}
+
+/// A generic network observer's configuration the optimiser knows nothing
+/// about, for the same reason as [`omni_config`] (its build solves a
+/// Riccati equation with checked indices).
+#[inline(never)]
+fn network_config() -> Option<NetworkObserver<3, 1, 1, 4, 1>> {
+    // SAFETY: as for `omni_config`: every field (f32 matrices and arrays,
+    // usize, u32, bool, the protection configurations `OmniObserver` also
+    // holds) has all-zero bits as a valid value. Hidden behind `black_box`.
+    Some(black_box(unsafe { core::mem::zeroed() }))
+}
+
+/// The generic observer's tick with hostile inputs.
+#[inline(never)]
+fn network_observer() -> bool {
+    let Some(obs) = network_config() else {
+        return false;
+    };
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    for k in 0..black_box(2000u32) {
+        let current = black_box(if k % 7 == 0 { f32::NAN } else { 8.0 });
+        let temp = black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 });
+        let elapsed_us = black_box(if k % 13 == 0 { u32::MAX } else { 1000 });
+        let reading = black_box(TimedReading {
+            result: if k % 5 == 0 {
+                Err(SensorFault::OpenCircuit)
+            } else {
+                Ok(Reading {
+                    temp_c: temp,
+                    cold_junction_c: 20.0,
+                })
+            },
+            sampled_at_us: k,
+        });
+        black_box(obs.tick(
+            &mut state,
+            &NetworkInputs {
+                currents_a: [current],
+                boundary_c: [temp],
+                readings: [Some(reading)],
+                now_us: k.wrapping_mul(1000),
+                elapsed_us,
+            },
+        ));
+    }
+    true
 }
 
 /// A re-linearised model the optimiser knows nothing about, for
@@ -199,7 +250,7 @@ fn margins() -> bool {
 
 #[entry]
 fn main() -> ! {
-    let ok = observers() && time_varying_filter() && steppers() && margins();
+    let ok = observers() && network_observer() && time_varying_filter() && steppers() && margins();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
     } else {

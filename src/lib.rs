@@ -18,6 +18,12 @@ pub mod scalar;
 pub mod sensors;
 pub mod solenoid;
 
+/// The linear algebra crate this one is built on, re-exported so that a
+/// user needs no `nalgebra` dependency of their own (and no matching
+/// version or features: a plain `nalgebra` dependency turns on `std` and
+/// breaks thumb builds). Write `coil_thermal::nalgebra::SVector`.
+pub use nalgebra;
+
 pub use error::BuildError;
 pub use grid::{CoilGrid, GridConfig, GridParams, GridState, Stencil};
 pub use input::{InputFlags, InputLimits};

@@ -71,3 +71,47 @@ fn network_steps_allocate_nothing() {
     assert_eq!(n, 0);
     assert!(state.temps_c[0] > 20.0 && x[0] > 20.0);
 }
+
+#[test]
+fn network_observer_ticks_allocate_nothing() {
+    use coil_thermal::observer::omnimagnet::TimedReading;
+    use coil_thermal::observer::{NetworkInputs, NetworkObserver, NetworkObserverBuilder};
+    use coil_thermal::{Reading, SensorFault};
+
+    let net = network();
+    let obs: NetworkObserver<4, 2, 2, 6, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c([Some(155.0), Some(80.0), None, Some(120.0)])
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[20.0; 4], &[20.0; 2]);
+    let n = count_allocations(|| {
+        for k in 0..20_000u32 {
+            let current = if k % 13 == 0 { f32::NAN } else { 1.5 };
+            let reading = TimedReading {
+                result: if k % 1000 == 0 {
+                    Err(SensorFault::OpenCircuit)
+                } else {
+                    Ok(Reading {
+                        temp_c: 21.0,
+                        cold_junction_c: 25.0,
+                    })
+                },
+                sampled_at_us: k.wrapping_mul(1000),
+            };
+            let out = obs.tick(
+                &mut state,
+                &NetworkInputs {
+                    currents_a: [current, 0.5],
+                    boundary_c: [20.0, f32::INFINITY],
+                    readings: [(k % 500 == 0).then_some(reading)],
+                    now_us: k.wrapping_mul(1000),
+                    elapsed_us: if k % 97 == 0 { 7000 } else { 1000 },
+                },
+            );
+            std::hint::black_box(out);
+        }
+    });
+    assert_eq!(n, 0);
+    // The loop ran the whole tick: corrections and protection cycles.
+    assert!(state.outputs().tick == 20_000 && state.outputs().temps_c[0] > 20.0);
+}

@@ -393,6 +393,22 @@ pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const 
     }
 }
 
+impl<const N: usize, const P: usize> SteadyStateGain<f64, N, P> {
+    /// The same solution in another float type: solved in `f64` (where
+    /// the doubling keeps its accuracy), run in `f32`.
+    pub fn cast<U: RealField + Copy>(&self) -> SteadyStateGain<U, N, P> {
+        SteadyStateGain {
+            period: self.period,
+            gain: self.gain.cast(),
+            prior: self.prior.cast(),
+            posterior: self.posterior.cast(),
+            innovation_var: self.innovation_var.cast(),
+            prior_ht: self.prior_ht.cast(),
+            innovation_cov: self.innovation_cov.cast(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

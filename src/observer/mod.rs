@@ -11,7 +11,11 @@
 //! * [`omnimagnet`]: the same for an Omnimagnet (the 19-state steady-state
 //!   Kalman observer fed by thermocouples, protection), with re-linearised
 //!   models made off the tick and installed between ticks;
-//! * both protect on an upper bound of each element's temperature, not on
+//! * [`network`]: the same for any [`Network`](crate::Network) you build
+//!   (your own actuator): steady-state Kalman filter on the sensors you
+//!   name, heat-input biases, `f32` without drift, a limiter that derates
+//!   every current heating a limited element;
+//! * all protect on an upper bound of each element's temperature, not on
 //!   the mean estimate: the estimate plus a model-uncertainty margin (and,
 //!   for the filtered Omnimagnet, `k sigma`), see
 //!   [`crate::protect::margin`]; the outputs carry both;
@@ -20,6 +24,7 @@
 
 pub mod clock;
 pub mod grid;
+pub mod network;
 pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
@@ -29,6 +34,10 @@ pub use clock::{
 };
 pub use grid::{
     GridInputs, GridObserver, GridObserverState, GridOutputs, ProtectionPlan, PROTECTION_TICKS,
+};
+pub use network::{
+    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkOutputs,
+    NetworkSettings,
 };
 pub use omnimagnet::{
     OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,

@@ -263,6 +263,41 @@ pub struct TimedReading {
     pub sampled_at_us: u32,
 }
 
+impl TimedReading {
+    /// The reading \[degC\] if it can be fused at `now_us` \[us\]: not a
+    /// fault, not older than `max_age_us` \[us\], finite; otherwise what
+    /// to report. Shared by the observers' corrections.
+    pub(crate) fn sample_c(&self, now_us: u32, max_age_us: u32) -> Result<f32, SensorStatus> {
+        match self.result {
+            Err(fault) => Err(SensorStatus::Fault(fault)),
+            Ok(r) => {
+                let age_us = now_us.wrapping_sub(self.sampled_at_us);
+                if age_us > max_age_us {
+                    Err(SensorStatus::TooOld { age_us })
+                } else if !r.temp_c.is_finite() {
+                    Err(SensorStatus::Fault(SensorFault::NotFinite))
+                } else {
+                    Ok(r.temp_c)
+                }
+            }
+        }
+    }
+}
+
+/// A predictor's answer `time_s` \[s\] made older by `lag_s` \[s\] (the
+/// real time it lags behind), never below zero; NaN ("unknown") and `None`
+/// ("never") pass through. Shared by the observers.
+pub(crate) fn aged_time_to_limit(time_s: Option<f32>, lag_s: f32) -> Option<f32> {
+    time_s.map(|t| {
+        let left = t - lag_s;
+        if left < 0.0 {
+            0.0
+        } else {
+            left
+        }
+    })
+}
+
 /// What happened to one thermocouple this tick.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -808,15 +843,7 @@ impl OmniObserver {
         let lag_s = state.predictor_lag_us as f32 * 1e-6;
         let ttl = state.predictor.time_to_limit_s();
         for (time, node) in state.outputs.time_to_limit_s.iter_mut().zip(ALARM_NODES) {
-            *time = ttl.get(node).copied().flatten().map(|t| {
-                let left = t - lag_s;
-                // NaN ("unknown") passes through.
-                if left < 0.0 {
-                    0.0
-                } else {
-                    left
-                }
-            });
+            *time = aged_time_to_limit(ttl.get(node).copied().flatten(), lag_s);
         }
     }
 
@@ -869,23 +896,13 @@ impl OmniObserver {
         {
             *status = match reading {
                 None => SensorStatus::NoReading,
-                Some(TimedReading {
-                    result: Err(fault), ..
-                }) => SensorStatus::Fault(*fault),
-                Some(TimedReading {
-                    result: Ok(r),
-                    sampled_at_us,
-                }) => {
-                    let age_us = inputs.now_us.wrapping_sub(*sampled_at_us);
-                    if age_us > self.max_reading_age_us {
-                        SensorStatus::TooOld { age_us }
-                    } else if !r.temp_c.is_finite() {
-                        SensorStatus::Fault(SensorFault::NotFinite)
-                    } else {
-                        *sample = Some(Ok(r.temp_c));
+                Some(reading) => match reading.sample_c(inputs.now_us, self.max_reading_age_us) {
+                    Ok(temp_c) => {
+                        *sample = Some(Ok(temp_c));
                         SensorStatus::NoReading
                     }
-                }
+                    Err(status) => status,
+                },
             };
         }
         let z = self.filter.deviations(&state.model, &samples);

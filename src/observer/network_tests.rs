@@ -1,0 +1,463 @@
+//! Tests of the generic network observer against independent references:
+//! an `f64` RK4 of the network's nonlinear right-hand side
+//! ([`Network::derivative_k_per_s`], `R(T)` continuous), never the
+//! observer's own ZOH.
+
+use super::*;
+use crate::network::Resistance;
+use crate::sensors::{Reading, SensorFault};
+
+/// Winding (0), housing (1), heatsink (2), ambient (boundary 0), one
+/// current: the module docs' device with a winding that takes 8 A.
+fn device() -> Network<3, 1, 1> {
+    Network::new([60.0, 400.0, 900.0])
+        .and_then(|n| n.connect(0, 1, 2.0))
+        .and_then(|n| n.connect(1, 2, 3.0))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5))
+        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.3, 0.00393, 20.0)))
+        .unwrap()
+}
+
+/// Three phase windings (0, 1, 2) in a housing (3) on a heatsink (4): the
+/// issue's device.
+fn three_phase() -> Network<5, 1, 3> {
+    let mut n = Network::new([30.0, 30.0, 30.0, 500.0, 1000.0]).unwrap();
+    for p in 0..3 {
+        n = n
+            .connect(p, 3, 1.0)
+            .and_then(|n| n.connect(p, (p + 1) % 3, 0.2))
+            .and_then(|n| n.joule_source(p, p, Resistance::with_alpha(0.5, 0.00393, 20.0)))
+            .unwrap();
+    }
+    n.connect(3, 4, 3.0)
+        .and_then(|n| n.connect_boundary(4, 0, 2.0))
+        .unwrap()
+}
+
+/// One RK4 step of `h` \[s\] of the network with currents held.
+fn rk4<const N: usize, const B: usize, const M: usize>(
+    net: &Network<N, B, M>,
+    t: &mut [f64; N],
+    i: &[f64; M],
+    tb: &[f64; B],
+    h: f64,
+) {
+    let f = |x: &[f64; N]| net.derivative_k_per_s(x, i, tb);
+    let add = |x: &[f64; N], k: &[f64; N], s: f64| core::array::from_fn(|n| x[n] + s * k[n]);
+    let k1 = f(t);
+    let k2 = f(&add(t, &k1, h / 2.0));
+    let k3 = f(&add(t, &k2, h / 2.0));
+    let k4 = f(&add(t, &k3, h));
+    for n in 0..N {
+        t[n] += h / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n]);
+    }
+}
+
+fn inputs<const B: usize, const M: usize, const P: usize>(
+    currents_a: [f32; M],
+    boundary_c: [f32; B],
+    now_us: u32,
+) -> NetworkInputs<B, M, P> {
+    NetworkInputs {
+        currents_a,
+        boundary_c,
+        readings: [None; P],
+        now_us,
+        elapsed_us: 1000,
+    }
+}
+
+fn reading(temp_c: f32, now_us: u32) -> Option<TimedReading> {
+    Some(TimedReading {
+        result: Ok(Reading {
+            temp_c,
+            cold_junction_c: 25.0,
+        }),
+        sampled_at_us: now_us,
+    })
+}
+
+#[test]
+fn f32_does_not_drift() {
+    // Issue 16: open loop, 2 h at 8 A on a 3-node model. The observer must
+    // stay within 0.01 K of the f64 solution; the plain f32 predict on
+    // absolute temperatures (the form of `filter::predict_mean`) is run
+    // beside it to show what the carry removes.
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> =
+        NetworkObserverBuilder::new(&net, [1]).build().unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut exact = [20.0f64; 3];
+    let d = zoh(&net.state_space(&[20.0; 3]), 1e-3)
+        .unwrap()
+        .cast::<f32>();
+    let mut plain = SVector::<f32, 3>::repeat(20.0);
+    let source = net.source(0).unwrap().resistance.to_scalar::<f32>();
+    let mut worst = 0.0f64;
+    for k in 0..7_200_000u32 {
+        obs.tick(&mut state, &inputs([8.0], [20.0], k.wrapping_mul(1000)));
+        let p = SVector::<f32, 1>::repeat(source.joule_power_w(plain[0], 8.0));
+        plain = d.step(&plain, &p, &SVector::repeat(20.0));
+        rk4(&net, &mut exact, &[8.0], &[20.0], 1e-3);
+        if k % 1000 == 999 {
+            let t = obs.temps_c(&state);
+            for n in 0..3 {
+                worst = worst.max((f64::from(t[n]) - exact[n]).abs());
+            }
+        }
+    }
+    let plain_error = (f64::from(plain[0]) - exact[0]).abs();
+    std::println!(
+        "2 h at 8 A: winding {:.4} degC (f64), observer worst {worst:.5} K, plain f32 {plain_error:.3} K",
+        exact[0]
+    );
+    assert!(exact[0] > 45.0, "the winding must heat: {}", exact[0]);
+    assert!(worst < 0.01, "observer drift {worst} K");
+    assert!(
+        plain_error > 0.05,
+        "the plain f32 predict drifts ({plain_error} K)"
+    );
+}
+
+#[test]
+fn default_incidence_follows_the_heat() {
+    let net = three_phase();
+    let inc = default_incidence(&net, 0.1).unwrap();
+    // The housing and the heatsink are heated by every phase.
+    assert_eq!(inc[3], [true; 3]);
+    assert_eq!(inc[4], [true; 3]);
+    // Each winding by its own phase.
+    for p in 0..3 {
+        assert!(inc[p][p]);
+    }
+    // A node heated by one current only, far from another's source: the
+    // 3-node device has one current, so the incidence is all true; a
+    // fraction above 1 is refused.
+    assert!(default_incidence(&net, 1.5).is_err());
+    // An isolated node has no steady state.
+    let isolated: Network<2, 1, 1> = Network::new([1.0, 1.0])
+        .and_then(|n| n.connect_boundary(0, 0, 1.0))
+        .and_then(|n| n.joule_source(0, 1, Resistance::constant(1.0)))
+        .unwrap();
+    assert_eq!(default_incidence(&isolated, 0.1), Err(BuildError::Singular));
+}
+
+/// The issue's closed loop: 13 A demanded on each phase, the drive applies
+/// the observer's limits, the plant is the f64 RK4 of the same network, a
+/// thermocouple on the housing at 2 Hz. Returns the true peaks of the
+/// windings and the housing above their alarm limits \[K\] (positive:
+/// over).
+fn three_phase_closed_loop(incidence: Option<[[bool; 3]; 5]>) -> (f64, f64) {
+    let net = three_phase();
+    let mut builder = NetworkObserverBuilder::new(&net, [3])
+        .critical_c([Some(155.0), Some(155.0), Some(155.0), Some(80.0), None])
+        .hardware_limit_a([15.0; 3])
+        .settings(NetworkSettings {
+            // One thermocouple cannot tell three phases' heat apart.
+            bias_noise_w2_per_s: 0.0,
+            ..NetworkSettings::DEFAULT
+        });
+    if let Some(inc) = incidence {
+        builder = builder.incidence(inc);
+    }
+    let obs: NetworkObserver<5, 1, 3, 8, 1> = builder.build().unwrap();
+    let limits = obs.alarm().alarm_limits_c(20.0);
+    let mut state = obs.state(&[20.0; 5], &[20.0]);
+    let mut plant = [20.0f64; 5];
+    let mut over = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for k in 0..(3 * 3_600_000u32) {
+        let now_us = k.wrapping_mul(1000);
+        let out = *state.outputs();
+        let applied = core::array::from_fn(|m| out.limits[m].clamp_a(13.0));
+        let mut inp = inputs(applied, [20.0], now_us);
+        if k % 500 == 0 {
+            inp.readings = [reading(plant[3] as f32, now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        rk4(&net, &mut plant, &applied.map(f64::from), &[20.0], 1e-3);
+        for p in 0..3 {
+            over.0 = over.0.max(plant[p] - f64::from(limits[p]));
+        }
+        over.1 = over.1.max(plant[3] - f64::from(limits[3]));
+    }
+    over
+}
+
+#[test]
+fn every_current_heating_the_housing_is_derated() {
+    let (windings, housing) = three_phase_closed_loop(None);
+    // One element, one current (each phase limited by its own winding
+    // only), as the limiter did before: the housing runs over.
+    let mut own = [[false; 3]; 5];
+    for p in 0..3 {
+        own[p][p] = true;
+    }
+    let (own_windings, own_housing) = three_phase_closed_loop(Some(own));
+    std::println!(
+        "13 A demanded, peak above the alarm limit: incidence windings {windings:.2} K, housing {housing:.2} K; one-to-one windings {own_windings:.2} K, housing {own_housing:.2} K"
+    );
+    assert!(housing <= 0.0, "housing {housing} K over its limit");
+    assert!(windings <= 0.0, "windings {windings} K over their limit");
+    assert!(own_housing > 1.0, "the one-to-one limiter must fail here");
+}
+
+#[test]
+fn a_cold_model_is_caught_by_the_thermocouple_in_closed_loop() {
+    // The plant's conductances are 15 % low and its resistance 10 % high:
+    // the model reads cold. The thermocouple on the winding and the
+    // heat-bias state find the missing heat; the winding (limited at its
+    // derated 155 degC) and the housing (80 degC) must stay below their
+    // alarm limits with 20 A demanded.
+    let net = device();
+    let plant_net: Network<3, 1, 1> = Network::new([60.0, 400.0, 900.0])
+        .and_then(|n| n.connect(0, 1, 2.0 * 0.85))
+        .and_then(|n| n.connect(1, 2, 3.0 * 0.85))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5 * 0.85))
+        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.33, 0.00393, 20.0)))
+        .unwrap();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [0])
+        .critical_c([Some(155.0), Some(80.0), None])
+        .hardware_limit_a([20.0])
+        .build()
+        .unwrap();
+    let limits = obs.alarm().alarm_limits_c(20.0);
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut plant = [20.0f64; 3];
+    let mut over = [f64::NEG_INFINITY; 2];
+    let mut min_current = f32::INFINITY;
+    for k in 0..(3 * 3_600_000u32) {
+        let now_us = k.wrapping_mul(1000);
+        let applied = state.outputs().limits[0].clamp_a(20.0);
+        min_current = min_current.min(applied);
+        let mut inp = inputs([applied], [20.0], now_us);
+        if k % 500 == 0 {
+            inp.readings = [reading(plant[0] as f32, now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        rk4(&plant_net, &mut plant, &[f64::from(applied)], &[20.0], 1e-3);
+        for n in 0..2 {
+            over[n] = over[n].max(plant[n] - f64::from(limits[n]));
+        }
+    }
+    std::println!(
+        "cold model, 20 A demanded: winding {:.2} K, housing {:.2} K from the alarm limits; bias {:.2} W; current held down to {min_current:.2} A",
+        over[0],
+        over[1],
+        obs.heat_bias_w(&state)[0]
+    );
+    assert!(min_current < 19.0, "the limiter must act");
+    assert!(over[0] <= 0.0 && over[1] <= 0.0, "over the limit: {over:?}");
+    assert!(
+        obs.heat_bias_w(&state)[0] > 1.0,
+        "the bias finds the missing heat"
+    );
+}
+
+#[test]
+fn bad_inputs_never_panic_and_are_flagged() {
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c([Some(155.0), Some(80.0), None])
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let bad = [
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        1e30,
+        -1e30,
+        f32::MAX,
+        3.0,
+    ];
+    let elapsed = [0u32, 1, 999, 1000, 4000, 5000, u32::MAX, 1 << 31];
+    let mut k = 0u32;
+    for &current in &bad {
+        for &ambient in &bad {
+            for &dt in &elapsed {
+                k = k.wrapping_add(1);
+                let mut inp = inputs([current], [ambient], k.wrapping_mul(1000));
+                inp.elapsed_us = dt;
+                inp.readings = match k % 4 {
+                    0 => [reading(current, inp.now_us)],
+                    1 => [Some(TimedReading {
+                        result: Err(SensorFault::OpenCircuit),
+                        sampled_at_us: 0,
+                    })],
+                    2 => [reading(30.0, inp.now_us.wrapping_sub(1_000_000))],
+                    _ => [None],
+                };
+                let out = *obs.tick(&mut state, &inp);
+                assert!(out.temps_c.iter().all(|t| t.is_finite()), "{out:?}");
+                assert!(out.limits.iter().all(|l| l.current_a.is_finite()));
+                if !current.is_finite() {
+                    assert!(out.flags.contains(InputFlags::CURRENT_NOT_FINITE));
+                } else if current.abs() > 1e6 {
+                    assert!(out.flags.contains(InputFlags::CURRENT_CLAMPED));
+                }
+                if !ambient.is_finite() || ambient.abs() > 1e6 {
+                    assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+                }
+                if dt > 5000 {
+                    assert!(out.flags.contains(InputFlags::ELAPSED_INVALID));
+                    assert!(out.steps <= 4);
+                }
+                match k % 4 {
+                    1 => assert_eq!(
+                        out.sensors[0],
+                        SensorStatus::Fault(SensorFault::OpenCircuit)
+                    ),
+                    2 => assert!(matches!(out.sensors[0], SensorStatus::TooOld { .. })),
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    #[test]
+    fn any_tick_sequence_keeps_the_state_finite(
+        ticks in proptest::collection::vec(
+            (proptest::num::f32::ANY, proptest::num::f32::ANY, proptest::num::f32::ANY, 0u32..20_000),
+            1..200,
+        )
+    ) {
+        let net = device();
+        let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+            .critical_c([Some(155.0), Some(80.0), None])
+            .build()
+            .unwrap();
+        let mut state = obs.state(&[20.0; 3], &[20.0]);
+        let mut now = 0u32;
+        for (current, ambient, tc, dt) in ticks {
+            now = now.wrapping_add(dt);
+            let mut inp = inputs([current], [ambient], now);
+            inp.elapsed_us = dt;
+            inp.readings = [reading(tc, now)];
+            let out = obs.tick(&mut state, &inp);
+            proptest::prop_assert!(out.temps_c.iter().all(|t| t.is_finite()));
+            proptest::prop_assert!(out.upper_c.iter().all(|t| !t.is_nan() || out.tick < 4));
+            proptest::prop_assert!(out.limits[0].current_a >= 0.0 && out.limits[0].current_a <= 8.0);
+        }
+    }
+}
+
+#[test]
+fn snapshots_restore_and_refuse_like_the_omnimagnets() {
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c([Some(155.0), Some(80.0), None])
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    for k in 0..60_000u32 {
+        obs.tick(&mut state, &inputs([6.0], [20.0], k.wrapping_mul(1000)));
+    }
+    state.alarm.latch_shutdown();
+    let mut buf = [0u8; 64];
+    let len = obs.save(&state, 100, &mut buf).unwrap();
+    assert_eq!(len, snapshot::snapshot_len(3));
+    let restored = obs.restore(&buf[..len], 110, 60, &[20.0]).unwrap();
+    assert_eq!(obs.temps_c(&restored), obs.temps_c(&state));
+    assert!(restored.alarm.shutdown_latched());
+    // Too old, and from another configuration.
+    assert!(obs.restore(&buf[..len], 1000, 60, &[20.0]).is_err());
+    let other: NetworkObserver<3, 1, 1, 4, 1> =
+        NetworkObserverBuilder::new(&net, [0]).build().unwrap();
+    assert!(other.restore(&buf[..len], 110, 60, &[20.0]).is_err());
+    // The conservative start: the housing at its reading, the rest no
+    // cooler than it.
+    let c = obs.conservative_state(&[Some(35.0)], &[20.0]);
+    assert_eq!(obs.temps_c(&c), [35.0; 3]);
+}
+
+#[test]
+fn the_builder_names_bad_parameters() {
+    let net = device();
+    let build = |b: NetworkObserverBuilder<'_, 3, 1, 1, 1>| b.build::<4>().map(|_| ());
+    let param = |name| Err(BuildError::InvalidParameter { name });
+    assert_eq!(
+        build(NetworkObserverBuilder::new(&net, [3])),
+        param("sensor_nodes")
+    );
+    assert_eq!(
+        build(NetworkObserverBuilder::new(&net, [1]).critical_c([Some(f64::NAN), None, None])),
+        param("critical_c")
+    );
+    assert_eq!(
+        build(NetworkObserverBuilder::new(&net, [1]).hardware_limit_a([-1.0])),
+        param("hardware_limit_a")
+    );
+    let settings = |s: NetworkSettings| build(NetworkObserverBuilder::new(&net, [1]).settings(s));
+    assert_eq!(
+        settings(NetworkSettings {
+            incidence_fraction: 0.0,
+            ..NetworkSettings::DEFAULT
+        }),
+        param("incidence_fraction")
+    );
+    assert_eq!(
+        settings(NetworkSettings {
+            protect_period_steps: 3,
+            ..NetworkSettings::DEFAULT
+        }),
+        param("protect_period_steps")
+    );
+    assert_eq!(
+        settings(NetworkSettings {
+            ambient_boundary: 1,
+            ..NetworkSettings::DEFAULT
+        }),
+        param("ambient_boundary")
+    );
+}
+
+#[test]
+fn the_thermocouple_pulls_a_wrong_start_in() {
+    // Started 10 K cold everywhere, the housing's thermocouple brings every
+    // node to the f64 plant within 0.02 K in 40 min (measured: 0.004 K;
+    // 0.25 K at 20 min, while the heat bias that first took up part of
+    // the start error decays).
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> =
+        NetworkObserverBuilder::new(&net, [1]).build().unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut plant = [30.0f64; 3];
+    for k in 0..2_400_000u32 {
+        let now_us = k.wrapping_mul(1000);
+        let mut inp = inputs([5.0], [20.0], now_us);
+        if k % 500 == 0 {
+            inp.readings = [reading(plant[1] as f32, now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        rk4(&net, &mut plant, &[5.0], &[20.0], 1e-3);
+    }
+    let t = obs.temps_c(&state);
+    for n in 0..3 {
+        assert!(
+            (f64::from(t[n]) - plant[n]).abs() < 0.02,
+            "node {n}: {} against {}",
+            t[n],
+            plant[n]
+        );
+    }
+}
+
+#[test]
+fn biases_the_sensors_cannot_tell_apart_are_refused() {
+    // Three identical phases and one thermocouple on the housing: the three
+    // bias random walks are not observable, no steady gain exists, and the
+    // build says so (the module docs' advice: bias noise 0).
+    let net = three_phase();
+    let refused = NetworkObserverBuilder::new(&net, [3])
+        .build::<8>()
+        .map(|_| ());
+    assert_eq!(
+        refused,
+        Err(BuildError::NotConverged {
+            name: "steady_state_gain"
+        })
+    );
+}
