@@ -81,6 +81,8 @@ fn grid_conservative_state_starts_latched_until_the_deliberate_clear() {
     let mut state = grid.conservative_state(20.0);
     assert!(state.alarm.shutdown_latched());
     assert!(state.outputs().alarm.shutdown, "before the first tick");
+    // Latched: no current allowed (it allowed the full 3 A before).
+    assert!(state.outputs().limits.iter().all(|l| l.current_a == 0.0));
     let idle = [[0.0f32; 12]; 7];
     // Too early: the alarm has not yet seen the coils settle below reset.
     assert!(grid.clear_shutdown(&mut state).is_err());
@@ -88,6 +90,10 @@ fn grid_conservative_state_starts_latched_until_the_deliberate_clear() {
     for k in 0..20_000u32 {
         grid_tick(&grid, &mut state, &idle, 1000);
         assert!(state.outputs().alarm.shutdown, "tick {k}: the latch holds");
+        assert!(
+            state.outputs().limits.iter().all(|l| l.current_a == 0.0),
+            "tick {k}: no current while latched"
+        );
         if k % 100 == 99 && grid.clear_shutdown(&mut state).is_ok() {
             cleared_at = Some(k);
             break;
@@ -104,6 +110,8 @@ fn grid_conservative_state_starts_latched_until_the_deliberate_clear() {
         grid_tick(&grid, &mut state, &idle, 1000);
         assert!(!state.outputs().alarm.shutdown);
     }
+    // The limiter's next pass gives the cold coils their full current back.
+    assert!(state.outputs().limits.iter().all(|l| l.current_a == 3.0));
 }
 
 /// The grid's restored latch is in the outputs before and after the first
@@ -134,9 +142,15 @@ fn omni_restored_latch_shows_before_and_on_the_first_tick() {
     omni.save(&live, 100, &mut buf).unwrap();
     let mut state = omni.restore(&buf, 110, 600, 22.0).unwrap();
     assert!(state.outputs().alarm.shutdown, "before the first tick");
+    assert!(state.outputs().limits.iter().all(|l| l.current_a == 0.0));
     for k in 0..100 {
         let out = *omni.tick(&mut state, &omni_inputs([0.0; 3], 1000));
         assert!(out.alarm.shutdown, "tick {}", k + 1);
+        assert!(
+            out.limits.iter().all(|l| l.current_a == 0.0),
+            "tick {}",
+            k + 1
+        );
     }
 }
 
@@ -166,8 +180,82 @@ fn omni_conservative_state_starts_latched_until_the_deliberate_clear() {
     assert!(cleared, "55 degC is below every reset threshold");
     assert!(!state.outputs().alarm.shutdown);
     assert_eq!(reset_events(&mut state.events), 1);
-    let out = *omni.tick(&mut state, &omni_inputs([0.0; 3], 1000));
+    let mut out = *omni.tick(&mut state, &omni_inputs([0.0; 3], 1000));
     assert!(!out.alarm.shutdown);
+    // Within a protection cycle the limiter allows current again.
+    for _ in 0..32 {
+        out = *omni.tick(&mut state, &omni_inputs([0.0; 3], 1000));
+    }
+    assert!(
+        out.limits.iter().all(|l| l.current_a > 0.0),
+        "{:?}",
+        out.limits
+    );
+}
+
+/// The generic observer keeps the same promises: its conservative state is
+/// latched with no current allowed, a frozen clock latches it, and only the
+/// deliberate clear releases it.
+#[test]
+fn network_observer_latch_holds_the_current_at_zero_until_the_clear() {
+    use coil_thermal::observer::network::{NetworkInputs, NetworkObserver, NetworkObserverBuilder};
+    use coil_thermal::{Network, Resistance};
+    // Winding (0), housing (1), heatsink (2) to the ambient; thermocouple on
+    // the housing.
+    let network: Network<3, 1, 1> = Network::new([400.0, 1200.0, 3000.0])
+        .unwrap()
+        .connect(0, 1, 2.0)
+        .unwrap()
+        .connect(1, 2, 4.0)
+        .unwrap()
+        .connect_boundary(2, 0, 1.5)
+        .unwrap()
+        .joule_source(0, 0, Resistance::with_alpha(0.5, 0.00393, 20.0))
+        .unwrap();
+    let observer: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&network, [1])
+        .critical_c([Some(155.0), Some(80.0), None])
+        .build()
+        .unwrap();
+    let inputs = |elapsed_us: u32| NetworkInputs {
+        currents_a: [5.0],
+        boundary_c: [20.0],
+        readings: [None],
+        now_us: 0,
+        elapsed_us,
+    };
+    let mut state = observer.conservative_state(&[Some(30.0)], &[20.0]);
+    assert!(state.outputs().alarm.shutdown, "before the first tick");
+    assert!(state.outputs().limits[0].current_a == 0.0);
+    let mut cleared = false;
+    for k in 0..20_000u32 {
+        let out = *observer.tick(&mut state, &inputs(1000));
+        if !cleared {
+            assert!(
+                out.alarm.shutdown && out.limits[0].current_a == 0.0,
+                "tick {k}"
+            );
+            cleared = k % 100 == 99 && observer.clear_shutdown(&mut state).is_ok();
+        }
+    }
+    assert!(cleared, "30 degC is below every reset threshold");
+    let out = *observer.tick(&mut state, &inputs(1000));
+    assert!(
+        !out.alarm.shutdown && out.limits[0].current_a > 0.0,
+        "{out:?}"
+    );
+    // A frozen clock: flagged, then the model is lost and the latch holds
+    // the current at zero.
+    let mut latched_at = None;
+    for k in 0..1200u32 {
+        let out = *observer.tick(&mut state, &inputs(0));
+        if out.alarm.shutdown && latched_at.is_none() {
+            latched_at = Some(k);
+        }
+        if latched_at.is_some() {
+            assert_eq!(out.limits[0].current_a, 0.0, "tick {k}");
+        }
+    }
+    assert_eq!(latched_at, Some(999), "the 1000th frozen tick latches");
 }
 
 /// A huge current whose Joule power overflows `f32` is clamped by the

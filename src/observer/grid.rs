@@ -118,7 +118,7 @@ use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork}
 use crate::input::InputFlags;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::events::{EventKind, EventQueue};
-use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
 
@@ -699,6 +699,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 .alarm
                 .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
             state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
         }
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
         let outcome = if steps.steps == 1 {
@@ -735,6 +736,10 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         out.steps = steps.steps;
         out.dropped_us = steps.dropped_us;
         out.updated = updated;
+        if out.alarm.shutdown {
+            // Latched: no current until the deliberate clear.
+            hold_shutdown(&mut out.limits);
+        }
         out.tick = out.tick.wrapping_add(1);
         &state.outputs
     }
@@ -1034,6 +1039,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         if meta.shutdown_latched {
             state.alarm.latch_shutdown();
             state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
         }
         Ok(state)
     }
@@ -1055,6 +1061,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let mut state = self.state_from(grid);
         state.alarm.latch_shutdown();
         state.outputs.alarm.shutdown = true;
+        hold_shutdown(&mut state.outputs.limits);
         state
     }
 
@@ -1067,7 +1074,9 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// limit minus the hysteresis for the alarm's `debounce_ticks`
     /// protection passes (so a state must have ticked that long). On
     /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
-    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// is queued and the published `alarm.shutdown` is `false` at once; the
+    /// current limits, zero while latched, come back with the next limiter
+    /// stage.
     /// Not for the tick: call it between two ticks.
     ///
     /// # Errors

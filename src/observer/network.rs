@@ -118,10 +118,10 @@ use crate::error::BuildError;
 use crate::filter::{update_steady, KalmanConfig, SensorVerdict, SteadyEstimate, SteadyStateGain};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
-use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
+use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
-use crate::protect::events::EventQueue;
-use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 
@@ -195,6 +195,15 @@ pub struct NetworkSettings {
     /// Which boundary is the ambient (the derating's and the margin's
     /// reference). Default 0.
     pub ambient_boundary: usize,
+    /// Consecutive ticks without elapsed time from which every tick is
+    /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
+    /// 100 (0.1 s at a 1 ms loop).
+    pub frozen_flag_ticks: u32,
+    /// Consecutive ticks without elapsed time from which the model is taken
+    /// as lost: the shutdown latches with a
+    /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
+    /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
+    pub frozen_loss_ticks: u32,
 }
 
 impl NetworkSettings {
@@ -219,6 +228,8 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
+        frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
+        frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
     };
 }
 
@@ -509,7 +520,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
         check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
         check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
-        let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?;
+        let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
+            .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
         let dt_s = clock.step_s();
         let period = s.protect_period_steps;
         let protect_period_us = period
@@ -567,6 +579,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for n in b.sensor_nodes {
             fingerprint = fingerprint.u32(n as u32);
         }
+        // The protection too: a saved latch and temperatures were judged
+        // against these limits (as the grid's and the Omnimagnet's).
+        for row in &incidence {
+            for heats in row {
+                fingerprint = fingerprint.u32(u32::from(*heats));
+            }
+        }
+        let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
         Ok(Self {
             phi_minus_i: model.phi_minus_i,
             bd_power: model.bd_power,
@@ -835,6 +855,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         inputs: &NetworkInputs<B, M, P>,
     ) -> &'s NetworkOutputs<N, M, P> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if steps.clock_lost {
+            // The model stands still: latched until the deliberate clear.
+            state
+                .alarm
+                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
+            state.outputs.alarm.shutdown = true;
+        }
         let mut flags = steps.flags;
         flags |= self
             .limits
@@ -905,6 +932,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         out.flags = flags;
         out.steps = steps.steps;
         out.dropped_us = steps.dropped_us;
+        if out.alarm.shutdown {
+            // Latched: no current until the deliberate clear.
+            hold_shutdown(&mut out.limits);
+        }
         out.tick = out.tick.wrapping_add(1);
         &state.outputs
     }
@@ -1040,6 +1071,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let mut state = self.state(&temps_c, boundary_c);
         if meta.shutdown_latched {
             state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
         }
         Ok(state)
     }
@@ -1047,7 +1080,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// The documented start when no snapshot can be trusted
     /// ([`snapshot::conservative_start`]): measured nodes at their readings
     /// \[degC\], every other node no cooler than the hottest reading or the
-    /// ambient.
+    /// ambient, and the shutdown *latched* (published from the start, every
+    /// current limit zero) until [`Self::clear_shutdown`]: nothing says the
+    /// device is not hotter than that start.
     pub fn conservative_state(
         &self,
         readings_c: &[Option<f32>; P],
@@ -1055,7 +1090,33 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ) -> NetworkObserverState<N, B, M, X, P> {
         let ambient_c = self.ambient(boundary_c);
         let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
-        self.state(&temps, boundary_c)
+        let mut state = self.state(&temps, boundary_c);
+        state.alarm.latch_shutdown();
+        state.outputs.alarm.shutdown = true;
+        hold_shutdown(&mut state.outputs.limits);
+        state
+    }
+
+    /// The deliberate clear of a latched shutdown (restored, set by
+    /// [`Self::conservative_state`], raised by the alarm or by a frozen
+    /// clock), for the application to call after inspecting the device;
+    /// nothing else clears it. It is [`AlarmState::reset`] under its
+    /// conditions (every element's upper bound valid and below its alarm
+    /// limit minus the hysteresis for the alarm's debounce). On success a
+    /// `Reset` event is queued, the published `alarm.shutdown` is `false` at
+    /// once, and the current limits come back with the next limiter stage.
+    /// Not for the tick: call it between two ticks.
+    ///
+    /// # Errors
+    /// Why not, naming the first element that blocks it; nothing changes
+    /// then.
+    pub fn clear_shutdown(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P>,
+    ) -> Result<(), ResetError> {
+        state.alarm.reset(&self.alarm, &mut state.events)?;
+        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
+        Ok(())
     }
 }
 

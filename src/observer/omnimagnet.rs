@@ -163,7 +163,7 @@ use crate::omnimagnet::{
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::{EventKind, EventQueue};
-use crate::protect::limiter::{CoilLimit, LimiterConfig};
+use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use crate::sensors::{SensorFault, SensorResult};
@@ -755,6 +755,7 @@ impl OmniObserver {
                 .alarm
                 .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
             state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
         }
         let mut flags = steps.flags;
         flags |= self
@@ -833,6 +834,10 @@ impl OmniObserver {
         out.flags = flags;
         out.steps = steps.steps;
         out.dropped_us = steps.dropped_us;
+        if out.alarm.shutdown {
+            // Latched: no current until the deliberate clear.
+            hold_shutdown(&mut out.limits);
+        }
         out.tick = out.tick.wrapping_add(1);
         &state.outputs
     }
@@ -971,6 +976,7 @@ impl OmniObserver {
         if meta.shutdown_latched {
             state.alarm.latch_shutdown();
             state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
         }
         Ok(state)
     }
@@ -996,6 +1002,7 @@ impl OmniObserver {
         let mut state = self.state(&temps, ambient_c);
         state.alarm.latch_shutdown();
         state.outputs.alarm.shutdown = true;
+        hold_shutdown(&mut state.outputs.limits);
         state
     }
 
@@ -1007,7 +1014,9 @@ impl OmniObserver {
     /// element's upper bound valid and below its alarm limit minus the
     /// hysteresis for the alarm's `debounce_ticks` protection cycles. On
     /// success a [`Reset`](crate::protect::events::EventKind::Reset) event
-    /// is queued and the published `alarm.shutdown` is `false` at once.
+    /// is queued and the published `alarm.shutdown` is `false` at once; the
+    /// current limits, zero while latched, come back with the next limiter
+    /// stage.
     /// Not for the tick: call it between two ticks.
     ///
     /// # Errors

@@ -85,6 +85,19 @@ impl<S: Scalar> CoilLimit<S> {
     }
 }
 
+/// A latched shutdown allows no current: every limit to zero \[A\] (and
+/// weight zero), whatever the limiter computed. The observers apply it to
+/// their published limits after every tick while the shutdown is latched, so
+/// a controller that clamps its commands to the limits cuts the current even
+/// if it ignores the alarm flag; the limiter computes normal limits again
+/// after the deliberate clear. `O(len)`, panic-free.
+pub fn hold_shutdown<S: Scalar>(limits: &mut [CoilLimit<S>]) {
+    for limit in limits {
+        limit.current_a = S::ZERO;
+        limit.weight = S::ZERO;
+    }
+}
+
 /// What a [`LimiterConfig::apply`] call did, over all coils.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
