@@ -147,7 +147,9 @@ fn default_incidence_follows_the_heat() {
 /// thermocouple on the housing at 2 Hz. Returns the true peaks of the
 /// windings and the housing above their alarm limits \[K\] (positive:
 /// over).
-fn three_phase_closed_loop(incidence: Option<[[bool; 3]; 5]>) -> (f64, f64) {
+/// Peak of the windings and of the housing above their alarm limits \[K\],
+/// and whether the shutdown latched, over 3 h with 13 A demanded.
+fn three_phase_closed_loop(incidence: Option<[[bool; 3]; 5]>) -> (f64, f64, bool) {
     let net = three_phase();
     let mut builder = NetworkObserverBuilder::new(&net, [3])
         .critical_c([Some(155.0), Some(155.0), Some(155.0), Some(80.0), None])
@@ -180,25 +182,32 @@ fn three_phase_closed_loop(incidence: Option<[[bool; 3]; 5]>) -> (f64, f64) {
         }
         over.1 = over.1.max(plant[3] - f64::from(limits[3]));
     }
-    over
+    (over.0, over.1, state.outputs().alarm.shutdown)
 }
 
 #[test]
 fn every_current_heating_the_housing_is_derated() {
-    let (windings, housing) = three_phase_closed_loop(None);
+    let (windings, housing, shutdown) = three_phase_closed_loop(None);
     // One element, one current (each phase limited by its own winding
     // only), as the limiter did before: the housing runs over.
     let mut own = [[false; 3]; 5];
     for p in 0..3 {
         own[p][p] = true;
     }
-    let (own_windings, own_housing) = three_phase_closed_loop(Some(own));
+    let (own_windings, own_housing, own_shutdown) = three_phase_closed_loop(Some(own));
     std::println!(
-        "13 A demanded, peak above the alarm limit: incidence windings {windings:.2} K, housing {housing:.2} K; one-to-one windings {own_windings:.2} K, housing {own_housing:.2} K"
+        "13 A demanded, peak above the alarm limit: incidence windings {windings:.2} K, housing {housing:.2} K, shutdown {shutdown}; one-to-one windings {own_windings:.2} K, housing {own_housing:.2} K, shutdown {own_shutdown}"
     );
     assert!(housing <= 0.0, "housing {housing} K over its limit");
     assert!(windings <= 0.0, "windings {windings} K over their limit");
-    assert!(own_housing > 1.0, "the one-to-one limiter must fail here");
+    assert!(!shutdown, "the limiter alone holds the device");
+    // One-to-one, nothing derates the housing's currents: it crosses its
+    // alarm limit and only the latched shutdown (which holds every current
+    // at zero) stops it.
+    assert!(
+        own_housing > 0.0 && own_shutdown,
+        "the one-to-one limiter must fail here"
+    );
 }
 
 #[test]
