@@ -150,7 +150,9 @@ fn nan_inputs_are_flagged_and_never_reach_the_estimates() {
 #[test]
 fn limits_and_alarms_follow_the_model_within_protection_ticks() {
     let grid = grid();
-    let mut state = grid.conservative_state(20.0);
+    // The conservative start's temperatures (the start of the taper band),
+    // without its latch, which would hold every limit at zero.
+    let mut state = grid.state(grid.restart_temp_c());
     let currents = hot_currents();
     let mut saw_update = None;
     for k in 0..40 {
@@ -183,7 +185,8 @@ fn limits_and_alarms_follow_the_model_within_protection_ticks() {
 #[test]
 fn protection_completes_when_updates_come_faster_than_a_pass() {
     let grid = grid();
-    let mut state = grid.conservative_state(20.0);
+    // The conservative start's temperatures, without its latch.
+    let mut state = grid.state(grid.restart_temp_c());
     let currents = hot_currents();
     let start_limit_a = state.outputs().limits[3 * 12 + 5].current_a;
     assert_eq!(
