@@ -17,16 +17,16 @@ const MAX_DOUBLINGS: usize = 64;
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SteadyStateGain<T: RealField + Copy, const N: usize, const P: usize> {
-    period: u32,
-    gain: SMatrix<T, N, P>,
-    prior: SMatrix<T, N, N>,
-    posterior: SMatrix<T, N, N>,
-    innovation_var: SVector<T, P>,
+    pub(crate) period: u32,
+    pub(crate) gain: SMatrix<T, N, P>,
+    pub(crate) prior: SMatrix<T, N, N>,
+    pub(crate) posterior: SMatrix<T, N, N>,
+    pub(crate) innovation_var: SVector<T, P>,
     /// `M H^T`: with `S` below, the update of any sensor subset from `M`
     /// without touching an `N x N` matrix.
-    prior_ht: SMatrix<T, N, P>,
+    pub(crate) prior_ht: SMatrix<T, N, P>,
     /// Innovation covariance `S = H M H^T + R` of all sensors.
-    innovation_cov: SMatrix<T, P, P>,
+    pub(crate) innovation_cov: SMatrix<T, P, P>,
 }
 
 /// Per-device state of the steady-state filter: the estimate and the gate

@@ -112,18 +112,18 @@ use nalgebra::{SMatrix, SVector};
 use super::clock::{ClockState, StepClock};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
-use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{update_steady, KalmanConfig, SensorVerdict, SteadyEstimate, SteadyStateGain};
-use crate::input::{InputFlags, InputLimits, ScalarLimits};
+use crate::input::{InputFlags, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
-use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
+use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
-use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
-use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
+use crate::protect::margin::{UncertaintyMargin, UpperBound};
+use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
 
 /// Horizons of the time-to-limit predictor.
 pub const PREDICTOR_POINTS: usize = 32;
@@ -357,7 +357,8 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         self
     }
 
-    /// Validates everything, discretises the network, solves the steady
+    /// [`Self::parts`] then [`NetworkObserver::from_parts`]: validates
+    /// everything, discretises the network, solves the steady
     /// gain (in `f64`: `O((N + M)^3)` per doubling, tens of KiB of stack
     /// for N + M around 20) and builds the protection.
     ///
@@ -500,194 +501,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     NetworkObserver<N, B, M, X, P>
 {
     fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
-        const {
-            assert!(X == N + M, "X must be N + M (temperatures and biases)");
-            assert!(B >= 1, "a network needs a boundary (the ambient)");
-            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
-        };
-        let s = &b.settings;
-        let network = b.network;
-        network.check_sources()?;
-        check(b.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
-        check(s.ambient_boundary < B, "ambient_boundary")?;
-        check(s.origin_c.is_finite(), "origin_c")?;
-        let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        check(
-            s.sensor_sigma_k.is_finite() && s.sensor_sigma_k > 0.0,
-            "sensor_sigma_k",
-        )?;
-        check(nonneg(s.node_noise_k2_per_s), "node_noise_k2_per_s")?;
-        check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
-        check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
-        check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
-        let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
-            .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
-        let dt_s = clock.step_s();
-        let period = s.protect_period_steps;
-        let protect_period_us = period
-            .checked_mul(s.step_us)
-            .filter(|_| period >= 4 * s.max_steps_per_tick)
-            .ok_or(BuildError::InvalidParameter {
-                name: "protect_period_steps",
-            })?;
-        let ratio = s.correction_period_s / dt_s;
-        check(
-            ratio.is_finite() && (0.5..=f64::from(u32::MAX)).contains(&ratio),
-            "correction_period_s",
-        )?;
-        let correction_period = (libm::round(ratio) as u32).max(1);
-        check(
-            b.critical_c
-                .iter()
-                .all(|c| c.is_none_or(|c| c.is_finite() && c < NO_LIMIT_C)),
-            "critical_c",
-        )?;
-        let incidence = match b.incidence {
-            Some(incidence) => incidence,
-            None => default_incidence(network, s.incidence_fraction)?,
-        };
-
-        let model = Model::build(network, dt_s, s.origin_c)?;
-        let (kalman, gain) = Self::build_filter(&model, &b.sensor_nodes, s, correction_period)?;
-        let limited = b.critical_c.map(|c| c.is_some());
-        let critical = b.critical_c.map(|c| c.unwrap_or(NO_LIMIT_C));
-        let alarm = AlarmBuilder::new(&b.rule, critical)
-            .nominal_ambient_c(s.origin_c)
-            .build::<f32>()?;
-        // The taper's factor per element, scaled by each current's
-        // hardware limit afterwards (see "Limits per current").
-        let limiter = LimiterConfig::new([1.0; N], s.taper_k, 0.0)?;
-        check(
-            b.hardware_limit_a.iter().all(|a| a.is_finite() && *a > 0.0),
-            "hardware_limit_a",
-        )?;
-        let predictor = Self::build_predictor(network, dt_s * f64::from(period))?;
-        let bound = Self::build_bound(&gain, &b.sensor_nodes, s)?;
-        let mut fingerprint = Fingerprint::new()
-            .u32(s.step_us)
-            .u32(correction_period)
-            .u32(s.protect_period_steps)
-            .f64(s.origin_c)
-            .f64(s.taper_k);
-        for v in kalman.f().iter().chain(gain.gain().iter()) {
-            fingerprint = fingerprint.f64(f64::from(*v));
-        }
-        for v in model.bd_power.iter().chain(model.gd_boundary.iter()) {
-            fingerprint = fingerprint.f64(f64::from(*v));
-        }
-        fingerprint = fingerprint.f64s(&b.hardware_limit_a);
-        for n in b.sensor_nodes {
-            fingerprint = fingerprint.u32(n as u32);
-        }
-        // The protection too: a saved latch and temperatures were judged
-        // against these limits (as the grid's and the Omnimagnet's).
-        for row in &incidence {
-            for heats in row {
-                fingerprint = fingerprint.u32(u32::from(*heats));
-            }
-        }
-        let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
-        Ok(Self {
-            phi_minus_i: model.phi_minus_i,
-            bd_power: model.bd_power,
-            gd_boundary: model.gd_boundary,
-            constant_k: model.constant_k,
-            origin_c: s.origin_c as f32,
-            source_node: model.source_node,
-            resistance: model.resistance,
-            kalman,
-            gain,
-            sensor_nodes: b.sensor_nodes,
-            limited,
-            incidence,
-            hardware_limit_a: b.hardware_limit_a.map(|a| a as f32),
-            alarm,
-            limiter,
-            predictor,
-            bound,
-            clock,
-            limits: InputLimits::default().to_scalar(),
-            ambient_boundary: s.ambient_boundary,
-            max_reading_age_us: s.max_reading_age_us,
-            step_us: s.step_us,
-            protect_period_us,
-            fingerprint: fingerprint.finish(),
-        })
-    }
-
-    /// `F = [[Ad, Bd_p], [0, I]]`, `H` from the sensor map, `Q`, `R`, in
-    /// `f64`; the gain solved there, both cast to `f32`.
-    #[inline(never)]
-    fn build_filter(
-        model: &Model<N, B, M>,
-        sensor_nodes: &[usize; P],
-        s: &NetworkSettings,
-        period: u32,
-    ) -> Result<(KalmanConfig<f32, X, 1, P>, SteadyStateGain<f32, X, P>), BuildError> {
-        let dt = model.dt_s;
-        let mut f = SMatrix::<f64, X, X>::identity();
-        for i in 0..N {
-            for j in 0..N {
-                f[(i, j)] = model.ad[(i, j)];
-            }
-            for m in 0..M {
-                // The bias adds to the Joule power, so it enters like it.
-                f[(i, N + m)] = model.bd_power_f64[(i, m)];
-            }
-        }
-        let mut h = SMatrix::<f64, P, X>::zeros();
-        for (j, node) in sensor_nodes.iter().enumerate() {
-            h[(j, *node)] = 1.0;
-        }
-        let mut q = SMatrix::<f64, X, X>::zeros();
-        let mut recovery = SVector::<f64, X>::zeros();
-        for i in 0..X {
-            let (noise, widen) = if i < N {
-                (s.node_noise_k2_per_s, s.recovery_sigma_k)
-            } else {
-                (s.bias_noise_w2_per_s, s.recovery_bias_sigma_w)
-            };
-            q[(i, i)] = noise * dt;
-            recovery[i] = widen * widen;
-        }
-        let r = SVector::<f64, P>::repeat(s.sensor_sigma_k * s.sensor_sigma_k);
-        // The input enters the mean predict only (see `Model`): the filter's
-        // `G` is a placeholder column the gain solver never reads.
-        let g = SMatrix::<f64, X, 1>::zeros();
-        let kalman = KalmanConfig::new(f, g, h, q, r)?
-            .with_gate(s.gate_threshold)?
-            .with_suspect_after(s.suspect_after)
-            .with_recovery(s.recover_after, recovery)?;
-        let gain = SteadyStateGain::solve(&kalman, period)?;
-        Ok((kalman.cast(), gain.cast()))
-    }
-
-    #[inline(never)]
-    fn build_predictor(
-        network: &Network<N, B, M>,
-        cycle_s: f64,
-    ) -> Result<LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>, BuildError> {
-        PredictorBuilder::new().tick_s(cycle_s).build(network)
-    }
-
-    #[inline(never)]
-    fn build_bound(
-        gain: &SteadyStateGain<f32, X, P>,
-        sensor_nodes: &[usize; P],
-        s: &NetworkSettings,
-    ) -> Result<UpperBound<f32, N>, BuildError> {
-        let prior = gain.prior();
-        let sigma_k: [f64; N] =
-            core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
-        let mut margins = [s.unmeasured_margin; N];
-        for node in sensor_nodes {
-            if let Some(m) = margins.get_mut(*node) {
-                *m = UncertaintyMargin::ZERO;
-            }
-        }
-        UpperBoundBuilder::per_element(margins)
-            .sigma(s.k_sigma, sigma_k)
-            .build()
+        Self::from_parts(&b.parts()?)
     }
 
     /// The configuration fingerprint that snapshots carry.
@@ -1166,6 +980,9 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
         })
     }
 }
+
+mod parts;
+pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables};
 
 #[cfg(test)]
 #[path = "network_tests.rs"]

@@ -294,7 +294,7 @@ impl PredictorBuilder {
 
 /// One winding as the predictor sees it: its node and `R(T) = r0 + s T`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Winding<T> {
+pub(crate) struct Winding<T> {
     pub node: usize,
     pub r_at_0c_ohm: T,
     pub slope_ohm_per_k: T,
@@ -350,25 +350,25 @@ pub struct LimitPredictor<
     const K: usize = DEFAULT_GRID_POINTS,
 > {
     /// Positive horizons `t_1 .. t_K` \[s\].
-    pub(super) grid_s: [T; K],
+    pub(crate) grid_s: [T; K],
     /// `exp(lambda_j t_k)`, row `k` for `t_{k+1}`.
-    pub(super) decay: [[T; N]; K],
-    pub(super) lambda_per_s: [T; N],
-    pub(super) v: [[T; N]; N],
-    pub(super) v_inv: [[T; N]; N],
+    pub(crate) decay: [[T; N]; K],
+    pub(crate) lambda_per_s: [T; N],
+    pub(crate) v: [[T; N]; N],
+    pub(crate) v_inv: [[T; N]; N],
     /// Steady rise per watt of each winding \[K/W\].
-    pub(super) gain_power: [[T; M]; N],
-    pub(super) mode_gain_power: [[T; M]; N],
+    pub(crate) gain_power: [[T; M]; N],
+    pub(crate) mode_gain_power: [[T; M]; N],
     /// Steady temperature per degree of each boundary (dimensionless).
-    pub(super) gain_boundary: [[T; B]; N],
-    pub(super) mode_gain_boundary: [[T; B]; N],
+    pub(crate) gain_boundary: [[T; B]; N],
+    pub(crate) mode_gain_boundary: [[T; B]; N],
     /// Steady rise from the fixed powers \[K\].
-    pub(super) offset_c: [T; N],
-    pub(super) mode_offset: [T; N],
-    pub(super) windings: [Winding<T>; M],
-    tick_s: T,
-    points_per_tick: usize,
-    slowest_time_constant_s: f64,
+    pub(crate) offset_c: [T; N],
+    pub(crate) mode_offset: [T; N],
+    pub(crate) windings: [Winding<T>; M],
+    pub(crate) tick_s: T,
+    pub(crate) points_per_tick: usize,
+    pub(crate) slowest_time_constant_s: f64,
 }
 
 /// The `P`, `Q` and `Q'` of the module docs for one element at one time.

@@ -1,0 +1,934 @@
+//! The observer as data: everything [`NetworkObserverBuilder::build`]
+//! solves, in plain arrays, so that a model can be solved once on a host
+//! and shipped in flash.
+//!
+//! Building a [`NetworkObserver`] has two halves:
+//!
+//! 1. **solve** ([`NetworkObserverBuilder::parts`]): the matrix exponential
+//!    of the network's zero-order hold, the Riccati equation of the
+//!    steady-state gain, the eigen-decomposition of the time-to-limit
+//!    predictor and the default incidence, in `f64`. Tens of KiB of stack
+//!    and milliseconds to seconds of a Cortex-M;
+//! 2. **assemble** ([`NetworkObserver::from_parts`]): validation, the
+//!    alarm, limiter and upper bound (a square root per node), and the
+//!    snapshot fingerprint. No exponential, no Riccati, no eigenvalue: a
+//!    few hundred bytes of stack and `O((N + M)^2)` copies.
+//!
+//! [`NetworkObserverBuilder::build`] is exactly `from_parts(&parts()?)`, so
+//! an observer assembled from parts written out by
+//! [`NetworkParts::write_rust`] (what `coil-thermal codegen` does) and
+//! compiled into a firmware image is the observer the builder makes, to the
+//! bit: same tables, same fingerprint, same outputs.
+//!
+//! Matrices are stored row by row (`[row][column]`), as they read in a
+//! generated file.
+
+use core::fmt::{self, Write};
+
+use nalgebra::{SMatrix, SVector};
+
+use super::{
+    default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
+    PREDICTOR_POINTS,
+};
+use crate::error::BuildError;
+use crate::filter::{KalmanConfig, SteadyStateGain};
+use crate::input::InputLimits;
+use crate::network::ScalarResistance;
+use crate::observer::clock::StepClock;
+use crate::observer::snapshot::Fingerprint;
+use crate::protect::alarm::AlarmBuilder;
+use crate::protect::derating::{DeratingFactor, DeratingRule};
+use crate::protect::limiter::LimiterConfig;
+use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
+use crate::protect::predict::{LimitPredictor, PredictorBuilder, Winding};
+
+/// The discretised network in the observer's deviation coordinates (see
+/// "f32 without drift" in [`super`]), every entry solved in `f64` and
+/// rounded once to `f32`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelTables<const N: usize, const B: usize, const M: usize> {
+    /// `Ad`, the one-step transition (dimensionless); the filter's `F`.
+    pub ad: [[f32; N]; N],
+    /// `Ad - I`, formed in `f64` (dimensionless).
+    pub phi_minus_i: [[f32; N]; N],
+    /// `Bd` of the Joule powers \[K/J\].
+    pub bd_power: [[f32; M]; N],
+    /// `Gd` of the boundaries (dimensionless).
+    pub gd_boundary: [[f32; B]; N],
+    /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
+    pub constant_k: [f32; N],
+    /// The node each current heats.
+    pub source_node: [usize; M],
+    /// Each source's `R(T)`.
+    pub resistance: [ScalarResistance<f32>; M],
+}
+
+/// The steady-state Kalman gain and covariances (see
+/// [`SteadyStateGain`]), `X = N + M` states, `P` sensors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainTables<const X: usize, const P: usize> {
+    /// Model steps between corrections the gain was solved for.
+    pub period: u32,
+    /// `K` (X x P): \[K/K\] on temperatures, \[W/K\] on biases.
+    pub gain: [[f32; P]; X],
+    /// Prior covariance `M` (X x X) \[K^2, K W, W^2\].
+    pub prior: [[f32; X]; X],
+    /// Posterior covariance (X x X).
+    pub posterior: [[f32; X]; X],
+    /// `S_jj` per sensor \[K^2\].
+    pub innovation_var: [f32; P],
+    /// `M H^T` (X x P).
+    pub prior_ht: [[f32; P]; X],
+    /// `S = H M H^T + R` (P x P) \[K^2\].
+    pub innovation_cov: [[f32; P]; P],
+}
+
+/// The time-to-limit predictor's modal tables (see
+/// [`crate::protect::predict`]), [`PREDICTOR_POINTS`] horizons.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PredictorTables<const N: usize, const B: usize, const M: usize> {
+    /// Horizons \[s\].
+    pub grid_s: [f32; PREDICTOR_POINTS],
+    /// `exp(lambda_j t_k)`, row `k` for horizon `k`.
+    pub decay: [[f32; N]; PREDICTOR_POINTS],
+    /// Mode rates `lambda_j` \[1/s\] (negative).
+    pub lambda_per_s: [f32; N],
+    /// Mode shapes `V` (columns).
+    pub v: [[f32; N]; N],
+    /// `V^-1`.
+    pub v_inv: [[f32; N]; N],
+    /// Steady rise per watt of each source \[K/W\].
+    pub gain_power: [[f32; M]; N],
+    /// The same in modal coordinates.
+    pub mode_gain_power: [[f32; M]; N],
+    /// Steady temperature per degree of each boundary (dimensionless).
+    pub gain_boundary: [[f32; B]; N],
+    /// The same in modal coordinates.
+    pub mode_gain_boundary: [[f32; B]; N],
+    /// Steady rise from the fixed powers \[K\].
+    pub offset_c: [f32; N],
+    /// The same in modal coordinates.
+    pub mode_offset: [f32; N],
+    /// The node of each winding.
+    pub winding_node: [usize; M],
+    /// Each winding's resistance extrapolated to 0 degC \[ohm\].
+    pub winding_r_at_0c_ohm: [f32; M],
+    /// Each winding's `dR/dT` \[ohm/K\].
+    pub winding_slope_ohm_per_k: [f32; M],
+    /// Time between two predictor slices \[s\].
+    pub tick_s: f32,
+    /// Horizons evaluated per slice.
+    pub points_per_tick: usize,
+    /// The network's slowest time constant \[s\].
+    pub slowest_time_constant_s: f64,
+}
+
+/// A [`NetworkObserver`] as data: the builder's inputs that the tick reads
+/// directly, and the tables it solved. See the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NetworkParts<
+    const N: usize,
+    const B: usize,
+    const M: usize,
+    const X: usize,
+    const P: usize,
+> {
+    /// The settings the tables were solved with.
+    pub settings: NetworkSettings,
+    /// The node thermocouple `j` measures.
+    pub sensor_nodes: [usize; P],
+    /// Each node's critical temperature \[degC\] (`None`: no limit).
+    pub critical_c: [Option<f64>; N],
+    /// The derating rule's product (dimensionless, in `(0, 1]`).
+    pub derating_product: f64,
+    /// Each current's hardware limit \[A\].
+    pub hardware_limit_a: [f64; M],
+    /// `incidence[i][m]`: current `m` heats element `i`.
+    pub incidence: [[bool; M]; N],
+    /// The discretised network.
+    pub model: ModelTables<N, B, M>,
+    /// The steady-state gain.
+    pub gain: GainTables<X, P>,
+    /// The time-to-limit predictor.
+    pub predictor: PredictorTables<N, B, M>,
+}
+
+fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(BuildError::InvalidParameter { name })
+    }
+}
+
+fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
+    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
+}
+
+fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
+    SMatrix::from_fn(|i, j| rows[i][j])
+}
+
+fn finite<'a>(values: impl IntoIterator<Item = &'a f32>) -> bool {
+    values.into_iter().all(|v| v.is_finite())
+}
+
+/// What the settings alone decide: the clock, the protection period \[us\]
+/// and the correction period (model steps).
+struct Timing {
+    clock: StepClock,
+    protect_period_us: u32,
+    correction_period: u32,
+}
+
+fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
+    check(s.origin_c.is_finite(), "origin_c")?;
+    let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+    check(
+        s.sensor_sigma_k.is_finite() && s.sensor_sigma_k > 0.0,
+        "sensor_sigma_k",
+    )?;
+    check(nonneg(s.node_noise_k2_per_s), "node_noise_k2_per_s")?;
+    check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
+    check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
+    check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
+    let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
+        .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
+    let period = s.protect_period_steps;
+    let protect_period_us = period
+        .checked_mul(s.step_us)
+        .filter(|_| period >= 4 * s.max_steps_per_tick)
+        .ok_or(BuildError::InvalidParameter {
+            name: "protect_period_steps",
+        })?;
+    let ratio = s.correction_period_s / clock.step_s();
+    check(
+        ratio.is_finite() && (0.5..=f64::from(u32::MAX)).contains(&ratio),
+        "correction_period_s",
+    )?;
+    Ok(Timing {
+        clock,
+        protect_period_us,
+        correction_period: (libm::round(ratio) as u32).max(1),
+    })
+}
+
+impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
+    NetworkObserverBuilder<'a, N, B, M, P>
+{
+    /// The solve half of [`Self::build`] (see the module docs): validates
+    /// everything and solves every table, in `f64`, for
+    /// [`NetworkObserver::from_parts`] now or, written out by
+    /// [`NetworkParts::write_rust`], in a firmware image later.
+    ///
+    /// # Errors
+    /// As [`Self::build`].
+    pub fn parts<const X: usize>(&self) -> Result<NetworkParts<N, B, M, X, P>, BuildError> {
+        const {
+            assert!(X == N + M, "X must be N + M (temperatures and biases)");
+            assert!(B >= 1, "a network needs a boundary (the ambient)");
+            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
+        };
+        let s = &self.settings;
+        let network = self.network;
+        network.check_sources()?;
+        check(self.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
+        check(s.ambient_boundary < B, "ambient_boundary")?;
+        let timing = timing(s)?;
+        check(
+            self.critical_c
+                .iter()
+                .all(|c| c.is_none_or(|c| c.is_finite() && c < NO_LIMIT_C)),
+            "critical_c",
+        )?;
+        check(
+            self.hardware_limit_a
+                .iter()
+                .all(|a| a.is_finite() && *a > 0.0),
+            "hardware_limit_a",
+        )?;
+        let incidence = match self.incidence {
+            Some(incidence) => incidence,
+            None => default_incidence(network, s.incidence_fraction)?,
+        };
+        let dt_s = timing.clock.step_s();
+        let model = Model::build(network, dt_s, s.origin_c)?;
+        let gain = solve_gain(&model, &self.sensor_nodes, s, timing.correction_period)?;
+        let cycle_s = dt_s * f64::from(s.protect_period_steps);
+        let predictor = solve_predictor(network, cycle_s)?;
+        Ok(NetworkParts {
+            settings: *s,
+            sensor_nodes: self.sensor_nodes,
+            critical_c: self.critical_c,
+            derating_product: self.rule.product(),
+            hardware_limit_a: self.hardware_limit_a,
+            incidence,
+            model: ModelTables {
+                ad: rows(&model.ad.cast()),
+                phi_minus_i: rows(&model.phi_minus_i),
+                bd_power: rows(&model.bd_power),
+                gd_boundary: rows(&model.gd_boundary),
+                constant_k: model.constant_k.into(),
+                source_node: model.source_node,
+                resistance: model.resistance,
+            },
+            gain: GainTables {
+                period: gain.period,
+                gain: rows(&gain.gain),
+                prior: rows(&gain.prior),
+                posterior: rows(&gain.posterior),
+                innovation_var: gain.innovation_var.into(),
+                prior_ht: rows(&gain.prior_ht),
+                innovation_cov: rows(&gain.innovation_cov),
+            },
+            predictor: PredictorTables {
+                grid_s: predictor.grid_s,
+                decay: predictor.decay,
+                lambda_per_s: predictor.lambda_per_s,
+                v: predictor.v,
+                v_inv: predictor.v_inv,
+                gain_power: predictor.gain_power,
+                mode_gain_power: predictor.mode_gain_power,
+                gain_boundary: predictor.gain_boundary,
+                mode_gain_boundary: predictor.mode_gain_boundary,
+                offset_c: predictor.offset_c,
+                mode_offset: predictor.mode_offset,
+                winding_node: predictor.windings.map(|w| w.node),
+                winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
+                winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
+                tick_s: predictor.tick_s,
+                points_per_tick: predictor.points_per_tick,
+                slowest_time_constant_s: predictor.slowest_time_constant_s,
+            },
+        })
+    }
+}
+
+/// `F = [[Ad, Bd_p], [0, I]]`, `H` from the sensor map, `Q`, `R` and the
+/// gate, in `f64` (the filter's configuration; its gain is solved apart).
+fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>(
+    ad: &SMatrix<f64, N, N>,
+    bd_power: &SMatrix<f64, N, M>,
+    sensor_nodes: &[usize; P],
+    s: &NetworkSettings,
+    dt_s: f64,
+) -> Result<KalmanConfig<f64, X, 1, P>, BuildError> {
+    let mut f = SMatrix::<f64, X, X>::identity();
+    for i in 0..N {
+        for j in 0..N {
+            f[(i, j)] = ad[(i, j)];
+        }
+        for m in 0..M {
+            // The bias adds to the Joule power, so it enters like it.
+            f[(i, N + m)] = bd_power[(i, m)];
+        }
+    }
+    let mut h = SMatrix::<f64, P, X>::zeros();
+    for (j, node) in sensor_nodes.iter().enumerate() {
+        h[(j, *node)] = 1.0;
+    }
+    let mut q = SMatrix::<f64, X, X>::zeros();
+    let mut recovery = SVector::<f64, X>::zeros();
+    for i in 0..X {
+        let (noise, widen) = if i < N {
+            (s.node_noise_k2_per_s, s.recovery_sigma_k)
+        } else {
+            (s.bias_noise_w2_per_s, s.recovery_bias_sigma_w)
+        };
+        q[(i, i)] = noise * dt_s;
+        recovery[i] = widen * widen;
+    }
+    let r = SVector::<f64, P>::repeat(s.sensor_sigma_k * s.sensor_sigma_k);
+    // The input enters the mean predict only (see `Model`): the filter's
+    // `G` is a placeholder column the gain solver never reads.
+    let g = SMatrix::<f64, X, 1>::zeros();
+    KalmanConfig::new(f, g, h, q, r)?
+        .with_gate(s.gate_threshold)?
+        .with_suspect_after(s.suspect_after)
+        .with_recovery(s.recover_after, recovery)
+}
+
+#[inline(never)]
+fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+    model: &Model<N, B, M>,
+    sensor_nodes: &[usize; P],
+    s: &NetworkSettings,
+    period: u32,
+) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+    let kalman =
+        filter_config::<N, M, X, P>(&model.ad, &model.bd_power_f64, sensor_nodes, s, model.dt_s)?;
+    Ok(SteadyStateGain::solve(&kalman, period)?.cast())
+}
+
+#[inline(never)]
+fn solve_predictor<const N: usize, const B: usize, const M: usize>(
+    network: &crate::network::Network<N, B, M>,
+    cycle_s: f64,
+) -> Result<LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>, BuildError> {
+    PredictorBuilder::new().tick_s(cycle_s).build(network)
+}
+
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
+    NetworkObserver<N, B, M, X, P>
+{
+    /// The assemble half of [`NetworkObserverBuilder::build`] (see the
+    /// module docs): an observer from solved tables, typically a `const`
+    /// written by `coil-thermal codegen`. Computes no exponential, no
+    /// Riccati solution and no eigenvalue.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] naming what is inconsistent: a
+    /// setting (as [`NetworkObserverBuilder::build`]), an index out of
+    /// range (`sensor_nodes`, `source_node`, `winding_node`,
+    /// `points_per_tick`), a non-finite table entry (`model`, `gain`,
+    /// `predictor`), a gain solved for another correction period
+    /// (`gain.period`), or the limits (`critical_c`, `derating_product`,
+    /// `hardware_limit_a`).
+    pub fn from_parts(parts: &NetworkParts<N, B, M, X, P>) -> Result<Self, BuildError> {
+        const {
+            assert!(X == N + M, "X must be N + M (temperatures and biases)");
+            assert!(B >= 1, "a network needs a boundary (the ambient)");
+            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
+        };
+        let s = &parts.settings;
+        let timing = timing(s)?;
+        check(parts.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
+        check(s.ambient_boundary < B, "ambient_boundary")?;
+        check(
+            parts
+                .critical_c
+                .iter()
+                .all(|c| c.is_none_or(|c| c.is_finite() && c < NO_LIMIT_C)),
+            "critical_c",
+        )?;
+        check(
+            parts
+                .hardware_limit_a
+                .iter()
+                .all(|a| a.is_finite() && *a > 0.0),
+            "hardware_limit_a",
+        )?;
+        let m = &parts.model;
+        check(m.source_node.iter().all(|n| *n < N), "source_node")?;
+        check(
+            finite(m.ad.iter().flatten())
+                && finite(m.phi_minus_i.iter().flatten())
+                && finite(m.bd_power.iter().flatten())
+                && finite(m.gd_boundary.iter().flatten())
+                && finite(&m.constant_k)
+                && m.resistance
+                    .iter()
+                    .all(|r| r.r_at_0c_ohm.is_finite() && r.slope_ohm_per_k.is_finite()),
+            "model",
+        )?;
+        let g = &parts.gain;
+        check(g.period == timing.correction_period, "gain.period")?;
+        check(
+            finite(g.gain.iter().flatten())
+                && finite(g.prior.iter().flatten())
+                && finite(g.posterior.iter().flatten())
+                && finite(&g.innovation_var)
+                && finite(g.prior_ht.iter().flatten())
+                && finite(g.innovation_cov.iter().flatten()),
+            "gain",
+        )?;
+        let predictor = predictor_from(&parts.predictor)?;
+
+        // The filter's configuration from the stored `Ad` and `Bd` (exact
+        // in `f64`, so its `f32` image is the solved one to the bit).
+        let ad = matrix(&m.ad).cast::<f64>();
+        let bd_power = matrix(&m.bd_power);
+        let kalman = filter_config::<N, M, X, P>(
+            &ad,
+            &bd_power.cast(),
+            &parts.sensor_nodes,
+            s,
+            timing.clock.step_s(),
+        )?
+        .cast::<f32>();
+        let gain = SteadyStateGain {
+            period: g.period,
+            gain: matrix(&g.gain),
+            prior: matrix(&g.prior),
+            posterior: matrix(&g.posterior),
+            innovation_var: SVector::from(g.innovation_var),
+            prior_ht: matrix(&g.prior_ht),
+            innovation_cov: matrix(&g.innovation_cov),
+        };
+        let limited = parts.critical_c.map(|c| c.is_some());
+        let critical = parts.critical_c.map(|c| c.unwrap_or(NO_LIMIT_C));
+        let rule = DeratingRule::new(&[DeratingFactor::new(
+            "derating_product",
+            parts.derating_product,
+        )])?;
+        let alarm = AlarmBuilder::new(&rule, critical)
+            .nominal_ambient_c(s.origin_c)
+            .build::<f32>()?;
+        // The taper's factor per element, scaled by each current's
+        // hardware limit afterwards (see "Limits per current").
+        let limiter = LimiterConfig::new([1.0; N], s.taper_k, 0.0)?;
+        let bound = upper_bound(&gain, &parts.sensor_nodes, s)?;
+
+        let mut fingerprint = Fingerprint::new()
+            .u32(s.step_us)
+            .u32(timing.correction_period)
+            .u32(s.protect_period_steps)
+            .f64(s.origin_c)
+            .f64(s.taper_k);
+        for v in kalman.f().iter().chain(gain.gain.iter()) {
+            fingerprint = fingerprint.f64(f64::from(*v));
+        }
+        for v in bd_power.iter().chain(matrix(&m.gd_boundary).iter()) {
+            fingerprint = fingerprint.f64(f64::from(*v));
+        }
+        fingerprint = fingerprint.f64s(&parts.hardware_limit_a);
+        for n in parts.sensor_nodes {
+            fingerprint = fingerprint.u32(n as u32);
+        }
+        // The protection too: a saved latch and temperatures were judged
+        // against these limits (as the grid's and the Omnimagnet's).
+        for row in &parts.incidence {
+            for heats in row {
+                fingerprint = fingerprint.u32(u32::from(*heats));
+            }
+        }
+        let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
+        Ok(Self {
+            phi_minus_i: matrix(&m.phi_minus_i),
+            bd_power,
+            gd_boundary: matrix(&m.gd_boundary),
+            constant_k: SVector::from(m.constant_k),
+            origin_c: s.origin_c as f32,
+            source_node: m.source_node,
+            resistance: m.resistance,
+            kalman,
+            gain,
+            sensor_nodes: parts.sensor_nodes,
+            limited,
+            incidence: parts.incidence,
+            hardware_limit_a: parts.hardware_limit_a.map(|a| a as f32),
+            alarm,
+            limiter,
+            predictor,
+            bound,
+            clock: timing.clock,
+            limits: InputLimits::default().to_scalar(),
+            ambient_boundary: s.ambient_boundary,
+            max_reading_age_us: s.max_reading_age_us,
+            step_us: s.step_us,
+            protect_period_us: timing.protect_period_us,
+            fingerprint: fingerprint.finish(),
+        })
+    }
+}
+
+fn predictor_from<const N: usize, const B: usize, const M: usize>(
+    t: &PredictorTables<N, B, M>,
+) -> Result<LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>, BuildError> {
+    check(t.winding_node.iter().all(|n| *n < N), "winding_node")?;
+    check(
+        (1..=PREDICTOR_POINTS + 1).contains(&t.points_per_tick),
+        "points_per_tick",
+    )?;
+    check(
+        finite(&t.grid_s)
+            && finite(t.decay.iter().flatten())
+            && finite(&t.lambda_per_s)
+            && finite(t.v.iter().flatten())
+            && finite(t.v_inv.iter().flatten())
+            && finite(t.gain_power.iter().flatten())
+            && finite(t.mode_gain_power.iter().flatten())
+            && finite(t.gain_boundary.iter().flatten())
+            && finite(t.mode_gain_boundary.iter().flatten())
+            && finite(&t.offset_c)
+            && finite(&t.mode_offset)
+            && finite(&t.winding_r_at_0c_ohm)
+            && finite(&t.winding_slope_ohm_per_k)
+            && t.tick_s.is_finite()
+            && t.tick_s > 0.0
+            && t.slowest_time_constant_s.is_finite(),
+        "predictor",
+    )?;
+    Ok(LimitPredictor {
+        grid_s: t.grid_s,
+        decay: t.decay,
+        lambda_per_s: t.lambda_per_s,
+        v: t.v,
+        v_inv: t.v_inv,
+        gain_power: t.gain_power,
+        mode_gain_power: t.mode_gain_power,
+        gain_boundary: t.gain_boundary,
+        mode_gain_boundary: t.mode_gain_boundary,
+        offset_c: t.offset_c,
+        mode_offset: t.mode_offset,
+        windings: core::array::from_fn(|m| Winding {
+            node: t.winding_node[m],
+            r_at_0c_ohm: t.winding_r_at_0c_ohm[m],
+            slope_ohm_per_k: t.winding_slope_ohm_per_k[m],
+        }),
+        tick_s: t.tick_s,
+        points_per_tick: t.points_per_tick,
+        slowest_time_constant_s: t.slowest_time_constant_s,
+    })
+}
+
+/// `k sigma` from the steady prior on every node, the model margin on the
+/// nodes no sensor measures.
+fn upper_bound<const N: usize, const X: usize, const P: usize>(
+    gain: &SteadyStateGain<f32, X, P>,
+    sensor_nodes: &[usize; P],
+    s: &NetworkSettings,
+) -> Result<UpperBound<f32, N>, BuildError> {
+    let prior = gain.prior();
+    let sigma_k: [f64; N] = core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
+    let mut margins = [s.unmeasured_margin; N];
+    for node in sensor_nodes {
+        if let Some(m) = margins.get_mut(*node) {
+            *m = UncertaintyMargin::ZERO;
+        }
+    }
+    UpperBoundBuilder::per_element(margins)
+        .sigma(s.k_sigma, sigma_k)
+        .build()
+}
+
+/// Writes `values` as a Rust array literal (`{:?}` of a float is the
+/// shortest text that reads back to the same bits).
+fn array<T: fmt::Debug>(out: &mut dyn Write, values: &[T]) -> fmt::Result {
+    out.write_char('[')?;
+    for (k, v) in values.iter().enumerate() {
+        if k > 0 {
+            out.write_str(", ")?;
+        }
+        write!(out, "{v:?}")?;
+    }
+    out.write_char(']')
+}
+
+fn table<T: fmt::Debug, const C: usize>(
+    out: &mut dyn Write,
+    indent: &str,
+    rows: &[[T; C]],
+) -> fmt::Result {
+    out.write_str("[\n")?;
+    for row in rows {
+        write!(out, "{indent}    ")?;
+        array(out, row)?;
+        out.write_str(",\n")?;
+    }
+    write!(out, "{indent}]")
+}
+
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
+    NetworkParts<N, B, M, X, P>
+{
+    /// Writes these parts as a Rust expression of type `NetworkParts<N, B,
+    /// M, X, P>` that names every type by its full path (`coil_thermal::`),
+    /// for a `const` in a generated module. Reading it back gives these
+    /// parts to the bit (floats are written by `{:?}`, which round-trips).
+    ///
+    /// # Errors
+    /// Those of `out`.
+    pub fn write_rust(&self, out: &mut dyn Write) -> fmt::Result {
+        let s = &self.settings;
+        let net = "coil_thermal::observer::network";
+        writeln!(out, "{net}::NetworkParts {{")?;
+        writeln!(out, "    settings: {net}::NetworkSettings {{")?;
+        writeln!(out, "        step_us: {},", s.step_us)?;
+        writeln!(out, "        max_steps_per_tick: {},", s.max_steps_per_tick)?;
+        writeln!(out, "        sensor_sigma_k: {:?},", s.sensor_sigma_k)?;
+        writeln!(
+            out,
+            "        node_noise_k2_per_s: {:?},",
+            s.node_noise_k2_per_s
+        )?;
+        writeln!(
+            out,
+            "        bias_noise_w2_per_s: {:?},",
+            s.bias_noise_w2_per_s
+        )?;
+        writeln!(out, "        recovery_sigma_k: {:?},", s.recovery_sigma_k)?;
+        writeln!(
+            out,
+            "        recovery_bias_sigma_w: {:?},",
+            s.recovery_bias_sigma_w
+        )?;
+        writeln!(
+            out,
+            "        correction_period_s: {:?},",
+            s.correction_period_s
+        )?;
+        writeln!(out, "        gate_threshold: {:?},", s.gate_threshold)?;
+        writeln!(out, "        suspect_after: {},", s.suspect_after)?;
+        writeln!(out, "        recover_after: {},", s.recover_after)?;
+        writeln!(out, "        max_reading_age_us: {},", s.max_reading_age_us)?;
+        writeln!(out, "        taper_k: {:?},", s.taper_k)?;
+        writeln!(
+            out,
+            "        protect_period_steps: {},",
+            s.protect_period_steps
+        )?;
+        writeln!(out, "        k_sigma: {:?},", s.k_sigma)?;
+        writeln!(
+            out,
+            "        unmeasured_margin: coil_thermal::protect::margin::UncertaintyMargin {{ rise_fraction: {:?}, offset_k: {:?} }},",
+            s.unmeasured_margin.rise_fraction, s.unmeasured_margin.offset_k
+        )?;
+        writeln!(
+            out,
+            "        incidence_fraction: {:?},",
+            s.incidence_fraction
+        )?;
+        writeln!(out, "        origin_c: {:?},", s.origin_c)?;
+        writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
+        writeln!(out, "        frozen_flag_ticks: {},", s.frozen_flag_ticks)?;
+        writeln!(out, "        frozen_loss_ticks: {},", s.frozen_loss_ticks)?;
+        writeln!(out, "    }},")?;
+        out.write_str("    sensor_nodes: ")?;
+        array(out, &self.sensor_nodes)?;
+        out.write_str(",\n    critical_c: ")?;
+        array(out, &self.critical_c)?;
+        writeln!(out, ",\n    derating_product: {:?},", self.derating_product)?;
+        out.write_str("    hardware_limit_a: ")?;
+        array(out, &self.hardware_limit_a)?;
+        out.write_str(",\n    incidence: ")?;
+        table(out, "    ", &self.incidence)?;
+        out.write_str(",\n")?;
+
+        let m = &self.model;
+        writeln!(out, "    model: {net}::ModelTables {{")?;
+        let i2 = "        ";
+        for (name, rows) in [("ad", &m.ad), ("phi_minus_i", &m.phi_minus_i)] {
+            write!(out, "{i2}{name}: ")?;
+            table(out, i2, rows)?;
+            out.write_str(",\n")?;
+        }
+        write!(out, "{i2}bd_power: ")?;
+        table(out, i2, &m.bd_power)?;
+        write!(out, ",\n{i2}gd_boundary: ")?;
+        table(out, i2, &m.gd_boundary)?;
+        write!(out, ",\n{i2}constant_k: ")?;
+        array(out, &m.constant_k)?;
+        write!(out, ",\n{i2}source_node: ")?;
+        array(out, &m.source_node)?;
+        write!(out, ",\n{i2}resistance: [")?;
+        for (k, r) in m.resistance.iter().enumerate() {
+            if k > 0 {
+                out.write_str(", ")?;
+            }
+            write!(
+                out,
+                "coil_thermal::network::ScalarResistance {{ r_at_0c_ohm: {:?}, slope_ohm_per_k: {:?} }}",
+                r.r_at_0c_ohm, r.slope_ohm_per_k
+            )?;
+        }
+        writeln!(out, "],\n    }},")?;
+
+        let g = &self.gain;
+        writeln!(out, "    gain: {net}::GainTables {{")?;
+        writeln!(out, "{i2}period: {},", g.period)?;
+        write!(out, "{i2}gain: ")?;
+        table(out, i2, &g.gain)?;
+        write!(out, ",\n{i2}prior: ")?;
+        table(out, i2, &g.prior)?;
+        write!(out, ",\n{i2}posterior: ")?;
+        table(out, i2, &g.posterior)?;
+        write!(out, ",\n{i2}innovation_var: ")?;
+        array(out, &g.innovation_var)?;
+        write!(out, ",\n{i2}prior_ht: ")?;
+        table(out, i2, &g.prior_ht)?;
+        write!(out, ",\n{i2}innovation_cov: ")?;
+        table(out, i2, &g.innovation_cov)?;
+        writeln!(out, ",\n    }},")?;
+
+        let p = &self.predictor;
+        writeln!(out, "    predictor: {net}::PredictorTables {{")?;
+        write!(out, "{i2}grid_s: ")?;
+        array(out, &p.grid_s)?;
+        write!(out, ",\n{i2}decay: ")?;
+        table(out, i2, &p.decay)?;
+        write!(out, ",\n{i2}lambda_per_s: ")?;
+        array(out, &p.lambda_per_s)?;
+        for (name, rows) in [("v", &p.v), ("v_inv", &p.v_inv)] {
+            write!(out, ",\n{i2}{name}: ")?;
+            table(out, i2, rows)?;
+        }
+        for (name, rows) in [
+            ("gain_power", &p.gain_power),
+            ("mode_gain_power", &p.mode_gain_power),
+        ] {
+            write!(out, ",\n{i2}{name}: ")?;
+            table(out, i2, rows)?;
+        }
+        for (name, rows) in [
+            ("gain_boundary", &p.gain_boundary),
+            ("mode_gain_boundary", &p.mode_gain_boundary),
+        ] {
+            write!(out, ",\n{i2}{name}: ")?;
+            table(out, i2, rows)?;
+        }
+        for (name, values) in [
+            ("offset_c", &p.offset_c[..]),
+            ("mode_offset", &p.mode_offset[..]),
+            ("winding_r_at_0c_ohm", &p.winding_r_at_0c_ohm[..]),
+            ("winding_slope_ohm_per_k", &p.winding_slope_ohm_per_k[..]),
+        ] {
+            write!(out, ",\n{i2}{name}: ")?;
+            array(out, values)?;
+        }
+        write!(out, ",\n{i2}winding_node: ")?;
+        array(out, &p.winding_node)?;
+        writeln!(out, ",\n{i2}tick_s: {:?},", p.tick_s)?;
+        writeln!(out, "{i2}points_per_tick: {},", p.points_per_tick)?;
+        writeln!(
+            out,
+            "{i2}slowest_time_constant_s: {:?},",
+            p.slowest_time_constant_s
+        )?;
+        writeln!(out, "    }},")?;
+        out.write_str("}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::NetworkInputs;
+    use super::*;
+    use crate::network::{Network, Resistance};
+    use crate::observer::TimedReading;
+    use crate::Reading;
+
+    type Parts = NetworkParts<3, 1, 1, 4, 1>;
+
+    fn network() -> Network<3, 1, 1> {
+        Network::new([60.0, 400.0, 900.0])
+            .and_then(|n| n.connect(0, 1, 0.8))
+            .and_then(|n| n.connect(1, 2, 2.0))
+            .and_then(|n| n.connect_boundary(2, 0, 1.2))
+            .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(1.2, 0.00393, 20.0)))
+            .expect("a valid network")
+    }
+
+    fn parts() -> Parts {
+        NetworkObserverBuilder::new(&network(), [1])
+            .critical_c([Some(155.0), Some(80.0), None])
+            .parts()
+            .expect("solvable")
+    }
+
+    #[test]
+    fn an_observer_from_parts_ticks_as_the_built_one() {
+        let net = network();
+        let built: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+            .critical_c([Some(155.0), Some(80.0), None])
+            .build()
+            .expect("builds");
+        // A copy of the parts, as a generated `const` would hold them.
+        let copied = parts();
+        let assembled = NetworkObserver::from_parts(&copied).expect("assembles");
+        assert_eq!(built.fingerprint(), assembled.fingerprint());
+        let mut a = built.state(&[20.0; 3], &[20.0]);
+        let mut b = assembled.state(&[20.0; 3], &[20.0]);
+        for tick in 0..20_000u32 {
+            let now_us = tick * 1000;
+            let reading = (tick % 500 == 0).then_some(TimedReading {
+                result: Ok(Reading {
+                    temp_c: 20.0 + tick as f32 * 1e-3,
+                    cold_junction_c: 25.0,
+                }),
+                sampled_at_us: now_us,
+            });
+            let inputs = NetworkInputs {
+                currents_a: [if tick < 10_000 { 6.0 } else { 12.0 }],
+                boundary_c: [20.0],
+                readings: [reading],
+                now_us,
+                elapsed_us: 1000,
+            };
+            assert_eq!(built.tick(&mut a, &inputs), assembled.tick(&mut b, &inputs));
+        }
+        // The run did something worth comparing: heated and corrected.
+        assert!(a.outputs().temps_c[0] > 25.0, "{:?}", a.outputs().temps_c);
+    }
+
+    #[test]
+    fn inconsistent_parts_are_refused_by_name() {
+        let name = |p: &Parts| match NetworkObserver::from_parts(p) {
+            Err(BuildError::InvalidParameter { name }) => name,
+            other => panic!(
+                "expected a refusal, got {:?}",
+                other.map(|o| o.fingerprint())
+            ),
+        };
+        let mut p = parts();
+        p.sensor_nodes = [3];
+        assert_eq!(name(&p), "sensor_nodes");
+        let mut p = parts();
+        p.model.source_node = [7];
+        assert_eq!(name(&p), "source_node");
+        let mut p = parts();
+        p.model.ad[1][2] = f32::NAN;
+        assert_eq!(name(&p), "model");
+        let mut p = parts();
+        p.gain.prior[3][3] = f32::INFINITY;
+        assert_eq!(name(&p), "gain");
+        let mut p = parts();
+        p.gain.period += 1;
+        assert_eq!(name(&p), "gain.period");
+        let mut p = parts();
+        p.predictor.points_per_tick = 0;
+        assert_eq!(name(&p), "points_per_tick");
+        let mut p = parts();
+        p.predictor.winding_node = [3];
+        assert_eq!(name(&p), "winding_node");
+        let mut p = parts();
+        p.predictor.decay[4][0] = f32::NAN;
+        assert_eq!(name(&p), "predictor");
+        let mut p = parts();
+        p.derating_product = 1.5;
+        assert_eq!(name(&p), "derating_product");
+        let mut p = parts();
+        p.hardware_limit_a = [0.0];
+        assert_eq!(name(&p), "hardware_limit_a");
+        let mut p = parts();
+        p.settings.step_us = 0;
+        assert!(NetworkObserver::from_parts(&p).is_err());
+    }
+
+    #[test]
+    fn written_rust_names_every_table() {
+        struct Text {
+            buf: [u8; 32 * 1024],
+            len: usize,
+        }
+        impl Write for Text {
+            fn write_str(&mut self, s: &str) -> fmt::Result {
+                let end = self.len + s.len();
+                self.buf
+                    .get_mut(self.len..end)
+                    .ok_or(fmt::Error)?
+                    .copy_from_slice(s.as_bytes());
+                self.len = end;
+                Ok(())
+            }
+        }
+        let mut text = Text {
+            buf: [0; 32 * 1024],
+            len: 0,
+        };
+        parts().write_rust(&mut text).expect("fits");
+        let text = core::str::from_utf8(&text.buf[..text.len]).expect("utf-8");
+        for field in [
+            "critical_c: [Some(155.0), Some(80.0), None]",
+            "sensor_nodes: [1]",
+            "phi_minus_i:",
+            "innovation_cov:",
+            "mode_gain_boundary:",
+            "slowest_time_constant_s:",
+        ] {
+            assert!(text.contains(field), "{field} missing");
+        }
+        assert!(!text.contains("NaN") && !text.contains("inf"));
+    }
+}
