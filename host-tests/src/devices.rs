@@ -234,6 +234,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
         fixed_powers: Vec::new(),
         speed_losses: Vec::new(),
         initial: InitialSpec::default(),
+        observer: None,
     })
 }
 

@@ -21,12 +21,15 @@
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
 //! * [`limits`](mod@limits): time to limit, safe and runaway currents of any network (padded sizes);
 //! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
+//! * [`codegen`]: a model file to a firmware module with the observer's
+//!   tables solved on the host;
 //! * [`cli`]: the command-line front end.
 
 pub mod alloc_count;
 pub mod bench;
 pub mod calibrate;
 pub mod cli;
+pub mod codegen;
 pub mod devices;
 pub mod dynamic_network;
 pub mod grid_reference;

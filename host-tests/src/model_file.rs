@@ -49,6 +49,10 @@ pub struct ModelFile {
     /// Initial temperature policy (`[initial]`).
     #[serde(default)]
     pub initial: InitialSpec,
+    /// What the firmware observer needs beyond the network (`[observer]`:
+    /// sensors, limits; see `coil-thermal codegen`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observer: Option<crate::codegen::ObserverSpec>,
 }
 
 /// A state node.
@@ -375,6 +379,7 @@ impl ModelFile {
             fixed_powers,
             speed_losses: Vec::new(),
             initial: InitialSpec::default(),
+            observer: None,
         }
     }
 

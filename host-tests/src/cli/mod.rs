@@ -10,6 +10,7 @@
 
 mod bench_cmd;
 mod calibrate_cmd;
+mod codegen_cmd;
 mod common;
 mod limits_cmd;
 mod plot_cmd;
@@ -57,6 +58,10 @@ enum Command {
     Bench(BenchArgs),
     /// Plot estimated vs measured temperatures and currents (PNG or SVG).
     Plot(PlotArgs),
+    /// Write a `no_std` Rust module holding a model's firmware observer,
+    /// solved on this host, as `const` data (the MCU computes no exponential
+    /// and no Riccati solution).
+    Codegen(codegen_cmd::CodegenArgs),
 }
 
 /// Which model to run.
@@ -559,6 +564,7 @@ pub fn main_entry() -> ExitCode {
         Command::Calibrate(a) => calibrate_cmd::run(a),
         Command::Bench(a) => bench_cmd::run(a),
         Command::Plot(a) => plot_cmd::run(a),
+        Command::Codegen(a) => codegen_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,346 @@
+//! `coil-thermal codegen`: a model file to a `no_std` Rust module that
+//! holds a [`NetworkObserver`](coil_thermal::observer::network::NetworkObserver)
+//! solved on the host, as `const` data in flash.
+//!
+//! # How the tables are solved: by the library, at the model's own sizes
+//!
+//! The observer is const-generic in its sizes, and a compiled tool cannot
+//! instantiate sizes it was not compiled for. So the generator writes the
+//! model's network as Rust (the module's `network()`), compiles a small
+//! program with the model's exact sizes against this library (cargo, in
+//! `<target>/coil-thermal-codegen`, the dependencies built once and
+//! reused), and runs it: it calls
+//! [`NetworkObserverBuilder::parts`](coil_thermal::observer::network::NetworkObserverBuilder::parts),
+//! the same solve as `build()` on the MCU, and prints the tables with
+//! [`NetworkParts::write_rust`](coil_thermal::observer::network::NetworkParts::write_rust).
+//! The firmware's `observer()` is then `from_parts(&PARTS)`: no exponential,
+//! no Riccati solution, no eigenvalue on the MCU, and the same observer to
+//! the bit as the builder's.
+//!
+//! # What a model needs
+//!
+//! The `[observer]` table of the model file (see `host-tests/MODEL_FORMAT.md`)
+//! names the sensors (`sensors = ["housing"]`: the node each thermocouple
+//! measures) and optionally the hardware current limit and a few settings.
+//! Critical temperatures come from the nodes' `critical_c`. Speed-dependent
+//! terms (`speed` on a source, `[[speed_loss]]`) have no place in the
+//! firmware observer's inputs yet and are refused; a source's `scale` is
+//! folded into its resistance (`k R(T) I^2`). Each Joule source is one
+//! current of the observer, in source order; sources sharing an input
+//! (series layers) are fed the same current by the generated
+//! `source_currents_a`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::model_file::{Model, ModelFile};
+
+/// The `[observer]` table of a model file: what the firmware observer needs
+/// beyond the network.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObserverSpec {
+    /// The node each thermocouple measures, by name, in sensor order.
+    #[serde(default)]
+    pub sensors: Vec<String>,
+    /// Every current's hardware limit \[A\] (default 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hardware_limit_a: Option<f64>,
+    /// Product of the derating factors of the alarm limits (default 0.648,
+    /// the HPPA rule without its magnet-plate factor).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub derating: Option<f64>,
+    /// Model step \[us\] (default 1000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step_us: Option<u32>,
+    /// Thermocouple noise standard deviation \[K\] (default 0.25).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_sigma_k: Option<f64>,
+    /// Time between thermocouple samples the gain is solved for \[s\]
+    /// (default 0.5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub correction_period_s: Option<f64>,
+    /// Growth rate of each heat-input bias variance \[W^2/s\] (default
+    /// 1e-3; 0 when the sensors cannot tell the currents' heat apart).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_noise_w2_per_s: Option<f64>,
+}
+
+/// What to generate.
+#[derive(Debug, Clone)]
+pub struct CodegenRequest {
+    /// The model file.
+    pub model: PathBuf,
+    /// Sensor nodes by name; overrides `[observer] sensors` when not empty.
+    pub sensors: Vec<String>,
+    /// The `coil-thermal` library the generator compiles against (default:
+    /// the one this tool was built from).
+    pub library: Option<PathBuf>,
+    /// Cargo's target directory for the generator (default
+    /// `<library>/target`).
+    pub target_dir: Option<PathBuf>,
+}
+
+fn rust_str(s: &str) -> String {
+    format!("{s:?}")
+}
+
+fn list<T: std::fmt::Debug>(values: &[T]) -> String {
+    let items: Vec<String> = values.iter().map(|v| format!("{v:?}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+/// The model, checked for the firmware observer, with everything the
+/// generated module names.
+struct Plan {
+    model: Model,
+    name: String,
+    source: String,
+    spec: ObserverSpec,
+    sensor_nodes: Vec<usize>,
+    /// Per source: (node, `k R(0 degC)` \[ohm\], `k dR/dT` \[ohm/K\], input).
+    sources: Vec<(usize, f64, f64, usize)>,
+}
+
+fn plan(req: &CodegenRequest) -> Result<Plan> {
+    let file = ModelFile::load(&req.model)?;
+    let model = Model::build(&file)?;
+    let mut spec = file.observer.clone().unwrap_or_default();
+    if !req.sensors.is_empty() {
+        spec.sensors.clone_from(&req.sensors);
+    }
+    if spec.sensors.is_empty() {
+        bail!(
+            "{}: no sensor: name the node each thermocouple measures in `[observer] sensors = [\"node\"]` or with --sensor NODE (a firmware observer needs at least one)",
+            req.model.display()
+        );
+    }
+    if !model.speed_losses.is_empty() || model.drives.iter().any(|d| d.speed.is_some()) {
+        bail!(
+            "{}: speed-dependent terms (`speed` on a source, [[speed_loss]]) are not inputs of the firmware observer yet; generate from a model without them",
+            req.model.display()
+        );
+    }
+    if model.network.boundaries() == 0 {
+        bail!("{}: the model has no [[boundary]] (the ambient)", req.model.display());
+    }
+    if model.drives.is_empty() {
+        bail!("{}: the model has no [[source]] (no current)", req.model.display());
+    }
+    let sensor_nodes = spec
+        .sensors
+        .iter()
+        .map(|s| model.node_index(s))
+        .collect::<Result<Vec<_>>>()?;
+    let sources = model
+        .network
+        .sources()
+        .iter()
+        .zip(&model.drives)
+        .map(|(s, d)| {
+            (
+                s.node,
+                d.scale * s.resistance.r_at_0c_ohm,
+                d.scale * s.resistance.slope_ohm_per_k,
+                d.input,
+            )
+        })
+        .collect();
+    let name = model.name.clone();
+    let source = req
+        .model
+        .file_name()
+        .map_or_else(|| req.model.display().to_string(), |f| f.to_string_lossy().into_owned());
+    Ok(Plan {
+        model,
+        name,
+        source,
+        spec,
+        sensor_nodes,
+        sources,
+    })
+}
+
+impl Plan {
+    fn sizes(&self) -> (usize, usize, usize, usize) {
+        let n = self.model.nodes.len();
+        let b = self.model.network.boundaries();
+        let m = self.sources.len();
+        (n, b, m, self.sensor_nodes.len())
+    }
+
+    /// The module's head: sizes, names, types and `network()`.
+    fn head(&self) -> String {
+        let (n, b, m, p) = self.sizes();
+        let net = &self.model.network;
+        let mut o = String::new();
+        let _ = writeln!(
+            o,
+            "//! The thermal observer of `{}`, generated by `coil-thermal codegen` from\n//! `{}`. Do not edit: change the model file and generate again.\n//!\n//! Everything the tick needs is solved on the host and held in [`PARTS`]\n//! (flash); [`observer`] assembles it with no exponential and no Riccati\n//! solution.",
+            self.name, self.source
+        );
+        o.push_str("//!\n//! | node | critical \\[degC\\] | thermocouple |\n//! |---|---|---|\n");
+        for (i, name) in self.model.nodes.iter().enumerate() {
+            let crit = self.model.critical_c[i].map_or("-".to_string(), |c| format!("{c}"));
+            let sensors: Vec<String> = self
+                .sensor_nodes
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| **s == i)
+                .map(|(j, _)| j.to_string())
+                .collect();
+            let _ = writeln!(o, "//! | {name} | {crit} | {} |", sensors.join(", "));
+        }
+        o.push_str(
+            "\n#![allow(clippy::approx_constant, clippy::excessive_precision, clippy::unreadable_literal)]\n\n",
+        );
+        o.push_str("use coil_thermal::observer::network::{\n    NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,\n};\nuse coil_thermal::{BuildError, Network, Resistance};\n\n");
+        let _ = writeln!(o, "/// State nodes.\npub const NODES: usize = {n};");
+        let _ = writeln!(o, "/// Boundaries (given temperatures; boundary 0 is the ambient).\npub const BOUNDARIES: usize = {b};");
+        let _ = writeln!(o, "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};");
+        let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
+        let _ = writeln!(o, "/// Thermocouples.\npub const SENSORS: usize = {p};");
+        let inputs: Vec<&str> = self.model.inputs.iter().map(|i| i.name.as_str()).collect();
+        let _ = writeln!(o, "/// Current inputs of the model file (sources may share one).\npub const INPUTS: usize = {};", inputs.len());
+        let names = |v: &[&str]| format!("[{}]", v.iter().map(|s| rust_str(s)).collect::<Vec<_>>().join(", "));
+        let nodes: Vec<&str> = self.model.nodes.iter().map(String::as_str).collect();
+        let bounds: Vec<&str> = self.model.boundaries.iter().map(|b| b.name.as_str()).collect();
+        let sensors: Vec<&str> = self.spec.sensors.iter().map(String::as_str).collect();
+        let _ = writeln!(o, "/// Node names, in state order.\npub const NODE_NAMES: [&str; NODES] = {};", names(&nodes));
+        let _ = writeln!(o, "/// Boundary names.\npub const BOUNDARY_NAMES: [&str; BOUNDARIES] = {};", names(&bounds));
+        let _ = writeln!(o, "/// Input names.\npub const INPUT_NAMES: [&str; INPUTS] = {};", names(&inputs));
+        let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
+        let input_of: Vec<usize> = self.sources.iter().map(|s| s.3).collect();
+        let _ = writeln!(o, "/// The input that drives each current.\npub const SOURCE_INPUT: [usize; CURRENTS] = {};", list(&input_of));
+        o.push_str("\n/// The configuration.\npub type Observer = NetworkObserver<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// The per-device state.\npub type State = NetworkObserverState<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// One tick's inputs.\npub type Inputs = NetworkInputs<BOUNDARIES, CURRENTS, SENSORS>;\n/// One tick's outputs.\npub type Outputs = NetworkOutputs<NODES, CURRENTS, SENSORS>;\n\n");
+        o.push_str("/// Each current from the model file's inputs \\[A\\] (a current per\n/// source: sources in series take the same one).\npub fn source_currents_a(input_a: &[f32; INPUTS]) -> [f32; CURRENTS] {\n    core::array::from_fn(|m| input_a.get(SOURCE_INPUT[m]).copied().unwrap_or(f32::NAN))\n}\n\n");
+        o.push_str("/// The network the tables were solved from (for host checks; the\n/// firmware needs only [`PARTS`]).\n///\n/// # Errors\n/// None for a generated file; the type is the builder's.\npub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {\n");
+        let _ = write!(o, "    Ok(Network::new({})?", list(net.capacities_j_per_k()));
+        for pair in net.pairs() {
+            let _ = write!(o, "\n        .connect({}, {}, {:?})?", pair.a, pair.b, pair.g_w_per_k);
+        }
+        for link in net.links() {
+            let _ = write!(
+                o,
+                "\n        .connect_boundary({}, {}, {:?})?",
+                link.node, link.boundary, link.g_w_per_k
+            );
+        }
+        for (k, (node, r0, slope, _)) in self.sources.iter().enumerate() {
+            let _ = write!(
+                o,
+                "\n        .joule_source({node}, {k}, Resistance::linear_fit({slope:?}, {r0:?}))?"
+            );
+        }
+        for (node, p) in net.fixed_powers_w().iter().enumerate() {
+            if *p != 0.0 {
+                let _ = write!(o, "\n        .fixed_power({node}, {p:?})?");
+            }
+        }
+        o.push_str(")\n}\n");
+        o
+    }
+
+    /// The generator program: the head, then a `main` that solves and
+    /// prints the parts.
+    fn generator_main(&self) -> String {
+        let s = &self.spec;
+        let mut settings = String::from("NetworkSettings::DEFAULT");
+        let mut fields = Vec::new();
+        if let Some(v) = s.step_us {
+            fields.push(format!("step_us: {v}"));
+        }
+        if let Some(v) = s.sensor_sigma_k {
+            fields.push(format!("sensor_sigma_k: {v:?}"));
+        }
+        if let Some(v) = s.correction_period_s {
+            fields.push(format!("correction_period_s: {v:?}"));
+        }
+        if let Some(v) = s.bias_noise_w2_per_s {
+            fields.push(format!("bias_noise_w2_per_s: {v:?}"));
+        }
+        if !fields.is_empty() {
+            settings = format!("NetworkSettings {{ {}, ..NetworkSettings::DEFAULT }}", fields.join(", "));
+        }
+        let derating = match s.derating {
+            Some(d) => format!("DeratingRule::new(&[DeratingFactor::new(\"derating\", {d:?})])?"),
+            None => "DeratingRule::omnimagnet()".to_string(),
+        };
+        let hardware = s.hardware_limit_a.unwrap_or(8.0);
+        format!(
+            "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn main() -> Result<(), coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings({settings})\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    print!(\"{{text}}\");\n    Ok(())\n}}\n",
+            sensors = list(&self.sensor_nodes),
+            critical = list(&self.model.critical_c),
+        )
+    }
+}
+
+/// The library this tool was built from.
+fn default_library() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Writes the generator crate and runs it; returns the parts' Rust text.
+fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
+    let dir = target_dir.join("coil-thermal-codegen");
+    std::fs::create_dir_all(dir.join("src"))
+        .with_context(|| format!("{}: cannot create the generator crate", dir.display()))?;
+    let library = library
+        .canonicalize()
+        .with_context(|| format!("{}: no coil-thermal library here (--library)", library.display()))?;
+    let manifest = format!(
+        "[package]\nname = \"coil-thermal-codegen\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?} }}\n\n[workspace]\n",
+        library.display().to_string()
+    );
+    std::fs::write(dir.join("Cargo.toml"), manifest)?;
+    // The library's lock pins the generator's dependencies to the versions
+    // the library is tested with (and needs no registry when they are cached).
+    let lock = library.join("Cargo.lock");
+    if lock.exists() && !dir.join("Cargo.lock").exists() {
+        std::fs::copy(&lock, dir.join("Cargo.lock"))?;
+    }
+    std::fs::write(dir.join("src/head.rs"), plan.head())?;
+    std::fs::write(dir.join("src/main.rs"), plan.generator_main())?;
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let output = Command::new(cargo)
+        .args(["run", "--release", "--quiet", "--manifest-path"])
+        .arg(dir.join("Cargo.toml"))
+        .env("CARGO_TARGET_DIR", dir.join("target"))
+        .env_remove("RUSTFLAGS")
+        .output()
+        .context("cannot run cargo for the generator")?;
+    if !output.status.success() {
+        bail!(
+            "the generator failed (the library's builder refused the model?):\n{}{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    String::from_utf8(output.stdout).context("the generator printed non-UTF-8")
+}
+
+/// Generates the module for `req`; returns its text.
+///
+/// # Errors
+/// A model the firmware observer cannot take (no sensor, speed terms, a
+/// refusal of the library's builder, named), or a failed generator build.
+pub fn generate(req: &CodegenRequest) -> Result<String> {
+    let plan = plan(req)?;
+    let library = req.library.clone().unwrap_or_else(default_library);
+    let target_dir = match &req.target_dir {
+        Some(t) => t.clone(),
+        None => std::env::var_os("CARGO_TARGET_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| library.join("target")),
+    };
+    let parts = solve(&plan, &library, &target_dir)?;
+    let mut o = plan.head();
+    o.push_str("\n/// Every table of the observer, solved on the host in `f64` and rounded\n/// once to `f32`.\npub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> = ");
+    o.push_str(parts.trim_end());
+    o.push_str(";\n\n/// The observer, assembled from [`PARTS`] (validation and copies only).\n///\n/// # Errors\n/// None for a generated file; the type is the library's.\npub fn observer() -> Result<Observer, BuildError> {\n    Observer::from_parts(&PARTS)\n}\n\n/// A state with every node and boundary at `ambient_c` \\[degC\\].\npub fn initial_state(observer: &Observer, ambient_c: f32) -> State {\n    observer.state(&[ambient_c; NODES], &[ambient_c; BOUNDARIES])\n}\n");
+    Ok(o)
+}
