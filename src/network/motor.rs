@@ -173,7 +173,8 @@
 //!     NetworkObserverBuilder::new(motor.network(), [motor.sensor_node(MotorSensor::Housing)])
 //!         .critical_c(motor.critical_c())
 //!         .hardware_limit_a(motor.hardware_limit_a())
-//!         // One sensor cannot tell three phases' heat apart: no bias states.
+//!         // One sensor cannot tell three phases' heat apart: no bias states
+//!         // (with a winding thermistor the default's gain does not converge).
 //!         .settings(NetworkSettings { bias_noise_w2_per_s: 0.0, ..NetworkSettings::DEFAULT })
 //!         .build()?;
 //! let mut state = observer.state(&[25.0; 4], &[25.0]);
@@ -794,6 +795,20 @@ mod tests {
                 // Independent phases: the hot phase rises twice the mean.
                 assert!((steady[0] - housing - 2.0 * mean).abs() < 1e-9 * total);
             }
+            // No angle heats any phase more than the worst-phase mapping
+            // heats phase A (amplitude I, amplitude-invariant).
+            let scaling = DqScaling::AmplitudeInvariant;
+            let worst = scaling.worst_phase_currents_a(0.0, i as f32).map(f64::from);
+            let bound = motor.steady_state_c(worst, AMBIENT_C).unwrap()[0];
+            for step in 0..60 {
+                let theta = f64::from(step) * core::f64::consts::PI / 30.0;
+                let third = 2.0 * core::f64::consts::PI / 3.0;
+                let phases = [0.0, third, -third].map(|phi| -i * libm::sin(theta - phi));
+                let at_angle = motor.steady_state_c(phases, AMBIENT_C).unwrap();
+                let hottest = at_angle[..3].iter().fold(f64::MIN, |m, t| m.max(*t));
+                assert!(hottest <= bound + 1e-9, "c {c}, theta {theta}");
+            }
+            assert!((bound - hot).abs() < 1e-6 * total);
         }
     }
 
