@@ -28,6 +28,7 @@ pub use error::BuildError;
 pub use grid::{CoilGrid, GridConfig, GridParams, GridState, Stencil};
 pub use input::{InputFlags, InputLimits};
 pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
+pub use network::{MotorBuilder, MotorDatasheet};
 pub use scalar::{Scalar, Q32};
 pub use sensors::{Reading, SensorFault, SensorResult};
 pub use solenoid::SolenoidParams;

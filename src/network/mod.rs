@@ -24,10 +24,12 @@
 //! * the exact zero-order-hold step of [`crate::discretize`].
 
 mod explicit;
+pub mod motor;
 mod source;
 mod steady;
 
 pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
+pub use motor::{DqScaling, Motor, MotorBuilder, MotorDatasheet, MotorHeatCapacity, MotorSensor};
 pub use source::{JouleSource, Resistance, ScalarResistance};
 
 use crate::error::BuildError;
