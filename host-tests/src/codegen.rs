@@ -126,10 +126,16 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         );
     }
     if model.network.boundaries() == 0 {
-        bail!("{}: the model has no [[boundary]] (the ambient)", req.model.display());
+        bail!(
+            "{}: the model has no [[boundary]] (the ambient)",
+            req.model.display()
+        );
     }
     if model.drives.is_empty() {
-        bail!("{}: the model has no [[source]] (no current)", req.model.display());
+        bail!(
+            "{}: the model has no [[source]] (no current)",
+            req.model.display()
+        );
     }
     let sensor_nodes = spec
         .sensors
@@ -151,10 +157,10 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         })
         .collect();
     let name = model.name.clone();
-    let source = req
-        .model
-        .file_name()
-        .map_or_else(|| req.model.display().to_string(), |f| f.to_string_lossy().into_owned());
+    let source = req.model.file_name().map_or_else(
+        || req.model.display().to_string(),
+        |f| f.to_string_lossy().into_owned(),
+    );
     Ok(Plan {
         model,
         name,
@@ -196,52 +202,79 @@ impl Plan {
             let _ = writeln!(o, "//! | {name} | {crit} | {} |", sensors.join(", "));
         }
         o.push_str(
-            "\n#![allow(clippy::approx_constant, clippy::excessive_precision, clippy::unreadable_literal)]\n\n",
+            "\n#![allow(dead_code, clippy::approx_constant, clippy::excessive_precision, clippy::unreadable_literal)]\n\n",
         );
         o.push_str("use coil_thermal::observer::network::{\n    NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,\n};\nuse coil_thermal::{BuildError, Network, Resistance};\n\n");
         let _ = writeln!(o, "/// State nodes.\npub const NODES: usize = {n};");
         let _ = writeln!(o, "/// Boundaries (given temperatures; boundary 0 is the ambient).\npub const BOUNDARIES: usize = {b};");
-        let _ = writeln!(o, "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};");
+        let _ = writeln!(
+            o,
+            "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};"
+        );
         let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
         let _ = writeln!(o, "/// Thermocouples.\npub const SENSORS: usize = {p};");
         let inputs: Vec<&str> = self.model.inputs.iter().map(|i| i.name.as_str()).collect();
         let _ = writeln!(o, "/// Current inputs of the model file (sources may share one).\npub const INPUTS: usize = {};", inputs.len());
-        let names = |v: &[&str]| format!("[{}]", v.iter().map(|s| rust_str(s)).collect::<Vec<_>>().join(", "));
+        let names = |v: &[&str]| {
+            format!(
+                "[{}]",
+                v.iter().map(|s| rust_str(s)).collect::<Vec<_>>().join(", ")
+            )
+        };
         let nodes: Vec<&str> = self.model.nodes.iter().map(String::as_str).collect();
-        let bounds: Vec<&str> = self.model.boundaries.iter().map(|b| b.name.as_str()).collect();
+        let bounds: Vec<&str> = self
+            .model
+            .boundaries
+            .iter()
+            .map(|b| b.name.as_str())
+            .collect();
         let sensors: Vec<&str> = self.spec.sensors.iter().map(String::as_str).collect();
-        let _ = writeln!(o, "/// Node names, in state order.\npub const NODE_NAMES: [&str; NODES] = {};", names(&nodes));
-        let _ = writeln!(o, "/// Boundary names.\npub const BOUNDARY_NAMES: [&str; BOUNDARIES] = {};", names(&bounds));
-        let _ = writeln!(o, "/// Input names.\npub const INPUT_NAMES: [&str; INPUTS] = {};", names(&inputs));
+        let _ = writeln!(
+            o,
+            "/// Node names, in state order.\npub const NODE_NAMES: [&str; NODES] = {};",
+            names(&nodes)
+        );
+        let _ = writeln!(
+            o,
+            "/// Boundary names.\npub const BOUNDARY_NAMES: [&str; BOUNDARIES] = {};",
+            names(&bounds)
+        );
+        let _ = writeln!(
+            o,
+            "/// Input names.\npub const INPUT_NAMES: [&str; INPUTS] = {};",
+            names(&inputs)
+        );
         let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
         let input_of: Vec<usize> = self.sources.iter().map(|s| s.3).collect();
         let _ = writeln!(o, "/// The input that drives each current.\npub const SOURCE_INPUT: [usize; CURRENTS] = {};", list(&input_of));
         o.push_str("\n/// The configuration.\npub type Observer = NetworkObserver<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// The per-device state.\npub type State = NetworkObserverState<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// One tick's inputs.\npub type Inputs = NetworkInputs<BOUNDARIES, CURRENTS, SENSORS>;\n/// One tick's outputs.\npub type Outputs = NetworkOutputs<NODES, CURRENTS, SENSORS>;\n\n");
         o.push_str("/// Each current from the model file's inputs \\[A\\] (a current per\n/// source: sources in series take the same one).\npub fn source_currents_a(input_a: &[f32; INPUTS]) -> [f32; CURRENTS] {\n    core::array::from_fn(|m| input_a.get(SOURCE_INPUT[m]).copied().unwrap_or(f32::NAN))\n}\n\n");
         o.push_str("/// The network the tables were solved from (for host checks; the\n/// firmware needs only [`PARTS`]).\n///\n/// # Errors\n/// None for a generated file; the type is the builder's.\npub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {\n");
-        let _ = write!(o, "    Ok(Network::new({})?", list(net.capacities_j_per_k()));
+        // A chain of builder calls, each but the last with `?`.
+        let mut calls = vec![format!("Network::new({})", list(net.capacities_j_per_k()))];
         for pair in net.pairs() {
-            let _ = write!(o, "\n        .connect({}, {}, {:?})?", pair.a, pair.b, pair.g_w_per_k);
+            calls.push(format!(
+                ".connect({}, {}, {:?})",
+                pair.a, pair.b, pair.g_w_per_k
+            ));
         }
         for link in net.links() {
-            let _ = write!(
-                o,
-                "\n        .connect_boundary({}, {}, {:?})?",
+            calls.push(format!(
+                ".connect_boundary({}, {}, {:?})",
                 link.node, link.boundary, link.g_w_per_k
-            );
+            ));
         }
         for (k, (node, r0, slope, _)) in self.sources.iter().enumerate() {
-            let _ = write!(
-                o,
-                "\n        .joule_source({node}, {k}, Resistance::linear_fit({slope:?}, {r0:?}))?"
-            );
+            calls.push(format!(
+                ".joule_source({node}, {k}, Resistance::linear_fit({slope:?}, {r0:?}))"
+            ));
         }
         for (node, p) in net.fixed_powers_w().iter().enumerate() {
             if *p != 0.0 {
-                let _ = write!(o, "\n        .fixed_power({node}, {p:?})?");
+                calls.push(format!(".fixed_power({node}, {p:?})"));
             }
         }
-        o.push_str(")\n}\n");
+        let _ = writeln!(o, "    {}\n}}", calls.join("?\n        "));
         o
     }
 
@@ -264,7 +297,10 @@ impl Plan {
             fields.push(format!("bias_noise_w2_per_s: {v:?}"));
         }
         if !fields.is_empty() {
-            settings = format!("NetworkSettings {{ {}, ..NetworkSettings::DEFAULT }}", fields.join(", "));
+            settings = format!(
+                "NetworkSettings {{ {}, ..NetworkSettings::DEFAULT }}",
+                fields.join(", ")
+            );
         }
         let derating = match s.derating {
             Some(d) => format!("DeratingRule::new(&[DeratingFactor::new(\"derating\", {d:?})])?"),
@@ -289,9 +325,12 @@ fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
     let dir = target_dir.join("coil-thermal-codegen");
     std::fs::create_dir_all(dir.join("src"))
         .with_context(|| format!("{}: cannot create the generator crate", dir.display()))?;
-    let library = library
-        .canonicalize()
-        .with_context(|| format!("{}: no coil-thermal library here (--library)", library.display()))?;
+    let library = library.canonicalize().with_context(|| {
+        format!(
+            "{}: no coil-thermal library here (--library)",
+            library.display()
+        )
+    })?;
     let manifest = format!(
         "[package]\nname = \"coil-thermal-codegen\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?} }}\n\n[workspace]\n",
         library.display().to_string()
@@ -342,5 +381,25 @@ pub fn generate(req: &CodegenRequest) -> Result<String> {
     o.push_str("\n/// Every table of the observer, solved on the host in `f64` and rounded\n/// once to `f32`.\npub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> = ");
     o.push_str(parts.trim_end());
     o.push_str(";\n\n/// The observer, assembled from [`PARTS`] (validation and copies only).\n///\n/// # Errors\n/// None for a generated file; the type is the library's.\npub fn observer() -> Result<Observer, BuildError> {\n    Observer::from_parts(&PARTS)\n}\n\n/// A state with every node and boundary at `ambient_c` \\[degC\\].\npub fn initial_state(observer: &Observer, ambient_c: f32) -> State {\n    observer.state(&[ambient_c; NODES], &[ambient_c; BOUNDARIES])\n}\n");
-    Ok(o)
+    Ok(rustfmt(&o).unwrap_or(o))
+}
+
+/// The text through `rustfmt` (edition 2021), when one is installed: the
+/// module then passes `cargo fmt --check` wherever it is committed.
+fn rustfmt(text: &str) -> Option<String> {
+    use std::io::Write as _;
+    let mut child = Command::new("rustfmt")
+        .args(["--edition", "2021", "--emit", "stdout", "--quiet"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .ok()?;
+    child.stdin.take()?.write_all(text.as_bytes()).ok()?;
+    let output = child.wait_with_output().ok()?;
+    output
+        .status
+        .success()
+        .then(|| String::from_utf8(output.stdout).ok())
+        .flatten()
 }

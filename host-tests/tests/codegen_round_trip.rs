@@ -1,0 +1,163 @@
+//! The model's way from a recording to the firmware, end to end:
+//!
+//! 1. `host-tests/traces/drive-3node.csv` is a bench recording (made from
+//!    `host-tests/models/drive-3node-truth.toml` by `coil-thermal simulate`
+//!    on a current profile, with 0.1 K of seeded noise on the two
+//!    thermocouples: a bench whose truth we know);
+//! 2. `coil-thermal calibrate` fits `drive-3node.toml` (a guess 5-20 % off)
+//!    to it: `drive-3node-fitted.toml`;
+//! 3. `coil-thermal codegen` writes `examples/generated/drive_3node.rs`;
+//! 4. the firmware `examples/network_roundtrip.rs` replays the trace in
+//!    QEMU and prints `examples/network_roundtrip.expected` (CI compares).
+//!
+//! Here: steps 2 and 3 reproduce the committed files byte for byte, the
+//! generated observer is the builder's to the bit, and the host replay of
+//! step 4 (the same `support/roundtrip.rs`, the same generated module)
+//! prints exactly what the firmware printed, checksum of every tick
+//! included. The physics: the unmeasured winding's estimate stays within
+//! 1 K of the bench's winding thermocouple (which the observer never sees).
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use coil_thermal::observer::network::{NetworkObserverBuilder, NetworkSettings};
+
+#[path = "../../examples/generated/drive_3node.rs"]
+mod model;
+
+#[path = "../../examples/support/roundtrip.rs"]
+mod roundtrip;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn the_host_replay_prints_what_the_firmware_printed() {
+    let observer = model::observer().expect("the generated parts assemble");
+    let mut text = String::new();
+    let summary = roundtrip::replay(&observer, &mut text, |tick| tick()).expect("replays");
+    assert_eq!(
+        text,
+        read(&root().join("examples/network_roundtrip.expected")),
+        "the host replay differs from the firmware's golden output"
+    );
+    // Against the measurement the observer never saw.
+    assert!(
+        summary.worst_winding_error_k < 1.0,
+        "winding estimate off the bench thermocouple by {} K",
+        summary.worst_winding_error_k
+    );
+    assert_eq!(summary.corrections, roundtrip::SECONDS);
+}
+
+#[test]
+fn the_generated_observer_is_the_builders() {
+    let network = model::network().expect("the generated network builds");
+    let parts = NetworkObserverBuilder::new(&network, [1])
+        .critical_c([Some(155.0), Some(80.0), None])
+        .hardware_limit_a([6.0])
+        .settings(NetworkSettings {
+            correction_period_s: 1.0,
+            ..NetworkSettings::DEFAULT
+        })
+        .parts::<{ model::STATES }>()
+        .expect("solves");
+    // Every table, to the bit: the text written by `write_rust` reads back
+    // as the solved `f32`s.
+    assert_eq!(parts, model::PARTS);
+    assert_eq!(
+        model::observer().expect("assembles").fingerprint(),
+        NetworkObserverBuilder::new(&network, [1])
+            .critical_c([Some(155.0), Some(80.0), None])
+            .hardware_limit_a([6.0])
+            .settings(NetworkSettings {
+                correction_period_s: 1.0,
+                ..NetworkSettings::DEFAULT
+            })
+            .build::<{ model::STATES }>()
+            .expect("builds")
+            .fingerprint()
+    );
+}
+
+#[test]
+fn calibrate_then_codegen_reproduce_the_committed_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let fitted = dir.path().join("drive-3node-fitted.toml");
+    let models = root().join("host-tests/models");
+    cargo_bin_cmd!("coil-thermal")
+        .arg("calibrate")
+        .arg("--model")
+        .arg(models.join("drive-3node.toml"))
+        .arg("--trace")
+        .arg(root().join("host-tests/traces/drive-3node.csv"))
+        .args(["--measure", "winding_tc=winding", "--measure", "housing_tc=housing"])
+        .args([
+            "--params",
+            "capacity.winding,capacity.housing,capacity.heatsink,conductance.winding-housing,conductance.housing-heatsink,conductance.heatsink-air",
+            "--no-progress",
+        ])
+        .arg("--out")
+        .arg(&fitted)
+        .assert()
+        .success();
+    assert_eq!(
+        read(&fitted),
+        read(&models.join("drive-3node-fitted.toml")),
+        "calibrate no longer reproduces drive-3node-fitted.toml: regenerate it and the module (README, \"Your own device\")"
+    );
+    let generated = dir.path().join("model.rs");
+    cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(models.join("drive-3node-fitted.toml"))
+        .arg("--out")
+        .arg(&generated)
+        .assert()
+        .success();
+    let text = read(&generated);
+    assert_eq!(
+        text,
+        read(&root().join("examples/generated/drive_3node.rs")),
+        "codegen no longer reproduces examples/generated/drive_3node.rs"
+    );
+    // What the tick needs is data: no exponential is left for the MCU.
+    assert!(!text.contains("expm") && text.contains("Observer::from_parts(&PARTS)"));
+}
+
+#[test]
+fn codegen_refuses_what_the_firmware_observer_cannot_take() {
+    let models = root().join("host-tests/models");
+    // No sensor named.
+    cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(models.join("two-node-coil.toml"))
+        .args(["--out", "-"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("no sensor"));
+    // A sensor on a node the model does not have.
+    cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(models.join("two-node-coil.toml"))
+        .args(["--sensor", "lid", "--out", "-"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("lid"));
+    // Speed-dependent losses are not inputs of the firmware observer.
+    cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(models.join("hust_motor.toml"))
+        .args(["--sensor", "stator_yoke", "--out", "-"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("speed"));
+}
