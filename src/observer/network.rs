@@ -110,12 +110,13 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
+use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
 use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::discretize::zoh;
 use crate::error::BuildError;
-use crate::filter::{update_steady, KalmanConfig, SensorVerdict, SteadyEstimate, SteadyStateGain};
+use crate::filter::{update_steady, KalmanConfig, SteadyEstimate, SteadyStateGain};
 use crate::input::{InputFlags, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
@@ -445,13 +446,7 @@ pub struct NetworkObserverState<
     pub events: EventQueue<EVENT_CAPACITY>,
     held_currents_a: [f32; M],
     held_boundary_c: [f32; B],
-    /// Largest held current magnitude since the last predictor slice \[A\].
-    peak_currents_a: [f32; M],
-    /// Real time minus the predictor's own ageing \[us\].
-    predictor_lag_us: u32,
-    /// Next protection stage: 0 none, 1 predictor slice, 2 alarm, 3 limiter.
-    stage: u8,
-    slice_put_off: bool,
+    cycle: ProtectionCycle<M>,
     outputs: NetworkOutputs<N, M, P>,
 }
 
@@ -561,10 +556,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             events: EventQueue::new(),
             held_currents_a: [0.0; M],
             held_boundary_c,
-            peak_currents_a: [0.0; M],
-            predictor_lag_us: 0,
-            stage: 1,
-            slice_put_off: false,
+            cycle: ProtectionCycle::new(),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -686,42 +678,33 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for _ in 0..steps.steps {
             self.predict(state);
         }
-        if steps.steps > 0 {
-            for (peak, i) in state.peak_currents_a.iter_mut().zip(state.held_currents_a) {
-                *peak = peak.max(i.abs());
-            }
-        }
-        state.predictor_lag_us = state
-            .predictor_lag_us
-            .saturating_add(steps.steps.saturating_mul(self.step_us))
-            .saturating_add(steps.dropped_us);
+        state.cycle.stepped(
+            steps.steps,
+            self.step_us,
+            steps.dropped_us,
+            &state.held_currents_a,
+        );
         let corrected = self.correct(state, inputs);
         state.outputs.temps_c = self.temps_c(state);
         state.outputs.corrected = corrected;
         let ambient_c = self.ambient(&state.held_boundary_c);
 
-        if state.stage == 0 && state.predictor_lag_us >= self.protect_period_us {
-            state.stage = 1;
-        }
         let busy = corrected || steps.steps > 1;
-        match state.stage {
-            1 if busy && !state.slice_put_off => state.slice_put_off = true,
-            1 => {
-                state.slice_put_off = false;
+        match state.cycle.due(busy, self.protect_period_us) {
+            Stage::Idle => {}
+            Stage::Predict => {
                 let op = self.operating(
                     &state.outputs.temps_c,
-                    &state.peak_currents_a,
+                    state.cycle.peak_currents_a(),
                     &state.held_boundary_c,
                     ambient_c,
                 );
                 state.predictor.tick(&self.predictor, &op);
-                state.predictor_lag_us = state
-                    .predictor_lag_us
-                    .saturating_sub(self.protect_period_us);
-                state.peak_currents_a = state.held_currents_a.map(f32::abs);
-                state.stage = 2;
+                state
+                    .cycle
+                    .predicted(self.protect_period_us, &state.held_currents_a);
             }
-            2 => {
+            Stage::Alarm => {
                 self.age_time_to_limit(state);
                 let out = &mut state.outputs;
                 self.bound
@@ -733,13 +716,12 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &out.time_to_limit_s,
                     &mut state.events,
                 );
-                state.stage = 3;
+                state.cycle.alarmed();
             }
-            3 => {
+            Stage::Limit => {
                 self.limit(&mut state.outputs, ambient_c);
-                state.stage = 0;
+                state.cycle.limited();
             }
-            _ => state.stage = 0,
         }
         self.age_time_to_limit(state);
         let out = &mut state.outputs;
@@ -755,7 +737,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     fn age_time_to_limit(&self, state: &mut NetworkObserverState<N, B, M, X, P>) {
-        let lag_s = state.predictor_lag_us as f32 * 1e-6;
+        let lag_s = state.cycle.lag_s();
         let ttl = state.predictor.time_to_limit_s();
         for ((time, answer), limited) in state
             .outputs
@@ -814,33 +796,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &mut NetworkObserverState<N, B, M, X, P>,
         inputs: &NetworkInputs<B, M, P>,
     ) -> bool {
-        let mut z = [None; P];
-        let statuses = &mut state.outputs.sensors;
+        let samples = sample_readings(
+            &inputs.readings,
+            inputs.now_us,
+            self.max_reading_age_us,
+            &mut state.outputs.sensors,
+        );
         // `H` holds the sensor map: a reading only needs the origin taken
         // off to be a deviation.
-        for ((zj, status), reading) in z.iter_mut().zip(statuses.iter_mut()).zip(&inputs.readings) {
-            *status = match reading.map(|r| r.sample_c(inputs.now_us, self.max_reading_age_us)) {
-                None => SensorStatus::NoReading,
-                Some(Ok(t)) => {
-                    *zj = Some(t - self.origin_c);
-                    SensorStatus::NoReading
-                }
-                Some(Err(s)) => s,
-            };
-        }
+        let z = samples.map(|t| t.map(|t| t - self.origin_c));
         if z.iter().all(Option::is_none) {
             return false;
         }
         let report = update_steady(&self.kalman, &self.gain, &mut state.estimate, &z);
-        for ((status, verdict), zj) in statuses.iter_mut().zip(report.verdicts).zip(z) {
-            if zj.is_some() {
-                *status = match verdict {
-                    SensorVerdict::Fused { nis } => SensorStatus::Fused { nis },
-                    SensorVerdict::Rejected { nis } => SensorStatus::Rejected { nis },
-                    SensorVerdict::Missing => SensorStatus::NoReading,
-                };
-            }
-        }
+        record_verdicts(
+            &mut state.outputs.sensors,
+            &report.verdicts,
+            &z.map(|z| z.is_some()),
+        );
         true
     }
 
@@ -884,9 +857,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
         let mut state = self.state(&temps_c, boundary_c);
         if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
         }
         Ok(state)
     }
@@ -905,9 +880,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let ambient_c = self.ambient(boundary_c);
         let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
         let mut state = self.state(&temps, boundary_c);
-        state.alarm.latch_shutdown();
-        state.outputs.alarm.shutdown = true;
-        hold_shutdown(&mut state.outputs.limits);
+        latch_and_publish(
+            &mut state.alarm,
+            &mut state.outputs.alarm,
+            &mut state.outputs.limits,
+        );
         state
     }
 

@@ -148,10 +148,11 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
+use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
-use crate::filter::{update_steady, SensorVerdict, SteadyEstimate};
+use crate::filter::{update_steady, SteadyEstimate};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
@@ -418,16 +419,7 @@ pub struct OmniObserverState {
     pub events: EventQueue<EVENT_CAPACITY>,
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
-    /// Largest held current magnitude of each solenoid since the last
-    /// predictor slice \[A\].
-    peak_currents_a: [f32; SOLENOIDS],
-    /// Real time minus the predictor's own ageing \[us\]: how much older its
-    /// answers are than it assumes.
-    predictor_lag_us: u32,
-    /// Next protection stage: 0 none, 1 predictor slice, 2 alarm, 3 limiter.
-    stage: u8,
-    /// The predictor slice was put off on the previous tick.
-    slice_put_off: bool,
+    cycle: ProtectionCycle<SOLENOIDS>,
     outputs: OmniOutputs,
 }
 
@@ -631,11 +623,8 @@ impl OmniObserver {
             events: EventQueue::new(),
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
-            peak_currents_a: [0.0; SOLENOIDS],
-            predictor_lag_us: 0,
             // The first ticks run a whole cycle: outputs valid from the start.
-            stage: 1,
-            slice_put_off: false,
+            cycle: ProtectionCycle::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -775,40 +764,31 @@ impl OmniObserver {
             );
             state.model.predict(&mut state.estimate.x, &state.input);
         }
-        if steps.steps > 0 {
-            for (peak, i) in state.peak_currents_a.iter_mut().zip(state.held_currents_a) {
-                *peak = peak.max(i.abs());
-            }
-        }
-        state.predictor_lag_us = state
-            .predictor_lag_us
-            .saturating_add(steps.steps.saturating_mul(self.step_us))
-            .saturating_add(steps.dropped_us);
+        state.cycle.stepped(
+            steps.steps,
+            self.step_us,
+            steps.dropped_us,
+            &state.held_currents_a,
+        );
         let corrected = self.correct(state, inputs);
         state.outputs.temps_c = self.temps_c(state);
         state.outputs.corrected = corrected;
 
-        if state.stage == 0 && state.predictor_lag_us >= self.protect_period_us {
-            state.stage = 1;
-        }
         let busy = corrected || steps.steps > 1;
-        match state.stage {
-            1 if busy && !state.slice_put_off => state.slice_put_off = true,
-            1 => {
-                state.slice_put_off = false;
+        match state.cycle.due(busy, self.protect_period_us) {
+            Stage::Idle => {}
+            Stage::Predict => {
                 let op = self.operating(
                     &state.outputs.temps_c,
-                    &state.peak_currents_a,
+                    state.cycle.peak_currents_a(),
                     state.held_ambient_c,
                 );
                 state.predictor.tick(&self.predictor, &op);
-                state.predictor_lag_us = state
-                    .predictor_lag_us
-                    .saturating_sub(self.protect_period_us);
-                state.peak_currents_a = state.held_currents_a.map(f32::abs);
-                state.stage = 2;
+                state
+                    .cycle
+                    .predicted(self.protect_period_us, &state.held_currents_a);
             }
-            2 => {
+            Stage::Alarm => {
                 self.age_time_to_limit(state);
                 let out = &mut state.outputs;
                 self.bound
@@ -821,13 +801,12 @@ impl OmniObserver {
                     &out.time_to_limit_s,
                     &mut state.events,
                 );
-                state.stage = 3;
+                state.cycle.alarmed();
             }
-            3 => {
+            Stage::Limit => {
                 self.limit(&mut state.outputs, state.held_ambient_c);
-                state.stage = 0;
+                state.cycle.limited();
             }
-            _ => state.stage = 0,
         }
         self.age_time_to_limit(state);
         let out = &mut state.outputs;
@@ -845,7 +824,7 @@ impl OmniObserver {
     /// The predictor's answers for the [`ALARM_NODES`], made older by the
     /// time it lags behind (never later than its own answer).
     fn age_time_to_limit(&self, state: &mut OmniObserverState) {
-        let lag_s = state.predictor_lag_us as f32 * 1e-6;
+        let lag_s = state.cycle.lag_s();
         let ttl = state.predictor.time_to_limit_s();
         for (time, node) in state.outputs.time_to_limit_s.iter_mut().zip(ALARM_NODES) {
             *time = aged_time_to_limit(ttl.get(node).copied().flatten(), lag_s);
@@ -892,24 +871,13 @@ impl OmniObserver {
     /// Sorts the readings and runs one steady-state correction if any is
     /// usable; returns whether it ran.
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> bool {
-        let mut samples = [None; THERMOCOUPLES];
-        let statuses = &mut state.outputs.sensors;
-        for ((sample, status), reading) in samples
-            .iter_mut()
-            .zip(statuses.iter_mut())
-            .zip(&inputs.readings)
-        {
-            *status = match reading {
-                None => SensorStatus::NoReading,
-                Some(reading) => match reading.sample_c(inputs.now_us, self.max_reading_age_us) {
-                    Ok(temp_c) => {
-                        *sample = Some(Ok(temp_c));
-                        SensorStatus::NoReading
-                    }
-                    Err(status) => status,
-                },
-            };
-        }
+        let samples = sample_readings(
+            &inputs.readings,
+            inputs.now_us,
+            self.max_reading_age_us,
+            &mut state.outputs.sensors,
+        )
+        .map(|t| t.map(Ok));
         let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
             return false;
@@ -920,15 +888,11 @@ impl OmniObserver {
             &mut state.estimate,
             &z,
         );
-        for ((status, verdict), zj) in statuses.iter_mut().zip(report.verdicts).zip(z) {
-            if zj.is_some() {
-                *status = match verdict {
-                    SensorVerdict::Fused { nis } => SensorStatus::Fused { nis },
-                    SensorVerdict::Rejected { nis } => SensorStatus::Rejected { nis },
-                    SensorVerdict::Missing => SensorStatus::NoReading,
-                };
-            }
-        }
+        record_verdicts(
+            &mut state.outputs.sensors,
+            &report.verdicts,
+            &z.map(|z| z.is_some()),
+        );
         true
     }
 
@@ -974,9 +938,11 @@ impl OmniObserver {
         let (temps_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
         let mut state = self.state(&temps_c, ambient_c);
         if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
         }
         Ok(state)
     }
@@ -1000,9 +966,11 @@ impl OmniObserver {
             ambient_c,
         );
         let mut state = self.state(&temps, ambient_c);
-        state.alarm.latch_shutdown();
-        state.outputs.alarm.shutdown = true;
-        hold_shutdown(&mut state.outputs.limits);
+        latch_and_publish(
+            &mut state.alarm,
+            &mut state.outputs.alarm,
+            &mut state.outputs.limits,
+        );
         state
     }
 

@@ -1,0 +1,179 @@
+//! The machinery the Omnimagnet and the network observer share around
+//! their models: the protection cycle (one stage per tick), the sorting of
+//! fresh readings, the filter's verdicts as sensor statuses, and the latch
+//! made visible.
+//!
+//! # The protection cycle
+//!
+//! Every `protect_period_us` of simulated time the protection runs three
+//! stages, one per tick, so that no tick carries more than one expensive
+//! piece: a slice of the time-to-limit predictor (on the largest current
+//! held since the previous slice, so a short pulse between two slices is
+//! not missed), the derated alarm on the upper bounds, then the limiter.
+//! A tick that already ran a correction or a catch-up of several model
+//! steps puts the predictor slice off to the next tick, once. The limits
+//! therefore lag the model by at most a cycle and three ticks, and the
+//! predictor's answers are aged by the time it lags (`lag_s`).
+
+use super::omnimagnet::{SensorStatus, TimedReading};
+use crate::filter::SensorVerdict;
+use crate::protect::alarm::{AlarmState, AlarmStatus};
+use crate::protect::limiter::{hold_shutdown, CoilLimit};
+
+/// A protection stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stage {
+    /// Waiting for the next period.
+    Idle,
+    /// A time-to-limit predictor slice.
+    Predict,
+    /// The derated alarm.
+    Alarm,
+    /// The current limiter.
+    Limit,
+}
+
+/// Where a state is in its protection cycle, with `M` currents.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ProtectionCycle<const M: usize> {
+    /// Largest held current magnitude since the last predictor slice \[A\].
+    peak_currents_a: [f32; M],
+    /// Simulated time minus the predictor's own ageing \[us\].
+    lag_us: u32,
+    stage: Stage,
+    slice_put_off: bool,
+}
+
+impl<const M: usize> ProtectionCycle<M> {
+    /// A cycle whose first stage, the predictor slice, is due at once (a
+    /// new state's limits are valid from its first ticks).
+    pub(crate) fn new() -> Self {
+        Self {
+            peak_currents_a: [0.0; M],
+            lag_us: 0,
+            stage: Stage::Predict,
+            slice_put_off: false,
+        }
+    }
+
+    /// Accounts for a tick's model steps (`steps` of `step_us`, and
+    /// `dropped_us` the clock could not simulate) at the held currents.
+    pub(crate) fn stepped(
+        &mut self,
+        steps: u32,
+        step_us: u32,
+        dropped_us: u32,
+        held_currents_a: &[f32; M],
+    ) {
+        if steps > 0 {
+            for (peak, i) in self.peak_currents_a.iter_mut().zip(held_currents_a) {
+                *peak = peak.max(i.abs());
+            }
+        }
+        self.lag_us = self
+            .lag_us
+            .saturating_add(steps.saturating_mul(step_us))
+            .saturating_add(dropped_us);
+    }
+
+    /// The stage this tick runs, if any (`busy`: a correction or a
+    /// catch-up already ran this tick).
+    pub(crate) fn due(&mut self, busy: bool, period_us: u32) -> Stage {
+        if self.stage == Stage::Idle && self.lag_us >= period_us {
+            self.stage = Stage::Predict;
+        }
+        match self.stage {
+            Stage::Predict if busy && !self.slice_put_off => {
+                self.slice_put_off = true;
+                Stage::Idle
+            }
+            Stage::Predict => {
+                self.slice_put_off = false;
+                Stage::Predict
+            }
+            stage => stage,
+        }
+    }
+
+    /// The currents the predictor slice takes: the largest held since the
+    /// previous slice \[A\].
+    pub(crate) fn peak_currents_a(&self) -> &[f32; M] {
+        &self.peak_currents_a
+    }
+
+    /// The predictor slice ran: its time is caught up by a period, the
+    /// peaks restart from the held currents, the alarm is next.
+    pub(crate) fn predicted(&mut self, period_us: u32, held_currents_a: &[f32; M]) {
+        self.lag_us = self.lag_us.saturating_sub(period_us);
+        self.peak_currents_a = held_currents_a.map(f32::abs);
+        self.stage = Stage::Alarm;
+    }
+
+    /// The alarm ran: the limiter is next.
+    pub(crate) fn alarmed(&mut self) {
+        self.stage = Stage::Limit;
+    }
+
+    /// The limiter ran: the cycle waits for the next period.
+    pub(crate) fn limited(&mut self) {
+        self.stage = Stage::Idle;
+    }
+
+    /// How far the predictor lags the model \[s\].
+    pub(crate) fn lag_s(&self) -> f32 {
+        self.lag_us as f32 * 1e-6
+    }
+}
+
+/// Sorts the fresh readings: each usable one's temperature \[degC\], and
+/// the status of each that is not (too old, from the future, a sensor
+/// fault); sensors without a reading get `NoReading`.
+pub(crate) fn sample_readings<const P: usize>(
+    readings: &[Option<TimedReading>; P],
+    now_us: u32,
+    max_age_us: u32,
+    statuses: &mut [SensorStatus; P],
+) -> [Option<f32>; P] {
+    let mut samples = [None; P];
+    for ((sample, status), reading) in samples.iter_mut().zip(statuses.iter_mut()).zip(readings) {
+        *status = match reading.map(|r| r.sample_c(now_us, max_age_us)) {
+            None => SensorStatus::NoReading,
+            Some(Ok(temp_c)) => {
+                *sample = Some(temp_c);
+                SensorStatus::NoReading
+            }
+            Some(Err(status)) => status,
+        };
+    }
+    samples
+}
+
+/// The filter's verdict on each reading it was given (`given[j]`) as the
+/// sensor's status.
+pub(crate) fn record_verdicts<const P: usize>(
+    statuses: &mut [SensorStatus; P],
+    verdicts: &[SensorVerdict; P],
+    given: &[bool; P],
+) {
+    for ((status, verdict), given) in statuses.iter_mut().zip(verdicts).zip(given) {
+        if *given {
+            *status = match *verdict {
+                SensorVerdict::Fused { nis } => SensorStatus::Fused { nis },
+                SensorVerdict::Rejected { nis } => SensorStatus::Rejected { nis },
+                SensorVerdict::Missing => SensorStatus::NoReading,
+            };
+        }
+    }
+}
+
+/// Latches the shutdown and shows it at once: the published alarm says
+/// so and every current limit is zero (until the deliberate clear).
+pub(crate) fn latch_and_publish<const N: usize>(
+    alarm: &mut AlarmState<f32, N>,
+    published: &mut AlarmStatus,
+    limits: &mut [CoilLimit<f32>],
+) {
+    alarm.latch_shutdown();
+    published.shutdown = true;
+    hold_shutdown(limits);
+}
