@@ -322,7 +322,19 @@ fn default_library() -> PathBuf {
 
 /// Writes the generator crate and runs it; returns the parts' Rust text.
 fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
-    let dir = target_dir.join("coil-thermal-codegen");
+    // One crate per model (several may be generated at once, e.g. by
+    // parallel tests), all sharing one target directory for the library
+    // and its dependencies.
+    let head = plan.head();
+    let main = plan.generator_main();
+    let name = {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        (&head, &main).hash(&mut hasher);
+        format!("coil-thermal-codegen-{:016x}", hasher.finish())
+    };
+    let root = target_dir.join("coil-thermal-codegen");
+    let dir = root.join(&name);
     std::fs::create_dir_all(dir.join("src"))
         .with_context(|| format!("{}: cannot create the generator crate", dir.display()))?;
     let library = library.canonicalize().with_context(|| {
@@ -332,7 +344,7 @@ fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
         )
     })?;
     let manifest = format!(
-        "[package]\nname = \"coil-thermal-codegen\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?} }}\n\n[workspace]\n",
+        "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?} }}\n\n[workspace]\n",
         library.display().to_string()
     );
     std::fs::write(dir.join("Cargo.toml"), manifest)?;
@@ -342,13 +354,13 @@ fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
     if lock.exists() && !dir.join("Cargo.lock").exists() {
         std::fs::copy(&lock, dir.join("Cargo.lock"))?;
     }
-    std::fs::write(dir.join("src/head.rs"), plan.head())?;
-    std::fs::write(dir.join("src/main.rs"), plan.generator_main())?;
+    std::fs::write(dir.join("src/head.rs"), head)?;
+    std::fs::write(dir.join("src/main.rs"), main)?;
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let output = Command::new(cargo)
         .args(["run", "--release", "--quiet", "--manifest-path"])
         .arg(dir.join("Cargo.toml"))
-        .env("CARGO_TARGET_DIR", dir.join("target"))
+        .env("CARGO_TARGET_DIR", root.join("target"))
         .env_remove("RUSTFLAGS")
         .output()
         .context("cannot run cargo for the generator")?;

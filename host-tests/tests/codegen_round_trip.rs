@@ -161,3 +161,22 @@ fn codegen_refuses_what_the_firmware_observer_cannot_take() {
         .failure()
         .stderr(predicates::str::contains("speed"));
 }
+
+#[test]
+fn the_firmware_crates_carry_what_codegen_makes_of_their_models() {
+    for krate in ["rtic-stm32f4", "embassy-stm32f4"] {
+        let dir = root().join("examples").join(krate);
+        let out = cargo_bin_cmd!("coil-thermal")
+            .arg("codegen")
+            .arg("--model")
+            .arg(dir.join("model.toml"))
+            .args(["--out", "-"])
+            .assert()
+            .success();
+        assert_eq!(
+            String::from_utf8_lossy(&out.get_output().stdout),
+            read(&dir.join("src/model.rs")),
+            "examples/{krate}/src/model.rs is not what codegen makes of its model.toml: regenerate it"
+        );
+    }
+}

@@ -47,7 +47,7 @@ async fn observe(observer: Observer, mut state: State) {
 #[entry]
 fn main() -> ! {
     let _peripherals = embassy_stm32::init(Default::default());
-    // Solves the filter's gain: once, before the 1 ms ticks start.
+    // From the generated tables: nothing is solved on the MCU.
     let observer = observer().expect("the model builds");
     let state = initial_state(&observer, board::AMBIENT_C);
     interrupt::UART4.set_priority(Priority::P6);

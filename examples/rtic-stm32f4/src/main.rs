@@ -25,7 +25,7 @@ mod app {
 
     #[init]
     fn init(cx: init::Context) -> (Shared, Local) {
-        // Solves the filter's gain: once, before the 1 ms interrupts start.
+        // From the generated tables: nothing is solved on the MCU.
         let observer = observer().expect("the model builds");
         let state = initial_state(&observer, board::AMBIENT_C);
         board::start_systick_1ms(cx.core.SYST);
