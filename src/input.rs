@@ -42,6 +42,12 @@ impl InputFlags {
     /// consecutive ticks (see [`crate::observer::clock`]): the model is
     /// standing still.
     pub const CLOCK_FROZEN: Self = Self(16);
+    /// Every reading of this tick's correction was colder than the physics
+    /// allows (a common-mode sensor fault, see
+    /// [`NetworkObserver`](crate::observer::NetworkObserver)'s "Sensors
+    /// against the physics"): none was fused, and the estimate was raised
+    /// to the model's.
+    pub const SENSORS_COLDER_THAN_PHYSICS: Self = Self(32);
 
     /// `true` when no rule fired.
     #[inline]

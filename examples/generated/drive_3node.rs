@@ -101,6 +101,8 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             incidence_fraction: 0.1,
             origin_c: 20.0,
             ambient_boundary: 0,
+            consistency_offset_k: 3.0,
+            consistency_fraction: 0.25,
             frozen_flag_ticks: 100,
             frozen_loss_ticks: 1000,
         },
@@ -213,6 +215,17 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             tick_s: 0.016,
             points_per_tick: 1,
             slowest_time_constant_s: 1346.4623479711747,
+        },
+        shadow: coil_thermal::observer::network::ShadowTables {
+            block_steps: 1000,
+            phi_minus_i: [
+                [-0.013089038, 0.0130478125, 4.1210318e-5],
+                [0.002470616, -0.008736562, 0.0062623117],
+                [3.1222019e-6, 0.00250566, -0.0036649408],
+            ],
+            bd_power: [[0.014370861], [1.793529e-5], [1.5087254e-8]],
+            gd_boundary: [[1.594514e-8], [3.6343054e-6], [0.0011561585]],
+            constant_k: [-2.6074156e-15, 1.901013e-15, 2.164935e-15],
         },
     };
 

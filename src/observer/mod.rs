@@ -23,6 +23,7 @@
 //!   the conservative start when a snapshot is refused.
 
 pub mod clock;
+mod consistency;
 mod cycle;
 pub mod grid;
 pub mod network;

@@ -99,6 +99,31 @@
 //! state has no place for a residual; the time-varying filter it belongs to
 //! runs in `f64` where it matters.
 //!
+//! # Sensors against the physics
+//!
+//! The filter explains a disagreement between its model and a
+//! thermocouple as a heat bias and a temperature correction, so a sensor
+//! that lies slowly (detached and reading the room, stuck, drifting) drags
+//! the estimate with it, and the innovation gate, judging the dragged
+//! estimate, never sees it. So a *shadow* of the model runs beside the
+//! filter: the same network from the same start at the measured currents
+//! (`R(T)` at its own temperature) and boundaries, with no reading and no
+//! bias, advanced by the exact zero-order hold of one correction period
+//! ([`ShadowTables`]; the period's mean `I^2`, the rounding carried).
+//! Before a correction, a reading colder than
+//! `shadow - (consistency_offset_k + consistency_fraction * max(0, shadow - ambient))`
+//! (defaults 3 K and 0.25: the model's uncertainty, a fixed part and a
+//! share of the rise) is not fused and is reported as
+//! [`SensorStatus::ColderThanPhysics`]. Hotter readings are fused as ever:
+//! a model that runs cold must be corrected by its sensors, and erring hot
+//! is the safe side. When every reading of a correction is colder than
+//! physics (all sensors agree with each other and not with the physics: a
+//! common-mode fault), the estimate is raised to the shadow wherever it is
+//! below it, the negative heat biases are dropped, and the tick is flagged
+//! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
+//! the model until a sensor agrees with it again. Its cost: a block step
+//! (`N^2 + N (M + B)` multiply-adds) once per correction period.
+//!
 //! # Readings, clock, snapshots
 //!
 //! As for [`OmniObserver`](super::OmniObserver): readings arrive as
@@ -110,6 +135,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
+use super::consistency::{Shadow, ShadowState};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
@@ -200,6 +226,13 @@ pub struct NetworkSettings {
     /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
     /// 100 (0.1 s at a 1 ms loop).
     pub frozen_flag_ticks: u32,
+    /// Fixed part of the band a reading must keep to against the unfused
+    /// shadow model, below it \[K\] (see "Sensors against the physics";
+    /// `f64::INFINITY` turns the test off). Default 3.
+    pub consistency_offset_k: f64,
+    /// Share of the shadow model's rise above the ambient in that band
+    /// (dimensionless, `>= 0`): the model's uncertainty. Default 0.25.
+    pub consistency_fraction: f64,
     /// Consecutive ticks without elapsed time from which the model is taken
     /// as lost: the shutdown latches with a
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
@@ -229,6 +262,8 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
+        consistency_offset_k: 3.0,
+        consistency_fraction: 0.25,
         frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
         frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
     };
@@ -410,6 +445,7 @@ pub struct NetworkObserver<
     limiter: LimiterConfig<f32, N>,
     predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
     bound: UpperBound<f32, N>,
+    shadow: Shadow<N, B, M>,
     clock: StepClock,
     limits: ScalarLimits<f32>,
     ambient_boundary: usize,
@@ -447,6 +483,7 @@ pub struct NetworkObserverState<
     held_currents_a: [f32; M],
     held_boundary_c: [f32; B],
     cycle: ProtectionCycle<M>,
+    shadow: ShadowState<N, M>,
     outputs: NetworkOutputs<N, M, P>,
 }
 
@@ -557,6 +594,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             held_currents_a: [0.0; M],
             held_boundary_c,
             cycle: ProtectionCycle::new(),
+            shadow: ShadowState::new(core::array::from_fn(|i| x[i])),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -684,7 +722,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             steps.dropped_us,
             &state.held_currents_a,
         );
-        let corrected = self.correct(state, inputs);
+        let boundary_k = state.held_boundary_c.map(|t| t - self.origin_c);
+        self.shadow.stepped(
+            &mut state.shadow,
+            steps.steps,
+            &state.held_currents_a,
+            &boundary_k,
+            &self.source_node,
+            &self.resistance,
+            self.origin_c,
+        );
+        let (corrected, disagree) = self.correct(state, inputs);
+        flags |= disagree;
         state.outputs.temps_c = self.temps_c(state);
         state.outputs.corrected = corrected;
         let ambient_c = self.ambient(&state.held_boundary_c);
@@ -789,24 +838,62 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    /// Sorts the readings and runs one steady-state correction if any is
-    /// usable; returns whether it ran.
+    /// Sorts the readings, holds each against the shadow model, and runs
+    /// one steady-state correction if any is usable; returns whether it ran
+    /// and the common-mode flag.
     fn correct(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P>,
         inputs: &NetworkInputs<B, M, P>,
-    ) -> bool {
-        let samples = sample_readings(
+    ) -> (bool, InputFlags) {
+        let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,
             self.max_reading_age_us,
             &mut state.outputs.sensors,
         );
+        let ambient_c = self.ambient(&state.held_boundary_c);
+        let (mut present, mut colder) = (0u32, 0u32);
+        for ((sample, status), node) in samples
+            .iter_mut()
+            .zip(state.outputs.sensors.iter_mut())
+            .zip(&self.sensor_nodes)
+        {
+            let Some(t) = *sample else { continue };
+            present += 1;
+            let lowest_c = self
+                .shadow
+                .lowest_c(self.origin_c + state.shadow.dev_k(*node), ambient_c);
+            if t < lowest_c {
+                colder += 1;
+                *sample = None;
+                *status = SensorStatus::ColderThanPhysics {
+                    below_k: lowest_c - t,
+                };
+            }
+        }
+        let mut flags = InputFlags::NONE;
+        if present > 0 && colder == present {
+            // A common-mode fault: what the sensors dragged comes back.
+            flags = InputFlags::SENSORS_COLDER_THAN_PHYSICS;
+            let x = &mut state.estimate.x;
+            for (i, shadow_k) in state.shadow.devs_k().iter().enumerate() {
+                if x[i] < *shadow_k {
+                    x[i] = *shadow_k;
+                    if let Some(r) = state.residual_k.get_mut(i) {
+                        *r = 0.0;
+                    }
+                }
+            }
+            for m in 0..M {
+                x[N + m] = x[N + m].max(0.0);
+            }
+        }
         // `H` holds the sensor map: a reading only needs the origin taken
         // off to be a deviation.
         let z = samples.map(|t| t.map(|t| t - self.origin_c));
         if z.iter().all(Option::is_none) {
-            return false;
+            return (false, flags);
         }
         let report = update_steady(&self.kalman, &self.gain, &mut state.estimate, &z);
         record_verdicts(
@@ -814,7 +901,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        true
+        (true, flags)
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched
@@ -959,7 +1046,7 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 }
 
 mod parts;
-pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables};
+pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 
 #[cfg(test)]
 #[path = "network_tests.rs"]

@@ -323,6 +323,13 @@ pub enum SensorStatus {
         /// Its age \[us\].
         age_us: u32,
     },
+    /// Colder than the physics allows: below the band of the observer's
+    /// unfused shadow model (see the network observer's "Sensors against
+    /// the physics"); not fused.
+    ColderThanPhysics {
+        /// How far below the band's lower edge \[K\].
+        below_k: f32,
+    },
 }
 
 /// The inputs of one tick.

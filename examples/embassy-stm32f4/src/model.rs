@@ -101,6 +101,8 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             incidence_fraction: 0.1,
             origin_c: 20.0,
             ambient_boundary: 0,
+            consistency_offset_k: 3.0,
+            consistency_fraction: 0.25,
             frozen_flag_ticks: 100,
             frozen_loss_ticks: 1000,
         },
@@ -218,6 +220,17 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             tick_s: 0.016,
             points_per_tick: 1,
             slowest_time_constant_s: 249.01540733033528,
+        },
+        shadow: coil_thermal::observer::network::ShadowTables {
+            block_steps: 500,
+            phi_minus_i: [
+                [-0.11702771, 0.11603751, 0.0009893649],
+                [0.007735834, -0.024171319, 0.016414862],
+                [1.3191532e-5, 0.0032829724, -0.0057889093],
+            ],
+            bd_power: [[0.117523365], [0.0004956568], [5.567634e-7]],
+            gd_boundary: [[8.351451e-7], [2.0622443e-5], [0.0024927454]],
+            constant_k: [-3.587791e-15, -1.3729794e-15, 1.894318e-15],
         },
     };
 

@@ -36,6 +36,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
+use crate::observer::consistency::Shadow;
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -62,6 +63,23 @@ pub struct ModelTables<const N: usize, const B: usize, const M: usize> {
     pub source_node: [usize; M],
     /// Each source's `R(T)`.
     pub resistance: [ScalarResistance<f32>; M],
+}
+
+/// The shadow model's block step (see "Sensors against the physics" in
+/// [`super`]): the exact zero-order hold of one correction period, in the
+/// same deviation coordinates as [`ModelTables`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowTables<const N: usize, const B: usize, const M: usize> {
+    /// Model steps per block (the correction period).
+    pub block_steps: u32,
+    /// `Ad - I` of one block (dimensionless).
+    pub phi_minus_i: [[f32; N]; N],
+    /// `Bd` of the Joule powers over one block \[K/W\].
+    pub bd_power: [[f32; M]; N],
+    /// `Gd` of the boundaries over one block (dimensionless).
+    pub gd_boundary: [[f32; B]; N],
+    /// The block's constant term \[K\].
+    pub constant_k: [f32; N],
 }
 
 /// The steady-state Kalman gain and covariances (see
@@ -152,6 +170,8 @@ pub struct NetworkParts<
     pub gain: GainTables<X, P>,
     /// The time-to-limit predictor.
     pub predictor: PredictorTables<N, B, M>,
+    /// The shadow model.
+    pub shadow: ShadowTables<N, B, M>,
 }
 
 fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
@@ -193,6 +213,11 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
     check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
     check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
+    check(
+        !s.consistency_offset_k.is_nan() && s.consistency_offset_k >= 0.0,
+        "consistency_offset_k",
+    )?;
+    check(nonneg(s.consistency_fraction), "consistency_fraction")?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -257,6 +282,11 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         let gain = solve_gain(&model, &self.sensor_nodes, s, timing.correction_period)?;
         let cycle_s = dt_s * f64::from(s.protect_period_steps);
         let predictor = solve_predictor(network, cycle_s)?;
+        let block = Model::build(
+            network,
+            dt_s * f64::from(timing.correction_period),
+            s.origin_c,
+        )?;
         Ok(NetworkParts {
             settings: *s,
             sensor_nodes: self.sensor_nodes,
@@ -300,6 +330,13 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
                 tick_s: predictor.tick_s,
                 points_per_tick: predictor.points_per_tick,
                 slowest_time_constant_s: predictor.slowest_time_constant_s,
+            },
+            shadow: ShadowTables {
+                block_steps: timing.correction_period,
+                phi_minus_i: rows(&block.phi_minus_i),
+                bd_power: rows(&block.bd_power),
+                gd_boundary: rows(&block.gd_boundary),
+                constant_k: block.constant_k.into(),
             },
         })
     }
@@ -434,6 +471,27 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             "gain",
         )?;
         let predictor = predictor_from(&parts.predictor)?;
+        let sh = &parts.shadow;
+        check(
+            sh.block_steps == timing.correction_period,
+            "shadow.block_steps",
+        )?;
+        check(
+            finite(sh.phi_minus_i.iter().flatten())
+                && finite(sh.bd_power.iter().flatten())
+                && finite(sh.gd_boundary.iter().flatten())
+                && finite(&sh.constant_k),
+            "shadow",
+        )?;
+        let shadow = Shadow {
+            phi_minus_i: matrix(&sh.phi_minus_i),
+            bd_power: matrix(&sh.bd_power),
+            gd_boundary: matrix(&sh.gd_boundary),
+            constant_k: SVector::from(sh.constant_k),
+            block_steps: sh.block_steps,
+            offset_k: s.consistency_offset_k as f32,
+            fraction: s.consistency_fraction as f32,
+        };
 
         // The filter's configuration from the stored `Ad` and `Bd` (exact
         // in `f64`, so its `f32` image is the solved one to the bit).
@@ -512,6 +570,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             limiter,
             predictor,
             bound,
+            shadow,
             clock: timing.clock,
             limits: InputLimits::default().to_scalar(),
             ambient_boundary: s.ambient_boundary,
@@ -682,6 +741,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
+        writeln!(
+            out,
+            "        consistency_offset_k: {:?},",
+            s.consistency_offset_k
+        )?;
+        writeln!(
+            out,
+            "        consistency_fraction: {:?},",
+            s.consistency_fraction
+        )?;
         writeln!(out, "        frozen_flag_ticks: {},", s.frozen_flag_ticks)?;
         writeln!(out, "        frozen_loss_ticks: {},", s.frozen_loss_ticks)?;
         writeln!(out, "    }},")?;
@@ -787,6 +856,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             p.slowest_time_constant_s
         )?;
         writeln!(out, "    }},")?;
+        let sh = &self.shadow;
+        writeln!(out, "    shadow: {net}::ShadowTables {{")?;
+        writeln!(out, "{i2}block_steps: {},", sh.block_steps)?;
+        write!(out, "{i2}phi_minus_i: ")?;
+        table(out, i2, &sh.phi_minus_i)?;
+        write!(out, ",\n{i2}bd_power: ")?;
+        table(out, i2, &sh.bd_power)?;
+        write!(out, ",\n{i2}gd_boundary: ")?;
+        table(out, i2, &sh.gd_boundary)?;
+        write!(out, ",\n{i2}constant_k: ")?;
+        array(out, &sh.constant_k)?;
+        writeln!(out, ",\n    }},")?;
         out.write_str("}")
     }
 }

@@ -1,0 +1,155 @@
+//! The physics alone, as a witness against the sensors: a *shadow* of the
+//! model that no reading corrects and no heat bias moves, and the test a
+//! reading must pass against it before the filter may fuse it.
+//!
+//! # Why
+//!
+//! The filter explains a disagreement between its model and a thermocouple
+//! as a heat bias and a temperature correction, so a sensor that lies
+//! slowly (detached and reading the room, stuck, drifting) drags the
+//! estimate with it and the innovation gate, judging the dragged estimate,
+//! never sees it: six thermocouples all reading 22 degC on an Omnimagnet at
+//! 7 A took the estimates 114-138 K below the truth and put the shutdown
+//! off by an hour. The gate cannot be the judge of a sensor that moves
+//! the estimate it is judged against.
+//!
+//! # The rule
+//!
+//! The shadow runs the same network from the same start, at the measured
+//! currents (`R(T)` at its own temperature) and boundaries, advanced one
+//! block of `block_steps` model steps at a time by the exact
+//! zero-order-hold of the block (the block's mean `I^2`), with the rounding
+//! carried. A reading is *colder than physics* when it is below
+//!
+//! `shadow - (offset_k + fraction * max(0, shadow - ambient))`,
+//!
+//! the model's uncertainty: a fixed part and a share of the rise. Such a
+//! reading is never fused (reported as
+//! [`SensorStatus::ColderThanPhysics`](super::omnimagnet::SensorStatus::ColderThanPhysics)).
+//! Readings hotter than the shadow are fused as ever: a model that runs
+//! cold must be corrected by its sensors, and erring hot is the safe side.
+//! When every reading of a correction is colder than physics (a common-mode
+//! fault: all sensors agree with each other and not with the physics), the
+//! estimate is raised to the shadow wherever it is below it, and the
+//! negative heat biases are dropped: what was dragged comes back, and the
+//! protection runs on the model until a sensor agrees with it again.
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::network::{compensated_add, ScalarResistance};
+
+/// The shadow model's block step and the consistency band.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
+    /// `Ad - I` of one block (dimensionless).
+    pub phi_minus_i: SMatrix<f32, N, N>,
+    /// `Bd` of the powers over one block \[K/W\].
+    pub bd_power: SMatrix<f32, N, M>,
+    /// `Gd` of the boundaries over one block (dimensionless).
+    pub gd_boundary: SMatrix<f32, N, B>,
+    /// The block's constant term in deviation coordinates \[K\].
+    pub constant_k: SVector<f32, N>,
+    /// Model steps per block.
+    pub block_steps: u32,
+    /// Fixed part of the band \[K\].
+    pub offset_k: f32,
+    /// Share of the rise above the ambient in the band (dimensionless).
+    pub fraction: f32,
+}
+
+/// The shadow's state: deviations from the observer's origin \[K\], their
+/// carry, and the block in progress.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ShadowState<const N: usize, const M: usize> {
+    dev_k: [f32; N],
+    residual_k: [f32; N],
+    /// Sum over the block's steps of each current squared \[A^2\].
+    i2_sum_a2: [f32; M],
+    steps: u32,
+}
+
+impl<const N: usize, const M: usize> ShadowState<N, M> {
+    /// A shadow at the deviations `dev_k` \[K\].
+    pub(crate) fn new(dev_k: [f32; N]) -> Self {
+        Self {
+            dev_k,
+            residual_k: [0.0; N],
+            i2_sum_a2: [0.0; M],
+            steps: 0,
+        }
+    }
+
+    /// The shadow's deviation of `node` from the origin \[K\] (NaN out of
+    /// range).
+    pub(crate) fn dev_k(&self, node: usize) -> f32 {
+        self.dev_k.get(node).copied().unwrap_or(f32::NAN)
+    }
+
+    /// All deviations \[K\].
+    pub(crate) fn devs_k(&self) -> &[f32; N] {
+        &self.dev_k
+    }
+}
+
+impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
+    /// Accounts for `steps` model steps at the held currents \[A\] and
+    /// advances the shadow by a block when one is complete (at most one
+    /// per call: bounded). `boundary_k` are the held boundaries' deviations
+    /// from the origin, `origin_c` the origin \[degC\].
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn stepped(
+        &self,
+        state: &mut ShadowState<N, M>,
+        steps: u32,
+        held_currents_a: &[f32; M],
+        boundary_k: &[f32; B],
+        source_node: &[usize; M],
+        resistance: &[ScalarResistance<f32>; M],
+        origin_c: f32,
+    ) {
+        if steps == 0 {
+            return;
+        }
+        let n = steps as f32;
+        for (sum, i) in state.i2_sum_a2.iter_mut().zip(held_currents_a) {
+            *sum += i * i * n;
+        }
+        state.steps = state.steps.saturating_add(steps);
+        if state.steps < self.block_steps {
+            return;
+        }
+        let mean_i2: [f32; M] = state.i2_sum_a2.map(|s| s / state.steps as f32);
+        let mut power = SVector::<f32, M>::zeros();
+        for (m, ((node, r), i2)) in source_node.iter().zip(resistance).zip(&mean_i2).enumerate() {
+            let t = origin_c + state.dev_k(*node);
+            power[m] = r.joule_power_w(t, libm::sqrtf(*i2));
+        }
+        let temps = SVector::<f32, N>::from(state.dev_k);
+        let boundary = SVector::<f32, B>::from(*boundary_k);
+        let mut increment = self.constant_k;
+        increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
+        increment.gemv(1.0, &self.bd_power, &power, 1.0);
+        increment.gemv(1.0, &self.gd_boundary, &boundary, 1.0);
+        if increment.iter().all(|v| v.is_finite()) {
+            for ((x, residual), inc) in state
+                .dev_k
+                .iter_mut()
+                .zip(state.residual_k.iter_mut())
+                .zip(increment.iter())
+            {
+                *x = compensated_add(*x, *inc, residual);
+            }
+        }
+        // The steps past the block start the next one, at the block's mean.
+        state.steps -= self.block_steps;
+        let rest = state.steps as f32;
+        state.i2_sum_a2 = mean_i2.map(|i2| i2 * rest);
+    }
+
+    /// The lowest temperature \[degC\] a reading of a node whose shadow is
+    /// `shadow_c` \[degC\] may have at the ambient `ambient_c` \[degC\].
+    pub(crate) fn lowest_c(&self, shadow_c: f32, ambient_c: f32) -> f32 {
+        let rise = (shadow_c - ambient_c).max(0.0);
+        shadow_c - (self.offset_k + self.fraction * rise)
+    }
+}
