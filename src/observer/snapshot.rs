@@ -322,6 +322,24 @@ pub fn restore<const N: usize>(
     Ok((temps_c, meta))
 }
 
+/// The power-off time \[s\] over which a restore decays the saved state:
+/// `off_s` as the application measured it, capped at the snapshot's age
+/// (`now_s - saved_at_s`: the device cannot have cooled longer than since
+/// it was saved). `None` (unknown), a NaN or a negative time mean **no
+/// cooling** (0 s): the saved state, which is never below the cooled one, is
+/// the safe start when nothing says how long the device was off.
+///
+/// The state cooled over this time is only as safe as the off time: if the
+/// device ran (and heated) between the save and the power-off, pass only
+/// the time it was really off, or `None`.
+pub fn off_time_s(off_s: Option<f32>, meta: &SnapshotMeta, policy: &RestorePolicy) -> f32 {
+    let age_s = policy.now_s.saturating_sub(meta.saved_at_s) as f32;
+    match off_s {
+        Some(t) if t > 0.0 => t.min(age_s),
+        _ => 0.0,
+    }
+}
+
 /// The documented start when no snapshot can be trusted: every measured node
 /// at its reading, and every *unmeasured* node no cooler than the hottest
 /// valid reading (nor than the ambient). A coil that was hot before the reset
