@@ -19,6 +19,13 @@ const OFF_TIMES_S: [f64; 12] = [
     0.0, 1.0, 10.0, 60.0, 300.0, 600.0, 1800.0, 3600.0, 7200.0, 14_400.0, 21_600.0, 36_000.0,
 ];
 
+/// A denser sweep, 1 s to 10 h, for the Omnimagnet's nonlinear cooling,
+/// whose sign is measured rather than proven.
+const DENSE_OFF_TIMES_S: [f64; 25] = [
+    0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 45.0, 60.0, 120.0, 240.0, 300.0, 450.0, 600.0, 900.0, 1200.0,
+    1800.0, 2700.0, 3600.0, 5400.0, 7200.0, 10_800.0, 14_400.0, 21_600.0, 28_800.0, 36_000.0,
+];
+
 /// Largest excess over the reference and whether any node fell below it.
 #[derive(Debug, Default, Clone, Copy)]
 struct Excess {
@@ -304,4 +311,163 @@ fn one_node_network_cools_by_the_closed_form() {
             "off {off_s}: {got} against {want}"
         );
     }
+}
+
+// ---------------------------------------------------------- Omnimagnet --
+
+mod omni {
+    use coil_thermal::omnimagnet::{Omnimagnet, NODES};
+
+    pub const AMBIENT_C: f64 = 22.0;
+
+    /// A heating run of the nonlinear plant (RK4, 0.1 s) from the ambient.
+    pub fn heated(currents_a: [f64; 3], heat_s: f64) -> [f64; NODES] {
+        let model = Omnimagnet::PAPER;
+        let mut t = [AMBIENT_C; NODES];
+        let steps = (heat_s / 0.1).round() as usize;
+        for _ in 0..steps {
+            model.step_rk4(&mut t, &currents_a, AMBIENT_C, 0.1);
+        }
+        t
+    }
+
+    /// The nonlinear plant's zero-current cooling from `start` at every
+    /// off time of `off_times_s` (RK4).
+    pub fn cooled_reference(start: &[f64; NODES], off_times_s: &[f64]) -> Vec<[f64; NODES]> {
+        let model = Omnimagnet::PAPER;
+        let mut t = *start;
+        let mut now = 0.0;
+        let mut out = Vec::new();
+        // 0.01 s steps for the first minute (the paper sheet's time constant
+        // is 0.25 s), 0.1 s after it.
+        for &off in off_times_s {
+            while now < off - 1e-9 {
+                let dt: f64 = if now < 60.0 { 0.01 } else { 0.1 };
+                let dt = dt.min(off - now);
+                model.step_rk4(&mut t, &[0.0; 3], AMBIENT_C, dt);
+                now += dt;
+            }
+            now = off;
+            out.push(t);
+        }
+        out
+    }
+
+    /// Start states: all three at 3.8 A until the inner solenoid reaches
+    /// 115 degC (the paper's run, 4256 s), the same for 20 min, the inner
+    /// solenoid alone at 6 A for 15 min, and all three at 3.8 A for 2 h
+    /// (past the paper's stop).
+    pub fn starts() -> Vec<(&'static str, [f64; NODES])> {
+        vec![
+            ("3 x 3.8 A, 4256 s", heated([3.8; 3], 4256.0)),
+            ("3 x 3.8 A, 1200 s", heated([3.8; 3], 1200.0)),
+            ("inner 6 A, 900 s", heated([6.0, 0.0, 0.0], 900.0)),
+            ("3 x 3.8 A, 7200 s", heated([3.8; 3], 7200.0)),
+            ("3 x 4.5 A, 3000 s", heated([4.5; 3], 3000.0)),
+            ("outer 6 A, 1800 s", heated([0.0, 0.0, 6.0], 1800.0)),
+        ]
+    }
+}
+
+#[test]
+fn omnimagnet_model_cooling_is_within_half_a_kelvin_above_the_plant_and_never_below() {
+    use coil_thermal::omnimagnet::Omnimagnet;
+    let model = Omnimagnet::PAPER;
+    let mut worst = Excess::default();
+    for (name, start) in omni::starts() {
+        let reference = omni::cooled_reference(&start, &DENSE_OFF_TIMES_S);
+        for (off, want) in DENSE_OFF_TIMES_S.iter().zip(&reference) {
+            let got = model.cooled_c(&start, omni::AMBIENT_C, *off);
+            let mut e = Excess::default();
+            let mut below_node = None;
+            for i in 0..16 {
+                if want[i] - got[i] > e.below_k {
+                    below_node = Some(i);
+                }
+                e.add(got[i], want[i]);
+            }
+            let hottest = want.iter().cloned().fold(0.0, f64::max);
+            println!(
+                "omni {name:<20} off {off:>7} s: +{:.4} K (below {:.2e} at {below_node:?}) hottest {hottest:.2}",
+                e.above_k, e.below_k
+            );
+            worst.above_k = worst.above_k.max(e.above_k);
+            worst.below_k = worst.below_k.max(e.below_k);
+        }
+    }
+    worst.check("omnimagnet model");
+}
+
+#[test]
+fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_never_below() {
+    use coil_thermal::observer::{OmniObserver, OmniSettings};
+    use coil_thermal::omnimagnet::{Omnimagnet, NODES};
+    let observer = OmniObserver::new(
+        &Omnimagnet::PAPER,
+        &[22.0; NODES],
+        22.0,
+        &OmniSettings::default(),
+    )
+    .unwrap();
+    let mut worst = 0.0f64;
+    for (k, (name, start)) in omni::starts().into_iter().take(2).enumerate() {
+        let saved_c = start.map(|t| t as f32);
+        let latched = k == 1;
+        let mut state = observer.state(&saved_c, 22.0);
+        if latched {
+            let conservative = observer.conservative_state(&[None; 6], 22.0);
+            state.alarm = conservative.alarm.clone();
+        }
+        let mut buf = [0u8; snapshot_len(NODES)];
+        observer.save(&state, 10, &mut buf).unwrap();
+        let start_f64 = saved_c.map(f64::from);
+        let reference = omni::cooled_reference(&start_f64, &OFF_TIMES_S);
+        for (off, want) in OFF_TIMES_S.iter().zip(&reference) {
+            let restored = observer
+                .restore_after(&buf, 10 + 40_000, 100_000, 22.0, Some(*off as f32))
+                .unwrap();
+            assert_eq!(restored.outputs().alarm.shutdown, latched, "{name}");
+            let got = observer.temps_c(&restored);
+            if *off == 0.0 {
+                assert_eq!(got, saved_c, "off time 0: the saved state to the bit");
+                continue;
+            }
+            let mut e = Excess::default();
+            for i in 0..NODES {
+                e.add(got[i] as f64, want[i]);
+            }
+            e.check(&format!("omni observer {name}, off {off} s"));
+            worst = worst.max(e.above_k);
+            println!(
+                "omni observer {name:<20} off {off:>7} s: +{:.4} K",
+                e.above_k
+            );
+        }
+        let unknown = observer
+            .restore_after(&buf, 10 + 40_000, 100_000, 22.0, None)
+            .unwrap();
+        assert_eq!(
+            observer.temps_c(&unknown),
+            saved_c,
+            "unknown off time: no cooling"
+        );
+    }
+    println!("omni observer worst +{worst:.4} K");
+}
+
+/// What one 10 h cooling costs on the host (`--nocapture` prints it).
+#[test]
+fn omnimagnet_cooling_cost_on_the_host() {
+    use coil_thermal::omnimagnet::{Omnimagnet, NODES};
+    let model = Omnimagnet::PAPER;
+    let start = [110.0; NODES];
+    let begin = std::time::Instant::now();
+    let n = 20;
+    for _ in 0..n {
+        std::hint::black_box(model.cooled_c(std::hint::black_box(&start), 22.0, 36_000.0));
+    }
+    println!(
+        "omnimagnet cooled_c, 10 h: {:?} per call",
+        begin.elapsed() / n
+    );
 }

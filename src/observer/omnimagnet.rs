@@ -393,6 +393,9 @@ pub struct OmniObserver {
     /// Length of a protection cycle \[us\]: `protect_period_steps` steps.
     protect_period_us: u32,
     fingerprint: u32,
+    /// The nonlinear model the observer was built from, for the downtime
+    /// cooling of [`OmniObserver::restore_after`].
+    plant: Omnimagnet,
 }
 
 /// The per-device state.
@@ -500,6 +503,7 @@ impl OmniObserver {
             step_us: settings.step_us,
             protect_period_us,
             fingerprint,
+            plant: *model,
         })
     }
 
@@ -979,6 +983,79 @@ impl OmniObserver {
             hold_shutdown(&mut state.outputs.limits);
         }
         Ok(state)
+    }
+
+    /// [`Self::restore`] for a device that was off for `off_s` \[s\]: the
+    /// saved node estimates cooled with no current at the ambient
+    /// `ambient_c` \[degC\] by [`Self::cooled_c`], never below the nonlinear
+    /// model's exact cooled state and within 0.5 K of it (measured). A
+    /// latched shutdown stays latched.
+    ///
+    /// `off_s` is capped at the snapshot's age; `None`, a NaN or a negative
+    /// time mean an *unknown* off time and restore the saved state uncooled
+    /// ([`snapshot::off_time_s`]); `Some(0.0)` restores it to the bit, as
+    /// [`Self::restore`] does. An ambient outside the input limits restores
+    /// uncooled as well.
+    ///
+    /// # Errors
+    /// Those of [`Self::restore`].
+    pub fn restore_after(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        off_s: Option<f32>,
+    ) -> Result<OmniObserverState, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
+        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let mut held_c = ambient_c;
+        let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
+        let temps_c = if off_s > 0.0 && ambient_ok {
+            self.cooled_c(&saved_c, ambient_c, off_s)
+        } else {
+            saved_c
+        };
+        let mut state = self.state(&temps_c, ambient_c);
+        if meta.shutdown_latched {
+            state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
+        }
+        Ok(state)
+    }
+
+    /// The node temperatures \[degC\] `off_s` \[s\] after `temps_c` with no
+    /// current and the ambient at `ambient_c` \[degC\]: the nonlinear
+    /// model's zero-current cooling by frozen pieces
+    /// ([`Omnimagnet::cooled_c`], `f64`, at most
+    /// [`COOLING_MAX_PIECES`](crate::omnimagnet::COOLING_MAX_PIECES) pieces
+    /// of two `16 x 16` exponentials each), plus 1 mK for the rounding to
+    /// `f32`. The reference is the nonlinear model (the plant), not the
+    /// filter's linearisation: both settle at the ambient with no current,
+    /// and the linearisation at a cold operating point cools too slowly.
+    /// An off time that is not positive returns `temps_c`.
+    pub fn cooled_c(&self, temps_c: &[f32; NODES], ambient_c: f32, off_s: f32) -> [f32; NODES] {
+        if off_s.is_nan() || off_s <= 0.0 {
+            return *temps_c;
+        }
+        let start = temps_c.map(f64::from);
+        let cooled = self
+            .plant
+            .cooled_c(&start, f64::from(ambient_c), f64::from(off_s));
+        let mut out = *temps_c;
+        for (o, c) in out.iter_mut().zip(cooled) {
+            let t = (c + 1e-3) as f32;
+            if t.is_finite() {
+                *o = t;
+            }
+        }
+        out
     }
 
     /// The documented start when no snapshot can be trusted

@@ -813,7 +813,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// steady state plus the guard. A result that is not finite (non-finite
     /// inputs) also falls back to `temps_c`.
     pub fn cooled_c(&self, temps_c: &[T; N], boundary_c: &[T; B], off_s: T) -> [T; N] {
-        if !(off_s > T::zero()) {
+        // Not positive, or NaN: unknown, no cooling.
+        if off_s.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
             return *temps_c;
         }
         let (steady, modes) = self.steady_and_modes(temps_c, &[T::zero(); M], boundary_c, true);
