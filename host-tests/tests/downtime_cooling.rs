@@ -400,15 +400,11 @@ fn omnimagnet_model_cooling_is_within_half_a_kelvin_above_the_plant_and_never_be
 
 #[test]
 fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_never_below() {
-    use coil_thermal::observer::{OmniObserver, OmniSettings};
+    use coil_thermal::observer::{OmniObserver, OmniSettings, SnapshotError};
     use coil_thermal::omnimagnet::{Omnimagnet, NODES};
-    let observer = OmniObserver::new(
-        &Omnimagnet::PAPER,
-        &[22.0; NODES],
-        22.0,
-        &OmniSettings::default(),
-    )
-    .unwrap();
+    let model = Omnimagnet::PAPER;
+    let observer =
+        OmniObserver::new(&model, &[22.0; NODES], 22.0, &OmniSettings::default()).unwrap();
     let mut worst = 0.0f64;
     for (k, (name, start)) in omni::starts().into_iter().take(2).enumerate() {
         let saved_c = start.map(|t| t as f32);
@@ -424,7 +420,7 @@ fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_ne
         let reference = omni::cooled_reference(&start_f64, &OFF_TIMES_S);
         for (off, want) in OFF_TIMES_S.iter().zip(&reference) {
             let restored = observer
-                .restore_after(&buf, 10 + 40_000, 100_000, 22.0, Some(*off as f32))
+                .restore_after(&model, &buf, 10 + 40_000, 100_000, 22.0, Some(*off as f32))
                 .unwrap();
             assert_eq!(restored.outputs().alarm.shutdown, latched, "{name}");
             let got = observer.temps_c(&restored);
@@ -444,7 +440,7 @@ fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_ne
             );
         }
         let unknown = observer
-            .restore_after(&buf, 10 + 40_000, 100_000, 22.0, None)
+            .restore_after(&model, &buf, 10 + 40_000, 100_000, 22.0, None)
             .unwrap();
         assert_eq!(
             observer.temps_c(&unknown),
@@ -453,6 +449,39 @@ fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_ne
         );
     }
     println!("omni observer worst +{worst:.4} K");
+    // Another model is refused when there is cooling to do.
+    let other = model
+        .with_convection(coil_thermal::omnimagnet::ConvectionParams {
+            scale: [1.1; 3],
+            ..coil_thermal::omnimagnet::ConvectionParams::PAPER
+        })
+        .unwrap();
+    let mut buf = [0u8; snapshot_len(NODES)];
+    let state = observer.state(&[80.0; NODES], 22.0);
+    observer.save(&state, 10, &mut buf).unwrap();
+    assert_eq!(
+        observer
+            .restore_after(&other, &buf, 100, 1000, 22.0, Some(60.0))
+            .map(|_| ()),
+        Err(SnapshotError::CoolingModelMismatch)
+    );
+    assert!(observer
+        .restore_after(&other, &buf, 100, 1000, 22.0, None)
+        .is_ok());
+    // Huge off times: capped at the age, near the ambient, never below it.
+    let week = observer
+        .restore_after(
+            &model,
+            &buf,
+            10 + 604_800,
+            700_000,
+            22.0,
+            Some(f32::INFINITY),
+        )
+        .unwrap();
+    for t in observer.temps_c(&week) {
+        assert!((22.0..22.5).contains(&t), "{t}");
+    }
 }
 
 /// What one 10 h cooling costs on the host (`--nocapture` prints it).

@@ -393,9 +393,11 @@ pub struct OmniObserver {
     /// Length of a protection cycle \[us\]: `protect_period_steps` steps.
     protect_period_us: u32,
     fingerprint: u32,
-    /// The nonlinear model the observer was built from, for the downtime
-    /// cooling of [`OmniObserver::restore_after`].
-    plant: Omnimagnet,
+    /// Fingerprint of the nonlinear model the observer was built from
+    /// (see [`OmniObserver::restore_after`]). The model itself is not kept:
+    /// its geometry holds references, and the configuration stays plain
+    /// data (all-zero bits valid, which `examples/panic_free.rs` relies on).
+    plant_fingerprint: u32,
 }
 
 /// The per-device state.
@@ -503,7 +505,7 @@ impl OmniObserver {
             step_us: settings.step_us,
             protect_period_us,
             fingerprint,
-            plant: *model,
+            plant_fingerprint: plant_fingerprint(model),
         })
     }
 
@@ -991,6 +993,11 @@ impl OmniObserver {
     /// model's exact cooled state and within 0.5 K of it (measured). A
     /// latched shutdown stays latched.
     ///
+    /// `model` must be the model the observer was built from (checked by a
+    /// fingerprint of its capacities and conductances at two states; the
+    /// configuration does not keep the model: its geometry holds
+    /// references).
+    ///
     /// `off_s` is capped at the snapshot's age; `None`, a NaN or a negative
     /// time mean an *unknown* off time and restore the saved state uncooled
     /// ([`snapshot::off_time_s`]); `Some(0.0)` restores it to the bit, as
@@ -998,9 +1005,12 @@ impl OmniObserver {
     /// uncooled as well.
     ///
     /// # Errors
-    /// Those of [`Self::restore`].
+    /// Those of [`Self::restore`];
+    /// [`SnapshotError::CoolingModelMismatch`] for another `model` (when
+    /// there is cooling to do).
     pub fn restore_after(
         &self,
+        model: &Omnimagnet,
         bytes: &[u8],
         now_s: u32,
         max_age_s: u32,
@@ -1017,7 +1027,7 @@ impl OmniObserver {
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let temps_c = if off_s > 0.0 && ambient_ok {
-            self.cooled_c(&saved_c, ambient_c, off_s)
+            self.cooled_c(model, &saved_c, ambient_c, off_s)?
         } else {
             saved_c
         };
@@ -1040,14 +1050,25 @@ impl OmniObserver {
     /// filter's linearisation: both settle at the ambient with no current,
     /// and the linearisation at a cold operating point cools too slowly.
     /// An off time that is not positive returns `temps_c`.
-    pub fn cooled_c(&self, temps_c: &[f32; NODES], ambient_c: f32, off_s: f32) -> [f32; NODES] {
+    ///
+    /// # Errors
+    /// [`SnapshotError::CoolingModelMismatch`] when `model` is not the
+    /// model the observer was built from.
+    pub fn cooled_c(
+        &self,
+        model: &Omnimagnet,
+        temps_c: &[f32; NODES],
+        ambient_c: f32,
+        off_s: f32,
+    ) -> Result<[f32; NODES], SnapshotError> {
         if off_s.is_nan() || off_s <= 0.0 {
-            return *temps_c;
+            return Ok(*temps_c);
+        }
+        if plant_fingerprint(model) != self.plant_fingerprint {
+            return Err(SnapshotError::CoolingModelMismatch);
         }
         let start = temps_c.map(f64::from);
-        let cooled = self
-            .plant
-            .cooled_c(&start, f64::from(ambient_c), f64::from(off_s));
+        let cooled = model.cooled_c(&start, f64::from(ambient_c), f64::from(off_s));
         let mut out = *temps_c;
         for (o, c) in out.iter_mut().zip(cooled) {
             let t = (c + 1e-3) as f32;
@@ -1055,7 +1076,7 @@ impl OmniObserver {
                 *o = t;
             }
         }
-        out
+        Ok(out)
     }
 
     /// The documented start when no snapshot can be trusted
@@ -1104,6 +1125,22 @@ impl OmniObserver {
         state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
         Ok(())
     }
+}
+
+/// A fingerprint of a nonlinear Omnimagnet model: its capacities and
+/// conductances at 22 and at 122 degC (ambient 22 degC), which every
+/// parameter of the model moves.
+fn plant_fingerprint(model: &Omnimagnet) -> u32 {
+    let mut fp = Fingerprint::new();
+    for temp_c in [22.0, 122.0] {
+        let temps = [temp_c; NODES];
+        let g = model.conductances(&temps, 22.0);
+        fp = fp
+            .f64s(&model.capacities_j_per_k(&temps))
+            .f64s(g.pair_w_per_k.as_flattened())
+            .f64s(&g.ambient_w_per_k);
+    }
+    fp.finish()
 }
 
 /// The estimates of the [`ALARM_NODES`] \[degC\].

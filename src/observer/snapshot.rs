@@ -113,6 +113,9 @@ pub enum SnapshotError {
         /// The node.
         node: usize,
     },
+    /// The model given for the downtime cooling of a restore is not the one
+    /// the observer was built from.
+    CoolingModelMismatch,
 }
 
 impl fmt::Display for SnapshotError {
@@ -134,6 +137,9 @@ impl fmt::Display for SnapshotError {
             Self::FromFuture => write!(f, "snapshot saved after now"),
             Self::ImplausibleTemperature { node } => {
                 write!(f, "snapshot temperature of node {node} implausible")
+            }
+            Self::CoolingModelMismatch => {
+                write!(f, "downtime cooling model differs from the observer's")
             }
         }
     }
