@@ -529,6 +529,27 @@ mod tests {
     }
 
     #[test]
+    fn off_time_is_capped_at_the_age_and_unknown_means_none() {
+        let meta = SnapshotMeta {
+            fingerprint: 0xC0FFEE,
+            saved_at_s: 900,
+            shutdown_latched: false,
+        };
+        // Age 100 s.
+        assert_eq!(off_time_s(Some(30.5), &meta, &POLICY), 30.5);
+        assert_eq!(off_time_s(Some(1e9), &meta, &POLICY), 100.0);
+        assert_eq!(off_time_s(Some(f32::INFINITY), &meta, &POLICY), 100.0);
+        for unknown in [None, Some(f32::NAN), Some(-1.0), Some(0.0), Some(-0.0)] {
+            assert_eq!(off_time_s(unknown, &meta, &POLICY), 0.0, "{unknown:?}");
+        }
+        let future = SnapshotMeta {
+            saved_at_s: 2_000,
+            ..meta
+        };
+        assert_eq!(off_time_s(Some(10.0), &future, &POLICY), 0.0);
+    }
+
+    #[test]
     fn conservative_start_assumes_unmeasured_nodes_are_hot() {
         let temps: [f32; 5] =
             conservative_start(&[Some(70.0), None, Some(f32::NAN)], &[0, 2, 3], 22.0);
