@@ -110,6 +110,12 @@
 //! inspecting the device, clears it. Once cleared, no coil has more
 //! headroom than the taper, and the model cools the coils at the modelled
 //! rate until it knows better.
+//!
+//! [`GridObserver::restore_after`] is the restore for a grid that was off for
+//! a known time: the saved coils cooled by the grid's network with no
+//! current ([`GridObserver::cooled_c`]: Taylor steps of the exponential
+//! with a rigorous remainder, `f64`), never below the exact cooled state and
+//! within about 1 mK of it. An unknown off time means no cooling.
 
 use super::clock::{ClockState, StepClock};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};

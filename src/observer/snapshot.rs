@@ -42,6 +42,17 @@
 //!
 //! A latched shutdown is part of the snapshot on purpose: a reset must not be
 //! a way around the latch.
+//!
+//! # Downtime cooling
+//!
+//! The saved temperatures are those at the save; a device that was off for
+//! a while is cooler. Each observer's `restore_after` takes the power-off
+//! time \[s\] and decays the saved state by its model's exact zero-current
+//! solution over it (never below it): the modal form for the generic
+//! network, bounded Taylor steps for the grid, frozen pieces of the
+//! nonlinear model for the Omnimagnet. [`off_time_s`] says what an off time
+//! means: capped at the snapshot's age, and *unknown* (`None`, NaN,
+//! negative) is no cooling. The latch is restored as it was.
 
 use core::fmt;
 
