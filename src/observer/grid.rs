@@ -110,6 +110,12 @@
 //! inspecting the device, clears it. Once cleared, no coil has more
 //! headroom than the taper, and the model cools the coils at the modelled
 //! rate until it knows better.
+//!
+//! [`GridObserver::restore_after`] is the restore for a grid that was off for
+//! a known time: the saved coils cooled by the grid's network with no
+//! current ([`GridObserver::cooled_c`]: Taylor steps of the exponential
+//! with a rigorous remainder, `f64`), never below the exact cooled state and
+//! within about 1 mK of it. An unknown off time means no cooling.
 
 use super::clock::{ClockState, StepClock};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -1042,6 +1048,211 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             hold_shutdown(&mut state.outputs.limits);
         }
         Ok(state)
+    }
+
+    /// [`Self::restore`] for a grid that was off for `off_s` \[s\]: the saved
+    /// coil temperatures cooled with no current, the coolant and the ambient
+    /// at `ambient_c` \[degC\], by [`Self::cooled_c`] (never below the exact
+    /// cooled state of the grid's network, within millikelvin of it for the
+    /// HPPA). A latched shutdown stays latched.
+    ///
+    /// `off_s` is capped at the snapshot's age; `None`, a NaN or a negative
+    /// time mean an *unknown* off time and restore the saved state uncooled
+    /// ([`snapshot::off_time_s`]); `Some(0.0)` restores it to the bit, as
+    /// [`Self::restore`] does.
+    ///
+    /// # Errors
+    /// Those of [`Self::restore`].
+    pub fn restore_after(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f64,
+        off_s: Option<f32>,
+    ) -> Result<GridObserverState<S, ROWS, COLS, N>, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
+        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let mut grid = GridState::uniform(ambient_c);
+        for (t, s) in grid.temps_c.as_flattened_mut().iter_mut().zip(&temps_c) {
+            *t = S::from_f32(*s);
+        }
+        if off_s > 0.0 {
+            grid.temps_c = self.cooled_c(&grid.temps_c, ambient_c, f64::from(off_s));
+        }
+        let mut state = self.state_from(grid);
+        if meta.shutdown_latched {
+            state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
+        }
+        Ok(state)
+    }
+
+    /// The coil temperatures \[degC\] `off_s` \[s\] after `temps_c` with no
+    /// current and the coolant and the ambient at `ambient_c` \[degC\]: an
+    /// upper bound of the exact zero-current solution of the grid's network,
+    /// `T_a + exp(A off) (T - T_a)`, within about 1 mK of it.
+    ///
+    /// The grid has too many coils for a modal form on an MCU (`N x N`), so
+    /// the exponential is applied in steps `h`, each a Taylor series with a
+    /// rigorous remainder: with `d` the largest `sum(G_i) / C` over the coils
+    /// and `P = A + d I >= 0` (every entry; the coils' rows of the stencil),
+    ///
+    /// ```text
+    /// exp(A h) x = e^(-d h) (sum_{k <= K} (h P)^k x / k! + r),   0 <= r <= max(x) sum_{k > K} (h |P|)^k / k!,
+    /// ```
+    ///
+    /// and the step adds the bound of `r`, so every step is an upper bound;
+    /// `exp(A h) >= 0` carries the bound from step to step. `h |P| <= 4`
+    /// and `K = 28` make `r` below `1e-13 max(x)`, and the arithmetic is
+    /// `f64`, so the bound is tight; 1 mK is added for the rounding of the
+    /// temperatures. At most 128 steps (`512 / |P|` \[s\], 25 h for the
+    /// HPPA); beyond them every coil is bounded by the hottest decayed
+    /// through the base alone, `e^(-G_z t / C) max(x)` (the neighbour and
+    /// padding terms only spread and lose heat). Work: at most
+    /// `128 * 28` stencil products (`9 N` multiply-adds each), about 4 KiB
+    /// of `f64` stack, no allocation, no panic.
+    ///
+    /// A coil saved *below* the ambient is taken at the ambient (the
+    /// bound's `max(T - T_a, 0)`: warmer, so still an upper bound).
+    /// `off_s` that is not positive, and an ambient that is not finite,
+    /// return `temps_c` unchanged.
+    pub fn cooled_c(
+        &self,
+        temps_c: &[[S; COLS]; ROWS],
+        ambient_c: f64,
+        off_s: f64,
+    ) -> [[S; COLS]; ROWS] {
+        const MAX_STEPS: u32 = 128;
+        const TERMS: u32 = 28;
+        const MAX_HP: f64 = 4.0;
+        if !(off_s > 0.0 && ambient_c.is_finite()) {
+            return *temps_c;
+        }
+        let capacity = self.grid.capacity_j_per_k();
+        let base_g = self.grid.base_conductance_w_per_k();
+        // Link conductance of each row towards each direction [W/K] (the
+        // stencil's links depend on the row alone).
+        let mut link = [[0.0f64; 8]; ROWS];
+        for (row, l) in link.iter_mut().enumerate() {
+            for (g, &(dr, dc)) in l.iter_mut().zip(&DIRECTIONS) {
+                *g = (0..COLS).fold(0.0, |m, col| {
+                    m.max(self.grid.neighbour_conductance_w_per_k(row, col, dr, dc))
+                });
+            }
+        }
+        let inside = |row: usize, col: usize, (dr, dc): (isize, isize)| {
+            let r = row.checked_add_signed(dr).filter(|&r| r < ROWS)?;
+            let c = col.checked_add_signed(dc).filter(|&c| c < COLS)?;
+            Some((r, c))
+        };
+        // Diagonal of -A (sum(G_i) / C) and the shift d.
+        let mut leak = [[0.0f64; COLS]; ROWS];
+        let mut shift = 0.0f64;
+        for row in 0..ROWS {
+            for col in 0..COLS {
+                let mut total = base_g + self.grid.ambient_conductance_w_per_k(row, col);
+                for (g, dir) in link[row].iter().zip(&DIRECTIONS) {
+                    if inside(row, col, *dir).is_some() {
+                        total += g;
+                    }
+                }
+                leak[row][col] = total / capacity;
+                shift = shift.max(total / capacity);
+            }
+        }
+        // |P|, the largest row sum of P = A + d I.
+        let mut p_norm = 0.0f64;
+        for row in 0..ROWS {
+            for col in 0..COLS {
+                let mut sum = shift - leak[row][col];
+                for (g, dir) in link[row].iter().zip(&DIRECTIONS) {
+                    if inside(row, col, *dir).is_some() {
+                        sum += g / capacity;
+                    }
+                }
+                p_norm = p_norm.max(sum);
+            }
+        }
+        let mut x = [[0.0f64; COLS]; ROWS];
+        for (xr, tr) in x.iter_mut().zip(temps_c) {
+            for (x, t) in xr.iter_mut().zip(tr) {
+                let excess = t.to_f64() - ambient_c;
+                *x = if excess > 0.0 { excess } else { 0.0 };
+            }
+        }
+        // Steps of at most MAX_HP / |P|; what the steps cannot cover goes to
+        // the base-only bound.
+        let reach_s = if p_norm > 0.0 {
+            f64::from(MAX_STEPS) * MAX_HP / p_norm
+        } else {
+            f64::INFINITY
+        };
+        let stepped_s = off_s.min(reach_s);
+        let steps = if p_norm > 0.0 {
+            libm::ceil(stepped_s * p_norm / MAX_HP).clamp(1.0, f64::from(MAX_STEPS))
+        } else {
+            1.0
+        };
+        let h = stepped_s / steps;
+        let hp = h * p_norm;
+        // The tail sum_{k > K} hp^k / k! <= t_{K+1} / (1 - hp / (K + 2)),
+        // a geometric bound (hp <= 4 < K + 2), without cancellation.
+        let mut first_left_out = 1.0;
+        for k in 1..=TERMS + 1 {
+            first_left_out *= hp / f64::from(k);
+        }
+        let remainder = first_left_out / (1.0 - hp / f64::from(TERMS + 2));
+        let decay = libm::exp(-h * shift);
+        let mut next = x;
+        for _ in 0..steps as u32 {
+            let peak = x.as_flattened().iter().fold(0.0f64, |m, v| m.max(*v));
+            let mut sum = x;
+            let mut term = x;
+            for k in 1..=TERMS {
+                let scale = h / f64::from(k);
+                for row in 0..ROWS {
+                    for col in 0..COLS {
+                        let mut acc = (shift - leak[row][col]) * term[row][col];
+                        for (g, dir) in link[row].iter().zip(&DIRECTIONS) {
+                            if let Some((r, c)) = inside(row, col, *dir) {
+                                acc += g / capacity * term[r][c];
+                            }
+                        }
+                        next[row][col] = scale * acc;
+                    }
+                }
+                term = next;
+                for (s, t) in sum.as_flattened_mut().iter_mut().zip(term.as_flattened()) {
+                    *s += t;
+                }
+            }
+            for (x, s) in x.as_flattened_mut().iter_mut().zip(sum.as_flattened()) {
+                *x = decay * (s + remainder * peak);
+            }
+        }
+        let rest_s = off_s - stepped_s;
+        if rest_s > 0.0 {
+            let peak = x.as_flattened().iter().fold(0.0f64, |m, v| m.max(*v));
+            let bound = peak * libm::exp(-rest_s * base_g / capacity);
+            x = [[bound; COLS]; ROWS];
+        }
+        let mut out = *temps_c;
+        for (or, xr) in out.iter_mut().zip(&x) {
+            for (o, x) in or.iter_mut().zip(xr) {
+                let t = ambient_c + x + 1e-3;
+                if t.is_finite() {
+                    *o = S::from_f64(t);
+                }
+            }
+        }
+        out
     }
 
     /// The documented start when no snapshot can be trusted: every coil

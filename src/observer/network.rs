@@ -953,6 +953,65 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         Ok(state)
     }
 
+    /// [`Self::restore`] for a device that was off for `off_s` \[s\]: the
+    /// saved node estimates decayed by the network's exact zero-current
+    /// solution over the off time, with the boundaries held at `boundary_c`
+    /// \[degC\] (and the network's fixed powers on),
+    /// `T_ss + exp(A off) (T_saved - T_ss)`, from the modes the time-to-limit
+    /// predictor already holds
+    /// ([`LimitPredictor::cooled_c`](crate::protect::predict::LimitPredictor::cooled_c)):
+    /// `O(N^2)` work and `N` exponentials, never below the exact cooled state
+    /// (a guard of about 1 mK covers the `f32` rounding). A latched shutdown
+    /// stays latched.
+    ///
+    /// `off_s` is capped at the snapshot's age; `None`, a NaN or a negative
+    /// time mean an *unknown* off time and restore the saved state uncooled
+    /// ([`snapshot::off_time_s`]); `Some(0.0)` restores it to the bit. A
+    /// boundary temperature outside the input limits (or not finite) also
+    /// restores uncooled: the cooling would have nothing sure to head for.
+    ///
+    /// # Errors
+    /// Those of [`Self::restore`].
+    pub fn restore_after(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        boundary_c: &[f32; B],
+        off_s: Option<f32>,
+    ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
+        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let mut held_c = *boundary_c;
+        let rejected = self.limits.accept_temperatures(boundary_c, &mut held_c);
+        let temps_c = if off_s > 0.0 && rejected == InputFlags::NONE {
+            self.cooled_c(&saved_c, boundary_c, off_s)
+        } else {
+            saved_c
+        };
+        let mut state = self.state(&temps_c, boundary_c);
+        if meta.shutdown_latched {
+            state.alarm.latch_shutdown();
+            state.outputs.alarm.shutdown = true;
+            hold_shutdown(&mut state.outputs.limits);
+        }
+        Ok(state)
+    }
+
+    /// The node temperatures \[degC\] `off_s` \[s\] after `temps_c` with no
+    /// current and the boundaries at `boundary_c` \[degC\]: the exact
+    /// zero-current solution of the observer's network, never below it (see
+    /// [`Self::restore_after`]; an off time that is not positive returns
+    /// `temps_c`).
+    pub fn cooled_c(&self, temps_c: &[f32; N], boundary_c: &[f32; B], off_s: f32) -> [f32; N] {
+        self.predictor.cooled_c(temps_c, boundary_c, off_s)
+    }
+
     /// The documented start when no snapshot can be trusted
     /// ([`snapshot::conservative_start`]): measured nodes at their readings
     /// \[degC\], every other node no cooler than the hottest reading or the

@@ -42,6 +42,17 @@
 //!
 //! A latched shutdown is part of the snapshot on purpose: a reset must not be
 //! a way around the latch.
+//!
+//! # Downtime cooling
+//!
+//! The saved temperatures are those at the save; a device that was off for
+//! a while is cooler. Each observer's `restore_after` takes the power-off
+//! time \[s\] and decays the saved state by its model's exact zero-current
+//! solution over it (never below it): the modal form for the generic
+//! network, bounded Taylor steps for the grid, frozen pieces of the
+//! nonlinear model for the Omnimagnet. [`off_time_s`] says what an off time
+//! means: capped at the snapshot's age, and *unknown* (`None`, NaN,
+//! negative) is no cooling. The latch is restored as it was.
 
 use core::fmt;
 
@@ -113,6 +124,9 @@ pub enum SnapshotError {
         /// The node.
         node: usize,
     },
+    /// The model given for the downtime cooling of a restore is not the one
+    /// the observer was built from.
+    CoolingModelMismatch,
 }
 
 impl fmt::Display for SnapshotError {
@@ -134,6 +148,9 @@ impl fmt::Display for SnapshotError {
             Self::FromFuture => write!(f, "snapshot saved after now"),
             Self::ImplausibleTemperature { node } => {
                 write!(f, "snapshot temperature of node {node} implausible")
+            }
+            Self::CoolingModelMismatch => {
+                write!(f, "downtime cooling model differs from the observer's")
             }
         }
     }
@@ -322,6 +339,24 @@ pub fn restore<const N: usize>(
     Ok((temps_c, meta))
 }
 
+/// The power-off time \[s\] over which a restore decays the saved state:
+/// `off_s` as the application measured it, capped at the snapshot's age
+/// (`now_s - saved_at_s`: the device cannot have cooled longer than since
+/// it was saved). `None` (unknown), a NaN or a negative time mean **no
+/// cooling** (0 s): the saved state, which is never below the cooled one, is
+/// the safe start when nothing says how long the device was off.
+///
+/// The state cooled over this time is only as safe as the off time: if the
+/// device ran (and heated) between the save and the power-off, pass only
+/// the time it was really off, or `None`.
+pub fn off_time_s(off_s: Option<f32>, meta: &SnapshotMeta, policy: &RestorePolicy) -> f32 {
+    let age_s = policy.now_s.saturating_sub(meta.saved_at_s) as f32;
+    match off_s {
+        Some(t) if t > 0.0 => t.min(age_s),
+        _ => 0.0,
+    }
+}
+
 /// The documented start when no snapshot can be trusted: every measured node
 /// at its reading, and every *unmeasured* node no cooler than the hottest
 /// valid reading (nor than the ambient). A coil that was hot before the reset
@@ -502,6 +537,27 @@ mod tests {
         assert_eq!(refused, Err(SnapshotError::UnsupportedVersion { found: 1 }));
         let message = std::format!("{}", refused.unwrap_err());
         assert!(message.contains("version 1") && message.contains("version 2"));
+    }
+
+    #[test]
+    fn off_time_is_capped_at_the_age_and_unknown_means_none() {
+        let meta = SnapshotMeta {
+            fingerprint: 0xC0FFEE,
+            saved_at_s: 900,
+            shutdown_latched: false,
+        };
+        // Age 100 s.
+        assert_eq!(off_time_s(Some(30.5), &meta, &POLICY), 30.5);
+        assert_eq!(off_time_s(Some(1e9), &meta, &POLICY), 100.0);
+        assert_eq!(off_time_s(Some(f32::INFINITY), &meta, &POLICY), 100.0);
+        for unknown in [None, Some(f32::NAN), Some(-1.0), Some(0.0), Some(-0.0)] {
+            assert_eq!(off_time_s(unknown, &meta, &POLICY), 0.0, "{unknown:?}");
+        }
+        let future = SnapshotMeta {
+            saved_at_s: 2_000,
+            ..meta
+        };
+        assert_eq!(off_time_s(Some(10.0), &future, &POLICY), 0.0);
     }
 
     #[test]

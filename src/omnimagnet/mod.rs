@@ -139,6 +139,7 @@
 //! thermocouples (steady-state or time-varying gain, innovation gate, heat-
 //! input bias states, following the [`Relinearizer`]).
 
+mod cooling;
 pub mod data;
 mod linearize;
 mod nonlinear;
@@ -149,6 +150,7 @@ mod relinearize;
 #[cfg(test)]
 mod tests;
 
+pub use cooling::{COOLING_FIRST_PIECE_S, COOLING_MAX_PIECES, COOLING_PIECE_RATIO};
 pub use data::{
     Contact, ConvectionGroup, Correlation, Element, KelvinPoly, Material, OmnimagnetGeometry, Peer,
     Radiator, Solenoid, SurfaceConvection, CONVECTION_GROUPS, NODES, PAPER_OMNIMAGNET, SOLENOIDS,

@@ -786,3 +786,57 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
 #[cfg(test)]
 #[path = "predict_tests.rs"]
 mod tests;
+
+/// Downtime cooling: the network's exact zero-current solution, from the
+/// modes the predictor already holds (issue 17).
+impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const K: usize>
+    LimitPredictor<T, N, B, M, K>
+{
+    /// The temperatures \[degC\] the network reaches from `temps_c` after
+    /// `off_s` \[s\] with no current and the boundaries held at
+    /// `boundary_c` \[degC\] (and the fixed powers on): the exact
+    ///
+    /// ```text
+    /// T(off) = T_ss + V diag(exp(lambda off)) V^-1 (T_saved - T_ss),   T_ss = Kb T_b + k_d,
+    /// ```
+    ///
+    /// each mode decayed on its own, plus a guard that covers the rounding
+    /// of `T` (`1 mK` plus `64 N eps` times the magnitudes summed), so the
+    /// result is never below the exact cooled state of the network. `O(N^2)`
+    /// work and `N` exponentials, no matrix exponential, no allocation, no
+    /// panic.
+    ///
+    /// `off_s == 0` returns `temps_c` to the bit; an off time that is not a
+    /// number or negative means "unknown" and returns `temps_c` too (no
+    /// cooling: the saved state is never below the cooled one); `+inf` (or
+    /// any off time far beyond [`Self::slowest_time_constant_s`]) gives the
+    /// steady state plus the guard. A result that is not finite (non-finite
+    /// inputs) also falls back to `temps_c`.
+    pub fn cooled_c(&self, temps_c: &[T; N], boundary_c: &[T; B], off_s: T) -> [T; N] {
+        // Not positive, or NaN: unknown, no cooling.
+        if off_s.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return *temps_c;
+        }
+        let (steady, modes) = self.steady_and_modes(temps_c, &[T::zero(); M], boundary_c, true);
+        let decay = self.lambda_per_s.map(|l| (l * off_s).exp());
+        let eps = T::default_epsilon();
+        let guard_factor = T::from_subset(&(64.0 * N as f64)) * eps;
+        let floor_k = T::from_subset(&1e-3);
+        let mut out = *temps_c;
+        for (o, (row, ss)) in out.iter_mut().zip(self.v.iter().zip(&steady)) {
+            let mut sum = *ss;
+            let mut magnitude = ss.abs();
+            for ((v, z), d) in row.iter().zip(&modes).zip(&decay) {
+                let c = *v * *z;
+                sum += c * *d;
+                magnitude += c.abs();
+            }
+            *o = sum + floor_k + guard_factor * magnitude;
+        }
+        if out.iter().all(|t| t.is_finite()) {
+            out
+        } else {
+            *temps_c
+        }
+    }
+}
