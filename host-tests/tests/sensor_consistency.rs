@@ -33,12 +33,18 @@ enum Fault {
 #[derive(Debug)]
 struct Outcome {
     shutdown_s: Option<f64>,
+    /// Readings refused as colder than the physics allows.
+    colder_than_physics: u32,
     /// Largest |estimate - plant| on the thermocouple nodes before the
     /// shutdown \[K\].
     worst_error_k: f64,
 }
 
 fn run(fault: Fault) -> Outcome {
+    run_at(fault, CURRENT_A, TICKS)
+}
+
+fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
     let defaults = OmniSettings::default();
     let settings = OmniSettings {
         step_us: STEP_US,
@@ -62,12 +68,13 @@ fn run(fault: Fault) -> Outcome {
     let mut stuck: Option<[f32; 6]> = None;
     let mut outcome = Outcome {
         shutdown_s: None,
+        colder_than_physics: 0,
         worst_error_k: 0.0,
     };
     let mut now_us = 0u32;
-    for k in 0..TICKS {
+    for k in 0..ticks {
         let t_s = f64::from(k + 1) * dt_s;
-        let applied = [CURRENT_A; 3];
+        let applied = [current_a; 3];
         plant.step(dt_s, &applied.map(f64::from), &[AMBIENT_C], &[]);
         now_us = now_us.wrapping_add(STEP_US);
         let truth = THERMOCOUPLE_NODES.map(|n| plant.temps_c()[n] as f32);
@@ -103,6 +110,11 @@ fn run(fault: Fault) -> Outcome {
             elapsed_us: STEP_US,
         };
         let out = *observer.tick(&mut state, &inputs);
+        outcome.colder_than_physics += out
+            .sensors
+            .iter()
+            .filter(|s| matches!(s, SensorStatus::ColderThanPhysics { .. }))
+            .count() as u32;
         if std::env::var("TRACE_BIAS").is_ok() && k % 100 == 0 {
             println!(
                 "{fault:?} t={t_s:.0} bias {:?} est {:?} truth {:?}",
@@ -127,6 +139,7 @@ fn run(fault: Fault) -> Outcome {
 fn common_mode_faults_do_not_delay_the_shutdown() {
     let clean = run(Fault::None);
     println!("clean: {clean:?}");
+    assert_eq!(clean.colder_than_physics, 0, "a healthy sensor flagged");
     let clean_s = clean.shutdown_s.expect("7 A must shut the Omnimagnet down");
     for fault in [
         Fault::AllDetached,
@@ -258,4 +271,20 @@ fn the_network_observer_holds_its_sensor_against_the_physics() {
             "{name}: shutdown at {at} s, clean at {clean_s} s"
         );
     }
+}
+
+#[test]
+fn healthy_thermocouples_agree_with_the_physics_up_to_the_shutdown_at_3_8_a() {
+    // The paper's experiment, all three at 3.8 A: the hotter the plant, the
+    // further the observer's linearisation at the ambient (which convects
+    // and radiates less than the hot plant) runs above it. Up to the
+    // derated shutdown (the covers' 85.5 degC alarm limit, at 2210 s) no
+    // healthy reading is refused.
+    let healthy = run_at(Fault::None, 3.8, 72_000);
+    println!("3.8 A: {healthy:?}");
+    assert!(
+        healthy.shutdown_s.is_some_and(|s| s > 2000.0),
+        "{healthy:?}"
+    );
+    assert_eq!(healthy.colder_than_physics, 0, "{healthy:?}");
 }

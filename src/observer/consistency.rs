@@ -36,9 +36,105 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use super::omnimagnet::SensorStatus;
 use crate::network::{compensated_add, ScalarResistance};
 
-/// The shadow model's block step and the consistency band.
+/// The band a reading must keep to below the shadow: the model's
+/// uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Band {
+    /// Fixed part \[K\].
+    pub offset_k: f32,
+    /// Share of the rise above the ambient (dimensionless).
+    pub fraction: f32,
+}
+
+impl Band {
+    /// The lowest temperature \[degC\] a reading of a node whose shadow is
+    /// `shadow_c` \[degC\] may have at the ambient `ambient_c` \[degC\]
+    /// (NaN, so no verdict, when either is NaN).
+    pub(crate) fn lowest_c(&self, shadow_c: f32, ambient_c: f32) -> f32 {
+        let rise = (shadow_c - ambient_c).max(0.0);
+        shadow_c - (self.offset_k + self.fraction * rise)
+    }
+
+    /// Takes every sample colder than its node's band out of the
+    /// correction, marking it [`SensorStatus::ColderThanPhysics`];
+    /// `shadow_c[j]` is the shadow's temperature at sensor `j`'s node
+    /// \[degC\]. Returns `true` for a common-mode fault: at least one
+    /// sample, and every one colder than physics.
+    pub(crate) fn screen<const P: usize>(
+        &self,
+        samples: &mut [Option<f32>; P],
+        statuses: &mut [SensorStatus; P],
+        shadow_c: &[f32; P],
+        ambient_c: f32,
+    ) -> bool {
+        let (mut present, mut colder) = (0u32, 0u32);
+        for ((sample, status), shadow_c) in samples.iter_mut().zip(statuses).zip(shadow_c) {
+            let Some(t) = *sample else { continue };
+            present += 1;
+            let lowest_c = self.lowest_c(*shadow_c, ambient_c);
+            if t < lowest_c {
+                colder += 1;
+                *sample = None;
+                *status = SensorStatus::ColderThanPhysics {
+                    below_k: lowest_c - t,
+                };
+            }
+        }
+        present > 0 && colder == present
+    }
+}
+
+/// The mean `I^2` of each current over a block of model steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BlockMean<const M: usize> {
+    /// Sum over the block's steps of each current squared \[A^2\].
+    i2_sum_a2: [f32; M],
+    steps: u32,
+}
+
+impl<const M: usize> BlockMean<M> {
+    /// An empty block.
+    pub(crate) const fn new() -> Self {
+        Self {
+            i2_sum_a2: [0.0; M],
+            steps: 0,
+        }
+    }
+
+    /// Accounts for `steps` model steps at the held currents \[A\];
+    /// returns each current's block RMS \[A\] when a block of
+    /// `block_steps` is complete (the steps past it start the next block
+    /// at that mean).
+    pub(crate) fn add(
+        &mut self,
+        steps: u32,
+        held_currents_a: &[f32; M],
+        block_steps: u32,
+    ) -> Option<[f32; M]> {
+        if steps == 0 {
+            return None;
+        }
+        let n = steps as f32;
+        for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
+            *sum += i * i * n;
+        }
+        self.steps = self.steps.saturating_add(steps);
+        if self.steps < block_steps.max(1) {
+            return None;
+        }
+        let mean_i2 = self.i2_sum_a2.map(|s| s / self.steps as f32);
+        self.steps -= block_steps.max(1);
+        let rest = self.steps as f32;
+        self.i2_sum_a2 = mean_i2.map(|i2| i2 * rest);
+        Some(mean_i2.map(libm::sqrtf))
+    }
+}
+
+/// The network observer's shadow: the exact zero-order hold of one block
+/// in the observer's deviation coordinates, and its band.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     /// `Ad - I` of one block (dimensionless).
@@ -51,21 +147,17 @@ pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     pub constant_k: SVector<f32, N>,
     /// Model steps per block.
     pub block_steps: u32,
-    /// Fixed part of the band \[K\].
-    pub offset_k: f32,
-    /// Share of the rise above the ambient in the band (dimensionless).
-    pub fraction: f32,
+    /// The consistency band.
+    pub band: Band,
 }
 
-/// The shadow's state: deviations from the observer's origin \[K\], their
-/// carry, and the block in progress.
+/// The network shadow's state: deviations from the observer's origin
+/// \[K\], their carry, and the block in progress.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ShadowState<const N: usize, const M: usize> {
     dev_k: [f32; N],
     residual_k: [f32; N],
-    /// Sum over the block's steps of each current squared \[A^2\].
-    i2_sum_a2: [f32; M],
-    steps: u32,
+    block: BlockMean<M>,
 }
 
 impl<const N: usize, const M: usize> ShadowState<N, M> {
@@ -74,8 +166,7 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
         Self {
             dev_k,
             residual_k: [0.0; N],
-            i2_sum_a2: [0.0; M],
-            steps: 0,
+            block: BlockMean::new(),
         }
     }
 
@@ -107,22 +198,12 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         resistance: &[ScalarResistance<f32>; M],
         origin_c: f32,
     ) {
-        if steps == 0 {
+        let Some(rms_a) = state.block.add(steps, held_currents_a, self.block_steps) else {
             return;
-        }
-        let n = steps as f32;
-        for (sum, i) in state.i2_sum_a2.iter_mut().zip(held_currents_a) {
-            *sum += i * i * n;
-        }
-        state.steps = state.steps.saturating_add(steps);
-        if state.steps < self.block_steps {
-            return;
-        }
-        let mean_i2: [f32; M] = state.i2_sum_a2.map(|s| s / state.steps as f32);
+        };
         let mut power = SVector::<f32, M>::zeros();
-        for (m, ((node, r), i2)) in source_node.iter().zip(resistance).zip(&mean_i2).enumerate() {
-            let t = origin_c + state.dev_k(*node);
-            power[m] = r.joule_power_w(t, libm::sqrtf(*i2));
+        for (m, ((node, r), i)) in source_node.iter().zip(resistance).zip(&rms_a).enumerate() {
+            power[m] = r.joule_power_w(origin_c + state.dev_k(*node), *i);
         }
         let temps = SVector::<f32, N>::from(state.dev_k);
         let boundary = SVector::<f32, B>::from(*boundary_k);
@@ -140,16 +221,5 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
                 *x = compensated_add(*x, *inc, residual);
             }
         }
-        // The steps past the block start the next one, at the block's mean.
-        state.steps -= self.block_steps;
-        let rest = state.steps as f32;
-        state.i2_sum_a2 = mean_i2.map(|i2| i2 * rest);
-    }
-
-    /// The lowest temperature \[degC\] a reading of a node whose shadow is
-    /// `shadow_c` \[degC\] may have at the ambient `ambient_c` \[degC\].
-    pub(crate) fn lowest_c(&self, shadow_c: f32, ambient_c: f32) -> f32 {
-        let rise = (shadow_c - ambient_c).max(0.0);
-        shadow_c - (self.offset_k + self.fraction * rise)
     }
 }

@@ -853,27 +853,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &mut state.outputs.sensors,
         );
         let ambient_c = self.ambient(&state.held_boundary_c);
-        let (mut present, mut colder) = (0u32, 0u32);
-        for ((sample, status), node) in samples
-            .iter_mut()
-            .zip(state.outputs.sensors.iter_mut())
-            .zip(&self.sensor_nodes)
-        {
-            let Some(t) = *sample else { continue };
-            present += 1;
-            let lowest_c = self
-                .shadow
-                .lowest_c(self.origin_c + state.shadow.dev_k(*node), ambient_c);
-            if t < lowest_c {
-                colder += 1;
-                *sample = None;
-                *status = SensorStatus::ColderThanPhysics {
-                    below_k: lowest_c - t,
-                };
-            }
-        }
+        let shadow_c = self
+            .sensor_nodes
+            .map(|node| self.origin_c + state.shadow.dev_k(node));
+        let common_mode = self.shadow.band.screen(
+            &mut samples,
+            &mut state.outputs.sensors,
+            &shadow_c,
+            ambient_c,
+        );
         let mut flags = InputFlags::NONE;
-        if present > 0 && colder == present {
+        if common_mode {
             // A common-mode fault: what the sensors dragged comes back.
             flags = InputFlags::SENSORS_COLDER_THAN_PHYSICS;
             let x = &mut state.estimate.x;

@@ -157,6 +157,7 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
+use super::consistency::{Band, BlockMean};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -239,6 +240,13 @@ pub struct OmniSettings {
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
     /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
     pub frozen_loss_ticks: u32,
+    /// Fixed part of the band a reading must keep to below the unfused
+    /// shadow model \[K\] (as [`NetworkSettings::consistency_offset_k`](super::NetworkSettings::consistency_offset_k);
+    /// `f64::INFINITY` turns the test off). Default 3.
+    pub consistency_offset_k: f64,
+    /// Share of the shadow's rise above the ambient in that band
+    /// (dimensionless, `>= 0`). Default 0.25.
+    pub consistency_fraction: f64,
 }
 
 impl Default for OmniSettings {
@@ -259,6 +267,8 @@ impl Default for OmniSettings {
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
             frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
             frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
+            consistency_offset_k: 3.0,
+            consistency_fraction: 0.25,
         }
     }
 }
@@ -415,6 +425,13 @@ pub struct OmniObserver {
     /// its geometry holds references, and the configuration stays plain
     /// data (all-zero bits valid, which `examples/panic_free.rs` relies on).
     plant_fingerprint: u32,
+    /// The unfused shadow of the model (built-time linearisation, one
+    /// correction period per step) the readings are held against.
+    shadow: MeanModel<f32>,
+    /// Model steps per shadow step.
+    shadow_block_steps: u32,
+    /// The consistency band.
+    band: Band,
 }
 
 /// The per-device state.
@@ -441,6 +458,9 @@ pub struct OmniObserverState {
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
     cycle: ProtectionCycle<SOLENOIDS>,
+    /// The shadow's deviations from its origin \[K\] (biases zero).
+    shadow_x: SVector<f32, STATES>,
+    shadow_block: BlockMean<SOLENOIDS>,
     outputs: OmniOutputs,
 }
 
@@ -501,6 +521,23 @@ impl OmniObserver {
         let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
         let bound = Self::build_bound(&filter, settings)?;
         let fingerprint = Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound);
+        let shadow_block_steps = filter.period().max(1);
+        let shadow = Self::build_shadow(
+            model,
+            op_temps_c,
+            ambient_c,
+            dt_s * f64::from(shadow_block_steps),
+        )?;
+        if settings.consistency_offset_k.is_nan() || settings.consistency_offset_k < 0.0 {
+            return Err(BuildError::InvalidParameter {
+                name: "consistency_offset_k",
+            });
+        }
+        if !(settings.consistency_fraction.is_finite() && settings.consistency_fraction >= 0.0) {
+            return Err(BuildError::InvalidParameter {
+                name: "consistency_fraction",
+            });
+        }
         Ok(Self {
             filter,
             alarm,
@@ -514,7 +551,25 @@ impl OmniObserver {
             protect_period_us,
             fingerprint,
             plant_fingerprint: plant_fingerprint(model),
+            shadow,
+            shadow_block_steps,
+            band: Band {
+                offset_k: settings.consistency_offset_k as f32,
+                fraction: settings.consistency_fraction as f32,
+            },
         })
+    }
+
+    #[inline(never)]
+    fn build_shadow(
+        model: &Omnimagnet,
+        op_temps_c: &[f64; NODES],
+        ambient_c: f64,
+        block_s: f64,
+    ) -> Result<MeanModel<f32>, BuildError> {
+        Ok(MeanModel::new(
+            &model.linearize(op_temps_c, ambient_c, block_s)?,
+        ))
     }
 
     // The build steps run in frames of their own (`inline(never)`): on an
@@ -647,6 +702,12 @@ impl OmniObserver {
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
             cycle: ProtectionCycle::new(),
+            shadow_x: SVector::from_fn(|i, _| {
+                temps_c
+                    .get(i)
+                    .map_or(0.0, |t| t - self.shadow.origin_c()[i])
+            }),
+            shadow_block: BlockMean::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -792,7 +853,23 @@ impl OmniObserver {
             steps.dropped_us,
             &state.held_currents_a,
         );
-        let corrected = self.correct(state, inputs);
+        if let Some(rms_a) =
+            state
+                .shadow_block
+                .add(steps.steps, &state.held_currents_a, self.shadow_block_steps)
+        {
+            let mut u = SVector::<f32, INPUTS>::zeros();
+            self.filter.joule_input(
+                &self.shadow,
+                &state.shadow_x,
+                &rms_a,
+                state.held_ambient_c,
+                &mut u,
+            );
+            self.shadow.predict(&mut state.shadow_x, &u);
+        }
+        let (corrected, disagree) = self.correct(state, inputs);
+        flags |= disagree;
         state.outputs.temps_c = self.temps_c(state);
         state.outputs.corrected = corrected;
 
@@ -890,19 +967,45 @@ impl OmniObserver {
             .apply(&solenoid_c, &solenoid_limit_c, ambient_c, &mut out.limits);
     }
 
-    /// Sorts the readings and runs one steady-state correction if any is
-    /// usable; returns whether it ran.
-    fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> bool {
-        let samples = sample_readings(
+    /// Sorts the readings, holds each against the shadow model (see the
+    /// network observer's "Sensors against the physics"), and runs one
+    /// steady-state correction if any is usable; returns whether it ran and
+    /// the common-mode flag.
+    fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> (bool, InputFlags) {
+        let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,
             self.max_reading_age_us,
             &mut state.outputs.sensors,
-        )
-        .map(|t| t.map(Ok));
+        );
+        let shadow_origin = self.shadow.origin_c();
+        let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
+        let common_mode = self.band.screen(
+            &mut samples,
+            &mut state.outputs.sensors,
+            &shadow_c,
+            state.held_ambient_c,
+        );
+        let mut flags = InputFlags::NONE;
+        if common_mode {
+            // A common-mode fault: what the sensors dragged comes back.
+            flags = InputFlags::SENSORS_COLDER_THAN_PHYSICS;
+            let origin = *state.model.origin_c();
+            let x = &mut state.estimate.x;
+            for i in 0..NODES {
+                let shadow = shadow_origin[i] + state.shadow_x[i];
+                if origin[i] + x[i] < shadow {
+                    x[i] = shadow - origin[i];
+                }
+            }
+            for m in 0..SOLENOIDS {
+                x[NODES + m] = x[NODES + m].max(0.0);
+            }
+        }
+        let samples = samples.map(|t| t.map(Ok));
         let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
-            return false;
+            return (false, flags);
         }
         let report = update_steady(
             self.filter.kalman(),
@@ -915,7 +1018,7 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        true
+        (true, flags)
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched

@@ -36,7 +36,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::Shadow;
+use crate::observer::consistency::{Band, Shadow};
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -489,8 +489,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             gd_boundary: matrix(&sh.gd_boundary),
             constant_k: SVector::from(sh.constant_k),
             block_steps: sh.block_steps,
-            offset_k: s.consistency_offset_k as f32,
-            fraction: s.consistency_fraction as f32,
+            band: Band {
+                offset_k: s.consistency_offset_k as f32,
+                fraction: s.consistency_fraction as f32,
+            },
         };
 
         // The filter's configuration from the stored `Ad` and `Bd` (exact
