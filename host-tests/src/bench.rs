@@ -4,8 +4,7 @@
 //! clock) and reports the median over `repeats` runs of the mean time per
 //! step \[ns\]. Keys name the model, its size, the scalar type and the unit,
 //! e.g. `network_16_f32_ns` (library `ExplicitStepper`, a 16-node chain with a
-//! current input per node) or `dynamic_84_f64_ns` (the host's runtime-size
-//! network). Device models and the filter:
+//! current input per node). Device models and the filter:
 //!
 //! * `grid_84_{f32,f64,q32}_ns`: one 1 ms `CoilGrid::<S, 7, 12>::tick` of
 //!   the HPPA grid (FDM-fitted parameters, update every tick: the worst
@@ -45,8 +44,6 @@ use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, SolenoidParams, Q32,
 };
 use serde::Serialize;
-
-use crate::dynamic_network::DynNetwork;
 
 /// One measured step.
 #[derive(Debug, Clone, Serialize)]
@@ -160,28 +157,6 @@ fn scalar_steps<const N: usize, const B: usize, const M: usize>(
         min_time,
         repeats,
     ));
-}
-
-fn dynamic_step<const N: usize, const B: usize, const M: usize>(
-    net: &Network<N, B, M>,
-    dt_s: f64,
-    min_time: Duration,
-    repeats: usize,
-) -> Timing {
-    let dyn_net = DynNetwork::from_network(net).expect("valid network");
-    let mut temps = vec![20.0; N];
-    let currents = vec![1.5; M];
-    let boundary = vec![20.0; B];
-    let mut scratch = Vec::new();
-    measure(format!("dynamic_{N}_f64_ns"), min_time, repeats, || {
-        dyn_net.euler_step(
-            black_box(&mut temps),
-            black_box(&currents),
-            black_box(&boundary),
-            dt_s,
-            &mut scratch,
-        );
-    })
 }
 
 fn grid_tick<S: Scalar>(key: &str, min_time: Duration, repeats: usize) -> Timing {
@@ -561,8 +536,6 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
         .network::<30>()
         .expect("HeSE defaults are valid");
     scalar_steps("solenoid", &sol, 0.1, min_time, repeats, &mut out);
-    out.push(dynamic_step(&chain::<3>(), 1e-3, min_time, repeats));
-    out.push(dynamic_step(&chain::<84>(), 1e-3, min_time, repeats));
     out.push(grid_tick::<f32>("grid_84_f32_ns", min_time, repeats));
     out.push(grid_tick::<f64>("grid_84_f64_ns", min_time, repeats));
     out.push(grid_tick::<Q32>("grid_84_q32_ns", min_time, repeats));

@@ -3,8 +3,9 @@
 //!
 //! Layers, bottom up:
 //!
-//! * [`dynamic_network`]: a runtime-size mirror of the library's network and
-//!   explicit step (bit-identical in `f64`), for model files and calibration;
+//! * [`dynamic_network`]: the run-time description of a model file's
+//!   network (it computes nothing: every step runs in the library, padded to
+//!   a size class);
 //! * [`model_file`]: the TOML model format (`MODEL_FORMAT.md`) and its
 //!   validated, index-resolved [`model_file::Model`];
 //! * [`trace`]: strict CSV traces with `file:line:col` errors and column
@@ -14,6 +15,7 @@
 //! * [`observer`]: replay with an [`observer::Estimator`] (open loop now, the
 //!   Kalman filter later) and a [`observer::Protection`] stage, scoring and
 //!   step timing;
+//! * [`kalman`]: the library's Kalman filter with disturbance states;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;

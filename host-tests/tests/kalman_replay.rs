@@ -21,7 +21,7 @@ fn recording(dir: &Path) -> std::path::PathBuf {
     let mut truth = ModelFile::load(Path::new(&model_path())).unwrap();
     let r0 = access_param(&mut truth, "source.coil.r0_ohm", None).unwrap();
     access_param(&mut truth, "source.coil.r0_ohm", Some(1.4 * r0)).unwrap();
-    let mut plant = FilePlant::new(Model::build(&truth).unwrap());
+    let mut plant = FilePlant::new(Model::build(&truth).unwrap()).unwrap();
     let rows = 4000;
     let current: Vec<f64> = (0..rows)
         .map(|k| match (k / 800) % 3 {

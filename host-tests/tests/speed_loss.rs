@@ -26,7 +26,7 @@ p2_w = 50.0
 "#;
 
 fn steady_c(file: &ModelFile, speed: f64) -> f64 {
-    let mut plant = FilePlant::new(Model::build(file).unwrap());
+    let mut plant = FilePlant::new(Model::build(file).unwrap()).unwrap();
     let rows = 20_000;
     let drive = Drive {
         time_s: (0..rows).map(|k| k as f64).collect(),

@@ -142,7 +142,7 @@ pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
         return Ok(Box::new(devices::OmnimagnetPlant::default()));
     }
     let file = model_file(args)?;
-    Ok(Box::new(FilePlant::new(Model::build(&file)?)))
+    Ok(Box::new(FilePlant::new(Model::build(&file)?)?))
 }
 
 /// Splits `LEFT=RIGHT` at the last `=`.
