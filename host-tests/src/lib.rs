@@ -12,9 +12,10 @@
 //!   expressions;
 //! * [`sim`]: the [`sim::Plant`] trait (file models now; grid and Omnimagnet
 //!   later), input bindings and open-loop simulation;
-//! * [`observer`]: replay with an [`observer::Estimator`] (open loop now, the
-//!   Kalman filter later) and a [`observer::Protection`] stage, scoring and
-//!   step timing;
+//! * [`observer`]: replay with an [`observer::Estimator`] and a
+//!   [`observer::Protection`] stage, scoring and step timing;
+//! * [`library_observer`]: the library's `NetworkObserver` at 1 ms ticks on
+//!   a model file (the replay's estimator);
 //! * [`kalman`]: the library's Kalman filter with disturbance states;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
@@ -33,6 +34,7 @@ pub mod devices;
 pub mod dynamic_network;
 pub mod grid_reference;
 pub mod kalman;
+pub mod library_observer;
 pub mod limits;
 pub mod model_file;
 pub mod observer;

@@ -64,7 +64,7 @@ fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
     let rec = recording(tmp.path());
     let out = tmp.path().join("e.csv");
     let open = coil_mse(&rec, &out, &[]);
-    assert_eq!(open["estimator"], "open-loop");
+    assert_eq!(open["estimator"], "network-observer");
     let plain = coil_mse(&rec, &out, &["--measure", "T_housing=housing"]);
     let fused = coil_mse(
         &rec,

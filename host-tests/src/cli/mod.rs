@@ -227,10 +227,15 @@ pub struct ReplayArgs {
     #[command(flatten)]
     trace_args: TraceArgs,
     /// A sensor fused by the Kalman filter: `COL=NODE` [degC]; repeatable.
-    /// With any, the estimator is the filter (see the next flags), else the
-    /// open-loop model.
+    /// With any, the estimator is the library's time-varying filter at the
+    /// trace's rows (see the next flags); without, the library's
+    /// `NetworkObserver` ticking every `--tick-us`.
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
+    /// The library observer's tick [us] (open loop): the trace's rows are
+    /// replayed in ticks of this length, each timed.
+    #[arg(long, value_name = "US", default_value_t = crate::library_observer::DEFAULT_TICK_US)]
+    tick_us: u32,
     /// Filter: process noise of every temperature state [K^2/s] (white heat
     /// flow; per step `Q = q dt`).
     #[arg(

@@ -1,0 +1,278 @@
+//! Replay through the library's observer: a model file run by
+//! [`NetworkObserver`] at fixed ticks (1 ms by default), each tick timed.
+//!
+//! # Sizes
+//! `NetworkObserver<N, B, M, X, P>` has its sizes in types; a model file has
+//! them at run time. The model's network is copied into `Network<C, 2, C>`
+//! for the smallest `C` of [`OBSERVER_CLASSES`] that holds its nodes and
+//! sources (as `limits` pads it: padding nodes decay to boundary 0 and touch
+//! no real node, padding sources sit at zero current), and the observer is
+//! `NetworkObserver<C, 2, C, 2C, 1>`. Its build solves the steady Kalman
+//! gain of `2C` states in `f64` on the stack, so it runs on a thread with a
+//! large stack and the result is boxed. Few classes keep the compile time
+//! down: a 2-node coil runs as 8 nodes, the HPPA grid's 84 coils as 96.
+//!
+//! # Open loop
+//! Without fused sensors the observer's one thermocouple (on node 0) never
+//! gets a reading: the estimate is the library's model step, the exact
+//! zero-order hold of the network with `R(T)` at the estimate, run in `f32`
+//! on deviations with the rounding carried. The heat-input biases stay at
+//! zero (their noise is set to 0, since no sensor could see them).
+//!
+//! # Currents above 100 A
+//! The observer holds a current beyond its plausibility limit (the
+//! library's `InputLimits::default()`, 100 A, fixed for the observer) at
+//! that limit. Recorded motor currents reach 400 A (the HUST motor), so the
+//! host feeds every current divided by [`CURRENT_SCALE`] into windings
+//! whose resistance is `CURRENT_SCALE^2` times the model's: the same power,
+//! exactly (both factors are powers of two), for currents up to 1600 A.
+//!
+//! # Speed-dependent sources
+//! A model file's speed factors and speed losses
+//! ([`Model::effective_currents`]) are folded into effective currents on
+//! the host before each tick: a speed loss is a 1 ohm source carrying
+//! `sqrt(P)`, a speed factor scales its source's current by `sqrt(factor)`.
+//! The observer sees an ordinary network with currents.
+
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Result};
+use coil_thermal::observer::network::{
+    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
+};
+
+use crate::dynamic_network::DynNetwork;
+use crate::limits::{class_of, on_big_stack, padded_with, Padding};
+use crate::model_file::Model;
+use crate::observer::{Estimator, Measurement};
+use crate::sim::{plant_info, PlantInfo};
+
+/// The padded sizes `C` (nodes and sources) of the observer.
+pub const OBSERVER_CLASSES: [usize; 4] = [8, 16, 32, 96];
+
+/// Currents enter the observer divided by this, resistances multiplied by
+/// its square (see the module docs).
+pub const CURRENT_SCALE: f64 = 16.0;
+
+/// The default tick \[us\] (the controller's 1 ms loop).
+pub const DEFAULT_TICK_US: u32 = 1000;
+
+/// The size-independent face of a padded observer with its state.
+trait PaddedObserver: Send {
+    /// A fresh state at `temps_c` (real nodes) and `boundary_c`.
+    fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]);
+    /// Sets the held inputs of the following ticks.
+    fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]);
+    /// One library tick of `elapsed_us`; returns its host time \[ns\].
+    fn tick(&mut self, elapsed_us: u32) -> u64;
+    /// The real nodes' estimates \[degC\] into `out`.
+    fn temps_c(&self, out: &mut [f64]);
+}
+
+struct Sized<const C: usize, const X: usize> {
+    observer: NetworkObserver<C, 2, C, X, 1>,
+    state: NetworkObserverState<C, 2, C, X, 1>,
+    inputs: NetworkInputs<2, C, 1>,
+}
+
+impl<const C: usize, const X: usize> Sized<C, X> {
+    fn build(net: &DynNetwork, settings: NetworkSettings) -> Result<Box<dyn PaddedObserver>> {
+        let padding = Padding {
+            link_to_boundary: true,
+            resistance_scale: CURRENT_SCALE * CURRENT_SCALE,
+        };
+        let network = padded_with::<C>(net, padding)?;
+        let observer = NetworkObserverBuilder::new(&network, [0])
+            // No element limits the currents here: the replay's alarm
+            // watches the estimate (see `observer::LibraryAlarm`).
+            .incidence([[false; C]; C])
+            .settings(settings)
+            .build::<X>()
+            .map_err(|e| anyhow!("the library observer: {e}"))?;
+        let origin = settings.origin_c as f32;
+        let state = observer.state(&[origin; C], &[origin; 2]);
+        Ok(Box::new(Self {
+            observer,
+            state,
+            inputs: NetworkInputs {
+                currents_a: [0.0; C],
+                boundary_c: [origin; 2],
+                readings: [None],
+                now_us: 0,
+                elapsed_us: 0,
+            },
+        }))
+    }
+}
+
+impl<const C: usize, const X: usize> PaddedObserver for Sized<C, X> {
+    fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]) {
+        self.inputs(&[], boundary_c);
+        // Padding nodes start at boundary 0, their equilibrium.
+        let mut temps = [self.inputs.boundary_c[0]; C];
+        for (t, v) in temps.iter_mut().zip(temps_c) {
+            *t = *v as f32;
+        }
+        self.state = self.observer.state(&temps, &self.inputs.boundary_c);
+        self.inputs.now_us = 0;
+    }
+
+    fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]) {
+        self.inputs.currents_a = [0.0; C];
+        for (i, v) in self.inputs.currents_a.iter_mut().zip(currents_a) {
+            *i = (*v / CURRENT_SCALE) as f32;
+        }
+        // A padding boundary has no links: boundary 0's value serves.
+        let fill = boundary_c.first().map_or(20.0, |b| *b as f32);
+        self.inputs.boundary_c = [fill; 2];
+        for (b, v) in self.inputs.boundary_c.iter_mut().zip(boundary_c) {
+            *b = *v as f32;
+        }
+    }
+
+    fn tick(&mut self, elapsed_us: u32) -> u64 {
+        self.inputs.now_us = self.inputs.now_us.wrapping_add(elapsed_us);
+        self.inputs.elapsed_us = elapsed_us;
+        let start = Instant::now();
+        std::hint::black_box(self.observer.tick(&mut self.state, &self.inputs));
+        start.elapsed().as_nanos() as u64
+    }
+
+    fn temps_c(&self, out: &mut [f64]) {
+        let temps = self.observer.temps_c(&self.state);
+        for (o, t) in out.iter_mut().zip(temps) {
+            *o = f64::from(t);
+        }
+    }
+}
+
+/// A model file replayed open loop by the library's [`NetworkObserver`] at
+/// fixed ticks (see the module docs).
+pub struct ObserverEstimator {
+    model: Model,
+    info: PlantInfo,
+    observer: Box<dyn PaddedObserver>,
+    tick_us: u32,
+    /// Time simulated so far since the reset \[us\].
+    done_us: u64,
+    /// Time asked for so far since the reset \[us\].
+    asked_s: f64,
+    temps: Vec<f64>,
+    effective: Vec<f64>,
+    tick_ns: Vec<u32>,
+    size_class: usize,
+}
+
+impl ObserverEstimator {
+    /// Builds the observer of `model` with ticks of `tick_us` \[us\] (on a
+    /// large stack: the gain is solved there).
+    ///
+    /// # Errors
+    /// No boundary, more than 2, more nodes or sources than the largest
+    /// class, a tick of 0, or a network the library refuses.
+    pub fn new(model: Model, tick_us: u32) -> Result<Self> {
+        if tick_us == 0 {
+            bail!("--tick-us must be at least 1");
+        }
+        let info = plant_info(&model);
+        let net = model.network.clone();
+        if net.boundaries() == 0 {
+            bail!(
+                "model `{}` has no boundary: the library observer needs one (the ambient)",
+                model.name
+            );
+        }
+        let class = class_of(&net, &OBSERVER_CLASSES, "the library observer")?;
+        let ambient = info
+            .boundaries
+            .iter()
+            .position(|b| b.name == "ambient")
+            .unwrap_or(0);
+        let settings = NetworkSettings {
+            step_us: tick_us,
+            // No sensor sees a bias (see the module docs).
+            bias_noise_w2_per_s: 0.0,
+            ambient_boundary: ambient,
+            ..NetworkSettings::DEFAULT
+        };
+        let observer = on_big_stack("the library observer", move || match class {
+            8 => Sized::<8, 16>::build(&net, settings),
+            16 => Sized::<16, 32>::build(&net, settings),
+            32 => Sized::<32, 64>::build(&net, settings),
+            _ => Sized::<96, 192>::build(&net, settings),
+        })?;
+        let n = model.nodes.len();
+        Ok(Self {
+            model,
+            info,
+            observer,
+            tick_us,
+            done_us: 0,
+            asked_s: 0.0,
+            temps: vec![0.0; n],
+            effective: Vec::new(),
+            tick_ns: Vec::new(),
+            size_class: class,
+        })
+    }
+
+    /// The padded size the observer runs at.
+    pub fn size_class(&self) -> usize {
+        self.size_class
+    }
+
+    /// The tick \[us\].
+    pub fn tick_us(&self) -> u32 {
+        self.tick_us
+    }
+}
+
+impl Estimator for ObserverEstimator {
+    fn info(&self) -> &PlantInfo {
+        &self.info
+    }
+
+    fn reset(&mut self, temps_c: &[f64]) {
+        // The boundaries of the first row arrive with the first predict;
+        // until then the padding sits at the mean start temperature.
+        let mean = temps_c.iter().sum::<f64>() / temps_c.len().max(1) as f64;
+        self.observer.reset(temps_c, &[mean, mean]);
+        self.temps.copy_from_slice(temps_c);
+        self.done_us = 0;
+        self.asked_s = 0.0;
+    }
+
+    /// Ticks of `tick_us` until the simulated time reaches the trace's
+    /// (a remainder shorter than a tick carries to the next row).
+    fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        if !(dt_s.is_finite() && dt_s > 0.0) {
+            return;
+        }
+        self.model
+            .effective_currents(currents_a, signals, &mut self.effective);
+        self.observer.inputs(&self.effective, boundary_c);
+        self.asked_s += dt_s;
+        let target_us = (self.asked_s * 1e6).round() as u64;
+        let tick = u64::from(self.tick_us);
+        while self.done_us + tick <= target_us {
+            let ns = self.observer.tick(self.tick_us);
+            self.tick_ns.push(u32::try_from(ns).unwrap_or(u32::MAX));
+            self.done_us += tick;
+        }
+        self.observer.temps_c(&mut self.temps);
+    }
+
+    fn update(&mut self, _measured: &[Measurement]) {}
+
+    fn estimate_c(&self) -> &[f64] {
+        &self.temps
+    }
+
+    fn kind(&self) -> &'static str {
+        "network-observer"
+    }
+
+    fn take_tick_times_ns(&mut self) -> Option<Vec<u32>> {
+        Some(std::mem::take(&mut self.tick_ns))
+    }
+}
