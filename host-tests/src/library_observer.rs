@@ -12,12 +12,22 @@
 //! large stack and the result is boxed. Few classes keep the compile time
 //! down: a 2-node coil runs as 8 nodes, the HPPA grid's 84 coils as 96.
 //!
-//! # Open loop
-//! Without fused sensors the observer's one thermocouple (on node 0) never
-//! gets a reading: the estimate is the library's model step, the exact
-//! zero-order hold of the network with `R(T)` at the estimate, run in `f32`
-//! on deviations with the rounding carried. The heat-input biases stay at
-//! zero (their noise is set to 0, since no sensor could see them).
+//! # Open loop and fused thermocouples
+//! The observer has [`SENSOR_SLOTS`] thermocouple slots. Without fused
+//! sensors none gets a reading: the estimate is the library's model step,
+//! the exact zero-order hold of the network with `R(T)` at the estimate,
+//! run in `f32` on deviations with the rounding carried. With `--measure`
+//! each column is a thermocouple of its node: a row's reading is handed to
+//! the tick right after the row (as a driver's sample taken then), and the
+//! library's steady-state correction fuses it with the gain solved for the
+//! trace's row spacing; unused slots sit on a padding node (the class then
+//! needs one node more than the model), decoupled from the real nodes.
+//!
+//! The heat-input biases stay at zero (their noise is 0): the padding
+//! sources have biases no sensor can see, and an unobservable random walk
+//! has no steady gain. The fusion therefore corrects temperatures, not heat
+//! inputs; a heat the model lacks is what `--disturbance` estimates, with
+//! the library's time-varying filter ([`crate::kalman`]).
 //!
 //! # Currents above 100 A
 //! The observer holds a current beyond its plausibility limit (the
@@ -40,8 +50,11 @@ use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
 };
+use coil_thermal::observer::{SensorStatus, TimedReading};
+use coil_thermal::Reading;
 
 use crate::dynamic_network::DynNetwork;
+use crate::kalman::FusionStats;
 use crate::limits::{class_of, on_big_stack, padded_with, Padding};
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement};
@@ -57,12 +70,34 @@ pub const CURRENT_SCALE: f64 = 16.0;
 /// The default tick \[us\] (the controller's 1 ms loop).
 pub const DEFAULT_TICK_US: u32 = 1000;
 
+/// Thermocouple slots of the padded observer: at most this many fused
+/// sensors (unused slots sit on a padding node and never read).
+pub const SENSOR_SLOTS: usize = 4;
+
+/// How the observer fuses the `--measure` sensors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fusion {
+    /// Node of each fused sensor, in the order of the readings.
+    pub sensor_nodes: Vec<usize>,
+    /// Standard deviation of every thermocouple \[K\].
+    pub sensor_sigma_k: f64,
+    /// Growth rate of each node's temperature variance \[K^2/s\].
+    pub node_noise_k2_per_s: f64,
+    /// Time between readings the steady gain is solved for \[s\] (the
+    /// trace's row spacing).
+    pub correction_period_s: f64,
+}
+
 /// The size-independent face of a padded observer with its state.
 trait PaddedObserver: Send {
     /// A fresh state at `temps_c` (real nodes) and `boundary_c`.
     fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]);
     /// Sets the held inputs of the following ticks.
     fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]);
+    /// Readings (one per fused sensor, `None`: none) for the next tick.
+    fn readings(&mut self, z: &[Option<f64>]);
+    /// What the last tick did with each fused sensor's reading.
+    fn statuses(&self, out: &mut [SensorStatus]);
     /// One library tick of `elapsed_us`; returns its host time \[ns\].
     fn tick(&mut self, elapsed_us: u32) -> u64;
     /// The real nodes' estimates \[degC\] into `out`.
@@ -70,19 +105,35 @@ trait PaddedObserver: Send {
 }
 
 struct Sized<const C: usize, const X: usize> {
-    observer: NetworkObserver<C, 2, C, X, 1>,
-    state: NetworkObserverState<C, 2, C, X, 1>,
-    inputs: NetworkInputs<2, C, 1>,
+    observer: NetworkObserver<C, 2, C, X, SENSOR_SLOTS>,
+    state: NetworkObserverState<C, 2, C, X, SENSOR_SLOTS>,
+    inputs: NetworkInputs<2, C, SENSOR_SLOTS>,
+    /// Readings waiting for the next tick.
+    pending: [Option<f32>; SENSOR_SLOTS],
 }
 
 impl<const C: usize, const X: usize> Sized<C, X> {
-    fn build(net: &DynNetwork, settings: NetworkSettings) -> Result<Box<dyn PaddedObserver>> {
+    fn build(
+        net: &DynNetwork,
+        settings: NetworkSettings,
+        sensor_nodes: &[usize],
+    ) -> Result<Box<dyn PaddedObserver>> {
         let padding = Padding {
             link_to_boundary: true,
             resistance_scale: CURRENT_SCALE * CURRENT_SCALE,
         };
         let network = padded_with::<C>(net, padding)?;
-        let observer = NetworkObserverBuilder::new(&network, [0])
+        // Unused slots on the first padding node (decoupled from the real
+        // nodes, so the real sensors' gain is the one they would have
+        // alone), or on node 0 when no sensor is fused (never read).
+        let spare = if sensor_nodes.is_empty() {
+            0
+        } else {
+            net.nodes()
+        };
+        let mut slots = [spare; SENSOR_SLOTS];
+        slots[..sensor_nodes.len()].copy_from_slice(sensor_nodes);
+        let observer = NetworkObserverBuilder::new(&network, slots)
             // No element limits the currents here: the replay's alarm
             // watches the estimate (see `observer::LibraryAlarm`).
             .incidence([[false; C]; C])
@@ -97,10 +148,11 @@ impl<const C: usize, const X: usize> Sized<C, X> {
             inputs: NetworkInputs {
                 currents_a: [0.0; C],
                 boundary_c: [origin; 2],
-                readings: [None],
+                readings: [None; SENSOR_SLOTS],
                 now_us: 0,
                 elapsed_us: 0,
             },
+            pending: [None; SENSOR_SLOTS],
         }))
     }
 }
@@ -130,9 +182,32 @@ impl<const C: usize, const X: usize> PaddedObserver for Sized<C, X> {
         }
     }
 
+    fn readings(&mut self, z: &[Option<f64>]) {
+        self.pending = [None; SENSOR_SLOTS];
+        for (p, v) in self.pending.iter_mut().zip(z) {
+            *p = v.filter(|v| v.is_finite()).map(|v| v as f32);
+        }
+    }
+
+    fn statuses(&self, out: &mut [SensorStatus]) {
+        out.copy_from_slice(&self.state.outputs().sensors[..out.len()]);
+    }
+
     fn tick(&mut self, elapsed_us: u32) -> u64 {
         self.inputs.now_us = self.inputs.now_us.wrapping_add(elapsed_us);
         self.inputs.elapsed_us = elapsed_us;
+        // A thermocouple sample taken now, as a driver would deliver it
+        // (the cold junction does not enter the fusion).
+        let now_us = self.inputs.now_us;
+        for (slot, z) in self.inputs.readings.iter_mut().zip(&mut self.pending) {
+            *slot = z.take().map(|temp_c| TimedReading {
+                result: Ok(Reading {
+                    temp_c,
+                    cold_junction_c: 25.0,
+                }),
+                sampled_at_us: now_us,
+            });
+        }
         let start = Instant::now();
         std::hint::black_box(self.observer.tick(&mut self.state, &self.inputs));
         start.elapsed().as_nanos() as u64
@@ -161,18 +236,43 @@ pub struct ObserverEstimator {
     effective: Vec<f64>,
     tick_ns: Vec<u32>,
     size_class: usize,
+    sensors: Vec<usize>,
+    /// Readings handed over, not yet seen by a tick.
+    awaiting: bool,
+    statuses: Vec<SensorStatus>,
+    stats: Vec<FusionStats>,
 }
 
 impl ObserverEstimator {
-    /// Builds the observer of `model` with ticks of `tick_us` \[us\] (on a
-    /// large stack: the gain is solved there).
+    /// Builds the observer of `model` with ticks of `tick_us` \[us\], open
+    /// loop (on a large stack: the gain is solved there).
     ///
     /// # Errors
     /// No boundary, more than 2, more nodes or sources than the largest
     /// class, a tick of 0, or a network the library refuses.
     pub fn new(model: Model, tick_us: u32) -> Result<Self> {
+        Self::with_fusion(model, tick_us, None)
+    }
+
+    /// [`Self::new`] fusing thermocouples: each `--measure` column is a
+    /// reading of its node, handed to the tick that follows its row.
+    ///
+    /// # Errors
+    /// As [`Self::new`]; more than [`SENSOR_SLOTS`] sensors; a noise or
+    /// period that is not finite and positive; a model that fills its size
+    /// class (the unused sensor slots need a padding node).
+    pub fn with_fusion(model: Model, tick_us: u32, fusion: Option<Fusion>) -> Result<Self> {
         if tick_us == 0 {
             bail!("--tick-us must be at least 1");
+        }
+        let sensors = fusion
+            .as_ref()
+            .map_or(Vec::new(), |f| f.sensor_nodes.clone());
+        if sensors.len() > SENSOR_SLOTS {
+            bail!(
+                "--measure: the library observer fuses at most {SENSOR_SLOTS} sensors, got {}",
+                sensors.len()
+            );
         }
         let info = plant_info(&model);
         let net = model.network.clone();
@@ -182,24 +282,57 @@ impl ObserverEstimator {
                 model.name
             );
         }
-        let class = class_of(&net, &OBSERVER_CLASSES, "the library observer")?;
+        // Fused sensors leave their unused slots on a padding node, so the
+        // class must hold one more node.
+        let mut need = net.clone();
+        if !sensors.is_empty() {
+            need = DynNetwork::new(vec![1.0; net.nodes() + 1], net.boundaries())?;
+            for s in net.sources() {
+                need.joule_source(s.node, s.resistance)?;
+            }
+        }
+        let class = class_of(&need, &OBSERVER_CLASSES, "the library observer")?;
         let ambient = info
             .boundaries
             .iter()
             .position(|b| b.name == "ambient")
             .unwrap_or(0);
-        let settings = NetworkSettings {
+        let mut settings = NetworkSettings {
             step_us: tick_us,
-            // No sensor sees a bias (see the module docs).
+            // Frozen biases (see the module docs).
             bias_noise_w2_per_s: 0.0,
             ambient_boundary: ambient,
             ..NetworkSettings::DEFAULT
         };
+        if let Some(f) = &fusion {
+            let positive = |v: f64| v.is_finite() && v > 0.0;
+            if !positive(f.sensor_sigma_k) {
+                bail!(
+                    "--measurement-noise-k must be finite and > 0, got {}",
+                    f.sensor_sigma_k
+                );
+            }
+            if !(f.node_noise_k2_per_s.is_finite() && f.node_noise_k2_per_s >= 0.0) {
+                bail!(
+                    "--process-noise-k2-per-s must be finite and >= 0, got {}",
+                    f.node_noise_k2_per_s
+                );
+            }
+            if !positive(f.correction_period_s) {
+                bail!("the trace's row spacing must be > 0 s to fuse readings");
+            }
+            settings.sensor_sigma_k = f.sensor_sigma_k;
+            settings.node_noise_k2_per_s = f.node_noise_k2_per_s;
+            settings.correction_period_s = f.correction_period_s.max(f64::from(tick_us) * 1e-6);
+            // A reading is handed to the tick right after its row.
+            settings.max_reading_age_us = u32::MAX;
+        }
+        let slots = sensors.clone();
         let observer = on_big_stack("the library observer", move || match class {
-            8 => Sized::<8, 16>::build(&net, settings),
-            16 => Sized::<16, 32>::build(&net, settings),
-            32 => Sized::<32, 64>::build(&net, settings),
-            _ => Sized::<96, 192>::build(&net, settings),
+            8 => Sized::<8, 16>::build(&net, settings, &slots),
+            16 => Sized::<16, 32>::build(&net, settings, &slots),
+            32 => Sized::<32, 64>::build(&net, settings, &slots),
+            _ => Sized::<96, 192>::build(&net, settings, &slots),
         })?;
         let n = model.nodes.len();
         Ok(Self {
@@ -213,7 +346,23 @@ impl ObserverEstimator {
             effective: Vec::new(),
             tick_ns: Vec::new(),
             size_class: class,
+            statuses: vec![SensorStatus::NoReading; sensors.len()],
+            stats: sensors
+                .iter()
+                .map(|&node| FusionStats {
+                    node,
+                    fused: 0,
+                    rejected: 0,
+                })
+                .collect(),
+            sensors,
+            awaiting: false,
         })
+    }
+
+    /// Per-sensor fusion counts so far.
+    pub fn stats(&self) -> &[FusionStats] {
+        &self.stats
     }
 
     /// The padded size the observer runs at.
@@ -258,11 +407,41 @@ impl Estimator for ObserverEstimator {
             let ns = self.observer.tick(self.tick_us);
             self.tick_ns.push(u32::try_from(ns).unwrap_or(u32::MAX));
             self.done_us += tick;
+            if self.awaiting {
+                self.awaiting = false;
+                self.observer.statuses(&mut self.statuses);
+                for (s, status) in self.stats.iter_mut().zip(&self.statuses) {
+                    match status {
+                        SensorStatus::Fused { .. } => s.fused += 1,
+                        SensorStatus::Rejected { .. } => s.rejected += 1,
+                        _ => {}
+                    }
+                }
+            }
         }
         self.observer.temps_c(&mut self.temps);
     }
 
-    fn update(&mut self, _measured: &[Measurement]) {}
+    /// Hands the row's readings to the next tick (the estimate recorded at
+    /// this row is the prior; the correction shows from the next row on).
+    fn update(&mut self, measured: &[Measurement]) {
+        if self.sensors.is_empty() {
+            return;
+        }
+        let z: Vec<Option<f64>> = self
+            .sensors
+            .iter()
+            .enumerate()
+            .map(|(j, node)| {
+                measured
+                    .get(j)
+                    .filter(|m| m.node == *node)
+                    .map(|m| m.value_c)
+            })
+            .collect();
+        self.awaiting = z.iter().any(|v| v.is_some_and(f64::is_finite));
+        self.observer.readings(&z);
+    }
 
     fn estimate_c(&self) -> &[f64] {
         &self.temps

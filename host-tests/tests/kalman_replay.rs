@@ -80,6 +80,12 @@ fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
         "the unmodelled heat must matter: open loop {o} K^2"
     );
     assert!(f < 0.05 * o, "fused + disturbance {f} vs open loop {o} K^2");
+    // Without `--disturbance` the library observer fuses the housing as a
+    // thermocouple (temperatures corrected, biases frozen): better than
+    // open loop, every reading fused, but no heat input estimated.
+    assert_eq!(plain["estimator"], "network-observer");
+    assert!(p < 0.5 * o, "observer fused {p} vs open loop {o} K^2");
+    assert!(plain["fusion"]["sensors"][0]["fused"].as_u64().unwrap() > 3900);
     assert!(
         f < p,
         "the disturbance state is what corrects the coil: {f} vs {p} K^2"

@@ -7,7 +7,7 @@ use super::common;
 use super::ReplayArgs;
 use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
-use crate::library_observer::ObserverEstimator;
+use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
@@ -182,19 +182,7 @@ fn median_row_s(time_s: &[f64]) -> f64 {
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model = Model::build(&common::model_file(&a.model)?)?;
-    // Without fused sensors the estimator is the library's observer at
-    // `--tick-us` ticks; with them the library's Kalman filter on the model
-    // file, at the trace's rows.
-    let mut observer = None;
-    let mut kalman = None;
-    let info = if a.measure.is_empty() {
-        observer
-            .insert(ObserverEstimator::new(model.clone(), a.tick_us)?)
-            .info()
-            .clone()
-    } else {
-        crate::sim::plant_info(&model)
-    };
+    let info = crate::sim::plant_info(&model);
     let trace = common::read_trace(&a.trace, a.trace_args.sample_period_s)?;
     let bind = common::bindings(&a.trace_args)?;
     let drive = Drive::from_trace(&info, &trace, &bind)?;
@@ -209,9 +197,27 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         predictor,
         settings.horizon_s,
     )?;
-    let estimator: &mut dyn Estimator = if let Some(o) = observer.as_mut() {
-        o
+    // The library's observer at `--tick-us` ticks, fusing the `--measure`
+    // sensors as thermocouples; with `--disturbance` the library's
+    // time-varying Kalman filter at the trace's rows instead.
+    let mut observer = None;
+    let mut kalman = None;
+    let estimator: &mut dyn Estimator = if a.disturbance.is_empty() {
+        let fusion = (!measured.is_empty()).then(|| Fusion {
+            sensor_nodes: measured.iter().map(|m| m.node).collect(),
+            sensor_sigma_k: a.measurement_noise_k,
+            node_noise_k2_per_s: a.process_noise_k2_per_s,
+            correction_period_s: median_row_s(&drive.time_s),
+        });
+        observer.insert(ObserverEstimator::with_fusion(
+            model.clone(),
+            a.tick_us,
+            fusion,
+        )?)
     } else {
+        if measured.is_empty() {
+            bail!("--disturbance needs at least one --measure sensor");
+        }
         let disturbances = a
             .disturbance
             .iter()
@@ -249,6 +255,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
     result.scores.truncate(truth.len());
     let kind = estimator.kind();
+    let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
+        json!({
+            "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
+                "column": m.column,
+                "node": info.nodes[s.node],
+                "fused": s.fused,
+                "rejected": s.rejected,
+            })).collect::<Vec<_>>(),
+        })
+    });
     let fusion = kalman.as_ref().map(|k| {
         json!({
             "sensors": k.stats().iter().zip(&measured).map(|(s, m)| json!({
@@ -314,7 +330,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
         "model": info.name,
         "estimator": kind,
-        "fusion": fusion,
+        "fusion": fusion.or(observer_fusion),
         "trace": a.trace.display().to_string(),
         "rows": drive.len(),
         "truth": result.scores,
@@ -353,6 +369,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             println!(
                 "{:<20} {:<16} {:>10.4} {:>10.4} {:>12.4} {:>10.1}",
                 s.column, s.node, s.mse_k2, s.rmse_k, s.max_abs_error_k, s.max_error_time_s
+            );
+        }
+    }
+    if let Some(o) = observer.as_ref().filter(|_| !measured.is_empty()) {
+        for (s, m) in o.stats().iter().zip(&measured) {
+            println!(
+                "fused {} -> {}: {} readings fused, {} rejected by the gate",
+                m.column, info.nodes[s.node], s.fused, s.rejected
             );
         }
     }
