@@ -113,7 +113,7 @@ impl DynNetwork {
         self.boundaries
     }
 
-    /// Number of Joule sources (current slots of [`DynNetwork::step`]).
+    /// The Joule sources, one per current slot (in input order).
     pub fn sources(&self) -> &[Source] {
         &self.sources
     }
