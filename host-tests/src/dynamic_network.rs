@@ -42,7 +42,7 @@ pub struct Source {
     pub resistance: Resistance,
 }
 
-/// Why a dynamic network could not be built (mirrors
+/// Why a dynamic network could not be built (as
 /// [`coil_thermal::BuildError`], with indices that refer to the description).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DynError {
