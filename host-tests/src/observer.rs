@@ -3,10 +3,9 @@
 //! Per trace row: *update* with the row's measurements, *check* the
 //! estimate, *predict* to the next row with the row's inputs. The
 //! estimators are the library's observer ticking at 1 ms
-//! ([`crate::library_observer`]), the library's Kalman filter with
-//! disturbance states at the trace's rows ([`crate::kalman`]) and
-//! [`OpenLoop`] (a [`Plant`] alone, e.g. the Omnimagnet's nonlinear model on
-//! the library's RK4); the protection is
+//! ([`crate::library_observer`]) and the library's Kalman filter with
+//! disturbance states at the trace's rows ([`crate::kalman`]); the
+//! protection is
 //! [`LibraryAlarm`], the library's `coil_thermal::protect::alarm` with its
 //! derated limits, debounced warning, latched shutdown and event queue.
 //!
@@ -30,7 +29,7 @@ use serde::Serialize;
 
 use crate::limits::{TimeToLimit, NO_LIMIT_C, SIZE_CLASSES};
 
-use crate::sim::{initial_temps, Drive, Plant, PlantInfo};
+use crate::sim::{initial_temps, Drive, PlantInfo};
 
 /// A measured temperature for one node at one row.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,7 +46,7 @@ pub trait Estimator {
     fn info(&self) -> &PlantInfo;
     /// Sets the estimate \[degC\].
     fn reset(&mut self, temps_c: &[f64]);
-    /// Time update over `dt_s` with inputs held (see [`Plant::step`]).
+    /// Time update over `dt_s` with inputs held (see [`crate::sim::Plant::step`]).
     fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]);
     /// Measurement update (fused sensors only).
     fn update(&mut self, measured: &[Measurement]);
@@ -60,28 +59,6 @@ pub trait Estimator {
     /// `None` for one that steps once per trace row.
     fn take_tick_times_ns(&mut self) -> Option<Vec<u32>> {
         None
-    }
-}
-
-/// The model alone: measurements are not fused.
-pub struct OpenLoop<P>(pub P);
-
-impl<P: Plant> Estimator for OpenLoop<P> {
-    fn info(&self) -> &PlantInfo {
-        self.0.info()
-    }
-    fn reset(&mut self, temps_c: &[f64]) {
-        self.0.reset(temps_c);
-    }
-    fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
-        self.0.step(dt_s, currents_a, boundary_c, signals);
-    }
-    fn update(&mut self, _measured: &[Measurement]) {}
-    fn estimate_c(&self) -> &[f64] {
-        self.0.temps_c()
-    }
-    fn kind(&self) -> &'static str {
-        "open-loop"
     }
 }
 
