@@ -24,7 +24,10 @@
 //! * `grid_observer_84_f32_ns`: model and protection of the HPPA grid
 //!   together, the mean 1 ms tick over whole update cycles ([`GridLoop`]);
 //! * `omnimagnet_observer_16_f32_ns`: model and protection of one
-//!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]).
+//!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]);
+//! * `network_observer_96_f32_ns`: the main job's tick, the library's
+//!   `NetworkObserver` on the HPPA grid's 84 coils padded to 96 nodes, the
+//!   mean 1 ms tick (`replay` prints the distribution).
 //!
 //! In JSON each key `<name>_ns` also has `<name>_budget_ratio`.
 
@@ -526,6 +529,36 @@ impl OmniLoop {
     }
 }
 
+/// The main job's tick: the library's `NetworkObserver` on the HPPA grid's
+/// 84 coils (FDM-fitted, as a model file) padded to 96 nodes, 1 ms ticks,
+/// every coil at 1 A, open loop; the mean over many ticks (one in 16 runs
+/// the time-to-limit slice).
+fn network_observer_tick(min_time: Duration, repeats: usize) -> Timing {
+    use crate::devices::{grid_file, DEFAULT_COLS, DEFAULT_ROWS};
+    use crate::library_observer::ObserverEstimator;
+    use crate::model_file::Model;
+    use crate::observer::Estimator;
+    let file = grid_file(
+        DEFAULT_ROWS,
+        DEFAULT_COLS,
+        &coil_thermal::grid::GridParams::FDM_FITTED,
+    )
+    .expect("the HPPA grid builds");
+    let model = Model::build(&file).expect("the HPPA grid is a valid model");
+    let mut observer = ObserverEstimator::new(model, 1000).expect("the observer builds");
+    let n = DEFAULT_ROWS * DEFAULT_COLS;
+    observer.reset(&vec![20.0; n]);
+    observer.hold_inputs(&vec![1.0; n], &[20.0, 20.0], &[]);
+    measure(
+        format!("network_observer_{}_f32_ns", observer.size_class()),
+        min_time,
+        repeats,
+        || {
+            black_box(observer.tick_once());
+        },
+    )
+}
+
 /// Runs every measurement.
 pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
     let mut out = Vec::new();
@@ -569,6 +602,7 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
     timing.ns /= f64::from(GRID_TICKS_PER_UPDATE);
     timing.budget_ratio /= f64::from(GRID_TICKS_PER_UPDATE);
     out.push(timing);
+    out.push(network_observer_tick(min_time, repeats));
     let mut omni = OmniLoop::new();
     let mut now_us = 0u32;
     out.push(measure(

@@ -374,6 +374,20 @@ impl ObserverEstimator {
     pub fn tick_us(&self) -> u32 {
         self.tick_us
     }
+
+    /// Holds these inputs (per model input \[A\], boundary \[degC\],
+    /// signal) for [`Self::tick_once`].
+    pub fn hold_inputs(&mut self, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        self.model
+            .effective_currents(currents_a, signals, &mut self.effective);
+        self.observer.inputs(&self.effective, boundary_c);
+    }
+
+    /// One library tick of `tick_us` with the held inputs, not recorded;
+    /// returns its host time \[ns\] (for `bench`).
+    pub fn tick_once(&mut self) -> u64 {
+        self.observer.tick(self.tick_us)
+    }
 }
 
 impl Estimator for ObserverEstimator {
