@@ -4,8 +4,7 @@
 //! clock) and reports the median over `repeats` runs of the mean time per
 //! step \[ns\]. Keys name the model, its size, the scalar type and the unit,
 //! e.g. `network_16_f32_ns` (library `ExplicitStepper`, a 16-node chain with a
-//! current input per node) or `dynamic_84_f64_ns` (the host's runtime-size
-//! network). Device models and the filter:
+//! current input per node). Device models and the filter:
 //!
 //! * `grid_84_{f32,f64,q32}_ns`: one 1 ms `CoilGrid::<S, 7, 12>::tick` of
 //!   the HPPA grid (FDM-fitted parameters, update every tick: the worst
@@ -25,7 +24,10 @@
 //! * `grid_observer_84_f32_ns`: model and protection of the HPPA grid
 //!   together, the mean 1 ms tick over whole update cycles ([`GridLoop`]);
 //! * `omnimagnet_observer_16_f32_ns`: model and protection of one
-//!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]).
+//!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]);
+//! * `network_observer_96_f32_ns`: the main job's tick, the library's
+//!   `NetworkObserver` on the HPPA grid's 84 coils padded to 96 nodes, the
+//!   mean 1 ms tick (`replay` prints the distribution).
 //!
 //! In JSON each key `<name>_ns` also has `<name>_budget_ratio`.
 
@@ -45,8 +47,6 @@ use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, SolenoidParams, Q32,
 };
 use serde::Serialize;
-
-use crate::dynamic_network::DynNetwork;
 
 /// One measured step.
 #[derive(Debug, Clone, Serialize)]
@@ -160,28 +160,6 @@ fn scalar_steps<const N: usize, const B: usize, const M: usize>(
         min_time,
         repeats,
     ));
-}
-
-fn dynamic_step<const N: usize, const B: usize, const M: usize>(
-    net: &Network<N, B, M>,
-    dt_s: f64,
-    min_time: Duration,
-    repeats: usize,
-) -> Timing {
-    let dyn_net = DynNetwork::from_network(net).expect("valid network");
-    let mut temps = vec![20.0; N];
-    let currents = vec![1.5; M];
-    let boundary = vec![20.0; B];
-    let mut scratch = Vec::new();
-    measure(format!("dynamic_{N}_f64_ns"), min_time, repeats, || {
-        dyn_net.euler_step(
-            black_box(&mut temps),
-            black_box(&currents),
-            black_box(&boundary),
-            dt_s,
-            &mut scratch,
-        );
-    })
 }
 
 fn grid_tick<S: Scalar>(key: &str, min_time: Duration, repeats: usize) -> Timing {
@@ -551,6 +529,36 @@ impl OmniLoop {
     }
 }
 
+/// The main job's tick: the library's `NetworkObserver` on the HPPA grid's
+/// 84 coils (FDM-fitted, as a model file) padded to 96 nodes, 1 ms ticks,
+/// every coil at 1 A, open loop; the mean over many ticks (one in 16 runs
+/// the time-to-limit slice).
+fn network_observer_tick(min_time: Duration, repeats: usize) -> Timing {
+    use crate::devices::{grid_file, DEFAULT_COLS, DEFAULT_ROWS};
+    use crate::library_observer::ObserverEstimator;
+    use crate::model_file::Model;
+    use crate::observer::Estimator;
+    let file = grid_file(
+        DEFAULT_ROWS,
+        DEFAULT_COLS,
+        &coil_thermal::grid::GridParams::FDM_FITTED,
+    )
+    .expect("the HPPA grid builds");
+    let model = Model::build(&file).expect("the HPPA grid is a valid model");
+    let mut observer = ObserverEstimator::new(model, 1000).expect("the observer builds");
+    let n = DEFAULT_ROWS * DEFAULT_COLS;
+    observer.reset(&vec![20.0; n]);
+    observer.hold_inputs(&vec![1.0; n], &[20.0, 20.0], &[]);
+    measure(
+        format!("network_observer_{}_f32_ns", observer.size_class()),
+        min_time,
+        repeats,
+        || {
+            black_box(observer.tick_once());
+        },
+    )
+}
+
 /// Runs every measurement.
 pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
     let mut out = Vec::new();
@@ -561,8 +569,6 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
         .network::<30>()
         .expect("HeSE defaults are valid");
     scalar_steps("solenoid", &sol, 0.1, min_time, repeats, &mut out);
-    out.push(dynamic_step(&chain::<3>(), 1e-3, min_time, repeats));
-    out.push(dynamic_step(&chain::<84>(), 1e-3, min_time, repeats));
     out.push(grid_tick::<f32>("grid_84_f32_ns", min_time, repeats));
     out.push(grid_tick::<f64>("grid_84_f64_ns", min_time, repeats));
     out.push(grid_tick::<Q32>("grid_84_q32_ns", min_time, repeats));
@@ -596,6 +602,7 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
     timing.ns /= f64::from(GRID_TICKS_PER_UPDATE);
     timing.budget_ratio /= f64::from(GRID_TICKS_PER_UPDATE);
     out.push(timing);
+    out.push(network_observer_tick(min_time, repeats));
     let mut omni = OmniLoop::new();
     let mut now_us = 0u32;
     out.push(measure(

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use crate::model_file::{Model, ModelFile};
 use crate::observer::{score, Score, Sensor};
-use crate::sim::{initial_temps, simulate, Drive, FilePlant, Plant};
+use crate::sim::{initial_temps, plant_info, simulate, Drive, FilePlant, Plant};
 
 /// A parameter to fit and its bounds.
 #[derive(Debug, Clone, PartialEq)]
@@ -399,7 +399,7 @@ impl Problem<'_> {
     fn simulate(&mut self, x: &DVector<f64>) -> Result<Vec<Vec<Vec<f64>>>> {
         self.evaluations += 1;
         let model = Model::build(&self.file_at(x)?)?;
-        let mut plant = FilePlant::new(model);
+        let mut plant = FilePlant::new(model)?;
         Ok(self
             .data
             .iter()
@@ -431,7 +431,7 @@ fn trace_fits(
     inits: &[Vec<f64>],
 ) -> Result<Vec<(f64, Vec<Score>)>> {
     let model = Model::build(file)?;
-    let mut plant = FilePlant::new(model);
+    let mut plant = FilePlant::new(model)?;
     let nodes = plant.info().nodes.clone();
     Ok(data
         .iter()
@@ -466,7 +466,7 @@ pub fn fit(
         bail!("no measured columns to fit: pass --measure COL=NODE");
     }
     let model = Model::build(file)?;
-    let info = FilePlant::new(model).info().clone();
+    let info = plant_info(&model);
     let inits = data
         .iter()
         .map(|d| {

@@ -1,17 +1,17 @@
 //! The library's device models as host plants and model files: the HPPA
 //! coil grid and the Omnimagnet.
 //!
-//! # HPPA grid: through the dynamic network
+//! # HPPA grid: as a model file
 //!
 //! `CoilGrid<S, ROWS, COLS>` has compile-time sizes. The host runs the grid
 //! as a model file instead: [`grid_file`] builds the library grid for one of
 //! the sizes in [`GRID_SIZES`] (a fixed set, other sizes are refused with a
 //! clear message), takes its network with `CoilGrid::to_network`, and writes
 //! every link as a named conductance, so the grid is simulated, replayed,
-//! calibrated and analysed by the same code as any model file (explicit
-//! Euler with sub-steps, bit-identical in `f64` to the library's
-//! `ExplicitStepper` on the same network). It is the grid's physics with a
-//! different integrator than `CoilGrid::tick` (no multi-rate accounting;
+//! calibrated and analysed by the same code as any model file: the
+//! library's `ExplicitStepper` (simulate, calibrate) and `NetworkObserver`
+//! (replay) on the network padded to 96 nodes. It is the grid's physics with
+//! another integrator than `CoilGrid::tick` (no multi-rate accounting;
 //! `tests/grid_replay.rs` bounds the grid stepper against an independent
 //! reference).
 //!
@@ -40,7 +40,7 @@
 //! `step_rk4` (capacities, conduction, convection and radiation at the
 //! present temperatures) in sub-steps of at most [`OMNIMAGNET_MAX_STEP_S`].
 //! [`omnimagnet_file`] is the network linearised at a uniform temperature
-//! (for limits, calibration and `--write-model`).
+//! (for replay, limits, calibration and `--write-model`).
 
 use anyhow::{bail, Context, Result};
 use coil_thermal::grid::{CoilGrid, GridConfig, GridParams, HppaPreset};

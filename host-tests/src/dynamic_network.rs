@@ -1,18 +1,13 @@
-//! A runtime-size mirror of the library's [`Network`] and
-//! [`ExplicitStepper`](coil_thermal::ExplicitStepper), in `f64`.
+//! The run-time *description* of a model file's network.
 //!
 //! A model file has a size known only at run time, while the library's
-//! network has const-generic sizes. This type holds the same description
-//! (capacities, pair conductances stored once, boundary conductances, Joule
-//! sources with the library's [`Resistance`], fixed powers) in `Vec`s and steps
-//! it with *the same operations in the same order* as the library's explicit
-//! step, so for any size both give bit-identical `f64` results (tested in
-//! `tests/dynamic_agreement.rs`). Pairs are stored sparsely, which keeps
-//! calibration of large, sparsely connected networks fast.
-//!
-//! The one addition is sub-stepping: [`DynNetwork::step`] splits an interval
-//! into equal explicit steps so that `h sum(G_i) / C_i <= max_ratio` at every
-//! node (the library's stepper refuses a ratio of 1 or more instead).
+//! [`Network`] has const-generic sizes. [`DynNetwork`] holds the same
+//! description (capacities, pair conductances stored once, boundary
+//! conductances, Joule sources with the library's [`Resistance`], fixed
+//! powers) in `Vec`s, validated as the library validates it. It computes
+//! nothing: every step, exponential, predict and update runs in the library
+//! on the description copied into a padded `Network<P, 2, P>`
+//! ([`crate::limits::padded_with`]).
 
 use coil_thermal::{Network, Resistance};
 
@@ -47,7 +42,7 @@ pub struct Source {
     pub resistance: Resistance,
 }
 
-/// Why a dynamic network could not be built (mirrors
+/// Why a dynamic network could not be built (as
 /// [`coil_thermal::BuildError`], with indices that refer to the description).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DynError {
@@ -118,7 +113,7 @@ impl DynNetwork {
         self.boundaries
     }
 
-    /// Number of Joule sources (current slots of [`DynNetwork::step`]).
+    /// The Joule sources, one per current slot (in input order).
     pub fn sources(&self) -> &[Source] {
         &self.sources
     }
@@ -307,109 +302,5 @@ impl DynNetwork {
             dyn_net.joule_source(s.node, s.resistance)?;
         }
         Ok(dyn_net)
-    }
-
-    /// Number of equal sub-steps for an interval `dt_s` so that every
-    /// sub-step has `h * max_rate <= max_ratio`.
-    pub fn substeps(&self, dt_s: f64, max_ratio: f64) -> usize {
-        let n = (dt_s * self.max_rate_per_s / max_ratio).ceil();
-        if n.is_finite() && n >= 1.0 {
-            n as usize
-        } else {
-            1
-        }
-    }
-
-    /// One explicit step of `h_s` \[s\]: the library's
-    /// `ExplicitStepper::step` operation for operation (flows per pair, then
-    /// boundaries, then Joule power `max(R(T), 0) I^2`, then `/ C`).
-    /// `currents_a` has one entry per source, `boundary_c` per boundary.
-    pub fn euler_step(
-        &self,
-        temps_c: &mut [f64],
-        currents_a: &[f64],
-        boundary_c: &[f64],
-        h_s: f64,
-        scratch: &mut Vec<f64>,
-    ) {
-        scratch.clear();
-        scratch.extend(self.fixed_power_w.iter().map(|p| p * h_s));
-        let energy = scratch.as_mut_slice();
-        // Library order: for each node i, its pairs (i, j > i), then its
-        // boundaries. Pairs and links are sorted by their first index.
-        let (mut p, mut l) = (0, 0);
-        for i in 0..temps_c.len() {
-            let t_i = temps_c[i];
-            while p < self.pairs.len() && self.pairs[p].a == i {
-                let pair = self.pairs[p];
-                let g_dt = pair.g_w_per_k * h_s;
-                if g_dt != 0.0 {
-                    let flow = g_dt * (temps_c[pair.b] - t_i);
-                    energy[i] += flow;
-                    energy[pair.b] -= flow;
-                }
-                p += 1;
-            }
-            while l < self.links.len() && self.links[l].node == i {
-                let link = self.links[l];
-                energy[i] += link.g_w_per_k * h_s * (boundary_c[link.boundary] - t_i);
-                l += 1;
-            }
-        }
-        for (s, current) in self.sources.iter().zip(currents_a) {
-            let t = temps_c[s.node];
-            let r = (s.resistance.r_at_0c_ohm + s.resistance.slope_ohm_per_k * t).max(0.0);
-            energy[s.node] += r * current * current * h_s;
-        }
-        for ((t, e), c) in temps_c
-            .iter_mut()
-            .zip(energy.iter())
-            .zip(&self.capacity_j_per_k)
-        {
-            *t += *e * (1.0 / c);
-        }
-    }
-
-    /// Advances `temps_c` by `dt_s` with inputs held, in as many equal
-    /// explicit sub-steps as `max_ratio` requires.
-    pub fn step(
-        &self,
-        temps_c: &mut [f64],
-        currents_a: &[f64],
-        boundary_c: &[f64],
-        dt_s: f64,
-        max_ratio: f64,
-        scratch: &mut Vec<f64>,
-    ) {
-        let n = self.substeps(dt_s, max_ratio);
-        let h = dt_s / n as f64;
-        for _ in 0..n {
-            self.euler_step(temps_c, currents_a, boundary_c, h, scratch);
-        }
-    }
-
-    /// `dT/dt` \[K/s\] of every node (the nonlinear right-hand side).
-    pub fn derivative_k_per_s(
-        &self,
-        temps_c: &[f64],
-        currents_a: &[f64],
-        boundary_c: &[f64],
-    ) -> Vec<f64> {
-        let mut q = self.fixed_power_w.clone();
-        for p in &self.pairs {
-            let flow = p.g_w_per_k * (temps_c[p.b] - temps_c[p.a]);
-            q[p.a] += flow;
-            q[p.b] -= flow;
-        }
-        for l in &self.links {
-            q[l.node] += l.g_w_per_k * (boundary_c[l.boundary] - temps_c[l.node]);
-        }
-        for (s, i) in self.sources.iter().zip(currents_a) {
-            q[s.node] += s.resistance.at_c(temps_c[s.node]) * i * i;
-        }
-        q.iter()
-            .zip(&self.capacity_j_per_k)
-            .map(|(q, c)| q / c)
-            .collect()
     }
 }

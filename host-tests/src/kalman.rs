@@ -1,17 +1,17 @@
-//! Sensor fusion for `replay --measure`: the library's Kalman filter
-//! (`coil_thermal::filter`) on a model file, at run-time size.
+//! Sensor fusion with disturbance states for `replay --disturbance`: the
+//! library's time-varying Kalman filter (`coil_thermal::filter::predict`,
+//! `update`, discretised by `coil_thermal::discretize::expm_with_integral`)
+//! on a model file.
 //!
-//! # Why a mirror
+//! # Sizes
 //! The library filter has const-generic sizes; a model file's size is known
-//! only at run time. [`DynKalman`] is the library's time-varying filter with
-//! `nalgebra::DMatrix`: the same predict (`x = F x + G u`,
-//! `P = F P F^T + Q`, symmetrised), the same gate (every reading against the
-//! prior, chi-square 1 dof, default [`CHI2_1DOF_999`]), the same sequential
-//! Joseph update and the same suspect and recovery counters, with the same
-//! nalgebra operations in the same order, so that on a fixed-size instance
-//! both give identical results (tested in `tests/kalman_mirror.rs`).
-//! [`expm_with_integral`] mirrors `coil_thermal::discretize::expm_with_integral`
-//! the same way.
+//! only at run time. The host builds the model's matrices (below) at
+//! run-time size and copies them into `KalmanConfig<f64, C, C, C>` for the
+//! smallest `C` of [`FILTER_CLASSES`] that holds the states, the inputs and
+//! the sensors; padding states, inputs and sensors are zero rows and
+//! columns (a padding state stays at zero with zero variance, a padding
+//! sensor never has a reading). Every exponential, predict, gate and update
+//! is the library's.
 //!
 //! # The model the filter runs
 //! The model file's network is linear except for `R(T)`: for every node `i`
@@ -44,307 +44,148 @@
 //! Cross-terms of `Q` between temperatures and disturbances over one step
 //! are neglected (a step is short against every time constant).
 
-use anyhow::{bail, Result};
-use coil_thermal::filter::{SensorVerdict, CHI2_1DOF_999};
-use nalgebra::{DMatrix, DVector};
+use anyhow::{anyhow, bail, Result};
+use coil_thermal::discretize::expm_with_integral;
+use coil_thermal::filter::{
+    predict, update, KalmanConfig, KalmanState, SensorVerdict, CHI2_1DOF_999,
+};
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement};
-use crate::sim::{FilePlant, Plant, PlantInfo};
+use crate::sim::{plant_info, PlantInfo};
 
-/// Taylor terms at the scaled step (as the library).
-const TAYLOR_TERMS: usize = 16;
-/// Most halvings of the step (as the library).
-const MAX_SQUARINGS: u32 = 60;
+/// The padded sizes `C` of the filter: `KalmanConfig<f64, C, C, C>` holds
+/// states (temperatures and disturbances), inputs (sources, boundaries and
+/// the constant) and sensors up to `C` each.
+pub const FILTER_CLASSES: [usize; 3] = [8, 16, 32];
 
-/// `exp(A h)` and `integral_0^h exp(A s) ds` by scaling and squaring: the
-/// library's `expm_with_integral` at run-time size.
-pub fn expm_with_integral(a: &DMatrix<f64>, h: f64) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
-    if !(h.is_finite() && h > 0.0) {
-        bail!("the step must be finite and > 0 s, got {h}");
-    }
-    let n = a.nrows();
-    let ah = a * h;
-    if !ah.iter().all(|v| v.is_finite()) {
-        bail!("the system matrix is not finite");
-    }
-    let norm = ah
-        .column_iter()
-        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    if !norm.is_finite() {
-        bail!("the system matrix is not finite");
-    }
-    let mut squarings = 0;
-    let mut scale = 1.0;
-    while norm * scale > 0.25 {
-        squarings += 1;
-        scale *= 0.5;
-        if squarings > MAX_SQUARINGS {
-            bail!("the system matrix is too large");
-        }
-    }
-    let scaled_h = h * scale;
-    let x = a * scaled_h;
-    let identity = DMatrix::<f64>::identity(n, n);
-    let mut term = identity.clone();
-    let mut e = identity.clone();
-    let mut phi = identity.clone();
-    for k in 1..TAYLOR_TERMS {
-        term = term * &x / (k as f64);
-        e += &term;
-        phi += &term / ((k + 1) as f64);
-    }
-    let mut phi = phi * scaled_h;
-    for _ in 0..squarings {
-        phi *= &identity + &e;
-        e = &e * &e;
-    }
-    Ok((e, phi))
+/// What one correction did, at run-time size.
+struct Correction {
+    verdicts: Vec<SensorVerdict>,
+    recovered: bool,
 }
 
-/// The library's `KalmanConfig` at run-time size (N states, M inputs,
-/// P sensors).
-#[derive(Debug, Clone, PartialEq)]
-pub struct DynKalman {
-    /// State transition `F` (N x N).
-    pub f: DMatrix<f64>,
-    /// Input matrix `G` (N x M).
-    pub g: DMatrix<f64>,
-    /// `H^T` (N x P): column `j` is sensor `j`'s row of `H`.
-    pub ht: DMatrix<f64>,
-    /// Process noise per step (N x N).
-    pub q: DMatrix<f64>,
-    /// Measurement noise variances (P).
-    pub r: DVector<f64>,
-    /// Gate threshold on `nu^2 / S`.
-    pub threshold: f64,
-    /// Suspect after this many consecutive rejections (0: never).
-    pub suspect_after: u16,
-    /// Recovery after this many all-rejected corrections (0: never).
-    pub recover_after: u16,
-    /// Variances added to the diagonal of `P` on recovery.
-    pub recovery_variance: DVector<f64>,
+/// The size-independent face of the library filter padded to a class.
+///
+/// Padding states have zero rows in `F`, `G` and `Q` (they stay at zero
+/// with zero variance), padding inputs zero columns in `G`, padding sensors
+/// a zero row in `H` and never a reading.
+trait PaddedFilter: Send {
+    /// Discretises `dx/dt = A x + B u` for `dt_s` (the library's
+    /// `expm_with_integral`: `F = exp(A dt)`, `G = Phi B`) and builds the
+    /// library's `KalmanConfig` with `H`, `Q` (states x states), `r` per
+    /// sensor, the gate threshold and the recovery variances.
+    #[allow(clippy::too_many_arguments)]
+    fn configure(
+        &mut self,
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        dt_s: f64,
+        h: &DMatrix<f64>,
+        q: &DMatrix<f64>,
+        r: &[f64],
+        gate: f64,
+        recovery: &[f64],
+    ) -> Result<()>;
+    /// Estimate `x0` with a diagonal covariance `p0_diag`, gate memory
+    /// cleared.
+    fn reset(&mut self, x0: &[f64], p0_diag: &[f64]);
+    /// The library's full predict with inputs `u`.
+    fn predict(&mut self, u: &[f64]);
+    /// The library's correction with readings `z` (one per sensor).
+    fn update(&mut self, z: &[Option<f64>]) -> Correction;
+    /// The first `out.len()` states of the estimate.
+    fn estimate(&self, out: &mut [f64]);
 }
 
-impl DynKalman {
-    /// The library's defaults: gate [`CHI2_1DOF_999`], suspect after 3,
-    /// recovery after 5 adding `1e4 max(r)` to every diagonal entry.
-    pub fn new(
-        f: DMatrix<f64>,
-        g: DMatrix<f64>,
-        h: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DVector<f64>,
-    ) -> Result<Self> {
-        let n = f.nrows();
-        if f.ncols() != n || g.nrows() != n || h.ncols() != n || q.shape() != (n, n) {
-            bail!("inconsistent filter matrix sizes");
+struct Filter<const C: usize> {
+    config: Option<KalmanConfig<f64, C, C, C>>,
+    state: KalmanState<f64, C, C>,
+    sensors: usize,
+}
+
+/// `m` in the top-left corner of an `R x K` zero matrix.
+fn pad<const R: usize, const K: usize>(m: &DMatrix<f64>) -> SMatrix<f64, R, K> {
+    let mut out = SMatrix::<f64, R, K>::zeros();
+    for i in 0..m.nrows() {
+        for j in 0..m.ncols() {
+            out[(i, j)] = m[(i, j)];
         }
-        if h.nrows() != r.len() {
-            bail!("one measurement noise per sensor row");
-        }
-        if r.iter().any(|v| !v.is_finite() || *v <= 0.0) {
-            bail!("measurement noise variances must be finite and > 0");
-        }
-        if ![&f, &g, &h, &q]
-            .iter()
-            .all(|m| m.iter().all(|v| v.is_finite()))
-        {
-            bail!("filter matrices must be finite");
-        }
-        let r_max = r.iter().fold(0.0f64, |a, v| a.max(*v));
-        Ok(Self {
-            f,
-            g,
-            ht: h.transpose(),
-            q: q.symmetric_part(),
-            r,
-            threshold: CHI2_1DOF_999,
-            suspect_after: 3,
-            recover_after: 5,
-            recovery_variance: DVector::repeat(n, r_max * 1e4),
+    }
+    out
+}
+
+impl<const C: usize> Filter<C> {
+    fn boxed(sensors: usize) -> Box<dyn PaddedFilter> {
+        Box::new(Self {
+            config: None,
+            state: KalmanState::new(SVector::zeros(), SMatrix::zeros()),
+            sensors,
         })
     }
 }
 
-/// The library's `KalmanState` (with its `GateCounters`) at run-time size.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DynKalmanState {
-    /// Estimate.
-    pub x: DVector<f64>,
-    /// Covariance.
-    pub cov: DMatrix<f64>,
-    /// Consecutive rejections per sensor.
-    pub consecutive_rejections: Vec<u16>,
-    /// Consecutive corrections with every present reading rejected.
-    pub all_rejected_streak: u16,
-}
+impl<const C: usize> PaddedFilter for Filter<C> {
+    fn configure(
+        &mut self,
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        dt_s: f64,
+        h: &DMatrix<f64>,
+        q: &DMatrix<f64>,
+        r: &[f64],
+        gate: f64,
+        recovery: &[f64],
+    ) -> Result<()> {
+        let lib = |e: coil_thermal::BuildError| anyhow!("Kalman filter: {e}");
+        let (f, phi) = expm_with_integral(&pad::<C, C>(a), dt_s).map_err(lib)?;
+        let g = phi * pad::<C, C>(b);
+        let mut rr = SVector::<f64, C>::repeat(1.0);
+        rr.as_mut_slice()[..r.len()].copy_from_slice(r);
+        let mut rec = SVector::<f64, C>::zeros();
+        rec.as_mut_slice()[..recovery.len()].copy_from_slice(recovery);
+        let config = KalmanConfig::new(f, g, pad::<C, C>(h), pad::<C, C>(q), rr)
+            .and_then(|c| c.with_gate(gate))
+            .and_then(|c| c.with_recovery(5, rec))
+            .map_err(lib)?;
+        self.config = Some(config);
+        Ok(())
+    }
 
-impl DynKalmanState {
-    /// A state with estimate `x0`, covariance `p0` and `sensors` counters.
-    pub fn new(x0: DVector<f64>, p0: DMatrix<f64>, sensors: usize) -> Self {
-        Self {
-            x: x0,
-            cov: p0,
-            consecutive_rejections: vec![0; sensors],
-            all_rejected_streak: 0,
-        }
+    fn reset(&mut self, x0: &[f64], p0_diag: &[f64]) {
+        let mut x = SVector::<f64, C>::zeros();
+        x.as_mut_slice()[..x0.len()].copy_from_slice(x0);
+        let mut p = SVector::<f64, C>::zeros();
+        p.as_mut_slice()[..p0_diag.len()].copy_from_slice(p0_diag);
+        self.state = KalmanState::new(x, SMatrix::from_diagonal(&p));
     }
-}
 
-/// What a correction did (the library's `UpdateReport`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct DynUpdateReport {
-    /// One verdict per sensor.
-    pub verdicts: Vec<SensorVerdict>,
-    /// Suspect flags after this correction.
-    pub suspect: Vec<bool>,
-    /// The covariance was inflated and the readings re-gated.
-    pub recovered: bool,
-}
+    fn predict(&mut self, u: &[f64]) {
+        let Some(config) = &self.config else { return };
+        let mut uu = SVector::<f64, C>::zeros();
+        uu.as_mut_slice()[..u.len()].copy_from_slice(u);
+        predict(config, &mut self.state, &uu);
+    }
 
-/// Full predict (the library's `predict`); `false` when a non-finite input
-/// dropped the `G u` term.
-pub fn predict(cfg: &DynKalman, state: &mut DynKalmanState, u: &DVector<f64>) -> bool {
-    let prev = state.x.clone();
-    state.x.gemv(1.0, &cfg.f, &prev, 0.0);
-    let used = u.iter().all(|v| v.is_finite());
-    if used {
-        state.x.gemv(1.0, &cfg.g, u, 1.0);
-    }
-    let prev = state.cov.clone();
-    state.cov.copy_from(&cfg.q);
-    state.cov.quadform_tr(1.0, &cfg.f, &prev, 1.0);
-    state.cov = state.cov.symmetric_part();
-    used
-}
-
-fn nis_f32(nis: f64) -> f32 {
-    nis as f32
-}
-
-fn judge(nu: f64, s: f64, threshold: f64) -> SensorVerdict {
-    let nis = nu * nu / s;
-    if !nis.is_finite() || !s.is_finite() || s <= 0.0 {
-        return SensorVerdict::Rejected { nis: f32::INFINITY };
-    }
-    if nis > threshold {
-        SensorVerdict::Rejected { nis: nis_f32(nis) }
-    } else {
-        SensorVerdict::Fused { nis: nis_f32(nis) }
-    }
-}
-
-fn usable(z: Option<f64>) -> Option<f64> {
-    z.filter(|v| v.is_finite())
-}
-
-fn gate_all(
-    cfg: &DynKalman,
-    x: &DVector<f64>,
-    cov: &DMatrix<f64>,
-    z: &[Option<f64>],
-) -> Vec<SensorVerdict> {
-    let mut verdicts = vec![SensorVerdict::Missing; z.len()];
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
-        let Some(zj) = usable(*zj) else { continue };
-        let h = cfg.ht.column(j);
-        let s = h.dot(&(cov * h)) + cfg.r[j];
-        let nu = zj - h.dot(x);
-        *verdict = judge(nu, s, cfg.threshold);
-    }
-    verdicts
-}
-
-fn fuse_scalar(
-    x: &mut DVector<f64>,
-    cov: &mut DMatrix<f64>,
-    h: &DVector<f64>,
-    r: f64,
-    z: f64,
-) -> bool {
-    let b = &*cov * h;
-    let s = h.dot(&b) + r;
-    if !s.is_finite() || s <= 0.0 {
-        return false;
-    }
-    let k = b.clone() / s;
-    let nu = z - h.dot(x);
-    let mut x_new = x.clone();
-    x_new.axpy(nu, &k, 1.0);
-    if !x_new.iter().all(|v| v.is_finite()) {
-        return false;
-    }
-    let mut w = cov.clone();
-    w.ger(-1.0, &k, &b, 1.0);
-    let c = &w * h;
-    w.ger(-1.0, &c, &k, 1.0);
-    w.ger(r, &k, &k, 1.0);
-    let w = w.symmetric_part();
-    if !w.iter().all(|v| v.is_finite()) {
-        return false;
-    }
-    *x = x_new;
-    *cov = w;
-    true
-}
-
-/// Correction (the library's `update`): `z[j] = None` (or non-finite) skips
-/// sensor `j`; every present reading is gated against the prior, the accepted
-/// ones fused one by one (Joseph form), then counters and recovery applied.
-pub fn update(cfg: &DynKalman, state: &mut DynKalmanState, z: &[Option<f64>]) -> DynUpdateReport {
-    let mut verdicts = gate_all(cfg, &state.x, &state.cov, z);
-    // record_gate
-    let present = verdicts
-        .iter()
-        .any(|v| !matches!(v, SensorVerdict::Missing));
-    let mut recovered = false;
-    if present {
-        if verdicts.iter().all(|v| !v.is_fused()) {
-            state.all_rejected_streak = state.all_rejected_streak.saturating_add(1);
-            if cfg.recover_after != 0 && state.all_rejected_streak >= cfg.recover_after {
-                state.all_rejected_streak = 0;
-                recovered = true;
-            }
-        } else {
-            state.all_rejected_streak = 0;
-        }
-    }
-    if recovered {
-        for (i, v) in cfg.recovery_variance.iter().enumerate() {
-            state.cov[(i, i)] += *v;
-        }
-        verdicts = gate_all(cfg, &state.x, &state.cov, z);
-    }
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
-        let SensorVerdict::Fused { nis } = *verdict else {
-            continue;
+    fn update(&mut self, z: &[Option<f64>]) -> Correction {
+        let Some(config) = &self.config else {
+            return Correction {
+                verdicts: vec![SensorVerdict::Missing; self.sensors],
+                recovered: false,
+            };
         };
-        let Some(zj) = usable(*zj) else { continue };
-        let h: DVector<f64> = cfg.ht.column(j).into_owned();
-        if !fuse_scalar(&mut state.x, &mut state.cov, &h, cfg.r[j], zj) {
-            *verdict = SensorVerdict::Rejected { nis };
+        let mut zz = [None; C];
+        zz[..z.len()].copy_from_slice(z);
+        let report = update(config, &mut self.state, &zz);
+        Correction {
+            verdicts: report.verdicts[..self.sensors].to_vec(),
+            recovered: report.recovered,
         }
     }
-    let mut suspect = vec![false; verdicts.len()];
-    for ((count, verdict), flag) in state
-        .consecutive_rejections
-        .iter_mut()
-        .zip(&verdicts)
-        .zip(suspect.iter_mut())
-    {
-        match verdict {
-            SensorVerdict::Fused { .. } => *count = 0,
-            SensorVerdict::Rejected { .. } => *count = count.saturating_add(1),
-            SensorVerdict::Missing => {}
-        }
-        *flag = cfg.suspect_after != 0 && *count >= cfg.suspect_after;
-    }
-    DynUpdateReport {
-        verdicts,
-        suspect,
-        recovered,
+
+    fn estimate(&self, out: &mut [f64]) {
+        out.copy_from_slice(&self.state.x.as_slice()[..out.len()]);
     }
 }
 
@@ -427,10 +268,13 @@ pub struct KalmanEstimator {
     /// Continuous `A` and input matrix `[B | G_b | d]`.
     a: DMatrix<f64>,
     b: DMatrix<f64>,
-    /// Cached filter for the last sample period.
-    cfg: Option<(f64, DynKalman)>,
+    /// The library filter, padded; the sample period it was discretised
+    /// for.
+    filter: Box<dyn PaddedFilter>,
+    period_s: Option<f64>,
     sensors: Vec<usize>,
-    state: DynKalmanState,
+    /// The estimate, temperatures then disturbances.
+    x: Vec<f64>,
     temps: Vec<f64>,
     effective: Vec<f64>,
     stats: Vec<FusionStats>,
@@ -445,7 +289,7 @@ impl KalmanEstimator {
         if sensor_nodes.is_empty() {
             bail!("the Kalman filter needs at least one --measure sensor");
         }
-        let info = FilePlant::new(model.clone()).info().clone();
+        let info = plant_info(&model);
         let net = &model.network;
         let n = net.nodes();
         let nd = opts.disturbances.len();
@@ -493,19 +337,29 @@ impl KalmanEstimator {
                 rejected: 0,
             })
             .collect();
-        Ok(Self {
-            state: DynKalmanState::new(
-                DVector::zeros(states),
-                DMatrix::zeros(states, states),
+        let size = states.max(b.ncols()).max(sensor_nodes.len());
+        let filter = match FILTER_CLASSES.iter().find(|c| **c >= size) {
+            Some(8) => Filter::<8>::boxed(sensor_nodes.len()),
+            Some(16) => Filter::<16>::boxed(sensor_nodes.len()),
+            Some(32) => Filter::<32>::boxed(sensor_nodes.len()),
+            _ => bail!(
+                "--measure: model `{}` needs {states} filter states ({n} nodes, {nd} disturbances), {} inputs and {} sensors; the filter holds at most {} of each",
+                model.name,
+                b.ncols(),
                 sensor_nodes.len(),
+                FILTER_CLASSES[FILTER_CLASSES.len() - 1]
             ),
+        };
+        Ok(Self {
             model,
             info,
             opts,
             states,
             a,
             b,
-            cfg: None,
+            filter,
+            period_s: None,
+            x: vec![0.0; states],
             sensors: sensor_nodes.to_vec(),
             temps: vec![0.0; n],
             effective: Vec::new(),
@@ -514,16 +368,14 @@ impl KalmanEstimator {
         })
     }
 
-    /// Makes `self.cfg` the filter for a sample period `dt_s` (discretised
-    /// when the period changes).
+    /// Makes the library filter the one for a sample period `dt_s`
+    /// (discretised when the period changes).
     fn ensure_filter(&mut self, dt_s: f64) -> Result<()> {
-        let stale = match &self.cfg {
-            Some((dt, _)) => (dt - dt_s).abs() > 1e-9 * dt_s.abs().max(1.0),
+        let stale = match self.period_s {
+            Some(dt) => (dt - dt_s).abs() > 1e-9 * dt_s.abs().max(1.0),
             None => true,
         };
         if stale {
-            let (f, phi) = expm_with_integral(&self.a, dt_s)?;
-            let g = &phi * &self.b;
             let n = self.temps.len();
             let mut q = DMatrix::<f64>::zeros(self.states, self.states);
             for i in 0..n {
@@ -537,15 +389,23 @@ impl KalmanEstimator {
             for (j, node) in self.sensors.iter().enumerate() {
                 h[(j, *node)] = 1.0;
             }
-            let r = DVector::repeat(self.sensors.len(), self.opts.measurement_noise_k.powi(2));
-            let mut cfg = DynKalman::new(f, g, h, q, r)?;
-            cfg.threshold = self.opts.gate;
+            let r = vec![self.opts.measurement_noise_k.powi(2); self.sensors.len()];
             // Recovery returns to the prior's uncertainty: the library's
             // default (1e4 r on every state) would put hundreds of K^2 on the
             // unmeasured nodes, which one sensor cannot pull back, and the
             // disturbances would then swing them by tens of K.
-            cfg.recovery_variance = self.prior_variances();
-            self.cfg = Some((dt_s, cfg));
+            let recovery = self.prior_variances();
+            self.filter.configure(
+                &self.a,
+                &self.b,
+                dt_s,
+                &h,
+                &q,
+                &r,
+                self.opts.gate,
+                recovery.as_slice(),
+            )?;
+            self.period_s = Some(dt_s);
         }
         Ok(())
     }
@@ -562,12 +422,7 @@ impl KalmanEstimator {
 
     /// Current disturbance estimates \[W\].
     pub fn disturbances_w(&self) -> Vec<f64> {
-        self.state
-            .x
-            .iter()
-            .skip(self.temps.len())
-            .copied()
-            .collect()
+        self.x[self.temps.len()..].to_vec()
     }
 
     /// Initial variances: `initial_std_k^2` per temperature,
@@ -585,7 +440,8 @@ impl KalmanEstimator {
 
     fn sync_temps(&mut self) {
         let n = self.temps.len();
-        self.temps.copy_from_slice(&self.state.x.as_slice()[..n]);
+        self.filter.estimate(&mut self.x);
+        self.temps.copy_from_slice(&self.x[..n]);
     }
 }
 
@@ -596,10 +452,9 @@ impl Estimator for KalmanEstimator {
 
     fn reset(&mut self, temps_c: &[f64]) {
         let n = self.temps.len();
-        let mut x = DVector::zeros(self.states);
-        x.as_mut_slice()[..n].copy_from_slice(temps_c);
-        let p0 = DMatrix::from_diagonal(&self.prior_variances());
-        self.state = DynKalmanState::new(x, p0, self.sensors.len());
+        let mut x = vec![0.0; self.states];
+        x[..n].copy_from_slice(temps_c);
+        self.filter.reset(&x, self.prior_variances().as_slice());
         self.sync_temps();
     }
 
@@ -608,11 +463,11 @@ impl Estimator for KalmanEstimator {
         self.model
             .effective_currents(currents_a, signals, &mut effective);
         let net = &self.model.network;
-        let mut u = DVector::zeros(self.b.ncols());
+        let mut u = vec![0.0; self.b.ncols()];
         for (s, (src, i)) in net.sources().iter().zip(&effective).enumerate() {
-            let t = self.temps[src.node];
-            let r = (src.resistance.r_at_0c_ohm + src.resistance.slope_ohm_per_k * t).max(0.0);
-            u[s] = r * i * i;
+            // The library's Joule power at the estimate.
+            let r = src.resistance.to_scalar::<f64>();
+            u[s] = r.joule_power_w(self.temps[src.node], *i);
         }
         let m = net.sources().len();
         for (k, t) in boundary_c.iter().enumerate() {
@@ -625,18 +480,16 @@ impl Estimator for KalmanEstimator {
         if self.ensure_filter(dt_s).is_err() {
             return;
         }
-        let Some((_, cfg)) = &self.cfg else { return };
-        predict(cfg, &mut self.state, &u);
+        self.filter.predict(&u);
         self.sync_temps();
     }
 
     fn update(&mut self, measured: &[Measurement]) {
         // Before the first predict there is no filter yet: one for a unit
         // step serves (a correction uses only H, r and the gate).
-        if self.cfg.is_none() && self.ensure_filter(1.0).is_err() {
+        if self.period_s.is_none() && self.ensure_filter(1.0).is_err() {
             return;
         }
-        let Some((_, cfg)) = &self.cfg else { return };
         let z: Vec<Option<f64>> = self
             .sensors
             .iter()
@@ -648,7 +501,7 @@ impl Estimator for KalmanEstimator {
                     .map(|m| m.value_c)
             })
             .collect();
-        let report = update(cfg, &mut self.state, &z);
+        let report = self.filter.update(&z);
         for (s, v) in self.stats.iter_mut().zip(&report.verdicts) {
             match v {
                 SensorVerdict::Fused { .. } => s.fused += 1,

@@ -3,17 +3,20 @@
 //!
 //! Layers, bottom up:
 //!
-//! * [`dynamic_network`]: a runtime-size mirror of the library's network and
-//!   explicit step (bit-identical in `f64`), for model files and calibration;
+//! * [`dynamic_network`]: the run-time description of a model file's
+//!   network (it computes nothing: every step runs in the library, padded to
+//!   a size class);
 //! * [`model_file`]: the TOML model format (`MODEL_FORMAT.md`) and its
 //!   validated, index-resolved [`model_file::Model`];
 //! * [`trace`]: strict CSV traces with `file:line:col` errors and column
 //!   expressions;
 //! * [`sim`]: the [`sim::Plant`] trait (file models now; grid and Omnimagnet
 //!   later), input bindings and open-loop simulation;
-//! * [`observer`]: replay with an [`observer::Estimator`] (open loop now, the
-//!   Kalman filter later) and a [`observer::Protection`] stage, scoring and
-//!   step timing;
+//! * [`observer`]: replay with an [`observer::Estimator`] and a
+//!   [`observer::Protection`] stage, scoring and step timing;
+//! * [`library_observer`]: the library's `NetworkObserver` at 1 ms ticks on
+//!   a model file (the replay's estimator);
+//! * [`kalman`]: the library's Kalman filter with disturbance states;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;
@@ -34,6 +37,7 @@ pub mod devices;
 pub mod dynamic_network;
 pub mod grid_reference;
 pub mod kalman;
+pub mod library_observer;
 pub mod limits;
 pub mod model_file;
 pub mod observer;

@@ -128,8 +128,8 @@ fn size_class(network: &DynNetwork, what: &str) -> Result<usize> {
 }
 
 /// Runs `job` on a thread with a large stack: the padded matrices of the
-/// larger size classes live on the stack while they are built.
-fn on_big_stack<R: Send + 'static>(
+/// larger size classes live on the stack while they are built (256 MiB).
+pub fn on_big_stack<R: Send + 'static>(
     what: &str,
     job: impl FnOnce() -> Result<R> + Send + 'static,
 ) -> Result<R> {
@@ -156,11 +156,64 @@ pub fn compute(query: &LimitsQuery) -> Result<LimitsReport> {
 }
 
 fn lib_err(what: &str) -> impl Fn(coil_thermal::BuildError) -> anyhow::Error + '_ {
-    move |e| anyhow::anyhow!("limits: {what}: {e}")
+    move |e| anyhow::anyhow!("padded network: {what}: {e}")
 }
 
 /// The padded library network of a dynamic one (see the module docs).
 pub fn padded<const P: usize>(net: &DynNetwork) -> Result<Network<P, 2, P>> {
+    padded_with::<P>(net, Padding::DECAYING)
+}
+
+/// How [`padded_with`] fills the padding.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Padding {
+    /// Padding nodes get 1 W/K to boundary 0 (a 1 s decay: what a modal
+    /// predictor or an exact discretisation wants); `false` leaves them
+    /// isolated (rate 0: what an explicit step of any length wants).
+    pub link_to_boundary: bool,
+    /// Every real source's resistance is multiplied by this (the host
+    /// then feeds currents divided by its square root: the same power).
+    pub resistance_scale: f64,
+}
+
+impl Padding {
+    /// Padding nodes decaying to boundary 0, resistances as given.
+    pub const DECAYING: Self = Self {
+        link_to_boundary: true,
+        resistance_scale: 1.0,
+    };
+    /// Isolated padding nodes, resistances as given.
+    pub const ISOLATED: Self = Self {
+        link_to_boundary: false,
+        resistance_scale: 1.0,
+    };
+}
+
+/// The smallest of `classes` that holds the nodes and sources of
+/// `network` (with at most 2 boundaries).
+pub fn class_of(network: &DynNetwork, classes: &[usize], what: &str) -> Result<usize> {
+    let n = network.nodes();
+    let m = network.sources().len();
+    if network.boundaries() > 2 {
+        bail!(
+            "{what}: the model has {} boundaries; at most 2 are supported",
+            network.boundaries()
+        );
+    }
+    classes
+        .iter()
+        .copied()
+        .find(|&p| p >= n.max(m))
+        .with_context(|| {
+            format!(
+                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported",
+                classes[classes.len() - 1]
+            )
+        })
+}
+
+/// [`padded`] with the padding chosen by `padding`.
+pub fn padded_with<const P: usize>(net: &DynNetwork, padding: Padding) -> Result<Network<P, 2, P>> {
     let n = net.nodes();
     let mut caps = [1.0; P];
     caps[..n].copy_from_slice(net.capacities_j_per_k());
@@ -175,20 +228,25 @@ pub fn padded<const P: usize>(net: &DynNetwork) -> Result<Network<P, 2, P>> {
             .connect_boundary(l.node, l.boundary, l.g_w_per_k)
             .map_err(lib_err("boundary conductance"))?;
     }
-    for i in n..P {
-        lib = lib
-            .connect_boundary(i, 0, 1.0)
-            .map_err(lib_err("padding"))?;
+    if padding.link_to_boundary {
+        for i in n..P {
+            lib = lib
+                .connect_boundary(i, 0, 1.0)
+                .map_err(lib_err("padding"))?;
+        }
     }
-    for (k, s) in net.sources().iter().enumerate() {
-        lib = lib
-            .joule_source(k, s.node, s.resistance)
-            .map_err(lib_err("source"))?;
+    let k = padding.resistance_scale;
+    for (m, s) in net.sources().iter().enumerate() {
+        let r = Resistance {
+            r_at_0c_ohm: s.resistance.r_at_0c_ohm * k,
+            slope_ohm_per_k: s.resistance.slope_ohm_per_k * k,
+        };
+        lib = lib.joule_source(m, s.node, r).map_err(lib_err("source"))?;
     }
     let spare = if n < P { n } else { 0 };
-    for k in net.sources().len()..P {
+    for m in net.sources().len()..P {
         lib = lib
-            .joule_source(k, spare, Resistance::constant(1.0))
+            .joule_source(m, spare, Resistance::constant(1.0))
             .map_err(lib_err("padding source"))?;
     }
     for (i, p) in net.fixed_powers_w().iter().enumerate() {

@@ -1,9 +1,11 @@
 //! Replay: an estimator and a protection stage run over a recorded trace.
 //!
-//! The composition mirrors the library's observer tick: *predict* with the
-//! inputs, *update* with the measurements, then *check* the estimate. The
-//! estimators are [`OpenLoop`] (the model alone: `update` ignores
-//! measurements) and the Kalman filter ([`crate::kalman`]); the protection is
+//! Per trace row: *update* with the row's measurements, *check* the
+//! estimate, *predict* to the next row with the row's inputs. The
+//! estimators are the library's observer ticking at 1 ms
+//! ([`crate::library_observer`]) and the library's Kalman filter with
+//! disturbance states at the trace's rows ([`crate::kalman`]); the
+//! protection is
 //! [`LibraryAlarm`], the library's `coil_thermal::protect::alarm` with its
 //! derated limits, debounced warning, latched shutdown and event queue.
 //!
@@ -27,7 +29,7 @@ use serde::Serialize;
 
 use crate::limits::{TimeToLimit, NO_LIMIT_C, SIZE_CLASSES};
 
-use crate::sim::{initial_temps, Drive, Plant, PlantInfo};
+use crate::sim::{initial_temps, Drive, PlantInfo};
 
 /// A measured temperature for one node at one row.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +46,7 @@ pub trait Estimator {
     fn info(&self) -> &PlantInfo;
     /// Sets the estimate \[degC\].
     fn reset(&mut self, temps_c: &[f64]);
-    /// Time update over `dt_s` with inputs held (see [`Plant::step`]).
+    /// Time update over `dt_s` with inputs held (see [`crate::sim::Plant::step`]).
     fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]);
     /// Measurement update (fused sensors only).
     fn update(&mut self, measured: &[Measurement]);
@@ -52,27 +54,11 @@ pub trait Estimator {
     fn estimate_c(&self) -> &[f64];
     /// Short description for reports (e.g. `open-loop`).
     fn kind(&self) -> &'static str;
-}
-
-/// The model alone: measurements are not fused.
-pub struct OpenLoop<P>(pub P);
-
-impl<P: Plant> Estimator for OpenLoop<P> {
-    fn info(&self) -> &PlantInfo {
-        self.0.info()
-    }
-    fn reset(&mut self, temps_c: &[f64]) {
-        self.0.reset(temps_c);
-    }
-    fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
-        self.0.step(dt_s, currents_a, boundary_c, signals);
-    }
-    fn update(&mut self, _measured: &[Measurement]) {}
-    fn estimate_c(&self) -> &[f64] {
-        self.0.temps_c()
-    }
-    fn kind(&self) -> &'static str {
-        "open-loop"
+    /// The host time of every library tick since the last call \[ns\],
+    /// for an estimator that runs the library's observer tick by tick;
+    /// `None` for one that steps once per trace row.
+    fn take_tick_times_ns(&mut self) -> Option<Vec<u32>> {
+        None
     }
 }
 
@@ -580,8 +566,14 @@ pub fn score(sensor: &Sensor, node_name: &str, estimate: &[Vec<f64>], time_s: &[
 /// Per-step time statistics against a budget.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StepTimes {
+    /// What one step is: `library tick` (one call of the library
+    /// observer's `tick`) or `trace row` (a host estimator's predict and
+    /// update over one row).
+    pub step: &'static str,
     /// Number of timed steps.
     pub steps: usize,
+    /// Smallest \[ns\].
+    pub min_ns: f64,
     /// Median \[ns\].
     pub p50_ns: f64,
     /// 90th percentile \[ns\].
@@ -600,7 +592,31 @@ pub struct StepTimes {
 pub const STEP_BUDGET_NS: f64 = 100_000.0;
 
 impl StepTimes {
-    /// Percentiles of `samples_ns` (sorted in place).
+    /// Percentiles of library ticks' times \[ns\] (sorted in place).
+    pub fn from_ticks(ticks_ns: &mut [u32]) -> Self {
+        ticks_ns.sort_unstable();
+        let pct = |p: f64| -> f64 {
+            if ticks_ns.is_empty() {
+                return 0.0;
+            }
+            let k = ((ticks_ns.len() - 1) as f64 * p).round() as usize;
+            f64::from(ticks_ns[k])
+        };
+        let p99 = pct(0.99);
+        Self {
+            step: "library tick",
+            steps: ticks_ns.len(),
+            min_ns: pct(0.0),
+            p50_ns: pct(0.5),
+            p90_ns: pct(0.9),
+            p99_ns: p99,
+            max_ns: pct(1.0),
+            budget_ns: STEP_BUDGET_NS,
+            p99_over_budget: p99 / STEP_BUDGET_NS,
+        }
+    }
+
+    /// Percentiles of per-row times `samples_ns` (sorted in place).
     pub fn from_samples(samples_ns: &mut [f64]) -> Self {
         samples_ns.sort_by(f64::total_cmp);
         let pct = |p: f64| -> f64 {
@@ -612,7 +628,9 @@ impl StepTimes {
         };
         let p99 = pct(0.99);
         Self {
+            step: "trace row",
             steps: samples_ns.len(),
+            min_ns: pct(0.0),
             p50_ns: pct(0.5),
             p90_ns: pct(0.9),
             p99_ns: p99,
@@ -632,7 +650,7 @@ pub struct ReplayResult {
     pub scores: Vec<Score>,
     /// Alarm events, in order.
     pub alarms: Vec<AlarmEvent>,
-    /// Timing of predict + update per row.
+    /// Timing of each library tick, or of predict + update per row.
     pub times: StepTimes,
 }
 
@@ -691,11 +709,15 @@ pub fn replay(
         .iter()
         .map(|t| score(t, &info.nodes[t.node], &estimate, &drive.time_s))
         .collect();
+    let times = match estimator.take_tick_times_ns() {
+        Some(mut ticks) => StepTimes::from_ticks(&mut ticks),
+        None => StepTimes::from_samples(&mut samples),
+    };
     Ok(ReplayResult {
         estimate,
         scores,
         alarms,
-        times: StepTimes::from_samples(&mut samples),
+        times,
     })
 }
 

@@ -3,12 +3,15 @@
 //! A [`Plant`] is anything with named nodes that advances over an interval
 //! with currents, boundary temperatures and extra signals held (zero-order
 //! hold: row `k`'s inputs act over `[t_k, t_k+1)`). [`FilePlant`] runs a
-//! model file on the [`DynNetwork`](crate::dynamic_network::DynNetwork);
-//! the HPPA grid and the Omnimagnet will be further `Plant`s wrapping their
-//! library steppers, described by the same [`PlantInfo`].
+//! model file on the library's [`ExplicitStepper`] (the network padded to a
+//! size class, see [`crate::limits::padded_with`]); the Omnimagnet's
+//! nonlinear model is another `Plant` on the library's RK4.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
+use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState};
 
+use crate::dynamic_network::DynNetwork;
+use crate::limits::{class_of, padded_with, Padding, SIZE_CLASSES};
 use crate::model_file::{InitialPolicy, InitialSpec, Model};
 use crate::trace::{ColumnExpr, Trace};
 
@@ -71,57 +74,194 @@ impl<P: Plant + ?Sized> Plant for Box<P> {
     }
 }
 
-/// A model file run on the dynamic network.
-#[derive(Debug, Clone)]
+/// Input limits of the host's steppers: wide enough never to clamp a
+/// recorded input (the library's defaults, 100 A and -60 .. 400 degC, are
+/// the firmware's plausibility limits); non-finite inputs are still held.
+pub const HOST_INPUT_LIMITS: InputLimits = InputLimits {
+    max_current_a: 1e9,
+    min_temp_c: -273.15,
+    max_temp_c: 1e6,
+};
+
+/// The size-independent face of a padded library [`ExplicitStepper`] with
+/// its state (see [`FilePlant`]).
+trait PaddedStepper: Send {
+    /// Sets the first `temps_c.len()` node temperatures, clears the carry.
+    fn reset(&mut self, temps_c: &[f64]);
+    /// `substeps` library steps of `h_s` with these inputs held; the real
+    /// nodes' temperatures into `temps_c`.
+    fn step(
+        &mut self,
+        h_s: f64,
+        substeps: usize,
+        currents_a: &[f64],
+        boundary_c: &[f64],
+        temps_c: &mut [f64],
+    ) -> Result<()>;
+}
+
+struct Stepper<const P: usize> {
+    network: Network<P, 2, P>,
+    /// Built for the last step length.
+    stepper: Option<ExplicitStepper<f64, P, 2, P>>,
+    state: NetworkState<f64, P, 2, P>,
+    currents_a: [f64; P],
+    boundary_c: [f64; 2],
+}
+
+impl<const P: usize> Stepper<P> {
+    fn build(net: &DynNetwork) -> Result<Box<dyn PaddedStepper>> {
+        Ok(Box::new(Self {
+            network: padded_with::<P>(net, Padding::ISOLATED)?,
+            stepper: None,
+            state: NetworkState::uniform(0.0),
+            currents_a: [0.0; P],
+            boundary_c: [0.0; 2],
+        }))
+    }
+}
+
+impl<const P: usize> PaddedStepper for Stepper<P> {
+    fn reset(&mut self, temps_c: &[f64]) {
+        self.state.temps_c[..temps_c.len()].copy_from_slice(temps_c);
+        self.state.residual_c = [0.0; P];
+    }
+
+    fn step(
+        &mut self,
+        h_s: f64,
+        substeps: usize,
+        currents_a: &[f64],
+        boundary_c: &[f64],
+        temps_c: &mut [f64],
+    ) -> Result<()> {
+        if self.stepper.as_ref().is_none_or(|s| s.dt_s() != h_s) {
+            self.stepper = Some(
+                ExplicitStepper::new(&self.network, h_s, HOST_INPUT_LIMITS)
+                    .map_err(|e| anyhow!("explicit step of {h_s} s: {e}"))?,
+            );
+        }
+        let Some(stepper) = &self.stepper else {
+            unreachable!("built above")
+        };
+        self.currents_a[..currents_a.len()].copy_from_slice(currents_a);
+        // A padding boundary has no links: any finite value serves.
+        let fill = boundary_c.first().copied().unwrap_or(0.0);
+        self.boundary_c = [fill; 2];
+        self.boundary_c[..boundary_c.len()].copy_from_slice(boundary_c);
+        for _ in 0..substeps {
+            stepper.step(&mut self.state, &self.currents_a, &self.boundary_c);
+        }
+        temps_c.copy_from_slice(&self.state.temps_c[..temps_c.len()]);
+        Ok(())
+    }
+}
+
+/// The names and bindings of a model file.
+pub fn plant_info(model: &Model) -> PlantInfo {
+    PlantInfo {
+        name: model.name.clone(),
+        nodes: model.nodes.clone(),
+        critical_c: model.critical_c.clone(),
+        inputs: model
+            .inputs
+            .iter()
+            .map(|i| Channel {
+                name: i.name.clone(),
+                column: i.column.clone(),
+                default_value: None,
+            })
+            .collect(),
+        boundaries: model
+            .boundaries
+            .iter()
+            .map(|b| Channel {
+                name: b.name.clone(),
+                column: b.column.clone().unwrap_or_else(|| b.name.clone()),
+                default_value: b.value_c,
+            })
+            .collect(),
+        signals: model.signals.clone(),
+        initial: model.initial.clone(),
+    }
+}
+
+/// A model file run on the library's explicit stepper.
+///
+/// The network is copied into `Network<P, 2, P>` for the smallest size
+/// class `P` of [`SIZE_CLASSES`] (padding nodes isolated, padding sources
+/// at zero current) and advanced by `ExplicitStepper<f64, P, 2, P>`. An
+/// interval is split into equal steps so that `h sum(G_i) / C_i` stays at or
+/// below the model's `max_step_ratio` at every node (the library refuses a
+/// ratio of 1 or more); the stepper is rebuilt when the step length
+/// changes.
 pub struct FilePlant {
     model: Model,
     info: PlantInfo,
     temps: Vec<f64>,
     effective: Vec<f64>,
-    scratch: Vec<f64>,
+    stepper: Box<dyn PaddedStepper>,
+}
+
+impl std::fmt::Debug for FilePlant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FilePlant")
+            .field("model", &self.model.name)
+            .field("temps", &self.temps)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Clone for FilePlant {
+    fn clone(&self) -> Self {
+        let mut plant = Self::new(self.model.clone()).expect("the model was padded before");
+        plant.reset(&self.temps);
+        plant
+    }
 }
 
 impl FilePlant {
     /// Wraps a validated model.
-    pub fn new(model: Model) -> Self {
-        let info = PlantInfo {
-            name: model.name.clone(),
-            nodes: model.nodes.clone(),
-            critical_c: model.critical_c.clone(),
-            inputs: model
-                .inputs
-                .iter()
-                .map(|i| Channel {
-                    name: i.name.clone(),
-                    column: i.column.clone(),
-                    default_value: None,
-                })
-                .collect(),
-            boundaries: model
-                .boundaries
-                .iter()
-                .map(|b| Channel {
-                    name: b.name.clone(),
-                    column: b.column.clone().unwrap_or_else(|| b.name.clone()),
-                    default_value: b.value_c,
-                })
-                .collect(),
-            signals: model.signals.clone(),
-            initial: model.initial.clone(),
-        };
+    ///
+    /// # Errors
+    /// More nodes or sources than the largest size class, more than 2
+    /// boundaries, or a network the library refuses.
+    pub fn new(model: Model) -> Result<Self> {
+        let info = plant_info(&model);
+        let net = &model.network;
+        let stepper = match class_of(net, &SIZE_CLASSES, "simulation")? {
+            4 => Stepper::<4>::build(net),
+            8 => Stepper::<8>::build(net),
+            16 => Stepper::<16>::build(net),
+            32 => Stepper::<32>::build(net),
+            64 => Stepper::<64>::build(net),
+            _ => Stepper::<96>::build(net),
+        }
+        .with_context(|| format!("model `{}`", model.name))?;
         let n = model.nodes.len();
-        Self {
+        Ok(Self {
             model,
             info,
             temps: vec![0.0; n],
             effective: Vec::new(),
-            scratch: Vec::new(),
-        }
+            stepper,
+        })
     }
 
     /// The model.
     pub fn model(&self) -> &Model {
         &self.model
+    }
+
+    /// Number of equal explicit steps for an interval `dt_s` \[s\] (see the
+    /// type's docs).
+    pub fn substeps(&self, dt_s: f64) -> usize {
+        let n = (dt_s * self.model.network.max_rate_per_s() / self.model.max_step_ratio).ceil();
+        if n.is_finite() && n >= 1.0 {
+            n as usize
+        } else {
+            1
+        }
     }
 }
 
@@ -132,18 +272,25 @@ impl Plant for FilePlant {
 
     fn reset(&mut self, temps_c: &[f64]) {
         self.temps.copy_from_slice(temps_c);
+        self.stepper.reset(temps_c);
     }
 
     fn step(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        if !(dt_s.is_finite() && dt_s > 0.0) {
+            return;
+        }
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
-        self.model.network.step(
-            &mut self.temps,
+        let n = self.substeps(dt_s);
+        // A step the library refuses (only an overflowing rate can make
+        // one) leaves the state where it is, as the library's own input
+        // rules do.
+        let _ = self.stepper.step(
+            dt_s / n as f64,
+            n,
             &self.effective,
             boundary_c,
-            dt_s,
-            self.model.max_step_ratio,
-            &mut self.scratch,
+            &mut self.temps,
         );
     }
 

@@ -27,7 +27,7 @@ fn recording(
     rng: &mut Rng,
 ) -> Vec<Sensor> {
     let model = Model::build(truth).unwrap();
-    let mut plant = FilePlant::new(model.clone());
+    let mut plant = FilePlant::new(model.clone()).unwrap();
     let info = plant.info().clone();
     let init = initial_temps(&info, drive, &[]).unwrap();
     let states = by_node(&simulate(&mut plant, drive, &init));

@@ -21,7 +21,7 @@ fn recording(dir: &Path) -> std::path::PathBuf {
     let mut truth = ModelFile::load(Path::new(&model_path())).unwrap();
     let r0 = access_param(&mut truth, "source.coil.r0_ohm", None).unwrap();
     access_param(&mut truth, "source.coil.r0_ohm", Some(1.4 * r0)).unwrap();
-    let mut plant = FilePlant::new(Model::build(&truth).unwrap());
+    let mut plant = FilePlant::new(Model::build(&truth).unwrap()).unwrap();
     let rows = 4000;
     let current: Vec<f64> = (0..rows)
         .map(|k| match (k / 800) % 3 {
@@ -64,7 +64,7 @@ fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
     let rec = recording(tmp.path());
     let out = tmp.path().join("e.csv");
     let open = coil_mse(&rec, &out, &[]);
-    assert_eq!(open["estimator"], "open-loop");
+    assert_eq!(open["estimator"], "network-observer");
     let plain = coil_mse(&rec, &out, &["--measure", "T_housing=housing"]);
     let fused = coil_mse(
         &rec,
@@ -80,6 +80,12 @@ fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
         "the unmodelled heat must matter: open loop {o} K^2"
     );
     assert!(f < 0.05 * o, "fused + disturbance {f} vs open loop {o} K^2");
+    // Without `--disturbance` the library observer fuses the housing as a
+    // thermocouple (temperatures corrected, biases frozen): better than
+    // open loop, every reading fused, but no heat input estimated.
+    assert_eq!(plain["estimator"], "network-observer");
+    assert!(p < 0.5 * o, "observer fused {p} vs open loop {o} K^2");
+    assert!(plain["fusion"]["sensors"][0]["fused"].as_u64().unwrap() > 3900);
     assert!(
         f < p,
         "the disturbance state is what corrects the coil: {f} vs {p} K^2"

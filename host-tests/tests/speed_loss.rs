@@ -26,7 +26,7 @@ p2_w = 50.0
 "#;
 
 fn steady_c(file: &ModelFile, speed: f64) -> f64 {
-    let mut plant = FilePlant::new(Model::build(file).unwrap());
+    let mut plant = FilePlant::new(Model::build(file).unwrap()).unwrap();
     let rows = 20_000;
     let drive = Drive {
         time_s: (0..rows).map(|k| k as f64).collect(),
@@ -81,4 +81,46 @@ fn calibration_names_round_trip_and_bad_files_are_refused() {
         "/models/hust_motor.toml"
     ))
     .exists());
+}
+
+/// The replay's library observer gets a speed-dependent model as effective
+/// currents folded on the host (`library_observer` module docs): a speed
+/// loss, and a winding whose power has a scale and a speed factor, driven
+/// at 300 A (three times the observer's 100 A plausibility limit, which the
+/// host's current scaling keeps clear of). The steady state is the
+/// boundary plus the power over the conductance.
+#[test]
+fn the_library_observer_runs_speed_losses_and_large_currents_as_effective_currents() {
+    use coil_thermal_host::library_observer::ObserverEstimator;
+    use coil_thermal_host::observer::Estimator;
+    let text = format!(
+        "{ONE_NODE}
+[[source]]
+node = \"stator\"
+input = \"current\"
+column = \"current\"
+r0_ohm = 0.001
+alpha_per_k = 0.0
+t_ref_c = 20.0
+scale = 0.5
+[source.speed]
+column = \"speed\"
+reference = 4000.0
+a1 = 0.2
+a2 = 0.1
+"
+    );
+    let model = Model::build(&ModelFile::parse(&text, "motor.toml").unwrap()).unwrap();
+    // 0.1 s ticks: 20 time constants of 50 s in 10 000 ticks.
+    let mut observer = ObserverEstimator::new(model, 100_000).unwrap();
+    observer.reset(&[20.0]);
+    for _ in 0..1000 {
+        observer.predict(1.0, &[300.0], &[20.0], &[2000.0]);
+    }
+    // f = 0.5: loss 27.5 W; winding 0.5 * 1 mOhm * 300^2 * (1 + 0.1 +
+    // 0.025) = 50.625 W; 78.125 W over 10 W/K.
+    let t = observer.estimate_c()[0];
+    assert!((t - 27.8125).abs() < 2e-3, "{t}");
+    let ticks = observer.take_tick_times_ns().unwrap();
+    assert_eq!(ticks.len(), 10_000);
 }

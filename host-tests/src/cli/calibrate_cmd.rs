@@ -10,12 +10,12 @@ use super::common;
 use super::CalibrateArgs;
 use crate::calibrate::{fit, FitData, FitOptions, ParamSpec};
 use crate::model_file::Model;
-use crate::sim::{Drive, FilePlant, Plant};
+use crate::sim::{plant_info, Drive};
 
 /// Runs `calibrate`.
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let file = common::model_file(&a.model)?;
-    let info = FilePlant::new(Model::build(&file)?).info().clone();
+    let info = plant_info(&Model::build(&file)?);
     let bind = common::bindings(&a.trace_args)?;
     let params = a
         .params

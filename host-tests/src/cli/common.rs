@@ -19,7 +19,7 @@ pub const NOT_YET: &str = "not yet available";
 /// The model named by `--model`.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelSpec {
-    /// The HPPA coil grid (`src/grid`), on the dynamic network.
+    /// The HPPA coil grid (`src/grid`), as a model file.
     Hppa,
     /// The Omnimagnet (`src/omnimagnet`), nonlinear.
     Omnimagnet,
@@ -134,7 +134,7 @@ pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile
 }
 
 /// The model as a runnable plant: the Omnimagnet's nonlinear model, every
-/// other model on the dynamic network.
+/// other model as a model file on the library's explicit stepper.
 pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
     let spec = ModelSpec::parse(&args.model)?;
     check_grid_flags(args, &spec)?;
@@ -142,7 +142,7 @@ pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
         return Ok(Box::new(devices::OmnimagnetPlant::default()));
     }
     let file = model_file(args)?;
-    Ok(Box::new(FilePlant::new(Model::build(&file)?)))
+    Ok(Box::new(FilePlant::new(Model::build(&file)?)?))
 }
 
 /// Splits `LEFT=RIGHT` at the last `=`.

@@ -231,12 +231,19 @@ pub struct ReplayArgs {
     trace: PathBuf,
     #[command(flatten)]
     trace_args: TraceArgs,
-    /// A sensor fused by the Kalman filter: `COL=NODE` [degC]; repeatable.
-    /// With any, the estimator is the filter (see the next flags), else the
-    /// open-loop model.
+    /// A fused sensor: `COL=NODE` [degC]; repeatable (at most 4 without
+    /// `--disturbance`). The library's `NetworkObserver` ticks every
+    /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
+    /// (steady-state gain for the trace's row spacing); with
+    /// `--disturbance` the library's time-varying Kalman filter runs at the
+    /// trace's rows instead.
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
-    /// Filter: process noise of every temperature state [K^2/s] (white heat
+    /// The library observer's tick [us]: the trace's rows are replayed in
+    /// ticks of this length, each timed.
+    #[arg(long, value_name = "US", default_value_t = crate::library_observer::DEFAULT_TICK_US)]
+    tick_us: u32,
+    /// Fusion: process noise of every temperature state [K^2/s] (white heat
     /// flow; per step `Q = q dt`).
     #[arg(
         long,
@@ -245,7 +252,7 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     process_noise_k2_per_s: f64,
-    /// Filter: standard deviation of every fused sensor [K].
+    /// Fusion: standard deviation of every fused sensor [K].
     #[arg(
         long,
         value_name = "K",

@@ -7,9 +7,10 @@ use super::common;
 use super::ReplayArgs;
 use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
+use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
-use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, OpenLoop};
+use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
 use crate::plot::{render, PlotData, Series};
 use crate::sim::{Drive, PlantInfo};
 use crate::trace::write_csv;
@@ -180,8 +181,8 @@ fn median_row_s(time_s: &[f64]) -> f64 {
 
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
-    let plant = common::plant(&a.model)?;
-    let info = plant.info().clone();
+    let model = Model::build(&common::model_file(&a.model)?)?;
+    let info = crate::sim::plant_info(&model);
     let trace = common::read_trace(&a.trace, a.trace_args.sample_period_s)?;
     let bind = common::bindings(&a.trace_args)?;
     let drive = Drive::from_trace(&info, &trace, &bind)?;
@@ -190,20 +191,33 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
     let settings = alarm_settings(&a, &info, &drive)?;
     let rule_product = settings.rule.product();
-    let predictor = TimeToLimit::new(&Model::build(&common::model_file(&a.model)?)?)?;
+    let predictor = TimeToLimit::new(&model)?;
     let mut protection = LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
         &info,
         predictor,
         settings.horizon_s,
     )?;
-    // With fused sensors the estimator is the Kalman filter on the model
-    // file; the open-loop model otherwise.
-    let mut open_loop = None;
+    // The library's observer at `--tick-us` ticks, fusing the `--measure`
+    // sensors as thermocouples; with `--disturbance` the library's
+    // time-varying Kalman filter at the trace's rows instead.
+    let mut observer = None;
     let mut kalman = None;
-    let estimator: &mut dyn Estimator = if measured.is_empty() {
-        open_loop.insert(OpenLoop(plant))
+    let estimator: &mut dyn Estimator = if a.disturbance.is_empty() {
+        let fusion = (!measured.is_empty()).then(|| Fusion {
+            sensor_nodes: measured.iter().map(|m| m.node).collect(),
+            sensor_sigma_k: a.measurement_noise_k,
+            node_noise_k2_per_s: a.process_noise_k2_per_s,
+            correction_period_s: median_row_s(&drive.time_s),
+        });
+        observer.insert(ObserverEstimator::with_fusion(
+            model.clone(),
+            a.tick_us,
+            fusion,
+        )?)
     } else {
-        let model = Model::build(&common::model_file(&a.model)?)?;
+        if measured.is_empty() {
+            bail!("--disturbance needs at least one --measure sensor");
+        }
         let disturbances = a
             .disturbance
             .iter()
@@ -241,6 +255,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
     result.scores.truncate(truth.len());
     let kind = estimator.kind();
+    let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
+        json!({
+            "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
+                "column": m.column,
+                "node": info.nodes[s.node],
+                "fused": s.fused,
+                "rejected": s.rejected,
+            })).collect::<Vec<_>>(),
+        })
+    });
     let fusion = kalman.as_ref().map(|k| {
         json!({
             "sensors": k.stats().iter().zip(&measured).map(|(s, m)| json!({
@@ -306,7 +330,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
         "model": info.name,
         "estimator": kind,
-        "fusion": fusion,
+        "fusion": fusion.or(observer_fusion),
         "trace": a.trace.display().to_string(),
         "rows": drive.len(),
         "truth": result.scores,
@@ -345,6 +369,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             println!(
                 "{:<20} {:<16} {:>10.4} {:>10.4} {:>12.4} {:>10.1}",
                 s.column, s.node, s.mse_k2, s.rmse_k, s.max_abs_error_k, s.max_error_time_s
+            );
+        }
+    }
+    if let Some(o) = observer.as_ref().filter(|_| !measured.is_empty()) {
+        for (s, m) in o.stats().iter().zip(&measured) {
+            println!(
+                "fused {} -> {}: {} readings fused, {} rejected by the gate",
+                m.column, info.nodes[s.node], s.fused, s.rejected
             );
         }
     }
@@ -390,17 +422,27 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     print_events(&result.alarms);
     let t = &result.times;
-    println!(
-        "step time [ns]: p50 {:.0}, p90 {:.0}, p99 {:.0}, max {:.0}; p99 is {:.4} of the 0.1 ms budget",
-        t.p50_ns, t.p90_ns, t.p99_ns, t.max_ns, t.p99_over_budget
-    );
-    // A step is one trace row: on coarse traces it spans many 1 ms ticks
-    // (the Omnimagnet's nonlinear reference integrates each row finely).
-    let row_s = median_row_s(&drive.time_s);
-    if row_s > 2e-3 {
-        println!(
-            "  (one step = one trace row of {row_s:.3} s with the host estimator `{kind}`, not a 1 ms tick of the library observer)"
-        );
+    match &observer {
+        Some(o) => println!(
+            "library tick time [us] over {} ticks of {} ms (NetworkObserver padded to {} nodes): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            t.steps,
+            f64::from(o.tick_us()) * 1e-3,
+            o.size_class(),
+            t.min_ns * 1e-3,
+            t.p50_ns * 1e-3,
+            t.p99_ns * 1e-3,
+            t.max_ns * 1e-3,
+            t.p99_over_budget
+        ),
+        None => println!(
+            "step time [us] per trace row of {:.3} s (the library filter's predict and update): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            median_row_s(&drive.time_s),
+            t.min_ns * 1e-3,
+            t.p50_ns * 1e-3,
+            t.p99_ns * 1e-3,
+            t.max_ns * 1e-3,
+            t.p99_over_budget
+        ),
     }
     Ok(())
 }

@@ -1,11 +1,14 @@
-//! The host's runtime-size network against the library's const-generic
-//! `Network` / `ExplicitStepper`, and a model file against an independent
-//! hand-written Euler loop of the published HUST equations.
+//! Model files run by the library padded to a size class: padding changes
+//! nothing on the real nodes (against the same network built directly in
+//! the library), the solenoid's model file steps like the library's own
+//! network, and a model file matches an independent hand-written Euler loop
+//! of the published HUST equations.
 
 use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, SolenoidParams,
 };
 use coil_thermal_host::dynamic_network::DynNetwork;
+use coil_thermal_host::limits::{padded_with, Padding};
 use coil_thermal_host::model_file::{Model, ModelFile};
 use coil_thermal_host::sim::{simulate, Drive, FilePlant, Plant};
 use coil_thermal_host::synth::Rng;
@@ -37,8 +40,12 @@ fn random_network(rng: &mut Rng) -> DynNetwork {
     net
 }
 
+/// The description padded to 8 nodes, 2 boundaries, 8 sources (isolated
+/// padding nodes, padding sources at zero current, as `FilePlant` runs it)
+/// steps its 4 real nodes exactly as the 4-node network built directly, and
+/// has the same right-hand side there.
 #[test]
-fn random_networks_step_like_the_library() {
+fn padding_changes_nothing_on_the_real_nodes() {
     let mut rng = Rng::new(7);
     for _ in 0..20 {
         let dyn_net = random_network(&mut rng);
@@ -48,21 +55,30 @@ fn random_networks_step_like_the_library() {
             DynNetwork::from_network(&lib).unwrap().pairs(),
             dyn_net.pairs()
         );
+        let padded = padded_with::<8>(&dyn_net, Padding::ISOLATED).unwrap();
         let dt = 0.9 / dyn_net.max_rate_per_s();
         let stepper = ExplicitStepper::<f64, 4, 2, 3>::new(&lib, dt, wide_limits()).unwrap();
+        let padded_stepper =
+            ExplicitStepper::<f64, 8, 2, 8>::new(&padded, dt, wide_limits()).unwrap();
         let mut state = NetworkState::<f64, 4, 2, 3>::uniform(20.0);
-        let mut temps = vec![20.0; 4];
-        let mut scratch = Vec::new();
+        let mut padded_state = NetworkState::<f64, 8, 2, 8>::uniform(20.0);
         for k in 0..500 {
             let currents = [3.0 * rng.normal(), 2.0, if k % 50 < 25 { 4.0 } else { 0.0 }];
             let boundary = [20.0 + rng.normal(), 35.0];
+            let mut padded_currents = [0.0; 8];
+            padded_currents[..3].copy_from_slice(&currents);
             stepper.step(&mut state, &currents, &boundary);
-            dyn_net.euler_step(&mut temps, &currents, &boundary, dt, &mut scratch);
-            assert_close(&temps, &state.temps_c, k);
+            padded_stepper.step(&mut padded_state, &padded_currents, &boundary);
+            assert_close(&padded_state.temps_c[..4], &state.temps_c, k);
+            assert!(padded_state.temps_c[4..].iter().all(|t| *t == 20.0));
         }
         let d_lib = lib.derivative_k_per_s(&state.temps_c, &[1.0, 2.0, 3.0], &[20.0, 30.0]);
-        let d_dyn = dyn_net.derivative_k_per_s(&temps, &[1.0, 2.0, 3.0], &[20.0, 30.0]);
-        for (a, b) in d_lib.iter().zip(&d_dyn) {
+        let d_pad = padded.derivative_k_per_s(
+            &padded_state.temps_c,
+            &[1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &[20.0, 30.0],
+        );
+        for (a, b) in d_lib.iter().zip(&d_pad) {
             assert!((a - b).abs() <= 1e-12 * a.abs().max(1.0));
         }
     }
@@ -79,10 +95,10 @@ fn solenoid_model_file_runs_exactly_like_the_library_network() {
     assert_eq!(model.nodes.len(), 30);
     assert_eq!(model.inputs.len(), 1, "one series current");
     let dt = 0.5;
-    assert_eq!(model.network.substeps(dt, model.max_step_ratio), 1);
+    let mut plant = FilePlant::new(model).unwrap();
+    assert_eq!(plant.substeps(dt), 1);
     let stepper = ExplicitStepper::<f64, 30, 1, 30>::new(&lib, dt, wide_limits()).unwrap();
     let mut state = NetworkState::<f64, 30, 1, 30>::uniform(16.0);
-    let mut plant = FilePlant::new(model);
     plant.reset(&[16.0; 30]);
     for k in 0..2000 {
         let i = if k < 1500 { 6.0 } else { 0.0 };
@@ -96,7 +112,7 @@ fn solenoid_model_file_runs_exactly_like_the_library_network() {
 fn hust_model_file_matches_a_hand_written_euler_loop() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/hust-ipmsm-3node.toml");
     let file = ModelFile::load(std::path::Path::new(path)).unwrap();
-    let mut plant = FilePlant::new(Model::build(&file).unwrap());
+    let mut plant = FilePlant::new(Model::build(&file).unwrap()).unwrap();
     let n = 3000;
     let mut rng = Rng::new(11);
     let time_s: Vec<f64> = (0..n).map(|k| k as f64).collect();
@@ -150,9 +166,8 @@ fn hust_model_file_matches_a_hand_written_euler_loop() {
     assert!(hottest > 40.0, "the winding heats: {hottest}");
 }
 
-/// The library stepper carries each node's rounding residual (compensated
-/// summation, for f32); the dynamic f64 stepper does not need to. The two
-/// then differ only at the f64 rounding level: a few ulp of a temperature.
+/// Two library runs of the same network at different padded sizes: equal
+/// up to the f64 rounding level (a few ulp of a temperature).
 fn assert_close(dynamic: &[f64], library: &[f64], step: usize) {
     for (node, (d, l)) in dynamic.iter().zip(library).enumerate() {
         assert!(
