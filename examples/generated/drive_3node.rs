@@ -67,10 +67,10 @@ pub fn source_currents_a(input_a: &[f32; INPUTS]) -> [f32; CURRENTS] {
 /// # Errors
 /// None for a generated file; the type is the builder's.
 pub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {
-    Network::new([69.12866037649218, 365.08215921638333, 912.4375465283892])?
-        .connect(0, 1, 0.9119422100981807)?
-        .connect(1, 2, 2.3005467939457644)?
-        .connect_boundary(2, 0, 1.0568616839853753)?
+    Network::new([69.12866037629134, 365.0821592277791, 912.4375465575339])?
+        .connect(0, 1, 0.9119422100982567)?
+        .connect(1, 2, 2.300546793827373)?
+        .connect_boundary(2, 0, 1.0568616840057918)?
         .joule_source(0, 0, Resistance::linear_fit(0.004716000000000001, 1.10568))
 }
 
@@ -124,7 +124,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             ],
             bd_power: [[1.4465685e-5], [1.8066973e-11], [1.5184219e-17]],
             gd_boundary: [[1.6047618e-17], [3.6494184e-12], [1.1582817e-6]],
-            constant_k: [-6.677798e-16, 8.0080115e-16, -9.881825e-16],
+            constant_k: [1.2074838e-16, -7.16904e-17, -1.0454419e-15],
             source_node: [0],
             resistance: [coil_thermal::network::ScalarResistance {
                 r_at_0c_ohm: 1.10568,
@@ -214,7 +214,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             winding_node: [0],
             tick_s: 0.016,
             points_per_tick: 1,
-            slowest_time_constant_s: 1346.4623479711747,
+            slowest_time_constant_s: 1346.4623479899872,
         },
         shadow: coil_thermal::observer::network::ShadowTables {
             block_steps: 1000,
@@ -225,7 +225,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             ],
             bd_power: [[0.014370861], [1.793529e-5], [1.5087254e-8]],
             gd_boundary: [[1.594514e-8], [3.6343054e-6], [0.0011561585]],
-            constant_k: [-2.6074156e-15, 1.901013e-15, 2.164935e-15],
+            constant_k: [-1.3761896e-15, 2.0716122e-15, 9.089951e-16],
         },
     };
 

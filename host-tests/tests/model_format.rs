@@ -4,7 +4,8 @@ use coil_thermal_host::model_file::ModelFile;
 
 #[test]
 fn the_format_documents_example_is_the_shipped_hust_model() {
-    let doc = include_str!("../MODEL_FORMAT.md");
+    let full = include_str!("../MODEL_FORMAT.md");
+    let doc = &full[full.find("## A full example").expect("the full example")..];
     let start = doc.find("```toml\n").expect("a toml example") + "```toml\n".len();
     let end = start + doc[start..].find("```").expect("closed block");
     let from_doc = ModelFile::parse(&doc[start..end], "MODEL_FORMAT.md").unwrap();
