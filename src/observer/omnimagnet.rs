@@ -458,8 +458,12 @@ pub struct OmniObserverState {
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
     cycle: ProtectionCycle<SOLENOIDS>,
+    /// What each node's deviation could not hold \[K\] (the carry of
+    /// [`MeanModel::predict`]).
+    residual_k: [f32; NODES],
     /// The shadow's deviations from its origin \[K\] (biases zero).
     shadow_x: SVector<f32, STATES>,
+    shadow_residual_k: [f32; NODES],
     shadow_block: BlockMean<SOLENOIDS>,
     outputs: OmniOutputs,
 }
@@ -708,6 +712,8 @@ impl OmniObserver {
                     .map_or(0.0, |t| t - self.shadow.origin_c()[i])
             }),
             shadow_block: BlockMean::new(),
+            residual_k: [0.0; NODES],
+            shadow_residual_k: [0.0; NODES],
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -845,7 +851,9 @@ impl OmniObserver {
                 state.held_ambient_c,
                 &mut state.input,
             );
-            state.model.predict(&mut state.estimate.x, &state.input);
+            state
+                .model
+                .predict(&mut state.estimate.x, &state.input, &mut state.residual_k);
         }
         state.cycle.stepped(
             steps.steps,
@@ -866,7 +874,8 @@ impl OmniObserver {
                 state.held_ambient_c,
                 &mut u,
             );
-            self.shadow.predict(&mut state.shadow_x, &u);
+            self.shadow
+                .predict(&mut state.shadow_x, &u, &mut state.shadow_residual_k);
         }
         let (corrected, disagree) = self.correct(state, inputs);
         flags |= disagree;
@@ -996,6 +1005,7 @@ impl OmniObserver {
                 let shadow = shadow_origin[i] + state.shadow_x[i];
                 if origin[i] + x[i] < shadow {
                     x[i] = shadow - origin[i];
+                    state.residual_k[i] = 0.0;
                 }
             }
             for m in 0..SOLENOIDS {

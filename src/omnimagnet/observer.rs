@@ -178,8 +178,9 @@ pub type ObserverGain<T> = SteadyStateGain<T, STATES, THERMOCOUPLES>;
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeanModel<T: RealField + Copy> {
-    /// `Ad` (dimensionless).
-    phi: SMatrix<T, NODES, NODES>,
+    /// `Ad - I` (dimensionless), formed in `f64`: the step is written as an
+    /// increment so that its rounding can be carried (see [`Self::predict`]).
+    phi_minus_i: SMatrix<T, NODES, NODES>,
     /// Columns: per solenoid `Bd_p` \[K/J\], `Gd` (dimensionless), then the
     /// constant term with the origin shift \[K\].
     g: SMatrix<T, NODES, INPUTS>,
@@ -193,7 +194,7 @@ impl<T: RealField + Copy> MeanModel<T> {
     /// The model of `lin` (its step, its operating point as the origin).
     pub fn new(lin: &Linearization) -> Self {
         Self {
-            phi: lin.discrete.ad.cast(),
+            phi_minus_i: (lin.discrete.ad - SMatrix::<f64, NODES, NODES>::identity()).cast(),
             g: deviation_inputs(lin).cast(),
             origin_c: SVector::from_fn(|i, _| cast(lin.op_temps_c[i])),
             dt_s: lin.discrete.dt_s,
@@ -213,24 +214,43 @@ impl<T: RealField + Copy> MeanModel<T> {
     /// Every entry is finite.
     pub fn is_finite(&self) -> bool {
         let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
-        finite(self.phi.as_slice()) && finite(self.g.as_slice()) && finite(self.origin_c.as_slice())
+        finite(self.phi_minus_i.as_slice())
+            && finite(self.g.as_slice())
+            && finite(self.origin_c.as_slice())
     }
 
     /// One mean-only predict of the observer state `x` (deviations \[K\],
-    /// biases \[W\]) with the input `u` (powers \[W\], ambient \[degC\], 1).
+    /// biases \[W\]) with the input `u` (powers \[W\], ambient \[degC\], 1),
+    /// as an increment `(Ad - I) x + G (u + [b, 0, 0])` added to `x` with
+    /// the rounding carried in `residual_k` \[K\] (one per node, kept in the
+    /// state; zero to start). In `f32` a 1 ms step changes a node by about
+    /// 1e-5 K, close to what a deviation of tens of kelvin resolves: without
+    /// the carry most of every increment is rounded away and the estimate
+    /// drifts over hours (see the network observer's "f32 without drift").
     /// A non-finite `u` drops the input term, as [`filter::predict_mean`].
-    pub fn predict(&self, x: &mut SVector<T, STATES>, u: &SVector<T, INPUTS>) {
+    pub fn predict(
+        &self,
+        x: &mut SVector<T, STATES>,
+        u: &SVector<T, INPUTS>,
+        residual_k: &mut [T; NODES],
+    ) {
         let temps = x.fixed_rows::<NODES>(0).into_owned();
-        let mut next = SVector::<T, NODES>::zeros();
-        next.gemv(T::one(), &self.phi, &temps, T::zero());
+        let mut increment = SVector::<T, NODES>::zeros();
+        increment.gemv(T::one(), &self.phi_minus_i, &temps, T::zero());
         let mut v = *u;
         for m in 0..SOLENOIDS {
             v[m] += x[NODES + m];
         }
         if v.iter().all(|e| e.is_finite()) {
-            next.gemv(T::one(), &self.g, &v, T::one());
+            increment.gemv(T::one(), &self.g, &v, T::one());
         }
-        x.fixed_rows_mut::<NODES>(0).copy_from(&next);
+        for (i, (inc, residual)) in increment.iter().zip(residual_k.iter_mut()).enumerate() {
+            // Fast2Sum, as `network::compensated_add` (for any float `T`).
+            let corrected = *inc + *residual;
+            let sum = x[i] + corrected;
+            *residual = corrected - (sum - x[i]);
+            x[i] = sum;
+        }
     }
 
     /// Moves the deviations in `x` from this model's origin to `to`'s, so
@@ -440,6 +460,9 @@ pub struct ObserverState<T: RealField + Copy> {
     /// A virtual reading ([`OmnimagnetObserver::correct_winding`]) has been
     /// fused: the observer stays time-varying.
     pub virtual_readings: bool,
+    /// What each node's deviation could not hold in the steady-state
+    /// predict \[K\] (see [`MeanModel::predict`]).
+    pub residual_k: [T; NODES],
 }
 
 /// The Omnimagnet observer: configuration and state of one device.
@@ -744,6 +767,7 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
                 last_input,
                 corrections: 0,
                 virtual_readings: false,
+                residual_k: [T::zero(); NODES],
             },
             config,
         })
@@ -856,7 +880,11 @@ impl<T: RealField + Copy> OmnimagnetObserver<T> {
                 &mut state.last_input,
             );
         match state.mode {
-            GainMode::SteadyState => config.model.predict(&mut state.filter.x, &state.last_input),
+            GainMode::SteadyState => config.model.predict(
+                &mut state.filter.x,
+                &state.last_input,
+                &mut state.residual_k,
+            ),
             GainMode::TimeVarying => {
                 filter::predict(&config.kalman, &mut state.filter, &state.last_input);
             }
