@@ -19,6 +19,7 @@ use super::omnimagnet::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
 use crate::protect::alarm::{AlarmState, AlarmStatus};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
+use crate::scalar::Scalar;
 
 /// A protection stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,10 +169,10 @@ pub(crate) fn record_verdicts<const P: usize>(
 
 /// Latches the shutdown and shows it at once: the published alarm says
 /// so and every current limit is zero (until the deliberate clear).
-pub(crate) fn latch_and_publish<const N: usize>(
-    alarm: &mut AlarmState<f32, N>,
+pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
+    alarm: &mut AlarmState<S, N>,
     published: &mut AlarmStatus,
-    limits: &mut [CoilLimit<f32>],
+    limits: &mut [CoilLimit<S>],
 ) {
     alarm.latch_shutdown();
     published.shutdown = true;

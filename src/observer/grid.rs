@@ -118,6 +118,7 @@
 //! within about 1 mK of it. An unknown off time means no cooling.
 
 use super::clock::{ClockState, StepClock};
+use super::cycle::latch_and_publish;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
@@ -1031,23 +1032,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         max_age_s: u32,
         ambient_c: f64,
     ) -> Result<GridObserverState<S, ROWS, COLS, N>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let mut grid = GridState::uniform(ambient_c);
-        for (t, s) in grid.temps_c.as_flattened_mut().iter_mut().zip(&temps_c) {
-            *t = S::from_f32(*s);
-        }
-        let mut state = self.state_from(grid);
-        if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
-        }
-        Ok(state)
+        self.restore_after(bytes, now_s, max_age_s, ambient_c, None)
     }
 
     /// [`Self::restore`] for a grid that was off for `off_s` \[s\]: the saved
@@ -1087,9 +1072,11 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         }
         let mut state = self.state_from(grid);
         if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
         }
         Ok(state)
     }
@@ -1270,9 +1257,11 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let hot = S::from_f64(self.restart_c.max(ambient_c));
         grid.temps_c = [[hot; COLS]; ROWS];
         let mut state = self.state_from(grid);
-        state.alarm.latch_shutdown();
-        state.outputs.alarm.shutdown = true;
-        hold_shutdown(&mut state.outputs.limits);
+        latch_and_publish(
+            &mut state.alarm,
+            &mut state.outputs.alarm,
+            &mut state.outputs.limits,
+        );
         state
     }
 

@@ -926,21 +926,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         max_age_s: u32,
         boundary_c: &[f32; B],
     ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let mut state = self.state(&temps_c, boundary_c);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
-        Ok(state)
+        self.restore_after(bytes, now_s, max_age_s, boundary_c, None)
     }
 
     /// [`Self::restore`] for a device that was off for `off_s` \[s\]: the
@@ -986,9 +972,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         };
         let mut state = self.state(&temps_c, boundary_c);
         if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
         }
         Ok(state)
     }

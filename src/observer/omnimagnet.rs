@@ -1065,21 +1065,9 @@ impl OmniObserver {
         max_age_s: u32,
         ambient_c: f32,
     ) -> Result<OmniObserverState, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (temps_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
-        let mut state = self.state(&temps_c, ambient_c);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
-        Ok(state)
+        self.restore_cooled(bytes, now_s, max_age_s, ambient_c, None, |saved_c, _| {
+            Ok(*saved_c)
+        })
     }
 
     /// [`Self::restore`] for a device that was off for `off_s` \[s\]: the
@@ -1112,6 +1100,28 @@ impl OmniObserver {
         ambient_c: f32,
         off_s: Option<f32>,
     ) -> Result<OmniObserverState, SnapshotError> {
+        self.restore_cooled(
+            bytes,
+            now_s,
+            max_age_s,
+            ambient_c,
+            off_s,
+            |saved_c, off_s| self.cooled_c(model, saved_c, ambient_c, off_s),
+        )
+    }
+
+    /// The snapshot checked, its temperatures passed through `cool` (with
+    /// the off time, when there is cooling to do: positive and the ambient
+    /// valid), the latch restored and shown.
+    fn restore_cooled(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        off_s: Option<f32>,
+        cool: impl FnOnce(&[f32; NODES], f32) -> Result<[f32; NODES], SnapshotError>,
+    ) -> Result<OmniObserverState, SnapshotError> {
         let policy = RestorePolicy {
             fingerprint: self.fingerprint,
             now_s,
@@ -1122,15 +1132,17 @@ impl OmniObserver {
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let temps_c = if off_s > 0.0 && ambient_ok {
-            self.cooled_c(model, &saved_c, ambient_c, off_s)?
+            cool(&saved_c, off_s)?
         } else {
             saved_c
         };
         let mut state = self.state(&temps_c, ambient_c);
         if meta.shutdown_latched {
-            state.alarm.latch_shutdown();
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
         }
         Ok(state)
     }
