@@ -50,6 +50,10 @@ pub struct ObserverSpec {
     /// Every current's hardware limit \[A\] (default 8).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hardware_limit_a: Option<f64>,
+    /// Largest plausible current \[A\] before it is clamped and flagged
+    /// (default 100).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_current_a: Option<f64>,
     /// Product of the derating factors of the alarm limits (default 0.648,
     /// the HPPA rule without its magnet-plate factor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -292,6 +296,9 @@ impl Plan {
         }
         if let Some(v) = s.correction_period_s {
             fields.push(format!("correction_period_s: {v:?}"));
+        }
+        if let Some(v) = s.max_current_a {
+            fields.push(format!("max_current_a: {v:?}"));
         }
         if let Some(v) = s.bias_noise_w2_per_s {
             fields.push(format!("bias_noise_w2_per_s: {v:?}"));

@@ -226,6 +226,11 @@ pub struct NetworkSettings {
     /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
     /// 100 (0.1 s at a 1 ms loop).
     pub frozen_flag_ticks: u32,
+    /// Largest plausible current magnitude \[A\]: beyond it a current is
+    /// clamped and flagged (`InputFlags::CURRENT_CLAMPED`). Default 100
+    /// ([`InputLimits::default`](crate::InputLimits)); a 400 A motor
+    /// drive sets its own.
+    pub max_current_a: f64,
     /// Fixed part of the band a reading must keep to against the unfused
     /// shadow model, below it \[K\] (see "Sensors against the physics";
     /// `f64::INFINITY` turns the test off). Default 3.
@@ -262,6 +267,7 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
+        max_current_a: 100.0,
         consistency_offset_k: 3.0,
         consistency_fraction: 0.25,
         frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,

@@ -471,6 +471,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             "gain",
         )?;
         let predictor = predictor_from(&parts.predictor)?;
+        let input_limits = InputLimits {
+            max_current_a: s.max_current_a,
+            ..InputLimits::default()
+        };
+        input_limits
+            .validate()
+            .map_err(|_| BuildError::InvalidParameter {
+                name: "max_current_a",
+            })?;
         let sh = &parts.shadow;
         check(
             sh.block_steps == timing.correction_period,
@@ -574,7 +583,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bound,
             shadow,
             clock: timing.clock,
-            limits: InputLimits::default().to_scalar(),
+            limits: input_limits.to_scalar(),
             ambient_boundary: s.ambient_boundary,
             max_reading_age_us: s.max_reading_age_us,
             step_us: s.step_us,
@@ -743,6 +752,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
+        writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
         writeln!(
             out,
             "        consistency_offset_k: {:?},",
@@ -876,7 +886,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
 #[cfg(test)]
 mod tests {
-    use super::super::NetworkInputs;
+    use super::super::{NetworkInputs, NetworkSettings};
     use super::*;
     use crate::network::{Network, Resistance};
     use crate::observer::TimedReading;
@@ -977,6 +987,42 @@ mod tests {
         let mut p = parts();
         p.settings.step_us = 0;
         assert!(NetworkObserver::from_parts(&p).is_err());
+    }
+
+    #[test]
+    fn a_drive_sets_its_own_current_limit() {
+        let net = network();
+        let build = |max_current_a: f64| {
+            NetworkObserverBuilder::new(&net, [1])
+                .critical_c([Some(155.0), Some(80.0), None])
+                .settings(NetworkSettings {
+                    max_current_a,
+                    ..NetworkSettings::DEFAULT
+                })
+                .build::<4>()
+        };
+        let tick = |observer: &NetworkObserver<3, 1, 1, 4, 1>| {
+            let mut state = observer.state(&[20.0; 3], &[20.0]);
+            let inputs = NetworkInputs {
+                currents_a: [400.0],
+                boundary_c: [20.0],
+                readings: [None],
+                now_us: 1000,
+                elapsed_us: 1000,
+            };
+            observer.tick(&mut state, &inputs).flags
+        };
+        // 400 A: clamped (and flagged) at the default 100 A, taken at 500 A.
+        let default = build(100.0).expect("builds");
+        assert!(tick(&default).contains(crate::InputFlags::CURRENT_CLAMPED));
+        let drive = build(500.0).expect("builds");
+        assert!(tick(&drive).is_clean());
+        assert!(matches!(
+            build(f64::NAN),
+            Err(BuildError::InvalidParameter {
+                name: "max_current_a"
+            })
+        ));
     }
 
     #[test]
