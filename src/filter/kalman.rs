@@ -276,17 +276,27 @@ pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usi
     u: &SVector<T, M>,
 ) -> InputStatus {
     let status = predict_mean(cfg, &mut state.x, u);
+    predict_cov(cfg, &mut state.cov);
+    status
+}
+
+/// The covariance half of [`predict`]: `P = F P F^T + Q`, exactly
+/// symmetric (for a caller that runs its own mean predict, as the network
+/// observer's time-varying warm-up does).
+pub(crate) fn predict_cov<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+    cfg: &KalmanConfig<T, N, M, P>,
+    cov: &mut SMatrix<T, N, N>,
+) {
     if cfg.walk_from < N {
-        propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, &mut state.cov);
+        propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, cov);
     } else {
         // Without random walks the plain product, so that models without
-        // them keep their results bit for bit (the host tool mirrors them).
-        let prev = state.cov;
-        state.cov.copy_from(&cfg.q);
-        state.cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
-        state.cov = state.cov.symmetric_part();
+        // them keep their results bit for bit.
+        let prev = *cov;
+        cov.copy_from(&cfg.q);
+        cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
+        *cov = cov.symmetric_part();
     }
-    status
 }
 
 /// Rows per register block of [`propagate_cov`].

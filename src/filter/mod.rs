@@ -116,6 +116,7 @@ mod riccati;
 pub mod virtual_sensor;
 
 pub use gate::{GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999};
+pub(crate) use kalman::predict_cov;
 pub use kalman::{predict, predict_mean, update, InputStatus, KalmanConfig, KalmanState};
 pub use observability::{observability, Observability};
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};

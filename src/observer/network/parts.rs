@@ -582,6 +582,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             predictor,
             bound,
             shadow,
+            warmup_corrections: s.warmup_corrections,
             clock: timing.clock,
             limits: input_limits.to_scalar(),
             ambient_boundary: s.ambient_boundary,
@@ -752,6 +753,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
+        writeln!(out, "        warmup_corrections: {},", s.warmup_corrections)?;
         writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
         writeln!(
             out,
