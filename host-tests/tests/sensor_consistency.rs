@@ -28,6 +28,9 @@ enum Fault {
     AllDetached,
     /// Every thermocouple keeps the value it read at this time \[s\].
     AllStuckFrom(f64),
+    /// Thermocouple 0 (solenoid 1) keeps its value from this time \[s\],
+    /// with one thermocouple per solenoid (0, 2, 4) fitted.
+    OnePerSolenoidOneStuckFrom(f64),
 }
 
 #[derive(Debug)]
@@ -35,6 +38,8 @@ struct Outcome {
     shutdown_s: Option<f64>,
     /// Readings refused as colder than the physics allows.
     colder_than_physics: u32,
+    /// When a reading was first reported stuck \[s\].
+    stuck_flagged_s: Option<f64>,
     /// Largest |estimate - plant| on the thermocouple nodes before the
     /// shutdown \[K\].
     worst_error_k: f64,
@@ -46,10 +51,15 @@ fn run(fault: Fault) -> Outcome {
 
 fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
     let defaults = OmniSettings::default();
+    let sensors = match fault {
+        Fault::OnePerSolenoidOneStuckFrom(_) => [true, false, true, false, true, false],
+        _ => [true; 6],
+    };
     let settings = OmniSettings {
         step_us: STEP_US,
         filter: ObserverSettings {
             correction_period_s: f64::from(READING_EVERY * STEP_US) * 1e-6,
+            sensors,
             ..defaults.filter
         },
         ..defaults
@@ -69,6 +79,7 @@ fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
     let mut outcome = Outcome {
         shutdown_s: None,
         colder_than_physics: 0,
+        stuck_flagged_s: None,
         worst_error_k: 0.0,
     };
     let mut now_us = 0u32;
@@ -87,6 +98,13 @@ fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
                 } else {
                     truth
                 }
+            }
+            Fault::OnePerSolenoidOneStuckFrom(from_s) => {
+                let mut read = truth;
+                if t_s >= from_s {
+                    read[0] = stuck.get_or_insert(truth)[0];
+                }
+                read
             }
         };
         let readings = if k % READING_EVERY == 0 {
@@ -115,6 +133,14 @@ fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
             .iter()
             .filter(|s| matches!(s, SensorStatus::ColderThanPhysics { .. }))
             .count() as u32;
+        if outcome.stuck_flagged_s.is_none()
+            && out
+                .sensors
+                .iter()
+                .any(|s| matches!(s, SensorStatus::Stuck { .. }))
+        {
+            outcome.stuck_flagged_s = Some(t_s);
+        }
         if std::env::var("TRACE_BIAS").is_ok() && k % 100 == 0 {
             println!(
                 "{fault:?} t={t_s:.0} bias {:?} est {:?} truth {:?}",
@@ -145,6 +171,8 @@ fn common_mode_faults_do_not_delay_the_shutdown() {
         Fault::AllDetached,
         Fault::AllStuckFrom(60.0),
         Fault::AllStuckFrom(clean_s * 0.5),
+        Fault::OnePerSolenoidOneStuckFrom(60.0),
+        Fault::OnePerSolenoidOneStuckFrom(clean_s * 0.5),
     ] {
         let faulty = run(fault);
         println!("{fault:?}: {faulty:?}");
@@ -155,6 +183,14 @@ fn common_mode_faults_do_not_delay_the_shutdown() {
             at <= clean_s + 1.0,
             "{fault:?}: shutdown at {at} s, clean at {clean_s} s"
         );
+        if let Fault::AllStuckFrom(from_s) | Fault::OnePerSolenoidOneStuckFrom(from_s) = fault {
+            let flagged = faulty.stuck_flagged_s.expect("a stuck sensor is flagged");
+            assert!(
+                flagged - from_s <= 10.0,
+                "{fault:?}: stuck flagged {} s after it stuck",
+                flagged - from_s
+            );
+        }
     }
 }
 

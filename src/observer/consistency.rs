@@ -61,29 +61,99 @@ impl Band {
     /// Takes every sample colder than its node's band out of the
     /// correction, marking it [`SensorStatus::ColderThanPhysics`];
     /// `shadow_c[j]` is the shadow's temperature at sensor `j`'s node
-    /// \[degC\]. Returns `true` for a common-mode fault: at least one
-    /// sample, and every one colder than physics.
+    /// \[degC\].
     pub(crate) fn screen<const P: usize>(
         &self,
         samples: &mut [Option<f32>; P],
         statuses: &mut [SensorStatus; P],
         shadow_c: &[f32; P],
         ambient_c: f32,
-    ) -> bool {
-        let (mut present, mut colder) = (0u32, 0u32);
+    ) {
         for ((sample, status), shadow_c) in samples.iter_mut().zip(statuses).zip(shadow_c) {
             let Some(t) = *sample else { continue };
-            present += 1;
             let lowest_c = self.lowest_c(*shadow_c, ambient_c);
             if t < lowest_c {
-                colder += 1;
                 *sample = None;
                 *status = SensorStatus::ColderThanPhysics {
                     below_k: lowest_c - t,
                 };
             }
         }
-        present > 0 && colder == present
+    }
+}
+
+/// How long the shadow's movement under an unchanged reading is watched
+/// before the reference restarts \[s\]: a stuck verdict needs the physics
+/// to move by the threshold within this window, so the slow approach of a
+/// model to a steady state a little off the device's (while a quantised
+/// thermocouple at a steady temperature repeats its code) is never taken
+/// for a stuck sensor.
+pub(crate) const STUCK_WINDOW_S: f64 = 20.0;
+
+/// Stuck readings, told without the estimate they drag: a reading that
+/// has not changed (to the bit) while the shadow model at its node moved by
+/// more than `threshold_k` within [`STUCK_WINDOW_S`]. A live thermocouple
+/// at a steady temperature repeats its value too, but then the physics does
+/// not move; a stuck one repeats it while the device heats or cools. At the
+/// heating rates that matter (0.1-0.5 K/s) it is flagged within seconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StuckWatch<const P: usize> {
+    /// Each sensor's last reading \[degC\] (NaN: none yet).
+    last_c: [f32; P],
+    /// The shadow at the sensor's node at the reference \[degC\]: when
+    /// the reading last changed, or the window last restarted.
+    shadow_at_change_c: [f32; P],
+    /// Readings since the reference.
+    since: [u32; P],
+}
+
+impl<const P: usize> StuckWatch<P> {
+    /// No reading seen yet.
+    pub(crate) const fn new() -> Self {
+        Self {
+            last_c: [f32::NAN; P],
+            shadow_at_change_c: [f32::NAN; P],
+            since: [0; P],
+        }
+    }
+
+    /// Takes every stuck sample out of the correction, marking it
+    /// [`SensorStatus::Stuck`]; `shadow_c[j]` is the shadow at sensor `j`'s
+    /// node \[degC\]; `window` the readings in [`STUCK_WINDOW_S`].
+    pub(crate) fn screen(
+        &mut self,
+        samples: &mut [Option<f32>; P],
+        statuses: &mut [SensorStatus; P],
+        shadow_c: &[f32; P],
+        threshold_k: f32,
+        window: u32,
+    ) {
+        for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
+            let (Some(t), Some(last), Some(at), Some(since), Some(shadow)) = (
+                *sample,
+                self.last_c.get_mut(j),
+                self.shadow_at_change_c.get_mut(j),
+                self.since.get_mut(j),
+                shadow_c.get(j),
+            ) else {
+                continue;
+            };
+            if t.to_bits() != last.to_bits() || *since >= window {
+                // A new value, or a window without a verdict: restart.
+                *last = t;
+                *at = *shadow;
+                *since = 0;
+                continue;
+            }
+            *since += 1;
+            let moved_k = (*shadow - *at).abs();
+            if moved_k > threshold_k {
+                *sample = None;
+                *status = SensorStatus::Stuck {
+                    model_moved_k: moved_k,
+                };
+            }
+        }
     }
 }
 

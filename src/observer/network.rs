@@ -126,7 +126,11 @@
 //! common-mode fault), the estimate is raised to the shadow wherever it is
 //! below it, the negative heat biases are dropped, and the tick is flagged
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
-//! the model until a sensor agrees with it again. Its cost: a block step
+//! the model until a sensor agrees with it again. A reading that repeats
+//! its value (to the bit) while the shadow at its node has moved by more
+//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 20 s
+//! is stuck ([`SensorStatus::Stuck`]) and not fused until it moves: a test
+//! that does not lean on the estimate the sensor drags. Its cost: a block step
 //! (`N^2 + N (M + B)` multiply-adds) once per correction period.
 //!
 //! # Readings, clock, snapshots
@@ -140,7 +144,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Shadow, ShadowState};
+use super::consistency::{Shadow, ShadowState, StuckWatch};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
@@ -233,6 +237,11 @@ pub struct NetworkSettings {
     /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
     /// 100 (0.1 s at a 1 ms loop).
     pub frozen_flag_ticks: u32,
+    /// How far the shadow model at a sensor's node must move while its
+    /// reading stays the same (to the bit) for the sensor to count as
+    /// stuck \[K\] (see "Sensors against the physics"; `f64::INFINITY`
+    /// turns the test off). Default 1.0.
+    pub stuck_threshold_k: f64,
     /// Corrections run by the time-varying filter before the steady gain
     /// takes over (the optional time-varying path): from the steady prior
     /// widened by the recovery variances (`recovery_sigma_k`,
@@ -285,6 +294,7 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
+        stuck_threshold_k: 1.0,
         warmup_corrections: 0,
         max_current_a: 100.0,
         consistency_offset_k: 3.0,
@@ -471,6 +481,10 @@ pub struct NetworkObserver<
     predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
     bound: UpperBound<f32, N>,
     shadow: Shadow<N, B, M>,
+    stuck_threshold_k: f32,
+    /// Readings in [`consistency::STUCK_WINDOW_S`](super::consistency) at
+    /// the correction period.
+    stuck_window: u32,
     warmup_corrections: u16,
     clock: StepClock,
     limits: ScalarLimits<f32>,
@@ -510,6 +524,7 @@ pub struct NetworkObserverState<
     held_boundary_c: [f32; B],
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
+    stuck: StuckWatch<P>,
     /// The time-varying warm-up's covariance, while it runs.
     warmup_cov: SMatrix<f32, X, X>,
     /// Corrections the warm-up has left.
@@ -633,6 +648,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov
             },
             warmup_left: self.warmup_corrections,
+            stuck: StuckWatch::new(),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -897,12 +913,23 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let shadow_c = self
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
-        let common_mode = self.shadow.band.screen(
+        let present = samples.iter().any(Option::is_some);
+        self.shadow.band.screen(
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
             ambient_c,
         );
+        state.stuck.screen(
+            &mut samples,
+            &mut state.outputs.sensors,
+            &shadow_c,
+            self.stuck_threshold_k,
+            self.stuck_window,
+        );
+        // Every reading refused (colder than physics, or stuck): a
+        // common-mode fault.
+        let common_mode = present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.
@@ -1138,6 +1165,7 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 }
 
 mod parts;
+pub(crate) use parts::stuck_window as parts_stuck_window;
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 
 #[cfg(test)]

@@ -157,7 +157,7 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Band, BlockMean};
+use super::consistency::{Band, BlockMean, StuckWatch};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -247,6 +247,11 @@ pub struct OmniSettings {
     /// Share of the shadow's rise above the ambient in that band
     /// (dimensionless, `>= 0`). Default 0.25.
     pub consistency_fraction: f64,
+    /// How far the shadow at a thermocouple's node must move while its
+    /// reading stays the same for it to count as stuck \[K\] (as
+    /// [`NetworkSettings::stuck_threshold_k`](super::NetworkSettings::stuck_threshold_k)).
+    /// Default 1.0.
+    pub stuck_threshold_k: f64,
 }
 
 impl Default for OmniSettings {
@@ -269,6 +274,7 @@ impl Default for OmniSettings {
             frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
             consistency_offset_k: 3.0,
             consistency_fraction: 0.25,
+            stuck_threshold_k: 1.0,
         }
     }
 }
@@ -348,6 +354,12 @@ pub enum SensorStatus {
     ColderThanPhysics {
         /// How far below the band's lower edge \[K\].
         below_k: f32,
+    },
+    /// Stuck: the reading has not moved while the shadow model at its node
+    /// moved by more than the stuck threshold; not fused until it moves.
+    Stuck {
+        /// How far the shadow moved since the reading last changed \[K\].
+        model_moved_k: f32,
     },
 }
 
@@ -432,6 +444,9 @@ pub struct OmniObserver {
     shadow_block_steps: u32,
     /// The consistency band.
     band: Band,
+    stuck_threshold_k: f32,
+    /// Readings in the stuck test's window at the correction period.
+    stuck_window: u32,
 }
 
 /// The per-device state.
@@ -464,6 +479,7 @@ pub struct OmniObserverState {
     /// The shadow's deviations from its origin \[K\] (biases zero).
     shadow_x: SVector<f32, STATES>,
     shadow_residual_k: [f32; NODES],
+    stuck: StuckWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
     outputs: OmniOutputs,
 }
@@ -537,6 +553,11 @@ impl OmniObserver {
                 name: "consistency_offset_k",
             });
         }
+        if settings.stuck_threshold_k.is_nan() || settings.stuck_threshold_k < 0.0 {
+            return Err(BuildError::InvalidParameter {
+                name: "stuck_threshold_k",
+            });
+        }
         if !(settings.consistency_fraction.is_finite() && settings.consistency_fraction >= 0.0) {
             return Err(BuildError::InvalidParameter {
                 name: "consistency_fraction",
@@ -561,6 +582,8 @@ impl OmniObserver {
                 offset_k: settings.consistency_offset_k as f32,
                 fraction: settings.consistency_fraction as f32,
             },
+            stuck_threshold_k: settings.stuck_threshold_k as f32,
+            stuck_window: super::network::parts_stuck_window(settings.filter.correction_period_s),
         })
     }
 
@@ -714,6 +737,7 @@ impl OmniObserver {
             shadow_block: BlockMean::new(),
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
+            stuck: StuckWatch::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -987,14 +1011,31 @@ impl OmniObserver {
             self.max_reading_age_us,
             &mut state.outputs.sensors,
         );
+        // Only the fitted thermocouples count.
+        for (sample, fitted) in samples.iter_mut().zip(self.filter.settings().sensors) {
+            if !fitted {
+                *sample = None;
+            }
+        }
         let shadow_origin = self.shadow.origin_c();
         let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
-        let common_mode = self.band.screen(
+        let present = samples.iter().any(Option::is_some);
+        self.band.screen(
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
             state.held_ambient_c,
         );
+        state.stuck.screen(
+            &mut samples,
+            &mut state.outputs.sensors,
+            &shadow_c,
+            self.stuck_threshold_k,
+            self.stuck_window,
+        );
+        // Every reading refused (colder than physics, or stuck): a
+        // common-mode fault.
+        let common_mode = present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.

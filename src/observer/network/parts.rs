@@ -36,7 +36,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{Band, Shadow};
+use crate::observer::consistency::{Band, Shadow, STUCK_WINDOW_S};
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -218,6 +218,10 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
         "consistency_offset_k",
     )?;
     check(nonneg(s.consistency_fraction), "consistency_fraction")?;
+    check(
+        !s.stuck_threshold_k.is_nan() && s.stuck_threshold_k >= 0.0,
+        "stuck_threshold_k",
+    )?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -583,6 +587,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bound,
             shadow,
             warmup_corrections: s.warmup_corrections,
+            stuck_threshold_k: s.stuck_threshold_k as f32,
+            stuck_window: stuck_window(s.correction_period_s),
             clock: timing.clock,
             limits: input_limits.to_scalar(),
             ambient_boundary: s.ambient_boundary,
@@ -642,6 +648,17 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
         points_per_tick: t.points_per_tick,
         slowest_time_constant_s: t.slowest_time_constant_s,
     })
+}
+
+/// The readings in [`STUCK_WINDOW_S`] at one per `correction_period_s`
+/// \[s\] (at least 2).
+pub(crate) fn stuck_window(correction_period_s: f64) -> u32 {
+    let n = libm::ceil(STUCK_WINDOW_S / correction_period_s);
+    if n.is_finite() && n >= 2.0 {
+        n.min(f64::from(u32::MAX)) as u32
+    } else {
+        2
+    }
 }
 
 /// `k sigma` from the steady prior on every node, the model margin on the
@@ -753,6 +770,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
+        writeln!(out, "        stuck_threshold_k: {:?},", s.stuck_threshold_k)?;
         writeln!(out, "        warmup_corrections: {},", s.warmup_corrections)?;
         writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
         writeln!(
