@@ -190,11 +190,35 @@ impl FaultClass {
     }
 }
 
+/// Solenoid currents over time: a recorded trace's rows.
+#[derive(Debug, Clone, Default)]
+pub struct CurrentTrace {
+    /// Row times from the run's start \[s\], increasing.
+    pub time_s: Vec<f64>,
+    /// Currents per row \[A\].
+    pub currents_a: Vec<[f64; SOLENOIDS]>,
+}
+
+impl CurrentTrace {
+    /// The currents held at `t_s` \[s\] (the last row at or before it; the
+    /// first row before the trace starts).
+    pub fn at(&self, t_s: f64) -> [f64; SOLENOIDS] {
+        let k = self.time_s.partition_point(|t| *t <= t_s);
+        self.currents_a
+            .get(k.saturating_sub(1))
+            .copied()
+            .unwrap_or([0.0; SOLENOIDS])
+    }
+}
+
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct FaultConfig {
-    /// Constant current of each solenoid \[A\].
+    /// Constant current of each solenoid \[A\] (without `trace`).
     pub currents_a: [f64; SOLENOIDS],
+    /// Currents from a recorded trace instead, held from each row to the
+    /// next; the run lasts `duration_s` (the CLI sets the trace's span).
+    pub trace: Option<CurrentTrace>,
     /// Heating time \[s\] (the off time of a restart case comes on top).
     pub duration_s: f64,
     /// The observer's model step, one tick \[us\].
@@ -220,6 +244,7 @@ impl Default for FaultConfig {
     fn default() -> Self {
         Self {
             currents_a: [7.0; SOLENOIDS],
+            trace: None,
             duration_s: 1800.0,
             step_us: 100_000,
             reading_every: 5,
@@ -300,7 +325,7 @@ pub struct ClassSummary {
     pub class: FaultClass,
     /// Cases run.
     pub cases: usize,
-    /// Cases never flagged.
+    /// Cases never flagged (a power-off restart has nothing to flag).
     pub unflagged: usize,
     /// Worst time to flag among the flagged cases \[s\].
     pub worst_flag_s: Option<f64>,
@@ -359,8 +384,10 @@ pub struct Summary {
 pub struct FaultReport {
     /// Model name.
     pub model: String,
-    /// Currents \[A\].
+    /// Constant currents \[A\] (empty with a trace).
     pub currents_a: Vec<f64>,
+    /// The trace the currents came from, if any.
+    pub trace: Option<String>,
     /// Heating time \[s\].
     pub duration_s: f64,
     /// Model step \[us\].
@@ -569,10 +596,12 @@ impl<'c> Harness<'c> {
         for k in 0..ticks {
             let t_s = (k + 1) as f64 * self.dt_s;
             let off = window.is_some_and(|(a, b)| t_s > a && t_s <= b);
-            let currents = if off {
-                [0.0; SOLENOIDS]
-            } else {
-                cfg.currents_a
+            let currents = match (&cfg.trace, window) {
+                _ if off => [0.0; SOLENOIDS],
+                // After an off time the trace goes on where it stopped.
+                (Some(trace), Some((_, back_s))) if t_s > back_s => trace.at(t_s - off_s),
+                (Some(trace), _) => trace.at(t_s),
+                (None, _) => cfg.currents_a,
             };
             plant.step(self.dt_s, &currents, &[amb], &[]);
             now_us = now_us.wrapping_add(cfg.step_us);
@@ -714,6 +743,14 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     if cfg.currents_a.iter().any(|a| !a.is_finite()) {
         return bad("--current-a must be finite");
     }
+    if let Some(trace) = &cfg.trace {
+        if trace.time_s.is_empty() || trace.time_s.len() != trace.currents_a.len() {
+            return bad("the trace has no rows");
+        }
+        if trace.currents_a.iter().flatten().any(|a| !a.is_finite()) {
+            return bad("the trace has a current that is not finite");
+        }
+    }
     if cfg.onsets_s.iter().any(|t| !(t.is_finite() && *t >= 0.0)) {
         return bad("--onset-s must be finite and >= 0");
     }
@@ -721,6 +758,7 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
         return bad("--off-s must be finite and >= 0");
     }
     let harness = Harness::new(cfg)?;
+    let trace_name = cfg.trace.as_ref().map(|_| String::new());
     let clean = harness.run(None, Restart::None).score;
     let onsets_s = if cfg.onsets_s.is_empty() {
         // Half the clean shutdown time, on a tenth of a second.
@@ -804,8 +842,13 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     let summary = summarise(&classes, &cases);
     Ok(FaultReport {
         model: "omnimagnet".into(),
-        currents_a: cfg.currents_a.to_vec(),
+        currents_a: if cfg.trace.is_some() {
+            Vec::new()
+        } else {
+            cfg.currents_a.to_vec()
+        },
         duration_s: cfg.duration_s,
+        trace: trace_name,
         step_us: cfg.step_us,
         reading_period_s: f64::from(cfg.reading_every * cfg.step_us) * 1e-6,
         sensors,
@@ -846,7 +889,11 @@ fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
         per_class.push(ClassSummary {
             class,
             cases: mine.len(),
-            unflagged: mine.iter().filter(|c| c.flag_s.is_none()).count(),
+            // A power-off restart is no fault: nothing to flag.
+            unflagged: mine
+                .iter()
+                .filter(|c| c.flag_s.is_none() && c.class != FaultClass::PowerOff)
+                .count(),
             worst_flag_s: max(&|c| c.flag_s),
             flag_goal_s: class.flag_goal_s(),
             worst_error_tc_k: max(&|c| Some(c.score.max_error_tc_k)).unwrap_or(0.0),

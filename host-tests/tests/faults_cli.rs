@@ -195,3 +195,43 @@ fn argument_errors_are_clear() {
             .stderr(contains(message));
     }
 }
+
+/// On a recorded trace: the currents of its rows drive the plant for its
+/// span; 7 A then a rest at 2 A, which the clean run survives.
+#[test]
+fn runs_on_a_trace() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let path = dir.path().join("omni.csv");
+    let mut text = String::from("time_s,I1_a,I2_a,I3_a,ambient\n");
+    for t in 0..=300 {
+        let i = if t < 150 { 7.0 } else { 2.0 };
+        text.push_str(&format!("{t},{i},{i},{},23\n", 0.5 * i));
+    }
+    std::fs::write(&path, text).unwrap();
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--trace",
+        path.to_str().unwrap(),
+        "--sensors",
+        "0,3",
+        "--classes",
+        "jump-up,power-off",
+        "--off-s",
+        "30",
+        "--json",
+    ]);
+    assert_eq!(r["duration_s"], 300.0);
+    assert!(r["trace"].as_str().unwrap().ends_with("omni.csv"));
+    assert!(r["clean"]["shutdown_s"].is_null());
+    assert_eq!(r["onsets_s"], serde_json::json!([60.0, 150.0]));
+    for c in cases(&r, "jump-up") {
+        assert!(c["flag_s"].as_f64().unwrap() <= 1.0, "{c}");
+        assert_eq!(c["false_trip"], false, "{c}");
+    }
+    for c in cases(&r, "power-off") {
+        assert_eq!(c["snapshot"]["refused"], false, "{c}");
+        assert!(c["max_error_tc_k"].as_f64().unwrap() < 1.0, "{c}");
+    }
+}

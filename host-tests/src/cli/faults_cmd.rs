@@ -6,7 +6,10 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::common::{self, ModelSpec, NOT_YET};
-use crate::faults::{self, CaseReport, FaultClass, FaultConfig, FaultReport};
+use super::TraceArgs;
+use crate::devices::OmnimagnetPlant;
+use crate::faults::{self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultReport};
+use crate::sim::{Drive, Plant};
 use coil_thermal::omnimagnet::{SOLENOIDS, THERMOCOUPLES};
 
 /// `faults` arguments.
@@ -20,10 +23,14 @@ pub struct FaultsArgs {
     /// `THERMOCOUPLE_NODES`), e.g. `0,2,4`. Default: all six.
     #[arg(long, value_name = "J[,J...]", value_delimiter = ',')]
     sensors: Vec<usize>,
-    /// A recorded trace to run the matrix on (not yet available: use
-    /// --current-a).
-    #[arg(long, value_name = "IN.csv", conflicts_with = "current_a")]
+    /// A recorded trace whose currents drive the plant (columns `I1_a`,
+    /// `I2_a`, `I3_a` [A] or `--current EXPR=current_N`; `time_s` or
+    /// --sample-period-s), held from row to row, for the trace's span; the
+    /// ambient is the trace's first `ambient` [degC] (22 without one).
+    #[arg(long, value_name = "IN.csv", conflicts_with_all = ["current_a", "duration_s"])]
     trace: Option<PathBuf>,
+    #[command(flatten)]
+    trace_args: TraceArgs,
     /// Constant current [A]: one for every solenoid or one per solenoid
     /// (`7,7,7`), from the ambient.
     #[arg(
@@ -33,14 +40,10 @@ pub struct FaultsArgs {
         allow_negative_numbers = true
     )]
     current_a: Vec<f64>,
-    /// Heating time of every run [s] (a restart's off time comes on top).
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 1800.0,
-        allow_negative_numbers = true
-    )]
-    duration_s: f64,
+    /// Heating time of every run [s] with --current-a (a restart's off time
+    /// comes on top). Default 1800.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    duration_s: Option<f64>,
     /// The observer's model step, one tick [us]; the thermocouples are read
     /// every 5 steps.
     #[arg(long, value_name = "US", default_value_t = 100_000)]
@@ -87,10 +90,33 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         ),
         _ => bail!("faults --model {}: {NOT_YET} (only `omnimagnet`)", a.model),
     }
-    if a.trace.is_some() {
-        bail!("faults --trace: recorded traces are {NOT_YET}; use --current-a");
+    let mut cfg = FaultConfig::default();
+    if let Some(path) = &a.trace {
+        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
+        let bind = common::bindings(&a.trace_args)?;
+        let plant = OmnimagnetPlant::default();
+        let drive = Drive::from_trace(plant.info(), &trace, &bind)?;
+        let (Some(&t0), Some(&t1)) = (drive.time_s.first(), drive.time_s.last()) else {
+            bail!("{}: the trace has no rows", path.display());
+        };
+        if t1 <= t0 {
+            bail!("{}: the trace spans no time", path.display());
+        }
+        cfg.duration_s = t1 - t0;
+        cfg.ambient_c = drive
+            .boundaries
+            .first()
+            .and_then(|b| b.first().copied())
+            .unwrap_or(cfg.ambient_c);
+        cfg.trace = Some(CurrentTrace {
+            time_s: drive.time_s.iter().map(|t| t - t0).collect(),
+            currents_a: (0..drive.len())
+                .map(|k| core::array::from_fn(|m| drive.currents[m][k]))
+                .collect(),
+        });
     }
     let currents_a: [f64; SOLENOIDS] = match a.current_a.as_slice() {
+        [] if cfg.trace.is_some() => [0.0; SOLENOIDS],
         [] => bail!("faults needs --current-a A (one for all solenoids, or three) or --trace"),
         [one] => [*one; SOLENOIDS],
         [x, y, z] => [*x, *y, *z],
@@ -124,16 +150,17 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let cfg = FaultConfig {
         currents_a,
-        duration_s: a.duration_s,
+        duration_s: a.duration_s.unwrap_or(cfg.duration_s),
         step_us: a.step_us,
         sensors,
         onsets_s: a.onset_s,
         classes,
         off_s: a.off_s,
         max_snapshot_age_s: a.max_snapshot_age_s,
-        ..FaultConfig::default()
+        ..cfg
     };
-    let report = faults::run(&cfg)?;
+    let mut report = faults::run(&cfg)?;
+    report.trace = a.trace.as_ref().map(|p| p.display().to_string());
     if a.json {
         common::print_json(&serde_json::to_value(&report)?);
     } else {
@@ -175,15 +202,20 @@ fn verdict(c: &CaseReport) -> String {
 }
 
 fn print_text(r: &FaultReport) {
+    let drive = match &r.trace {
+        Some(path) => format!("the currents of {path}"),
+        None => format!("{:?} A", r.currents_a),
+    };
     println!(
-        "fault campaign: {} at {:?} A for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s",
-        r.model, r.currents_a, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
+        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s",
+        r.model, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
     );
     println!(
-        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot",
+        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused",
         opt(r.clean.shutdown_s, 1),
         r.clean.max_error_tc_k,
-        r.clean.max_error_hot_spot_k
+        r.clean.max_error_hot_spot_k,
+        r.clean.healthy_flagged
     );
     println!();
     println!(
