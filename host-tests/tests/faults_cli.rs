@@ -142,7 +142,18 @@ fn text_report_names_the_goals() {
 
 #[test]
 fn argument_errors_are_clear() {
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--reading-period-ms",
+                "250",
+            ],
+            "whole number",
+        ),
         (&["--model", "omnimagnet"], "--current-a"),
         (
             &["--model", "omnimagnet", "--current-a", "7,7"],

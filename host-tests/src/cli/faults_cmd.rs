@@ -44,10 +44,14 @@ pub struct FaultsArgs {
     /// comes on top). Default 1800.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     duration_s: Option<f64>,
-    /// The observer's model step, one tick [us]; the thermocouples are read
-    /// every 5 steps.
+    /// The observer's model step, one tick [us] (100 ms for speed; the
+    /// firmware's is 1 ms).
     #[arg(long, value_name = "US", default_value_t = 100_000)]
     step_us: u32,
+    /// Thermocouple sample period [ms], a whole number of steps: the
+    /// observer's correction period.
+    #[arg(long, value_name = "MS", default_value_t = 500)]
+    reading_period_ms: u32,
     /// Fault onsets [s]. Default: 60 s and half the clean run's shutdown
     /// time (half the duration without one).
     #[arg(
@@ -148,8 +152,17 @@ pub fn run(a: FaultsArgs) -> Result<()> {
             })
         })
         .collect::<Result<Vec<_>>>()?;
+    let period_us = u64::from(a.reading_period_ms) * 1000;
+    if a.step_us == 0 || period_us == 0 || period_us % u64::from(a.step_us) != 0 {
+        bail!(
+            "--reading-period-ms {} must be a positive whole number of --step-us {} steps",
+            a.reading_period_ms,
+            a.step_us
+        );
+    }
     let cfg = FaultConfig {
         currents_a,
+        reading_every: u32::try_from(period_us / u64::from(a.step_us))?,
         duration_s: a.duration_s.unwrap_or(cfg.duration_s),
         step_us: a.step_us,
         sensors,
