@@ -251,7 +251,7 @@ fn print_text(r: &FaultReport) {
     }
     println!();
     println!(
-        "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8} {:>9} {:>4} {:>4} {:>5} {:>5}",
+        "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8} {:>9} {:>11} {:>4} {:>4} {:>5} {:>5}",
         "summary",
         "cases",
         "unflagged",
@@ -259,6 +259,7 @@ fn print_text(r: &FaultReport) {
         "goal_s",
         "err_tc_K",
         "err_hs_K",
+        "worst_delay",
         "lost",
         "late",
         "false",
@@ -266,7 +267,7 @@ fn print_text(r: &FaultReport) {
     );
     for s in &r.summary.classes {
         println!(
-            "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8.2} {:>9.2} {:>4} {:>4} {:>5} {:>5}",
+            "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8.2} {:>9.2} {:>11} {:>4} {:>4} {:>5} {:>5}",
             s.class.name(),
             s.cases,
             s.unflagged,
@@ -274,6 +275,7 @@ fn print_text(r: &FaultReport) {
             opt(s.flag_goal_s, 0),
             s.worst_error_tc_k,
             s.worst_error_hot_spot_k,
+            opt(s.worst_delay_s, 1),
             s.lost,
             s.late,
             s.false_trips,
