@@ -595,11 +595,14 @@ impl<'c> Harness<'c> {
         let mut now_us = 0u32;
         for k in 0..ticks {
             let t_s = (k + 1) as f64 * self.dt_s;
-            let off = window.is_some_and(|(a, b)| t_s > a && t_s <= b);
+            // Half a step of slack: the tick at the restart time saves the
+            // snapshot, whatever the rounding of `t_s`.
+            let half_dt = 0.5 * self.dt_s;
+            let off = window.is_some_and(|(a, b)| t_s > a + half_dt && t_s <= b + half_dt);
             let currents = match (&cfg.trace, window) {
                 _ if off => [0.0; SOLENOIDS],
                 // After an off time the trace goes on where it stopped.
-                (Some(trace), Some((_, back_s))) if t_s > back_s => trace.at(t_s - off_s),
+                (Some(trace), Some((_, back_s))) if t_s > back_s + half_dt => trace.at(t_s - off_s),
                 (Some(trace), _) => trace.at(t_s),
                 (None, _) => cfg.currents_a,
             };
