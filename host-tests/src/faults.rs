@@ -996,3 +996,55 @@ fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
         goals,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn class_names_round_trip() {
+        for class in FaultClass::ALL {
+            assert_eq!(FaultClass::parse(class.name()), Some(class));
+            let json = serde_json::to_value(class).unwrap();
+            assert_eq!(json, class.name());
+        }
+        assert_eq!(FaultClass::parse("melted"), None);
+    }
+
+    #[test]
+    fn trace_currents_are_held_row_to_row() {
+        let trace = CurrentTrace {
+            time_s: vec![0.0, 10.0, 20.0],
+            currents_a: vec![[1.0; 3], [2.0; 3], [3.0; 3]],
+        };
+        for (t_s, a) in [
+            (-1.0, 1.0),
+            (0.0, 1.0),
+            (9.99, 1.0),
+            (10.0, 2.0),
+            (1e6, 3.0),
+        ] {
+            assert_eq!(trace.at(t_s), [a; 3], "at {t_s} s");
+        }
+    }
+
+    #[test]
+    fn bad_configurations_are_refused() {
+        for cfg in [
+            FaultConfig {
+                duration_s: 0.0,
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                sensors: [false; THERMOCOUPLES],
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                onsets_s: vec![f64::NAN],
+                ..FaultConfig::default()
+            },
+        ] {
+            assert!(matches!(run(&cfg), Err(FaultError::Invalid(_))), "{cfg:?}");
+        }
+    }
+}
