@@ -24,6 +24,8 @@
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
 //! * [`limits`](mod@limits): time to limit, safe and runaway currents of any network (padded sizes);
 //! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
+//! * [`faults`]: issue 17's fault campaign (every fault class x sensor x
+//!   onset against the clean run);
 //! * [`codegen`]: a model file to a firmware module with the observer's
 //!   tables solved on the host;
 //! * [`cli`]: the command-line front end.
@@ -35,6 +37,7 @@ pub mod cli;
 pub mod codegen;
 pub mod devices;
 pub mod dynamic_network;
+pub mod faults;
 pub mod grid_reference;
 pub mod kalman;
 pub mod library_observer;

@@ -12,6 +12,7 @@ mod bench_cmd;
 mod calibrate_cmd;
 mod codegen_cmd;
 mod common;
+mod faults_cmd;
 mod limits_cmd;
 mod plot_cmd;
 mod replay_cmd;
@@ -62,6 +63,10 @@ enum Command {
     /// solved on this host, as `const` data (the MCU computes no exponential
     /// and no Riccati solution).
     Codegen(codegen_cmd::CodegenArgs),
+    /// Issue 17's fault campaign: every fault class x every sensor x
+    /// several onsets against the clean run (time to flag, estimate error,
+    /// shutdown delay, false trips) and the issue's goals.
+    Faults(faults_cmd::FaultsArgs),
 }
 
 /// Which model to run.
@@ -572,6 +577,7 @@ pub fn main_entry() -> ExitCode {
         Command::Bench(a) => bench_cmd::run(a),
         Command::Plot(a) => plot_cmd::run(a),
         Command::Codegen(a) => codegen_cmd::run(a),
+        Command::Faults(a) => faults_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

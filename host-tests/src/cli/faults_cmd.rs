@@ -1,0 +1,303 @@
+//! `coil-thermal faults`: issue 17's fault campaign (see [`crate::faults`]).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::common::{self, ModelSpec, NOT_YET};
+use super::TraceArgs;
+use crate::devices::OmnimagnetPlant;
+use crate::faults::{self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultReport};
+use crate::sim::{Drive, Plant};
+use coil_thermal::omnimagnet::{SOLENOIDS, THERMOCOUPLES};
+
+/// `faults` arguments.
+#[derive(Debug, Args)]
+pub struct FaultsArgs {
+    /// Model: `omnimagnet` (the library's `OmniObserver` against the
+    /// paper's nonlinear plant, six thermocouples on the solenoids at 2 Hz).
+    #[arg(long, value_name = "omnimagnet")]
+    model: String,
+    /// Thermocouples in use, by index (0..=5, order of
+    /// `THERMOCOUPLE_NODES`), e.g. `0,2,4`. Default: all six.
+    #[arg(long, value_name = "J[,J...]", value_delimiter = ',')]
+    sensors: Vec<usize>,
+    /// A recorded trace whose currents drive the plant (columns `I1_a`,
+    /// `I2_a`, `I3_a` [A] or `--current EXPR=current_N`; `time_s` or
+    /// --sample-period-s), held from row to row, for the trace's span; the
+    /// ambient is the trace's first `ambient` [degC] (22 without one).
+    #[arg(long, value_name = "IN.csv", conflicts_with_all = ["current_a", "duration_s"])]
+    trace: Option<PathBuf>,
+    #[command(flatten)]
+    trace_args: TraceArgs,
+    /// Constant current [A]: one for every solenoid or one per solenoid
+    /// (`7,7,7`), from the ambient.
+    #[arg(
+        long,
+        value_name = "A[,A...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    current_a: Vec<f64>,
+    /// Heating time of every run [s] with --current-a (a restart's off time
+    /// comes on top). Default 1800.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    duration_s: Option<f64>,
+    /// The observer's model step, one tick [us] (100 ms for speed; the
+    /// firmware's is 1 ms).
+    #[arg(long, value_name = "US", default_value_t = 100_000)]
+    step_us: u32,
+    /// Thermocouple sample period [ms], a whole number of steps: the
+    /// observer's correction period.
+    #[arg(long, value_name = "MS", default_value_t = 500)]
+    reading_period_ms: u32,
+    /// Fault onsets [s]. Default: 60 s and half the clean run's shutdown
+    /// time (half the duration without one).
+    #[arg(
+        long,
+        value_name = "S[,S...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    onset_s: Vec<f64>,
+    /// Fault classes to run (default: all): open, short-gnd, short-vcc,
+    /// stuck, drift, jump-up, jump-down, spikes, dropout, all-detached,
+    /// all-stuck, frozen-clock, huge-current, corrupt-snapshot,
+    /// stale-snapshot, power-off.
+    #[arg(long, value_name = "CLASS[,CLASS...]", value_delimiter = ',')]
+    classes: Vec<String>,
+    /// Off time of the power-off restart [s].
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 600.0,
+        allow_negative_numbers = true
+    )]
+    off_s: f64,
+    /// Oldest snapshot a restart accepts [s] (the stale case is off this
+    /// long and a minute).
+    #[arg(long, value_name = "S", default_value_t = 3600)]
+    max_snapshot_age_s: u32,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `faults`.
+pub fn run(a: FaultsArgs) -> Result<()> {
+    match ModelSpec::parse(&a.model)? {
+        ModelSpec::Omnimagnet => {}
+        ModelSpec::File(p) => bail!(
+            "faults --model {}: model files are {NOT_YET} (only `omnimagnet`)",
+            p.display()
+        ),
+        _ => bail!("faults --model {}: {NOT_YET} (only `omnimagnet`)", a.model),
+    }
+    let mut cfg = FaultConfig::default();
+    if let Some(path) = &a.trace {
+        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
+        let bind = common::bindings(&a.trace_args)?;
+        let plant = OmnimagnetPlant::default();
+        let drive = Drive::from_trace(plant.info(), &trace, &bind)?;
+        let (Some(&t0), Some(&t1)) = (drive.time_s.first(), drive.time_s.last()) else {
+            bail!("{}: the trace has no rows", path.display());
+        };
+        if t1 <= t0 {
+            bail!("{}: the trace spans no time", path.display());
+        }
+        cfg.duration_s = t1 - t0;
+        cfg.ambient_c = drive
+            .boundaries
+            .first()
+            .and_then(|b| b.first().copied())
+            .unwrap_or(cfg.ambient_c);
+        cfg.trace = Some(CurrentTrace {
+            time_s: drive.time_s.iter().map(|t| t - t0).collect(),
+            currents_a: (0..drive.len())
+                .map(|k| core::array::from_fn(|m| drive.currents[m][k]))
+                .collect(),
+        });
+    }
+    let currents_a: [f64; SOLENOIDS] = match a.current_a.as_slice() {
+        [] if cfg.trace.is_some() => [0.0; SOLENOIDS],
+        [] => bail!("faults needs --current-a A (one for all solenoids, or three) or --trace"),
+        [one] => [*one; SOLENOIDS],
+        [x, y, z] => [*x, *y, *z],
+        other => bail!(
+            "--current-a takes 1 or {SOLENOIDS} values, got {}",
+            other.len()
+        ),
+    };
+    let mut sensors = [a.sensors.is_empty(); THERMOCOUPLES];
+    for &j in &a.sensors {
+        match sensors.get_mut(j) {
+            Some(s) => *s = true,
+            None => bail!(
+                "--sensors: no thermocouple {j} (the Omnimagnet has {THERMOCOUPLES}: 0..={})",
+                THERMOCOUPLES - 1
+            ),
+        }
+    }
+    let classes = a
+        .classes
+        .iter()
+        .map(|name| {
+            FaultClass::parse(name).ok_or_else(|| {
+                let all: Vec<&str> = FaultClass::ALL.iter().map(|c| c.name()).collect();
+                anyhow::anyhow!(
+                    "--classes: unknown class `{name}` (one of {})",
+                    all.join(", ")
+                )
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let period_us = u64::from(a.reading_period_ms) * 1000;
+    if a.step_us == 0 || period_us == 0 || period_us % u64::from(a.step_us) != 0 {
+        bail!(
+            "--reading-period-ms {} must be a positive whole number of --step-us {} steps",
+            a.reading_period_ms,
+            a.step_us
+        );
+    }
+    let cfg = FaultConfig {
+        currents_a,
+        reading_every: u32::try_from(period_us / u64::from(a.step_us))?,
+        duration_s: a.duration_s.unwrap_or(cfg.duration_s),
+        step_us: a.step_us,
+        sensors,
+        onsets_s: a.onset_s,
+        classes,
+        off_s: a.off_s,
+        max_snapshot_age_s: a.max_snapshot_age_s,
+        ..cfg
+    };
+    let mut report = faults::run(&cfg)?;
+    report.trace = a.trace.as_ref().map(|p| p.display().to_string());
+    if a.json {
+        common::print_json(&serde_json::to_value(&report)?);
+    } else {
+        print_text(&report);
+    }
+    Ok(())
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
+fn verdict(c: &CaseReport) -> String {
+    let mut v = Vec::new();
+    if c.lost_shutdown {
+        v.push("LOST");
+    }
+    if c.late_shutdown {
+        v.push("LATE");
+    }
+    if c.false_trip {
+        v.push("FALSE-TRIP");
+    }
+    if c.protective_trip {
+        v.push("protective-trip");
+    }
+    if let Some(s) = &c.snapshot {
+        v.push(match (s.refused, s.starts_latched) {
+            (true, true) => "refused,latched",
+            (true, false) => "REFUSED-NOT-LATCHED",
+            (false, _) => "restored",
+        });
+    }
+    if v.is_empty() {
+        "ok".into()
+    } else {
+        v.join(" ")
+    }
+}
+
+fn print_text(r: &FaultReport) {
+    let drive = match &r.trace {
+        Some(path) => format!("the currents of {path}"),
+        None => format!("{:?} A", r.currents_a),
+    };
+    println!(
+        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s",
+        r.model, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
+    );
+    println!(
+        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused",
+        opt(r.clean.shutdown_s, 1),
+        r.clean.max_error_tc_k,
+        r.clean.max_error_hot_spot_k,
+        r.clean.healthy_flagged
+    );
+    println!();
+    println!(
+        "{:<17} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9}  verdict",
+        "class", "sensor", "onset_s", "flag_s", "err_tc_K", "err_hs_K", "shutdn_s", "delay_s"
+    );
+    for c in &r.cases {
+        println!(
+            "{:<17} {:>6} {:>8.1} {:>8} {:>8.2} {:>8.2} {:>9} {:>9}  {}",
+            c.class.name(),
+            c.sensor.map_or("all".into(), |s| s.to_string()),
+            c.onset_s,
+            opt(c.flag_s, 1),
+            c.score.max_error_tc_k,
+            c.score.max_error_hot_spot_k,
+            opt(c.score.shutdown_s, 1),
+            opt(c.shutdown_delay_s, 1),
+            verdict(c)
+        );
+    }
+    println!();
+    println!(
+        "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8} {:>9} {:>11} {:>4} {:>4} {:>5} {:>5}",
+        "summary",
+        "cases",
+        "unflagged",
+        "worst_flag",
+        "goal_s",
+        "err_tc_K",
+        "err_hs_K",
+        "worst_delay",
+        "lost",
+        "late",
+        "false",
+        "prot"
+    );
+    for s in &r.summary.classes {
+        println!(
+            "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8.2} {:>9.2} {:>11} {:>4} {:>4} {:>5} {:>5}",
+            s.class.name(),
+            s.cases,
+            s.unflagged,
+            opt(s.worst_flag_s, 1),
+            opt(s.flag_goal_s, 0),
+            s.worst_error_tc_k,
+            s.worst_error_hot_spot_k,
+            opt(s.worst_delay_s, 1),
+            s.lost,
+            s.late,
+            s.false_trips,
+            s.protective_trips
+        );
+    }
+    println!();
+    println!(
+        "{} cases: {} lost shutdowns, {} late (> {} s), {} false trips ({} under spike trains)",
+        r.summary.cases,
+        r.summary.lost_shutdowns,
+        r.summary.late_shutdowns,
+        faults::LATE_S,
+        r.summary.false_trips,
+        r.summary.false_trips_spikes
+    );
+    for g in &r.summary.goals {
+        println!(
+            "[{}] {}: {}",
+            if g.met { "met" } else { "NOT MET" },
+            g.goal,
+            g.detail
+        );
+    }
+}

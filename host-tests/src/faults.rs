@@ -1,0 +1,1050 @@
+//! The fault campaign of issue 17: every fault class on every sensor at
+//! several onset times, each run against the clean run, for a safety
+//! engineer signing off a sensor placement (`coil-thermal faults`).
+//!
+//! The observer under test is the library's [`OmniObserver`] (the tick API a
+//! firmware calls); the truth is the paper's nonlinear Omnimagnet
+//! ([`OmnimagnetPlant`], RK4), heated at constant currents from the ambient.
+//! The thermocouples read the plant's solenoid nodes every
+//! `reading_every` model steps (2 Hz at the defaults), the loop of
+//! `tests/sensor_consistency.rs`. Each case injects one fault from its
+//! onset to the end of the run (or restarts the observer at its onset) and
+//! is scored against its *reference*: the clean run with the same current
+//! schedule (for the restart cases, the observer kept ticking through the
+//! off time).
+//!
+//! Per case:
+//!
+//! * **time to flag** \[s\] after the onset: the first tick at or after the
+//!   onset where the observer says something is wrong. For a sensor fault:
+//!   a faulty sensor's [`SensorStatus`] is neither `Fused` nor `NoReading`
+//!   (a fault, a gate rejection, too old, colder than the physics), or the
+//!   tick's flags carry [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]. A
+//!   dropout (no readings) shows as `NoReading`, which the observer cannot
+//!   tell from a sample not yet due: never flagged by the observer. Frozen
+//!   clock: [`InputFlags::CLOCK_FROZEN`] or the shutdown. Huge current:
+//!   [`InputFlags::CURRENT_CLAMPED`] / `CURRENT_NOT_FINITE`. A refused
+//!   snapshot is flagged at the restart (0 s) by the refusal itself;
+//! * **largest estimate error** \[K\] from the onset to the shutdown (or
+//!   the end): `|estimate - truth|` on the thermocouple nodes, and on the
+//!   hot spot, the alarm element ([`ALARM_NODES`]) hottest in the truth;
+//! * **shutdown** and its delay against the reference (negative: earlier);
+//!   **lost** (the reference shut down, the case did not within the run),
+//!   **late** (more than [`LATE_S`] after the reference), **false trip** (a
+//!   shutdown where the reference has none). A shutdown that is the
+//!   documented reaction to the fault (frozen clock: the model is lost; huge
+//!   current: clamped to the input limit, the observer heats at it; a
+//!   refused snapshot: the conservative start is latched) is counted as a
+//!   **protective trip**, not a false one.
+
+use coil_thermal::observer::omnimagnet::ALARM_NODES;
+use coil_thermal::observer::snapshot::snapshot_len;
+use coil_thermal::observer::{
+    OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
+    TimedReading,
+};
+use coil_thermal::omnimagnet::observer::ObserverSettings;
+use coil_thermal::omnimagnet::{Omnimagnet, NODES, SOLENOIDS, THERMOCOUPLES, THERMOCOUPLE_NODES};
+use coil_thermal::{InputFlags, Reading, SensorFault};
+use serde::Serialize;
+
+use crate::devices::OmnimagnetPlant;
+use crate::sim::Plant;
+
+/// A shutdown later than the reference's by more than this is late \[s\]
+/// (issue 17).
+pub const LATE_S: f64 = 1.0;
+/// Goal: every single-sensor fault flagged within this time \[s\]...
+pub const FLAG_GOAL_S: f64 = 1.0;
+/// ...except a stuck sensor, within this one \[s\].
+pub const STUCK_FLAG_GOAL_S: f64 = 10.0;
+/// Goal on the largest estimate error meanwhile \[K\].
+pub const ERROR_GOAL_K: f64 = 2.0;
+/// Drift rate of the `drift` class \[K/s\].
+pub const DRIFT_K_PER_S: f64 = -0.05;
+/// Height of the jumps and spikes \[K\].
+pub const JUMP_K: f64 = 50.0;
+/// The current a `huge-current` fault reports \[A\].
+pub const HUGE_CURRENT_A: f32 = 1e20;
+
+/// A fault class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FaultClass {
+    /// Open thermocouple ([`SensorFault::OpenCircuit`]).
+    Open,
+    /// Shorted to ground ([`SensorFault::ShortToGnd`]).
+    ShortGnd,
+    /// Shorted to the supply ([`SensorFault::ShortToVcc`]).
+    ShortVcc,
+    /// Holds the value it read at the onset.
+    Stuck,
+    /// Drifts by [`DRIFT_K_PER_S`] from the onset.
+    Drift,
+    /// Reads [`JUMP_K`] too hot from the onset.
+    JumpUp,
+    /// Reads [`JUMP_K`] too cold from the onset.
+    JumpDown,
+    /// One reading in two [`JUMP_K`] too hot.
+    Spikes,
+    /// No readings from the onset.
+    Dropout,
+    /// Every thermocouple reads the ambient (detached) from the onset.
+    AllDetached,
+    /// Every thermocouple holds its onset value.
+    AllStuck,
+    /// The tick's clock gives no elapsed time from the onset.
+    FrozenClock,
+    /// The current input reads [`HUGE_CURRENT_A`] on every solenoid.
+    HugeCurrent,
+    /// Restart at the onset from a snapshot with one byte flipped.
+    CorruptSnapshot,
+    /// Restart from a snapshot older than the policy allows (the device off
+    /// for the policy's age and a minute).
+    StaleSnapshot,
+    /// Restart after the device was off (no current) for the off time,
+    /// through `restore_after`.
+    PowerOff,
+}
+
+impl FaultClass {
+    /// Every class, in report order.
+    pub const ALL: [Self; 16] = [
+        Self::Open,
+        Self::ShortGnd,
+        Self::ShortVcc,
+        Self::Stuck,
+        Self::Drift,
+        Self::JumpUp,
+        Self::JumpDown,
+        Self::Spikes,
+        Self::Dropout,
+        Self::AllDetached,
+        Self::AllStuck,
+        Self::FrozenClock,
+        Self::HugeCurrent,
+        Self::CorruptSnapshot,
+        Self::StaleSnapshot,
+        Self::PowerOff,
+    ];
+
+    /// The name on the command line and in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Open => "open",
+            Self::ShortGnd => "short-gnd",
+            Self::ShortVcc => "short-vcc",
+            Self::Stuck => "stuck",
+            Self::Drift => "drift",
+            Self::JumpUp => "jump-up",
+            Self::JumpDown => "jump-down",
+            Self::Spikes => "spikes",
+            Self::Dropout => "dropout",
+            Self::AllDetached => "all-detached",
+            Self::AllStuck => "all-stuck",
+            Self::FrozenClock => "frozen-clock",
+            Self::HugeCurrent => "huge-current",
+            Self::CorruptSnapshot => "corrupt-snapshot",
+            Self::StaleSnapshot => "stale-snapshot",
+            Self::PowerOff => "power-off",
+        }
+    }
+
+    /// The class named `name`.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// A fault of one sensor (run on each sensor in use).
+    pub fn per_sensor(self) -> bool {
+        matches!(
+            self,
+            Self::Open
+                | Self::ShortGnd
+                | Self::ShortVcc
+                | Self::Stuck
+                | Self::Drift
+                | Self::JumpUp
+                | Self::JumpDown
+                | Self::Spikes
+                | Self::Dropout
+        )
+    }
+
+    /// A shutdown is the documented reaction to this fault.
+    pub fn trips_by_design(self) -> bool {
+        matches!(
+            self,
+            Self::FrozenClock | Self::HugeCurrent | Self::CorruptSnapshot | Self::StaleSnapshot
+        )
+    }
+
+    /// Issue 17's goal on the time to flag \[s\], for the single-sensor
+    /// classes the observer can see (`None`: no goal).
+    pub fn flag_goal_s(self) -> Option<f64> {
+        match self {
+            Self::Stuck => Some(STUCK_FLAG_GOAL_S),
+            c if c.per_sensor() => Some(FLAG_GOAL_S),
+            _ => None,
+        }
+    }
+}
+
+/// Solenoid currents over time: a recorded trace's rows.
+#[derive(Debug, Clone, Default)]
+pub struct CurrentTrace {
+    /// Row times from the run's start \[s\], increasing.
+    pub time_s: Vec<f64>,
+    /// Currents per row \[A\].
+    pub currents_a: Vec<[f64; SOLENOIDS]>,
+}
+
+impl CurrentTrace {
+    /// The currents held at `t_s` \[s\] (the last row at or before it; the
+    /// first row before the trace starts).
+    pub fn at(&self, t_s: f64) -> [f64; SOLENOIDS] {
+        let k = self.time_s.partition_point(|t| *t <= t_s);
+        self.currents_a
+            .get(k.saturating_sub(1))
+            .copied()
+            .unwrap_or([0.0; SOLENOIDS])
+    }
+}
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct FaultConfig {
+    /// Constant current of each solenoid \[A\] (without `trace`).
+    pub currents_a: [f64; SOLENOIDS],
+    /// Currents from a recorded trace instead, held from each row to the
+    /// next; the run lasts `duration_s` (the CLI sets the trace's span).
+    pub trace: Option<CurrentTrace>,
+    /// Heating time \[s\] (the off time of a restart case comes on top).
+    pub duration_s: f64,
+    /// The observer's model step, one tick \[us\].
+    pub step_us: u32,
+    /// Model steps between two thermocouple samples (the correction period).
+    pub reading_every: u32,
+    /// Ambient \[degC\].
+    pub ambient_c: f64,
+    /// Thermocouples in use (order of [`THERMOCOUPLE_NODES`]).
+    pub sensors: [bool; THERMOCOUPLES],
+    /// Onset times \[s\]; empty: 60 s and half the clean shutdown time (or
+    /// half the duration without one).
+    pub onsets_s: Vec<f64>,
+    /// Classes to run; empty: all.
+    pub classes: Vec<FaultClass>,
+    /// Off time of the `power-off` case \[s\].
+    pub off_s: f64,
+    /// Oldest snapshot a restart accepts \[s\].
+    pub max_snapshot_age_s: u32,
+}
+
+impl Default for FaultConfig {
+    fn default() -> Self {
+        Self {
+            currents_a: [7.0; SOLENOIDS],
+            trace: None,
+            duration_s: 1800.0,
+            step_us: 100_000,
+            reading_every: 5,
+            ambient_c: 22.0,
+            sensors: [true; THERMOCOUPLES],
+            onsets_s: Vec::new(),
+            classes: Vec::new(),
+            off_s: 600.0,
+            max_snapshot_age_s: 3600,
+        }
+    }
+}
+
+/// A run's scores.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RunScore {
+    /// First shutdown \[s\] (`None`: none within the run).
+    pub shutdown_s: Option<f64>,
+    /// Largest `|estimate - truth|` on the thermocouple nodes \[K\] (from
+    /// the onset for a case, from the start for the clean run).
+    pub max_error_tc_k: f64,
+    /// Largest `|estimate - truth|` on the alarm element hottest in the
+    /// truth \[K\].
+    pub max_error_hot_spot_k: f64,
+    /// Ticks where a healthy sensor was not fused although it read.
+    pub healthy_flagged: u32,
+}
+
+/// A restart case's snapshot.
+#[derive(Debug, Clone, Serialize)]
+pub struct SnapshotOutcome {
+    /// `restore` refused it.
+    pub refused: bool,
+    /// Why (the library's error), if refused.
+    pub error: Option<String>,
+    /// The state it started from showed the shutdown latched before the
+    /// first tick.
+    pub starts_latched: bool,
+}
+
+/// One case of the matrix.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseReport {
+    /// Fault class.
+    pub class: FaultClass,
+    /// Faulty sensor (index into [`THERMOCOUPLE_NODES`]) for the
+    /// single-sensor classes.
+    pub sensor: Option<usize>,
+    /// Onset \[s\].
+    pub onset_s: f64,
+    /// Time to flag after the onset \[s\] (`None`: never flagged).
+    pub flag_s: Option<f64>,
+    /// The case's run.
+    #[serde(flatten)]
+    pub score: RunScore,
+    /// The reference's shutdown \[s\].
+    pub reference_shutdown_s: Option<f64>,
+    /// `shutdown - reference` \[s\] (negative: earlier) when both exist.
+    pub shutdown_delay_s: Option<f64>,
+    /// The reference shut down, this case did not.
+    pub lost_shutdown: bool,
+    /// Later than the reference by more than [`LATE_S`].
+    pub late_shutdown: bool,
+    /// A shutdown where the reference has none, not the class's documented
+    /// reaction.
+    pub false_trip: bool,
+    /// A shutdown where the reference has none, the class's documented
+    /// reaction.
+    pub protective_trip: bool,
+    /// Restart cases: the snapshot's fate.
+    pub snapshot: Option<SnapshotOutcome>,
+}
+
+/// Per-class summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct ClassSummary {
+    /// Fault class.
+    pub class: FaultClass,
+    /// Cases run.
+    pub cases: usize,
+    /// Cases never flagged (a power-off restart has nothing to flag).
+    pub unflagged: usize,
+    /// Worst time to flag among the flagged cases \[s\].
+    pub worst_flag_s: Option<f64>,
+    /// Issue 17's goal on it \[s\].
+    pub flag_goal_s: Option<f64>,
+    /// Worst thermocouple-node error \[K\].
+    pub worst_error_tc_k: f64,
+    /// Worst hot-spot error \[K\].
+    pub worst_error_hot_spot_k: f64,
+    /// Latest shutdown against the reference \[s\].
+    pub worst_delay_s: Option<f64>,
+    /// Lost shutdowns.
+    pub lost: usize,
+    /// Late shutdowns.
+    pub late: usize,
+    /// False trips.
+    pub false_trips: usize,
+    /// Protective trips.
+    pub protective_trips: usize,
+}
+
+/// One of issue 17's done-when goals.
+#[derive(Debug, Clone, Serialize)]
+pub struct Goal {
+    /// What it asks.
+    pub goal: String,
+    /// Met on this run.
+    pub met: bool,
+    /// The figure.
+    pub detail: String,
+}
+
+/// The whole matrix's summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Per class, in report order.
+    pub classes: Vec<ClassSummary>,
+    /// Cases run.
+    pub cases: usize,
+    /// Lost shutdowns.
+    pub lost_shutdowns: usize,
+    /// Shutdowns later than the reference's by more than [`LATE_S`].
+    pub late_shutdowns: usize,
+    /// False trips (all classes).
+    pub false_trips: usize,
+    /// False trips under spike trains.
+    pub false_trips_spikes: usize,
+    /// Refused snapshots whose start was not latched.
+    pub refused_not_latched: usize,
+    /// Issue 17's goals.
+    pub goals: Vec<Goal>,
+}
+
+/// The campaign's report.
+#[derive(Debug, Clone, Serialize)]
+pub struct FaultReport {
+    /// Model name.
+    pub model: String,
+    /// Constant currents \[A\] (empty with a trace).
+    pub currents_a: Vec<f64>,
+    /// The trace the currents came from, if any.
+    pub trace: Option<String>,
+    /// Heating time \[s\].
+    pub duration_s: f64,
+    /// Model step \[us\].
+    pub step_us: u32,
+    /// Thermocouple sample period \[s\].
+    pub reading_period_s: f64,
+    /// Thermocouples in use.
+    pub sensors: Vec<usize>,
+    /// Onsets \[s\].
+    pub onsets_s: Vec<f64>,
+    /// The clean run.
+    pub clean: RunScore,
+    /// Every case.
+    pub cases: Vec<CaseReport>,
+    /// The summary.
+    pub summary: Summary,
+}
+
+/// The campaign's errors (bad configuration).
+#[derive(Debug, thiserror::Error)]
+pub enum FaultError {
+    /// A parameter out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The observer did not build.
+    #[error("the observer does not build: {0}")]
+    Build(coil_thermal::BuildError),
+}
+
+/// One fault in a run.
+#[derive(Debug, Clone, Copy)]
+struct Injected {
+    class: FaultClass,
+    sensor: Option<usize>,
+    onset_s: f64,
+}
+
+/// What a restart does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Restart {
+    /// No restart.
+    None,
+    /// The reference of a restart: zero current from `at_s` for `off_s`,
+    /// the observer ticking through.
+    TickThrough { at_s: f64, off_s: f64 },
+    /// Save at `at_s`, off (no current, no tick) for `off_s`, then restore
+    /// (a byte flipped first with `corrupt`; `restore_after` with `cool`,
+    /// else `restore`).
+    Restore {
+        at_s: f64,
+        off_s: f64,
+        corrupt: bool,
+        cool: bool,
+    },
+}
+
+impl Restart {
+    /// Zero-current window `(from, to]` \[s\].
+    fn off_window(self) -> Option<(f64, f64)> {
+        match self {
+            Self::None => None,
+            Self::TickThrough { at_s, off_s } | Self::Restore { at_s, off_s, .. } => {
+                Some((at_s, at_s + off_s))
+            }
+        }
+    }
+}
+
+/// The observer's configuration and the run parameters.
+struct Harness<'c> {
+    cfg: &'c FaultConfig,
+    observer: OmniObserver,
+    dt_s: f64,
+}
+
+/// A run's raw result.
+struct RunResult {
+    score: RunScore,
+    flag_s: Option<f64>,
+    snapshot: Option<SnapshotOutcome>,
+}
+
+impl<'c> Harness<'c> {
+    fn new(cfg: &'c FaultConfig) -> Result<Self, FaultError> {
+        let defaults = OmniSettings::default();
+        // The frozen-clock counts are ticks; keep their real time (0.1 s to
+        // flag, 1 s to declare the model lost, at a 1 ms loop) at this step.
+        let per_100ms = (100_000 / cfg.step_us).max(1);
+        let settings = OmniSettings {
+            step_us: cfg.step_us,
+            filter: ObserverSettings {
+                sensors: cfg.sensors,
+                correction_period_s: f64::from(cfg.reading_every * cfg.step_us) * 1e-6,
+                ..defaults.filter
+            },
+            frozen_flag_ticks: per_100ms,
+            frozen_loss_ticks: 10 * per_100ms,
+            ..defaults
+        };
+        let observer = OmniObserver::new(
+            &Omnimagnet::PAPER,
+            &[cfg.ambient_c; NODES],
+            cfg.ambient_c,
+            &settings,
+        )
+        .map_err(FaultError::Build)?;
+        Ok(Self {
+            cfg,
+            observer,
+            dt_s: f64::from(cfg.step_us) * 1e-6,
+        })
+    }
+
+    /// Whether this tick's outputs show `fault`.
+    fn flagged(fault: &Injected, out: &OmniOutputs) -> bool {
+        let sensor_flag = |j: usize| {
+            !matches!(
+                out.sensors.get(j),
+                Some(SensorStatus::Fused { .. } | SensorStatus::NoReading) | None
+            )
+        };
+        let common = out.flags.contains(InputFlags::SENSORS_COLDER_THAN_PHYSICS);
+        match fault.class {
+            FaultClass::FrozenClock => {
+                out.flags.contains(InputFlags::CLOCK_FROZEN) || out.alarm.shutdown
+            }
+            FaultClass::HugeCurrent => {
+                out.flags.contains(InputFlags::CURRENT_CLAMPED)
+                    || out.flags.contains(InputFlags::CURRENT_NOT_FINITE)
+            }
+            FaultClass::CorruptSnapshot | FaultClass::StaleSnapshot | FaultClass::PowerOff => false,
+            _ => match fault.sensor {
+                Some(j) => common || sensor_flag(j),
+                None => common || (0..THERMOCOUPLES).any(sensor_flag),
+            },
+        }
+    }
+
+    /// Restores after a restart; the state to go on from and what happened.
+    fn restore(
+        &self,
+        saved: &mut [u8],
+        saved_at_s: u32,
+        off_s: f64,
+        corrupt: bool,
+        cool: bool,
+        truth: &[f32; THERMOCOUPLES],
+    ) -> (OmniObserverState, SnapshotOutcome) {
+        let amb = self.cfg.ambient_c as f32;
+        let now_s = saved_at_s + off_s.round() as u32;
+        if corrupt {
+            let mid = saved.len() / 2;
+            saved[mid] ^= 0x5a;
+        }
+        let max_age_s = self.cfg.max_snapshot_age_s;
+        let restored = if cool {
+            self.observer.restore_after(
+                &Omnimagnet::PAPER,
+                saved,
+                now_s,
+                max_age_s,
+                amb,
+                Some(off_s as f32),
+            )
+        } else {
+            self.observer.restore(saved, now_s, max_age_s, amb)
+        };
+        let (state, error) = match restored {
+            Ok(state) => (state, None),
+            Err(e) => {
+                let readings: [Option<f32>; THERMOCOUPLES] =
+                    core::array::from_fn(|j| self.cfg.sensors[j].then_some(truth[j]));
+                (
+                    self.observer.conservative_state(&readings, amb),
+                    Some(e.to_string()),
+                )
+            }
+        };
+        let outcome = SnapshotOutcome {
+            refused: error.is_some(),
+            error,
+            starts_latched: state.outputs().alarm.shutdown,
+        };
+        (state, outcome)
+    }
+
+    fn run(&self, fault: Option<Injected>, restart: Restart) -> RunResult {
+        let cfg = self.cfg;
+        let amb = cfg.ambient_c;
+        let obs = &self.observer;
+        let mut state: OmniObserverState = obs.state(&[amb as f32; NODES], amb as f32);
+        let mut plant = OmnimagnetPlant::default();
+        plant.reset(&[amb; NODES]);
+        let window = restart.off_window();
+        let off_s = window.map_or(0.0, |(a, b)| b - a);
+        let ticks = ((cfg.duration_s + off_s) / self.dt_s).round() as u64;
+        let score_from_s = fault.map_or(0.0, |f| f.onset_s);
+        let every = u64::from(cfg.reading_every.max(1));
+        let mut score = RunScore::default();
+        let mut flag_s = None;
+        let mut snapshot = None;
+        let mut saved: Option<(Vec<u8>, u32)> = None;
+        let mut held: Option<[f32; THERMOCOUPLES]> = None;
+        let mut faulty_readings = 0u64;
+        let mut now_us = 0u32;
+        for k in 0..ticks {
+            let t_s = (k + 1) as f64 * self.dt_s;
+            // Half a step of slack: the tick at the restart time saves the
+            // snapshot, whatever the rounding of `t_s`.
+            let half_dt = 0.5 * self.dt_s;
+            let off = window.is_some_and(|(a, b)| t_s > a + half_dt && t_s <= b + half_dt);
+            let currents = match (&cfg.trace, window) {
+                _ if off => [0.0; SOLENOIDS],
+                // After an off time the trace goes on where it stopped.
+                (Some(trace), Some((_, back_s))) if t_s > back_s + half_dt => trace.at(t_s - off_s),
+                (Some(trace), _) => trace.at(t_s),
+                (None, _) => cfg.currents_a,
+            };
+            plant.step(self.dt_s, &currents, &[amb], &[]);
+            now_us = now_us.wrapping_add(cfg.step_us);
+            let plant_c = plant.temps_c();
+            let truth = THERMOCOUPLE_NODES.map(|n| plant_c[n] as f32);
+            if let Restart::Restore { corrupt, cool, .. } = restart {
+                if off {
+                    continue; // powered off: no tick
+                }
+                if let Some((bytes, at_s)) = saved.as_mut().filter(|_| snapshot.is_none()) {
+                    let (s, outcome) = self.restore(bytes, *at_s, off_s, corrupt, cool, &truth);
+                    state = s;
+                    if outcome.refused {
+                        flag_s = Some(0.0);
+                    }
+                    snapshot = Some(outcome);
+                }
+            }
+            let faulty = fault.filter(|f| t_s >= f.onset_s);
+            if faulty.is_some() && held.is_none() {
+                held = Some(truth);
+            }
+            let hold = held.unwrap_or(truth);
+            let due = k % every == 0;
+            if due && faulty.is_some() {
+                faulty_readings += 1;
+            }
+            let mut readings = [None; THERMOCOUPLES];
+            for (j, slot) in readings.iter_mut().enumerate() {
+                if !cfg.sensors[j] || !due {
+                    continue;
+                }
+                let mut result = Ok(truth[j]);
+                if let Some(f) = faulty.filter(|f| f.sensor.is_none_or(|s| s == j)) {
+                    let since_s = t_s - f.onset_s;
+                    result = match f.class {
+                        FaultClass::Open => Err(SensorFault::OpenCircuit),
+                        FaultClass::ShortGnd => Err(SensorFault::ShortToGnd),
+                        FaultClass::ShortVcc => Err(SensorFault::ShortToVcc),
+                        FaultClass::Stuck | FaultClass::AllStuck => Ok(hold[j]),
+                        FaultClass::Drift => Ok(truth[j] + (DRIFT_K_PER_S * since_s) as f32),
+                        FaultClass::JumpUp => Ok(truth[j] + JUMP_K as f32),
+                        FaultClass::JumpDown => Ok(truth[j] - JUMP_K as f32),
+                        // The first faulty reading is a spike, then one in two.
+                        FaultClass::Spikes if faulty_readings % 2 == 1 => {
+                            Ok(truth[j] + JUMP_K as f32)
+                        }
+                        FaultClass::Dropout => continue,
+                        FaultClass::AllDetached => Ok(amb as f32),
+                        _ => Ok(truth[j]),
+                    };
+                }
+                *slot = Some(TimedReading {
+                    result: result.map(|temp_c| Reading {
+                        temp_c,
+                        cold_junction_c: 25.0,
+                    }),
+                    sampled_at_us: now_us,
+                });
+            }
+            let mut inputs = OmniInputs {
+                currents_a: currents.map(|a| a as f32),
+                ambient_c: amb as f32,
+                readings,
+                now_us,
+                elapsed_us: cfg.step_us,
+            };
+            match faulty.map(|f| f.class) {
+                Some(FaultClass::FrozenClock) => inputs.elapsed_us = 0,
+                Some(FaultClass::HugeCurrent) => inputs.currents_a = [HUGE_CURRENT_A; SOLENOIDS],
+                _ => {}
+            }
+            let out: OmniOutputs = *obs.tick(&mut state, &inputs);
+            if let (Restart::Restore { at_s, .. }, None) = (restart, &saved) {
+                if t_s + 0.5 * self.dt_s >= at_s {
+                    // The last snapshot before the power cut.
+                    let mut bytes = vec![0u8; snapshot_len(NODES)];
+                    let now_s = t_s.round() as u32;
+                    if obs.save(&state, now_s, &mut bytes).is_ok() {
+                        saved = Some((bytes, now_s));
+                    }
+                }
+            }
+            if let Some(f) = faulty {
+                if flag_s.is_none() && Self::flagged(&f, &out) {
+                    flag_s = Some(t_s - f.onset_s);
+                }
+            }
+            for (j, status) in out.sensors.iter().enumerate() {
+                let faulty_sensor = faulty.is_some_and(|f| f.sensor.is_none_or(|x| x == j));
+                if readings[j].is_some()
+                    && !faulty_sensor
+                    && !matches!(status, SensorStatus::Fused { .. })
+                {
+                    score.healthy_flagged += 1;
+                }
+            }
+            if t_s + 0.5 * self.dt_s >= score_from_s {
+                let est = out.temps_c;
+                for (j, node) in THERMOCOUPLE_NODES.iter().enumerate() {
+                    let e = (f64::from(est[*node]) - f64::from(truth[j])).abs();
+                    score.max_error_tc_k = score.max_error_tc_k.max(e);
+                }
+                let hot = ALARM_NODES
+                    .into_iter()
+                    .max_by(|a, b| plant_c[*a].total_cmp(&plant_c[*b]))
+                    .unwrap_or(ALARM_NODES[0]);
+                let e = (f64::from(est[hot]) - plant_c[hot]).abs();
+                score.max_error_hot_spot_k = score.max_error_hot_spot_k.max(e);
+            }
+            if out.alarm.shutdown {
+                score.shutdown_s = Some(t_s);
+                break;
+            }
+        }
+        RunResult {
+            score,
+            flag_s,
+            snapshot,
+        }
+    }
+}
+
+/// Runs the whole matrix.
+///
+/// # Errors
+/// A configuration out of range, or an observer that does not build.
+pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
+    let bad = |m: &str| Err(FaultError::Invalid(m.to_string()));
+    if !(cfg.duration_s.is_finite() && cfg.duration_s > 0.0) {
+        return bad("--duration-s must be finite and > 0");
+    }
+    if cfg.step_us == 0 || cfg.reading_every == 0 {
+        return bad("--step-us and the reading period must be > 0");
+    }
+    if !cfg.sensors.iter().any(|s| *s) {
+        return bad("at least one sensor must be in use");
+    }
+    if cfg.currents_a.iter().any(|a| !a.is_finite()) {
+        return bad("--current-a must be finite");
+    }
+    if let Some(trace) = &cfg.trace {
+        if trace.time_s.is_empty() || trace.time_s.len() != trace.currents_a.len() {
+            return bad("the trace has no rows");
+        }
+        if trace.currents_a.iter().flatten().any(|a| !a.is_finite()) {
+            return bad("the trace has a current that is not finite");
+        }
+    }
+    if cfg.onsets_s.iter().any(|t| !(t.is_finite() && *t >= 0.0)) {
+        return bad("--onset-s must be finite and >= 0");
+    }
+    if !(cfg.off_s.is_finite() && cfg.off_s >= 0.0) {
+        return bad("--off-s must be finite and >= 0");
+    }
+    let harness = Harness::new(cfg)?;
+    let trace_name = cfg.trace.as_ref().map(|_| String::new());
+    let clean = harness.run(None, Restart::None).score;
+    let onsets_s = if cfg.onsets_s.is_empty() {
+        // Half the clean shutdown time, on a tenth of a second.
+        let half = (5.0 * clean.shutdown_s.unwrap_or(cfg.duration_s)).floor() / 10.0;
+        let mut onsets = vec![60.0_f64.min(half), half];
+        onsets.dedup();
+        onsets
+    } else {
+        cfg.onsets_s.clone()
+    };
+    let classes = if cfg.classes.is_empty() {
+        FaultClass::ALL.to_vec()
+    } else {
+        cfg.classes.clone()
+    };
+    let sensors: Vec<usize> = (0..THERMOCOUPLES).filter(|j| cfg.sensors[*j]).collect();
+    let stale_off_s = f64::from(cfg.max_snapshot_age_s) + 60.0;
+    let mut references: Vec<((u64, u64), Option<f64>)> = Vec::new();
+    let mut cases = Vec::new();
+    for &class in &classes {
+        for &onset_s in &onsets_s {
+            let targets: Vec<Option<usize>> = if class.per_sensor() {
+                sensors.iter().map(|j| Some(*j)).collect()
+            } else {
+                vec![None]
+            };
+            for sensor in targets {
+                let fault = Injected {
+                    class,
+                    sensor,
+                    onset_s,
+                };
+                let (restart, off_s) = match class {
+                    FaultClass::CorruptSnapshot => (true, 0.0),
+                    FaultClass::StaleSnapshot => (true, stale_off_s),
+                    FaultClass::PowerOff => (true, cfg.off_s),
+                    _ => (false, 0.0),
+                };
+                let (run, reference) = if restart {
+                    let key = (onset_s.to_bits(), off_s.to_bits());
+                    let found = references.iter().find(|(k, _)| *k == key);
+                    let reference = match found {
+                        Some((_, r)) => *r,
+                        None => {
+                            let r = harness
+                                .run(
+                                    None,
+                                    Restart::TickThrough {
+                                        at_s: onset_s,
+                                        off_s,
+                                    },
+                                )
+                                .score
+                                .shutdown_s;
+                            references.push((key, r));
+                            r
+                        }
+                    };
+                    let run = harness.run(
+                        Some(fault),
+                        Restart::Restore {
+                            at_s: onset_s,
+                            off_s,
+                            corrupt: class == FaultClass::CorruptSnapshot,
+                            cool: class == FaultClass::PowerOff,
+                        },
+                    );
+                    // A shutdown due while the device is off is due at the
+                    // restart (the first tick after the off time) at the
+                    // earliest.
+                    let back_s = onset_s + off_s + harness.dt_s;
+                    let reference = reference.map(|r| if r > onset_s { r.max(back_s) } else { r });
+                    (run, reference)
+                } else {
+                    (harness.run(Some(fault), Restart::None), clean.shutdown_s)
+                };
+                cases.push(case_report(fault, run, reference));
+            }
+        }
+    }
+    let summary = summarise(&classes, &cases);
+    Ok(FaultReport {
+        model: "omnimagnet".into(),
+        currents_a: if cfg.trace.is_some() {
+            Vec::new()
+        } else {
+            cfg.currents_a.to_vec()
+        },
+        duration_s: cfg.duration_s,
+        trace: trace_name,
+        step_us: cfg.step_us,
+        reading_period_s: f64::from(cfg.reading_every * cfg.step_us) * 1e-6,
+        sensors,
+        onsets_s,
+        clean,
+        cases,
+        summary,
+    })
+}
+
+fn case_report(fault: Injected, run: RunResult, reference: Option<f64>) -> CaseReport {
+    let shutdown = run.score.shutdown_s;
+    let delay = shutdown.zip(reference).map(|(s, r)| s - r);
+    let unexpected = reference.is_none() && shutdown.is_some();
+    CaseReport {
+        class: fault.class,
+        sensor: fault.sensor,
+        onset_s: fault.onset_s,
+        flag_s: run.flag_s,
+        score: run.score,
+        reference_shutdown_s: reference,
+        shutdown_delay_s: delay,
+        lost_shutdown: reference.is_some() && shutdown.is_none(),
+        late_shutdown: delay.is_some_and(|d| d > LATE_S),
+        false_trip: unexpected && !fault.class.trips_by_design(),
+        protective_trip: unexpected && fault.class.trips_by_design(),
+        snapshot: run.snapshot,
+    }
+}
+
+fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
+    let mut per_class = Vec::new();
+    for &class in classes {
+        let mine: Vec<&CaseReport> = cases.iter().filter(|c| c.class == class).collect();
+        let max = |f: &dyn Fn(&CaseReport) -> Option<f64>| {
+            mine.iter().filter_map(|c| f(c)).reduce(f64::max)
+        };
+        per_class.push(ClassSummary {
+            class,
+            cases: mine.len(),
+            // A power-off restart is no fault: nothing to flag.
+            unflagged: mine
+                .iter()
+                .filter(|c| c.flag_s.is_none() && c.class != FaultClass::PowerOff)
+                .count(),
+            worst_flag_s: max(&|c| c.flag_s),
+            flag_goal_s: class.flag_goal_s(),
+            worst_error_tc_k: max(&|c| Some(c.score.max_error_tc_k)).unwrap_or(0.0),
+            worst_error_hot_spot_k: max(&|c| Some(c.score.max_error_hot_spot_k)).unwrap_or(0.0),
+            worst_delay_s: max(&|c| c.shutdown_delay_s),
+            lost: mine.iter().filter(|c| c.lost_shutdown).count(),
+            late: mine.iter().filter(|c| c.late_shutdown).count(),
+            false_trips: mine.iter().filter(|c| c.false_trip).count(),
+            protective_trips: mine.iter().filter(|c| c.protective_trip).count(),
+        });
+    }
+    let count = |f: &dyn Fn(&CaseReport) -> bool| cases.iter().filter(|c| f(c)).count();
+    let lost = count(&|c| c.lost_shutdown);
+    let late = count(&|c| c.late_shutdown);
+    let false_spikes = count(&|c| c.false_trip && c.class == FaultClass::Spikes);
+    let refused_not_latched = count(&|c| {
+        c.snapshot
+            .as_ref()
+            .is_some_and(|s| s.refused && !s.starts_latched)
+    });
+    let mut goals = Vec::new();
+    // Per class: the cases that missed the flag goal and the worst of them.
+    let mut flag_misses = Vec::new();
+    for &class in classes {
+        let Some(goal) = class.flag_goal_s() else {
+            continue;
+        };
+        let mine = cases.iter().filter(|c| c.class == class);
+        let missed: Vec<&CaseReport> = mine
+            .filter(|c| c.flag_s.is_none_or(|t| t > goal + 1e-9))
+            .collect();
+        if missed.is_empty() {
+            continue;
+        }
+        let never = missed.iter().filter(|c| c.flag_s.is_none()).count();
+        let worst = missed.iter().filter_map(|c| c.flag_s).reduce(f64::max);
+        flag_misses.push(format!(
+            "{} {}/{} (never {never}{})",
+            class.name(),
+            missed.len(),
+            cases.iter().filter(|c| c.class == class).count(),
+            worst.map_or(String::new(), |w| format!(", worst {w:.1} s"))
+        ));
+    }
+    goals.push(Goal {
+        goal: format!(
+            "every single-sensor fault flagged within {FLAG_GOAL_S} s (stuck {STUCK_FLAG_GOAL_S} s)"
+        ),
+        met: flag_misses.is_empty(),
+        detail: if flag_misses.is_empty() {
+            "all flagged in time".into()
+        } else {
+            format!("missed: {}", flag_misses.join("; "))
+        },
+    });
+    let worst_err = cases
+        .iter()
+        .filter(|c| c.class.per_sensor())
+        .map(|c| c.score.max_error_tc_k.max(c.score.max_error_hot_spot_k))
+        .fold(0.0, f64::max);
+    goals.push(Goal {
+        goal: format!("single-sensor faults: estimate error within {ERROR_GOAL_K} K"),
+        met: worst_err <= ERROR_GOAL_K,
+        detail: format!("worst {worst_err:.2} K"),
+    });
+    goals.push(Goal {
+        goal: "no lost shutdown".into(),
+        met: lost == 0,
+        detail: format!("{lost} lost"),
+    });
+    goals.push(Goal {
+        goal: format!("no shutdown later than {LATE_S} s after the clean run's"),
+        met: late == 0,
+        detail: format!("{late} late"),
+    });
+    goals.push(Goal {
+        goal: "no false shutdown under spike trains".into(),
+        met: false_spikes == 0,
+        detail: format!("{false_spikes} false"),
+    });
+    goals.push(Goal {
+        goal: "every refused snapshot starts latched".into(),
+        met: refused_not_latched == 0,
+        detail: format!(
+            "{} refused, {refused_not_latched} not latched",
+            count(&|c| c.snapshot.as_ref().is_some_and(|s| s.refused))
+        ),
+    });
+    Summary {
+        classes: per_class,
+        cases: cases.len(),
+        lost_shutdowns: lost,
+        late_shutdowns: late,
+        false_trips: count(&|c| c.false_trip),
+        false_trips_spikes: false_spikes,
+        refused_not_latched,
+        goals,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn class_names_round_trip() {
+        for class in FaultClass::ALL {
+            assert_eq!(FaultClass::parse(class.name()), Some(class));
+            let json = serde_json::to_value(class).unwrap();
+            assert_eq!(json, class.name());
+        }
+        assert_eq!(FaultClass::parse("melted"), None);
+    }
+
+    #[test]
+    fn trace_currents_are_held_row_to_row() {
+        let trace = CurrentTrace {
+            time_s: vec![0.0, 10.0, 20.0],
+            currents_a: vec![[1.0; 3], [2.0; 3], [3.0; 3]],
+        };
+        for (t_s, a) in [
+            (-1.0, 1.0),
+            (0.0, 1.0),
+            (9.99, 1.0),
+            (10.0, 2.0),
+            (1e6, 3.0),
+        ] {
+            assert_eq!(trace.at(t_s), [a; 3], "at {t_s} s");
+        }
+    }
+
+    #[test]
+    fn bad_configurations_are_refused() {
+        for cfg in [
+            FaultConfig {
+                duration_s: 0.0,
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                sensors: [false; THERMOCOUPLES],
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                onsets_s: vec![f64::NAN],
+                ..FaultConfig::default()
+            },
+        ] {
+            assert!(matches!(run(&cfg), Err(FaultError::Invalid(_))), "{cfg:?}");
+        }
+    }
+}

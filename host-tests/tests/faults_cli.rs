@@ -1,0 +1,248 @@
+//! `coil-thermal faults` (issue 17's fault campaign) on a short
+//! configuration: the report's structure, a few facts it must show, and
+//! its argument errors.
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use predicates::str::contains;
+use serde_json::Value;
+
+fn ct() -> assert_cmd::Command {
+    cargo_bin_cmd!("coil-thermal")
+}
+
+fn json_run(args: &[&str]) -> Value {
+    let out = ct()
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    assert_eq!(text.trim().lines().count(), 1, "one JSON line: {text}");
+    serde_json::from_str(&text).unwrap()
+}
+
+fn cases<'v>(report: &'v Value, class: &str) -> Vec<&'v Value> {
+    report["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["class"] == class)
+        .collect()
+}
+
+/// 7 A (the clean run shuts down at about 507 s), three sensors, two
+/// onsets, four classes.
+#[test]
+fn overload_open_circuit_flagged_at_once_and_spikes_trip_on_time() {
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--sensors",
+        "0,2,4",
+        "--duration-s",
+        "600",
+        "--onset-s",
+        "60,200",
+        "--classes",
+        "open,spikes,corrupt-snapshot,frozen-clock",
+        "--json",
+    ]);
+    assert_eq!(r["model"], "omnimagnet");
+    assert_eq!(r["sensors"], serde_json::json!([0, 2, 4]));
+    let clean_s = r["clean"]["shutdown_s"].as_f64().expect("7 A shuts down");
+    assert!((400.0..600.0).contains(&clean_s), "{clean_s}");
+    // 3 sensors x 2 onsets for each per-sensor class, 2 for the others.
+    assert_eq!(r["cases"].as_array().unwrap().len(), 6 + 6 + 2 + 2);
+    for c in cases(&r, "open") {
+        let flag = c["flag_s"].as_f64().expect("open circuit flagged");
+        assert!(flag <= 1.0, "{c}");
+        // (No bound on the estimate error here: with sensors 0,2,4 an open
+        // thermocouple leaves its solenoid unmeasured, 3.8 K off for #4.)
+        assert_eq!(c["lost_shutdown"], false, "{c}");
+        assert_eq!(c["late_shutdown"], false, "{c}");
+    }
+    for c in cases(&r, "spikes") {
+        assert!(c["flag_s"].as_f64().unwrap() <= 1.0, "{c}");
+        let delay = c["shutdown_delay_s"].as_f64().expect("trips under spikes");
+        assert!(delay <= 1.0, "{c}");
+    }
+    for c in cases(&r, "corrupt-snapshot") {
+        assert_eq!(c["snapshot"]["refused"], true, "{c}");
+        assert_eq!(c["snapshot"]["starts_latched"], true, "{c}");
+    }
+    for c in cases(&r, "frozen-clock") {
+        // The model is lost 1 s after the clock stops: a safe shutdown.
+        assert!(c["shutdown_delay_s"].as_f64().unwrap() < 0.0, "{c}");
+    }
+    let summary = &r["summary"];
+    assert_eq!(summary["lost_shutdowns"], 0);
+    assert_eq!(summary["late_shutdowns"], 0);
+    assert_eq!(summary["classes"].as_array().unwrap().len(), 4);
+    assert_eq!(summary["goals"].as_array().unwrap().len(), 6);
+}
+
+/// A sub-critical current: the clean run never shuts down, nor does a
+/// spike train; a stale snapshot's latched start is a protective trip.
+#[test]
+fn no_false_trip_under_spikes_below_the_limit() {
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "3.1",
+        "--duration-s",
+        "300",
+        "--sensors",
+        "1,3,5",
+        "--max-snapshot-age-s",
+        "60",
+        "--classes",
+        "spikes,stale-snapshot",
+        "--json",
+    ]);
+    assert!(r["clean"]["shutdown_s"].is_null(), "{}", r["clean"]);
+    assert_eq!(r["onsets_s"], serde_json::json!([60.0, 150.0]));
+    for c in cases(&r, "spikes") {
+        assert!(c["shutdown_s"].is_null(), "{c}");
+        assert_eq!(c["false_trip"], false, "{c}");
+    }
+    for c in cases(&r, "stale-snapshot") {
+        assert_eq!(c["snapshot"]["refused"], true, "{c}");
+        assert_eq!(c["protective_trip"], true, "{c}");
+    }
+    assert_eq!(r["summary"]["false_trips_spikes"], 0);
+}
+
+#[test]
+fn text_report_names_the_goals() {
+    ct().args([
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--duration-s",
+        "120",
+        "--onset-s",
+        "30",
+        "--classes",
+        "jump-down",
+    ])
+    .assert()
+    .success()
+    .stdout(contains("jump-down"))
+    .stdout(contains("no lost shutdown"));
+}
+
+#[test]
+fn argument_errors_are_clear() {
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--reading-period-ms",
+                "250",
+            ],
+            "whole number",
+        ),
+        (&["--model", "omnimagnet"], "--current-a"),
+        (
+            &["--model", "omnimagnet", "--current-a", "7,7"],
+            "1 or 3 values",
+        ),
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--sensors",
+                "6",
+            ],
+            "no thermocouple 6",
+        ),
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--classes",
+                "melted",
+            ],
+            "unknown class `melted`",
+        ),
+        (
+            &["--model", "hppa", "--current-a", "7"],
+            "not yet available",
+        ),
+        (&["--model", "nosuch", "--current-a", "7"], "unknown model"),
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--duration-s",
+                "-1",
+            ],
+            "--duration-s",
+        ),
+    ];
+    for (args, message) in cases {
+        ct().arg("faults")
+            .args(args)
+            .assert()
+            .failure()
+            .stderr(contains(message));
+    }
+}
+
+/// On a recorded trace: the currents of its rows drive the plant for its
+/// span; 7 A then a rest at 2 A, which the clean run survives.
+#[test]
+fn runs_on_a_trace() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let path = dir.path().join("omni.csv");
+    let mut text = String::from("time_s,I1_a,I2_a,I3_a,ambient\n");
+    for t in 0..=300 {
+        let i = if t < 150 { 7.0 } else { 2.0 };
+        text.push_str(&format!("{t},{i},{i},{},23\n", 0.5 * i));
+    }
+    std::fs::write(&path, text).unwrap();
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--trace",
+        path.to_str().unwrap(),
+        "--sensors",
+        "0,3",
+        "--classes",
+        "jump-up,power-off",
+        "--off-s",
+        "30",
+        "--json",
+    ]);
+    assert_eq!(r["duration_s"], 300.0);
+    assert!(r["trace"].as_str().unwrap().ends_with("omni.csv"));
+    assert!(r["clean"]["shutdown_s"].is_null());
+    assert_eq!(r["onsets_s"], serde_json::json!([60.0, 150.0]));
+    for c in cases(&r, "jump-up") {
+        assert!(c["flag_s"].as_f64().unwrap() <= 1.0, "{c}");
+        assert_eq!(c["false_trip"], false, "{c}");
+    }
+    for c in cases(&r, "power-off") {
+        assert_eq!(c["snapshot"]["refused"], false, "{c}");
+        assert!(c["max_error_tc_k"].as_f64().unwrap() < 1.0, "{c}");
+    }
+}
