@@ -157,6 +157,49 @@ impl<const P: usize> StuckWatch<P> {
     }
 }
 
+/// Silent sensors: no reading, not even a fault, for longer than the
+/// caller's limit (two correction periods) since the last one (or since the
+/// watch began).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SilenceWatch<const P: usize> {
+    last_heard_us: [Option<u32>; P],
+}
+
+impl<const P: usize> SilenceWatch<P> {
+    /// Nothing heard yet.
+    pub(crate) const fn new() -> Self {
+        Self {
+            last_heard_us: [None; P],
+        }
+    }
+
+    /// Notes which sensors were heard at `now_us` \[us\] and marks those
+    /// silent for more than `silent_after_us` \[us\] (if nothing else was
+    /// reported for them this tick) [`SensorStatus::Silent`].
+    pub(crate) fn watch(
+        &mut self,
+        heard: &[bool; P],
+        now_us: u32,
+        silent_after_us: u32,
+        statuses: &mut [SensorStatus; P],
+    ) {
+        for ((last, heard), status) in self.last_heard_us.iter_mut().zip(heard).zip(statuses) {
+            match last {
+                _ if *heard => *last = Some(now_us),
+                None => *last = Some(now_us),
+                Some(at) => {
+                    let quiet_us = now_us.wrapping_sub(*at);
+                    if quiet_us > silent_after_us && *status == SensorStatus::NoReading {
+                        *status = SensorStatus::Silent {
+                            for_ms: quiet_us / 1000,
+                        };
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The mean `I^2` of each current over a block of model steps.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct BlockMean<const M: usize> {

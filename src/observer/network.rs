@@ -144,7 +144,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Shadow, ShadowState, StuckWatch};
+use super::consistency::{Shadow, ShadowState, SilenceWatch, StuckWatch};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
@@ -485,6 +485,9 @@ pub struct NetworkObserver<
     /// Readings in [`consistency::STUCK_WINDOW_S`](super::consistency) at
     /// the correction period.
     stuck_window: u32,
+    /// No reading for this long makes a sensor silent \[us\]: two
+    /// correction periods.
+    silent_after_us: u32,
     warmup_corrections: u16,
     clock: StepClock,
     limits: ScalarLimits<f32>,
@@ -525,6 +528,7 @@ pub struct NetworkObserverState<
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
     stuck: StuckWatch<P>,
+    silence: SilenceWatch<P>,
     /// The time-varying warm-up's covariance, while it runs.
     warmup_cov: SMatrix<f32, X, X>,
     /// Corrections the warm-up has left.
@@ -649,6 +653,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             },
             warmup_left: self.warmup_corrections,
             stuck: StuckWatch::new(),
+            silence: SilenceWatch::new(),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -907,6 +912,12 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &inputs.readings,
             inputs.now_us,
             self.max_reading_age_us,
+            &mut state.outputs.sensors,
+        );
+        state.silence.watch(
+            &inputs.readings.map(|r| r.is_some()),
+            inputs.now_us,
+            self.silent_after_us,
             &mut state.outputs.sensors,
         );
         let ambient_c = self.ambient(&state.held_boundary_c);

@@ -513,3 +513,28 @@ fn a_time_varying_warm_up_pulls_a_wrong_start_in_sooner() {
         );
     }
 }
+
+#[test]
+fn a_sensor_that_stops_reporting_is_silent_after_two_periods() {
+    // Readings every 0.5 s (the correction period) until 3 s, then none:
+    // flagged `Silent` once more than 1 s has passed since the last, never
+    // before.
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> =
+        NetworkObserverBuilder::new(&net, [1]).build().unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut first_silent_ms = None;
+    for k in 0..6_000u32 {
+        let now_us = k * 1000;
+        let mut inp = inputs([1.0], [20.0], now_us);
+        if k % 500 == 0 && k <= 3_000 {
+            inp.readings = [reading(20.0, now_us)];
+        }
+        let out = obs.tick(&mut state, &inp);
+        if let SensorStatus::Silent { for_ms } = out.sensors[0] {
+            first_silent_ms.get_or_insert((k, for_ms));
+        }
+    }
+    // The last reading at 3000 ms; silent from the first tick past 4000 ms.
+    assert_eq!(first_silent_ms, Some((4_001, 1_001)));
+}

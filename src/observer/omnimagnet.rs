@@ -157,7 +157,7 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Band, BlockMean, StuckWatch};
+use super::consistency::{Band, BlockMean, SilenceWatch, StuckWatch};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -355,6 +355,12 @@ pub enum SensorStatus {
         /// How far below the band's lower edge \[K\].
         below_k: f32,
     },
+    /// Silent: no reading (not even a fault) for more than two correction
+    /// periods; a dropout (a cable, a driver, a bus).
+    Silent {
+        /// Since the last reading \[ms\].
+        for_ms: u32,
+    },
     /// Stuck: the reading has not moved while the shadow model at its node
     /// moved by more than the stuck threshold; not fused until it moves.
     Stuck {
@@ -447,6 +453,9 @@ pub struct OmniObserver {
     stuck_threshold_k: f32,
     /// Readings in the stuck test's window at the correction period.
     stuck_window: u32,
+    /// No reading for this long makes a thermocouple silent \[us\]: two
+    /// correction periods.
+    silent_after_us: u32,
 }
 
 /// The per-device state.
@@ -480,6 +489,7 @@ pub struct OmniObserverState {
     shadow_x: SVector<f32, STATES>,
     shadow_residual_k: [f32; NODES],
     stuck: StuckWatch<THERMOCOUPLES>,
+    silence: SilenceWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
     outputs: OmniOutputs,
 }
@@ -584,6 +594,9 @@ impl OmniObserver {
             },
             stuck_threshold_k: settings.stuck_threshold_k as f32,
             stuck_window: super::network::parts_stuck_window(settings.filter.correction_period_s),
+            silent_after_us: shadow_block_steps
+                .saturating_mul(settings.step_us)
+                .saturating_mul(2),
         })
     }
 
@@ -738,6 +751,7 @@ impl OmniObserver {
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(),
+            silence: SilenceWatch::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -1011,8 +1025,16 @@ impl OmniObserver {
             self.max_reading_age_us,
             &mut state.outputs.sensors,
         );
-        // Only the fitted thermocouples count.
-        for (sample, fitted) in samples.iter_mut().zip(self.filter.settings().sensors) {
+        // Only the fitted thermocouples count (an unfitted one is never
+        // heard, so the silence watch hears it always).
+        let fitted = self.filter.settings().sensors;
+        state.silence.watch(
+            &core::array::from_fn(|j| inputs.readings[j].is_some() || !fitted[j]),
+            inputs.now_us,
+            self.silent_after_us,
+            &mut state.outputs.sensors,
+        );
+        for (sample, fitted) in samples.iter_mut().zip(fitted) {
             if !fitted {
                 *sample = None;
             }

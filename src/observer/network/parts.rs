@@ -589,6 +589,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_corrections: s.warmup_corrections,
             stuck_threshold_k: s.stuck_threshold_k as f32,
             stuck_window: stuck_window(s.correction_period_s),
+            silent_after_us: timing
+                .correction_period
+                .saturating_mul(s.step_us)
+                .saturating_mul(2),
             clock: timing.clock,
             limits: input_limits.to_scalar(),
             ambient_boundary: s.ambient_boundary,
