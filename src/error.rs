@@ -72,6 +72,17 @@ pub enum BuildError {
         /// The solver's name as written in the API.
         name: &'static str,
     },
+    /// The sensors cannot see an element the protection acts on well enough
+    /// to protect it: its steady-state standard deviation is above the
+    /// configured bound (`max_element_sigma_k`), so its protective upper
+    /// bound would sit tens of kelvin above its estimate and trip at once.
+    /// Fit a thermocouple nearer to it, or raise the bound knowingly.
+    Unobservable {
+        /// The element's node.
+        node: usize,
+        /// Its steady-state standard deviation \[K\].
+        sigma_k: f32,
+    },
     /// Any other parameter that is not finite or out of its documented range.
     InvalidParameter {
         /// The parameter's name as written in the API.
@@ -105,6 +116,10 @@ impl fmt::Display for BuildError {
             Self::Singular => write!(f, "network has no path to a boundary (singular)"),
             Self::NoSteadyState => write!(f, "no steady state: thermal runaway at these currents"),
             Self::NotConverged { name } => write!(f, "`{name}` did not converge"),
+            Self::Unobservable { node, sigma_k } => write!(
+                f,
+                "the sensors leave node {node} unobservable: steady standard deviation {sigma_k} K above max_element_sigma_k"
+            ),
             Self::InvalidParameter { name } => write!(f, "parameter `{name}` is invalid"),
         }
     }

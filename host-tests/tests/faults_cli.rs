@@ -226,7 +226,7 @@ fn runs_on_a_trace() {
         "--trace",
         path.to_str().unwrap(),
         "--sensors",
-        "0,3",
+        "0,3,4",
         "--classes",
         "jump-up,power-off",
         "--off-s",

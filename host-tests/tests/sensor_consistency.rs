@@ -324,3 +324,36 @@ fn healthy_thermocouples_agree_with_the_physics_up_to_the_shutdown_at_3_8_a() {
     );
     assert_eq!(healthy.colder_than_physics, 0, "{healthy:?}");
 }
+
+#[test]
+fn a_sensor_set_that_cannot_see_an_element_is_refused_at_build() {
+    // One thermocouple on solenoid 1 alone leaves solenoids 2 and 3 at a
+    // steady standard deviation of 22-24 K: their upper bounds would sit
+    // 70 K above their estimates, and the fault campaign saw such an
+    // observer shut a healthy 3.1 A run down after 15 s.
+    let build = |sensors: [bool; 6]| {
+        let defaults = OmniSettings::default();
+        let settings = OmniSettings {
+            filter: ObserverSettings {
+                sensors,
+                ..defaults.filter
+            },
+            ..defaults
+        };
+        OmniObserver::new(
+            &Omnimagnet::PAPER,
+            &[AMBIENT_C; NODES],
+            AMBIENT_C,
+            &settings,
+        )
+    };
+    match build([false, true, false, false, false, false]) {
+        Err(coil_thermal::BuildError::Unobservable { node, sigma_k }) => {
+            assert!(node != 0 && sigma_k > 5.0, "node {node}: {sigma_k} K");
+        }
+        other => panic!("expected Unobservable, got {:?}", other.err()),
+    }
+    // One per solenoid, and all six: accepted.
+    assert!(build([true, false, true, false, true, false]).is_ok());
+    assert!(build([true; 6]).is_ok());
+}

@@ -242,6 +242,11 @@ pub struct NetworkSettings {
     /// stuck \[K\] (see "Sensors against the physics"; `f64::INFINITY`
     /// turns the test off). Default 1.0.
     pub stuck_threshold_k: f64,
+    /// Largest steady-state standard deviation \[K\] an element with a
+    /// limit may have: a sensor set that leaves one less certain is refused
+    /// at build ([`BuildError::Unobservable`]). Default 5
+    /// (`f64::INFINITY`: no check).
+    pub max_element_sigma_k: f64,
     /// Corrections run by the time-varying filter before the steady gain
     /// takes over (the optional time-varying path): from the steady prior
     /// widened by the recovery variances (`recovery_sigma_k`,
@@ -295,6 +300,7 @@ impl NetworkSettings {
         origin_c: 20.0,
         ambient_boundary: 0,
         stuck_threshold_k: 1.0,
+        max_element_sigma_k: 5.0,
         warmup_corrections: 0,
         max_current_a: 100.0,
         consistency_offset_k: 3.0,

@@ -252,6 +252,11 @@ pub struct OmniSettings {
     /// [`NetworkSettings::stuck_threshold_k`](super::NetworkSettings::stuck_threshold_k)).
     /// Default 1.0.
     pub stuck_threshold_k: f64,
+    /// Largest steady-state standard deviation \[K\] a wire or cover
+    /// insulation may have: a thermocouple subset that leaves one less
+    /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
+    /// solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K). Default 5.
+    pub max_element_sigma_k: f64,
 }
 
 impl Default for OmniSettings {
@@ -275,6 +280,7 @@ impl Default for OmniSettings {
             consistency_offset_k: 3.0,
             consistency_fraction: 0.25,
             stuck_threshold_k: 1.0,
+            max_element_sigma_k: 5.0,
         }
     }
 }
@@ -650,6 +656,20 @@ impl OmniObserver {
         let prior = filter.gain().prior();
         let sigma_k: [f64; NODES] =
             core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
+        if settings.max_element_sigma_k.is_nan() || settings.max_element_sigma_k <= 0.0 {
+            return Err(BuildError::InvalidParameter {
+                name: "max_element_sigma_k",
+            });
+        }
+        for node in ALARM_NODES {
+            let sigma = sigma_k.get(node).copied().unwrap_or(f64::INFINITY);
+            if sigma > settings.max_element_sigma_k {
+                return Err(BuildError::Unobservable {
+                    node,
+                    sigma_k: sigma as f32,
+                });
+            }
+        }
         let mut margins = [settings.unmeasured_margin; NODES];
         let used = filter.settings().sensors.iter();
         for (node, used) in THERMOCOUPLE_NODES.iter().zip(used) {

@@ -541,6 +541,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // The taper's factor per element, scaled by each current's
         // hardware limit afterwards (see "Limits per current").
         let limiter = LimiterConfig::new([1.0; N], s.taper_k, 0.0)?;
+        check(
+            !s.max_element_sigma_k.is_nan() && s.max_element_sigma_k > 0.0,
+            "max_element_sigma_k",
+        )?;
+        for (node, critical) in parts.critical_c.iter().enumerate() {
+            let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
+            if critical.is_some() && f64::from(sigma_k) > s.max_element_sigma_k {
+                return Err(BuildError::Unobservable { node, sigma_k });
+            }
+        }
         let bound = upper_bound(&gain, &parts.sensor_nodes, s)?;
 
         let mut fingerprint = Fingerprint::new()
@@ -775,6 +785,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
         writeln!(out, "        stuck_threshold_k: {:?},", s.stuck_threshold_k)?;
+        writeln!(
+            out,
+            "        max_element_sigma_k: {:?},",
+            s.max_element_sigma_k
+        )?;
         writeln!(out, "        warmup_corrections: {},", s.warmup_corrections)?;
         writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
         writeln!(
