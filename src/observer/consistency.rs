@@ -157,6 +157,34 @@ impl<const P: usize> StuckWatch<P> {
     }
 }
 
+/// The stuck test's settings: the shadow's movement under an unchanged
+/// reading that makes it stuck \[K\], within a window of readings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StuckTest {
+    /// \[K\].
+    pub threshold_k: f32,
+    /// Readings in [`STUCK_WINDOW_S`].
+    pub window: u32,
+}
+
+/// Holds this correction's samples against the physics: the band (colder
+/// than physics), then the stuck test. Returns `true` for a common-mode
+/// fault: some reading arrived and every one was refused.
+pub(crate) fn screen_readings<const P: usize>(
+    band: &Band,
+    stuck: &StuckTest,
+    watch: &mut StuckWatch<P>,
+    samples: &mut [Option<f32>; P],
+    statuses: &mut [SensorStatus; P],
+    shadow_c: &[f32; P],
+    ambient_c: f32,
+) -> bool {
+    let present = samples.iter().any(Option::is_some);
+    band.screen(samples, statuses, shadow_c, ambient_c);
+    watch.screen(samples, statuses, shadow_c, stuck.threshold_k, stuck.window);
+    present && samples.iter().all(Option::is_none)
+}
+
 /// Silent sensors: no reading, not even a fault, for longer than the
 /// caller's limit (two correction periods) since the last one (or since the
 /// watch began).

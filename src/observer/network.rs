@@ -144,7 +144,9 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Shadow, ShadowState, SilenceWatch, StuckWatch};
+use super::consistency::{
+    screen_readings, Shadow, ShadowState, SilenceWatch, StuckTest, StuckWatch,
+};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
@@ -487,10 +489,7 @@ pub struct NetworkObserver<
     predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
     bound: UpperBound<f32, N>,
     shadow: Shadow<N, B, M>,
-    stuck_threshold_k: f32,
-    /// Readings in [`consistency::STUCK_WINDOW_S`](super::consistency) at
-    /// the correction period.
-    stuck_window: u32,
+    stuck_test: StuckTest,
     /// No reading for this long makes a sensor silent \[us\]: two
     /// correction periods.
     silent_after_us: u32,
@@ -930,23 +929,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let shadow_c = self
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
-        let present = samples.iter().any(Option::is_some);
-        self.shadow.band.screen(
+        let common_mode = screen_readings(
+            &self.shadow.band,
+            &self.stuck_test,
+            &mut state.stuck,
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
             ambient_c,
         );
-        state.stuck.screen(
-            &mut samples,
-            &mut state.outputs.sensors,
-            &shadow_c,
-            self.stuck_threshold_k,
-            self.stuck_window,
-        );
-        // Every reading refused (colder than physics, or stuck): a
-        // common-mode fault.
-        let common_mode = present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.

@@ -157,7 +157,7 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{Band, BlockMean, SilenceWatch, StuckWatch};
+use super::consistency::{screen_readings, Band, BlockMean, SilenceWatch, StuckTest, StuckWatch};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -456,9 +456,7 @@ pub struct OmniObserver {
     shadow_block_steps: u32,
     /// The consistency band.
     band: Band,
-    stuck_threshold_k: f32,
-    /// Readings in the stuck test's window at the correction period.
-    stuck_window: u32,
+    stuck_test: StuckTest,
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
     silent_after_us: u32,
@@ -598,8 +596,10 @@ impl OmniObserver {
                 offset_k: settings.consistency_offset_k as f32,
                 fraction: settings.consistency_fraction as f32,
             },
-            stuck_threshold_k: settings.stuck_threshold_k as f32,
-            stuck_window: super::network::parts_stuck_window(settings.filter.correction_period_s),
+            stuck_test: StuckTest {
+                threshold_k: settings.stuck_threshold_k as f32,
+                window: super::network::parts_stuck_window(settings.filter.correction_period_s),
+            },
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
@@ -1061,23 +1061,15 @@ impl OmniObserver {
         }
         let shadow_origin = self.shadow.origin_c();
         let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
-        let present = samples.iter().any(Option::is_some);
-        self.band.screen(
+        let common_mode = screen_readings(
+            &self.band,
+            &self.stuck_test,
+            &mut state.stuck,
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
             state.held_ambient_c,
         );
-        state.stuck.screen(
-            &mut samples,
-            &mut state.outputs.sensors,
-            &shadow_c,
-            self.stuck_threshold_k,
-            self.stuck_window,
-        );
-        // Every reading refused (colder than physics, or stuck): a
-        // common-mode fault.
-        let common_mode = present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.

@@ -36,7 +36,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{Band, Shadow, STUCK_WINDOW_S};
+use crate::observer::consistency::{Band, Shadow, StuckTest, STUCK_WINDOW_S};
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -597,8 +597,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bound,
             shadow,
             warmup_corrections: s.warmup_corrections,
-            stuck_threshold_k: s.stuck_threshold_k as f32,
-            stuck_window: stuck_window(s.correction_period_s),
+            stuck_test: StuckTest {
+                threshold_k: s.stuck_threshold_k as f32,
+                window: stuck_window(s.correction_period_s),
+            },
             silent_after_us: timing
                 .correction_period
                 .saturating_mul(s.step_us)
