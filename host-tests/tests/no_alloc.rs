@@ -79,8 +79,15 @@ fn network_observer_ticks_allocate_nothing() {
     use coil_thermal::{Reading, SensorFault};
 
     let net = network();
+    // Two currents, one thermocouple: their heat biases cannot be told
+    // apart, so noise 0 freezes them (as random walks they would leave the
+    // winding at a steady sigma of 3 420 K, refused as `Unobservable`).
     let obs: NetworkObserver<4, 2, 2, 6, 1> = NetworkObserverBuilder::new(&net, [1])
         .critical_c([Some(155.0), Some(80.0), None, Some(120.0)])
+        .settings(coil_thermal::observer::NetworkSettings {
+            bias_noise_w2_per_s: 0.0,
+            ..coil_thermal::observer::NetworkSettings::DEFAULT
+        })
         .build()
         .unwrap();
     let mut state = obs.state(&[20.0; 4], &[20.0; 2]);
