@@ -673,9 +673,7 @@ mod tests {
             ],
             measured: vec![heating("winding_tc (truth -> winding)", 0, 101.0)],
             fused: vec![heating("housing_tc (fused -> housing)", 1, 40.5)],
-            residuals: vec![series("winding_tc", 0, |t| {
-                -1.0 * (1.0 - (-t / 150.0).exp())
-            })],
+            residuals: vec![series("winding_tc", 0, |t| (-t / 150.0).exp() - 1.0)],
             node_limits: vec![
                 NodeLimit {
                     node: "winding".into(),
