@@ -374,15 +374,11 @@ where
     let root = root.titled(&data.title, ("sans-serif", 22)).map_err(e)?;
     // Temperatures take what the lower panels leave.
     let h = root.dim_in_pixel().1 as f64;
-    let residual_h = if data.residuals.is_empty() {
-        0.0
-    } else {
-        0.22 * h
-    };
-    let current_h = if data.currents.is_empty() {
-        0.0
-    } else {
-        0.28 * h
+    let (residual_h, current_h) = match (data.residuals.is_empty(), data.currents.is_empty()) {
+        (true, true) => (0.0, 0.0),
+        (true, false) => (0.0, 0.3 * h),
+        (false, true) => (0.3 * h, 0.0),
+        (false, false) => (0.22 * h, 0.22 * h),
     };
     let (top, rest) = root.split_vertically((h - residual_h - current_h) as u32);
     let (residual_area, current_area) = rest.split_vertically(residual_h as u32);

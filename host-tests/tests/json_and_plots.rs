@@ -279,3 +279,37 @@ fn plot_window_clips_and_limit_lines_are_labelled() {
     let stderr = String::from_utf8_lossy(&err.get_output().stderr).to_string();
     assert!(stderr.contains("widen the plot window"), "{stderr}");
 }
+
+/// README's "host tool in five commands", as written (outputs into a
+/// temporary directory; `codegen`, which compiles a generator crate, is
+/// tested by `codegen_round_trip`).
+#[test]
+fn readme_host_tool_commands_run_as_written() {
+    let tmp = TempDir::new().unwrap();
+    let readme = include_str!("../../README.md");
+    let section = readme
+        .split("## The host tool in five commands")
+        .nth(1)
+        .expect("README has the five commands");
+    let block = section.split("```").nth(1).expect("a code block");
+    let commands: Vec<Vec<String>> = block
+        .lines()
+        .filter(|l| l.starts_with("coil-thermal "))
+        .map(|l| l.split_whitespace().skip(1).map(str::to_string).collect())
+        .collect();
+    assert_eq!(commands.len(), 5, "{block}");
+    for mut args in commands.into_iter().filter(|a| a[0] != "codegen") {
+        for k in 0..args.len() {
+            if args[k] == "--out" || args[k] == "--plot" {
+                args[k + 1] = s(&tmp.path().join(&args[k + 1])).to_string();
+            }
+        }
+        ct().current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .args(&args)
+            .assert()
+            .success();
+    }
+    for file in ["sim.png", "fit.png", "est.png", "fitted.toml"] {
+        assert!(tmp.path().join(file).is_file(), "{file} written");
+    }
+}

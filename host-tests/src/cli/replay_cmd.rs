@@ -252,7 +252,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             alarms: &result.alarms,
             settings: &settings,
         });
-        render(&data, path, 1200, 900)?;
+        render(&data, path, 1200, 800)?;
     }
     let hot = common::hot_spot(&result.estimate, &drive.time_s);
     let ttl = protection.time_to_limit();
