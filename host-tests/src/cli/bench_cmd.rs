@@ -23,6 +23,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             map.insert(format!("{stem}_budget_ratio"), json!(t.budget_ratio));
         }
         map.insert("budget_ns".into(), json!(STEP_BUDGET_NS));
+        map.insert("command".into(), json!("bench"));
         common::print_json(&serde_json::Value::Object(map));
         return Ok(());
     }

@@ -44,6 +44,10 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     std::fs::write(&a.out, fitted.to_toml()?)
         .with_context(|| format!("{}: cannot write the fitted model", a.out.display()))?;
+    let figures = match &a.plot {
+        Some(path) => super::plot_cmd::fit_report(&fitted, &data, path)?,
+        None => Vec::new(),
+    };
     if a.json {
         common::print_json(&json!({
             "command": "calibrate",
@@ -51,6 +55,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             "fit": report,
             "seconds": seconds,
             "out": a.out.display().to_string(),
+            "plots": figures.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         }));
         return Ok(());
     }
@@ -95,5 +100,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         }
     }
     println!("fitted model written to {}", a.out.display());
+    for p in &figures {
+        println!("fit report drawn to {}", p.display());
+    }
     Ok(())
 }

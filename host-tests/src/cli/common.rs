@@ -224,11 +224,20 @@ pub fn sensors(
         .collect()
 }
 
-/// Prints a JSON value as one line on stdout.
+/// The version of every `--json` summary's layout (docs/json.md), printed
+/// as its `schema_version`: raised when a field is renamed, removed or
+/// changes meaning, so that a script can refuse a layout it does not know.
+pub const JSON_SCHEMA_VERSION: u32 = 1;
+
+/// Prints a JSON summary as one line on stdout, with its `schema_version`.
 pub fn print_json(value: &serde_json::Value) {
+    let mut value = value.clone();
+    if let Some(object) = value.as_object_mut() {
+        object.insert("schema_version".into(), JSON_SCHEMA_VERSION.into());
+    }
     println!(
         "{}",
-        serde_json::to_string(value).expect("JSON values serialise")
+        serde_json::to_string(&value).expect("JSON values serialise")
     );
 }
 
@@ -247,18 +256,6 @@ pub fn plotted(series: &[Vec<f64>]) -> Vec<usize> {
     let mut keep: Vec<usize> = order.into_iter().take(8).map(|(i, _)| i).collect();
     keep.sort_unstable();
     keep
-}
-
-/// The lowest critical temperature of a plant, as a plot limit line.
-pub fn lowest_critical(info: &PlantInfo) -> Vec<(String, f64)> {
-    info.nodes
-        .iter()
-        .zip(&info.critical_c)
-        .filter_map(|(n, c)| c.map(|c| (n, c)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(n, c)| (format!("{n} critical {c} degC"), c))
-        .into_iter()
-        .collect()
 }
 
 /// The hottest node over a run `[node][row]`: (node, max degC, time s).

@@ -175,7 +175,9 @@ pub fn run(a: FaultsArgs) -> Result<()> {
     let mut report = faults::run(&cfg)?;
     report.trace = a.trace.as_ref().map(|p| p.display().to_string());
     if a.json {
-        common::print_json(&serde_json::to_value(&report)?);
+        let mut summary = serde_json::to_value(&report)?;
+        summary["command"] = "faults".into();
+        common::print_json(&summary);
     } else {
         print_text(&report);
     }

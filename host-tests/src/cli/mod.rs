@@ -497,6 +497,11 @@ pub struct CalibrateArgs {
     /// Where to write the fitted model file (TOML).
     #[arg(long, value_name = "FITTED.toml")]
     out: PathBuf,
+    /// Also draw the fit report (`.png` or `.svg`): per trace, the fitted
+    /// model against each measured column and the residuals [K]; with
+    /// several traces, one figure each, numbered `NAME-1.png`, ...
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     no_progress: bool,
@@ -560,6 +565,12 @@ pub struct PlotArgs {
     /// Title (default: the estimate file's name).
     #[arg(long)]
     title: Option<String>,
+    /// Draw from this time on [s] (a time window with --to-s).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    from_s: Option<f64>,
+    /// Draw up to this time [s].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    to_s: Option<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     json: bool,

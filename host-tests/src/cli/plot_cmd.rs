@@ -87,6 +87,7 @@ pub fn run(a: PlotArgs) -> Result<()> {
         }
         data.alarms.push((*t, "alarm".into()));
     }
+    let data = data.windowed(a.from_s, a.to_s)?;
     render(&data, &a.out, a.width, a.height)?;
     if a.json {
         common::print_json(&json!({
@@ -95,9 +96,246 @@ pub fn run(a: PlotArgs) -> Result<()> {
             "width": a.width,
             "height": a.height,
             "series": data.estimated.len() + data.measured.len() + data.currents.len(),
+            "limit_lines": crate::plot::limit_lines(&data).len(),
+            "window_s": [data.estimated.iter().filter_map(|s| s.time_s.first()).copied().reduce(f64::min),
+                         data.estimated.iter().filter_map(|s| s.time_s.last()).copied().reduce(f64::max)],
         }));
     } else {
         println!("wrote {} ({}x{} px)", a.out.display(), a.width, a.height);
     }
     Ok(())
+}
+
+/// The fit report of `calibrate`: per trace, the fitted model (solid)
+/// against each measured column (thick dashed) and their residuals \[K\],
+/// with the currents. One figure per trace: `path` for one trace, else
+/// `NAME-1.ext`, `NAME-2.ext`, ... Returns the files written.
+pub fn fit_report(
+    fitted: &crate::model_file::ModelFile,
+    data: &[crate::calibrate::FitData],
+    path: &std::path::Path,
+) -> Result<Vec<std::path::PathBuf>> {
+    use crate::model_file::Model;
+    use crate::sim::{by_node, initial_temps, plant_info, simulate, FilePlant};
+    let model = Model::build(fitted)?;
+    let info = plant_info(&model);
+    let mut plant = FilePlant::new(model)?;
+    let mut written = Vec::new();
+    for (k, d) in data.iter().enumerate() {
+        let first: Vec<(usize, f64)> = d.targets.iter().map(|t| (t.node, t.values_c[0])).collect();
+        let init = initial_temps(&info, &d.drive, &first)?;
+        let est = by_node(&simulate(&mut plant, &d.drive, &init));
+        let series = |label: String, values: Vec<f64>, color: usize| Series {
+            label,
+            time_s: d.drive.time_s.clone(),
+            values,
+            color,
+        };
+        let mut nodes: Vec<usize> = d.targets.iter().map(|t| t.node).collect();
+        nodes.dedup();
+        let mut rms = Vec::new();
+        let figure = PlotData {
+            estimated: nodes
+                .iter()
+                .map(|n| {
+                    series(
+                        format!("{} (fitted model)", info.nodes[*n]),
+                        est[*n].clone(),
+                        *n,
+                    )
+                })
+                .collect(),
+            measured: d
+                .targets
+                .iter()
+                .map(|t| {
+                    series(
+                        format!("{} (measured -> {})", t.column, info.nodes[t.node]),
+                        t.values_c.clone(),
+                        t.node,
+                    )
+                })
+                .collect(),
+            residuals: d
+                .targets
+                .iter()
+                .map(|t| {
+                    let r: Vec<f64> = est[t.node]
+                        .iter()
+                        .zip(&t.values_c)
+                        .map(|(e, m)| e - m)
+                        .collect();
+                    let finite: Vec<f64> = r.iter().copied().filter(|v| v.is_finite()).collect();
+                    let mse =
+                        finite.iter().map(|v| v * v).sum::<f64>() / finite.len().max(1) as f64;
+                    rms.push(format!("{} {:.3} K", t.column, mse.sqrt()));
+                    series(format!("{} (model - measured)", t.column), r, t.node)
+                })
+                .collect(),
+            currents: common::plotted(&d.drive.currents)
+                .into_iter()
+                .map(|i| {
+                    series(
+                        format!("{} [A]", info.inputs[i].name),
+                        d.drive.currents[i].clone(),
+                        i,
+                    )
+                })
+                .collect(),
+            node_limits: nodes
+                .iter()
+                .filter_map(|n| {
+                    info.critical_c[*n].map(|c| crate::plot::NodeLimit {
+                        node: info.nodes[*n].clone(),
+                        kind: "critical".into(),
+                        limit_c: c,
+                        color: *n,
+                    })
+                })
+                .collect(),
+            ..PlotData::default()
+        };
+        let figure = PlotData {
+            title: format!(
+                "{}: fit on {} (RMSE {})",
+                info.name,
+                d.label,
+                rms.join(", ")
+            ),
+            ..figure
+        };
+        let out = if data.len() == 1 {
+            path.to_path_buf()
+        } else {
+            let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fit");
+            let ext = path.extension().and_then(|s| s.to_str()).unwrap_or("png");
+            path.with_file_name(format!("{stem}-{}.{ext}", k + 1))
+        };
+        render(&figure, &out, 1200, 900)?;
+        written.push(out);
+    }
+    Ok(written)
+}
+
+/// What `replay --plot` draws.
+pub struct ReplayFigure<'a> {
+    /// The model's nodes and inputs.
+    pub info: &'a crate::sim::PlantInfo,
+    /// The replayed trace (for the title).
+    pub trace: &'a std::path::Path,
+    /// The replay's inputs, row by row.
+    pub drive: &'a crate::sim::Drive,
+    /// The estimate `[node][row]` \[degC\].
+    pub estimate: &'a [Vec<f64>],
+    /// The `--truth` sensors (scored, not fused).
+    pub truth: &'a [crate::observer::Sensor],
+    /// The `--measure` sensors (fused).
+    pub fused: &'a [crate::observer::Sensor],
+    /// The alarm events.
+    pub alarms: &'a [crate::observer::AlarmEvent],
+    /// The alarm settings (each node's derated limit).
+    pub settings: &'a crate::observer::AlarmSettings,
+}
+
+/// The replay figure: the estimates (at most 12 nodes, else the 8 hottest,
+/// plus every node a sensor sits on), each drawn node's derated alarm limit
+/// at the nominal ambient, truth and fused readings, warning, predictive
+/// and shutdown events, the residual of every truth column and the
+/// currents.
+pub fn replay_figure(f: &ReplayFigure) -> PlotData {
+    let series = |label: String, values: &Vec<f64>, color: usize| Series {
+        label,
+        time_s: f.drive.time_s.clone(),
+        values: values.clone(),
+        color,
+    };
+    let mut nodes = common::plotted(f.estimate);
+    for s in f.truth.iter().chain(f.fused) {
+        if !nodes.contains(&s.node) {
+            nodes.push(s.node);
+        }
+    }
+    let events = |level: &str| -> Vec<(f64, String)> {
+        f.alarms
+            .iter()
+            .filter(|e| e.level == level && e.kind != "cleared")
+            .map(|e| (e.time_s, e.node.clone().unwrap_or_default()))
+            .collect()
+    };
+    PlotData {
+        title: format!("{}: replay of {}", f.info.name, f.trace.display()),
+        estimated: nodes
+            .iter()
+            .map(|i| {
+                series(
+                    format!("{} (estimate)", f.info.nodes[*i]),
+                    &f.estimate[*i],
+                    *i,
+                )
+            })
+            .collect(),
+        measured: f
+            .truth
+            .iter()
+            .map(|t| {
+                series(
+                    format!("{} (truth -> {})", t.column, f.info.nodes[t.node]),
+                    &t.values_c,
+                    t.node,
+                )
+            })
+            .collect(),
+        fused: f
+            .fused
+            .iter()
+            .map(|m| {
+                series(
+                    format!("{} (fused -> {})", m.column, f.info.nodes[m.node]),
+                    &m.values_c,
+                    m.node,
+                )
+            })
+            .collect(),
+        residuals: f
+            .truth
+            .iter()
+            .map(|t| {
+                let r: Vec<f64> = f.estimate[t.node]
+                    .iter()
+                    .zip(&t.values_c)
+                    .map(|(e, m)| e - m)
+                    .collect();
+                series(format!("{} (estimate - truth)", t.column), &r, t.node)
+            })
+            .collect(),
+        currents: common::plotted(&f.drive.currents)
+            .into_iter()
+            .map(|i| {
+                series(
+                    format!("{} [A]", f.info.inputs[i].name),
+                    &f.drive.currents[i],
+                    i,
+                )
+            })
+            .collect(),
+        node_limits: nodes
+            .iter()
+            .filter_map(|i| {
+                let critical_c = f.settings.critical_c.get(*i).copied().flatten()?;
+                Some(crate::plot::NodeLimit {
+                    node: f.info.nodes[*i].clone(),
+                    kind: "alarm limit".into(),
+                    limit_c: f
+                        .settings
+                        .rule
+                        .alarm_limit_c(critical_c, f.settings.nominal_ambient_c),
+                    color: *i,
+                })
+            })
+            .collect(),
+        limits: Vec::new(),
+        alarms: events("shutdown"),
+        warnings: events("warning"),
+        predictive: events("predictive"),
+    }
 }

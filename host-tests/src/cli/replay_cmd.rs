@@ -11,7 +11,7 @@ use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
-use crate::plot::{render, PlotData, Series};
+use crate::plot::render;
 use crate::sim::{Drive, PlantInfo};
 use crate::trace::write_csv;
 
@@ -85,43 +85,6 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
         ambient_boundary,
         nominal_ambient_c,
     })
-}
-
-/// Plot markers of one alarm level's rising events: (time s, node).
-fn markers(events: &[AlarmEvent], level: &str) -> Vec<(f64, String)> {
-    events
-        .iter()
-        .filter(|e| e.level == level && e.kind != "cleared")
-        .map(|e| (e.time_s, e.node.clone().unwrap_or_default()))
-        .collect()
-}
-
-/// Horizontal lines at the lowest alarm limit and its warning level, at
-/// the nominal (first row's) ambient.
-fn alarm_lines(settings: &AlarmSettings) -> Vec<(String, f64)> {
-    let Some(critical_c) = settings
-        .critical_c
-        .iter()
-        .flatten()
-        .copied()
-        .reduce(f64::min)
-    else {
-        return Vec::new();
-    };
-    let limit_c = settings
-        .rule
-        .alarm_limit_c(critical_c, settings.nominal_ambient_c);
-    let warning_c = limit_c - settings.warning_margin_k;
-    vec![
-        (
-            format!("alarm limit (critical {critical_c} degC derated)"),
-            limit_c,
-        ),
-        (
-            format!("warning level ({} K below)", settings.warning_margin_k),
-            warning_c,
-        ),
-    ]
 }
 
 /// Prints the event counts per level and kind, the first predictive
@@ -279,48 +242,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     });
     write_csv(&a.out, &info.nodes, &drive.time_s, &result.estimate)?;
     if let Some(path) = &a.plot {
-        let series = |label: String, values: &Vec<f64>, color: usize| Series {
-            label,
-            time_s: drive.time_s.clone(),
-            values: values.clone(),
-            color,
-        };
-        let data = PlotData {
-            title: format!("{}: replay of {}", info.name, a.trace.display()),
-            estimated: common::plotted(&result.estimate)
-                .into_iter()
-                .map(|i| {
-                    series(
-                        format!("{} (estimate)", info.nodes[i]),
-                        &result.estimate[i],
-                        i,
-                    )
-                })
-                .collect(),
-            measured: truth
-                .iter()
-                .map(|t| {
-                    series(
-                        format!("{} (truth -> {})", t.column, info.nodes[t.node]),
-                        &t.values_c,
-                        t.node,
-                    )
-                })
-                .collect(),
-            currents: common::plotted(&drive.currents)
-                .into_iter()
-                .map(|i| {
-                    series(
-                        format!("{} [A]", info.inputs[i].name),
-                        &drive.currents[i],
-                        i,
-                    )
-                })
-                .collect(),
-            limits: alarm_lines(&settings),
-            warnings: markers(&result.alarms, "warning"),
-            alarms: markers(&result.alarms, "shutdown"),
-        };
+        let data = super::plot_cmd::replay_figure(&super::plot_cmd::ReplayFigure {
+            info: &info,
+            trace: &a.trace,
+            drive: &drive,
+            estimate: &result.estimate,
+            truth: &truth,
+            fused: &measured,
+            alarms: &result.alarms,
+            settings: &settings,
+        });
         render(&data, path, 1200, 800)?;
     }
     let hot = common::hot_spot(&result.estimate, &drive.time_s);

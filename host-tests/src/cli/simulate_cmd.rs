@@ -149,7 +149,18 @@ pub fn run(a: SimulateArgs) -> Result<()> {
                     color: i,
                 })
                 .collect(),
-            limits: common::lowest_critical(&info),
+            node_limits: common::plotted(&states)
+                .into_iter()
+                .enumerate()
+                .filter_map(|(c, i)| {
+                    info.critical_c[i].map(|limit_c| crate::plot::NodeLimit {
+                        node: info.nodes[i].clone(),
+                        kind: "critical".into(),
+                        limit_c,
+                        color: c,
+                    })
+                })
+                .collect(),
             ..PlotData::default()
         };
         render(&data, path, 1200, 800)?;
