@@ -103,6 +103,9 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     let twenty = Q32::from_f64(20.0);
 
     let mut stats = cost::Stats::default();
+    // Per tick after a grid update: 0 the update, 1 to 9 the protection.
+    let mut phases = [cost::Stats::default(); 10];
+    let mut phase = 0usize;
     for _ in 0..TICKS {
         let inputs = GridInputs {
             currents_a: &currents,
@@ -110,8 +113,15 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
             ambient_c: twenty,
             elapsed_us: 1000,
         };
-        let (_, insn) = meter.measure(|| observer.tick(&mut state, &inputs).steps);
+        let (updated, insn) = meter.measure(|| observer.tick(&mut state, &inputs).updated);
         stats.add(insn);
+        if updated {
+            phase = 0;
+        }
+        if let Some(stats) = phases.get_mut(phase) {
+            stats.add(insn);
+        }
+        phase += 1;
         reference.tick(&mut ref_state, &ref_currents, 20.0, 20.0);
     }
     // Let the staged protection finish on the last temperatures.
@@ -184,6 +194,14 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         ram,
         run_stack
     );
+    for (phase, stats) in phases.iter().enumerate() {
+        hprintln!(
+            "cost: tick {} after an update: mean {} worst {} insn",
+            phase,
+            stats.mean(),
+            stats.worst()
+        );
+    }
     let ok = stats.count() == TICKS
         && worst_k < 5e-3
         && worst_a < 0.02
