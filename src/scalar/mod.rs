@@ -110,9 +110,13 @@ macro_rules! impl_float_scalar {
             fn to_f32(self) -> f32 {
                 self as f32
             }
+            // `x - x` is +0 for every finite `x` and NaN for NaN and the
+            // infinities: a subtraction and a comparison, where LLVM
+            // expands `is_finite` (and its combinations with other
+            // comparisons) into some twenty integer instructions on ARMv7E-M.
             #[inline]
             fn is_finite(self) -> bool {
-                <$t>::is_finite(self)
+                self - self == 0.0
             }
             // `max`/`min` with the std semantics (a NaN loses), written as
             // comparisons: ARMv7E-M has no VMAXNM, so `f32::max` is a call to
