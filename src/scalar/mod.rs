@@ -110,13 +110,21 @@ macro_rules! impl_float_scalar {
             fn to_f32(self) -> f32 {
                 self as f32
             }
-            // `x - x` is +0 for every finite `x` and NaN for NaN and the
-            // infinities: a subtraction and a comparison, where LLVM
-            // expands `is_finite` (and its combinations with other
-            // comparisons) into some twenty integer instructions on ARMv7E-M.
+            // With an FPU, `x - x` (+0 for every finite `x`, NaN for NaN
+            // and the infinities) is a subtraction and a comparison, where
+            // LLVM expands `is_finite` and its combinations with other
+            // comparisons into some twenty integer instructions on
+            // ARMv7E-M. Without one (ARMv6-M, soft-float ABIs) the
+            // subtraction is a library call and the bit test is cheaper.
+            #[cfg(not(all(target_arch = "arm", not(target_abi = "eabihf"))))]
             #[inline]
             fn is_finite(self) -> bool {
                 self - self == 0.0
+            }
+            #[cfg(all(target_arch = "arm", not(target_abi = "eabihf")))]
+            #[inline]
+            fn is_finite(self) -> bool {
+                <$t>::is_finite(self)
             }
             // `max`/`min` with the std semantics (a NaN loses), written as
             // comparisons: ARMv7E-M has no VMAXNM, so `f32::max` is a call to
