@@ -149,6 +149,11 @@ impl Mul for Q32 {
     #[inline]
     fn mul(self, rhs: Self) -> Self {
         let (a, b) = (self.to_bits(), rhs.to_bits());
+        // A coil without current, a coil inside the grid (no ambient
+        // link): two compares instead of the partial products.
+        if a == 0 || b == 0 {
+            return Self::ZERO;
+        }
         let negative = (a < 0) != (b < 0);
         let (quotient, overflow, inexact) = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
         // The floor of a negative quotient: one more when bits were shifted
