@@ -48,14 +48,19 @@ const HOT: (usize, usize) = (1, 2);
 const HOT_A: f32 = 3.3;
 
 /// Without an FPU the `f32` time to limit (a division and a short `ln`
-/// series per coil, all in software) is the heaviest stage: four parts of
-/// three coils, and the bound in two. Nine ticks, within the ten of an
-/// update interval, so every update still gets its own pass.
+/// series per coil, all in software, ~3 800 instructions) is the heaviest
+/// stage: one coil per part; the bound (~1 500 per coil) two coils per part,
+/// the limiter (~1 350) three. 23 ticks: longer than the ten of an update
+/// interval, so the passes run back to back, each on the temperatures of
+/// the update before it starts, and the limits lag the model by at most
+/// two passes (46 ms, against coil time constants of seconds; see
+/// `GridObserver`'s docs). Nine ticks (two, four, one and two parts) kept
+/// every update's own pass, at a worst tick of 15 552 instructions.
 const M0_PLAN: ProtectionPlan = ProtectionPlan {
-    bound_parts: 2,
-    time_to_limit_parts: 4,
+    bound_parts: 6,
+    time_to_limit_parts: 12,
     alarm_parts: 1,
-    limiter_parts: 2,
+    limiter_parts: 4,
 };
 
 #[entry]
@@ -103,6 +108,9 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     let twenty = Q32::from_f64(20.0);
 
     let mut stats = cost::Stats::default();
+    // Per tick after a grid update (0: the update itself).
+    let mut phases = [cost::Stats::default(); 10];
+    let mut phase = 0usize;
     for _ in 0..TICKS {
         let inputs = GridInputs {
             currents_a: &currents,
@@ -110,12 +118,20 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
             ambient_c: twenty,
             elapsed_us: 1000,
         };
-        let (_, insn) = meter.measure(|| observer.tick(&mut state, &inputs).steps);
+        let (updated, insn) = meter.measure(|| observer.tick(&mut state, &inputs).updated);
         stats.add(insn);
+        if updated {
+            phase = 0;
+        }
+        if let Some(stats) = phases.get_mut(phase) {
+            stats.add(insn);
+        }
+        phase += 1;
         reference.tick(&mut ref_state, &ref_currents, 20.0, 20.0);
     }
-    // Let the staged protection finish on the last temperatures.
-    for _ in 0..observer.protection_ticks() {
+    // Let the staged protection finish on the last temperatures: the pass
+    // under way, then the one it owes the last update.
+    for _ in 0..2 * observer.protection_ticks() {
         let inputs = GridInputs {
             currents_a: &currents,
             coolant_c: twenty,
@@ -184,6 +200,14 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
         ram,
         run_stack
     );
+    for (phase, stats) in phases.iter().enumerate() {
+        hprintln!(
+            "cost: tick {} after an update: mean {} worst {} insn",
+            phase,
+            stats.mean(),
+            stats.worst()
+        );
+    }
     let ok = stats.count() == TICKS
         && worst_k < 5e-3
         && worst_a < 0.02

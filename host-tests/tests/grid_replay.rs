@@ -96,8 +96,8 @@ fn replay_with<S: Scalar>(
             state.held_ambient_c = ambient_s;
             if state.pending_ticks == ticks_per_update {
                 // The account, from the temperatures the update starts from.
-                out.joule_j += state
-                    .pending_joule_j
+                out.joule_j += grid
+                    .pending_joule_j(&state)
                     .iter()
                     .flatten()
                     .map(|e| e.to_f64())

@@ -26,9 +26,12 @@
 //! # Multi-rate
 //!
 //! The controller calls [`CoilGrid::tick`] at its own rate (`tick_dt_s`,
-//! 1 ms for the HPPA). Each tick only adds `R(T) I^2 dt` to a per-coil energy
-//! account; every `ticks_per_update` ticks the grid takes one explicit step of
-//! `ticks_per_update * tick_dt_s` with the energy of all those ticks. No Joule
+//! 1 ms for the HPPA). Each tick only adds `I^2` to a per-coil account;
+//! every `ticks_per_update` ticks the grid takes one explicit step of
+//! `ticks_per_update * tick_dt_s` with the Joule energy of all those ticks,
+//! `R(T) tick_dt sum I^2` (`R` at the last updated temperature, the same for
+//! every tick of the interval, so one multiply per coil per update gives
+//! what a multiply per tick would). No Joule
 //! heat is lost by decimating: the only differences from updating every tick
 //! are that `R(T)` and the heat flows are evaluated at the last updated
 //! temperatures (a lag of at most one grid step) and that the coolant and
@@ -174,8 +177,12 @@ pub struct GridState<S, const ROWS: usize, const COLS: usize> {
     /// Rounding residue of each coil's last update \[K\], added to its next
     /// increment (compensated summation; always zero in fixed point).
     pub carry_c: [[S; COLS]; ROWS],
-    /// Joule energy accumulated since the last grid update \[J\].
-    pub pending_joule_j: [[S; COLS]; ROWS],
+    /// Sum of the squared held currents of the ticks since the last grid
+    /// update \[A^2\]: the update multiplies it by `R(T) tick_dt` at the
+    /// temperatures it starts from (constant over the interval), one
+    /// multiply per coil per update instead of per tick; see
+    /// [`CoilGrid::pending_joule_j`] for the energy.
+    pub pending_current_sq_a2: [[S; COLS]; ROWS],
     /// Ticks accumulated since the last grid update.
     pub pending_ticks: u32,
     /// Last valid current of each coil \[A\].
@@ -193,7 +200,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> GridState<S, ROWS, COLS> {
         Self {
             temps_c: [[t; COLS]; ROWS],
             carry_c: [[S::ZERO; COLS]; ROWS],
-            pending_joule_j: [[S::ZERO; COLS]; ROWS],
+            pending_current_sq_a2: [[S::ZERO; COLS]; ROWS],
             pending_ticks: 0,
             held_currents_a: [[S::ZERO; COLS]; ROWS],
             held_coolant_c: t,
@@ -222,6 +229,15 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         if config.ticks_per_update == 0 {
             return Err(BuildError::InvalidParameter {
                 name: "ticks_per_update",
+            });
+        }
+        // The `I^2` account of an interval must stay in range, with a
+        // factor 2 to spare: fixed point saturates, which would lose heat
+        // (read cold).
+        let max_a = config.limits.max_current_a;
+        if max_a * max_a * 2.0 * f64::from(config.ticks_per_update) >= S::MAX.to_f64() {
+            return Err(BuildError::InvalidParameter {
+                name: "ticks_per_update (max_current_a^2 over an update beyond the scalar's range)",
             });
         }
         let r = config.resistance;

@@ -12,10 +12,10 @@
 //! bounded work in every tick, keeping an [`UpdateWork`] beside the state:
 //!
 //! * the heat from the neighbouring coils depends only on the temperatures of
-//!   the last update, so it is summed a few rows per tick while the Joule
-//!   energy accumulates (the update tick sums whatever rows are left);
-//! * `R(T) tick_dt` depends only on those temperatures too, so it is computed
-//!   once per coil in the update and reused by every tick until the next.
+//!   the last update, so it is summed a few rows per tick while the squared
+//!   currents accumulate (the update tick sums whatever rows are left);
+//! * `R(T) tick_dt` depends only on those temperatures too, so the ticks
+//!   add `I^2` alone and the update multiplies the sum by it once per coil.
 //!
 //! Both paths share one update order (neighbour heat summed apart, in
 //! direction order, then added to the Joule and boundary terms), which is
@@ -43,8 +43,6 @@ pub struct TickOutcome {
 /// derived from the state by [`CoilGrid::update_work`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UpdateWork<S, const ROWS: usize, const COLS: usize> {
-    /// `R(T) tick_dt` of every coil at its last updated temperature \[ohm s\].
-    r_tick_dt: [[S; COLS]; ROWS],
     /// Heat from the neighbouring coils over the coming grid step \[J\], for
     /// the rows before `rows_done`.
     neighbour_j: [[S; COLS]; ROWS],
@@ -66,9 +64,9 @@ const fn inner_range(len: usize, d: isize) -> (usize, usize) {
 }
 
 impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
-    /// One controller tick: accepts the inputs, adds this tick's Joule energy
-    /// `R(T) I^2 tick_dt` of every coil, and every `ticks_per_update` ticks
-    /// updates the temperatures.
+    /// One controller tick: accepts the inputs, adds this tick's `I^2` to
+    /// every coil's Joule account, and every `ticks_per_update` ticks
+    /// updates the temperatures (with the energy `R(T) tick_dt sum I^2`).
     ///
     /// `currents_a[row][col]` \[A\] (the sign does not matter), `coolant_c`
     /// the water-cooled base \[degC\], `ambient_c` the air around the border
@@ -98,8 +96,9 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     ///
     /// `work` must come from [`CoilGrid::update_work`] on this state, and be
     /// made again whenever the state is replaced or its temperatures are
-    /// written other than by this method; otherwise the Joule energy uses
-    /// stale resistances until the next update.
+    /// written other than by this method; otherwise the next update uses
+    /// the neighbour heat of the old temperatures for the rows already
+    /// summed.
     pub fn tick_spread(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
@@ -110,7 +109,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     ) -> TickOutcome {
         // `ticks_spread(.., 1)` written out: the loop's bookkeeping costs
         // about a hundred instructions a tick on the M4F.
-        let mut flags = self.accumulate_cached(state, &work.r_tick_dt, currents_a, 1);
+        let mut flags = self.accumulate_repeated(state, currents_a, 1);
         flags |= self.accept_boundaries(state, coolant_c, ambient_c);
         state.pending_ticks = state.pending_ticks.saturating_add(1);
         let updated = state.pending_ticks >= self.config.ticks_per_update;
@@ -123,7 +122,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         self.neighbour_heat(&state.temps_c, &mut work.neighbour_j, rows);
         work.rows_done = rows_end;
         if updated {
-            self.finish_update(state, &mut work.neighbour_j, Some(&mut work.r_tick_dt));
+            self.finish_update(state, &mut work.neighbour_j);
             work.rows_done = 0;
         }
         TickOutcome { flags, updated }
@@ -132,7 +131,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     /// `ticks` calls of [`CoilGrid::tick_spread`] with the same inputs (a
     /// controller catching up on missed ticks), bit-identical to them, for
     /// less work: the inputs are checked once per update interval, each
-    /// coil's Joule energy of one tick is computed once and added `ticks`
+    /// coil's `I^2` of one tick is computed once and added `ticks`
     /// times, and only one slice of neighbour heat is summed (the update
     /// tick sums what is left). `updated` is true if any of the ticks
     /// updated the grid. `ticks == 0` only applies the input rules
@@ -170,7 +169,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                 .max(1);
             let batch = remaining.min(to_update);
             remaining -= batch;
-            outcome.flags |= self.accumulate_cached(state, &work.r_tick_dt, currents_a, batch);
+            outcome.flags |= self.accumulate_repeated(state, currents_a, batch);
             // Accepting the same boundary `batch` times is accepting it once.
             outcome.flags |= self.accept_boundaries(state, coolant_c, ambient_c);
             state.pending_ticks = state.pending_ticks.saturating_add(batch);
@@ -187,7 +186,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             self.neighbour_heat(&state.temps_c, &mut work.neighbour_j, rows);
             work.rows_done = rows_end;
             if updated {
-                self.finish_update(state, &mut work.neighbour_j, Some(&mut work.r_tick_dt));
+                self.finish_update(state, &mut work.neighbour_j);
                 work.rows_done = 0;
                 outcome.updated = true;
             }
@@ -195,20 +194,29 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         outcome
     }
 
-    /// A fresh [`UpdateWork`] for `state`: the resistances of its present
-    /// temperatures, no neighbour heat summed yet.
-    pub fn update_work(&self, state: &GridState<S, ROWS, COLS>) -> UpdateWork<S, ROWS, COLS> {
-        let mut r_tick_dt = [[S::ZERO; COLS]; ROWS];
-        for (r_row, t_row) in r_tick_dt.iter_mut().zip(&state.temps_c) {
-            for (r, t) in r_row.iter_mut().zip(t_row) {
-                *r = self.r_tick_dt(*t);
-            }
-        }
+    /// A fresh [`UpdateWork`] for `state`: no neighbour heat summed yet.
+    pub fn update_work(&self, _state: &GridState<S, ROWS, COLS>) -> UpdateWork<S, ROWS, COLS> {
         UpdateWork {
-            r_tick_dt,
             neighbour_j: [[S::ZERO; COLS]; ROWS],
             rows_done: 0,
         }
+    }
+
+    /// The Joule energy \[J\] of each coil accumulated since the last
+    /// update, what the next update adds: `R(T) tick_dt sum I^2`, `R` at
+    /// the present (last updated) temperature.
+    pub fn pending_joule_j(&self, state: &GridState<S, ROWS, COLS>) -> [[S; COLS]; ROWS] {
+        let mut joule_j = [[S::ZERO; COLS]; ROWS];
+        let rows = joule_j
+            .iter_mut()
+            .zip(&state.temps_c)
+            .zip(&state.pending_current_sq_a2);
+        for ((e_row, t_row), i2_row) in rows {
+            for ((e, t), i2) in e_row.iter_mut().zip(t_row).zip(i2_row) {
+                *e = self.r_tick_dt(*t) * *i2;
+            }
+        }
+        joule_j
     }
 
     /// `R(T) tick_dt` \[ohm s\] at coil temperature `temp_c` \[degC\],
@@ -269,74 +277,52 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     }
 
     /// The cheap per-tick part of [`CoilGrid::tick`]: accepts the currents
-    /// and adds `R(T) I^2 tick_dt` \[J\] to each coil's pending energy, with
-    /// `R` at the last updated temperature. Does not count the tick.
-    ///
-    /// The temperature entering `R(T)` is clamped to the input limits'
-    /// temperature range: beyond it the winding has failed anyway, and a
-    /// bounded `R` keeps a runaway estimate finite.
+    /// and adds each coil's held `I^2` \[A^2\] to its pending account
+    /// ([`GridState::pending_current_sq_a2`]; the next update turns it into
+    /// Joule energy with `R` at the temperature it starts from, see
+    /// [`CoilGrid::pending_joule_j`]). Does not count the tick.
     pub fn accumulate(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
         currents_a: &[[S; COLS]; ROWS],
     ) -> InputFlags {
-        let mut flags = InputFlags::NONE;
-        for (((incoming, held), temps), pending) in currents_a
-            .iter()
-            .zip(state.held_currents_a.iter_mut())
-            .zip(&state.temps_c)
-            .zip(state.pending_joule_j.iter_mut())
-        {
-            flags |= self.limits.accept_currents(incoming, held);
-            for ((i, t), e) in held.iter().zip(temps).zip(pending.iter_mut()) {
-                *e += self.r_tick_dt(*t) * *i * *i;
-            }
-        }
-        flags
+        self.accumulate_repeated(state, currents_a, 1)
     }
 
-    /// [`CoilGrid::accumulate`] `ticks` times (at least once) with the
-    /// resistances taken from `r_tick_dt`. A current within the limits (the
-    /// usual case) is taken with one comparison; anything else goes through
-    /// the full input rules.
-    fn accumulate_cached(
+    /// [`CoilGrid::accumulate`] `ticks` times (at least once). A current
+    /// within the limits (the usual case) is taken with one comparison;
+    /// anything else goes through the full input rules.
+    fn accumulate_repeated(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
-        r_tick_dt: &[[S; COLS]; ROWS],
         currents_a: &[[S; COLS]; ROWS],
         ticks: u32,
     ) -> InputFlags {
         // Two copies of the loop: the repeat loop in the one-tick case
         // (every tick but a catch-up) would double its cost.
         if ticks > 1 {
-            self.accumulate_repeated::<true>(state, r_tick_dt, currents_a, ticks)
+            self.accumulate_loop::<true>(state, currents_a, ticks)
         } else {
-            self.accumulate_repeated::<false>(state, r_tick_dt, currents_a, 1)
+            self.accumulate_loop::<false>(state, currents_a, 1)
         }
     }
 
     #[inline(always)]
-    fn accumulate_repeated<const REPEAT: bool>(
+    fn accumulate_loop<const REPEAT: bool>(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
-        r_tick_dt: &[[S; COLS]; ROWS],
         currents_a: &[[S; COLS]; ROWS],
         ticks: u32,
     ) -> InputFlags {
         let mut flags = InputFlags::NONE;
         let max_a = self.limits.max_current_a;
-        for (((incoming, held), r_row), pending) in currents_a
+        let rows = currents_a
             .iter()
             .zip(state.held_currents_a.iter_mut())
-            .zip(r_tick_dt)
-            .zip(state.pending_joule_j.iter_mut())
-        {
-            let coils = incoming
-                .iter()
-                .zip(held.iter_mut())
-                .zip(r_row)
-                .zip(pending.iter_mut());
-            for (((&i, held), &r), e) in coils {
+            .zip(state.pending_current_sq_a2.iter_mut());
+        for ((incoming, held), pending) in rows {
+            let coils = incoming.iter().zip(held.iter_mut()).zip(pending.iter_mut());
+            for ((&i, held), i2) in coils {
                 // `abs(i) <= max` is false for a NaN: those take the rules,
                 // out of line so that the loop body stays small.
                 if i.abs() <= max_a {
@@ -344,13 +330,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                 } else {
                     flags |= self.accept_current_cold(i, held);
                 }
-                // The same energy added `ticks` times, in sequence: the
+                // The same square added `ticks` times, in sequence: the
                 // bits of `ticks` separate ticks.
-                let joule = r * *held * *held;
-                *e += joule;
+                let square = *held * *held;
+                *i2 += square;
                 if REPEAT {
                     for _ in 1..ticks {
-                        *e += joule;
+                        *i2 += square;
                     }
                 }
             }
@@ -377,7 +363,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     pub fn update(&self, state: &mut GridState<S, ROWS, COLS>) {
         let mut neighbour_j = [[S::ZERO; COLS]; ROWS];
         self.neighbour_heat(&state.temps_c, &mut neighbour_j, 0..ROWS);
-        self.finish_update(state, &mut neighbour_j, None);
+        self.finish_update(state, &mut neighbour_j);
     }
 
     /// Adds the heat each coil of `rows` receives from its neighbouring
@@ -448,13 +434,12 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     }
 
     /// The rest of the update once every row's neighbour heat is in
-    /// `neighbour_j` (cleared here): boundary and Joule terms, the
-    /// compensated temperature step, and, when given, the new `R(T) tick_dt`.
+    /// `neighbour_j` (cleared here): Joule and boundary terms and the
+    /// compensated temperature step.
     fn finish_update(
         &self,
         state: &mut GridState<S, ROWS, COLS>,
         neighbour_j: &mut [[S; COLS]; ROWS],
-        mut r_tick_dt: Option<&mut [[S; COLS]; ROWS]>,
     ) {
         let coolant = state.held_coolant_c;
         let ambient = state.held_ambient_c;
@@ -462,19 +447,18 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             .temps_c
             .iter_mut()
             .zip(state.carry_c.iter_mut())
-            .zip(state.pending_joule_j.iter_mut())
+            .zip(state.pending_current_sq_a2.iter_mut())
             .zip(neighbour_j.iter_mut())
-            .zip(&self.ambient_g_dt)
-            .enumerate();
-        for (row, ((((t_row, carry_row), joule_row), n_row), g_amb_row)) in rows {
+            .zip(&self.ambient_g_dt);
+        for ((((t_row, carry_row), i2_row), n_row), g_amb_row) in rows {
             let coils = t_row
                 .iter_mut()
                 .zip(carry_row.iter_mut())
-                .zip(joule_row.iter_mut())
+                .zip(i2_row.iter_mut())
                 .zip(n_row.iter_mut())
                 .zip(g_amb_row);
-            for ((((t, carry), joule), n), g_amb) in coils {
-                let mut e = *joule;
+            for ((((t, carry), i2), n), g_amb) in coils {
+                let mut e = self.r_tick_dt(*t) * *i2;
                 e += self.base_g_dt * (coolant - *t) + *g_amb * (ambient - *t);
                 e += *n;
                 // Fast2Sum: `carry` keeps what `t + increment` rounded away.
@@ -482,13 +466,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
                 let new = *t + increment;
                 *carry = increment - (new - *t);
                 *t = new;
-                *joule = S::ZERO;
+                *i2 = S::ZERO;
                 *n = S::ZERO;
-            }
-            if let Some(r_row) = r_tick_dt.as_deref_mut().and_then(|r| r.get_mut(row)) {
-                for (r, t) in r_row.iter_mut().zip(t_row.iter()) {
-                    *r = self.r_tick_dt(*t);
-                }
             }
         }
         state.pending_ticks = 0;

@@ -174,7 +174,7 @@ fn one_update_closes_the_energy_balance() {
     let before = state;
     let joule_j = grid.accumulate(&mut state, &currents.map(|r| r.map(f64::from)));
     assert!(joule_j.is_clean());
-    let pending: f64 = state.pending_joule_j.iter().flatten().sum();
+    let pending: f64 = grid.pending_joule_j(&state).iter().flatten().sum();
     let expected: f64 = (0..7)
         .flat_map(|r| (0..12).map(move |c| (r, c)))
         .map(|(r, c)| {
@@ -459,7 +459,7 @@ fn decimation_loses_no_joule_energy() {
             grid.accumulate(state, &currents);
             state.pending_ticks += 1;
             if state.pending_ticks == grid.ticks_per_update() {
-                *joule += state.pending_joule_j.iter().flatten().sum::<f64>();
+                *joule += grid.pending_joule_j(state).iter().flatten().sum::<f64>();
                 grid.update(state);
             }
         }
@@ -703,4 +703,25 @@ mod properties {
             let _ = (sq.hottest(), sf.hottest_k::<5>());
         }
     }
+}
+
+#[test]
+fn a_current_account_beyond_fixed_point_range_is_refused() {
+    // 100 A for 200 000 ticks is 2e9 A^2, at Q32's 2^31: the saturated sum
+    // would lose heat. A microsecond tick keeps the grid step stable.
+    let cfg = GridConfig {
+        tick_dt_s: 1e-6,
+        ticks_per_update: 200_000,
+        ..GridConfig::default()
+    };
+    assert!(matches!(
+        Hppa::<Q32>::new(&cfg),
+        Err(BuildError::InvalidParameter { name }) if name.starts_with("ticks_per_update")
+    ));
+    assert!(Hppa::<f32>::new(&cfg).is_ok());
+    let within = GridConfig {
+        ticks_per_update: 100_000,
+        ..cfg
+    };
+    assert!(Hppa::<Q32>::new(&within).is_ok());
 }

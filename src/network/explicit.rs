@@ -21,8 +21,15 @@ use crate::scalar::Scalar;
 pub struct ExplicitStepper<S, const N: usize, const B: usize, const M: usize> {
     dt_s: f64,
     dt: S,
-    /// `G_ij dt` \[J/K\] for `i < j`, zero where unconnected.
+    /// `G_ij dt` \[J/K\] of node `i`'s pairs with a later node `j`, in
+    /// increasing `j`, packed at the start of row `i` (`pair_count[i]` of
+    /// them; unconnected pairs are not stored, so a step costs the
+    /// connections, not `N^2`).
     pair_g_dt: [[S; N]; N],
+    /// The later node `j` of each packed pair.
+    pair_node: [[u16; N]; N],
+    /// Pairs packed in each row.
+    pair_count: [u16; N],
     /// `G_ib dt` \[J/K\].
     boundary_g_dt: [[S; B]; N],
     /// `1 / C_i` \[K/J\].
@@ -73,6 +80,7 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
         dt_s: f64,
         limits: InputLimits,
     ) -> Result<Self, BuildError> {
+        const { assert!(N <= 1 << 16, "node indices are stored as u16") };
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return Err(BuildError::InvalidTimeStep);
         }
@@ -96,6 +104,8 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
             dt_s,
             dt: S::from_f64(dt_s),
             pair_g_dt: [[S::ZERO; N]; N],
+            pair_node: [[0; N]; N],
+            pair_count: [0; N],
             boundary_g_dt: [[S::ZERO; B]; N],
             inverse_capacity: [S::ZERO; N],
             fixed_energy_j: [S::ZERO; N],
@@ -105,9 +115,17 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
             stability_ratio: worst.1,
         };
         for i in 0..N {
+            let mut count = 0;
             for j in (i + 1)..N {
-                stepper.pair_g_dt[i][j] = S::from_f64(network.pair_w_per_k[i][j] * dt_s);
+                let g_dt = S::from_f64(network.pair_w_per_k[i][j] * dt_s);
+                // A coefficient that rounds to zero moves no heat.
+                if g_dt != S::ZERO {
+                    stepper.pair_g_dt[i][count] = g_dt;
+                    stepper.pair_node[i][count] = j as u16;
+                    count += 1;
+                }
             }
+            stepper.pair_count[i] = count as u16;
             for b in 0..B {
                 stepper.boundary_g_dt[i][b] = S::from_f64(network.boundary_w_per_k[i][b] * dt_s);
             }
@@ -136,8 +154,8 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
     /// Advances `state` by one step `dt_s` with these inputs.
     ///
     /// Bad inputs are replaced as documented in [`crate::input`] and the
-    /// returned flags say which rule fired. Bounded `O(N^2 + N B + M)` work,
-    /// no panic, no allocation.
+    /// returned flags say which rule fired. Bounded `O(P + N B + M)` work
+    /// for `P` connected pairs, no panic, no allocation.
     pub fn step(
         &self,
         state: &mut NetworkState<S, N, B, M>,
@@ -152,18 +170,35 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
                 .accept_temperatures(boundary_c, &mut state.held_boundary_c);
         let old = state.temps_c;
         let mut energy_j = self.fixed_energy_j;
-        for i in 0..N {
-            let t_i = old[i];
-            for j in (i + 1)..N {
-                let g_dt = self.pair_g_dt[i][j];
-                if g_dt != S::ZERO {
-                    let flow = g_dt * (old[j] - t_i);
-                    energy_j[i] += flow;
-                    energy_j[j] -= flow;
+        let rows = old
+            .iter()
+            .zip(&self.pair_g_dt)
+            .zip(&self.pair_node)
+            .zip(&self.pair_count)
+            .zip(&self.boundary_g_dt)
+            .enumerate();
+        for (i, ((((&t_i, g_row), node_row), &count), boundary_row)) in rows {
+            let count = usize::from(count);
+            let (Some(g_row), Some(node_row)) = (g_row.get(..count), node_row.get(..count)) else {
+                continue;
+            };
+            // Pairs in increasing `j`, as the full scan took them: the same
+            // sums to the bit.
+            for (&g_dt, &j) in g_row.iter().zip(node_row) {
+                let j = usize::from(j);
+                let Some(&t_j) = old.get(j) else { continue };
+                let flow = g_dt * (t_j - t_i);
+                if let Some(e_i) = energy_j.get_mut(i) {
+                    *e_i += flow;
+                }
+                if let Some(e_j) = energy_j.get_mut(j) {
+                    *e_j -= flow;
                 }
             }
-            for (g_dt, t_b) in self.boundary_g_dt[i].iter().zip(&state.held_boundary_c) {
-                energy_j[i] += *g_dt * (*t_b - t_i);
+            if let Some(e_i) = energy_j.get_mut(i) {
+                for (g_dt, t_b) in boundary_row.iter().zip(&state.held_boundary_c) {
+                    *e_i += *g_dt * (*t_b - t_i);
+                }
             }
         }
         for ((node, r), current) in self

@@ -152,7 +152,9 @@ pub const PROTECTION_TICKS: u32 = ProtectionPlan::DEFAULT.ticks();
 /// [default](ProtectionPlan::DEFAULT) suits an 84-coil grid on a
 /// Cortex-M4F, whose alarm ticks are the heaviest (each element can raise
 /// events in the same pass). Without an FPU the `f32` time to limit
-/// dominates instead: `examples/observer_m0.rs` cuts it in four.
+/// dominates instead: `examples/observer_m0.rs` gives it one coil per
+/// tick, in a pass longer than the update interval (passes then run back
+/// to back, see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ProtectionPlan {

@@ -110,6 +110,18 @@ macro_rules! impl_float_scalar {
             fn to_f32(self) -> f32 {
                 self as f32
             }
+            // With an FPU, `x - x` (+0 for every finite `x`, NaN for NaN
+            // and the infinities) is a subtraction and a comparison, where
+            // LLVM expands `is_finite` and its combinations with other
+            // comparisons into some twenty integer instructions on
+            // ARMv7E-M. Without one (ARMv6-M, soft-float ABIs) the
+            // subtraction is a library call and the bit test is cheaper.
+            #[cfg(not(all(target_arch = "arm", not(target_abi = "eabihf"))))]
+            #[inline]
+            fn is_finite(self) -> bool {
+                self - self == 0.0
+            }
+            #[cfg(all(target_arch = "arm", not(target_abi = "eabihf")))]
             #[inline]
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)

@@ -149,11 +149,20 @@ impl Mul for Q32 {
     #[inline]
     fn mul(self, rhs: Self) -> Self {
         let (a, b) = (self.to_bits(), rhs.to_bits());
+        // A coil without current, a coil inside the grid (no ambient
+        // link): two compares instead of the partial products.
+        if a == 0 || b == 0 {
+            return Self::ZERO;
+        }
         let negative = (a < 0) != (b < 0);
-        let (quotient, inexact) = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
+        let (quotient, overflow, inexact) = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
         // The floor of a negative quotient: one more when bits were shifted
         // out.
-        Self::saturated(negative, quotient + u128::from(negative && inexact))
+        let (magnitude, carry) = quotient.overflowing_add(u64::from(negative && inexact));
+        if overflow || carry {
+            return if negative { Self::MIN } else { Self::MAX };
+        }
+        Self::saturated(negative, u128::from(magnitude))
     }
 }
 
@@ -200,18 +209,39 @@ fn div_shift_32(n: u64, d: u64) -> Option<u64> {
     Some((whole << 32) | fraction)
 }
 
-/// `(a b) >> 32` of two 64-bit magnitudes (at most 96 bits), and whether
-/// any bit shifted out was set.
+/// `(a b) >> 32` of two 64-bit magnitudes when it fits 64 bits, whether it
+/// did not (`overflow`), and whether any bit shifted out was set.
+///
+/// A partial product with a zero high word is skipped: most operands of
+/// the thermal models are below one (coefficients, temperature
+/// differences), so most multiplies take one or two of the four, each
+/// four `MULS` and their carries on ARMv6-M.
 #[inline(always)]
-fn mul_shift_32(a: u64, b: u64) -> (u128, bool) {
+fn mul_shift_32(a: u64, b: u64) -> (u64, bool, bool) {
     let (a_lo, a_hi) = (a as u32, (a >> 32) as u32);
     let (b_lo, b_hi) = (b as u32, (b >> 32) as u32);
     let lo = widening_mul(a_lo, b_lo);
     // a b = hi 2^64 + (cross_1 + cross_2) 2^32 + lo; every term but `lo`
     // is a whole multiple of 2^32, so the shift is exact term by term.
-    let cross = u128::from(widening_mul(a_lo, b_hi)) + u128::from(widening_mul(a_hi, b_lo));
-    let quotient = (u128::from(widening_mul(a_hi, b_hi)) << 32) + cross + u128::from(lo >> 32);
-    (quotient, lo as u32 != 0)
+    let mut quotient = lo >> 32;
+    let mut overflow = false;
+    if b_hi != 0 {
+        let (sum, carry) = quotient.overflowing_add(widening_mul(a_lo, b_hi));
+        quotient = sum;
+        overflow |= carry;
+    }
+    if a_hi != 0 {
+        let (sum, carry) = quotient.overflowing_add(widening_mul(a_hi, b_lo));
+        quotient = sum;
+        overflow |= carry;
+        if b_hi != 0 {
+            let hi = widening_mul(a_hi, b_hi);
+            let (sum, carry) = quotient.overflowing_add(hi << 32);
+            quotient = sum;
+            overflow |= carry || hi >> 32 != 0;
+        }
+    }
+    (quotient, overflow, lo as u32 != 0)
 }
 
 /// `a b` as 64 bits: one `UMULL` where the core has it.
