@@ -6,7 +6,7 @@ use serde_json::json;
 use super::common;
 use super::PlotArgs;
 use crate::plot::{render, PlotData, Series};
-use crate::trace::{ColumnExpr, Trace, TIME_COLUMN};
+use crate::trace::{ColumnExpr, TimeSource, Trace, TIME_COLUMN};
 
 /// Runs `plot`.
 pub fn run(a: PlotArgs) -> Result<()> {
@@ -42,7 +42,13 @@ pub fn run(a: PlotArgs) -> Result<()> {
         });
     }
     if let Some(path) = &a.trace {
-        let trace = Trace::read(path, a.sample_period_s)?;
+        let trace = Trace::read_with(
+            path,
+            &TimeSource {
+                column: a.time_column.clone(),
+                sample_period_s: a.sample_period_s,
+            },
+        )?;
         for m in &a.measure {
             let (col, node) = common::split_mapping(m, "--measure", "COL=NODE")?;
             let color = columns.iter().position(|c| c == node).with_context(|| {
@@ -53,10 +59,17 @@ pub fn run(a: PlotArgs) -> Result<()> {
                 )
             })?;
             let expr = ColumnExpr::parse(col)?;
+            // Missing readings (empty or NaN cells) are left out.
+            let (time_s, values) = trace
+                .time_s()
+                .iter()
+                .zip(trace.eval_with(&expr, true)?)
+                .filter(|(_, v)| !v.is_nan())
+                .unzip();
             data.measured.push(Series {
                 label: format!("{col} (measured)"),
-                time_s: trace.time_s().to_vec(),
-                values: trace.eval(&expr)?,
+                time_s,
+                values,
                 color,
             });
         }
@@ -87,6 +100,7 @@ pub fn run(a: PlotArgs) -> Result<()> {
         }
         data.alarms.push((*t, "alarm".into()));
     }
+    common::check_plot_values(&data)?;
     render(&data, &a.out, a.width, a.height)?;
     if a.json {
         common::print_json(&json!({
