@@ -37,7 +37,9 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         let d = FitData {
             label: path.display().to_string(),
             drive: Drive::from_trace(&info, &trace, &bind)?,
-            targets: common::sensors(&a.measure, "--measure", &info, &trace)?,
+            targets: common::sensors(&a.measure, "--measure", &info, &trace).context(
+                "calibrate fits every row: fill or drop the rows without a reading (replay skips them)",
+            )?,
         };
         check_work(
             &FilePlant::new(Model::build(&file)?)?,
