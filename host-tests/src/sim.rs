@@ -502,9 +502,14 @@ impl Drive {
         let mut boundaries = Vec::new();
         for b in &info.boundaries {
             let bound = bind.boundaries.iter().rev().find(|(_, n)| *n == b.name);
+            // A bound expression, else the trace's column, else a --const
+            // of that column, else the boundary's own value_c.
+            let constant = bind.constants.iter().any(|(c, _)| *c == b.column);
             let series = match (bound, b.default_value) {
                 (Some((e, _)), _) => column(&e.to_string(), &format!("boundary `{}`", b.name))?,
-                (None, Some(v)) if !trace.has_column(&b.column) => vec![v; trace.len()],
+                (None, Some(v)) if !trace.has_column(&b.column) && !constant => {
+                    vec![v; trace.len()]
+                }
                 (None, _) => column(&b.column, &format!("boundary `{}`", b.name))?,
             };
             boundaries.push(series);

@@ -90,7 +90,12 @@ fn a_stiff_model_is_refused_before_it_runs_naming_the_parameters() {
         refused(
             ct().args(["simulate", "--model", s(&m), "--trace", s(&trace)])
                 .args(["--out", s(&dir.path().join("o.csv"))]),
-            &["internal steps", "at most 2e8", "capacity_j_per_k", "g_w_per_k"],
+            &[
+                "internal steps",
+                "at most 2e8",
+                "capacity_j_per_k",
+                "g_w_per_k",
+            ],
         );
         refused(
             ct().args(["calibrate", "--model", s(&m), "--trace", s(&trace)])
@@ -147,14 +152,27 @@ fn a_run_that_goes_non_finite_or_absurd_exits_non_zero_naming_node_time_and_caus
     refused(
         ct().args(["simulate", "--model", "omnimagnet", "--current-a", "1e4"])
             .args(["--duration-s", "100", "--out", s(&out)]),
-        &["model `omnimagnet` ran away", "is NaN degC at t = 1 s", "runaway current"],
+        &[
+            "model `omnimagnet` ran away",
+            "is NaN degC at t = 1 s",
+            "runaway current",
+        ],
     );
     // alpha_per_k = 0.5: thermal runaway (it printed 61486402 degC, exit 0).
-    let alpha = model_with(&dir, "alpha.toml", "alpha_per_k = 0.0039", "alpha_per_k = 0.5");
+    let alpha = model_with(
+        &dir,
+        "alpha.toml",
+        "alpha_per_k = 0.0039",
+        "alpha_per_k = 0.5",
+    );
     refused(
         ct().args(["simulate", "--model", s(&alpha), "--current-a", "3"])
             .args(["--duration-s", "3600", "--out", s(&out)]),
-        &["ran away: node `coil`", "alpha_per_k", "no result is written"],
+        &[
+            "ran away: node `coil`",
+            "alpha_per_k",
+            "no result is written",
+        ],
     );
     assert!(!out.exists(), "no result is written");
     let trace = steady_trace(&dir, 6.0);
@@ -179,12 +197,21 @@ fn non_finite_and_overflowing_column_expressions_are_refused() {
     }
     refused(
         ct().args(["simulate", "--model", &model(), "--trace", s(&trace)])
-            .args(["--current", "scale(current,1e308)=current", "--out", s(&out)]),
+            .args([
+                "--current",
+                "scale(current,1e308)=current",
+                "--out",
+                s(&out),
+            ]),
         &["steady.csv:2: `scale(current,1e308)` overflows to inf at this row"],
     );
     // hypot of two 1e200 A columns is 1.41e200 A, finite (no squares that
     // overflow), and a coil at that current runs away: refused, not NaN.
-    let big = write(&dir, "big.csv", "time_s,a,b\n0,1e200,1e200\n1,1e200,1e200\n");
+    let big = write(
+        &dir,
+        "big.csv",
+        "time_s,a,b\n0,1e200,1e200\n1,1e200,1e200\n",
+    );
     refused(
         ct().args(["simulate", "--model", &model(), "--trace", s(&big)])
             .args(["--current", "hypot(a,b)=current", "--out", s(&out)]),
@@ -205,7 +232,14 @@ fn replay_debounces_in_seconds_so_a_sparse_trace_still_alarms() {
         "time_s,current\n0,3.7\n600,3.7\n1200,0\n1800,0\n",
     );
     let out = ct()
-        .args(["replay", "--model", &model(), "--trace", s(&trace), "--json"])
+        .args([
+            "replay",
+            "--model",
+            &model(),
+            "--trace",
+            s(&trace),
+            "--json",
+        ])
         .assert()
         .success();
     let j: Value = serde_json::from_slice(&out.get_output().stdout).unwrap();
@@ -237,7 +271,11 @@ fn a_trace_too_large_for_memory_is_refused_before_reading() {
     refused(
         ct().args(["simulate", "--model", &model(), "--trace", s(&path)])
             .args(["--out", s(&dir.path().join("o.csv"))]),
-        &["huge.csv:1: the trace is 300 MiB", "up to 256 MiB", "decimate"],
+        &[
+            "huge.csv:1: the trace is 300 MiB",
+            "up to 256 MiB",
+            "decimate",
+        ],
     );
 }
 
