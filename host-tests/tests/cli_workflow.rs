@@ -309,3 +309,75 @@ fn a_closed_pipe_ends_the_tool_quietly() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// `(time, column)` of a CSV written by the tool.
+fn columns(path: &Path, name: &str) -> Vec<f64> {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let i = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    lines
+        .map(|l| l.split(',').nth(i).unwrap().parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_sensor_lag_is_a_first_order_lag_the_winding_does_not_feel_and_calibrate_fits_it() {
+    let dir = TempDir::new().unwrap();
+    let run = |lag: Option<&str>, out: &str| {
+        let out = dir.path().join(out);
+        let mut c = ct();
+        c.args(["simulate", "--model", &model(), "--current-a", "3"])
+            .args(["--duration-s", "400", "--dt-s", "0.1", "--out", s(&out)]);
+        if let Some(l) = lag {
+            c.args(["--sensor-lag", l]);
+        }
+        c.assert().success();
+        out
+    };
+    let lagged = run(Some("coil=3"), "lagged.csv");
+    let plain = run(None, "plain.csv");
+    let (coil, sensor) = (columns(&lagged, "coil"), columns(&lagged, "coil_lag"));
+    let worst_feel = coil
+        .iter()
+        .zip(columns(&plain, "coil"))
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst_feel < 0.005,
+        "the winding feels its sensor: {worst_feel} K"
+    );
+    // The reference: y' = (x - y) / tau solved exactly for x linear between
+    // the 0.1 s rows.
+    let (tau, h) = (3.0, 0.1);
+    let decay = f64::exp(-h / tau);
+    let mut y = coil[0];
+    let (mut worst, mut largest_lag) = (0.0f64, 0.0f64);
+    for k in 1..coil.len() {
+        let slope = (coil[k] - coil[k - 1]) / h;
+        y = coil[k] - tau * slope + (y - coil[k - 1] + tau * slope) * decay;
+        worst = worst.max((sensor[k] - y).abs());
+        largest_lag = largest_lag.max(coil[k] - y);
+    }
+    // The lag is ~0.7 K; explicit sub-steps of 0.1 s err by h / (2 tau) of it.
+    assert!(largest_lag > 0.5, "{largest_lag}");
+    assert!(worst < 0.03, "{worst} K from a first-order lag of 3 s");
+    // calibrate fits the lag: from 1 s back to 3 s (capacity 1e-4 of the
+    // coil's 200 J/K, so 0.02 / 3 W/K).
+    let j = json(
+        &ct()
+            .args(["calibrate", "--model", &model(), "--sensor-lag", "coil=1"])
+            .args(["--trace", s(&lagged), "--const", "current=3"])
+            .args(["--measure", "coil_lag=coil_lag"])
+            .args(["--params", "conductance.coil-coil_lag"])
+            .args(["--out", s(&dir.path().join("f.toml")), "--json"])
+            .assert()
+            .success(),
+    );
+    let g = j["fit"]["params"][0]["fitted"].as_f64().unwrap();
+    assert!((g - 0.02 / 3.0).abs() < 1e-5, "{j}");
+}

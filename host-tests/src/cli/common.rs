@@ -122,7 +122,7 @@ pub fn model_file(args: &ModelArgs) -> Result<ModelFile> {
 pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile> {
     let spec = ModelSpec::parse(&args.model)?;
     check_grid_flags(args, &spec)?;
-    match spec {
+    let mut file = match spec {
         ModelSpec::Hppa => {
             let (rows, cols) = grid_dims(args);
             let params = devices::grid_preset(args.grid_params.as_deref().unwrap_or("fdm-fitted"))?;
@@ -131,7 +131,51 @@ pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile
         ModelSpec::Omnimagnet => devices::omnimagnet_file(omnimagnet_op_c),
         ModelSpec::Solenoid => ModelFile::solenoid(&SolenoidParams::HESE, args.layers),
         ModelSpec::File(p) => ModelFile::load(&p),
+    }?;
+    for lag in &args.sensor_lags {
+        add_sensor_lag(&mut file, lag)?;
     }
+    Ok(file)
+}
+
+/// The capacity of a lag node as a fraction of its node's: small enough
+/// that the node does not feel it (its heat flow is this fraction of the
+/// node's own rate), large enough to keep the network well conditioned.
+const LAG_CAPACITY_FRACTION: f64 = 1e-4;
+
+/// Adds `--sensor-lag NODE=TAU_S`: a node `NODE_lag` following NODE with
+/// a first-order lag `tau` \[s\] (capacity `c`, conductance `c / tau`).
+fn add_sensor_lag(file: &mut ModelFile, flag: &str) -> Result<()> {
+    let (node, tau) = split_mapping(flag, "--sensor-lag", "NODE=TAU_S")?;
+    let tau_s: f64 = tau
+        .parse()
+        .ok()
+        .filter(|t: &f64| t.is_finite() && *t > 0.0)
+        .with_context(|| format!("--sensor-lag `{flag}`: `{tau}` is not a finite time > 0 s"))?;
+    let names: Vec<String> = file.nodes.iter().map(|n| n.name.clone()).collect();
+    let Some(spec) = file.nodes.iter().find(|n| n.name == node) else {
+        bail!(
+            "--sensor-lag `{flag}`: the model has no node `{node}` (nodes: {})",
+            names.join(", ")
+        );
+    };
+    let lag = format!("{node}_lag");
+    if names.contains(&lag) {
+        bail!("--sensor-lag `{flag}`: the model already has a node `{lag}`");
+    }
+    let capacity = spec.capacity_j_per_k * LAG_CAPACITY_FRACTION;
+    file.nodes.push(crate::model_file::NodeSpec {
+        name: lag.clone(),
+        capacity_j_per_k: capacity,
+        critical_c: None,
+    });
+    file.conductances
+        .push(crate::model_file::ConductanceSpec::g(
+            node,
+            &lag,
+            capacity / tau_s,
+        ));
+    Ok(())
 }
 
 /// The model as a runnable plant: the Omnimagnet's nonlinear model, every
@@ -140,6 +184,9 @@ pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
     let spec = ModelSpec::parse(&args.model)?;
     check_grid_flags(args, &spec)?;
     if spec == ModelSpec::Omnimagnet {
+        if !args.sensor_lags.is_empty() {
+            bail!("--sensor-lag: simulate runs the Omnimagnet's nonlinear model, which has no place for a lag node; use its model file (`simulate --model omnimagnet --write-model omni.toml`) instead");
+        }
         return Ok(Box::new(devices::OmnimagnetPlant::default()));
     }
     let file = model_file(args)?;

@@ -93,6 +93,12 @@ pub struct ModelArgs {
     /// the default), `calculated`, `stepwise-fit`, `global-fit`.
     #[arg(long, value_name = "SET")]
     pub grid_params: Option<String>,
+    /// A sensor with a first-order lag of TAU [s] on NODE: adds node
+    /// `NODE_lag` (1e-4 of NODE's capacity [J/K], linked to NODE
+    /// only, by capacity / TAU [W/K]) to measure with `COL=NODE_lag`;
+    /// `calibrate` fits the lag as `conductance.NODE-NODE_lag`. Repeatable.
+    #[arg(long = "sensor-lag", value_name = "NODE=TAU_S")]
+    pub sensor_lags: Vec<String>,
 }
 
 /// How trace columns feed the model.
