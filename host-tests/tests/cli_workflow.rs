@@ -381,3 +381,56 @@ fn a_sensor_lag_is_a_first_order_lag_the_winding_does_not_feel_and_calibrate_fit
     let g = j["fit"]["params"][0]["fitted"].as_f64().unwrap();
     assert!((g - 0.02 / 3.0).abs() < 1e-5, "{j}");
 }
+
+#[test]
+fn multi_start_keeps_the_best_fit_and_flags_parameters_that_trade_off() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let fit = |params: &str| {
+        json(
+            &ct()
+                .args(["calibrate", "--model", &model(), "--trace", s(&rec)])
+                .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+                .args(["--measure", "temperature=coil", "--params", params])
+                .args([
+                    "--starts",
+                    "4",
+                    "--out",
+                    s(&dir.path().join("f.toml")),
+                    "--json",
+                ])
+                .assert()
+                .success(),
+        )
+    };
+    // Both capacities are pinned by the step response: every start ends at
+    // 200 and 900 J/K, no trade-off.
+    let j = fit("capacity.coil=20:2000,capacity.housing=90:9000");
+    let starts = j["starts"].as_array().unwrap();
+    assert_eq!(starts.len(), 4);
+    assert_eq!(starts.iter().filter(|r| r["best"] == true).count(), 1);
+    for r in starts {
+        assert!(
+            (r["fitted"][0].as_f64().unwrap() - 200.0).abs() < 0.5,
+            "{j}"
+        );
+        assert!(
+            (r["fitted"][1].as_f64().unwrap() - 900.0).abs() < 5.0,
+            "{j}"
+        );
+        assert!(r["trade_offs"].as_array().unwrap().is_empty(), "{j}");
+    }
+    // Resistance and its scale only act as their product: the starts agree
+    // on the cost and on r0 * scale = 5.69 ohm, not on either.
+    let j = fit("source.coil.r0_ohm,source.coil.scale");
+    let starts = j["starts"].as_array().unwrap();
+    let traded = starts
+        .iter()
+        .filter(|r| !r["trade_offs"].as_array().unwrap().is_empty())
+        .count();
+    assert!(traded >= 1, "{j}");
+    for r in starts {
+        let product = r["fitted"][0].as_f64().unwrap() * r["fitted"][1].as_f64().unwrap();
+        assert!((product - 5.69).abs() < 0.01, "{j}");
+    }
+}

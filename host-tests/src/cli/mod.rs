@@ -537,6 +537,15 @@ pub struct CalibrateArgs {
     /// Iteration limit of Levenberg-Marquardt.
     #[arg(long, value_name = "N", default_value_t = 100)]
     max_iterations: usize,
+    /// Multi-start: fit from N starting points (the model's values, then
+    /// N-1 seeded points log-uniform within each parameter's bounds, the
+    /// bounds fixed for all) and keep the lowest cost. Starts that reach
+    /// the best cost with different parameters are reported as a trade-off.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    starts: usize,
+    /// Seed of the --starts points.
+    #[arg(long, value_name = "SEED", default_value_t = 1)]
+    starts_seed: u64,
     /// Fit every STRIDE-th row only (faster on long traces).
     #[arg(long, value_name = "STRIDE", default_value_t = 1)]
     stride: usize,
