@@ -606,3 +606,49 @@ pub fn write_csv(path: &Path, names: &[String], time_s: &[f64], series: &[Vec<f6
     w.flush()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trace(text: &str) -> (tempfile::TempDir, Trace) {
+        let dir = tempfile::TempDir::new().unwrap();
+        let path = dir.path().join("t.csv");
+        std::fs::write(&path, text).unwrap();
+        let t = Trace::read(&path, None).unwrap();
+        (dir, t)
+    }
+
+    #[test]
+    fn a_step_profile_holds_each_value_from_its_time() {
+        let e = ColumnExpr::parse("0:16.37,40:0,60.5:2").unwrap();
+        assert_eq!(e.to_string(), "0:16.37,40:0,60.5:2");
+        let t = [0.0, 39.9, 40.0, 60.0, 61.0, 1e4];
+        assert_eq!(e.at_times(&t).unwrap(), [16.37, 16.37, 0.0, 0.0, 2.0, 2.0]);
+        assert!(e.at_times(&[-1.0]).unwrap_err().contains("starts at 0 s"));
+        for bad in ["0:1,0:2", "1:inf", "0:1,2", "a:1"] {
+            assert!(ColumnExpr::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn hypot_of_large_columns_does_not_overflow_and_missing_cells_are_nan() {
+        let (_d, t) = trace("time_s,a,b\n0,3e200,4e200\n1,3,\n2,nan,4\n");
+        let h = t
+            .eval_with(&ColumnExpr::parse("hypot(a,b)").unwrap(), true)
+            .unwrap();
+        assert!((h[0] / 5e200 - 1.0).abs() < 1e-15, "{}", h[0]);
+        assert!(h[1].is_nan() && h[2].is_nan());
+        // Strict, the empty cell is an error at its line and column.
+        let e = t.eval(&ColumnExpr::parse("b").unwrap()).unwrap_err();
+        assert_eq!((e.line, e.col), (3, Some(3)));
+    }
+
+    #[test]
+    fn numbers_in_messages_stay_short() {
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(1e-12), "1e-12");
+        assert_eq!(num(12.5), "12.5");
+        assert_eq!(num(0.0), "0");
+    }
+}

@@ -438,3 +438,15 @@ pub fn check_plot_values(data: &PlotData) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lists_split_at_commas_outside_parentheses() {
+        assert_eq!(split_list("a=n1,b=n2"), ["a=n1", "b=n2"]);
+        assert_eq!(split_list("hypot(A,B)=n1, c=n2"), ["hypot(A,B)=n1", "c=n2"]);
+        assert_eq!(split_list("a=n1,"), ["a=n1", ""]);
+    }
+}
