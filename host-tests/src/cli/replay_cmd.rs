@@ -398,11 +398,20 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             measured: truth
                 .iter()
                 .map(|t| {
-                    series(
-                        format!("{} (truth -> {})", t.column, info.nodes[t.node]),
-                        &t.values_c,
-                        t.node,
-                    )
+                    // Missing readings are left out of the line.
+                    let (time_s, values) = drive
+                        .time_s
+                        .iter()
+                        .zip(&t.values_c)
+                        .filter(|(_, v)| !v.is_nan())
+                        .map(|(t, v)| (*t, *v))
+                        .unzip();
+                    Series {
+                        label: format!("{} (truth -> {})", t.column, info.nodes[t.node]),
+                        time_s,
+                        values,
+                        color: t.node,
+                    }
                 })
                 .collect(),
             currents: common::plotted(&drive.currents)
