@@ -376,6 +376,9 @@ impl Plant for OmnimagnetPlant {
     fn temps_c(&self) -> &[f64] {
         &self.temps
     }
+    fn steps_for(&self, dt_s: f64) -> f64 {
+        (dt_s / OMNIMAGNET_MAX_STEP_S).ceil().max(1.0)
+    }
 }
 
 /// The Omnimagnet's network linearised at every node at `op_c` \[degC\] and

@@ -499,6 +499,8 @@ impl Estimator for KalmanEstimator {
                     .get(j)
                     .filter(|m| m.node == *node)
                     .map(|m| m.value_c)
+                    // A missing reading (an empty or NaN cell) is no reading.
+                    .filter(|v| !v.is_nan())
             })
             .collect();
         let report = self.filter.update(&z);

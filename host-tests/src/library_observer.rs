@@ -451,6 +451,8 @@ impl Estimator for ObserverEstimator {
                     .get(j)
                     .filter(|m| m.node == *node)
                     .map(|m| m.value_c)
+                    // A missing reading (an empty or NaN cell) is no reading.
+                    .filter(|v| !v.is_nan())
             })
             .collect();
         self.awaiting = z.iter().any(|v| v.is_some_and(f64::is_finite));

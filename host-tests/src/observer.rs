@@ -540,19 +540,26 @@ pub struct Score {
     pub max_error_time_s: f64,
 }
 
-/// Scores an estimate `[node][row]` against a sensor.
+/// Scores an estimate `[node][row]` against a sensor, over the rows that
+/// have a reading (a `NaN` reading is missing and skipped).
 pub fn score(sensor: &Sensor, node_name: &str, estimate: &[Vec<f64>], time_s: &[f64]) -> Score {
     let est = &estimate[sensor.node];
     let mut sq = 0.0;
+    let mut n = 0usize;
     let mut worst = (0.0f64, 0.0);
+    // A missing reading (`NaN`, an empty cell) is not scored.
     for (k, (e, m)) in est.iter().zip(&sensor.values_c).enumerate() {
+        if m.is_nan() {
+            continue;
+        }
         let err = e - m;
         sq += err * err;
+        n += 1;
         if err.abs() > worst.0 {
             worst = (err.abs(), time_s[k]);
         }
     }
-    let mse = sq / est.len().max(1) as f64;
+    let mse = sq / n.max(1) as f64;
     Score {
         column: sensor.column.clone(),
         node: node_name.to_string(),
@@ -665,10 +672,16 @@ pub fn replay(
     truth: &[Sensor],
 ) -> Result<ReplayResult> {
     let info = estimator.info().clone();
+    // A sensor's first reading sets its node's start (with the `measured`
+    // policy); one whose first rows are missing starts from its first
+    // reading.
     let first: Vec<(usize, f64)> = measured
         .iter()
         .chain(truth)
-        .map(|s| (s.node, s.values_c[0]))
+        .filter_map(|s| {
+            let v = s.values_c.iter().copied().find(|v| !v.is_nan())?;
+            Some((s.node, v))
+        })
         .collect();
     estimator.reset(&initial_temps(&info, drive, &first)?);
     let rows = drive.len();

@@ -13,7 +13,7 @@ use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState};
 use crate::dynamic_network::DynNetwork;
 use crate::limits::{class_of, padded_with, Padding, SIZE_CLASSES};
 use crate::model_file::{InitialPolicy, InitialSpec, Model};
-use crate::trace::{ColumnExpr, Trace};
+use crate::trace::{num, ColumnExpr, Trace};
 
 /// One named input channel of a plant.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,6 +57,12 @@ pub trait Plant {
     fn step(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]);
     /// Node temperatures \[degC\].
     fn temps_c(&self) -> &[f64];
+    /// How many internal steps [`Self::step`] takes for an interval `dt_s`
+    /// \[s\] (as `f64`: an absurd interval gives an absurd count, not an
+    /// overflow); 1 for a plant that steps once.
+    fn steps_for(&self, _dt_s: f64) -> f64 {
+        1.0
+    }
 }
 
 impl<P: Plant + ?Sized> Plant for Box<P> {
@@ -71,6 +77,9 @@ impl<P: Plant + ?Sized> Plant for Box<P> {
     }
     fn temps_c(&self) -> &[f64] {
         (**self).temps_c()
+    }
+    fn steps_for(&self, dt_s: f64) -> f64 {
+        (**self).steps_for(dt_s)
     }
 }
 
@@ -256,8 +265,8 @@ impl FilePlant {
     /// Number of equal explicit steps for an interval `dt_s` \[s\] (see the
     /// type's docs).
     pub fn substeps(&self, dt_s: f64) -> usize {
-        let n = (dt_s * self.model.network.max_rate_per_s() / self.model.max_step_ratio).ceil();
-        if n.is_finite() && n >= 1.0 {
+        let n = self.steps_for(dt_s);
+        if n.is_finite() {
             n as usize
         } else {
             1
@@ -297,7 +306,92 @@ impl Plant for FilePlant {
     fn temps_c(&self) -> &[f64] {
         &self.temps
     }
+
+    fn steps_for(&self, dt_s: f64) -> f64 {
+        (dt_s * self.model.network.max_rate_per_s() / self.model.max_step_ratio)
+            .ceil()
+            .max(1.0)
+    }
 }
+
+/// Refuses a run that would take more than [`MAX_MODEL_STEPS`] internal
+/// model steps over `time_s` \[s\] (a stiff model, a huge row gap or a
+/// very long span), before it starts, naming what to change.
+pub fn check_work(plant: &dyn Plant, time_s: &[f64], what: &str) -> Result<()> {
+    let mut total = 0.0;
+    let mut widest = (0.0, 0.0);
+    for w in time_s.windows(2) {
+        let dt = w[1] - w[0];
+        total += plant.steps_for(dt);
+        if dt > widest.0 {
+            widest = (dt, w[0]);
+        }
+    }
+    if total > MAX_MODEL_STEPS || !total.is_finite() {
+        let per_s = plant.steps_for(1e6) / 1e6;
+        bail!(
+            "{what}: the run needs {total:.3e} internal steps of model `{}`, at most {MAX_MODEL_STEPS:.0e}: \
+             its stable step is {:.3e} s (a tiny capacity_j_per_k or a huge g_w_per_k makes it stiff: check the model for a typo) \
+             and the rows span {:.3e} s (widest gap {:.3e} s after t = {} s)",
+            plant.info().name,
+            1.0 / per_s,
+            time_s.last().unwrap_or(&0.0) - time_s.first().unwrap_or(&0.0),
+            widest.0,
+            num(widest.1)
+        );
+    }
+    Ok(())
+}
+
+/// Temperatures beyond this are a runaway, not a result \[degC\] (copper
+/// melts at 1085 degC; every insulation class is far below).
+pub const RUNAWAY_C: f64 = 5000.0;
+
+/// Refuses a non-finite or absurd temperature in `states` `[node][row]`
+/// \[degC\] at `time_s` \[s\]: the first such value, with its node, time and
+/// the likely cause.
+pub fn check_temperatures(
+    info: &PlantInfo,
+    time_s: &[f64],
+    states: &[Vec<f64>],
+    what: &str,
+) -> Result<()> {
+    let mut first: Option<(usize, usize, f64)> = None;
+    for (node, series) in states.iter().enumerate() {
+        if let Some(k) = series
+            .iter()
+            .position(|v| !(v.is_finite() && *v > -273.15 && *v < RUNAWAY_C))
+        {
+            if first.is_none_or(|(_, f, _)| k < f) {
+                first = Some((node, k, series[k]));
+            }
+        }
+    }
+    let Some((node, k, v)) = first else {
+        return Ok(());
+    };
+    bail!(
+        "{what}: model `{}` ran away: node `{}` is {} degC at t = {} s (outside -273.15 .. {RUNAWAY_C} degC). \
+         The heating outgrows the cooling: a current beyond the model's range, or a resistance temperature \
+         coefficient (alpha_per_k, slope_ohm_per_k) that makes the power grow faster than the losses \
+         (thermal runaway; `coil-thermal limits` gives each input's runaway current); no result is written",
+        info.name,
+        info.nodes[node],
+        num(v),
+        num(time_s.get(k).copied().unwrap_or(f64::NAN))
+    );
+}
+
+/// The most output rows a run writes (constant currents, resampling).
+pub const MAX_ROWS: usize = 20_000_000;
+
+/// The most values (rows x (nodes + inputs + boundaries)) a run holds
+/// (about 1.6 GB as `f64`, before the copies of the output).
+pub const MAX_CELLS: usize = 200_000_000;
+
+/// The most explicit model steps one run may take (sub-steps summed over
+/// every row): about a minute of host time for a small model.
+pub const MAX_MODEL_STEPS: f64 = 2e8;
 
 /// How trace columns map onto a plant (from the command line).
 #[derive(Debug, Clone, Default)]
@@ -306,8 +400,9 @@ pub struct Bindings {
     pub currents: Vec<(ColumnExpr, String)>,
     /// `--boundary EXPR=NAME`.
     pub boundaries: Vec<(ColumnExpr, String)>,
-    /// `--const COL=VALUE`: a constant for a column the trace lacks.
-    pub constants: Vec<(String, f64)>,
+    /// `--const COL=VALUE`: a constant ([`ColumnExpr::Constant`]) or a step
+    /// profile ([`ColumnExpr::Steps`]) for a column the trace lacks.
+    pub constants: Vec<(String, ColumnExpr)>,
     /// `--current-scale K`: every current input multiplied by `K` (a
     /// harder or lighter duty on the same trajectory); `None`: 1.
     pub current_scale: Option<f64>,
@@ -378,9 +473,11 @@ impl Drive {
             let expr = ColumnExpr::parse(text).with_context(|| format!("{file}: {what}"))?;
             let cols = expr.columns();
             if let Some(missing) = cols.iter().find(|c| !trace.has_column(c)) {
-                if let Some((_, v)) = bind.constants.iter().find(|(c, _)| c == missing) {
+                if let Some((_, v)) = bind.constants.iter().rev().find(|(c, _)| c == missing) {
                     if cols.len() == 1 {
-                        return Ok(vec![*v; trace.len()]);
+                        return v
+                            .at_times(trace.time_s())
+                            .map_err(|e| anyhow!("{file}: --const {missing}: {e}"));
                     }
                 }
             }
@@ -405,9 +502,14 @@ impl Drive {
         let mut boundaries = Vec::new();
         for b in &info.boundaries {
             let bound = bind.boundaries.iter().rev().find(|(_, n)| *n == b.name);
+            // A bound expression, else the trace's column, else a --const
+            // of that column, else the boundary's own value_c.
+            let constant = bind.constants.iter().any(|(c, _)| *c == b.column);
             let series = match (bound, b.default_value) {
                 (Some((e, _)), _) => column(&e.to_string(), &format!("boundary `{}`", b.name))?,
-                (None, Some(v)) if !trace.has_column(&b.column) => vec![v; trace.len()],
+                (None, Some(v)) if !trace.has_column(&b.column) && !constant => {
+                    vec![v; trace.len()]
+                }
                 (None, _) => column(&b.column, &format!("boundary `{}`", b.name))?,
             };
             boundaries.push(series);
@@ -448,34 +550,51 @@ impl Drive {
                 names(&info.inputs)
             ),
         };
-        let steps = (duration_s / dt_s).round() as usize;
-        let rows = steps + 1;
-        let time_s = (0..rows).map(|k| k as f64 * dt_s).collect();
-        let lookup = |col: &str| {
+        let rows_f = (duration_s / dt_s).round() + 1.0;
+        let cells = rows_f * (info.nodes.len() + info.inputs.len() + info.boundaries.len()) as f64;
+        if rows_f > MAX_ROWS as f64 || cells > MAX_CELLS as f64 {
+            bail!(
+                "--duration-s {} s every --dt-s {} s is {rows_f:.3e} output rows of {} nodes; \
+                 at most {MAX_ROWS} rows and {MAX_CELLS:.0e} values are written: raise --dt-s \
+                 (the output period; the model sub-steps internally as stability requires) or shorten --duration-s",
+                num(duration_s),
+                num(dt_s),
+                info.nodes.len()
+            );
+        }
+        let rows = rows_f as usize;
+        let time_s: Vec<f64> = (0..rows).map(|k| k as f64 * dt_s).collect();
+        let lookup = |col: &str| -> Result<Option<Vec<f64>>> {
             bind.constants
                 .iter()
+                .rev()
                 .find(|(c, _)| c == col)
-                .map(|(_, v)| *v)
+                .map(|(_, v)| {
+                    v.at_times(&time_s)
+                        .map_err(|e| anyhow!("--const {col}: {e}"))
+                })
+                .transpose()
         };
         let mut boundaries = Vec::new();
         for b in &info.boundaries {
-            let v = ambient_c
-                .or_else(|| lookup(&b.column))
-                .or(b.default_value)
-                .with_context(|| {
-                    format!(
-                        "boundary `{}` has no temperature: pass --ambient-c or --const {}=VALUE",
-                        b.name, b.column
-                    )
-                })?;
-            boundaries.push(vec![v; rows]);
+            let series = match (ambient_c, lookup(&b.column)?, b.default_value) {
+                (Some(v), _, _) => vec![v; rows],
+                (None, Some(series), _) => series,
+                (None, None, Some(v)) => vec![v; rows],
+                (None, None, None) => bail!(
+                    "boundary `{}` has no temperature: pass --ambient-c or --const {}=VALUE",
+                    b.name,
+                    b.column
+                ),
+            };
+            boundaries.push(series);
         }
         let mut signals = Vec::new();
         for s in &info.signals {
-            let v = lookup(s).with_context(|| {
+            let series = lookup(s)?.with_context(|| {
                 format!("the model needs signal column `{s}`: pass --const {s}=VALUE or --trace")
             })?;
-            signals.push(vec![v; rows]);
+            signals.push(series);
         }
         Ok(Self {
             time_s,

@@ -11,8 +11,19 @@
 //! (root of the sum of squares, e.g. `hypot(IdFbk,IqFbk)` for a d/q current
 //! magnitude), `abs(NAME)`, `scale(NAME,K)` and a number (a constant).
 //!
+//! A *step profile* `T:V,T:V,...` is an input given beside the data rather
+//! than in it (e.g. `0:16.37,40:0`: 16.37 from 0 s, 0 from 40 s on): each
+//! value holds from its time \[s\] until the next one's.
+//!
 //! Lines starting with `#` are comments (the committed HPPA traces describe
 //! themselves that way); line numbers in errors count them.
+//!
+//! # Bounds
+//!
+//! A trace is held in memory (about six times its file size), so files over
+//! [`MAX_TRACE_BYTES`] are refused before reading, with what to do instead;
+//! a trace spanning more than [`MAX_SPAN_S`] is refused too (a time typo
+//! such as `1e300` would otherwise ask for astronomically many model steps).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -21,6 +32,34 @@ use anyhow::{bail, Result};
 
 /// The name of the time column \[s\].
 pub const TIME_COLUMN: &str = "time_s";
+
+/// The largest trace file read \[bytes\] (256 MiB; it takes about six
+/// times as much memory).
+pub const MAX_TRACE_BYTES: u64 = 256 << 20;
+
+/// The longest time a trace may span, last row minus first \[s\] (about
+/// 3.2 years).
+pub const MAX_SPAN_S: f64 = 1e8;
+
+/// Where a trace's time comes from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TimeSource {
+    /// The time column \[s\] (default [`TIME_COLUMN`]).
+    pub column: Option<String>,
+    /// Sample period \[s\] for a trace without a time column: row `k` is at
+    /// `k * period`.
+    pub sample_period_s: Option<f64>,
+}
+
+/// A number for a message: plain when moderate, `1e300` style when very
+/// large or small (Rust's `{}` writes 1e300 with 300 zeros).
+pub fn num(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
 
 /// An error located in a file: `file:line:col: message`.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -52,6 +91,9 @@ pub struct Trace {
     rows: Vec<csv::StringRecord>,
     lines: Vec<u64>,
     time_s: Vec<f64>,
+    /// The first non-numeric cell of each column that has one (the time
+    /// column excluded): reported, since a flag may never use the column.
+    non_numeric: Vec<Located>,
 }
 
 /// A column expression (see the module docs).
@@ -67,6 +109,8 @@ pub enum ColumnExpr {
     Scale(String, f64),
     /// A constant.
     Constant(f64),
+    /// A step profile: `(from time [s], value)`, times strictly increasing.
+    Steps(Vec<(f64, f64)>),
 }
 
 impl ColumnExpr {
@@ -81,6 +125,9 @@ impl ColumnExpr {
                 bail!("constant `{t}` is not finite");
             }
             return Ok(Self::Constant(v));
+        }
+        if t.contains(':') && !t.contains('(') {
+            return Self::parse_steps(t);
         }
         if let Some(open) = t.find('(') {
             if !t.ends_with(')') {
@@ -101,6 +148,9 @@ impl ColumnExpr {
                     let k: f64 = args[1]
                         .parse()
                         .map_err(|_| anyhow::anyhow!("`{t}`: `{}` is not a number", args[1]))?;
+                    if !k.is_finite() {
+                        bail!("`{t}`: the factor `{}` is not a finite number", args[1]);
+                    }
                     Ok(Self::Scale(args[0].clone(), k))
                 }
                 _ => bail!("`{t}`: unknown function; use hypot(A,B,..), abs(A) or scale(A,K)"),
@@ -109,12 +159,70 @@ impl ColumnExpr {
         Ok(Self::Column(t.to_string()))
     }
 
+    /// Parses a step profile `T:V,T:V,...` (times \[s\] strictly
+    /// increasing, values finite).
+    fn parse_steps(t: &str) -> Result<Self> {
+        let mut steps: Vec<(f64, f64)> = Vec::new();
+        for part in t.split(',') {
+            let part = part.trim();
+            let number = |x: &str| {
+                x.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "step profile `{t}`: `{}` is not a finite number (expected TIME_S:VALUE,TIME_S:VALUE,...)",
+                        x.trim()
+                    )
+                })
+            };
+            let Some((time, value)) = part.split_once(':') else {
+                bail!("step profile `{t}`: `{part}` is not TIME_S:VALUE");
+            };
+            let (time, value) = (number(time)?, number(value)?);
+            if let Some((last, _)) = steps.last() {
+                if time <= *last {
+                    bail!("step profile `{t}`: times must increase ({time} s after {last} s)");
+                }
+            }
+            steps.push((time, value));
+        }
+        Ok(Self::Steps(steps))
+    }
+
+    /// A constant or a step profile at each of `time_s` \[s\]
+    /// (increasing); an error for a column expression or a profile that
+    /// starts after the first time.
+    pub fn at_times(&self, time_s: &[f64]) -> Result<Vec<f64>, String> {
+        match self {
+            Self::Constant(v) => Ok(vec![*v; time_s.len()]),
+            Self::Steps(steps) => {
+                let (first_s, _) = steps[0];
+                if let Some(t0) = time_s.first().filter(|t0| first_s > **t0) {
+                    return Err(format!(
+                        "step profile `{self}` starts at {first_s} s, after the first row ({t0} s): give a step at or before it"
+                    ));
+                }
+                let mut k = 0;
+                Ok(time_s
+                    .iter()
+                    .map(|t| {
+                        while k + 1 < steps.len() && steps[k + 1].0 <= *t {
+                            k += 1;
+                        }
+                        steps[k].1
+                    })
+                    .collect())
+            }
+            _ => Err(format!(
+                "`{self}` reads trace columns; a number or a step profile T:V,T:V was expected"
+            )),
+        }
+    }
+
     /// The columns the expression reads.
     pub fn columns(&self) -> Vec<&str> {
         match self {
             Self::Column(c) | Self::Abs(c) | Self::Scale(c, _) => vec![c.as_str()],
             Self::Hypot(cs) => cs.iter().map(String::as_str).collect(),
-            Self::Constant(_) => Vec::new(),
+            Self::Constant(_) | Self::Steps(_) => Vec::new(),
         }
     }
 }
@@ -125,18 +233,39 @@ impl fmt::Display for ColumnExpr {
             Self::Column(c) => write!(f, "{c}"),
             Self::Hypot(cs) => write!(f, "hypot({})", cs.join(",")),
             Self::Abs(c) => write!(f, "abs({c})"),
-            Self::Scale(c, k) => write!(f, "scale({c},{k})"),
-            Self::Constant(v) => write!(f, "{v}"),
+            Self::Scale(c, k) => write!(f, "scale({c},{})", num(*k)),
+            Self::Constant(v) => write!(f, "{}", num(*v)),
+            Self::Steps(steps) => {
+                let parts: Vec<String> = steps
+                    .iter()
+                    .map(|(t, v)| format!("{}:{}", num(*t), num(*v)))
+                    .collect();
+                write!(f, "{}", parts.join(","))
+            }
         }
     }
 }
 
 impl Trace {
-    /// Reads a trace. Time comes from `time_column` (default `time_s`) when
-    /// present; otherwise `sample_period_s` must be given, and row `k` is at
-    /// `k * sample_period_s`.
+    /// Reads a trace with its time in `time_s` or, without that column,
+    /// every `sample_period_s` (see [`Self::read_with`]).
     pub fn read(path: &Path, sample_period_s: Option<f64>) -> Result<Self, Located> {
+        Self::read_with(
+            path,
+            &TimeSource {
+                column: None,
+                sample_period_s,
+            },
+        )
+    }
+
+    /// Reads a trace. Time comes from the time column (default `time_s`)
+    /// when present; otherwise the sample period must be given, and row `k`
+    /// is at `k * period`. A named time column must exist.
+    pub fn read_with(path: &Path, time: &TimeSource) -> Result<Self, Located> {
         let file = path.display().to_string();
+        let time_column = time.column.as_deref().unwrap_or(TIME_COLUMN);
+        let sample_period_s = time.sample_period_s;
         let at = |line: u64, col: Option<usize>, msg: String| Located {
             file: file.clone(),
             line,
@@ -150,6 +279,20 @@ impl Trace {
             .comment(Some(b'#'))
             .from_path(path)
             .map_err(|e| at(1, None, format!("cannot open trace: {e}")))?;
+        if let Ok(meta) = std::fs::metadata(path) {
+            if meta.len() > MAX_TRACE_BYTES {
+                return Err(at(
+                    1,
+                    None,
+                    format!(
+                        "the trace is {} MiB; traces are held in memory (about 6x the file) up to {} MiB: \
+                         keep the columns you use and decimate the rows (e.g. `awk -F, 'NR==1 || NR%10==2'` keeps every 10th), or split it",
+                        meta.len() >> 20,
+                        MAX_TRACE_BYTES >> 20
+                    ),
+                ));
+            }
+        }
         let headers: Vec<String> = reader
             .headers()
             .map_err(|e| at(1, None, format!("cannot read the header row: {e}")))?
@@ -193,27 +336,43 @@ impl Trace {
             rows,
             lines,
             time_s: Vec::new(),
+            non_numeric: Vec::new(),
         };
-        trace.time_s = match (trace.index_of(TIME_COLUMN), sample_period_s) {
+        if time.column.is_some() && trace.index_of(time_column).is_none() {
+            return Err(trace.missing(time_column));
+        }
+        trace.time_s = match (trace.index_of(time_column), sample_period_s) {
             (Some(_), Some(_)) => {
                 return Err(at(
                     1,
-                    trace.index_of(TIME_COLUMN).map(|i| i + 1),
-                    format!("the trace has a `{TIME_COLUMN}` column and --sample-period-s was given; use one"),
+                    trace.index_of(time_column).map(|i| i + 1),
+                    format!("the trace has a `{time_column}` column and --sample-period-s was given; use one"),
                 ))
             }
             (Some(_), None) => {
-                let t = trace.column(TIME_COLUMN)?;
-                let col = trace.index_of(TIME_COLUMN).map(|i| i + 1);
+                let t = trace.column(time_column)?;
+                let col = trace.index_of(time_column).map(|i| i + 1);
                 for k in 1..t.len() {
                     if t[k] <= t[k - 1] {
                         return Err(at(
                             trace.lines[k],
                             col,
                             format!(
-                                "column `{TIME_COLUMN}`: time must increase strictly ({} after {})",
+                                "column `{time_column}`: time must increase strictly ({} after {})",
                                 t[k],
                                 t[k - 1]
+                            ),
+                        ));
+                    }
+                    if t[k] - t[0] > MAX_SPAN_S {
+                        return Err(at(
+                            trace.lines[k],
+                            col,
+                            format!(
+                                "column `{time_column}`: {} s is {} s after the first row; a trace may span at most {MAX_SPAN_S:e} s \
+                                 (is the time in seconds? a typo?)",
+                                num(t[k]),
+                                num(t[k] - t[0])
                             ),
                         ));
                     }
@@ -224,6 +383,14 @@ impl Trace {
                 if !(p.is_finite() && p > 0.0) {
                     return Err(at(1, None, format!("sample period must be > 0 s, got {p}")));
                 }
+                let span_s = (trace.rows.len() - 1) as f64 * p;
+                if span_s > MAX_SPAN_S {
+                    return Err(at(
+                        1,
+                        None,
+                        format!("{} rows every {p} s span {span_s:e} s; a trace may span at most {MAX_SPAN_S:e} s", trace.rows.len()),
+                    ));
+                }
                 (0..trace.rows.len()).map(|k| k as f64 * p).collect()
             }
             (None, None) => {
@@ -231,13 +398,40 @@ impl Trace {
                     1,
                     None,
                     format!(
-                        "no `{TIME_COLUMN}` column (columns: {}); add one or pass --sample-period-s",
+                        "no `{TIME_COLUMN}` column (columns: {}); name the time column with --time-column NAME [s], or pass --sample-period-s",
                         trace.headers.join(", ")
                     ),
                 ))
             }
         };
+        let time_index = trace.index_of(time_column);
+        for (i, name) in trace.headers.iter().enumerate() {
+            if Some(i) == time_index {
+                continue;
+            }
+            let bad = trace.rows.iter().zip(&trace.lines).find(|(row, _)| {
+                let cell = row.get(i).unwrap_or("");
+                !cell.is_empty() && cell.parse::<f64>().is_err()
+            });
+            if let Some((row, line)) = bad {
+                trace.non_numeric.push(at(
+                    *line,
+                    Some(i + 1),
+                    format!(
+                        "column `{name}` holds `{}`, not a number (fine while no flag uses the column)",
+                        row.get(i).unwrap_or("")
+                    ),
+                ));
+            }
+        }
         Ok(trace)
+    }
+
+    /// The first non-numeric cell of each column that has one (the time
+    /// column excluded), for a warning: such a column is refused only when
+    /// a flag uses it.
+    pub fn non_numeric(&self) -> &[Located] {
+        &self.non_numeric
     }
 
     /// The file path.
@@ -303,6 +497,12 @@ impl Trace {
 
     /// A column parsed as finite numbers.
     pub fn column(&self, name: &str) -> Result<Vec<f64>, Located> {
+        self.column_with(name, false)
+    }
+
+    /// A column parsed as finite numbers; with `allow_missing`, an empty
+    /// cell or `NaN` is a missing reading, returned as `NaN`.
+    pub fn column_with(&self, name: &str, allow_missing: bool) -> Result<Vec<f64>, Located> {
         let i = self.index_of(name).ok_or_else(|| self.missing(name))?;
         self.rows
             .iter()
@@ -315,6 +515,9 @@ impl Trace {
                     col: Some(i + 1),
                     msg: format!("column `{name}`: {msg}"),
                 };
+                if allow_missing && (cell.is_empty() || cell.eq_ignore_ascii_case("nan")) {
+                    return Ok(f64::NAN);
+                }
                 if cell.is_empty() {
                     return Err(err("empty cell".into()));
                 }
@@ -329,23 +532,46 @@ impl Trace {
             .collect()
     }
 
-    /// Evaluates a column expression over every row.
+    /// Evaluates a column expression over every row; a result that
+    /// overflows (e.g. `scale(C,1e308)`) is refused at its row.
     pub fn eval(&self, expr: &ColumnExpr) -> Result<Vec<f64>, Located> {
-        Ok(match expr {
-            ColumnExpr::Column(c) => self.column(c)?,
-            ColumnExpr::Abs(c) => self.column(c)?.into_iter().map(f64::abs).collect(),
-            ColumnExpr::Scale(c, k) => self.column(c)?.into_iter().map(|v| v * k).collect(),
-            ColumnExpr::Constant(v) => vec![*v; self.len()],
-            ColumnExpr::Hypot(cs) => {
-                let mut acc = vec![0.0; self.len()];
-                for c in cs {
-                    for (a, v) in acc.iter_mut().zip(self.column(c)?) {
-                        *a += v * v;
-                    }
-                }
-                acc.into_iter().map(f64::sqrt).collect()
+        self.eval_with(expr, false)
+    }
+
+    /// [`Self::eval`]; with `allow_missing`, empty and `NaN` cells are
+    /// missing readings (`NaN` in the result).
+    pub fn eval_with(&self, expr: &ColumnExpr, allow_missing: bool) -> Result<Vec<f64>, Located> {
+        let col = |c: &str| self.column_with(c, allow_missing);
+        let values: Vec<f64> = match expr {
+            ColumnExpr::Column(c) => col(c)?,
+            ColumnExpr::Abs(c) => col(c)?.into_iter().map(f64::abs).collect(),
+            ColumnExpr::Scale(c, k) => col(c)?.into_iter().map(|v| v * k).collect(),
+            ColumnExpr::Constant(_) | ColumnExpr::Steps(_) => {
+                expr.at_times(&self.time_s).map_err(|msg| Located {
+                    file: self.path.display().to_string(),
+                    line: self.lines[0],
+                    col: None,
+                    msg,
+                })?
             }
-        })
+            ColumnExpr::Hypot(cs) => {
+                // Scaled by the largest magnitude, so that squares of large
+                // but finite values do not overflow.
+                let series = cs.iter().map(|c| col(c)).collect::<Result<Vec<_>, _>>()?;
+                (0..self.len())
+                    .map(|k| series.iter().fold(0.0, |acc: f64, s| acc.hypot(s[k])))
+                    .collect()
+            }
+        };
+        if let Some(k) = values.iter().position(|v| v.is_infinite()) {
+            return Err(Located {
+                file: self.path.display().to_string(),
+                line: self.lines[k],
+                col: None,
+                msg: format!("`{expr}` overflows to {} at this row", values[k]),
+            });
+        }
+        Ok(values)
     }
 }
 
@@ -379,4 +605,50 @@ pub fn write_csv(path: &Path, names: &[String], time_s: &[f64], series: &[Vec<f6
     }
     w.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trace(text: &str) -> (tempfile::TempDir, Trace) {
+        let dir = tempfile::TempDir::new().unwrap();
+        let path = dir.path().join("t.csv");
+        std::fs::write(&path, text).unwrap();
+        let t = Trace::read(&path, None).unwrap();
+        (dir, t)
+    }
+
+    #[test]
+    fn a_step_profile_holds_each_value_from_its_time() {
+        let e = ColumnExpr::parse("0:16.37,40:0,60.5:2").unwrap();
+        assert_eq!(e.to_string(), "0:16.37,40:0,60.5:2");
+        let t = [0.0, 39.9, 40.0, 60.0, 61.0, 1e4];
+        assert_eq!(e.at_times(&t).unwrap(), [16.37, 16.37, 0.0, 0.0, 2.0, 2.0]);
+        assert!(e.at_times(&[-1.0]).unwrap_err().contains("starts at 0 s"));
+        for bad in ["0:1,0:2", "1:inf", "0:1,2", "a:1"] {
+            assert!(ColumnExpr::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn hypot_of_large_columns_does_not_overflow_and_missing_cells_are_nan() {
+        let (_d, t) = trace("time_s,a,b\n0,3e200,4e200\n1,3,\n2,nan,4\n");
+        let h = t
+            .eval_with(&ColumnExpr::parse("hypot(a,b)").unwrap(), true)
+            .unwrap();
+        assert!((h[0] / 5e200 - 1.0).abs() < 1e-15, "{}", h[0]);
+        assert!(h[1].is_nan() && h[2].is_nan());
+        // Strict, the empty cell is an error at its line and column.
+        let e = t.eval(&ColumnExpr::parse("b").unwrap()).unwrap_err();
+        assert_eq!((e.line, e.col), (3, Some(3)));
+    }
+
+    #[test]
+    fn numbers_in_messages_stay_short() {
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(1e-12), "1e-12");
+        assert_eq!(num(12.5), "12.5");
+        assert_eq!(num(0.0), "0");
+    }
 }

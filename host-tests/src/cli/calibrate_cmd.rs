@@ -8,9 +8,18 @@ use serde_json::json;
 
 use super::common;
 use super::CalibrateArgs;
-use crate::calibrate::{fit, FitData, FitOptions, ParamSpec};
-use crate::model_file::Model;
-use crate::sim::{plant_info, Drive};
+use serde::Serialize;
+
+use crate::calibrate::{
+    access_param, default_bounds, fit, FitData, FitOptions, FitReport, ParamSpec,
+};
+use crate::model_file::{Model, ModelFile};
+use crate::observer::{score, Score};
+use crate::sim::{
+    by_node, check_temperatures, check_work, initial_temps, plant_info, simulate, Drive, FilePlant,
+    Plant,
+};
+use crate::synth::Rng;
 
 /// Runs `calibrate`.
 pub fn run(a: CalibrateArgs) -> Result<()> {
@@ -22,17 +31,35 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         .iter()
         .map(|p| ParamSpec::parse(p).with_context(|| format!("--params `{p}`")))
         .collect::<Result<Vec<_>>>()?;
+    let all_traces = a.traces.len() + a.validate.len();
     let mut data = Vec::new();
-    for path in &a.traces {
-        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
-        data.push(FitData {
+    let mut held_out = Vec::new();
+    for (k, path) in a.traces.iter().chain(&a.validate).enumerate() {
+        let trace = common::read_trace(path, &a.trace_args)?;
+        let bind = common::trace_bindings(&bind, &a.trace_const, k, all_traces)?;
+        let d = FitData {
             label: path.display().to_string(),
             drive: Drive::from_trace(&info, &trace, &bind)?,
-            targets: common::sensors(&a.measure, "--measure", &info, &trace)?,
-        });
+            targets: common::sensors(&a.measure, "--measure", &info, &trace).context(
+                "calibrate fits every row: fill or drop the rows without a reading (replay skips them)",
+            )?,
+        };
+        check_work(
+            &FilePlant::new(Model::build(&file)?)?,
+            &d.drive.time_s,
+            &d.label,
+        )?;
+        if k < a.traces.len() {
+            data.push(d);
+        } else {
+            held_out.push(d);
+        }
     }
     if a.max_iterations == 0 {
         anyhow::bail!("--max-iterations must be at least 1");
+    }
+    if a.starts == 0 || a.starts > MAX_STARTS {
+        anyhow::bail!("--starts must be in 1..={MAX_STARTS}, got {}", a.starts);
     }
     let opts = FitOptions {
         max_iterations: a.max_iterations,
@@ -40,8 +67,17 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         progress: !a.no_progress && std::io::stderr().is_terminal(),
     };
     let start = Instant::now();
-    let (fitted, report) = fit(&file, &params, &data, &opts)?;
+    let (fitted, report, starts) = if a.starts > 1 {
+        multi_start(&file, &params, &data, &opts, a.starts, a.starts_seed)?
+    } else {
+        let (fitted, report) = fit(&file, &params, &data, &opts)?;
+        (fitted, report, Vec::new())
+    };
     let seconds = start.elapsed().as_secs_f64();
+    let validation = held_out
+        .iter()
+        .map(|d| validate(&fitted, d))
+        .collect::<Result<Vec<_>>>()?;
     std::fs::write(&a.out, fitted.to_toml()?)
         .with_context(|| format!("{}: cannot write the fitted model", a.out.display()))?;
     let figures = match &a.plot {
@@ -51,8 +87,11 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     if a.json {
         common::print_json(&json!({
             "command": "calibrate",
+            "schema_version": 2,
             "model": info.name,
             "fit": report,
+            "validation": validation,
+            "starts": starts,
             "seconds": seconds,
             "out": a.out.display().to_string(),
             "plots": figures.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
@@ -99,9 +138,192 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             );
         }
     }
+    if !starts.is_empty() {
+        print_starts(&starts);
+    }
+    for v in &validation {
+        println!(
+            "held out {:<38} RMSE {:.4} K (not fitted)",
+            v.trace, v.rmse_k
+        );
+        for s in &v.sensors {
+            println!(
+                "  {:<20} -> {:<16} RMSE {:.4} K, max {:.4} K",
+                s.column, s.node, s.rmse_k, s.max_abs_error_k
+            );
+        }
+    }
     println!("fitted model written to {}", a.out.display());
     for p in &figures {
         println!("fit report drawn to {}", p.display());
     }
     Ok(())
+}
+
+/// The fitted model's open-loop score on a held-out trace.
+#[derive(Debug, Serialize)]
+struct Validation {
+    /// Trace file.
+    trace: String,
+    /// RMSE over its sensors (root of the mean of their MSEs) [K].
+    rmse_k: f64,
+    /// Per-sensor scores.
+    sensors: Vec<Score>,
+}
+
+/// Runs `fitted` open loop over a held-out trace from the start the fit
+/// uses (the model's initial policy with the first readings) and scores it.
+fn validate(fitted: &ModelFile, d: &FitData) -> Result<Validation> {
+    let mut plant = FilePlant::new(Model::build(fitted)?)?;
+    let info = plant.info().clone();
+    let first: Vec<(usize, f64)> = d.targets.iter().map(|t| (t.node, t.values_c[0])).collect();
+    let init = initial_temps(&info, &d.drive, &first)?;
+    let est = by_node(&simulate(&mut plant, &d.drive, &init));
+    check_temperatures(
+        &info,
+        &d.drive.time_s,
+        &est,
+        &format!("--validate {}", d.label),
+    )?;
+    let sensors: Vec<Score> = d
+        .targets
+        .iter()
+        .map(|t| score(t, &info.nodes[t.node], &est, &d.drive.time_s))
+        .collect();
+    let mse = sensors.iter().map(|s| s.mse_k2).sum::<f64>() / sensors.len().max(1) as f64;
+    Ok(Validation {
+        trace: d.label.clone(),
+        rmse_k: mse.sqrt(),
+        sensors,
+    })
+}
+
+/// The most `--starts` (each is a full fit).
+const MAX_STARTS: usize = 1000;
+
+/// Starts within this relative cost of the best reach "the same fit".
+const SAME_COST: f64 = 0.01;
+
+/// A parameter that differs by more than this (relative) between two
+/// starts of the same fit is not pinned down by the traces.
+const TRADE_OFF: f64 = 0.05;
+
+/// One start of a multi-start fit.
+#[derive(Debug, Serialize)]
+struct StartResult {
+    /// 0: the model's values; then the seeded points.
+    start: usize,
+    /// Starting values, in `--params` order.
+    initial: Vec<f64>,
+    /// Fitted values.
+    fitted: Vec<f64>,
+    /// Half the sum of squared residuals after the fit [K^2].
+    cost_after: f64,
+    /// `true` for the start kept.
+    best: bool,
+    /// Parameters that differ by more than 5 % from the best start's while
+    /// the cost is within 1 % of it (a trade-off the traces do not pin
+    /// down).
+    trade_offs: Vec<String>,
+}
+
+/// Fits from `starts` points with fixed bounds (each `--params` bound, else
+/// the default around the model's value) and keeps the lowest cost.
+fn multi_start(
+    file: &ModelFile,
+    params: &[ParamSpec],
+    data: &[FitData],
+    opts: &FitOptions,
+    starts: usize,
+    seed: u64,
+) -> Result<(ModelFile, FitReport, Vec<StartResult>)> {
+    let mut base = file.clone();
+    let mut fixed = Vec::new();
+    for p in params {
+        let value = access_param(&mut base, &p.name, None)?;
+        let (lo, hi) = default_bounds(&p.name, value);
+        fixed.push(ParamSpec {
+            name: p.name.clone(),
+            lo: Some(p.lo.unwrap_or(lo)),
+            hi: Some(p.hi.unwrap_or(hi)),
+        });
+    }
+    let mut rng = Rng::new(seed);
+    let mut best: Option<(ModelFile, FitReport, usize)> = None;
+    let mut results = Vec::new();
+    for start in 0..starts {
+        let mut from = file.clone();
+        let mut initial = Vec::new();
+        for p in &fixed {
+            let (lo, hi) = (p.lo.unwrap_or(f64::NAN), p.hi.unwrap_or(f64::NAN));
+            let value = if start == 0 {
+                access_param(&mut from, &p.name, None)?
+            } else if lo > 0.0 && hi.is_finite() {
+                (lo.ln() + rng.uniform() * (hi / lo).ln()).exp()
+            } else if lo.is_finite() && hi.is_finite() {
+                lo + rng.uniform() * (hi - lo)
+            } else {
+                anyhow::bail!(
+                    "--starts: parameter `{}` has no finite bounds to draw starts from; give NAME=LO:HI",
+                    p.name
+                );
+            };
+            access_param(&mut from, &p.name, Some(value))?;
+            initial.push(value);
+        }
+        let (fitted, report) = fit(&from, &fixed, data, opts)?;
+        results.push(StartResult {
+            start,
+            initial,
+            fitted: report.params.iter().map(|r| r.fitted).collect(),
+            cost_after: report.cost_after,
+            best: false,
+            trade_offs: Vec::new(),
+        });
+        if best
+            .as_ref()
+            .is_none_or(|(_, b, _)| report.cost_after < b.cost_after)
+        {
+            best = Some((fitted, report, start));
+        }
+    }
+    let Some((fitted, report, best_start)) = best else {
+        anyhow::bail!("--starts: no start ran");
+    };
+    let best_fitted: Vec<f64> = report.params.iter().map(|r| r.fitted).collect();
+    for r in &mut results {
+        r.best = r.start == best_start;
+        if r.cost_after <= report.cost_after * (1.0 + SAME_COST) + 1e-12 {
+            r.trade_offs = fixed
+                .iter()
+                .zip(r.fitted.iter().zip(&best_fitted))
+                .filter(|(_, (a, b))| (*a - *b).abs() > TRADE_OFF * b.abs().max(1e-300))
+                .map(|(p, _)| p.name.clone())
+                .collect();
+        }
+    }
+    Ok((fitted, report, results))
+}
+
+/// The multi-start table and any trade-off warning.
+fn print_starts(starts: &[StartResult]) {
+    println!("multi-start: {} starts", starts.len());
+    for r in starts {
+        let values: Vec<String> = r.fitted.iter().map(|v| format!("{v:.6e}")).collect();
+        println!(
+            "  start {:>3}: cost {:.6e} K^2, fitted [{}]{}",
+            r.start,
+            r.cost_after,
+            values.join(", "),
+            if r.best { "  BEST" } else { "" }
+        );
+    }
+    for r in starts.iter().filter(|r| !r.trade_offs.is_empty()) {
+        println!(
+            "warning: start {} reaches the best cost (within 1 %) with {} more than 5 % away: \
+             the traces do not pin them down (they trade off); add a trace that excites them differently or fix one",
+            r.start,
+            r.trade_offs.join(", ")
+        );
+    }
 }

@@ -10,8 +10,9 @@ use super::{ModelArgs, TraceArgs};
 use crate::devices;
 use crate::model_file::{Model, ModelFile};
 use crate::observer::Sensor;
+use crate::plot::PlotData;
 use crate::sim::{Bindings, FilePlant, Plant, PlantInfo};
-use crate::trace::{ColumnExpr, Trace};
+use crate::trace::{ColumnExpr, TimeSource, Trace};
 
 /// Marker text of every "not yet available" error (tests look for it).
 pub const NOT_YET: &str = "not yet available";
@@ -121,7 +122,7 @@ pub fn model_file(args: &ModelArgs) -> Result<ModelFile> {
 pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile> {
     let spec = ModelSpec::parse(&args.model)?;
     check_grid_flags(args, &spec)?;
-    match spec {
+    let mut file = match spec {
         ModelSpec::Hppa => {
             let (rows, cols) = grid_dims(args);
             let params = devices::grid_preset(args.grid_params.as_deref().unwrap_or("fdm-fitted"))?;
@@ -130,7 +131,51 @@ pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile
         ModelSpec::Omnimagnet => devices::omnimagnet_file(omnimagnet_op_c),
         ModelSpec::Solenoid => ModelFile::solenoid(&SolenoidParams::HESE, args.layers),
         ModelSpec::File(p) => ModelFile::load(&p),
+    }?;
+    for lag in &args.sensor_lags {
+        add_sensor_lag(&mut file, lag)?;
     }
+    Ok(file)
+}
+
+/// The capacity of a lag node as a fraction of its node's: small enough
+/// that the node does not feel it (its heat flow is this fraction of the
+/// node's own rate), large enough to keep the network well conditioned.
+const LAG_CAPACITY_FRACTION: f64 = 1e-4;
+
+/// Adds `--sensor-lag NODE=TAU_S`: a node `NODE_lag` following NODE with
+/// a first-order lag `tau` \[s\] (capacity `c`, conductance `c / tau`).
+fn add_sensor_lag(file: &mut ModelFile, flag: &str) -> Result<()> {
+    let (node, tau) = split_mapping(flag, "--sensor-lag", "NODE=TAU_S")?;
+    let tau_s: f64 = tau
+        .parse()
+        .ok()
+        .filter(|t: &f64| t.is_finite() && *t > 0.0)
+        .with_context(|| format!("--sensor-lag `{flag}`: `{tau}` is not a finite time > 0 s"))?;
+    let names: Vec<String> = file.nodes.iter().map(|n| n.name.clone()).collect();
+    let Some(spec) = file.nodes.iter().find(|n| n.name == node) else {
+        bail!(
+            "--sensor-lag `{flag}`: the model has no node `{node}` (nodes: {})",
+            names.join(", ")
+        );
+    };
+    let lag = format!("{node}_lag");
+    if names.contains(&lag) {
+        bail!("--sensor-lag `{flag}`: the model already has a node `{lag}`");
+    }
+    let capacity = spec.capacity_j_per_k * LAG_CAPACITY_FRACTION;
+    file.nodes.push(crate::model_file::NodeSpec {
+        name: lag.clone(),
+        capacity_j_per_k: capacity,
+        critical_c: None,
+    });
+    file.conductances
+        .push(crate::model_file::ConductanceSpec::g(
+            node,
+            &lag,
+            capacity / tau_s,
+        ));
+    Ok(())
 }
 
 /// The model as a runnable plant: the Omnimagnet's nonlinear model, every
@@ -139,6 +184,9 @@ pub fn plant(args: &ModelArgs) -> Result<Box<dyn Plant>> {
     let spec = ModelSpec::parse(&args.model)?;
     check_grid_flags(args, &spec)?;
     if spec == ModelSpec::Omnimagnet {
+        if !args.sensor_lags.is_empty() {
+            bail!("--sensor-lag: simulate runs the Omnimagnet's nonlinear model, which has no place for a lag node; use its model file (`simulate --model omnimagnet --write-model omni.toml`) instead");
+        }
         return Ok(Box::new(devices::OmnimagnetPlant::default()));
     }
     let file = model_file(args)?;
@@ -178,30 +226,113 @@ pub fn bindings(args: &TraceArgs) -> Result<Bindings> {
     }
     for c in &args.constants {
         let (col, v) = split_mapping(c, "--const", "COL=VALUE")?;
-        let value: f64 = v
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .with_context(|| format!("--const `{c}`: `{v}` is not a finite number"))?;
-        b.constants.push((col.into(), value));
+        b.constants.push((col.into(), constant(v, c)?));
     }
     Ok(b)
 }
 
-/// Reads a trace with the sample period flag.
-pub fn read_trace(path: &Path, sample_period_s: Option<f64>) -> Result<Trace> {
-    Ok(Trace::read(path, sample_period_s)?)
+/// `bind` for the `k`-th (0-based) of `traces` traces: the
+/// `--trace-const K:COL=VALUE` flags of trace `k + 1` added after (so
+/// winning over) every `--const`.
+pub fn trace_bindings(
+    bind: &Bindings,
+    flags: &[String],
+    k: usize,
+    traces: usize,
+) -> Result<Bindings> {
+    let mut out = bind.clone();
+    for f in flags {
+        let (index, mapping) = f
+            .split_once(':')
+            .with_context(|| format!("--trace-const `{f}`: expected K:COL=VALUE"))?;
+        let index: usize = index
+            .trim()
+            .parse()
+            .ok()
+            .filter(|i| (1..=traces).contains(i))
+            .with_context(|| {
+                format!("--trace-const `{f}`: `{index}` is not a trace position 1..={traces} (every --trace, then every --validate)")
+            })?;
+        if index != k + 1 {
+            continue;
+        }
+        let (col, v) = split_mapping(mapping, "--trace-const", "K:COL=VALUE")?;
+        out.constants.push((col.into(), constant(v, f)?));
+    }
+    Ok(out)
 }
 
-/// Resolves `COL=NODE` flags to sensors on `trace`.
+/// A `--const` value: a finite number or a step profile `T:V,T:V,...`.
+pub fn constant(value: &str, flag_text: &str) -> Result<ColumnExpr> {
+    match ColumnExpr::parse(value) {
+        Ok(e @ (ColumnExpr::Constant(_) | ColumnExpr::Steps(_))) => Ok(e),
+        Ok(_) => bail!(
+            "--const `{flag_text}`: `{value}` is not a finite number or a step profile TIME_S:VALUE,TIME_S:VALUE,..."
+        ),
+        Err(e) => Err(e.context(format!("--const `{flag_text}`"))),
+    }
+}
+
+/// Reads a trace with the time flags (`--time-column`,
+/// `--sample-period-s`); warns on stderr of non-numeric cells in columns
+/// (refused only if a flag uses them).
+pub fn read_trace(path: &Path, args: &TraceArgs) -> Result<Trace> {
+    let trace = Trace::read_with(
+        path,
+        &TimeSource {
+            column: args.time_column.clone(),
+            sample_period_s: args.sample_period_s,
+        },
+    )?;
+    for w in trace.non_numeric() {
+        eprintln!("warning: {w}");
+    }
+    Ok(trace)
+}
+
+/// Splits a flag value at the commas outside parentheses: `a=n1,b=n2`
+/// is two items, `hypot(A,B)=n1` one.
+pub fn split_list(text: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let (mut depth, mut start) = (0i32, 0);
+    for (i, ch) in text.char_indices() {
+        match ch {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(text[start..i].trim());
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(text[start..].trim());
+    out
+}
+
+/// Resolves `COL=NODE` flags (each may hold a comma list) to sensors on
+/// `trace`; every cell must hold a finite number.
 pub fn sensors(
     flags: &[String],
     flag: &str,
     info: &PlantInfo,
     trace: &Trace,
 ) -> Result<Vec<Sensor>> {
+    sensors_with(flags, flag, info, trace, false)
+}
+
+/// [`sensors`]; with `allow_missing`, empty and `NaN` cells are missing
+/// readings (`NaN` in `values_c`), skipped by fusion and scoring.
+pub fn sensors_with(
+    flags: &[String],
+    flag: &str,
+    info: &PlantInfo,
+    trace: &Trace,
+    allow_missing: bool,
+) -> Result<Vec<Sensor>> {
     flags
         .iter()
+        .flat_map(|f| split_list(f))
         .map(|m| {
             let (col, node) = split_mapping(m, flag, "COL=NODE")?;
             let index = info.nodes.iter().position(|n| n == node).with_context(|| {
@@ -213,8 +344,11 @@ pub fn sensors(
             })?;
             let expr = ColumnExpr::parse(col).with_context(|| format!("{flag} `{m}`"))?;
             let values_c = trace
-                .eval(&expr)
+                .eval_with(&expr, allow_missing)
                 .map_err(|e| anyhow::anyhow!("{e} (for {flag} {m})"))?;
+            if values_c.iter().all(|v| v.is_nan()) {
+                bail!("{flag} `{m}`: column `{col}` has no reading at all");
+            }
             Ok(Sensor {
                 column: col.to_string(),
                 node: index,
@@ -269,4 +403,47 @@ pub fn hot_spot(states: &[Vec<f64>], time_s: &[f64]) -> (usize, f64, f64) {
         }
     }
     hot
+}
+
+/// The largest magnitude a plotted temperature or current may have; beyond
+/// it the axes cannot be laid out (and no thermal model reads that).
+pub const MAX_PLOT_MAGNITUDE: f64 = 1e9;
+
+/// Refuses a plot whose series hold values no axis can span (e.g. `1e308`
+/// from a runaway), naming the series and the time.
+pub fn check_plot_values(data: &PlotData) -> Result<()> {
+    for s in data
+        .estimated
+        .iter()
+        .chain(&data.measured)
+        .chain(&data.currents)
+    {
+        if let Some((t, v)) = s
+            .time_s
+            .iter()
+            .zip(&s.values)
+            .find(|(_, v)| v.is_infinite() || v.abs() > MAX_PLOT_MAGNITUDE)
+        {
+            bail!(
+                "plot: series `{}` holds {} at t = {} s, beyond +-{MAX_PLOT_MAGNITUDE:e}: \
+                 the run it comes from went wrong (a runaway?); plot other columns with --node",
+                s.label,
+                crate::trace::num(*v),
+                crate::trace::num(*t)
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lists_split_at_commas_outside_parentheses() {
+        assert_eq!(split_list("a=n1,b=n2"), ["a=n1", "b=n2"]);
+        assert_eq!(split_list("hypot(A,B)=n1, c=n2"), ["hypot(A,B)=n1", "c=n2"]);
+        assert_eq!(split_list("a=n1,"), ["a=n1", ""]);
+    }
 }

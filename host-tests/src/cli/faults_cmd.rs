@@ -96,7 +96,7 @@ pub fn run(a: FaultsArgs) -> Result<()> {
     }
     let mut cfg = FaultConfig::default();
     if let Some(path) = &a.trace {
-        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
+        let trace = common::read_trace(path, &a.trace_args)?;
         let bind = common::bindings(&a.trace_args)?;
         let plant = OmnimagnetPlant::default();
         let drive = Drive::from_trace(plant.info(), &trace, &bind)?;

@@ -93,6 +93,12 @@ pub struct ModelArgs {
     /// the default), `calculated`, `stepwise-fit`, `global-fit`.
     #[arg(long, value_name = "SET")]
     pub grid_params: Option<String>,
+    /// A sensor with a first-order lag of TAU [s] on NODE: adds node
+    /// `NODE_lag` (1e-4 of NODE's capacity [J/K], linked to NODE
+    /// only, by capacity / TAU [W/K]) to measure with `COL=NODE_lag`;
+    /// `calibrate` fits the lag as `conductance.NODE-NODE_lag`. Repeatable.
+    #[arg(long = "sensor-lag", value_name = "NODE=TAU_S")]
+    pub sensor_lags: Vec<String>,
 }
 
 /// How trace columns feed the model.
@@ -102,9 +108,15 @@ pub struct TraceArgs {
     /// k * period).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub sample_period_s: Option<f64>,
+    /// The trace's time column [s] (default `time_s`), e.g. `--time-column
+    /// time` for a recording's own `time,temperature` header.
+    #[arg(long, value_name = "NAME")]
+    pub time_column: Option<String>,
     /// Current input from a trace column or expression [A]: `COL=INPUT`,
     /// e.g. `i_coil=current` or `hypot(IdFbk,IqFbk)=current` (also `abs(C)`,
-    /// `scale(C,K)`). Default: the source's `column`, else the input's name.
+    /// `scale(C,K)`), or a step profile `T:A,T:A,...` held from each time
+    /// [s] (`0:16.37,40:0=coil`: 16.37 A from 0 s, off from 40 s). Default:
+    /// the source's `column`, else the input's name.
     #[arg(long = "current", value_name = "EXPR=INPUT")]
     pub currents: Vec<String>,
     /// Boundary temperature from a trace column [degC]: `COL=BOUNDARY`.
@@ -112,7 +124,8 @@ pub struct TraceArgs {
     #[arg(long = "boundary", value_name = "EXPR=BOUNDARY")]
     pub boundaries: Vec<String>,
     /// A constant for a column the trace lacks (in the column's unit), e.g.
-    /// `speed=1500` [rpm] for a speed-dependent source.
+    /// `speed=1500` [rpm] for a speed-dependent source, or a step profile
+    /// `T:V,T:V,...` (each value from its time [s] on).
     #[arg(long = "const", value_name = "COL=VALUE")]
     pub constants: Vec<String>,
     /// Multiplies every current input by K (dimensionless, >= 0): the same
@@ -236,7 +249,8 @@ pub struct ReplayArgs {
     trace: PathBuf,
     #[command(flatten)]
     trace_args: TraceArgs,
-    /// A fused sensor: `COL=NODE` [degC]; repeatable (at most 4 without
+    /// A fused sensor: `COL=NODE` [degC], or a comma list of them; an
+    /// empty or `NaN` cell is a missing reading. Repeatable (at most 4 without
     /// `--disturbance`). The library's `NetworkObserver` ticks every
     /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
     /// (steady-state gain for the trace's row spacing); with
@@ -279,13 +293,13 @@ pub struct ReplayArgs {
     #[arg(long = "disturbance", value_name = "NODE[,NODE...]")]
     disturbance: Vec<String>,
     /// Filter: stationary standard deviation of each disturbance [W].
-    #[arg(
-        long,
-        value_name = "W",
-        default_value_t = 50.0,
-        allow_negative_numbers = true
-    )]
-    disturbance_std_w: f64,
+    /// Default: 10 % of the trace's peak heating power (sum of I^2 R at the
+    /// first row's boundary temperature over the rows), at least 0.01 W.
+    /// Guidance: the heat the model may be missing, e.g. 5 to 20 % of the
+    /// drive's power; larger lets the sensors pull the estimate harder
+    /// (faster, noisier), smaller trusts the model.
+    #[arg(long, value_name = "W", allow_negative_numbers = true)]
+    disturbance_std_w: Option<f64>,
     /// Filter: correlation time of each disturbance [s] (first-order
     /// Gauss-Markov).
     #[arg(
@@ -299,11 +313,14 @@ pub struct ReplayArgs {
     /// rejected (default: 0.1 % false alarms).
     #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]
     gate: f64,
-    /// A held-out sensor, only scored: `COL=NODE` [degC].
+    /// A held-out sensor, only scored: `COL=NODE` [degC], or a comma list;
+    /// rows with an empty or `NaN` cell are not scored. A column also
+    /// fused by --measure is refused (its score would not be held out).
     #[arg(long = "truth", value_name = "COL=NODE")]
     truth: Vec<String>,
     /// A column that only sets a node's initial temperature (with
-    /// `[initial] policy = "measured"`): `COL=NODE` [degC].
+    /// `[initial] policy = "measured"`): `COL=NODE` [degC], or a comma
+    /// list (the first reading of each).
     #[arg(long = "init", value_name = "COL=NODE")]
     init: Vec<String>,
     /// Alarm: derating factors, each in (0, 1] (dimensionless): alarm limit
@@ -340,10 +357,22 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     hysteresis_k: f64,
-    /// Alarm: trace rows of evidence (net, up/down counter) to raise or clear
-    /// an alarm; 1 raises on the first row beyond the level.
-    #[arg(long, value_name = "ROWS", default_value_t = 3)]
-    debounce_rows: u16,
+    /// Alarm: evidence (net, up/down counter) to raise or clear an alarm,
+    /// in seconds of trace [s]: the rows it spans at the trace's median row
+    /// spacing, at least 1 (a sparse trace alarms on its first row beyond
+    /// the level).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 3.0,
+        allow_negative_numbers = true,
+        conflicts_with = "debounce_rows"
+    )]
+    debounce_s: f64,
+    /// Alarm: the debounce in trace rows instead of --debounce-s; 1 raises
+    /// on the first row beyond the level.
+    #[arg(long, value_name = "ROWS")]
+    debounce_rows: Option<u16>,
     /// Alarm: the predictive alarm rises when a watched node's predicted
     /// time to its alarm limit, with the row's currents and boundaries held,
     /// falls below this horizon [s] (and clears 10 s above it).
@@ -358,9 +387,14 @@ pub struct ReplayArgs {
     /// derating rule. Default: the boundary named `ambient`, else the first.
     #[arg(long, value_name = "BOUNDARY")]
     ambient_boundary: Option<String>,
-    /// Output CSV: `time_s` [s] then the estimate of every node [degC].
+    /// Fuse the --measure sensors up to this time [s] only, then predict
+    /// open loop (the score of --truth after it is the prediction's).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    measure_until_s: Option<f64>,
+    /// Output CSV: `time_s` [s] then the estimate of every node [degC]
+    /// (optional: without it only the summary is printed).
     #[arg(long, value_name = "OUT.csv")]
-    out: PathBuf,
+    out: Option<PathBuf>,
     /// Also plot estimated vs measured (`.png` or `.svg`).
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
@@ -469,9 +503,21 @@ pub struct CalibrateArgs {
     traces: Vec<PathBuf>,
     #[command(flatten)]
     trace_args: TraceArgs,
-    /// A measured column the fit matches: `COL=NODE` [degC]; repeatable.
+    /// A measured column the fit matches: `COL=NODE` [degC], or a comma
+    /// list of them; repeatable.
     #[arg(long = "measure", value_name = "COL=NODE", required = true)]
     measure: Vec<String>,
+    /// A constant or step profile for one trace only: `K:COL=VALUE`, K the
+    /// trace's 1-based position counting every --trace, then every
+    /// --validate (e.g. `2:ambient=23.4` [degC], `1:current=0:16.37,40:0`
+    /// [A]); it wins over --const for that trace. Repeatable.
+    #[arg(long = "trace-const", value_name = "K:COL=VALUE")]
+    trace_const: Vec<String>,
+    /// A held-out trace (CSV), not fitted: the fitted model is run over it
+    /// open loop and scored on the --measure columns (RMSE [K]); repeat for
+    /// several.
+    #[arg(long = "validate", value_name = "IN.csv")]
+    validate: Vec<PathBuf>,
     /// Parameters to fit, comma separated, each `NAME` or `NAME=LO:HI`:
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`
@@ -491,6 +537,15 @@ pub struct CalibrateArgs {
     /// Iteration limit of Levenberg-Marquardt.
     #[arg(long, value_name = "N", default_value_t = 100)]
     max_iterations: usize,
+    /// Multi-start: fit from N starting points (the model's values, then
+    /// N-1 seeded points log-uniform within each parameter's bounds, the
+    /// bounds fixed for all) and keep the lowest cost. Starts that reach
+    /// the best cost with different parameters are reported as a trade-off.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    starts: usize,
+    /// Seed of the --starts points.
+    #[arg(long, value_name = "SEED", default_value_t = 1)]
+    starts_seed: u64,
     /// Fit every STRIDE-th row only (faster on long traces).
     #[arg(long, value_name = "STRIDE", default_value_t = 1)]
     stride: usize,
@@ -541,6 +596,9 @@ pub struct PlotArgs {
     /// Sample period [s] of a trace without `time_s`.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     sample_period_s: Option<f64>,
+    /// The trace's time column [s] (default `time_s`).
+    #[arg(long, value_name = "NAME")]
+    time_column: Option<String>,
     /// A measured column drawn against a node: `COL=NODE` [degC].
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
@@ -576,8 +634,28 @@ pub struct PlotArgs {
     json: bool,
 }
 
+/// Exits quietly (status 0) when stdout is a closed pipe, as in
+/// `coil-thermal calibrate ... | head -1`: the reader wanted no more.
+/// Every other panic keeps the default report.
+fn exit_quietly_on_broken_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let msg = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if msg.contains("failed printing to stdout") && msg.contains("Broken pipe") {
+            std::process::exit(0);
+        }
+        default(info);
+    }));
+}
+
 /// Runs the tool with the process arguments; the exit code to return.
 pub fn main_entry() -> ExitCode {
+    exit_quietly_on_broken_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),

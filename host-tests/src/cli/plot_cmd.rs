@@ -6,7 +6,7 @@ use serde_json::json;
 use super::common;
 use super::PlotArgs;
 use crate::plot::{render, PlotData, Series};
-use crate::trace::{ColumnExpr, Trace, TIME_COLUMN};
+use crate::trace::{ColumnExpr, TimeSource, Trace, TIME_COLUMN};
 
 /// Runs `plot`.
 pub fn run(a: PlotArgs) -> Result<()> {
@@ -42,7 +42,13 @@ pub fn run(a: PlotArgs) -> Result<()> {
         });
     }
     if let Some(path) = &a.trace {
-        let trace = Trace::read(path, a.sample_period_s)?;
+        let trace = Trace::read_with(
+            path,
+            &TimeSource {
+                column: a.time_column.clone(),
+                sample_period_s: a.sample_period_s,
+            },
+        )?;
         for m in &a.measure {
             let (col, node) = common::split_mapping(m, "--measure", "COL=NODE")?;
             let color = columns.iter().position(|c| c == node).with_context(|| {
@@ -53,10 +59,17 @@ pub fn run(a: PlotArgs) -> Result<()> {
                 )
             })?;
             let expr = ColumnExpr::parse(col)?;
+            // Missing readings (empty or NaN cells) are left out.
+            let (time_s, values) = trace
+                .time_s()
+                .iter()
+                .zip(trace.eval_with(&expr, true)?)
+                .filter(|(_, v)| !v.is_nan())
+                .unzip();
             data.measured.push(Series {
                 label: format!("{col} (measured)"),
-                time_s: trace.time_s().to_vec(),
-                values: trace.eval(&expr)?,
+                time_s,
+                values,
                 color,
             });
         }
@@ -88,6 +101,7 @@ pub fn run(a: PlotArgs) -> Result<()> {
         data.alarms.push((*t, "alarm".into()));
     }
     let data = data.windowed(a.from_s, a.to_s)?;
+    common::check_plot_values(&data)?;
     render(&data, &a.out, a.width, a.height)?;
     if a.json {
         common::print_json(&json!({
@@ -243,11 +257,23 @@ pub struct ReplayFigure<'a> {
 /// and shutdown events, the residual of every truth column and the
 /// currents.
 pub fn replay_figure(f: &ReplayFigure) -> PlotData {
-    let series = |label: String, values: &Vec<f64>, color: usize| Series {
-        label,
-        time_s: f.drive.time_s.clone(),
-        values: values.clone(),
-        color,
+    // Missing readings (NaN cells) are left out of a line, not drawn as
+    // spikes to the axis.
+    let series = |label: String, values: &Vec<f64>, color: usize| {
+        let (time_s, values) = f
+            .drive
+            .time_s
+            .iter()
+            .zip(values)
+            .filter(|(_, v)| !v.is_nan())
+            .map(|(t, v)| (*t, *v))
+            .unzip();
+        Series {
+            label,
+            time_s,
+            values,
+            color,
+        }
     };
     let mut nodes = common::plotted(f.estimate);
     for s in f.truth.iter().chain(f.fused) {

@@ -39,9 +39,6 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
             bail!("{flag} must be finite and > 0 s, got {v}")
         }
     };
-    if a.debounce_rows == 0 {
-        bail!("--debounce-rows must be at least 1");
-    }
     if let Some(c) = a.critical_c.filter(|c| !c.is_finite()) {
         bail!("--critical-c must be finite, got {c}");
     }
@@ -80,11 +77,67 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
         },
         warning_margin_k: non_negative(a.warning_margin_k, "--warning-margin-k")?,
         hysteresis_k: non_negative(a.hysteresis_k, "--hysteresis-k")?,
-        debounce_rows: a.debounce_rows,
+        debounce_rows: debounce_rows(a, &drive.time_s)?,
         horizon_s: positive(a.horizon_s, "--horizon-s")?,
         ambient_boundary,
         nominal_ambient_c,
     })
+}
+
+/// The alarm's debounce in rows: `--debounce-rows`, or `--debounce-s`
+/// over the trace's median row spacing (at least 1 row).
+fn debounce_rows(a: &ReplayArgs, time_s: &[f64]) -> Result<u16> {
+    if let Some(rows) = a.debounce_rows {
+        if rows == 0 {
+            bail!("--debounce-rows must be at least 1");
+        }
+        return Ok(rows);
+    }
+    let s = a.debounce_s;
+    if !(s.is_finite() && s >= 0.0) {
+        bail!("--debounce-s must be finite and >= 0 s, got {s}");
+    }
+    let row_s = median_row_s(time_s);
+    let rows = if row_s > 0.0 {
+        (s / row_s).round()
+    } else {
+        1.0
+    };
+    Ok(rows.clamp(1.0, f64::from(u16::MAX)) as u16)
+}
+
+/// The most library ticks one replay runs (about 14 h of trace at 1 ms).
+const MAX_TICKS: f64 = 5e7;
+
+/// The trace's peak heating power \[W\]: the largest over its rows of the
+/// sources' `R I^2` at the first row's boundary temperature (20 degC
+/// without a boundary) plus the fixed powers.
+fn peak_heating_w(model: &Model, drive: &Drive) -> f64 {
+    let net = &model.network;
+    let t_c = drive
+        .boundaries
+        .first()
+        .and_then(|b| b.first().copied())
+        .unwrap_or(20.0);
+    let fixed_w: f64 = net.fixed_powers_w().iter().sum();
+    let (mut c, mut b, mut s) = (Vec::new(), Vec::new(), Vec::new());
+    let mut effective = Vec::new();
+    let mut peak = 0.0f64;
+    for k in 0..drive.len() {
+        drive.row(k, &mut c, &mut b, &mut s);
+        model.effective_currents(&c, &s, &mut effective);
+        let joule: f64 = net
+            .sources()
+            .iter()
+            .zip(&effective)
+            .map(|(src, i)| {
+                let r = src.resistance.r_at_0c_ohm + src.resistance.slope_ohm_per_k * t_c;
+                r.max(0.0) * i * i
+            })
+            .sum();
+        peak = peak.max(joule + fixed_w);
+    }
+    peak
 }
 
 /// Prints the event counts per level and kind, the first predictive
@@ -146,12 +199,48 @@ fn median_row_s(time_s: &[f64]) -> f64 {
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model = Model::build(&common::model_file(&a.model)?)?;
     let info = crate::sim::plant_info(&model);
-    let trace = common::read_trace(&a.trace, a.trace_args.sample_period_s)?;
+    let trace = common::read_trace(&a.trace, &a.trace_args)?;
     let bind = common::bindings(&a.trace_args)?;
     let drive = Drive::from_trace(&info, &trace, &bind)?;
-    let measured = common::sensors(&a.measure, "--measure", &info, &trace)?;
-    let truth = common::sensors(&a.truth, "--truth", &info, &trace)?;
-    let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
+    let mut measured = common::sensors_with(&a.measure, "--measure", &info, &trace, true)?;
+    let truth = common::sensors_with(&a.truth, "--truth", &info, &trace, true)?;
+    let init_only = common::sensors_with(&a.init, "--init", &info, &trace, true)?;
+    if let Some(t) = truth
+        .iter()
+        .find(|t| measured.iter().any(|m| m.column == t.column))
+    {
+        bail!(
+            "--truth `{}` is also fused by --measure: its score would not be held out. \
+             Score a sensor that is not fused, or fuse it only up to a time with --measure-until-s and read the prediction after it",
+            t.column
+        );
+    }
+    if let Some(until) = a.measure_until_s {
+        if !until.is_finite() {
+            bail!("--measure-until-s must be finite, got {until}");
+        }
+        if measured.is_empty() {
+            bail!("--measure-until-s needs a --measure sensor");
+        }
+        for m in &mut measured {
+            for (v, t) in m.values_c.iter_mut().zip(&drive.time_s) {
+                if *t > until {
+                    *v = f64::NAN;
+                }
+            }
+        }
+    }
+    if a.disturbance.is_empty() {
+        let span_s = drive.time_s[drive.len() - 1] - drive.time_s[0];
+        let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
+        if ticks > MAX_TICKS {
+            bail!(
+                "replay: the trace spans {span_s:.3e} s, {ticks:.3e} library ticks of {} us; at most {MAX_TICKS:.0e}: \
+                 raise --tick-us, or run the row-rate Kalman filter with --disturbance",
+                a.tick_us
+            );
+        }
+    }
     let settings = alarm_settings(&a, &info, &drive)?;
     let rule_product = settings.rule.product();
     let predictor = TimeToLimit::new(&model)?;
@@ -165,6 +254,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // time-varying Kalman filter at the trace's rows instead.
     let mut observer = None;
     let mut kalman = None;
+    let mut disturbance_std = None;
     let estimator: &mut dyn Estimator = if a.disturbance.is_empty() {
         let fusion = (!measured.is_empty()).then(|| Fusion {
             sensor_nodes: measured.iter().map(|m| m.node).collect(),
@@ -199,12 +289,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     .collect::<Result<Vec<_>>>()
             })
             .collect::<Result<Vec<_>>>()?;
+        let disturbance_std_w = match a.disturbance_std_w {
+            Some(w) => w,
+            None => (0.1 * peak_heating_w(&model, &drive)).max(0.01),
+        };
+        disturbance_std = Some(disturbance_std_w);
         let opts = KalmanOptions {
             process_noise_k2_per_s: a.process_noise_k2_per_s,
             measurement_noise_k: a.measurement_noise_k,
             initial_std_k: a.initial_std_k,
             disturbances,
-            disturbance_std_w: a.disturbance_std_w,
+            disturbance_std_w,
             disturbance_tau_s: a.disturbance_tau_s,
             gate: a.gate,
         };
@@ -216,6 +311,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut init_sensors = truth.clone();
     init_sensors.extend(init_only);
     let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
+    crate::sim::check_temperatures(&info, &drive.time_s, &result.estimate, "replay")?;
     result.scores.truncate(truth.len());
     let kind = estimator.kind();
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
@@ -240,7 +336,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "final_disturbances_w": k.disturbances_w(),
         })
     });
-    write_csv(&a.out, &info.nodes, &drive.time_s, &result.estimate)?;
+    if let Some(out) = &a.out {
+        write_csv(out, &info.nodes, &drive.time_s, &result.estimate)?;
+    }
     if let Some(path) = &a.plot {
         let data = super::plot_cmd::replay_figure(&super::plot_cmd::ReplayFigure {
             info: &info,
@@ -273,19 +371,23 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         },
         "alarms": result.alarms,
         "step_time": result.times,
-        "out": a.out.display().to_string(),
+        "disturbance_std_w": disturbance_std,
+        "out": a.out.as_ref().map(|p| p.display().to_string()),
+        "schema_version": 2,
     });
     if a.json {
         common::print_json(&summary);
         return Ok(());
     }
     println!(
-        "replayed `{}` ({}) over {} rows of {} -> {}",
+        "replayed `{}` ({}) over {} rows of {}{}",
         info.name,
         kind,
         drive.len(),
         a.trace.display(),
-        a.out.display()
+        a.out
+            .as_ref()
+            .map_or(String::new(), |p| format!(" -> {}", p.display()))
     );
     println!(
         "hot spot: {} at {:.3} degC (t = {:.1} s)",
@@ -316,6 +418,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             println!(
                 "fused {} -> {}: {} readings fused, {} rejected by the gate",
                 m.column, info.nodes[s.node], s.fused, s.rejected
+            );
+        }
+        if a.disturbance_std_w.is_none() {
+            println!(
+                "disturbance std {:.3} W: 10 % of the trace's peak heating power (--disturbance-std-w W to choose)",
+                disturbance_std.unwrap_or(0.0)
             );
         }
         if k.recoveries() > 0 {

@@ -9,7 +9,9 @@ use super::common::{self, ModelSpec};
 use super::SimulateArgs;
 use crate::devices;
 use crate::plot::{render, PlotData, Series};
-use crate::sim::{by_node, initial_temps, simulate, Drive};
+use crate::sim::{
+    by_node, check_temperatures, check_work, initial_temps, simulate, Drive, MAX_CELLS, MAX_ROWS,
+};
 use crate::synth::Rng;
 use crate::trace::write_csv;
 
@@ -37,7 +39,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         if a.ambient_c.is_some() {
             bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
         }
-        let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
+        let trace = common::read_trace(path, &a.trace_args)?;
         let drive = Drive::from_trace(&info, &trace, &bind)?;
         match a.resample_s {
             Some(s) => resample(&drive, s)?,
@@ -101,7 +103,9 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         Some(t) => t,
         None => initial_temps(&info, &drive, &[])?,
     };
+    check_work(plant.as_ref(), &drive.time_s, "simulate")?;
     let states = by_node(&simulate(plant.as_mut(), &drive, &init));
+    check_temperatures(&info, &drive.time_s, &states, "simulate")?;
     let mut names = info.nodes.clone();
     let mut written = states.clone();
     if let Some(sigma) = a.noise_k.filter(|k| *k > 0.0) {
@@ -274,7 +278,18 @@ fn resample(drive: &Drive, period_s: f64) -> Result<Drive> {
         bail!("--resample-s must be finite and > 0 s, got {period_s}");
     }
     let (t0, t1) = (drive.time_s[0], drive.time_s[drive.len() - 1]);
-    let steps = ((t1 - t0) / period_s).floor() as usize;
+    let steps_f = ((t1 - t0) / period_s).floor();
+    let channels = drive.currents.len() + drive.boundaries.len() + drive.signals.len() + 1;
+    if steps_f + 1.0 > MAX_ROWS as f64 || (steps_f + 1.0) * channels as f64 > MAX_CELLS as f64 {
+        bail!(
+            "--resample-s {} s over the trace's {:.3} s is {:.3e} rows; at most {MAX_ROWS} rows \
+             and {MAX_CELLS:.0e} values are written: raise --resample-s",
+            crate::trace::num(period_s),
+            t1 - t0,
+            steps_f + 1.0
+        );
+    }
+    let steps = steps_f as usize;
     let mut time_s: Vec<f64> = (0..=steps).map(|k| t0 + k as f64 * period_s).collect();
     if t1 - time_s[steps] > 1e-9 * period_s.max(1.0) {
         time_s.push(t1);

@@ -1,0 +1,436 @@
+//! Issue 19's workflow on someone else's recordings, command by command:
+//! a `time,temperature` recording with its currents as a step profile
+//! documented beside it, imported without a converter, calibrated on two
+//! recordings with their own ambients and validated on a third, replayed
+//! with missing readings, fused up to a time and then predicted, and
+//! plotted.
+//!
+//! The recordings are the two-node coil's own simulation (so the fit has a
+//! known answer: the coil's 200 J/K), with the time column renamed and
+//! readings left out.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use predicates::str::contains;
+use serde_json::Value;
+use tempfile::TempDir;
+
+fn ct() -> assert_cmd::Command {
+    cargo_bin_cmd!("coil-thermal")
+}
+
+fn model() -> String {
+    format!("{}/models/two-node-coil.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn json(out: &assert_cmd::assert::Assert) -> Value {
+    serde_json::from_slice(&out.get_output().stdout).unwrap()
+}
+
+/// The coil's simulated temperature every second for 1000 s, `current_a`
+/// until `off_s`, at `ambient_c`, as a recording `time,temperature` (and a
+/// copy `housing_t` of the housing); every 97th row (from row 5) has an
+/// empty temperature cell when `holes`.
+fn recording(
+    dir: &TempDir,
+    name: &str,
+    current_a: f64,
+    off_s: u32,
+    ambient_c: f64,
+    holes: bool,
+) -> PathBuf {
+    let input = dir.path().join(format!("{name}_in.csv"));
+    fs::write(
+        &input,
+        format!("time_s,current\n0,{current_a}\n{off_s},0\n1000,0\n"),
+    )
+    .unwrap();
+    let sim = dir.path().join(format!("{name}_sim.csv"));
+    ct().args(["simulate", "--model", &model(), "--trace", s(&input)])
+        .args([
+            "--resample-s",
+            "1",
+            "--const",
+            &format!("ambient={ambient_c}"),
+        ])
+        .args(["--out", s(&sim)])
+        .assert()
+        .success();
+    let text = fs::read_to_string(&sim).unwrap();
+    let mut out = String::from("time,temperature,housing_t\n");
+    for (k, line) in text.lines().skip(1).enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let temp = if holes && k % 97 == 5 { "" } else { f[1] };
+        out.push_str(&format!("{},{temp},{}\n", f[0], f[2]));
+    }
+    let path = dir.path().join(format!("{name}.csv"));
+    fs::write(&path, out).unwrap();
+    path
+}
+
+/// Rows of a recording made by [`recording`], and its empty cells.
+const ROWS: usize = 1001;
+const HOLES: usize = 11; // rows 5, 102, ..., 975
+
+fn truth_rmse(j: &Value, column: &str) -> f64 {
+    j["truth"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["column"] == column)
+        .unwrap_or_else(|| panic!("no score of {column}: {j}"))["rmse_k"]
+        .as_f64()
+        .unwrap()
+}
+
+#[test]
+fn a_time_temperature_recording_with_a_step_profile_imports_without_a_converter() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, true);
+    let replay = |profile: &str| {
+        json(
+            &ct()
+                .args(["replay", "--model", &model(), "--trace", s(&rec)])
+                .args(["--time-column", "time"])
+                .args(["--current", &format!("{profile}=current")])
+                .args(["--truth", "temperature=coil,housing_t=housing", "--json"])
+                .assert()
+                .success(),
+        )
+    };
+    let right = replay("0:3,400:0");
+    let wrong = replay("0:3,300:0");
+    // The library observer at 1 ms ticks against the 1 s simulation.
+    assert!(truth_rmse(&right, "temperature") < 0.05, "{right}");
+    assert!(truth_rmse(&right, "housing_t") < 0.05, "{right}");
+    assert!(truth_rmse(&wrong, "temperature") > 1.0, "{wrong}");
+    assert_eq!(right["schema_version"], 2);
+    // The same profile as a --const of the input's column.
+    let j = json(
+        &ct()
+            .args(["replay", "--model", &model(), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+            .args(["--truth", "temperature=coil", "--json"])
+            .assert()
+            .success(),
+    );
+    assert_eq!(
+        truth_rmse(&j, "temperature"),
+        truth_rmse(&right, "temperature")
+    );
+    // And plotted against the recording's own time column.
+    let png = dir.path().join("rec.png");
+    ct().args(["plot", "--estimate", s(&dir.path().join("rec_sim.csv"))])
+        .args(["--trace", s(&rec), "--time-column", "time"])
+        .args(["--measure", "temperature=coil", "--out", s(&png)])
+        .assert()
+        .success();
+    assert!(fs::metadata(&png).unwrap().len() > 10_000);
+}
+
+/// Calibrates the capacity of the coil, started at 300 J/K, on two
+/// recordings at their own currents and ambients, validated on a third.
+fn calibrate(dir: &TempDir, validation_ambient: bool) -> Value {
+    let r1 = recording(dir, "r1", 3.0, 400, 20.0, false);
+    let r2 = recording(dir, "r2", 2.5, 600, 25.0, false);
+    let r3 = recording(dir, "r3", 3.2, 300, 22.0, false);
+    let start = dir.path().join("start.toml");
+    let text = fs::read_to_string(model()).unwrap();
+    fs::write(
+        &start,
+        text.replace("capacity_j_per_k = 200.0", "capacity_j_per_k = 300.0"),
+    )
+    .unwrap();
+    let mut cmd = ct();
+    cmd.args(["calibrate", "--model", s(&start), "--time-column", "time"])
+        .args(["--trace", s(&r1), "--trace", s(&r2), "--validate", s(&r3)])
+        .args(["--trace-const", "1:current=0:3,400:0"])
+        .args([
+            "--trace-const",
+            "2:current=0:2.5,600:0",
+            "--trace-const",
+            "2:ambient=25",
+        ])
+        .args(["--trace-const", "3:current=0:3.2,300:0"])
+        .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+        .args(["--out", s(&dir.path().join("fitted.toml")), "--json"]);
+    if validation_ambient {
+        cmd.args(["--trace-const", "3:ambient=22"]);
+    }
+    json(&cmd.assert().success())
+}
+
+#[test]
+fn calibrate_takes_per_trace_constants_and_scores_a_held_out_trace() {
+    let dir = TempDir::new().unwrap();
+    let j = calibrate(&dir, true);
+    assert_eq!(j["schema_version"], 2);
+    let fitted = j["fit"]["params"][0]["fitted"].as_f64().unwrap();
+    assert!((fitted - 200.0).abs() < 0.5, "{j}");
+    for t in j["fit"]["traces"].as_array().unwrap() {
+        assert!(t["rmse_after_k"].as_f64().unwrap() < 0.01, "{j}");
+    }
+    let v = &j["validation"][0];
+    assert!(v["trace"].as_str().unwrap().ends_with("r3.csv"), "{j}");
+    assert!(v["rmse_k"].as_f64().unwrap() < 0.01, "{j}");
+    // The held-out score sees what the fit did not: the third recording
+    // replayed at the model's 20 degC instead of its own 22 degC.
+    let dir = TempDir::new().unwrap();
+    let wrong = calibrate(&dir, false);
+    let rmse = wrong["validation"][0]["rmse_k"].as_f64().unwrap();
+    assert!(rmse > 1.0, "{wrong}");
+}
+
+#[test]
+fn replay_skips_missing_readings_and_fuses_until_a_time() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, true);
+    let base = |extra: &[&str]| {
+        let mut c = ct();
+        c.args(["replay", "--model", &model(), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--current", "0:3,400:0=current"])
+            .args(extra)
+            .arg("--json");
+        c
+    };
+    let readings = |j: &Value| {
+        let f = &j["fusion"]["sensors"][0];
+        f["fused"].as_u64().unwrap() + f["rejected"].as_u64().unwrap()
+    };
+    let j = json(&base(&["--measure", "temperature=coil"]).assert().success());
+    // Every reading but the last row's (fused by the tick after it, and
+    // the trace ends there).
+    assert_eq!(readings(&j), (ROWS - HOLES - 1) as u64, "{j}");
+    // Fused to 100 s (rows 0..=100, one of them empty), then predicted: the
+    // housing's held-out score is the prediction's.
+    let j = json(
+        &base(&["--measure", "temperature=coil", "--measure-until-s", "100"])
+            .args(["--truth", "housing_t=housing"])
+            .assert()
+            .success(),
+    );
+    assert_eq!(readings(&j), 100, "{j}");
+    assert!(truth_rmse(&j, "housing_t") < 0.05, "{j}");
+    // The same column fused and scored is no held-out score.
+    base(&[
+        "--measure",
+        "temperature=coil",
+        "--truth",
+        "temperature=coil",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("--truth `temperature` is also fused by --measure"))
+    .stderr(contains("--measure-until-s"));
+    // calibrate fits every row: a missing reading is a clear error.
+    ct().args(["calibrate", "--model", &model(), "--trace", s(&rec)])
+        .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+        .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+        .args(["--out", s(&dir.path().join("f.toml"))])
+        .assert()
+        .failure()
+        .stderr(contains("fill or drop the rows without a reading"))
+        .stderr(contains("rec.csv:7:2: column `temperature`: empty cell"));
+}
+
+#[test]
+fn replay_without_out_prints_only_the_summary() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let before = fs::read_dir(dir.path()).unwrap().count();
+    let j = json(
+        &ct()
+            .current_dir(dir.path())
+            .args(["replay", "--model", &model(), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--current", "0:3,400:0=current"])
+            .args(["--truth", "temperature=coil", "--json"])
+            .assert()
+            .success(),
+    );
+    assert_eq!(j["out"], Value::Null);
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), before);
+}
+
+#[test]
+fn the_disturbance_default_scales_with_the_heating_power() {
+    // 3 A in 5.69 ohm (at the 20 degC boundary) is 51.21 W; the default
+    // disturbance is a tenth of it (the old fixed 50 W suited a 10 kW
+    // motor).
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let j = json(
+        &ct()
+            .args(["replay", "--model", &model(), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--current", "0:3,400:0=current"])
+            .args(["--measure", "housing_t=housing", "--disturbance", "coil"])
+            .args(["--truth", "temperature=coil", "--json"])
+            .assert()
+            .success(),
+    );
+    let w = j["disturbance_std_w"].as_f64().unwrap();
+    assert!((w - 5.121).abs() < 1e-9, "{j}");
+    let help = ct().args(["replay", "--help"]).assert().success();
+    let text = String::from_utf8(help.get_output().stdout.clone()).unwrap();
+    let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(
+        text.contains("10 % of the trace's peak heating power"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_closed_pipe_ends_the_tool_quietly() {
+    // `coil-thermal ... | head -1` panicked with exit 101. Here the reader
+    // is gone before the tool prints.
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_coil-thermal"))
+        .args(["calibrate", "--model", &model(), "--trace", s(&rec)])
+        .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+        .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+        .args(["--out", s(&dir.path().join("f.toml"))])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// `(time, column)` of a CSV written by the tool.
+fn columns(path: &Path, name: &str) -> Vec<f64> {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let i = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    lines
+        .map(|l| l.split(',').nth(i).unwrap().parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_sensor_lag_is_a_first_order_lag_the_winding_does_not_feel_and_calibrate_fits_it() {
+    let dir = TempDir::new().unwrap();
+    let run = |lag: Option<&str>, out: &str| {
+        let out = dir.path().join(out);
+        let mut c = ct();
+        c.args(["simulate", "--model", &model(), "--current-a", "3"])
+            .args(["--duration-s", "400", "--dt-s", "0.1", "--out", s(&out)]);
+        if let Some(l) = lag {
+            c.args(["--sensor-lag", l]);
+        }
+        c.assert().success();
+        out
+    };
+    let lagged = run(Some("coil=3"), "lagged.csv");
+    let plain = run(None, "plain.csv");
+    let (coil, sensor) = (columns(&lagged, "coil"), columns(&lagged, "coil_lag"));
+    let worst_feel = coil
+        .iter()
+        .zip(columns(&plain, "coil"))
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst_feel < 0.005,
+        "the winding feels its sensor: {worst_feel} K"
+    );
+    // The reference: y' = (x - y) / tau solved exactly for x linear between
+    // the 0.1 s rows.
+    let (tau, h) = (3.0, 0.1);
+    let decay = f64::exp(-h / tau);
+    let mut y = coil[0];
+    let (mut worst, mut largest_lag) = (0.0f64, 0.0f64);
+    for k in 1..coil.len() {
+        let slope = (coil[k] - coil[k - 1]) / h;
+        y = coil[k] - tau * slope + (y - coil[k - 1] + tau * slope) * decay;
+        worst = worst.max((sensor[k] - y).abs());
+        largest_lag = largest_lag.max(coil[k] - y);
+    }
+    // The lag is ~0.7 K; explicit sub-steps of 0.1 s err by h / (2 tau) of it.
+    assert!(largest_lag > 0.5, "{largest_lag}");
+    assert!(worst < 0.03, "{worst} K from a first-order lag of 3 s");
+    // calibrate fits the lag: from 1 s back to 3 s (capacity 1e-4 of the
+    // coil's 200 J/K, so 0.02 / 3 W/K).
+    let j = json(
+        &ct()
+            .args(["calibrate", "--model", &model(), "--sensor-lag", "coil=1"])
+            .args(["--trace", s(&lagged), "--const", "current=3"])
+            .args(["--measure", "coil_lag=coil_lag"])
+            .args(["--params", "conductance.coil-coil_lag"])
+            .args(["--out", s(&dir.path().join("f.toml")), "--json"])
+            .assert()
+            .success(),
+    );
+    let g = j["fit"]["params"][0]["fitted"].as_f64().unwrap();
+    assert!((g - 0.02 / 3.0).abs() < 1e-5, "{j}");
+}
+
+#[test]
+fn multi_start_keeps_the_best_fit_and_flags_parameters_that_trade_off() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let fit = |params: &str| {
+        json(
+            &ct()
+                .args(["calibrate", "--model", &model(), "--trace", s(&rec)])
+                .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+                .args(["--measure", "temperature=coil", "--params", params])
+                .args([
+                    "--starts",
+                    "4",
+                    "--out",
+                    s(&dir.path().join("f.toml")),
+                    "--json",
+                ])
+                .assert()
+                .success(),
+        )
+    };
+    // Both capacities are pinned by the step response: every start ends at
+    // 200 and 900 J/K, no trade-off.
+    let j = fit("capacity.coil=20:2000,capacity.housing=90:9000");
+    let starts = j["starts"].as_array().unwrap();
+    assert_eq!(starts.len(), 4);
+    assert_eq!(starts.iter().filter(|r| r["best"] == true).count(), 1);
+    for r in starts {
+        assert!(
+            (r["fitted"][0].as_f64().unwrap() - 200.0).abs() < 0.5,
+            "{j}"
+        );
+        assert!(
+            (r["fitted"][1].as_f64().unwrap() - 900.0).abs() < 5.0,
+            "{j}"
+        );
+        assert!(r["trade_offs"].as_array().unwrap().is_empty(), "{j}");
+    }
+    // Resistance and its scale only act as their product: the starts agree
+    // on the cost and on r0 * scale = 5.69 ohm, not on either.
+    let j = fit("source.coil.r0_ohm,source.coil.scale");
+    let starts = j["starts"].as_array().unwrap();
+    let traded = starts
+        .iter()
+        .filter(|r| !r["trade_offs"].as_array().unwrap().is_empty())
+        .count();
+    assert!(traded >= 1, "{j}");
+    for r in starts {
+        let product = r["fitted"][0].as_f64().unwrap() * r["fitted"][1].as_f64().unwrap();
+        assert!((product - 5.69).abs() < 0.01, "{j}");
+    }
+}
