@@ -87,7 +87,6 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     if a.json {
         common::print_json(&json!({
             "command": "calibrate",
-            "schema_version": 2,
             "model": info.name,
             "fit": report,
             "validation": validation,

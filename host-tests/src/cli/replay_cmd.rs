@@ -373,7 +373,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "step_time": result.times,
         "disturbance_std_w": disturbance_std,
         "out": a.out.as_ref().map(|p| p.display().to_string()),
-        "schema_version": 2,
     });
     if a.json {
         common::print_json(&summary);
