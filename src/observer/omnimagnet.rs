@@ -183,8 +183,10 @@ use crate::sensors::{SensorFault, SensorResult};
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
 /// Horizons of the time-to-limit predictor.
 pub const PREDICTOR_POINTS: usize = 32;
-/// A limit no Omnimagnet node without a critical temperature reaches
-/// \[degC\], for the predictor (which needs a finite limit for every node).
+/// A limit no Omnimagnet winding reaches \[degC\], for the predictor,
+/// which takes each winding's power at its node's limit (so it must be
+/// finite there; the other nodes without an alarm get `+inf` and cost no
+/// predictor work).
 const NO_LIMIT_C: f32 = 1000.0;
 
 /// Build settings, each with a default.
@@ -856,7 +858,12 @@ impl OmniObserver {
         ambient_c: f32,
     ) -> Operating<f32, NODES, 1, SOLENOIDS> {
         let alarm_limits = self.alarm.alarm_limits_c(ambient_c);
-        let mut limits_c = [NO_LIMIT_C; NODES];
+        let mut limits_c = [f32::INFINITY; NODES];
+        for node in self.filter.solenoid_nodes() {
+            if let Some(slot) = limits_c.get_mut(*node) {
+                *slot = NO_LIMIT_C;
+            }
+        }
         for (node, limit) in ALARM_NODES.iter().zip(alarm_limits) {
             // The predictor follows the mean: it is asked when the mean
             // reaches the temperature at which the upper bound reaches the
@@ -1039,6 +1046,19 @@ impl OmniObserver {
     /// steady-state correction if any is usable; returns whether it ran and
     /// the common-mode flag.
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> (bool, InputFlags) {
+        let fitted = self.filter.settings().sensors;
+        if inputs.readings.iter().all(Option::is_none) {
+            // Most ticks: nothing to sort, screen or fuse; only the silence
+            // watch runs (the same statuses as the full path below).
+            state.outputs.sensors = [SensorStatus::NoReading; THERMOCOUPLES];
+            state.silence.watch(
+                &fitted.map(|f| !f),
+                inputs.now_us,
+                self.silent_after_us,
+                &mut state.outputs.sensors,
+            );
+            return (false, InputFlags::NONE);
+        }
         let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,
@@ -1047,7 +1067,6 @@ impl OmniObserver {
         );
         // Only the fitted thermocouples count (an unfitted one is never
         // heard, so the silence watch hears it always).
-        let fitted = self.filter.settings().sensors;
         state.silence.watch(
             &core::array::from_fn(|j| inputs.readings[j].is_some() || !fitted[j]),
             inputs.now_us,
