@@ -220,6 +220,13 @@ pub struct OmniSettings {
     /// slice and three stages), so it always ends before the next is due
     /// and the predictor's lag stays bounded. Default 16.
     pub protect_period_steps: u32,
+    /// Model steps by which every protection cycle after the first starts
+    /// later than its period's boundary, less than `protect_period_steps`:
+    /// with a period that is a multiple of another observer's update
+    /// period in the same loop, the predictor slice can be put on the
+    /// ticks that observer leaves light (see `examples/observer_m4.rs`).
+    /// The published times to limit are aged by the real lag. Default 0.
+    pub protect_phase_steps: u32,
     /// How many steady-state standard deviations of the filter are added
     /// to every element's estimate in its protective upper bound
     /// (dimensionless, finite, `>= 0`; see [`crate::protect::margin`]).
@@ -275,6 +282,7 @@ impl Default for OmniSettings {
             hardware_limit_a: 8.0,
             taper_k: 10.0,
             protect_period_steps: 16,
+            protect_phase_steps: 0,
             k_sigma: 3.0,
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
             frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
@@ -445,6 +453,8 @@ pub struct OmniObserver {
     step_us: u32,
     /// Length of a protection cycle \[us\]: `protect_period_steps` steps.
     protect_period_us: u32,
+    /// The cycles' phase \[us\]: `protect_phase_steps` steps.
+    protect_phase_us: u32,
     fingerprint: u32,
     /// Fingerprint of the nonlinear model the observer was built from
     /// (see [`OmniObserver::restore_after`]). The model itself is not kept:
@@ -535,6 +545,13 @@ impl OmniObserver {
                 name: "protect_period_steps",
             });
         };
+        if settings.protect_phase_steps >= period {
+            return Err(BuildError::InvalidParameter {
+                name: "protect_phase_steps",
+            });
+        }
+        // Below the period, so no overflow.
+        let protect_phase_us = settings.protect_phase_steps * settings.step_us;
         if settings.filter.mode != GainMode::SteadyState {
             return Err(BuildError::InvalidParameter {
                 name: "filter.mode",
@@ -590,6 +607,7 @@ impl OmniObserver {
             max_reading_age_us: settings.max_reading_age_us,
             step_us: settings.step_us,
             protect_period_us,
+            protect_phase_us,
             fingerprint,
             plant_fingerprint: plant_fingerprint(model),
             shadow,
@@ -763,7 +781,7 @@ impl OmniObserver {
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
-            cycle: ProtectionCycle::new(),
+            cycle: ProtectionCycle::new().with_phase(self.protect_phase_us),
             shadow_x: SVector::from_fn(|i, _| {
                 temps_c
                     .get(i)
