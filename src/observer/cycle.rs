@@ -13,7 +13,9 @@
 //! A tick that already ran a correction or a catch-up of several model
 //! steps puts the predictor slice off to the next tick, once. The limits
 //! therefore lag the model by at most a cycle and three ticks, and the
-//! predictor's answers are aged by the time it lags (`lag_s`).
+//! predictor's answers are aged by the time it lags (`lag_s`). A phase
+//! (`with_phase`) makes every slice after the first due that much after
+//! its period's boundary; the lag stays the real one.
 
 use super::omnimagnet::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;

@@ -73,6 +73,11 @@
 //! expensive stage. The limits lag the model by at most a cycle and three
 //! ticks (20 ms at the defaults, against time constants of seconds), and the
 //! alarm's debounce and event stamps count cycles, not ticks.
+//! [`OmniSettings::protect_phase_steps`] starts every cycle after the first
+//! that many steps after its period's boundary, so that the stages can be
+//! kept off the ticks another observer in the same loop makes heavy
+//! (`examples/observer_m4.rs` puts them between the grid's protection
+//! stages).
 //!
 //! The predictor is built for one slice per cycle (`tick_s` = the cycle)
 //! and is fed the largest current of each solenoid since its last slice, so
