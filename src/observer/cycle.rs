@@ -84,7 +84,10 @@ impl<const M: usize> ProtectionCycle<M> {
     ) {
         if steps > 0 {
             for (peak, i) in self.peak_currents_a.iter_mut().zip(held_currents_a) {
-                *peak = peak.max(i.abs());
+                // As `max` (a NaN current leaves the peak), without its call.
+                if i.abs() > *peak {
+                    *peak = i.abs();
+                }
             }
         }
         self.lag_us = self

@@ -685,7 +685,9 @@ impl<T: RealField + Copy> ObserverConfig<T> {
             // the model (a malformed geometry table) reads as 0 degC.
             let origin = model.origin_c.get(*node).copied().unwrap_or(T::zero());
             let deviation = x.get(*node).copied().unwrap_or(T::zero());
-            let r_ohm = (*r0 + *slope * (origin + deviation)).max(T::zero());
+            // Floored at zero, NaN included (as `max`, without its call).
+            let r_ohm = *r0 + *slope * (origin + deviation);
+            let r_ohm = if r_ohm > T::zero() { r_ohm } else { T::zero() };
             *power = r_ohm * *current * *current;
         }
         u[SOLENOIDS] = ambient_c;
