@@ -11,33 +11,55 @@
 //! through semihosting instead of panicking. The stepped inputs include NaN
 //! and infinities, also hidden behind `black_box`.
 //!
-//! Every per-tick function is called: the network steppers, the grid
-//! observer's tick (the spread grid step, one step or a catch-up of several,
-//! the update, time to limit, the alarm and the limiter in parts, hottest
-//! coil), the Omnimagnet observer's tick (Kalman `predict_mean` and
-//! `update_steady`, predictor slice, alarm, limiter), the generic
-//! `NetworkObserver`'s tick (the carried deviation predict, `R(T)` at the
-//! estimate, the correction, the incidence limiter), the protective upper
-//! bounds and mean limits of `protect::margin` on their own (`f32` and
-//! `Q32`, parts out of range), and the time-varying Kalman `predict` and
-//! `update`.
+//! Every public per-tick function is called (the list `docs/cost.md`
+//! gives as what is proven):
+//!
+//! * the grid: `GridObserver::tick` in `f32` (84 coils) and `Q32` (12
+//!   coils; the spread step, one step or a catch-up, the update, time to
+//!   limit, alarm and limiter in parts, hottest coil) and the bare
+//!   `CoilGrid::tick`, `accumulate` and `update` in `f32` and `Q32`;
+//! * the Omnimagnet: `OmniObserver::tick` and `install_model` (`f32`:
+//!   the carried mean predict, `update_steady`, the shadow and the reading
+//!   screens, predictor slice, alarm, limiter) and the Kalman
+//!   `OmnimagnetObserver::predict`, `correct`, `correct_samples` and
+//!   `correct_winding` in `f32` and `f64`, in both gain modes;
+//! * the generic `NetworkObserver::tick` (`f32`);
+//! * the filters: the time-varying `predict` and `update` (`f32`) and
+//!   `update_virtual` (`f32`, `f64`);
+//! * the network steppers (`f32`, `Q32`), the protective upper bounds and
+//!   mean limits of `protect::margin` (`f32`, `Q32`, parts out of range);
+//! * the sensor decoders `max31855::decode`, `max31856::decode` and the
+//!   plausibility `sensors::check`.
+//!
+//! `.ci/run` links it for the Cortex-M4F and for the Cortex-M0
+//! (`thumbv6m-none-eabi`), where the fixed-point subset is proven: the
+//! `Q32` grid observer and bare grid, the steppers, the bounds and the
+//! sensor decoders (the software-float observers do not fit its flash
+//! together; see `checks`). Checked by inserting a `panic!` in
+//! `OmnimagnetObserver::predict`, `CoilGrid::tick` (both targets),
+//! `filter::update_virtual` and `max31855::decode` (M0): each link fails.
 #![no_std]
 #![no_main]
+// The Cortex-M0 build proves a subset (see `checks`).
+#![cfg_attr(not(target_abi = "eabihf"), allow(dead_code, unused_imports))]
 
-use coil_thermal::filter::{predict, update, KalmanConfig, KalmanState};
+use coil_thermal::filter::{predict, update, update_virtual, KalmanConfig, KalmanState};
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{
     GridInputs, GridObserver, NetworkInputs, NetworkObserver, OmniInputs, OmniObserver,
 };
-use coil_thermal::omnimagnet::observer::MeanModel;
+use coil_thermal::omnimagnet::observer::{MeanModel, OmnimagnetObserver};
 use coil_thermal::omnimagnet::NODES;
 use coil_thermal::protect::alarm::AlarmBuilder;
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
 use coil_thermal::protect::limiter::LimiterConfig;
 use coil_thermal::protect::margin::{UncertaintyMargin, UpperBoundBuilder};
+use coil_thermal::protect::resistance_sensor::MeanTemperatureReading;
+use coil_thermal::sensors::{max31855, max31856, PlausibilityCheck, PlausibilityState};
 use coil_thermal::{
-    ExplicitStepper, InputLimits, Network, NetworkState, Reading, Resistance, SensorFault, Q32,
+    CoilGrid, ExplicitStepper, GridState, InputLimits, Network, NetworkState, Reading, Resistance,
+    Scalar, SensorFault, Q32,
 };
 use core::hint::black_box;
 use cortex_m_rt::entry;
@@ -248,9 +270,39 @@ fn margins() -> bool {
     true
 }
 
+/// Everything, on the Cortex-M4F (`thumbv7em-none-eabihf`).
+#[cfg(target_abi = "eabihf")]
+fn checks() -> bool {
+    observers()
+        && fixed_point_grid_observer()
+        && network_observer()
+        && time_varying_filter()
+        && kalman_observers::<f32>()
+        && kalman_observers::<f64>()
+        && bare_grids::<f32>()
+        && bare_grids::<Q32>()
+        && sensor_decoders()
+        && steppers()
+        && margins()
+}
+
+/// On the Cortex-M0 (`thumbv6m-none-eabi`, no FPU) what a fixed-point
+/// firmware runs: the `Q32` grid observer and bare grid, the steppers,
+/// the bounds, the sensor decoders. The `f32` and `f64` observers in
+/// software floating point do not fit the microbit's 256 KiB of flash
+/// together, and are proven on the M4F build.
+#[cfg(not(target_abi = "eabihf"))]
+fn checks() -> bool {
+    fixed_point_grid_observer()
+        && bare_grids::<Q32>()
+        && sensor_decoders()
+        && steppers()
+        && margins()
+}
+
 #[entry]
 fn main() -> ! {
-    let ok = observers() && network_observer() && time_varying_filter() && steppers() && margins();
+    let ok = checks();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
     } else {
@@ -259,6 +311,156 @@ fn main() -> ! {
     loop {
         cortex_m::asm::wfi();
     }
+}
+
+/// The grid observer in `Q32` (the Cortex-M0's), 12 coils, hostile inputs.
+#[inline(never)]
+fn fixed_point_grid_observer() -> bool {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 12]).build::<Q32>();
+    let limiter = LimiterConfig::<Q32, 12>::new(black_box([6.0; 12]), 10.0, 0.0);
+    let config = GridConfig {
+        ticks_per_update: black_box(10),
+        ..GridConfig::default()
+    };
+    let (Ok(alarm), Ok(limiter)) = (alarm, limiter) else {
+        return false;
+    };
+    let Ok(grid) = GridObserver::<Q32, 3, 4, 12>::new(&config, alarm, limiter, black_box(4)) else {
+        return false;
+    };
+    let mut state = grid.state(20.0);
+    for k in 0..black_box(500u32) {
+        let current = Q32::from_f32(black_box(if k % 7 == 0 { 1e30 } else { 2.0 }));
+        let temp = Q32::from_f32(black_box(if k % 11 == 0 { f32::NAN } else { 20.0 }));
+        let elapsed_us = black_box(if k % 13 == 0 { u32::MAX } else { 1000 });
+        black_box(grid.tick(
+            &mut state,
+            &GridInputs {
+                currents_a: &[[current; 4]; 3],
+                coolant_c: temp,
+                ambient_c: temp,
+                elapsed_us,
+            },
+        ));
+    }
+    true
+}
+
+/// The bare grid's `tick`, `accumulate` and `update` in `S`, hostile
+/// currents and boundaries.
+#[inline(never)]
+fn bare_grids<S: Scalar>() -> bool {
+    let config = GridConfig {
+        ticks_per_update: black_box(10),
+        ..GridConfig::default()
+    };
+    let Ok(grid) = CoilGrid::<S, 7, 12>::new(&config) else {
+        return false;
+    };
+    let mut state = GridState::<S, 7, 12>::uniform(20.0);
+    for k in 0..black_box(100u32) {
+        let current = S::from_f32(black_box(if k % 7 == 0 { f32::NAN } else { 2.0 }));
+        let temp = S::from_f32(black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 }));
+        let currents = [[current; 12]; 7];
+        black_box(grid.tick(&mut state, &currents, temp, temp));
+        black_box(grid.accumulate(&mut state, &currents));
+        if k % 5 == 0 {
+            grid.update(&mut state);
+        }
+    }
+    black_box(&state);
+    true
+}
+
+/// An Omnimagnet Kalman observer the optimiser knows nothing about, for the
+/// same reason as [`omni_config`].
+#[inline(never)]
+fn kalman_observer<T: nalgebra::RealField + Copy>() -> OmnimagnetObserver<T> {
+    // SAFETY: every field (T matrices and arrays, integers, bools, the
+    // settings' `[bool; 6]`, `GainMode` whose first variant is 0, the gate
+    // counters) has all-zero bits as a valid value, for `f32` and `f64`.
+    // Hidden behind `black_box`.
+    black_box(unsafe { core::mem::zeroed() })
+}
+
+/// The Omnimagnet Kalman observer's per-tick calls in `T` (`predict`,
+/// `correct`, `correct_samples`, `correct_winding` in both gain modes) and
+/// `filter::update_virtual`, with NaN, infinities and faults.
+#[inline(never)]
+fn kalman_observers<T: nalgebra::RealField + Copy>() -> bool {
+    let mut obs = kalman_observer::<T>();
+    let cast = |v: f64| -> T { nalgebra::convert(v) };
+    for k in 0..black_box(100u32) {
+        let current = cast(black_box(if k % 7 == 0 { f64::NAN } else { 3.8 }));
+        let ambient = cast(black_box(if k % 11 == 0 { f64::INFINITY } else { 22.0 }));
+        black_box(obs.predict(&[current; 3], ambient));
+        let reading = black_box(if k % 3 == 0 { None } else { Some(current) });
+        black_box(obs.correct(&[reading; 6]));
+        let sample = black_box(if k % 5 == 0 {
+            Some(Err(SensorFault::OpenCircuit))
+        } else {
+            reading.map(Ok)
+        });
+        black_box(obs.correct_samples(&[sample; 6]));
+        let winding = black_box(MeanTemperatureReading {
+            temp_c: if k % 13 == 0 { f32::NAN } else { 60.0 },
+            variance_k2: 0.25,
+            resistance_ohm: 1.0,
+        });
+        black_box(obs.correct_winding(black_box(k as usize % 5), &winding));
+    }
+    black_box(&obs);
+    let cfg = KalmanConfig::<T, 4, 1, 2>::new(
+        black_box(SMatrix::identity() * cast(0.99)),
+        black_box(SMatrix::repeat(cast(0.01))),
+        black_box(SMatrix::identity()),
+        SMatrix::identity() * cast(1e-3),
+        SVector::repeat(cast(0.1)),
+    );
+    let Ok(cfg) = cfg else { return false };
+    let mut state = KalmanState::new(SVector::repeat(cast(20.0)), SMatrix::identity());
+    for k in 0..black_box(100u32) {
+        let h = black_box(SVector::<T, 4>::new(
+            T::one(),
+            T::zero(),
+            T::zero(),
+            T::zero(),
+        ));
+        let z = cast(black_box(if k % 3 == 0 { f64::NAN } else { 20.5 }));
+        black_box(update_virtual(&cfg, &mut state, &h, z, cast(0.01)));
+    }
+    black_box(&state);
+    true
+}
+
+/// The thermocouple decoders and the plausibility check on every frame
+/// pattern the optimiser cannot see.
+#[inline(never)]
+fn sensor_decoders() -> bool {
+    let Ok(limits) = PlausibilityCheck::new(black_box(-50.0), black_box(400.0)) else {
+        return false;
+    };
+    let mut plausibility = PlausibilityState::new();
+    for k in 0..black_box(256u32) {
+        let frame = black_box(k.wrapping_mul(0x9E37_79B9));
+        let a = max31855::decode(frame);
+        let block = black_box(frame.to_le_bytes());
+        let b = max31856::decode(&[block[0], block[1], block[2], block[3], block[0], block[1]]);
+        for reading in [a, b] {
+            let temp_c = reading.map_or(f32::NAN, |r| r.temp_c);
+            black_box(
+                coil_thermal::sensors::check(
+                    &limits,
+                    &mut plausibility,
+                    temp_c,
+                    black_box(0.5),
+                    black_box(if k % 9 == 0 { f32::INFINITY } else { 0.1 }),
+                )
+                .is_ok(),
+            );
+        }
+    }
+    true
 }
 
 #[inline(never)]

@@ -18,6 +18,14 @@
 //!   `omnimagnet_correct_tv_f32_ns`: the time-varying correction (gate,
 //!   sequential Joseph updates) with the same model, from the same prior
 //!   covariance each time (its copy included);
+//! * the Omnimagnet's 19-state observer (`OmnimagnetObserver`, 1 ms,
+//!   linearised and started at a warm state, the fixture of the criterion
+//!   bench `omnimagnet_filter`): `omnimagnet_predict_steady_{f32,f64}_ns`
+//!   (the carried mean predict of the steady-state gain),
+//!   `omnimagnet_predict_tv_{f32,f64}_ns` (the time-varying covariance
+//!   predict), `omnimagnet_correct6_{steady,tv}_{f32,f64}_ns` (a correction
+//!   with all six thermocouples fused) and `omnimagnet_solve_gain_f64_ns`
+//!   (the background gain solve);
 //! * `protect_tick_16_f32_ns`: a protection tick on the Omnimagnet network
 //!   (16 elements): predictor slice, alarm tick and current limiter
 //!   ([`ProtectTick`]);
@@ -274,6 +282,69 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
             black_box(update(&cfg, black_box(&mut state), black_box(&z)));
         },
     ));
+}
+
+/// The 19-state Omnimagnet observer at 1 ms in `mode`, linearised and
+/// started where the paper's three-solenoid run reaches 50 degC.
+fn kalman_observer<T: nalgebra::RealField + Copy>(
+    mode: coil_thermal::omnimagnet::observer::GainMode,
+) -> coil_thermal::omnimagnet::observer::OmnimagnetObserver<T> {
+    use coil_thermal::omnimagnet::observer::{ObserverSettings, OmnimagnetObserver};
+    use coil_thermal::omnimagnet::{Omnimagnet, Preset, NODES};
+    let model = Omnimagnet::PAPER;
+    let mut warm = [22.0; NODES];
+    Preset::ALL_THREE.run(&model, &mut warm, 22.0, |t| t[0] >= 50.0);
+    let lin = model
+        .linearize(&warm, 22.0, 1e-3)
+        .expect("the paper's model linearises");
+    let settings = ObserverSettings {
+        warmup_corrections: 0,
+        mode,
+        ..ObserverSettings::DEFAULT
+    };
+    let mut obs =
+        OmnimagnetObserver::new(&model, &lin, &settings, &warm, 22.0).expect("the observer builds");
+    obs.set_mode(mode);
+    obs
+}
+
+/// The 19-state observer's predict and six-sensor correction in both gain
+/// modes, in `T` (`name` its suffix).
+fn kalman_observer_calls<T: nalgebra::RealField + Copy>(
+    name: &str,
+    min_time: Duration,
+    repeats: usize,
+    out: &mut Vec<Timing>,
+) {
+    use coil_thermal::omnimagnet::observer::GainMode;
+    use coil_thermal::omnimagnet::THERMOCOUPLE_NODES;
+    let currents: [T; 3] = [nalgebra::convert(3.8); 3];
+    let ambient: T = nalgebra::convert(22.0);
+    for (mode, label) in [
+        (GainMode::SteadyState, "steady"),
+        (GainMode::TimeVarying, "tv"),
+    ] {
+        let mut obs = kalman_observer::<T>(mode);
+        out.push(measure(
+            format!("omnimagnet_predict_{label}_{name}_ns"),
+            min_time,
+            repeats,
+            || {
+                black_box(obs.predict(black_box(&currents), black_box(ambient)));
+            },
+        ));
+        let mut obs = kalman_observer::<T>(mode);
+        let t = obs.temperatures_c();
+        let z = core::array::from_fn(|j| Some(t[THERMOCOUPLE_NODES[j]]));
+        out.push(measure(
+            format!("omnimagnet_correct6_{label}_{name}_ns"),
+            min_time,
+            repeats,
+            || {
+                black_box(obs.correct(black_box(&z)));
+            },
+        ));
+    }
 }
 
 /// The per-tick protection path on the Omnimagnet's 16-node network with
@@ -583,6 +654,18 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
         repeats,
     ));
     omnimagnet_correct(min_time, repeats, &mut out);
+    kalman_observer_calls::<f32>("f32", min_time, repeats, &mut out);
+    kalman_observer_calls::<f64>("f64", min_time, repeats, &mut out);
+    let gain_observer =
+        kalman_observer::<f64>(coil_thermal::omnimagnet::observer::GainMode::SteadyState);
+    out.push(measure(
+        "omnimagnet_solve_gain_f64_ns".into(),
+        min_time,
+        repeats,
+        || {
+            black_box(gain_observer.config().solve_gain().is_ok());
+        },
+    ));
     let mut protect = ProtectTick::new();
     out.push(measure(
         "protect_tick_16_f32_ns".into(),

@@ -909,3 +909,22 @@ fn omni_recovers_from_a_start_8_k_off() {
         );
     }
 }
+
+#[test]
+fn an_omnimagnet_protection_phase_of_a_whole_period_is_refused() {
+    let build = |phase: u32| {
+        let settings = OmniSettings {
+            protect_period_steps: 40,
+            protect_phase_steps: phase,
+            ..OmniSettings::default()
+        };
+        OmniObserver::new(&Omnimagnet::PAPER, &[22.0; NODES], 22.0, &settings)
+    };
+    assert!(matches!(
+        build(40),
+        Err(coil_thermal::BuildError::InvalidParameter {
+            name: "protect_phase_steps"
+        })
+    ));
+    assert!(build(39).is_ok());
+}

@@ -13,7 +13,9 @@
 //! A tick that already ran a correction or a catch-up of several model
 //! steps puts the predictor slice off to the next tick, once. The limits
 //! therefore lag the model by at most a cycle and three ticks, and the
-//! predictor's answers are aged by the time it lags (`lag_s`).
+//! predictor's answers are aged by the time it lags (`lag_s`). A phase
+//! (`with_phase`) makes every slice after the first due that much after
+//! its period's boundary; the lag stays the real one.
 
 use super::omnimagnet::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
@@ -43,6 +45,9 @@ pub(crate) struct ProtectionCycle<const M: usize> {
     lag_us: u32,
     stage: Stage,
     slice_put_off: bool,
+    /// How much later than a whole period each slice after the first is
+    /// due \[us\] (see [`Self::with_phase`]).
+    phase_us: u32,
 }
 
 impl<const M: usize> ProtectionCycle<M> {
@@ -54,7 +59,18 @@ impl<const M: usize> ProtectionCycle<M> {
             lag_us: 0,
             stage: Stage::Predict,
             slice_put_off: false,
+            phase_us: 0,
         }
+    }
+
+    /// The same cycle with every slice after the first due `phase_us`
+    /// \[us\] later: the slices land `phase_us` after the period's
+    /// boundaries, for example on the ticks another observer sharing the
+    /// loop leaves light. The lag the answers are aged by stays the real
+    /// one (at most a period and `phase_us` plus three ticks).
+    pub(crate) fn with_phase(mut self, phase_us: u32) -> Self {
+        self.phase_us = phase_us;
+        self
     }
 
     /// Accounts for a tick's model steps (`steps` of `step_us`, and
@@ -68,7 +84,10 @@ impl<const M: usize> ProtectionCycle<M> {
     ) {
         if steps > 0 {
             for (peak, i) in self.peak_currents_a.iter_mut().zip(held_currents_a) {
-                *peak = peak.max(i.abs());
+                // As `max` (a NaN current leaves the peak), without its call.
+                if i.abs() > *peak {
+                    *peak = i.abs();
+                }
             }
         }
         self.lag_us = self
@@ -80,7 +99,7 @@ impl<const M: usize> ProtectionCycle<M> {
     /// The stage this tick runs, if any (`busy`: a correction or a
     /// catch-up already ran this tick).
     pub(crate) fn due(&mut self, busy: bool, period_us: u32) -> Stage {
-        if self.stage == Stage::Idle && self.lag_us >= period_us {
+        if self.stage == Stage::Idle && self.lag_us >= period_us.saturating_add(self.phase_us) {
             self.stage = Stage::Predict;
         }
         match self.stage {
@@ -177,4 +196,48 @@ pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
     alarm.latch_shutdown();
     published.shutdown = true;
     hold_shutdown(limits);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ticks (1 ms steps, never busy) on which each stage runs over
+    /// `ticks`, for a cycle of `period_us` with `phase_us`, and the largest
+    /// lag seen just before a slice \[us\].
+    fn stages(period_us: u32, phase_us: u32, ticks: u32) -> ([u32; 8], u32) {
+        let mut cycle = ProtectionCycle::<1>::new().with_phase(phase_us);
+        let (mut slices, mut n, mut worst_lag) = ([0; 8], 0, 0);
+        for tick in 0..ticks {
+            cycle.stepped(1, 1000, 0, &[1.0]);
+            match cycle.due(false, period_us) {
+                Stage::Predict => {
+                    worst_lag = worst_lag.max(cycle.lag_us);
+                    if let Some(s) = slices.get_mut(n) {
+                        *s = tick;
+                    }
+                    n += 1;
+                    cycle.predicted(period_us, &[1.0]);
+                }
+                Stage::Alarm => cycle.alarmed(),
+                Stage::Limit => cycle.limited(),
+                Stage::Idle => {}
+            }
+        }
+        (slices, worst_lag)
+    }
+
+    #[test]
+    fn a_phase_moves_every_slice_after_the_first_and_the_lag_stays_real() {
+        // Period 40 ms: slices at ticks 0, 40, 80, ... without a phase, at
+        // 0, 49, 89, 129, ... with 9 ms; the lag the answers are aged by is
+        // the simulated time since the last slice's period, so it grows by
+        // the phase (never smaller than the real lag: erring early).
+        let (plain, plain_lag) = stages(40_000, 0, 330);
+        assert_eq!(plain, [0, 40, 80, 120, 160, 200, 240, 280]);
+        assert_eq!(plain_lag, 40_000);
+        let (phased, phased_lag) = stages(40_000, 9_000, 330);
+        assert_eq!(phased, [0, 49, 89, 129, 169, 209, 249, 289]);
+        assert_eq!(phased_lag, 49_000);
+    }
 }

@@ -73,6 +73,11 @@
 //! expensive stage. The limits lag the model by at most a cycle and three
 //! ticks (20 ms at the defaults, against time constants of seconds), and the
 //! alarm's debounce and event stamps count cycles, not ticks.
+//! [`OmniSettings::protect_phase_steps`] starts every cycle after the first
+//! that many steps after its period's boundary, so that the stages can be
+//! kept off the ticks another observer in the same loop makes heavy
+//! (`examples/observer_m4.rs` puts them between the grid's protection
+//! stages).
 //!
 //! The predictor is built for one slice per cycle (`tick_s` = the cycle)
 //! and is fed the largest current of each solenoid since its last slice, so
@@ -183,8 +188,10 @@ use crate::sensors::{SensorFault, SensorResult};
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
 /// Horizons of the time-to-limit predictor.
 pub const PREDICTOR_POINTS: usize = 32;
-/// A limit no Omnimagnet node without a critical temperature reaches
-/// \[degC\], for the predictor (which needs a finite limit for every node).
+/// A limit no Omnimagnet winding reaches \[degC\], for the predictor,
+/// which takes each winding's power at its node's limit (so it must be
+/// finite there; the other nodes without an alarm get `+inf` and cost no
+/// predictor work).
 const NO_LIMIT_C: f32 = 1000.0;
 
 /// Build settings, each with a default.
@@ -218,6 +225,13 @@ pub struct OmniSettings {
     /// slice and three stages), so it always ends before the next is due
     /// and the predictor's lag stays bounded. Default 16.
     pub protect_period_steps: u32,
+    /// Model steps by which every protection cycle after the first starts
+    /// later than its period's boundary, less than `protect_period_steps`:
+    /// with a period that is a multiple of another observer's update
+    /// period in the same loop, the predictor slice can be put on the
+    /// ticks that observer leaves light (see `examples/observer_m4.rs`).
+    /// The published times to limit are aged by the real lag. Default 0.
+    pub protect_phase_steps: u32,
     /// How many steady-state standard deviations of the filter are added
     /// to every element's estimate in its protective upper bound
     /// (dimensionless, finite, `>= 0`; see [`crate::protect::margin`]).
@@ -273,6 +287,7 @@ impl Default for OmniSettings {
             hardware_limit_a: 8.0,
             taper_k: 10.0,
             protect_period_steps: 16,
+            protect_phase_steps: 0,
             k_sigma: 3.0,
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
             frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
@@ -443,6 +458,8 @@ pub struct OmniObserver {
     step_us: u32,
     /// Length of a protection cycle \[us\]: `protect_period_steps` steps.
     protect_period_us: u32,
+    /// The cycles' phase \[us\]: `protect_phase_steps` steps.
+    protect_phase_us: u32,
     fingerprint: u32,
     /// Fingerprint of the nonlinear model the observer was built from
     /// (see [`OmniObserver::restore_after`]). The model itself is not kept:
@@ -533,6 +550,13 @@ impl OmniObserver {
                 name: "protect_period_steps",
             });
         };
+        if settings.protect_phase_steps >= period {
+            return Err(BuildError::InvalidParameter {
+                name: "protect_phase_steps",
+            });
+        }
+        // Below the period, so no overflow.
+        let protect_phase_us = settings.protect_phase_steps * settings.step_us;
         if settings.filter.mode != GainMode::SteadyState {
             return Err(BuildError::InvalidParameter {
                 name: "filter.mode",
@@ -588,6 +612,7 @@ impl OmniObserver {
             max_reading_age_us: settings.max_reading_age_us,
             step_us: settings.step_us,
             protect_period_us,
+            protect_phase_us,
             fingerprint,
             plant_fingerprint: plant_fingerprint(model),
             shadow,
@@ -761,7 +786,7 @@ impl OmniObserver {
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
-            cycle: ProtectionCycle::new(),
+            cycle: ProtectionCycle::new().with_phase(self.protect_phase_us),
             shadow_x: SVector::from_fn(|i, _| {
                 temps_c
                     .get(i)
@@ -856,7 +881,12 @@ impl OmniObserver {
         ambient_c: f32,
     ) -> Operating<f32, NODES, 1, SOLENOIDS> {
         let alarm_limits = self.alarm.alarm_limits_c(ambient_c);
-        let mut limits_c = [NO_LIMIT_C; NODES];
+        let mut limits_c = [f32::INFINITY; NODES];
+        for node in self.filter.solenoid_nodes() {
+            if let Some(slot) = limits_c.get_mut(*node) {
+                *slot = NO_LIMIT_C;
+            }
+        }
         for (node, limit) in ALARM_NODES.iter().zip(alarm_limits) {
             // The predictor follows the mean: it is asked when the mean
             // reaches the temperature at which the upper bound reaches the
@@ -1039,6 +1069,19 @@ impl OmniObserver {
     /// steady-state correction if any is usable; returns whether it ran and
     /// the common-mode flag.
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> (bool, InputFlags) {
+        let fitted = self.filter.settings().sensors;
+        if inputs.readings.iter().all(Option::is_none) {
+            // Most ticks: nothing to sort, screen or fuse; only the silence
+            // watch runs (the same statuses as the full path below).
+            state.outputs.sensors = [SensorStatus::NoReading; THERMOCOUPLES];
+            state.silence.watch(
+                &fitted.map(|f| !f),
+                inputs.now_us,
+                self.silent_after_us,
+                &mut state.outputs.sensors,
+            );
+            return (false, InputFlags::NONE);
+        }
         let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,
@@ -1047,7 +1090,6 @@ impl OmniObserver {
         );
         // Only the fitted thermocouples count (an unfitted one is never
         // heard, so the silence watch hears it always).
-        let fitted = self.filter.settings().sensors;
         state.silence.watch(
             &core::array::from_fn(|j| inputs.readings[j].is_some() || !fitted[j]),
             inputs.now_us,

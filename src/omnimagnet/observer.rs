@@ -234,22 +234,33 @@ impl<T: RealField + Copy> MeanModel<T> {
         u: &SVector<T, INPUTS>,
         residual_k: &mut [T; NODES],
     ) {
-        let temps = x.fixed_rows::<NODES>(0).into_owned();
-        let mut increment = SVector::<T, NODES>::zeros();
-        increment.gemv(T::one(), &self.phi_minus_i, &temps, T::zero());
-        let mut v = *u;
-        for m in 0..SOLENOIDS {
-            v[m] += x[NODES + m];
+        // One pass over the columns of `[Phi - I, G]` with the 16 sums in
+        // registers: the order of nalgebra's `gemv` (column by column), so
+        // the same result to the bit, without its copies.
+        let state: &[T; STATES] = &x.data.0[0];
+        let mut v: [T; INPUTS] = u.data.0[0];
+        for (vm, bias) in v.iter_mut().zip(&state[NODES..]) {
+            *vm += *bias;
+        }
+        let mut increment = [T::zero(); NODES];
+        for (column, xj) in self.phi_minus_i.data.0.iter().zip(state) {
+            for (inc, m) in increment.iter_mut().zip(column) {
+                *inc += *m * *xj;
+            }
         }
         if v.iter().all(|e| e.is_finite()) {
-            increment.gemv(T::one(), &self.g, &v, T::one());
+            for (column, vk) in self.g.data.0.iter().zip(&v) {
+                for (inc, m) in increment.iter_mut().zip(column) {
+                    *inc += *m * *vk;
+                }
+            }
         }
-        for (i, (inc, residual)) in increment.iter().zip(residual_k.iter_mut()).enumerate() {
+        for ((xi, inc), residual) in x.iter_mut().zip(&increment).zip(residual_k.iter_mut()) {
             // Fast2Sum, as `network::compensated_add` (for any float `T`).
             let corrected = *inc + *residual;
-            let sum = x[i] + corrected;
-            *residual = corrected - (sum - x[i]);
-            x[i] = sum;
+            let sum = *xi + corrected;
+            *residual = corrected - (sum - *xi);
+            *xi = sum;
         }
     }
 
@@ -638,6 +649,11 @@ impl<T: RealField + Copy> ObserverConfig<T> {
         &self.model.origin_c
     }
 
+    /// The node of each solenoid's winding.
+    pub fn solenoid_nodes(&self) -> &[usize; SOLENOIDS] {
+        &self.solenoid_nodes
+    }
+
     /// The steady-state predict's model (the build-time linearisation, or
     /// the last one installed).
     pub fn model(&self) -> &MeanModel<T> {
@@ -669,7 +685,9 @@ impl<T: RealField + Copy> ObserverConfig<T> {
             // the model (a malformed geometry table) reads as 0 degC.
             let origin = model.origin_c.get(*node).copied().unwrap_or(T::zero());
             let deviation = x.get(*node).copied().unwrap_or(T::zero());
-            let r_ohm = (*r0 + *slope * (origin + deviation)).max(T::zero());
+            // Floored at zero, NaN included (as `max`, without its call).
+            let r_ohm = *r0 + *slope * (origin + deviation);
+            let r_ohm = if r_ohm > T::zero() { r_ohm } else { T::zero() };
             *power = r_ohm * *current * *current;
         }
         u[SOLENOIDS] = ambient_c;

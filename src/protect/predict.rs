@@ -320,19 +320,26 @@ pub struct Operating<T, const N: usize, const B: usize, const M: usize> {
     /// Boundary temperatures \[degC\], assumed held over the horizon.
     pub boundary_c: [T; B],
     /// Each element's alarm limit \[degC\], finite (e.g. from
-    /// [`AlarmConfig::alarm_limits_c`](super::alarm::AlarmConfig::alarm_limits_c)).
+    /// [`AlarmConfig::alarm_limits_c`](super::alarm::AlarmConfig::alarm_limits_c)),
+    /// or `+inf` for an element without one that is not a winding's node
+    /// (its answer is "never" and its horizons are skipped; a winding's
+    /// power is taken at its node's limit, which must be finite).
     pub limits_c: [T; N],
 }
 
 impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize> Operating<T, N, B, M> {
-    /// `true` when every input is finite.
+    /// `true` when every input is finite (a limit may also be `+inf`: an
+    /// element that has none).
     pub fn is_finite(&self) -> bool {
         self.temps_c
             .iter()
             .chain(&self.currents_a)
             .chain(&self.boundary_c)
-            .chain(&self.limits_c)
             .all(|v| v.is_finite())
+            && self
+                .limits_c
+                .iter()
+                .all(|l| l.is_finite() || *l > T::zero())
     }
 }
 
@@ -572,6 +579,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             .zip(&snapshot.headroom_k);
         for (((state, prev), row), &headroom) in elements {
             if *state != Crossing::Open {
+                continue;
+            }
+            if headroom > T::zero() && !headroom.is_finite() {
+                // No limit (`+inf`): never, and not worth a horizon.
+                *state = Crossing::Never;
                 continue;
             }
             let now = self.parts(row, &snapshot.modes, decay);

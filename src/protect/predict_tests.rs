@@ -329,6 +329,49 @@ fn sliced_answers_are_the_full_answers_aged() {
     }
 }
 
+#[test]
+fn an_element_without_a_limit_is_never_and_leaves_the_others_alone() {
+    // The lug (3) without a limit (`+inf`) against the lug at a limit it
+    // cannot reach (1000 degC): the same answers for the others, `None`
+    // for the lug, in the full sweep and in the slices. A NaN or `-inf`
+    // limit is still an invalid input ("unknown" for every element).
+    let network = four_node();
+    let predictor = PredictorBuilder::new()
+        .build::<f32, 4, 1, 1, 48>(&network)
+        .unwrap();
+    let limits = [65.36, 65.36, 65.36, 1000.0];
+    let finite = op::<f32, 4, 1, 1>([35.0, 30.0, 25.0, 33.0], [1.6], [20.0], limits);
+    let mut unbounded = finite;
+    unbounded.limits_c[3] = f32::INFINITY;
+    let (mut a, mut b) = ([None; 4], [None; 4]);
+    predictor.predict(&finite, &mut a);
+    predictor.predict(&unbounded, &mut b);
+    assert!(a[0].is_some_and(|t| t.is_finite() && t > 0.0), "{a:?}");
+    assert_eq!(a[..3], b[..3]);
+    assert_eq!(b[3], None);
+    // Sliced, a sweep may end sooner (the lug no longer holds it open), so
+    // the answers are the full ones aged by less: never later than them.
+    let mut sliced = PredictorState::new(&predictor, &unbounded);
+    for _ in 0..200 {
+        let out = *sliced.tick(&predictor, &unbounded);
+        for e in 0..3 {
+            let (Some(o), Some(f)) = (out[e], a[e]) else {
+                assert_eq!(out[e], a[e]);
+                continue;
+            };
+            assert!(o <= f + 1e-4, "element {e}: {o} vs {f}");
+        }
+        assert_eq!(out[3], None);
+    }
+    for bad in [f32::NAN, f32::NEG_INFINITY] {
+        let mut invalid = finite;
+        invalid.limits_c[3] = bad;
+        let mut out = [None; 4];
+        predictor.predict(&invalid, &mut out);
+        assert!(out.iter().all(|t| t.is_some_and(f32::is_nan)), "{out:?}");
+    }
+}
+
 /// Replays a current trace at 1 ms on an RK4 truth, with the sliced f32
 /// predictor and the alarm on the truth's temperatures; returns (tick the
 /// predictive alarm rose, tick the truth crossed its alarm limit).
