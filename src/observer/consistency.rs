@@ -82,6 +82,83 @@ impl Band {
     }
 }
 
+/// The largest heat-input bias the model's uncertainty allows, the
+/// band's image in watts: a bias `b_m` \[W\] on input `m` is beyond the
+/// model when
+///
+/// `|b_m| > offset_w[m] + fraction * |P_m|`,
+///
+/// `P_m` the input's Joule power \[W\] at the estimate, `offset_w[m]` the
+/// steady heat on input `m` whose rise at its hottest node is the band's
+/// fixed part (`offset_k / max_i (-(Ad - I))^-1 Bd`), `fraction` the band's
+/// share of the rise (in a linear network the rise is proportional to the
+/// heat, so a 25 % error in the rise is a 25 % error in the heat).
+///
+/// A bias beyond it is flagged
+/// ([`InputFlags::HEAT_BIAS_BEYOND_MODEL`](crate::InputFlags::HEAT_BIAS_BEYOND_MODEL));
+/// a negative one is also held at the bound: cooling the model by more
+/// than its uncertainty is a sensor dragging the estimate (a stuck or
+/// drifting thermocouple took a bias to -57 W, healthy ones stay within
+/// +-1.2 W), and erring hot is the safe side. A positive one is kept: heat
+/// the model does not know (a blocked cooling path) must be heeded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BiasBound<const M: usize> {
+    /// The band's fixed part as a steady heat on each input \[W\]
+    /// (infinite: no bound).
+    pub offset_w: [f32; M],
+    /// Share of the Joule power (dimensionless).
+    pub fraction: f32,
+}
+
+impl<const M: usize> BiasBound<M> {
+    /// The bound of `band` for the block model `Ad - I` (`phi_minus_i`,
+    /// dimensionless) and its power columns `bd_power` \[K/W\] (any step:
+    /// the steady rise does not depend on it), solved in `f64`. An input
+    /// that heats no node, or a singular network, is left unbounded.
+    pub(crate) fn new<const N: usize>(
+        band: &Band,
+        phi_minus_i: &SMatrix<f32, N, N>,
+        bd_power: &SMatrix<f32, N, M>,
+    ) -> Self {
+        let mut offset_w = [f32::INFINITY; M];
+        if let Some(inverse) = (-phi_minus_i.cast::<f64>()).try_inverse() {
+            // dT/dP = (I - Ad)^-1 Bd \[K/W\], >= 0 for a heat network.
+            let rise = inverse * bd_power.cast::<f64>();
+            for (m, offset) in offset_w.iter_mut().enumerate() {
+                let hottest = rise.column(m).iter().fold(0.0f64, |a, r| a.max(*r));
+                if hottest.is_finite() && hottest > 0.0 {
+                    *offset = (f64::from(band.offset_k) / hottest) as f32;
+                }
+            }
+        }
+        Self {
+            offset_w,
+            fraction: band.fraction,
+        }
+    }
+
+    /// Holds the biases `biases_w` \[W\] against the bound at the inputs'
+    /// Joule powers `powers_w` \[W\] (see the type's docs); returns `true`
+    /// when one was beyond it. NaN passes unflagged (no verdict).
+    pub(crate) fn hold<'b>(
+        &self,
+        biases_w: impl Iterator<Item = &'b mut f32>,
+        powers_w: &[f32; M],
+    ) -> bool {
+        let mut beyond = false;
+        for ((bias, offset), power) in biases_w.zip(&self.offset_w).zip(powers_w) {
+            let limit_w = offset + self.fraction * power.abs();
+            if *bias > limit_w {
+                beyond = true;
+            } else if *bias < -limit_w {
+                beyond = true;
+                *bias = -limit_w;
+            }
+        }
+        beyond
+    }
+}
+
 /// How long the shadow's movement under an unchanged reading is watched
 /// before the reference restarts \[s\]: a stuck verdict needs the physics
 /// to move by the threshold within this window, so the slow approach of a
@@ -290,6 +367,8 @@ pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     pub block_steps: u32,
     /// The consistency band.
     pub band: Band,
+    /// The band's image on the heat-input biases.
+    pub bias_bound: BiasBound<M>,
 }
 
 /// The network shadow's state: deviations from the observer's origin

@@ -981,7 +981,28 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        if self.hold_biases(state) {
+            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        }
         (true, flags)
+    }
+
+    /// Holds the heat-input biases against the model's uncertainty (see
+    /// "Sensors against the physics"), at the Joule powers of the held
+    /// currents at the estimate; `true` when one was beyond it.
+    fn hold_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>) -> bool {
+        let x = &mut state.estimate.x;
+        let mut powers_w = [0.0f32; M];
+        for (power, ((node, r), i)) in powers_w.iter_mut().zip(
+            self.source_node
+                .iter()
+                .zip(&self.resistance)
+                .zip(&state.held_currents_a),
+        ) {
+            let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
+            *power = r.joule_power_w(t, *i);
+        }
+        self.shadow.bias_bound.hold(x.iter_mut().skip(N), &powers_w)
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched

@@ -157,7 +157,9 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{screen_readings, Band, BlockMean, SilenceWatch, StuckTest, StuckWatch};
+use super::consistency::{
+    screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch,
+};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -456,6 +458,8 @@ pub struct OmniObserver {
     shadow_block_steps: u32,
     /// The consistency band.
     band: Band,
+    /// The band's image on the heat-input biases.
+    bias_bound: BiasBound<SOLENOIDS>,
     stuck_test: StuckTest,
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
@@ -577,6 +581,12 @@ impl OmniObserver {
                 name: "consistency_fraction",
             });
         }
+        let band = Band {
+            offset_k: settings.consistency_offset_k as f32,
+            fraction: settings.consistency_fraction as f32,
+        };
+        let (phi_minus_i, bd_power) = shadow.power_response();
+        let bias_bound = BiasBound::new(&band, &phi_minus_i, &bd_power);
         Ok(Self {
             filter,
             alarm,
@@ -592,10 +602,8 @@ impl OmniObserver {
             plant_fingerprint: plant_fingerprint(model),
             shadow,
             shadow_block_steps,
-            band: Band {
-                offset_k: settings.consistency_offset_k as f32,
-                fraction: settings.consistency_fraction as f32,
-            },
+            band,
+            bias_bound,
             stuck_test: StuckTest {
                 threshold_k: settings.stuck_threshold_k as f32,
                 window: super::network::parts_stuck_window(settings.filter.correction_period_s),
@@ -1103,6 +1111,12 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        // The last step's Joule powers, at the estimate.
+        let powers_w = core::array::from_fn(|m| state.input[m]);
+        let biases_w = state.estimate.x.iter_mut().skip(NODES);
+        if self.bias_bound.hold(biases_w, &powers_w) {
+            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        }
         (true, flags)
     }
 
