@@ -251,6 +251,11 @@ pub struct FaultConfig {
     pub off_s: f64,
     /// Oldest snapshot a restart accepts \[s\].
     pub max_snapshot_age_s: u32,
+    /// Re-linearise the observer's model at its estimate this often \[s\]
+    /// (`OmniObserver::prepare_model` and `install_model`, what a firmware's
+    /// background task does; 0: never, the build-time linearisation at the
+    /// ambient throughout).
+    pub relinearize_s: f64,
 }
 
 impl Default for FaultConfig {
@@ -267,6 +272,7 @@ impl Default for FaultConfig {
             classes: Vec::new(),
             off_s: 600.0,
             max_snapshot_age_s: 3600,
+            relinearize_s: 0.0,
         }
     }
 }
@@ -623,6 +629,7 @@ impl<'c> Harness<'c> {
         let ticks = ((cfg.duration_s + off_s) / self.dt_s).round() as u64;
         let score_from_s = fault.map_or(0.0, |f| f.onset_s);
         let every = u64::from(cfg.reading_every.max(1));
+        let relin_every = (cfg.relinearize_s / self.dt_s).round() as u64;
         let mut score = RunScore::default();
         let mut flag_s = None;
         let mut detectable_s = match fault.map(|f| f.class) {
@@ -724,6 +731,9 @@ impl<'c> Harness<'c> {
                 _ => {}
             }
             let out: OmniOutputs = *obs.tick(&mut state, &inputs);
+            if relin_every > 0 && (k + 1) % relin_every == 0 {
+                self.relinearize(&mut state, &out, amb);
+            }
             if let (Restart::Restore { at_s, .. }, None) = (restart, &saved) {
                 if t_s + 0.5 * self.dt_s >= at_s {
                     // The last snapshot before the power cut.
@@ -777,6 +787,18 @@ impl<'c> Harness<'c> {
         }
     }
 
+    /// Re-linearises the observer's model at its estimate (kept as it was
+    /// if the estimate is not a valid operating point).
+    fn relinearize(&self, state: &mut OmniObserverState, out: &OmniOutputs, ambient_c: f64) {
+        let op_c = out.temps_c.map(f64::from);
+        let Ok(lin) = Omnimagnet::PAPER.linearize(&op_c, ambient_c, self.dt_s) else {
+            return;
+        };
+        if let Ok(model) = self.observer.prepare_model(&lin) {
+            let _ = self.observer.install_model(state, &model);
+        }
+    }
+
     /// Whether a faulty `reading_c` of a `class` fault is one the observer
     /// can tell from the truth `truth_c` \[degC\] (see the module docs).
     fn detectable(&self, class: FaultClass, reading_c: f32, truth_c: f32) -> bool {
@@ -821,6 +843,9 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     }
     if cfg.onsets_s.iter().any(|t| !(t.is_finite() && *t >= 0.0)) {
         return bad("--onset-s must be finite and >= 0");
+    }
+    if !(cfg.relinearize_s.is_finite() && cfg.relinearize_s >= 0.0) {
+        return bad("--relinearize-s must be finite and >= 0");
     }
     if !(cfg.off_s.is_finite() && cfg.off_s >= 0.0) {
         return bad("--off-s must be finite and >= 0");

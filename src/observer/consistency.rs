@@ -138,24 +138,81 @@ impl<const M: usize> BiasBound<M> {
     }
 
     /// Holds the biases `biases_w` \[W\] against the bound at the inputs'
-    /// Joule powers `powers_w` \[W\] (see the type's docs); returns `true`
-    /// when one was beyond it. NaN passes unflagged (no verdict).
+    /// Joule powers `powers_w` \[W\] (see the type's docs); returns which
+    /// were beyond it. NaN passes unflagged (no verdict).
     pub(crate) fn hold<'b>(
         &self,
         biases_w: impl Iterator<Item = &'b mut f32>,
         powers_w: &[f32; M],
-    ) -> bool {
-        let mut beyond = false;
-        for ((bias, offset), power) in biases_w.zip(&self.offset_w).zip(powers_w) {
+    ) -> [bool; M] {
+        let mut beyond = [false; M];
+        for (((bias, offset), power), beyond) in biases_w
+            .zip(&self.offset_w)
+            .zip(powers_w)
+            .zip(beyond.iter_mut())
+        {
             let limit_w = offset + self.fraction * power.abs();
             if *bias > limit_w {
-                beyond = true;
+                *beyond = true;
             } else if *bias < -limit_w {
-                beyond = true;
+                *beyond = true;
                 *bias = -limit_w;
             }
         }
         beyond
+    }
+}
+
+/// Corrections an element stays in doubt after the last sign of trouble
+/// with its sensors (30 s at the default 2 Hz).
+pub(crate) const DOUBT_HOLD_CORRECTIONS: u16 = 60;
+
+/// The solenoids (current inputs) whose measurement is in doubt: one of
+/// their thermocouples was not fused (a fault, refused by the gate or the
+/// band, stuck, silent, too old) or their heat bias went beyond the model
+/// ([`BiasBound`]), within the last [`DOUBT_HOLD_CORRECTIONS`] corrections.
+///
+/// While in doubt, the protection of their elements acts on the hotter of
+/// the estimate and the shadow: the estimate is then the model alone (a
+/// lost sensor) or what a lying sensor dragged before it was caught, and
+/// the shadow is the physics no reading moved. So a fault that is flagged
+/// can only make the protection err hot, never later: one thermocouple per
+/// solenoid drifting down 0.05 K/s delayed the Omnimagnet's shutdown at
+/// 7 A by 4.8 s before. The shadow, linearised at the ambient, runs hot
+/// at the Omnimagnet's currents (all sensors detached at 7 A shut down
+/// 9.6 s before the clean run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Suspicion<const M: usize> {
+    /// Corrections of doubt left per input.
+    left: [u16; M],
+}
+
+impl<const M: usize> Suspicion<M> {
+    /// No doubt.
+    pub(crate) const fn new() -> Self {
+        Self { left: [0; M] }
+    }
+
+    /// One correction's verdicts: doubt renewed where `doubt`, one
+    /// correction less elsewhere.
+    pub(crate) fn note(&mut self, doubt: &[bool; M]) {
+        for (left, doubt) in self.left.iter_mut().zip(doubt) {
+            *left = if *doubt {
+                DOUBT_HOLD_CORRECTIONS
+            } else {
+                left.saturating_sub(1)
+            };
+        }
+    }
+
+    /// Some input is in doubt.
+    pub(crate) fn any(&self) -> bool {
+        self.left.iter().any(|l| *l > 0)
+    }
+
+    /// Input `m` is in doubt.
+    pub(crate) fn is(&self, m: usize) -> bool {
+        self.left.get(m).is_some_and(|l| *l > 0)
     }
 }
 
@@ -165,7 +222,7 @@ impl<const M: usize> BiasBound<M> {
 /// model to a steady state a little off the device's (while a quantised
 /// thermocouple at a steady temperature repeats its code) is never taken
 /// for a stuck sensor.
-pub(crate) const STUCK_WINDOW_S: f64 = 20.0;
+pub(crate) const STUCK_WINDOW_S: f64 = 120.0;
 
 /// Stuck readings, told without the estimate they drag: a reading that
 /// has not changed (to the bit) while the shadow model at its node moved by
@@ -173,6 +230,10 @@ pub(crate) const STUCK_WINDOW_S: f64 = 20.0;
 /// at a steady temperature repeats its value too, but then the physics does
 /// not move; a stuck one repeats it while the device heats or cools. At the
 /// heating rates that matter (0.1-0.5 K/s) it is flagged within seconds.
+/// The verdict holds until the reading changes: a stuck sensor stays out
+/// of the correction even when the physics later moves slowly (before, the
+/// window's restart let it back in, and a stuck thermocouple at 3.1 A
+/// dragged its solenoid's estimate 9 K).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct StuckWatch<const P: usize> {
     /// Each sensor's last reading \[degC\] (NaN: none yet).
@@ -182,6 +243,8 @@ pub(crate) struct StuckWatch<const P: usize> {
     shadow_at_change_c: [f32; P],
     /// Readings since the reference.
     since: [u32; P],
+    /// Judged stuck, until the reading changes.
+    stuck: [bool; P],
 }
 
 impl<const P: usize> StuckWatch<P> {
@@ -191,6 +254,7 @@ impl<const P: usize> StuckWatch<P> {
             last_c: [f32::NAN; P],
             shadow_at_change_c: [f32::NAN; P],
             since: [0; P],
+            stuck: [false; P],
         }
     }
 
@@ -206,25 +270,29 @@ impl<const P: usize> StuckWatch<P> {
         window: u32,
     ) {
         for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
-            let (Some(t), Some(last), Some(at), Some(since), Some(shadow)) = (
+            let (Some(t), Some(last), Some(at), Some(since), Some(stuck), Some(shadow)) = (
                 *sample,
                 self.last_c.get_mut(j),
                 self.shadow_at_change_c.get_mut(j),
                 self.since.get_mut(j),
+                self.stuck.get_mut(j),
                 shadow_c.get(j),
             ) else {
                 continue;
             };
-            if t.to_bits() != last.to_bits() || *since >= window {
+            let changed = t.to_bits() != last.to_bits();
+            if changed || (*since >= window && !*stuck) {
                 // A new value, or a window without a verdict: restart.
                 *last = t;
                 *at = *shadow;
                 *since = 0;
+                *stuck = false;
                 continue;
             }
-            *since += 1;
+            *since = since.saturating_add(1);
             let moved_k = (*shadow - *at).abs();
-            if moved_k > threshold_k {
+            *stuck |= moved_k > threshold_k;
+            if *stuck {
                 *sample = None;
                 *status = SensorStatus::Stuck {
                     model_moved_k: moved_k,

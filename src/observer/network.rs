@@ -981,7 +981,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        if self.hold_biases(state) {
+        if self.hold_biases(state).contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
         (true, flags)
@@ -989,8 +989,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// Holds the heat-input biases against the model's uncertainty (see
     /// "Sensors against the physics"), at the Joule powers of the held
-    /// currents at the estimate; `true` when one was beyond it.
-    fn hold_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>) -> bool {
+    /// currents at the estimate; which were beyond it.
+    fn hold_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>) -> [bool; M] {
         let x = &mut state.estimate.x;
         let mut powers_w = [0.0f32; M];
         for (power, ((node, r), i)) in powers_w.iter_mut().zip(

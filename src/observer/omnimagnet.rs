@@ -158,7 +158,7 @@ use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
 use super::consistency::{
-    screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch,
+    screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
@@ -499,6 +499,8 @@ pub struct OmniObserverState {
     stuck: StuckWatch<THERMOCOUPLES>,
     silence: SilenceWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
+    /// The solenoids whose measurement is in doubt.
+    suspect: Suspicion<SOLENOIDS>,
     outputs: OmniOutputs,
 }
 
@@ -780,6 +782,7 @@ impl OmniObserver {
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(),
             silence: SilenceWatch::new(),
+            suspect: Suspicion::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -964,9 +967,8 @@ impl OmniObserver {
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
+                self.publish_upper(state);
                 let out = &mut state.outputs;
-                self.bound
-                    .upper_c(&out.temps_c, state.held_ambient_c, &mut out.upper_c);
                 let temps = alarm_temps(&out.upper_c);
                 out.alarm = state.alarm.tick(
                     &self.alarm,
@@ -978,6 +980,7 @@ impl OmniObserver {
                 state.cycle.alarmed();
             }
             Stage::Limit => {
+                self.publish_upper(state);
                 self.limit(&mut state.outputs, state.held_ambient_c);
                 state.cycle.limited();
             }
@@ -1005,11 +1008,52 @@ impl OmniObserver {
         }
     }
 
-    /// The limiter on the three solenoids at the upper bounds of the
-    /// present estimate (which it publishes).
+    /// Publishes every node's upper bound: of the estimate, and on the
+    /// elements of a solenoid whose measurement is in doubt, of the hotter
+    /// of the estimate and the shadow (see [`Suspicion`]).
+    fn publish_upper(&self, state: &mut OmniObserverState) {
+        let amb = state.held_ambient_c;
+        let out = &mut state.outputs;
+        self.bound.upper_c(&out.temps_c, amb, &mut out.upper_c);
+        if !state.suspect.any() {
+            return;
+        }
+        let origin = self.shadow.origin_c();
+        let shadow_c: [f32; NODES] = core::array::from_fn(|i| origin[i] + state.shadow_x[i]);
+        let mut shadow_upper_c = [f32::NAN; NODES];
+        self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
+        for (m, pair) in ALARM_NODES.chunks(2).enumerate() {
+            if !state.suspect.is(m) {
+                continue;
+            }
+            for node in pair {
+                if let (Some(u), Some(s)) = (out.upper_c.get_mut(*node), shadow_upper_c.get(*node))
+                {
+                    // Not `max`: a NaN must win (the limiter then gives the floor).
+                    if !(*u >= *s) {
+                        *u = *s;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Which solenoids have a thermocouple in use whose reading this tick
+    /// was not fused or missing (a fault, refused, stuck, silent...).
+    fn suspect_solenoids(&self, statuses: &[SensorStatus; THERMOCOUPLES]) -> [bool; SOLENOIDS] {
+        let mut suspect = [false; SOLENOIDS];
+        let fitted = self.filter.settings().sensors;
+        for ((status, fitted), node) in statuses.iter().zip(fitted).zip(THERMOCOUPLE_NODES) {
+            let doubt = !matches!(status, SensorStatus::Fused { .. } | SensorStatus::NoReading);
+            if let (true, true, Some(s)) = (fitted, doubt, suspect.get_mut(node)) {
+                *s = true;
+            }
+        }
+        suspect
+    }
+
+    /// The limiter on the three solenoids at the published upper bounds.
     fn limit(&self, out: &mut OmniOutputs, ambient_c: f32) {
-        self.bound
-            .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
         let temps = alarm_temps(&out.upper_c);
         let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let mut solenoid_c = [f32::NAN; SOLENOIDS];
@@ -1098,6 +1142,10 @@ impl OmniObserver {
         let samples = samples.map(|t| t.map(Ok));
         let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
+            let suspect = self.suspect_solenoids(&state.outputs.sensors);
+            if suspect.contains(&true) {
+                state.suspect.note(&suspect);
+            }
             return (false, flags);
         }
         let report = update_steady(
@@ -1111,12 +1159,18 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        let mut suspect = self.suspect_solenoids(&state.outputs.sensors);
         // The last step's Joule powers, at the estimate.
         let powers_w = core::array::from_fn(|m| state.input[m]);
         let biases_w = state.estimate.x.iter_mut().skip(NODES);
-        if self.bias_bound.hold(biases_w, &powers_w) {
+        let beyond = self.bias_bound.hold(biases_w, &powers_w);
+        if beyond.contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
+        for (suspect, beyond) in suspect.iter_mut().zip(beyond) {
+            *suspect |= beyond;
+        }
+        state.suspect.note(&suspect);
         (true, flags)
     }
 

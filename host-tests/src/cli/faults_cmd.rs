@@ -79,6 +79,17 @@ pub struct FaultsArgs {
     /// long and a minute).
     #[arg(long, value_name = "S", default_value_t = 3600)]
     max_snapshot_age_s: u32,
+    /// Re-linearise the observer's model at its estimate every S seconds,
+    /// as a firmware's background task does (`OmniObserver::prepare_model`,
+    /// `install_model`); 0: never (the build-time linearisation at the
+    /// ambient).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    relinearize_s: f64,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -170,6 +181,7 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         classes,
         off_s: a.off_s,
         max_snapshot_age_s: a.max_snapshot_age_s,
+        relinearize_s: a.relinearize_s,
         ..cfg
     };
     let mut report = faults::run(&cfg)?;
