@@ -511,3 +511,113 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BAND: Band = Band {
+        offset_k: 3.0,
+        fraction: 0.25,
+    };
+
+    /// One node, capacity `c` \[J/K\], conductance `g` \[W/K\] to the
+    /// ambient, stepped exactly over `dt` \[s\]: the steady rise per watt is
+    /// `1 / g`, so the band's 3 K are `3 g` watts.
+    #[test]
+    fn bias_bound_is_the_band_over_the_steady_rise() {
+        let (c, g, dt) = (400.0f64, 0.8f64, 0.5f64);
+        let ad = libm::exp(-g * dt / c);
+        let phi_minus_i = SMatrix::<f32, 1, 1>::new((ad - 1.0) as f32);
+        let bd = SMatrix::<f32, 1, 1>::new(((1.0 - ad) / g) as f32);
+        let bound = BiasBound::<1>::new(&BAND, &phi_minus_i, &bd);
+        let expected_w = 3.0 * g;
+        let got_w = f64::from(bound.offset_w[0]);
+        assert!((got_w - expected_w).abs() < 1e-3 * expected_w, "{got_w}");
+        // At 20 W of Joule power the limit is 2.4 + 5 W.
+        let limit_w = bound.offset_w[0] + 0.25 * 20.0;
+        for (bias, beyond, held) in [
+            (0.0, false, 0.0),
+            (limit_w - 0.01, false, limit_w - 0.01),
+            (-(limit_w - 0.01), false, -(limit_w - 0.01)),
+            // Hotter than the model: flagged, kept (erring hot).
+            (limit_w + 1.0, true, limit_w + 1.0),
+            // Colder than the model allows: flagged, held at the bound.
+            (-57.0, true, -limit_w),
+        ] {
+            let mut b = [bias];
+            let verdict = bound.hold(b.iter_mut(), &[20.0]);
+            assert_eq!(verdict, [beyond], "{bias}");
+            assert!((b[0] - held).abs() < 1e-5, "{bias} -> {}", b[0]);
+        }
+        let mut nan = [f32::NAN];
+        assert_eq!(bound.hold(nan.iter_mut(), &[20.0]), [false]);
+        // The test switched off (an infinite band) never flags.
+        let off = Band {
+            offset_k: f32::INFINITY,
+            fraction: 0.25,
+        };
+        let bound = BiasBound::<1>::new(&off, &phi_minus_i, &bd);
+        assert_eq!(bound.hold([-1e6f32].iter_mut(), &[20.0]), [false]);
+    }
+
+    /// A stuck verdict needs the physics to move by the threshold within
+    /// the window, then holds while the reading repeats, even when the
+    /// physics stands still for longer than the window; a new value ends it.
+    #[test]
+    fn stuck_verdict_holds_until_the_reading_moves() {
+        let mut watch = StuckWatch::<1>::new();
+        let window = 10;
+        let mut verdicts = Vec::new();
+        let mut shadow = 50.0f32;
+        for k in 0..40 {
+            // The physics heats 0.3 K per reading for 10 readings, then
+            // stands still; the reading never changes.
+            if (1..=10).contains(&k) {
+                shadow += 0.3;
+            }
+            let mut samples = [Some(50.0f32)];
+            let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+            watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, window);
+            verdicts.push(samples[0].is_none());
+        }
+        // More than 1 K moved at the fourth reading (1.2 K): stuck from
+        // there on.
+        let first = verdicts.iter().position(|v| *v).unwrap();
+        assert_eq!(first, 4);
+        assert!(verdicts[first..].iter().all(|v| *v), "{verdicts:?}");
+        // The reading moves: fused again.
+        let mut samples = [Some(52.0f32)];
+        let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+        watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, window);
+        assert_eq!(samples, [Some(52.0)]);
+    }
+
+    /// A live sensor at a steady temperature while the physics creeps less
+    /// than the threshold per window is never stuck.
+    #[test]
+    fn slow_physics_under_a_repeating_reading_is_not_stuck() {
+        let mut watch = StuckWatch::<1>::new();
+        for k in 0..200 {
+            let shadow = 50.0 + 0.09 * k as f32; // 0.9 K per 10-reading window
+            let mut samples = [Some(50.0f32)];
+            let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+            watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, 10);
+            assert_eq!(samples, [Some(50.0)], "reading {k}");
+        }
+    }
+
+    #[test]
+    fn doubt_lasts_its_hold_then_clears() {
+        let mut doubt = Suspicion::<3>::new();
+        assert!(!doubt.any());
+        doubt.note(&[false, true, false]);
+        assert!(doubt.any() && doubt.is(1) && !doubt.is(0) && !doubt.is(3));
+        for _ in 1..DOUBT_HOLD_CORRECTIONS {
+            doubt.note(&[false; 3]);
+            assert!(doubt.is(1));
+        }
+        doubt.note(&[false; 3]);
+        assert!(!doubt.any());
+    }
+}

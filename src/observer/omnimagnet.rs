@@ -1038,18 +1038,36 @@ impl OmniObserver {
         }
     }
 
-    /// Which solenoids have a thermocouple in use whose reading this tick
-    /// was not fused or missing (a fault, refused, stuck, silent...).
-    fn suspect_solenoids(&self, statuses: &[SensorStatus; THERMOCOUPLES]) -> [bool; SOLENOIDS] {
-        let mut suspect = [false; SOLENOIDS];
+    /// Which solenoids lost their measurement this tick: a thermocouple in
+    /// use on it was refused or failed (a fault, too old, colder than the
+    /// physics, stuck, silent, rejected by the gate twice in a row) and
+    /// none of its thermocouples was fused. A single gate rejection is no
+    /// doubt: the gate refusing a spike is the gate at work, and the sensor
+    /// is fused again at its next reading.
+    fn suspect_solenoids(
+        &self,
+        statuses: &[SensorStatus; THERMOCOUPLES],
+        rejections: &[u16; THERMOCOUPLES],
+    ) -> [bool; SOLENOIDS] {
+        let mut doubt = [false; SOLENOIDS];
+        let mut fused = [false; SOLENOIDS];
         let fitted = self.filter.settings().sensors;
-        for ((status, fitted), node) in statuses.iter().zip(fitted).zip(THERMOCOUPLE_NODES) {
-            let doubt = !matches!(status, SensorStatus::Fused { .. } | SensorStatus::NoReading);
-            if let (true, true, Some(s)) = (fitted, doubt, suspect.get_mut(node)) {
-                *s = true;
+        // `THERMOCOUPLE_NODES` are the solenoid nodes 0..3: the node is the
+        // solenoid's index.
+        let sensors = statuses.iter().zip(rejections).zip(fitted);
+        for (((status, rejections), fitted), m) in sensors.zip(THERMOCOUPLE_NODES) {
+            let (true, Some(doubt), Some(fused)) = (fitted, doubt.get_mut(m), fused.get_mut(m))
+            else {
+                continue;
+            };
+            match status {
+                SensorStatus::Fused { .. } => *fused = true,
+                SensorStatus::NoReading => {}
+                SensorStatus::Rejected { .. } => *doubt |= *rejections >= 2,
+                _ => *doubt = true,
             }
         }
-        suspect
+        core::array::from_fn(|m| doubt[m] && !fused[m])
     }
 
     /// The limiter on the three solenoids at the published upper bounds.
@@ -1142,7 +1160,10 @@ impl OmniObserver {
         let samples = samples.map(|t| t.map(Ok));
         let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
-            let suspect = self.suspect_solenoids(&state.outputs.sensors);
+            let suspect = self.suspect_solenoids(
+                &state.outputs.sensors,
+                &state.estimate.gate.consecutive_rejections,
+            );
             if suspect.contains(&true) {
                 state.suspect.note(&suspect);
             }
@@ -1159,7 +1180,10 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        let mut suspect = self.suspect_solenoids(&state.outputs.sensors);
+        let mut suspect = self.suspect_solenoids(
+            &state.outputs.sensors,
+            &state.estimate.gate.consecutive_rejections,
+        );
         // The last step's Joule powers, at the estimate.
         let powers_w = core::array::from_fn(|m| state.input[m]);
         let biases_w = state.estimate.x.iter_mut().skip(NODES);
