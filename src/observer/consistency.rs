@@ -172,8 +172,10 @@ pub(crate) const DOUBT_HOLD_CORRECTIONS: u16 = 60;
 /// band, stuck, silent, too old) or their heat bias went beyond the model
 /// ([`BiasBound`]), within the last [`DOUBT_HOLD_CORRECTIONS`] corrections.
 ///
-/// While in doubt, the protection of their elements acts on the hotter of
-/// the estimate and the shadow: the estimate is then the model alone (a
+/// While one is in doubt, the protection of every limited element acts on
+/// the hotter of the estimate and the shadow (the inputs' elements exchange
+/// heat, so what was dragged on one is felt by the others' models): the
+/// estimate is then the model alone (a
 /// lost sensor) or what a lying sensor dragged before it was caught, and
 /// the shadow is the physics no reading moved. So a fault that is flagged
 /// can only make the protection err hot, never later: one thermocouple per
@@ -208,11 +210,6 @@ impl<const M: usize> Suspicion<M> {
     /// Some input is in doubt.
     pub(crate) fn any(&self) -> bool {
         self.left.iter().any(|l| *l > 0)
-    }
-
-    /// Input `m` is in doubt.
-    pub(crate) fn is(&self, m: usize) -> bool {
-        self.left.get(m).is_some_and(|l| *l > 0)
     }
 }
 
@@ -612,10 +609,10 @@ mod tests {
         let mut doubt = Suspicion::<3>::new();
         assert!(!doubt.any());
         doubt.note(&[false, true, false]);
-        assert!(doubt.any() && doubt.is(1) && !doubt.is(0) && !doubt.is(3));
+        assert!(doubt.any());
         for _ in 1..DOUBT_HOLD_CORRECTIONS {
             doubt.note(&[false; 3]);
-            assert!(doubt.is(1));
+            assert!(doubt.any());
         }
         doubt.note(&[false; 3]);
         assert!(!doubt.any());

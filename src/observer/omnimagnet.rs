@@ -1008,9 +1008,11 @@ impl OmniObserver {
         }
     }
 
-    /// Publishes every node's upper bound: of the estimate, and on the
-    /// elements of a solenoid whose measurement is in doubt, of the hotter
-    /// of the estimate and the shadow (see [`Suspicion`]).
+    /// Publishes every node's upper bound: of the estimate, and while a
+    /// solenoid's measurement is in doubt, on every alarm element of the
+    /// hotter of the estimate and the shadow (see [`Suspicion`]): the
+    /// solenoids exchange heat, so what a lying sensor dragged on one is
+    /// felt by the model of the others.
     fn publish_upper(&self, state: &mut OmniObserverState) {
         let amb = state.held_ambient_c;
         let out = &mut state.outputs;
@@ -1022,17 +1024,11 @@ impl OmniObserver {
         let shadow_c: [f32; NODES] = core::array::from_fn(|i| origin[i] + state.shadow_x[i]);
         let mut shadow_upper_c = [f32::NAN; NODES];
         self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
-        for (m, pair) in ALARM_NODES.chunks(2).enumerate() {
-            if !state.suspect.is(m) {
-                continue;
-            }
-            for node in pair {
-                if let (Some(u), Some(s)) = (out.upper_c.get_mut(*node), shadow_upper_c.get(*node))
-                {
-                    // Not `max`: a NaN must win (the limiter then gives the floor).
-                    if !(*u >= *s) {
-                        *u = *s;
-                    }
+        for node in ALARM_NODES {
+            if let (Some(u), Some(s)) = (out.upper_c.get_mut(node), shadow_upper_c.get(node)) {
+                // Not `max`: a NaN must win (the limiter then gives the floor).
+                if !(*u >= *s) {
+                    *u = *s;
                 }
             }
         }
