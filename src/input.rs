@@ -51,8 +51,8 @@ impl InputFlags {
     /// A heat-input bias the filter estimated at this tick's correction is
     /// beyond what the model's uncertainty allows (see the observers'
     /// "Sensors against the physics"): a sensor drags the estimate, or the
-    /// device gets heat (or loses it) the model does not know. A negative
-    /// one is held at the bound.
+    /// device gets heat (or loses it) the model does not know. An alarm
+    /// for the engineer; the estimate is left as it is.
     pub const HEAT_BIAS_BEYOND_MODEL: Self = Self(64);
 
     /// `true` when no rule fired.

@@ -1176,19 +1176,15 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        let mut suspect = self.suspect_solenoids(
+        let suspect = self.suspect_solenoids(
             &state.outputs.sensors,
             &state.estimate.gate.consecutive_rejections,
         );
         // The last step's Joule powers, at the estimate.
         let powers_w = core::array::from_fn(|m| state.input[m]);
-        let biases_w = state.estimate.x.iter_mut().skip(NODES);
-        let beyond = self.bias_bound.hold(biases_w, &powers_w);
-        if beyond.contains(&true) {
+        let biases_w = state.estimate.x.iter().skip(NODES);
+        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
-        }
-        for (suspect, beyond) in suspect.iter_mut().zip(beyond) {
-            *suspect |= beyond;
         }
         state.suspect.note(&suspect);
         (true, flags)
