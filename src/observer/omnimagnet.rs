@@ -1027,7 +1027,7 @@ impl OmniObserver {
         for node in ALARM_NODES {
             if let (Some(u), Some(s)) = (out.upper_c.get_mut(node), shadow_upper_c.get(node)) {
                 // Not `max`: a NaN must win (the limiter then gives the floor).
-                if !(*u >= *s) {
+                if s.is_nan() || *s > *u {
                     *u = *s;
                 }
             }
