@@ -48,6 +48,12 @@ impl InputFlags {
     /// against the physics"): none was fused, and the estimate was raised
     /// to the model's.
     pub const SENSORS_COLDER_THAN_PHYSICS: Self = Self(32);
+    /// A heat-input bias the filter estimated at this tick's correction is
+    /// beyond what the model's uncertainty allows (see the observers'
+    /// "Sensors against the physics"): a sensor drags the estimate, or the
+    /// device gets heat (or loses it) the model does not know. An alarm
+    /// for the engineer; the estimate is left as it is.
+    pub const HEAT_BIAS_BEYOND_MODEL: Self = Self(64);
 
     /// `true` when no rule fired.
     #[inline]

@@ -246,3 +246,55 @@ fn runs_on_a_trace() {
         assert!(c["max_error_tc_k"].as_f64().unwrap() < 1.0, "{c}");
     }
 }
+
+/// Issue 17's hardest placement: one thermocouple per solenoid. At 3.1 A
+/// (no clean shutdown, slow heating) a stuck sensor is flagged within the
+/// goal once it is off the truth by the stuck threshold and drags no
+/// estimate more than 2 K; at 7 A a drift delays no shutdown (its
+/// solenoid's protection falls back on the hotter of the estimate and the
+/// physics once the drift is flagged). No heat-bias alarm in a clean run.
+#[test]
+fn one_per_solenoid_stuck_and_drift_meet_the_goals() {
+    let slow = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "3.1",
+        "--sensors",
+        "0,2,4",
+        "--classes",
+        "stuck",
+        "--json",
+    ]);
+    assert_eq!(slow["schema_version"], 2);
+    assert_eq!(slow["clean"]["bias_alarm_ticks"], 0);
+    for c in cases(&slow, "stuck") {
+        assert_eq!(c["flag_goal_met"], true, "{c}");
+        let detectable = c["detectable_s"].as_f64().expect("detectable");
+        assert!(c["flag_s"].as_f64().unwrap() <= detectable + 10.0, "{c}");
+        assert!(c["max_error_tc_k"].as_f64().unwrap() < 2.0, "{c}");
+        assert!(c["max_error_hot_spot_k"].as_f64().unwrap() < 2.0, "{c}");
+    }
+    let fast = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--sensors",
+        "0,2,4",
+        "--duration-s",
+        "600",
+        "--classes",
+        "drift",
+        "--json",
+    ]);
+    assert_eq!(fast["clean"]["bias_alarm_ticks"], 0);
+    for c in cases(&fast, "drift") {
+        assert_eq!(c["flag_goal_met"], true, "{c}");
+        assert_eq!(c["late_shutdown"], false, "{c}");
+        assert_eq!(c["lost_shutdown"], false, "{c}");
+    }
+    assert_eq!(fast["summary"]["late_shutdowns"], 0);
+}

@@ -219,6 +219,8 @@ struct DriveOutcome {
     shutdown_s: Option<f64>,
     colder_than_physics: u32,
     common_mode_ticks: u32,
+    /// Ticks flagged `HEAT_BIAS_BEYOND_MODEL`.
+    bias_alarm_ticks: u32,
     worst_winding_error_k: f64,
 }
 
@@ -236,6 +238,7 @@ fn drive_run(read: impl Fn(f64, f32) -> f32) -> DriveOutcome {
         shutdown_s: None,
         colder_than_physics: 0,
         common_mode_ticks: 0,
+        bias_alarm_ticks: 0,
         worst_winding_error_k: 0.0,
     };
     for tick in 0..7_200_000u32 {
@@ -264,6 +267,9 @@ fn drive_run(read: impl Fn(f64, f32) -> f32) -> DriveOutcome {
         if out.flags.contains(InputFlags::SENSORS_COLDER_THAN_PHYSICS) {
             outcome.common_mode_ticks += 1;
         }
+        if out.flags.contains(InputFlags::HEAT_BIAS_BEYOND_MODEL) {
+            outcome.bias_alarm_ticks += 1;
+        }
         if out.alarm.shutdown {
             outcome.shutdown_s = Some(t_s);
             break;
@@ -279,6 +285,7 @@ fn the_network_observer_holds_its_sensor_against_the_physics() {
     let clean = drive_run(|_, truth| truth);
     println!("clean: {clean:?}");
     assert_eq!(clean.colder_than_physics, 0, "a healthy sensor flagged");
+    assert_eq!(clean.bias_alarm_ticks, 0, "a healthy run's bias alarmed");
     let clean_s = clean.shutdown_s.expect("6 A must shut the drive down");
     for (name, faulty) in [
         ("detached (reads the room)", drive_run(|_, _| 22.0)),

@@ -82,13 +82,140 @@ impl Band {
     }
 }
 
+/// The largest heat-input bias the model's uncertainty allows, the
+/// band's image in watts: a bias `b_m` \[W\] on input `m` is beyond the
+/// model when
+///
+/// `|b_m| > offset_w[m] + fraction * |P_m|`,
+///
+/// `P_m` the input's Joule power \[W\] at the estimate, `offset_w[m]` the
+/// steady heat on input `m` whose rise at its hottest node is the band's
+/// fixed part (`offset_k / max_i (-(Ad - I))^-1 Bd`), `fraction` the band's
+/// share of the rise (in a linear network the rise is proportional to the
+/// heat, so a 25 % error in the rise is a 25 % error in the heat).
+///
+/// A bias beyond it is flagged
+/// ([`InputFlags::HEAT_BIAS_BEYOND_MODEL`](crate::InputFlags::HEAT_BIAS_BEYOND_MODEL))
+/// and left as it is: a stuck thermocouple took a bias to -57 W (healthy
+/// ones stay within +-1.2 W at moderate currents), but the Omnimagnet's
+/// linearisation at the ambient needs more than the bound near its 3.8 A
+/// limit (a healthy 3.8 A heating is flagged in 288 ticks), so the flag is
+/// an alarm for the engineer, not a verdict the protection acts on
+/// (holding negative biases at the bound, or taking the flag as a lost
+/// measurement, shut that healthy run down at 1 963 s instead of 2 210 s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BiasBound<const M: usize> {
+    /// The band's fixed part as a steady heat on each input \[W\]
+    /// (infinite: no bound).
+    pub offset_w: [f32; M],
+    /// Share of the Joule power (dimensionless).
+    pub fraction: f32,
+}
+
+impl<const M: usize> BiasBound<M> {
+    /// The bound of `band` for the block model `Ad - I` (`phi_minus_i`,
+    /// dimensionless) and its power columns `bd_power` \[K/W\] (any step:
+    /// the steady rise does not depend on it), solved in `f64`. An input
+    /// that heats no node, or a singular network, is left unbounded.
+    pub(crate) fn new<const N: usize>(
+        band: &Band,
+        phi_minus_i: &SMatrix<f32, N, N>,
+        bd_power: &SMatrix<f32, N, M>,
+    ) -> Self {
+        let mut offset_w = [f32::INFINITY; M];
+        if let Some(inverse) = (-phi_minus_i.cast::<f64>()).try_inverse() {
+            // dT/dP = (I - Ad)^-1 Bd \[K/W\], >= 0 for a heat network.
+            let rise = inverse * bd_power.cast::<f64>();
+            for (m, offset) in offset_w.iter_mut().enumerate() {
+                let hottest = rise.column(m).iter().fold(0.0f64, |a, r| a.max(*r));
+                if hottest.is_finite() && hottest > 0.0 {
+                    *offset = (f64::from(band.offset_k) / hottest) as f32;
+                }
+            }
+        }
+        Self {
+            offset_w,
+            fraction: band.fraction,
+        }
+    }
+
+    /// Which of the biases `biases_w` \[W\] are beyond the bound at the
+    /// inputs' Joule powers `powers_w` \[W\] (see the type's docs). NaN
+    /// passes unflagged (no verdict).
+    pub(crate) fn beyond<'b>(
+        &self,
+        biases_w: impl Iterator<Item = &'b f32>,
+        powers_w: &[f32; M],
+    ) -> [bool; M] {
+        let mut beyond = [false; M];
+        for (((bias, offset), power), beyond) in biases_w
+            .zip(&self.offset_w)
+            .zip(powers_w)
+            .zip(beyond.iter_mut())
+        {
+            *beyond = bias.abs() > offset + self.fraction * power.abs();
+        }
+        beyond
+    }
+}
+
+/// Corrections an element stays in doubt after the last sign of trouble
+/// with its sensors (30 s at the default 2 Hz).
+pub(crate) const DOUBT_HOLD_CORRECTIONS: u16 = 60;
+
+/// The solenoids (current inputs) whose measurement is in doubt: one of
+/// their thermocouples was not fused (a fault, refused twice in a row by
+/// the gate, or by the band, stuck, silent, too old) and none was fused,
+/// within the last [`DOUBT_HOLD_CORRECTIONS`] corrections.
+///
+/// While one is in doubt, the protection of every limited element acts on
+/// the hotter of the estimate and the shadow (the inputs' elements exchange
+/// heat, so what was dragged on one is felt by the others' models): the
+/// estimate is then the model alone (a
+/// lost sensor) or what a lying sensor dragged before it was caught, and
+/// the shadow is the physics no reading moved. So a fault that is flagged
+/// can only make the protection err hot, never later: one thermocouple per
+/// solenoid drifting down 0.05 K/s delayed the Omnimagnet's shutdown at
+/// 7 A by 4.8 s before. The shadow, linearised at the ambient, runs hot
+/// at the Omnimagnet's currents (all sensors detached at 7 A shut down
+/// 9.6 s before the clean run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Suspicion<const M: usize> {
+    /// Corrections of doubt left per input.
+    left: [u16; M],
+}
+
+impl<const M: usize> Suspicion<M> {
+    /// No doubt.
+    pub(crate) const fn new() -> Self {
+        Self { left: [0; M] }
+    }
+
+    /// One correction's verdicts: doubt renewed where `doubt`, one
+    /// correction less elsewhere.
+    pub(crate) fn note(&mut self, doubt: &[bool; M]) {
+        for (left, doubt) in self.left.iter_mut().zip(doubt) {
+            *left = if *doubt {
+                DOUBT_HOLD_CORRECTIONS
+            } else {
+                left.saturating_sub(1)
+            };
+        }
+    }
+
+    /// Some input is in doubt.
+    pub(crate) fn any(&self) -> bool {
+        self.left.iter().any(|l| *l > 0)
+    }
+}
+
 /// How long the shadow's movement under an unchanged reading is watched
 /// before the reference restarts \[s\]: a stuck verdict needs the physics
 /// to move by the threshold within this window, so the slow approach of a
 /// model to a steady state a little off the device's (while a quantised
 /// thermocouple at a steady temperature repeats its code) is never taken
 /// for a stuck sensor.
-pub(crate) const STUCK_WINDOW_S: f64 = 20.0;
+pub(crate) const STUCK_WINDOW_S: f64 = 120.0;
 
 /// Stuck readings, told without the estimate they drag: a reading that
 /// has not changed (to the bit) while the shadow model at its node moved by
@@ -96,6 +223,10 @@ pub(crate) const STUCK_WINDOW_S: f64 = 20.0;
 /// at a steady temperature repeats its value too, but then the physics does
 /// not move; a stuck one repeats it while the device heats or cools. At the
 /// heating rates that matter (0.1-0.5 K/s) it is flagged within seconds.
+/// The verdict holds until the reading changes: a stuck sensor stays out
+/// of the correction even when the physics later moves slowly (before, the
+/// window's restart let it back in, and a stuck thermocouple at 3.1 A
+/// dragged its solenoid's estimate 9 K).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct StuckWatch<const P: usize> {
     /// Each sensor's last reading \[degC\] (NaN: none yet).
@@ -105,6 +236,8 @@ pub(crate) struct StuckWatch<const P: usize> {
     shadow_at_change_c: [f32; P],
     /// Readings since the reference.
     since: [u32; P],
+    /// Judged stuck, until the reading changes.
+    stuck: [bool; P],
 }
 
 impl<const P: usize> StuckWatch<P> {
@@ -114,6 +247,7 @@ impl<const P: usize> StuckWatch<P> {
             last_c: [f32::NAN; P],
             shadow_at_change_c: [f32::NAN; P],
             since: [0; P],
+            stuck: [false; P],
         }
     }
 
@@ -129,25 +263,29 @@ impl<const P: usize> StuckWatch<P> {
         window: u32,
     ) {
         for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
-            let (Some(t), Some(last), Some(at), Some(since), Some(shadow)) = (
+            let (Some(t), Some(last), Some(at), Some(since), Some(stuck), Some(shadow)) = (
                 *sample,
                 self.last_c.get_mut(j),
                 self.shadow_at_change_c.get_mut(j),
                 self.since.get_mut(j),
+                self.stuck.get_mut(j),
                 shadow_c.get(j),
             ) else {
                 continue;
             };
-            if t.to_bits() != last.to_bits() || *since >= window {
+            let changed = t.to_bits() != last.to_bits();
+            if changed || (*since >= window && !*stuck) {
                 // A new value, or a window without a verdict: restart.
                 *last = t;
                 *at = *shadow;
                 *since = 0;
+                *stuck = false;
                 continue;
             }
-            *since += 1;
+            *since = since.saturating_add(1);
             let moved_k = (*shadow - *at).abs();
-            if moved_k > threshold_k {
+            *stuck |= moved_k > threshold_k;
+            if *stuck {
                 *sample = None;
                 *status = SensorStatus::Stuck {
                     model_moved_k: moved_k,
@@ -290,6 +428,8 @@ pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     pub block_steps: u32,
     /// The consistency band.
     pub band: Band,
+    /// The band's image on the heat-input biases.
+    pub bias_bound: BiasBound<M>,
 }
 
 /// The network shadow's state: deviations from the observer's origin
@@ -362,5 +502,109 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
                 *x = compensated_add(*x, *inc, residual);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BAND: Band = Band {
+        offset_k: 3.0,
+        fraction: 0.25,
+    };
+
+    /// One node, capacity `c` \[J/K\], conductance `g` \[W/K\] to the
+    /// ambient, stepped exactly over `dt` \[s\]: the steady rise per watt is
+    /// `1 / g`, so the band's 3 K are `3 g` watts.
+    #[test]
+    fn bias_bound_is_the_band_over_the_steady_rise() {
+        let (c, g, dt) = (400.0f64, 0.8f64, 0.5f64);
+        let ad = libm::exp(-g * dt / c);
+        let phi_minus_i = SMatrix::<f32, 1, 1>::new((ad - 1.0) as f32);
+        let bd = SMatrix::<f32, 1, 1>::new(((1.0 - ad) / g) as f32);
+        let bound = BiasBound::<1>::new(&BAND, &phi_minus_i, &bd);
+        let expected_w = 3.0 * g;
+        let got_w = f64::from(bound.offset_w[0]);
+        assert!((got_w - expected_w).abs() < 1e-3 * expected_w, "{got_w}");
+        // At 20 W of Joule power the limit is 2.4 + 5 W.
+        let limit_w = bound.offset_w[0] + 0.25 * 20.0;
+        for (bias, beyond) in [
+            (0.0, false),
+            (limit_w - 0.01, false),
+            (-(limit_w - 0.01), false),
+            (limit_w + 0.01, true),
+            (-57.0, true),
+            (f32::NAN, false),
+        ] {
+            assert_eq!(bound.beyond([bias].iter(), &[20.0]), [beyond], "{bias}");
+        }
+        // The test switched off (an infinite band) never flags.
+        let off = Band {
+            offset_k: f32::INFINITY,
+            fraction: 0.25,
+        };
+        let bound = BiasBound::<1>::new(&off, &phi_minus_i, &bd);
+        assert_eq!(bound.beyond([-1e6f32].iter(), &[20.0]), [false]);
+    }
+
+    /// A stuck verdict needs the physics to move by the threshold within
+    /// the window, then holds while the reading repeats, even when the
+    /// physics stands still for longer than the window; a new value ends it.
+    #[test]
+    fn stuck_verdict_holds_until_the_reading_moves() {
+        let mut watch = StuckWatch::<1>::new();
+        let window = 10;
+        let mut verdicts = Vec::new();
+        let mut shadow = 50.0f32;
+        for k in 0..40 {
+            // The physics heats 0.3 K per reading for 10 readings, then
+            // stands still; the reading never changes.
+            if (1..=10).contains(&k) {
+                shadow += 0.3;
+            }
+            let mut samples = [Some(50.0f32)];
+            let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+            watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, window);
+            verdicts.push(samples[0].is_none());
+        }
+        // More than 1 K moved at the fourth reading (1.2 K): stuck from
+        // there on.
+        let first = verdicts.iter().position(|v| *v).unwrap();
+        assert_eq!(first, 4);
+        assert!(verdicts[first..].iter().all(|v| *v), "{verdicts:?}");
+        // The reading moves: fused again.
+        let mut samples = [Some(52.0f32)];
+        let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+        watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, window);
+        assert_eq!(samples, [Some(52.0)]);
+    }
+
+    /// A live sensor at a steady temperature while the physics creeps less
+    /// than the threshold per window is never stuck.
+    #[test]
+    fn slow_physics_under_a_repeating_reading_is_not_stuck() {
+        let mut watch = StuckWatch::<1>::new();
+        for k in 0..200 {
+            let shadow = 50.0 + 0.09 * k as f32; // 0.9 K per 10-reading window
+            let mut samples = [Some(50.0f32)];
+            let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
+            watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, 10);
+            assert_eq!(samples, [Some(50.0)], "reading {k}");
+        }
+    }
+
+    #[test]
+    fn doubt_lasts_its_hold_then_clears() {
+        let mut doubt = Suspicion::<3>::new();
+        assert!(!doubt.any());
+        doubt.note(&[false, true, false]);
+        assert!(doubt.any());
+        for _ in 1..DOUBT_HOLD_CORRECTIONS {
+            doubt.note(&[false; 3]);
+            assert!(doubt.any());
+        }
+        doubt.note(&[false; 3]);
+        assert!(!doubt.any());
     }
 }

@@ -981,7 +981,28 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        if self.biases_beyond(state).contains(&true) {
+            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        }
         (true, flags)
+    }
+
+    /// Which heat-input biases are beyond the model's uncertainty (see
+    /// "Sensors against the physics"), at the Joule powers of the held
+    /// currents at the estimate.
+    fn biases_beyond(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [bool; M] {
+        let x = &state.estimate.x;
+        let mut powers_w = [0.0f32; M];
+        for (power, ((node, r), i)) in powers_w.iter_mut().zip(
+            self.source_node
+                .iter()
+                .zip(&self.resistance)
+                .zip(&state.held_currents_a),
+        ) {
+            let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
+            *power = r.joule_power_w(t, *i);
+        }
+        self.shadow.bias_bound.beyond(x.iter().skip(N), &powers_w)
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched

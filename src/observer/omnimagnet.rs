@@ -162,7 +162,9 @@
 use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
-use super::consistency::{screen_readings, Band, BlockMean, SilenceWatch, StuckTest, StuckWatch};
+use super::consistency::{
+    screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
+};
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
@@ -473,6 +475,8 @@ pub struct OmniObserver {
     shadow_block_steps: u32,
     /// The consistency band.
     band: Band,
+    /// The band's image on the heat-input biases.
+    bias_bound: BiasBound<SOLENOIDS>,
     stuck_test: StuckTest,
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
@@ -512,6 +516,8 @@ pub struct OmniObserverState {
     stuck: StuckWatch<THERMOCOUPLES>,
     silence: SilenceWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
+    /// The solenoids whose measurement is in doubt.
+    suspect: Suspicion<SOLENOIDS>,
     outputs: OmniOutputs,
 }
 
@@ -601,6 +607,12 @@ impl OmniObserver {
                 name: "consistency_fraction",
             });
         }
+        let band = Band {
+            offset_k: settings.consistency_offset_k as f32,
+            fraction: settings.consistency_fraction as f32,
+        };
+        let (phi_minus_i, bd_power) = shadow.power_response();
+        let bias_bound = BiasBound::new(&band, &phi_minus_i, &bd_power);
         Ok(Self {
             filter,
             alarm,
@@ -617,10 +629,8 @@ impl OmniObserver {
             plant_fingerprint: plant_fingerprint(model),
             shadow,
             shadow_block_steps,
-            band: Band {
-                offset_k: settings.consistency_offset_k as f32,
-                fraction: settings.consistency_fraction as f32,
-            },
+            band,
+            bias_bound,
             stuck_test: StuckTest {
                 threshold_k: settings.stuck_threshold_k as f32,
                 window: super::network::parts_stuck_window(settings.filter.correction_period_s),
@@ -797,6 +807,7 @@ impl OmniObserver {
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(),
             silence: SilenceWatch::new(),
+            suspect: Suspicion::new(),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -986,9 +997,8 @@ impl OmniObserver {
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
+                self.publish_upper(state);
                 let out = &mut state.outputs;
-                self.bound
-                    .upper_c(&out.temps_c, state.held_ambient_c, &mut out.upper_c);
                 let temps = alarm_temps(&out.upper_c);
                 out.alarm = state.alarm.tick(
                     &self.alarm,
@@ -1000,6 +1010,7 @@ impl OmniObserver {
                 state.cycle.alarmed();
             }
             Stage::Limit => {
+                self.publish_upper(state);
                 self.limit(&mut state.outputs, state.held_ambient_c);
                 state.cycle.limited();
             }
@@ -1027,11 +1038,66 @@ impl OmniObserver {
         }
     }
 
-    /// The limiter on the three solenoids at the upper bounds of the
-    /// present estimate (which it publishes).
+    /// Publishes every node's upper bound: of the estimate, and while a
+    /// solenoid's measurement is in doubt, on every alarm element of the
+    /// hotter of the estimate and the shadow (see [`Suspicion`]): the
+    /// solenoids exchange heat, so what a lying sensor dragged on one is
+    /// felt by the model of the others.
+    fn publish_upper(&self, state: &mut OmniObserverState) {
+        let amb = state.held_ambient_c;
+        let out = &mut state.outputs;
+        self.bound.upper_c(&out.temps_c, amb, &mut out.upper_c);
+        if !state.suspect.any() {
+            return;
+        }
+        let origin = self.shadow.origin_c();
+        let shadow_c: [f32; NODES] = core::array::from_fn(|i| origin[i] + state.shadow_x[i]);
+        let mut shadow_upper_c = [f32::NAN; NODES];
+        self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
+        for node in ALARM_NODES {
+            if let (Some(u), Some(s)) = (out.upper_c.get_mut(node), shadow_upper_c.get(node)) {
+                // Not `max`: a NaN must win (the limiter then gives the floor).
+                if s.is_nan() || *s > *u {
+                    *u = *s;
+                }
+            }
+        }
+    }
+
+    /// Which solenoids lost their measurement this tick: a thermocouple in
+    /// use on it was refused or failed (a fault, too old, colder than the
+    /// physics, stuck, silent, rejected by the gate twice in a row) and
+    /// none of its thermocouples was fused. A single gate rejection is no
+    /// doubt: the gate refusing a spike is the gate at work, and the sensor
+    /// is fused again at its next reading.
+    fn suspect_solenoids(
+        &self,
+        statuses: &[SensorStatus; THERMOCOUPLES],
+        rejections: &[u16; THERMOCOUPLES],
+    ) -> [bool; SOLENOIDS] {
+        let mut doubt = [false; SOLENOIDS];
+        let mut fused = [false; SOLENOIDS];
+        let fitted = self.filter.settings().sensors;
+        // `THERMOCOUPLE_NODES` are the solenoid nodes 0..3: the node is the
+        // solenoid's index.
+        let sensors = statuses.iter().zip(rejections).zip(fitted);
+        for (((status, rejections), fitted), m) in sensors.zip(THERMOCOUPLE_NODES) {
+            let (true, Some(doubt), Some(fused)) = (fitted, doubt.get_mut(m), fused.get_mut(m))
+            else {
+                continue;
+            };
+            match status {
+                SensorStatus::Fused { .. } => *fused = true,
+                SensorStatus::NoReading => {}
+                SensorStatus::Rejected { .. } => *doubt |= *rejections >= 2,
+                _ => *doubt = true,
+            }
+        }
+        core::array::from_fn(|m| doubt[m] && !fused[m])
+    }
+
+    /// The limiter on the three solenoids at the published upper bounds.
     fn limit(&self, out: &mut OmniOutputs, ambient_c: f32) {
-        self.bound
-            .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
         let temps = alarm_temps(&out.upper_c);
         let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let mut solenoid_c = [f32::NAN; SOLENOIDS];
@@ -1132,6 +1198,13 @@ impl OmniObserver {
         let samples = samples.map(|t| t.map(Ok));
         let z = self.filter.deviations(&state.model, &samples);
         if z.iter().all(Option::is_none) {
+            let suspect = self.suspect_solenoids(
+                &state.outputs.sensors,
+                &state.estimate.gate.consecutive_rejections,
+            );
+            if suspect.contains(&true) {
+                state.suspect.note(&suspect);
+            }
             return (false, flags);
         }
         let report = update_steady(
@@ -1145,6 +1218,17 @@ impl OmniObserver {
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        let suspect = self.suspect_solenoids(
+            &state.outputs.sensors,
+            &state.estimate.gate.consecutive_rejections,
+        );
+        // The last step's Joule powers, at the estimate.
+        let powers_w = core::array::from_fn(|m| state.input[m]);
+        let biases_w = state.estimate.x.iter().skip(NODES);
+        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
+            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        }
+        state.suspect.note(&suspect);
         (true, flags)
     }
 

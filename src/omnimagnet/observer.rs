@@ -211,6 +211,17 @@ impl<T: RealField + Copy> MeanModel<T> {
         self.dt_s
     }
 
+    /// `Ad - I` (dimensionless) and the Joule-power columns of `G`
+    /// \[K/W\] (for the steady response to a heat bias).
+    pub(crate) fn power_response(
+        &self,
+    ) -> (SMatrix<T, NODES, NODES>, SMatrix<T, NODES, SOLENOIDS>) {
+        (
+            self.phi_minus_i,
+            self.g.fixed_columns::<SOLENOIDS>(0).into_owned(),
+        )
+    }
+
     /// Every entry is finite.
     pub fn is_finite(&self) -> bool {
         let finite = |m: &[T]| m.iter().all(|v| v.is_finite());

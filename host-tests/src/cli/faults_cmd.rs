@@ -79,6 +79,17 @@ pub struct FaultsArgs {
     /// long and a minute).
     #[arg(long, value_name = "S", default_value_t = 3600)]
     max_snapshot_age_s: u32,
+    /// Re-linearise the observer's model at its estimate every S seconds,
+    /// as a firmware's background task does (`OmniObserver::prepare_model`,
+    /// `install_model`); 0: never (the build-time linearisation at the
+    /// ambient).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    relinearize_s: f64,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -170,6 +181,7 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         classes,
         off_s: a.off_s,
         max_snapshot_age_s: a.max_snapshot_age_s,
+        relinearize_s: a.relinearize_s,
         ..cfg
     };
     let mut report = faults::run(&cfg)?;
@@ -209,6 +221,9 @@ fn verdict(c: &CaseReport) -> String {
             (false, _) => "restored",
         });
     }
+    if c.flag_goal_met == Some(false) {
+        v.push("FLAG-LATE");
+    }
     if v.is_empty() {
         "ok".into()
     } else {
@@ -226,23 +241,33 @@ fn print_text(r: &FaultReport) {
         r.model, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
     );
     println!(
-        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused",
+        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused, {} ticks with a heat bias beyond the model",
         opt(r.clean.shutdown_s, 1),
         r.clean.max_error_tc_k,
         r.clean.max_error_hot_spot_k,
-        r.clean.healthy_flagged
+        r.clean.healthy_flagged,
+        r.clean.bias_alarm_ticks
     );
     println!();
     println!(
-        "{:<17} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9}  verdict",
-        "class", "sensor", "onset_s", "flag_s", "err_tc_K", "err_hs_K", "shutdn_s", "delay_s"
+        "{:<17} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9}  verdict",
+        "class",
+        "sensor",
+        "onset_s",
+        "detect_s",
+        "flag_s",
+        "err_tc_K",
+        "err_hs_K",
+        "shutdn_s",
+        "delay_s"
     );
     for c in &r.cases {
         println!(
-            "{:<17} {:>6} {:>8.1} {:>8} {:>8.2} {:>8.2} {:>9} {:>9}  {}",
+            "{:<17} {:>6} {:>8.1} {:>8} {:>8} {:>8.2} {:>8.2} {:>9} {:>9}  {}",
             c.class.name(),
             c.sensor.map_or("all".into(), |s| s.to_string()),
             c.onset_s,
+            opt(c.detectable_s, 1),
             opt(c.flag_s, 1),
             c.score.max_error_tc_k,
             c.score.max_error_hot_spot_k,
@@ -253,11 +278,12 @@ fn print_text(r: &FaultReport) {
     }
     println!();
     println!(
-        "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8} {:>9} {:>11} {:>4} {:>4} {:>5} {:>5}",
+        "{:<17} {:>5} {:>9} {:>11} {:>11} {:>8} {:>8} {:>9} {:>11} {:>4} {:>4} {:>5} {:>5}",
         "summary",
         "cases",
         "unflagged",
         "worst_flag",
+        "after_detect",
         "goal_s",
         "err_tc_K",
         "err_hs_K",
@@ -269,11 +295,12 @@ fn print_text(r: &FaultReport) {
     );
     for s in &r.summary.classes {
         println!(
-            "{:<17} {:>5} {:>9} {:>11} {:>8} {:>8.2} {:>9.2} {:>11} {:>4} {:>4} {:>5} {:>5}",
+            "{:<17} {:>5} {:>9} {:>11} {:>11} {:>8} {:>8.2} {:>9.2} {:>11} {:>4} {:>4} {:>5} {:>5}",
             s.class.name(),
             s.cases,
             s.unflagged,
             opt(s.worst_flag_s, 1),
+            opt(s.worst_flag_after_detectable_s, 1),
             opt(s.flag_goal_s, 0),
             s.worst_error_tc_k,
             s.worst_error_hot_spot_k,

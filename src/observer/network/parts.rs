@@ -36,7 +36,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{Band, Shadow, StuckTest, STUCK_WINDOW_S};
+use crate::observer::consistency::{Band, BiasBound, Shadow, StuckTest, STUCK_WINDOW_S};
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -496,16 +496,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 && finite(&sh.constant_k),
             "shadow",
         )?;
+        let band = Band {
+            offset_k: s.consistency_offset_k as f32,
+            fraction: s.consistency_fraction as f32,
+        };
+        let (phi_minus_i, bd_power) = (matrix(&sh.phi_minus_i), matrix(&sh.bd_power));
         let shadow = Shadow {
-            phi_minus_i: matrix(&sh.phi_minus_i),
-            bd_power: matrix(&sh.bd_power),
+            phi_minus_i,
+            bd_power,
             gd_boundary: matrix(&sh.gd_boundary),
             constant_k: SVector::from(sh.constant_k),
             block_steps: sh.block_steps,
-            band: Band {
-                offset_k: s.consistency_offset_k as f32,
-                fraction: s.consistency_fraction as f32,
-            },
+            band,
+            bias_bound: BiasBound::new(&band, &phi_minus_i, &bd_power),
         };
 
         // The filter's configuration from the stored `Ad` and `Bd` (exact
