@@ -289,6 +289,7 @@ impl KalmanEstimator {
         if sensor_nodes.is_empty() {
             bail!("the Kalman filter needs at least one --measure sensor");
         }
+        model.require_fixed_network("the Kalman filter")?;
         let info = plant_info(&model);
         let net = &model.network;
         let n = net.nodes();

@@ -61,6 +61,8 @@ pub enum ColumnExpr {
     Column(String),
     /// `sqrt(sum of squares)` of columns.
     Hypot(Vec<String>),
+    /// Arithmetic mean of columns (e.g. two sensors of one node).
+    Mean(Vec<String>),
     /// Absolute value of a column.
     Abs(String),
     /// A column times a constant.
@@ -70,7 +72,7 @@ pub enum ColumnExpr {
 }
 
 impl ColumnExpr {
-    /// Parses `NAME`, `hypot(A,B)`, `abs(A)`, `scale(A,K)` or a number.
+    /// Parses `NAME`, `hypot(A,B)`, `mean(A,B)`, `abs(A)`, `scale(A,K)` or a number.
     pub fn parse(text: &str) -> Result<Self> {
         let t = text.trim();
         if t.is_empty() {
@@ -96,6 +98,7 @@ impl ColumnExpr {
             }
             return match (func, args.len()) {
                 ("hypot", n) if n >= 1 => Ok(Self::Hypot(args)),
+                ("mean", n) if n >= 1 => Ok(Self::Mean(args)),
                 ("abs", 1) => Ok(Self::Abs(args[0].clone())),
                 ("scale", 2) => {
                     let k: f64 = args[1]
@@ -103,7 +106,7 @@ impl ColumnExpr {
                         .map_err(|_| anyhow::anyhow!("`{t}`: `{}` is not a number", args[1]))?;
                     Ok(Self::Scale(args[0].clone(), k))
                 }
-                _ => bail!("`{t}`: unknown function; use hypot(A,B,..), abs(A) or scale(A,K)"),
+                _ => bail!("`{t}`: unknown function; use hypot(A,B,..), mean(A,B,..), abs(A) or scale(A,K)"),
             };
         }
         Ok(Self::Column(t.to_string()))
@@ -113,7 +116,7 @@ impl ColumnExpr {
     pub fn columns(&self) -> Vec<&str> {
         match self {
             Self::Column(c) | Self::Abs(c) | Self::Scale(c, _) => vec![c.as_str()],
-            Self::Hypot(cs) => cs.iter().map(String::as_str).collect(),
+            Self::Hypot(cs) | Self::Mean(cs) => cs.iter().map(String::as_str).collect(),
             Self::Constant(_) => Vec::new(),
         }
     }
@@ -124,6 +127,7 @@ impl fmt::Display for ColumnExpr {
         match self {
             Self::Column(c) => write!(f, "{c}"),
             Self::Hypot(cs) => write!(f, "hypot({})", cs.join(",")),
+            Self::Mean(cs) => write!(f, "mean({})", cs.join(",")),
             Self::Abs(c) => write!(f, "abs({c})"),
             Self::Scale(c, k) => write!(f, "scale({c},{k})"),
             Self::Constant(v) => write!(f, "{v}"),
@@ -344,6 +348,16 @@ impl Trace {
                     }
                 }
                 acc.into_iter().map(f64::sqrt).collect()
+            }
+            ColumnExpr::Mean(cs) => {
+                let mut acc = vec![0.0; self.len()];
+                for c in cs {
+                    for (a, v) in acc.iter_mut().zip(self.column(c)?) {
+                        *a += v;
+                    }
+                }
+                let n = cs.len() as f64;
+                acc.into_iter().map(|a| a / n).collect()
             }
         })
     }

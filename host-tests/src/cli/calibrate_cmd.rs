@@ -15,7 +15,8 @@ use crate::sim::{plant_info, Drive};
 /// Runs `calibrate`.
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let file = common::model_file(&a.model)?;
-    let info = plant_info(&Model::build(&file)?);
+    let model = Model::build(&file)?;
+    let info = plant_info(&model);
     let bind = common::bindings(&a.trace_args)?;
     let params = a
         .params
@@ -27,7 +28,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         let trace = common::read_trace(path, a.trace_args.sample_period_s)?;
         data.push(FitData {
             label: path.display().to_string(),
-            drive: Drive::from_trace(&info, &trace, &bind)?,
+            drive: Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold),
             targets: common::sensors(&a.measure, "--measure", &info, &trace)?,
         });
     }

@@ -10,9 +10,10 @@ use crate::kalman::{KalmanEstimator, KalmanOptions};
 use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
+use crate::observer::Measurement;
 use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
 use crate::plot::{render, PlotData, Series};
-use crate::sim::{Drive, PlantInfo};
+use crate::sim::{Drive, FilePlant, Plant, PlantInfo};
 use crate::trace::write_csv;
 
 /// Alarm events printed in the text summary (`--json` has them all).
@@ -179,13 +180,36 @@ fn median_row_s(time_s: &[f64]) -> f64 {
     dt.get(dt.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// A model file run open loop on the library's explicit stepper at the
+/// trace's rows (for models whose network changes with a signal).
+struct PlantEstimator(FilePlant);
+
+impl Estimator for PlantEstimator {
+    fn info(&self) -> &PlantInfo {
+        self.0.info()
+    }
+    fn reset(&mut self, temps_c: &[f64]) {
+        self.0.reset(temps_c);
+    }
+    fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        self.0.step(dt_s, currents_a, boundary_c, signals);
+    }
+    fn update(&mut self, _measured: &[Measurement]) {}
+    fn estimate_c(&self) -> &[f64] {
+        self.0.temps_c()
+    }
+    fn kind(&self) -> &'static str {
+        "explicit-stepper"
+    }
+}
+
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model = Model::build(&common::model_file(&a.model)?)?;
     let info = crate::sim::plant_info(&model);
     let trace = common::read_trace(&a.trace, a.trace_args.sample_period_s)?;
     let bind = common::bindings(&a.trace_args)?;
-    let drive = Drive::from_trace(&info, &trace, &bind)?;
+    let drive = Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold);
     let measured = common::sensors(&a.measure, "--measure", &info, &trace)?;
     let truth = common::sensors(&a.truth, "--truth", &info, &trace)?;
     let init_only = common::sensors(&a.init, "--init", &info, &trace)?;
@@ -202,52 +226,58 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // time-varying Kalman filter at the trace's rows instead.
     let mut observer = None;
     let mut kalman = None;
-    let estimator: &mut dyn Estimator = if a.disturbance.is_empty() {
-        let fusion = (!measured.is_empty()).then(|| Fusion {
-            sensor_nodes: measured.iter().map(|m| m.node).collect(),
-            sensor_sigma_k: a.measurement_noise_k,
-            node_noise_k2_per_s: a.process_noise_k2_per_s,
-            correction_period_s: median_row_s(&drive.time_s),
-        });
-        observer.insert(ObserverEstimator::with_fusion(
-            model.clone(),
-            a.tick_us,
-            fusion,
-        )?)
-    } else {
-        if measured.is_empty() {
-            bail!("--disturbance needs at least one --measure sensor");
-        }
-        let disturbances = a
-            .disturbance
-            .iter()
-            .map(|d| {
-                d.split(',')
-                    .map(|n| {
-                        let n = n.trim();
-                        info.nodes.iter().position(|x| x == n).with_context(|| {
-                            format!(
-                                "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
-                                info.name,
-                                info.nodes.join(", ")
-                            )
+    let mut stepped = None;
+    let estimator: &mut dyn Estimator =
+        if model.has_varying_conductances() && measured.is_empty() && a.disturbance.is_empty() {
+            // The library's observer holds one network; conductances that
+            // change with speed run on the library's explicit stepper instead.
+            stepped.insert(PlantEstimator(FilePlant::new(model.clone())?))
+        } else if a.disturbance.is_empty() {
+            let fusion = (!measured.is_empty()).then(|| Fusion {
+                sensor_nodes: measured.iter().map(|m| m.node).collect(),
+                sensor_sigma_k: a.measurement_noise_k,
+                node_noise_k2_per_s: a.process_noise_k2_per_s,
+                correction_period_s: median_row_s(&drive.time_s),
+            });
+            observer.insert(ObserverEstimator::with_fusion(
+                model.clone(),
+                a.tick_us,
+                fusion,
+            )?)
+        } else {
+            if measured.is_empty() {
+                bail!("--disturbance needs at least one --measure sensor");
+            }
+            let disturbances = a
+                .disturbance
+                .iter()
+                .map(|d| {
+                    d.split(',')
+                        .map(|n| {
+                            let n = n.trim();
+                            info.nodes.iter().position(|x| x == n).with_context(|| {
+                                format!(
+                                    "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
+                                    info.name,
+                                    info.nodes.join(", ")
+                                )
+                            })
                         })
-                    })
-                    .collect::<Result<Vec<_>>>()
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let opts = KalmanOptions {
-            process_noise_k2_per_s: a.process_noise_k2_per_s,
-            measurement_noise_k: a.measurement_noise_k,
-            initial_std_k: a.initial_std_k,
-            disturbances,
-            disturbance_std_w: a.disturbance_std_w,
-            disturbance_tau_s: a.disturbance_tau_s,
-            gate: a.gate,
+                        .collect::<Result<Vec<_>>>()
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let opts = KalmanOptions {
+                process_noise_k2_per_s: a.process_noise_k2_per_s,
+                measurement_noise_k: a.measurement_noise_k,
+                initial_std_k: a.initial_std_k,
+                disturbances,
+                disturbance_std_w: a.disturbance_std_w,
+                disturbance_tau_s: a.disturbance_tau_s,
+                gate: a.gate,
+            };
+            let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
+            kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
         };
-        let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
-        kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
-    };
     // Initial-only columns join the truth list for the initial state but are
     // not scored.
     let mut init_sensors = truth.clone();
