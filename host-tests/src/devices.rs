@@ -205,6 +205,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
             slope_ohm_per_k: Some(resistance.slope_ohm_per_k),
             r_at_0c_ohm: Some(resistance.r_at_0c_ohm),
             scale: None,
+            scale_per_kj: None,
             speed: None,
         })
         .collect();

@@ -279,6 +279,12 @@ pub struct SourceSpec {
     /// Power scale `k` (default 1; 1.5 for amplitude-invariant d/q currents).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
+    /// Power scale per kJ/K of the heated node's capacity (instead of
+    /// `scale`): `k = scale_per_kj * C / 1000 J/K`. Sources of one
+    /// conductor given the same value share one loss density, so that the
+    /// copper of each node heats in proportion to its mass (capacity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_per_kj: Option<f64>,
     /// Optional speed-dependent factor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed: Option<SpeedSpec>,
@@ -492,6 +498,7 @@ impl ModelFile {
                 slope_ohm_per_k: Some(s.resistance.slope_ohm_per_k),
                 r_at_0c_ohm: Some(s.resistance.r_at_0c_ohm),
                 scale: None,
+                scale_per_kj: None,
                 speed: None,
             })
             .collect();
@@ -909,7 +916,11 @@ impl Model {
                     inputs.len() - 1
                 }
             };
-            let scale = s.scale.unwrap_or(1.0);
+            let scale = match (s.scale, s.scale_per_kj) {
+                (Some(_), Some(_)) => bail!("{}: give scale or scale_per_kj, not both", ctx()),
+                (_, Some(d)) => d * file.nodes[node].capacity_j_per_k / 1000.0,
+                (k, None) => k.unwrap_or(1.0),
+            };
             if !(scale.is_finite() && scale >= 0.0) {
                 bail!("{}: scale must be finite and >= 0", ctx());
             }

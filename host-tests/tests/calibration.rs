@@ -70,6 +70,7 @@ fn two_node_coil_parameters_are_recovered_from_two_noisy_traces() {
             label: format!("trace {i}"),
             drive: d.clone(),
             targets: recording(&truth, d, &["coil", "housing"], 0.05, &mut rng),
+            init: Vec::new(),
         })
         .collect();
     // The resistance is known (measured); capacities and conductances are
@@ -152,6 +153,7 @@ fn speed_dependent_loss_coefficients_are_recovered() {
     let data = vec![FitData {
         label: "synthetic".into(),
         targets: recording(&truth, &drive, &["winding", "stator"], 0.05, &mut rng),
+        init: Vec::new(),
         drive,
     }];
     let names = [
@@ -216,6 +218,7 @@ fn parameter_names_and_bounds_are_checked() {
     let data = vec![FitData {
         label: "t".into(),
         targets: recording(&file, &drive, &["coil"], 0.0, &mut Rng::new(1)),
+        init: Vec::new(),
         drive,
     }];
     let bad = [ParamSpec::parse("capacity.coil=300:400").unwrap()];
