@@ -342,3 +342,21 @@ scale_per_kj = 0.5
         .to_string();
     assert!(err.contains("scale or scale_per_kj"), "{err}");
 }
+
+/// The observers that hold one fixed network refuse a model whose
+/// conductances change with speed, saying why and what runs it.
+#[test]
+fn fixed_network_observers_refuse_speed_dependent_conductances() {
+    use coil_thermal_host::library_observer::ObserverEstimator;
+    let model = Model::build(&ModelFile::parse(SPLIT, "split.toml").unwrap()).unwrap();
+    assert!(model.has_varying_conductances());
+    let err = ObserverEstimator::new(model.clone(), 1000)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(err.contains("speed-dependent conductances"), "{err}");
+    assert!(err.contains("open loop"), "{err}");
+    let plain = Model::build(&ModelFile::parse(ONE_NODE, "one.toml").unwrap()).unwrap();
+    assert!(!plain.has_varying_conductances());
+    assert!(plain.require_fixed_network("x").is_ok());
+}
