@@ -226,58 +226,62 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // time-varying Kalman filter at the trace's rows instead.
     let mut observer = None;
     let mut kalman = None;
-    let mut stepped = None;
-    let estimator: &mut dyn Estimator =
-        if model.has_varying_conductances() && measured.is_empty() && a.disturbance.is_empty() {
-            // The library's observer holds one network; conductances that
-            // change with speed run on the library's explicit stepper instead.
-            stepped.insert(PlantEstimator(FilePlant::new(model.clone())?))
-        } else if a.disturbance.is_empty() {
-            let fusion = (!measured.is_empty()).then(|| Fusion {
-                sensor_nodes: measured.iter().map(|m| m.node).collect(),
-                sensor_sigma_k: a.measurement_noise_k,
-                node_noise_k2_per_s: a.process_noise_k2_per_s,
-                correction_period_s: median_row_s(&drive.time_s),
-            });
-            observer.insert(ObserverEstimator::with_fusion(
-                model.clone(),
-                a.tick_us,
-                fusion,
-            )?)
-        } else {
-            if measured.is_empty() {
-                bail!("--disturbance needs at least one --measure sensor");
-            }
-            let disturbances = a
-                .disturbance
-                .iter()
-                .map(|d| {
-                    d.split(',')
-                        .map(|n| {
-                            let n = n.trim();
-                            info.nodes.iter().position(|x| x == n).with_context(|| {
-                                format!(
-                                    "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
-                                    info.name,
-                                    info.nodes.join(", ")
-                                )
-                            })
+    // The library's observer holds one network; conductances that change
+    // with speed run open loop on the library's explicit stepper instead.
+    let open_loop = measured.is_empty() && a.disturbance.is_empty();
+    let mut stepped = if model.has_varying_conductances() && open_loop {
+        Some(PlantEstimator(FilePlant::new(model.clone())?))
+    } else {
+        None
+    };
+    let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
+        s
+    } else if a.disturbance.is_empty() {
+        let fusion = (!measured.is_empty()).then(|| Fusion {
+            sensor_nodes: measured.iter().map(|m| m.node).collect(),
+            sensor_sigma_k: a.measurement_noise_k,
+            node_noise_k2_per_s: a.process_noise_k2_per_s,
+            correction_period_s: median_row_s(&drive.time_s),
+        });
+        observer.insert(ObserverEstimator::with_fusion(
+            model.clone(),
+            a.tick_us,
+            fusion,
+        )?)
+    } else {
+        if measured.is_empty() {
+            bail!("--disturbance needs at least one --measure sensor");
+        }
+        let disturbances = a
+            .disturbance
+            .iter()
+            .map(|d| {
+                d.split(',')
+                    .map(|n| {
+                        let n = n.trim();
+                        info.nodes.iter().position(|x| x == n).with_context(|| {
+                            format!(
+                                "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
+                                info.name,
+                                info.nodes.join(", ")
+                            )
                         })
-                        .collect::<Result<Vec<_>>>()
-                })
-                .collect::<Result<Vec<_>>>()?;
-            let opts = KalmanOptions {
-                process_noise_k2_per_s: a.process_noise_k2_per_s,
-                measurement_noise_k: a.measurement_noise_k,
-                initial_std_k: a.initial_std_k,
-                disturbances,
-                disturbance_std_w: a.disturbance_std_w,
-                disturbance_tau_s: a.disturbance_tau_s,
-                gate: a.gate,
-            };
-            let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
-            kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let opts = KalmanOptions {
+            process_noise_k2_per_s: a.process_noise_k2_per_s,
+            measurement_noise_k: a.measurement_noise_k,
+            initial_std_k: a.initial_std_k,
+            disturbances,
+            disturbance_std_w: a.disturbance_std_w,
+            disturbance_tau_s: a.disturbance_tau_s,
+            gate: a.gate,
         };
+        let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
+        kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
+    };
     // Initial-only columns join the truth list for the initial state but are
     // not scored.
     let mut init_sensors = truth.clone();
