@@ -395,7 +395,18 @@ impl KalmanEstimator {
             // default (1e4 r on every state) would put hundreds of K^2 on the
             // unmeasured nodes, which one sensor cannot pull back, and the
             // disturbances would then swing them by tens of K.
-            let recovery = self.prior_variances();
+            //
+            // Only the sensed nodes and the disturbances are widened: a run
+            // of rejections says the sensed node (or the unmodelled heat) is
+            // off, not that every node is; widening the unmeasured nodes too
+            // hands them to the next readings of one sensor, whose noise and
+            // the disturbance then swing them by several K.
+            let mut recovery = self.prior_variances();
+            for i in 0..n {
+                if !self.sensors.contains(&i) {
+                    recovery[i] = 0.0;
+                }
+            }
             self.filter.configure(
                 &self.a,
                 &self.b,
