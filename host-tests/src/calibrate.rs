@@ -92,8 +92,19 @@ fn node_mut<'a>(
 }
 
 /// Reads (`set = None`) or writes a named parameter; returns the value
-/// before the write.
+/// before the write. `A|B|...` ties parameters: one value, written to all,
+/// read from the first (e.g. one copper-loss density for several sources).
 pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Result<f64> {
+    let mut parts = name.split('|');
+    let first = parts.next().unwrap_or(name);
+    let old = access_one(file, first.trim(), set)?;
+    for other in parts {
+        access_one(file, other.trim(), set)?;
+    }
+    Ok(old)
+}
+
+fn access_one(file: &mut ModelFile, name: &str, set: Option<f64>) -> Result<f64> {
     let (kind, rest) = name
         .split_once('.')
         .with_context(|| format!("parameter `{name}`: expected KIND.NAME[.FIELD]"))?;
@@ -154,8 +165,24 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
                     }
                     Ok(old)
                 }
+                "speed_a1" | "speed_a2" | "r_exp_k_per_w" | "exp_rate" => {
+                    let law = c.speed.as_mut().with_context(|| {
+                        format!("`{name}`: conductance `{key}` has no [conductance.speed]")
+                    })?;
+                    let v = match field {
+                        "speed_a1" => &mut law.a1,
+                        "speed_a2" => &mut law.a2,
+                        "r_exp_k_per_w" => &mut law.r_exp_k_per_w,
+                        _ => &mut law.exp_rate,
+                    };
+                    let old = *v;
+                    if let Some(new) = set {
+                        *v = new;
+                    }
+                    Ok(old)
+                }
                 f => bail!(
-                    "parameter `{name}`: unknown conductance field `{f}` (factor, h_w_per_m2k)"
+                    "parameter `{name}`: unknown conductance field `{f}` (factor, h_w_per_m2k, speed_a1, speed_a2, r_exp_k_per_w, exp_rate)"
                 ),
             }
         }
@@ -179,6 +206,7 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
                 "alpha_per_k" => &mut s.alpha_per_k,
                 "slope_ohm_per_k" => &mut s.slope_ohm_per_k,
                 "r_at_0c_ohm" => &mut s.r_at_0c_ohm,
+                "scale_per_kj" => &mut s.scale_per_kj,
                 "scale" => {
                     if s.scale.is_none() {
                         s.scale = Some(1.0);
@@ -198,7 +226,7 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
                     return Ok(old);
                 }
                 f => bail!(
-                    "parameter `{name}`: unknown source field `{f}` (r0_ohm, alpha_per_k, slope_ohm_per_k, r_at_0c_ohm, scale, speed_a1, speed_a2)"
+                    "parameter `{name}`: unknown source field `{f}` (r0_ohm, alpha_per_k, slope_ohm_per_k, r_at_0c_ohm, scale, scale_per_kj, speed_a1, speed_a2)"
                 ),
             };
             let old =
@@ -242,10 +270,39 @@ pub fn access_param(file: &mut ModelFile, name: &str, set: Option<f64>) -> Resul
             }
             Ok(old)
         }
+        "loss" => {
+            // loss.NAME.power.K or loss.NAME.split.K (K: 0-based term).
+            let mut it = rest.rsplitn(3, '.');
+            let (k, kind, key) = (it.next(), it.next(), it.next());
+            let (Some(k), Some(kind), Some(key)) = (k, kind, key) else {
+                bail!("parameter `{name}`: expected loss.NAME.power.K or loss.NAME.split.K")
+            };
+            let k: usize = k
+                .parse()
+                .with_context(|| format!("parameter `{name}`: `{k}` is not a term index"))?;
+            let l = file
+                .losses
+                .iter_mut()
+                .find(|l| l.name == key)
+                .with_context(|| format!("parameter `{name}`: no [[loss]] `{key}`"))?;
+            let terms = match kind {
+                "power" => &mut l.power,
+                "split" => &mut l.split,
+                f => bail!("parameter `{name}`: unknown loss field `{f}` (power, split)"),
+            };
+            let t = terms
+                .get_mut(k)
+                .with_context(|| format!("parameter `{name}`: no term {k}"))?;
+            let old = t.c;
+            if let Some(v) = set {
+                t.c = v;
+            }
+            Ok(old)
+        }
         "grid" => crate::devices::access_grid_param(file, rest, set)
             .with_context(|| format!("parameter `{name}`")),
         k => bail!(
-            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss, grid)"
+            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss, loss, grid)"
         ),
     }
 }
@@ -258,7 +315,7 @@ pub fn default_bounds(name: &str, value: f64) -> (f64, f64) {
     let positive = name.starts_with("capacity.")
         || name.starts_with("conductance.")
         || name.starts_with("grid.")
-        || matches!(field, "r0_ohm" | "r_at_0c_ohm" | "scale");
+        || matches!(field, "r0_ohm" | "r_at_0c_ohm" | "scale" | "scale_per_kj");
     if positive && value > 0.0 {
         (value / 10.0, value * 10.0)
     } else if matches!(field, "alpha_per_k" | "slope_ohm_per_k") {
@@ -277,6 +334,9 @@ pub struct FitData {
     pub drive: Drive,
     /// Measured sensors the fit matches.
     pub targets: Vec<Sensor>,
+    /// Nodes that start at a measured value without being fitted (`--init`):
+    /// (node index, temperature \[degC\]). They win over a target's.
+    pub init: Vec<(usize, f64)>,
 }
 
 /// Options of [`fit`].
@@ -315,6 +375,13 @@ pub struct ParamResult {
     pub hi: f64,
     /// `true` when the fit ended on a bound.
     pub at_bound: bool,
+    /// Which bound: `lower` or `upper` (None inside the box).
+    pub bound: Option<&'static str>,
+    /// Standard error at the optimum (same unit as the value), from the
+    /// Jacobian: `s^2 (J'J)^-1` with `s^2` the residual variance; None for
+    /// a parameter on a bound. The residuals of a thermal trace are
+    /// correlated in time, so it is a lower bound on the real uncertainty.
+    pub std_error: Option<f64>,
 }
 
 /// Fit error of one trace.
@@ -347,6 +414,41 @@ pub struct FitReport {
     pub cost_after: f64,
     /// Why the fit stopped.
     pub stop_reason: String,
+    /// Correlation of every pair of parameters at the optimum (rows and
+    /// columns in `params` order; None for a parameter on a bound).
+    pub correlations: Vec<Vec<Option<f64>>>,
+}
+
+/// Standard errors (in `x`) and correlations of the free parameters from
+/// the Jacobian `jac` at the optimum; `free[j]` is false for a parameter
+/// held on a bound.
+fn uncertainty(
+    jac: &DMatrix<f64>,
+    cost: f64,
+    free: &[bool],
+) -> (Vec<Option<f64>>, Vec<Vec<Option<f64>>>) {
+    let n = free.len();
+    let idx: Vec<usize> = (0..n).filter(|&j| free[j]).collect();
+    let none = (vec![None; n], vec![vec![None; n]; n]);
+    let dof = jac.nrows().saturating_sub(idx.len());
+    if idx.is_empty() || dof == 0 {
+        return none;
+    }
+    let jf = DMatrix::from_fn(jac.nrows(), idx.len(), |r, c| jac[(r, idx[c])]);
+    let Some(inv) = (jf.transpose() * &jf).try_inverse() else {
+        return none;
+    };
+    let s2 = 2.0 * cost / dof as f64;
+    let mut se = vec![None; n];
+    let mut corr = vec![vec![None; n]; n];
+    for (a, &ja) in idx.iter().enumerate() {
+        se[ja] = Some((s2 * inv[(a, a)]).max(0.0).sqrt());
+        for (b, &jb) in idx.iter().enumerate() {
+            let d = (inv[(a, a)] * inv[(b, b)]).sqrt();
+            corr[ja][jb] = (d > 0.0).then(|| inv[(a, b)] / d);
+        }
+    }
+    (se, corr)
 }
 
 struct Transform {
@@ -470,8 +572,12 @@ pub fn fit(
     let inits = data
         .iter()
         .map(|d| {
-            let first: Vec<(usize, f64)> =
-                d.targets.iter().map(|t| (t.node, t.values_c[0])).collect();
+            let first: Vec<(usize, f64)> = d
+                .targets
+                .iter()
+                .map(|t| (t.node, t.values_c[0]))
+                .chain(d.init.iter().copied())
+                .collect();
             initial_temps(&info, &d.drive, &first)
         })
         .collect::<Result<Vec<_>>>()?;
@@ -617,23 +723,54 @@ pub fn fit(
         }
     }
     bar.finish_and_clear();
+    // The Jacobian at the optimum, for the standard errors and correlations.
+    let mut jac = DMatrix::<f64>::zeros(r.len(), n);
+    let mut free = vec![true; n];
+    for j in 0..n {
+        let span = bounds[j].1 - bounds[j].0;
+        let tol = if span.is_finite() { 1e-9 * span } else { 0.0 };
+        if x[j] - bounds[j].0 <= tol || bounds[j].1 - x[j] <= tol {
+            free[j] = false;
+            continue;
+        }
+        let h = 1e-6 * x[j].abs().max(1.0);
+        let step = if x[j] + h <= bounds[j].1 { h } else { -h };
+        let mut xp = x.clone();
+        xp[j] += step;
+        match prob.residuals(&xp) {
+            Some(rp) => jac.set_column(j, &((rp - &r) / step)),
+            None => free[j] = false,
+        }
+    }
+    let (se_x, correlations) = uncertainty(&jac, cost, &free);
     let fitted = prob.file_at(&x)?;
     let after = trace_fits(&fitted, data, &inits)?;
     let results = params
         .iter()
         .zip(&prob.transforms)
         .zip(x.iter().zip(&initial))
-        .map(|((p, t), (xi, v0))| {
+        .zip(&se_x)
+        .map(|(((p, t), (xi, v0)), se)| {
             let fitted_v = t.to_p(*xi).clamp(t.lo, t.hi);
             let span = (t.hi - t.lo).abs();
             let tol = if span.is_finite() { 1e-9 * span } else { 0.0 };
+            let bound = if (fitted_v - t.lo).abs() <= tol {
+                Some("lower")
+            } else if (t.hi - fitted_v).abs() <= tol {
+                Some("upper")
+            } else {
+                None
+            };
             ParamResult {
                 name: p.name.clone(),
                 initial: *v0,
                 fitted: fitted_v,
                 lo: t.lo,
                 hi: t.hi,
-                at_bound: (fitted_v - t.lo).abs() <= tol || (t.hi - fitted_v).abs() <= tol,
+                at_bound: bound.is_some(),
+                bound,
+                // dp/dx: p for a log parameter, the scale otherwise.
+                std_error: se.map(|e| e * if t.log { fitted_v } else { t.scale }),
             }
         })
         .collect();
@@ -657,6 +794,7 @@ pub fn fit(
             cost_before,
             cost_after: cost,
             stop_reason: stop,
+            correlations,
         },
     ))
 }

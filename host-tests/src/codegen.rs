@@ -123,9 +123,13 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
             req.model.display()
         );
     }
-    if !model.speed_losses.is_empty() || model.drives.iter().any(|d| d.speed.is_some()) {
+    if !model.speed_losses.is_empty()
+        || !model.losses.is_empty()
+        || model.has_varying_conductances()
+        || model.drives.iter().any(|d| d.speed.is_some())
+    {
         bail!(
-            "{}: speed-dependent terms (`speed` on a source, [[speed_loss]]) are not inputs of the firmware observer yet; generate from a model without them",
+            "{}: speed-dependent terms (`speed` on a source or a conductance, [[speed_loss]], [[loss]]) are not inputs of the firmware observer yet; generate from a model without them",
             req.model.display()
         );
     }

@@ -164,6 +164,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
         h_w_per_m2k: None,
         area_m2: None,
         factor: (count != 1.0).then_some(count),
+        speed: None,
     };
     let mut conductances = Vec::new();
     for a in 0..N {
@@ -204,6 +205,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
             slope_ohm_per_k: Some(resistance.slope_ohm_per_k),
             r_at_0c_ohm: Some(resistance.r_at_0c_ohm),
             scale: None,
+            scale_per_kj: None,
             speed: None,
         })
         .collect();
@@ -220,6 +222,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
              each herringbone cross-row contact with factor 0.5 (a side's Ry shared by its two contacts)"
         )),
         max_step_ratio: None,
+        input_hold: None,
         nodes: names
             .iter()
             .map(|n| NodeSpec {
@@ -233,6 +236,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
         sources,
         fixed_powers: Vec::new(),
         speed_losses: Vec::new(),
+        losses: Vec::new(),
         initial: InitialSpec::default(),
         observer: None,
     })

@@ -289,6 +289,7 @@ impl KalmanEstimator {
         if sensor_nodes.is_empty() {
             bail!("the Kalman filter needs at least one --measure sensor");
         }
+        model.require_fixed_network("the Kalman filter")?;
         let info = plant_info(&model);
         let net = &model.network;
         let n = net.nodes();
@@ -390,11 +391,23 @@ impl KalmanEstimator {
                 h[(j, *node)] = 1.0;
             }
             let r = vec![self.opts.measurement_noise_k.powi(2); self.sensors.len()];
-            // Recovery returns to the prior's uncertainty: the library's
+            // Recovery returns the sensed nodes to the prior's uncertainty: the library's
             // default (1e4 r on every state) would put hundreds of K^2 on the
             // unmeasured nodes, which one sensor cannot pull back, and the
             // disturbances would then swing them by tens of K.
-            let recovery = self.prior_variances();
+            //
+            // Only the sensed nodes are widened: a run of rejections says the
+            // sensed node's estimate is off, not that every node or the
+            // unmodelled heat is. Widening the unmeasured nodes or the
+            // disturbances too hands them to the next readings of one sensor,
+            // whose noise then swings the unmeasured nodes by several K; the
+            // disturbances keep learning at their own process noise.
+            let mut recovery = self.prior_variances();
+            for (i, v) in recovery.iter_mut().enumerate() {
+                if !self.sensors.contains(&i) {
+                    *v = 0.0;
+                }
+            }
             self.filter.configure(
                 &self.a,
                 &self.b,

@@ -265,6 +265,7 @@ impl ObserverEstimator {
         if tick_us == 0 {
             bail!("--tick-us must be at least 1");
         }
+        model.require_fixed_network("the library's network observer")?;
         let sensors = fusion
             .as_ref()
             .map_or(Vec::new(), |f| f.sensor_nodes.clone());

@@ -28,6 +28,9 @@ pub struct ModelFile {
     /// intervals are split into equal sub-steps to stay below it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_step_ratio: Option<f64>,
+    /// Which row's inputs act over an interval (default `start`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_hold: Option<InputHold>,
     /// State nodes (`[[node]]`).
     #[serde(rename = "node")]
     pub nodes: Vec<NodeSpec>,
@@ -46,6 +49,10 @@ pub struct ModelFile {
     /// Speed-dependent losses without a current (`[[speed_loss]]`).
     #[serde(rename = "speed_loss", default, skip_serializing_if = "Vec::is_empty")]
     pub speed_losses: Vec<SpeedLossSpec>,
+    /// Losses polynomial in a current and a speed, on one node or split
+    /// between two (`[[loss]]`).
+    #[serde(rename = "loss", default, skip_serializing_if = "Vec::is_empty")]
+    pub losses: Vec<LossSpec>,
     /// Initial temperature policy (`[initial]`).
     #[serde(default)]
     pub initial: InitialSpec,
@@ -53,6 +60,20 @@ pub struct ModelFile {
     /// sensors, limits; see `coil-thermal codegen`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub observer: Option<crate::codegen::ObserverSpec>,
+}
+
+/// Which row's inputs (currents, boundaries, signals) act over the interval
+/// `[t_k, t_k+1)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InputHold {
+    /// Row `k`'s (zero-order hold of sampled inputs; the default).
+    #[default]
+    Start,
+    /// Row `k+1`'s: each step uses the inputs of the row it ends at, as an
+    /// explicit Euler integration of a logged trace often does (the HUST
+    /// authors' published network).
+    End,
 }
 
 /// A state node.
@@ -108,6 +129,119 @@ pub struct ConductanceSpec {
     /// Correction factor multiplying the conductance (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub factor: Option<f64>,
+    /// Optional speed dependence (`[conductance.speed]`, forced convection).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<ConductanceSpeedSpec>,
+}
+
+/// A conductance that depends on a speed signal `f = column / reference`:
+/// `G(f) = factor (1 + a1 f + a2 f^2) / (1 / G0 + r_exp_k_per_w exp(-exp_rate f))`
+/// with `G0` the conductance the entry gives (`g_w_per_k`, `r_k_per_w` or
+/// `h_w_per_m2k` times `area_m2`). The polynomial is the usual forced-convection
+/// law (`h` growing with the air speed); the exponential is a series
+/// resistance that fades as the speed rises (e.g. an air gap or an end-space
+/// path, the form of the HUST published network). Negative values of the
+/// polynomial count as 0 (no path).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConductanceSpeedSpec {
+    /// Trace column (or expression) of the speed, in the unit of `reference`.
+    pub column: String,
+    /// Reference speed (same unit as the column, e.g. rpm), > 0.
+    pub reference: f64,
+    /// Linear coefficient of the conductance factor (default 0).
+    #[serde(default)]
+    pub a1: f64,
+    /// Quadratic coefficient of the conductance factor (default 0).
+    #[serde(default)]
+    pub a2: f64,
+    /// Series resistance at `f = 0` that fades with speed \[K/W\] (default 0).
+    #[serde(default)]
+    pub r_exp_k_per_w: f64,
+    /// Its decay rate per unit of `f` (default 0: constant).
+    #[serde(default)]
+    pub exp_rate: f64,
+}
+
+impl ConductanceSpeedSpec {
+    /// The conductance \[W/K\] at speed signal `value` for a base
+    /// conductance `g0_w_per_k` (already multiplied by `factor`).
+    pub fn at(&self, g0_w_per_k: f64, value: f64) -> f64 {
+        let f = value / self.reference;
+        let poly = (1.0 + self.a1 * f + self.a2 * f * f).max(0.0);
+        if g0_w_per_k <= 0.0 || poly == 0.0 {
+            return 0.0;
+        }
+        let r = 1.0 / g0_w_per_k + self.r_exp_k_per_w * (-self.exp_rate * f).exp();
+        poly / r
+    }
+}
+
+/// A loss polynomial in a current and a speed (iron, magnet, friction,
+/// stray and AC losses of a machine):
+/// `P = max(0, sum_k c_k i^(i_k) f^(f_k))` \[W\] with `i = current / current.reference`
+/// and `f = speed / speed.reference`. On one node, or split between two:
+/// `nodes[0]` takes `a P` and `nodes[1]` `(1 - a) P`, with
+/// `a = clip(sum_k c_k i^(i_k) f^(f_k), 0, 1)` over the `split` terms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LossSpec {
+    /// Name for calibration (`loss.<name>.power.<k>`, `loss.<name>.split.<k>`).
+    pub name: String,
+    /// The heated node, or two nodes sharing the loss by `split`.
+    pub nodes: Vec<String>,
+    /// The current signal (needed by a term with `i > 0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current: Option<ScaledSignal>,
+    /// The speed signal (needed by a term with `f > 0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<ScaledSignal>,
+    /// Terms of the power, `c` in W.
+    pub power: Vec<LossTerm>,
+    /// Terms of the fraction going to `nodes[0]` (dimensionless); required
+    /// with two nodes, refused with one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub split: Vec<LossTerm>,
+}
+
+/// A trace signal divided by a reference: `column / reference`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScaledSignal {
+    /// Trace column or expression (e.g. `hypot(IdRef,IqRef)`, `speed`).
+    pub column: String,
+    /// Reference value in the column's unit, > 0.
+    pub reference: f64,
+}
+
+/// One term `c i^i f^f` of a [`LossSpec`] polynomial.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LossTerm {
+    /// Coefficient (W in `power`, dimensionless in `split`).
+    pub c: f64,
+    /// Power of the scaled current (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub i: u32,
+    /// Power of the scaled speed (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub f: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
+}
+
+/// Largest power of `i` or `f` in a loss term (a 4th power already spans
+/// every loss law in use; more would only amplify noise in the signal).
+pub const MAX_LOSS_EXPONENT: u32 = 4;
+
+/// Evaluates `sum c i^i f^f`.
+fn polynomial(terms: &[LossTerm], i: f64, f: f64) -> f64 {
+    terms
+        .iter()
+        .map(|t| t.c * i.powi(t.i as i32) * f.powi(t.f as i32))
+        .sum()
 }
 
 /// A Joule source: `P = scale * R(T_node) * I^2 * (1 + a1 f + a2 f^2)`.
@@ -145,6 +279,12 @@ pub struct SourceSpec {
     /// Power scale `k` (default 1; 1.5 for amplitude-invariant d/q currents).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
+    /// Power scale per kJ/K of the heated node's capacity (instead of
+    /// `scale`): `k = scale_per_kj * C / 1000 J/K`. Sources of one
+    /// conductor given the same value share one loss density, so that the
+    /// copper of each node heats in proportion to its mass (capacity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_per_kj: Option<f64>,
     /// Optional speed-dependent factor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed: Option<SpeedSpec>,
@@ -358,6 +498,7 @@ impl ModelFile {
                 slope_ohm_per_k: Some(s.resistance.slope_ohm_per_k),
                 r_at_0c_ohm: Some(s.resistance.r_at_0c_ohm),
                 scale: None,
+                scale_per_kj: None,
                 speed: None,
             })
             .collect();
@@ -372,12 +513,14 @@ impl ModelFile {
             name: None,
             description: None,
             max_step_ratio: None,
+            input_hold: None,
             nodes,
             boundaries,
             conductances,
             sources,
             fixed_powers,
             speed_losses: Vec::new(),
+            losses: Vec::new(),
             initial: InitialSpec::default(),
             observer: None,
         }
@@ -447,6 +590,7 @@ impl ConductanceSpec {
             h_w_per_m2k: None,
             area_m2: None,
             factor: None,
+            speed: None,
         }
     }
 
@@ -543,6 +687,56 @@ pub struct InputSpec {
     pub column: String,
 }
 
+/// How a `[[loss]]` is driven.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LossDrive {
+    /// Current signal: (index into [`Model::signals`], reference).
+    pub current: Option<(usize, f64)>,
+    /// Speed signal: (index into [`Model::signals`], reference).
+    pub speed: Option<(usize, f64)>,
+    /// Power terms (`c` in W).
+    pub power: Vec<LossTerm>,
+    /// Fraction to the first node; empty for a loss on one node.
+    pub split: Vec<LossTerm>,
+}
+
+impl LossDrive {
+    /// The power of each of its nodes \[W\] (one or two).
+    pub fn powers_w(&self, signals: &[f64]) -> (f64, Option<f64>) {
+        let scaled = |s: Option<(usize, f64)>| s.map_or(0.0, |(k, r)| signals[k] / r);
+        let (i, f) = (scaled(self.current), scaled(self.speed));
+        let p = polynomial(&self.power, i, f).max(0.0);
+        if self.split.is_empty() {
+            (p, None)
+        } else {
+            let a = polynomial(&self.split, i, f).clamp(0.0, 1.0);
+            (a * p, Some((1.0 - a) * p))
+        }
+    }
+}
+
+/// Where a speed-dependent conductance sits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Ends {
+    /// Between two state nodes.
+    Nodes(usize, usize),
+    /// From a state node to a boundary.
+    Boundary(usize, usize),
+}
+
+/// A speed-dependent conductance of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VaryingConductance {
+    /// Its ends.
+    pub ends: Ends,
+    /// Its base conductance (times `factor`) \[W/K\].
+    pub g0_w_per_k: f64,
+    /// Index of its speed signal in [`Model::signals`].
+    pub signal: usize,
+    /// The law.
+    pub law: ConductanceSpeedSpec,
+}
+
 /// A validated, index-resolved model.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -563,10 +757,19 @@ pub struct Model {
     /// Speed losses: the network's sources after the Joule ones, each a
     /// constant 1 ohm driven by the effective current `sqrt(P)`.
     pub speed_losses: Vec<SpeedLossDrive>,
-    /// The network.
+    /// `[[loss]]` entries: their sources follow the speed losses' (one per
+    /// node, each a constant 1 ohm driven by `sqrt(P)`).
+    pub losses: Vec<LossDrive>,
+    /// Speed-dependent conductances (see [`Model::network_at`]).
+    pub varying: Vec<VaryingConductance>,
+    /// The network without the speed-dependent conductances.
+    fixed_network: DynNetwork,
+    /// The network, speed-dependent conductances at zero speed.
     pub network: DynNetwork,
     /// Sub-step ratio bound.
     pub max_step_ratio: f64,
+    /// Which row's inputs act over an interval.
+    pub input_hold: InputHold,
     /// Initial temperature policy.
     pub initial: InitialSpec,
 }
@@ -619,6 +822,8 @@ impl Model {
         let caps = file.nodes.iter().map(|n| n.capacity_j_per_k).collect();
         let mut network = DynNetwork::new(caps, file.boundaries.len())?;
         let mut keys = BTreeMap::new();
+        let mut signals: Vec<String> = Vec::new();
+        let mut varying = Vec::new();
         for (k, c) in file.conductances.iter().enumerate() {
             let ctx = || format!("[[conductance]] #{} `{}`", k + 1, c.key());
             let ends = c
@@ -644,22 +849,39 @@ impl Model {
             if keys.insert(c.key(), k).is_some() {
                 bail!("{}: duplicate conductance name (set `name`)", ctx());
             }
-            match (ends[0], ends[1]) {
+            let ends = match (ends[0], ends[1]) {
                 (Endpoint::Node(a), Endpoint::Node(b)) => {
                     if a == b {
                         bail!("{}: a conductance from a node to itself", ctx());
                     }
-                    network.connect(a, b, g)?
+                    Ends::Nodes(a, b)
                 }
                 (Endpoint::Node(a), Endpoint::Boundary(b))
-                | (Endpoint::Boundary(b), Endpoint::Node(a)) => {
-                    network.connect_boundary(a, b, g)?
-                }
+                | (Endpoint::Boundary(b), Endpoint::Node(a)) => Ends::Boundary(a, b),
                 _ => bail!("{}: joins two boundaries", ctx()),
+            };
+            match &c.speed {
+                None => connect(&mut network, ends, g)?,
+                Some(law) => {
+                    if !(law.reference.is_finite() && law.reference > 0.0) {
+                        bail!("{}: speed.reference must be finite and > 0", ctx());
+                    }
+                    if !(law.a1.is_finite() && law.a2.is_finite() && law.exp_rate.is_finite()) {
+                        bail!("{}: speed.a1, a2 and exp_rate must be finite", ctx());
+                    }
+                    if !(law.r_exp_k_per_w.is_finite() && law.r_exp_k_per_w >= 0.0) {
+                        bail!("{}: speed.r_exp_k_per_w must be finite and >= 0 K/W", ctx());
+                    }
+                    varying.push(VaryingConductance {
+                        ends,
+                        g0_w_per_k: g,
+                        signal: signal_index(&mut signals, &law.column),
+                        law: law.clone(),
+                    });
+                }
             }
         }
         let mut inputs: Vec<InputSpec> = Vec::new();
-        let mut signals: Vec<String> = Vec::new();
         let mut drives = Vec::new();
         let mut source_keys = BTreeMap::new();
         for (k, s) in file.sources.iter().enumerate() {
@@ -694,7 +916,11 @@ impl Model {
                     inputs.len() - 1
                 }
             };
-            let scale = s.scale.unwrap_or(1.0);
+            let scale = match (s.scale, s.scale_per_kj) {
+                (Some(_), Some(_)) => bail!("{}: give scale or scale_per_kj, not both", ctx()),
+                (_, Some(d)) => d * file.nodes[node].capacity_j_per_k / 1000.0,
+                (k, None) => k.unwrap_or(1.0),
+            };
             if !(scale.is_finite() && scale >= 0.0) {
                 bail!("{}: scale must be finite and >= 0", ctx());
             }
@@ -707,13 +933,7 @@ impl Model {
                     if !(sp.a1.is_finite() && sp.a2.is_finite()) {
                         bail!("{}: speed.a1 and speed.a2 must be finite", ctx());
                     }
-                    let idx = match signals.iter().position(|c| *c == sp.column) {
-                        Some(i) => i,
-                        None => {
-                            signals.push(sp.column.clone());
-                            signals.len() - 1
-                        }
-                    };
+                    let idx = signal_index(&mut signals, &sp.column);
                     Some((idx, sp.reference, sp.a1, sp.a2))
                 }
             };
@@ -743,18 +963,83 @@ impl Model {
             // A 1 ohm constant resistance driven by sqrt(P) keeps the network
             // exactly the library's (a Joule source) while carrying any power.
             network.joule_source(node, Resistance::constant(1.0))?;
-            let signal = match signals.iter().position(|c| *c == l.column) {
-                Some(i) => i,
-                None => {
-                    signals.push(l.column.clone());
-                    signals.len() - 1
-                }
-            };
             speed_losses.push(SpeedLossDrive {
-                signal,
+                signal: signal_index(&mut signals, &l.column),
                 reference: l.reference,
                 p1_w: l.p1_w,
                 p2_w: l.p2_w,
+            });
+        }
+        let mut losses = Vec::new();
+        let mut loss_names = BTreeMap::new();
+        for (k, l) in file.losses.iter().enumerate() {
+            let ctx = || format!("[[loss]] #{} `{}`", k + 1, l.name);
+            if loss_names.insert(l.name.clone(), k).is_some() {
+                bail!("{}: duplicate loss name", ctx());
+            }
+            let nodes = l
+                .nodes
+                .iter()
+                .map(|n| match names.get(n.as_str()) {
+                    Some(Endpoint::Node(i)) => Ok(*i),
+                    _ => bail!("{}: unknown node `{n}`", ctx()),
+                })
+                .collect::<Result<Vec<_>>>()?;
+            match (nodes.len(), l.split.is_empty()) {
+                (1, true) | (2, false) => {}
+                (1, false) => bail!("{}: `split` needs two nodes", ctx()),
+                (2, true) => bail!("{}: two nodes need `split` terms", ctx()),
+                (n, _) => bail!("{}: `nodes` lists one or two nodes, got {n}", ctx()),
+            }
+            if nodes.len() == 2 && nodes[0] == nodes[1] {
+                bail!("{}: the two nodes must differ", ctx());
+            }
+            let mut scaled =
+                |s: &Option<ScaledSignal>, what: &str| -> Result<Option<(usize, f64)>> {
+                    let Some(s) = s else { return Ok(None) };
+                    if !(s.reference.is_finite() && s.reference > 0.0) {
+                        bail!("{}: {what}.reference must be finite and > 0", ctx());
+                    }
+                    Ok(Some((signal_index(&mut signals, &s.column), s.reference)))
+                };
+            let current = scaled(&l.current, "current")?;
+            let speed = scaled(&l.speed, "speed")?;
+            for (kind, terms) in [("power", &l.power), ("split", &l.split)] {
+                for (j, t) in terms.iter().enumerate() {
+                    if !t.c.is_finite() {
+                        bail!("{}: {kind} term {j}: c must be finite", ctx());
+                    }
+                    if t.i > MAX_LOSS_EXPONENT || t.f > MAX_LOSS_EXPONENT {
+                        bail!(
+                            "{}: {kind} term {j}: powers above {MAX_LOSS_EXPONENT} are refused",
+                            ctx()
+                        );
+                    }
+                    if t.i > 0 && current.is_none() {
+                        bail!(
+                            "{}: {kind} term {j} uses i but the loss has no `current`",
+                            ctx()
+                        );
+                    }
+                    if t.f > 0 && speed.is_none() {
+                        bail!(
+                            "{}: {kind} term {j} uses f but the loss has no `speed`",
+                            ctx()
+                        );
+                    }
+                }
+            }
+            if l.power.is_empty() {
+                bail!("{}: no `power` terms", ctx());
+            }
+            for node in &nodes {
+                network.joule_source(*node, Resistance::constant(1.0))?;
+            }
+            losses.push(LossDrive {
+                current,
+                speed,
+                power: l.power.clone(),
+                split: l.split.clone(),
             });
         }
         for (k, f) in file.fixed_powers.iter().enumerate() {
@@ -775,6 +1060,10 @@ impl Model {
         {
             bail!("[initial] policy = \"uniform\" needs a finite uniform_c");
         }
+        let fixed_network = network.clone();
+        for v in &varying {
+            connect(&mut network, v.ends, v.law.at(v.g0_w_per_k, 0.0))?;
+        }
         Ok(Self {
             name: file.name.clone().unwrap_or_else(|| "model".into()),
             nodes: file.nodes.iter().map(|n| n.name.clone()).collect(),
@@ -784,8 +1073,12 @@ impl Model {
             signals,
             drives,
             speed_losses,
+            losses,
+            varying,
+            fixed_network,
             network,
             max_step_ratio,
+            input_hold: file.input_hold.unwrap_or_default(),
             initial: file.initial.clone(),
         })
     }
@@ -823,7 +1116,64 @@ impl Model {
             let f = signals[l.signal] / l.reference;
             (l.p1_w * f + l.p2_w * f * f).max(0.0).sqrt()
         }));
+        for l in &self.losses {
+            let (first, second) = l.powers_w(signals);
+            out.push(first.sqrt());
+            if let Some(p) = second {
+                out.push(p.sqrt());
+            }
+        }
     }
+
+    /// `true` when a conductance depends on a signal: the network then
+    /// changes from row to row ([`Self::network_at`]).
+    pub fn has_varying_conductances(&self) -> bool {
+        !self.varying.is_empty()
+    }
+
+    /// The network with every speed-dependent conductance at the row's
+    /// `signals` (the fixed network when there is none).
+    pub fn network_at(&self, signals: &[f64]) -> DynNetwork {
+        let mut net = self.fixed_network.clone();
+        for v in &self.varying {
+            let g = v.law.at(v.g0_w_per_k, signals[v.signal]);
+            // Finite and >= 0 by construction: `at` divides a clamped
+            // polynomial by a positive resistance.
+            let _ = connect(&mut net, v.ends, g);
+        }
+        net
+    }
+
+    /// Refuses a model whose conductances depend on a signal, for a path
+    /// (`what`) that works on one fixed network.
+    pub fn require_fixed_network(&self, what: &str) -> Result<()> {
+        if self.has_varying_conductances() {
+            bail!(
+                "model `{}` has speed-dependent conductances ([conductance.speed]); {what} needs a fixed network (replay it open loop without --measure)",
+                self.name
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Index of `column` in `signals`, appended when new.
+fn signal_index(signals: &mut Vec<String>, column: &str) -> usize {
+    match signals.iter().position(|c| c == column) {
+        Some(i) => i,
+        None => {
+            signals.push(column.to_string());
+            signals.len() - 1
+        }
+    }
+}
+
+fn connect(net: &mut DynNetwork, ends: Ends, g: f64) -> Result<()> {
+    match ends {
+        Ends::Nodes(a, b) => net.connect(a, b, g)?,
+        Ends::Boundary(a, b) => net.connect_boundary(a, b, g)?,
+    }
+    Ok(())
 }
 
 #[derive(Debug, Clone, Copy)]

@@ -12,7 +12,7 @@ use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState};
 
 use crate::dynamic_network::DynNetwork;
 use crate::limits::{class_of, padded_with, Padding, SIZE_CLASSES};
-use crate::model_file::{InitialPolicy, InitialSpec, Model};
+use crate::model_file::{InitialPolicy, InitialSpec, InputHold, Model};
 use crate::trace::{num, ColumnExpr, Trace};
 
 /// One named input channel of a plant.
@@ -97,6 +97,8 @@ pub const HOST_INPUT_LIMITS: InputLimits = InputLimits {
 trait PaddedStepper: Send {
     /// Sets the first `temps_c.len()` node temperatures, clears the carry.
     fn reset(&mut self, temps_c: &[f64]);
+    /// Replaces the network (same sizes; speed-dependent conductances).
+    fn set_network(&mut self, net: &DynNetwork) -> Result<()>;
     /// `substeps` library steps of `h_s` with these inputs held; the real
     /// nodes' temperatures into `temps_c`.
     fn step(
@@ -134,6 +136,12 @@ impl<const P: usize> PaddedStepper for Stepper<P> {
     fn reset(&mut self, temps_c: &[f64]) {
         self.state.temps_c[..temps_c.len()].copy_from_slice(temps_c);
         self.state.residual_c = [0.0; P];
+    }
+
+    fn set_network(&mut self, net: &DynNetwork) -> Result<()> {
+        self.network = padded_with::<P>(net, Padding::ISOLATED)?;
+        self.stepper = None;
+        Ok(())
     }
 
     fn step(
@@ -206,6 +214,9 @@ pub fn plant_info(model: &Model) -> PlantInfo {
 /// changes.
 pub struct FilePlant {
     model: Model,
+    /// The network stepped now (the model's, or with its speed-dependent
+    /// conductances at the last row's signals).
+    network: DynNetwork,
     info: PlantInfo,
     temps: Vec<f64>,
     effective: Vec<f64>,
@@ -249,6 +260,7 @@ impl FilePlant {
         .with_context(|| format!("model `{}`", model.name))?;
         let n = model.nodes.len();
         Ok(Self {
+            network: model.network.clone(),
             model,
             info,
             temps: vec![0.0; n],
@@ -290,6 +302,14 @@ impl Plant for FilePlant {
         }
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
+        if self.model.has_varying_conductances() {
+            // The conductances of this row, held over the interval like
+            // every other input; the stepper is rebuilt only on a change.
+            let net = self.model.network_at(signals);
+            if net != self.network && self.stepper.set_network(&net).is_ok() {
+                self.network = net;
+            }
+        }
         let n = self.substeps(dt_s);
         // A step the library refuses (only an overflowing rate can make
         // one) leaves the state where it is, as the library's own input
@@ -308,7 +328,8 @@ impl Plant for FilePlant {
     }
 
     fn steps_for(&self, dt_s: f64) -> f64 {
-        (dt_s * self.model.network.max_rate_per_s() / self.model.max_step_ratio)
+        // The network in force: speed-dependent conductances swap it per row.
+        (dt_s * self.network.max_rate_per_s() / self.model.max_step_ratio)
             .ceil()
             .max(1.0)
     }
@@ -446,6 +467,25 @@ impl Drive {
         boundary.extend(self.boundaries.iter().map(|c| c[k]));
         signals.clear();
         signals.extend(self.signals.iter().map(|c| c[k]));
+    }
+
+    /// Holds the inputs as `hold` says: with [`InputHold::End`] every
+    /// series moves one row earlier (row `k` then carries row `k+1`'s
+    /// inputs, the last row its own), so the simulators' zero-order hold
+    /// applies the inputs of the row each interval ends at.
+    pub fn held(mut self, hold: InputHold) -> Self {
+        if hold == InputHold::End {
+            let advance = |v: &mut Vec<f64>| {
+                if v.len() > 1 {
+                    v.remove(0);
+                    v.push(*v.last().expect("non-empty"));
+                }
+            };
+            self.currents.iter_mut().for_each(advance);
+            self.boundaries.iter_mut().for_each(advance);
+            self.signals.iter_mut().for_each(advance);
+        }
+        self
     }
 
     /// Resolves every channel of `info` against a trace.

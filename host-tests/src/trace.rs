@@ -103,6 +103,8 @@ pub enum ColumnExpr {
     Column(String),
     /// `sqrt(sum of squares)` of columns.
     Hypot(Vec<String>),
+    /// Arithmetic mean of columns (e.g. two sensors of one node).
+    Mean(Vec<String>),
     /// Absolute value of a column.
     Abs(String),
     /// A column times a constant.
@@ -114,7 +116,7 @@ pub enum ColumnExpr {
 }
 
 impl ColumnExpr {
-    /// Parses `NAME`, `hypot(A,B)`, `abs(A)`, `scale(A,K)` or a number.
+    /// Parses `NAME`, `hypot(A,B)`, `mean(A,B)`, `abs(A)`, `scale(A,K)` or a number.
     pub fn parse(text: &str) -> Result<Self> {
         let t = text.trim();
         if t.is_empty() {
@@ -143,6 +145,7 @@ impl ColumnExpr {
             }
             return match (func, args.len()) {
                 ("hypot", n) if n >= 1 => Ok(Self::Hypot(args)),
+                ("mean", n) if n >= 1 => Ok(Self::Mean(args)),
                 ("abs", 1) => Ok(Self::Abs(args[0].clone())),
                 ("scale", 2) => {
                     let k: f64 = args[1]
@@ -153,7 +156,7 @@ impl ColumnExpr {
                     }
                     Ok(Self::Scale(args[0].clone(), k))
                 }
-                _ => bail!("`{t}`: unknown function; use hypot(A,B,..), abs(A) or scale(A,K)"),
+                _ => bail!("`{t}`: unknown function; use hypot(A,B,..), mean(A,B,..), abs(A) or scale(A,K)"),
             };
         }
         Ok(Self::Column(t.to_string()))
@@ -221,7 +224,7 @@ impl ColumnExpr {
     pub fn columns(&self) -> Vec<&str> {
         match self {
             Self::Column(c) | Self::Abs(c) | Self::Scale(c, _) => vec![c.as_str()],
-            Self::Hypot(cs) => cs.iter().map(String::as_str).collect(),
+            Self::Hypot(cs) | Self::Mean(cs) => cs.iter().map(String::as_str).collect(),
             Self::Constant(_) | Self::Steps(_) => Vec::new(),
         }
     }
@@ -232,6 +235,7 @@ impl fmt::Display for ColumnExpr {
         match self {
             Self::Column(c) => write!(f, "{c}"),
             Self::Hypot(cs) => write!(f, "hypot({})", cs.join(",")),
+            Self::Mean(cs) => write!(f, "mean({})", cs.join(",")),
             Self::Abs(c) => write!(f, "abs({c})"),
             Self::Scale(c, k) => write!(f, "scale({c},{})", num(*k)),
             Self::Constant(v) => write!(f, "{}", num(*v)),
@@ -560,6 +564,13 @@ impl Trace {
                 let series = cs.iter().map(|c| col(c)).collect::<Result<Vec<_>, _>>()?;
                 (0..self.len())
                     .map(|k| series.iter().fold(0.0, |acc: f64, s| acc.hypot(s[k])))
+                    .collect()
+            }
+            ColumnExpr::Mean(cs) => {
+                let series = cs.iter().map(|c| col(c)).collect::<Result<Vec<_>, _>>()?;
+                let n = cs.len() as f64;
+                (0..self.len())
+                    .map(|k| series.iter().map(|s| s[k]).sum::<f64>() / n)
                     .collect()
             }
         };

@@ -70,6 +70,7 @@ fn two_node_coil_parameters_are_recovered_from_two_noisy_traces() {
             label: format!("trace {i}"),
             drive: d.clone(),
             targets: recording(&truth, d, &["coil", "housing"], 0.05, &mut rng),
+            init: Vec::new(),
         })
         .collect();
     // The resistance is known (measured); capacities and conductances are
@@ -104,6 +105,20 @@ fn two_node_coil_parameters_are_recovered_from_two_noisy_traces() {
             100.0 * rel
         );
         assert!(!p.at_bound);
+        // White noise: the Jacobian's standard error is honest, the error
+        // within 4 of them, and each small (under 1 % of the value).
+        let se = p.std_error.expect("a free parameter has a standard error");
+        assert!(se > 0.0 && se < 0.01 * w, "{}: se {se}", p.name);
+        assert!(
+            (p.fitted - w).abs() < 4.0 * se,
+            "{}: {} vs {w}, se {se}",
+            p.name,
+            p.fitted
+        );
+    }
+    for (i, row) in report.correlations.iter().enumerate() {
+        assert!((row[i].unwrap() - 1.0).abs() < 1e-9);
+        assert!(row.iter().all(|c| c.unwrap().abs() <= 1.0 + 1e-9));
     }
     for t in &report.traces {
         // The residual is the noise: RMSE close to sigma = 0.05 K.
@@ -152,6 +167,7 @@ fn speed_dependent_loss_coefficients_are_recovered() {
     let data = vec![FitData {
         label: "synthetic".into(),
         targets: recording(&truth, &drive, &["winding", "stator"], 0.05, &mut rng),
+        init: Vec::new(),
         drive,
     }];
     let names = [
@@ -216,6 +232,7 @@ fn parameter_names_and_bounds_are_checked() {
     let data = vec![FitData {
         label: "t".into(),
         targets: recording(&file, &drive, &["coil"], 0.0, &mut Rng::new(1)),
+        init: Vec::new(),
         drive,
     }];
     let bad = [ParamSpec::parse("capacity.coil=300:400").unwrap()];

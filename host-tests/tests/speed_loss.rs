@@ -124,3 +124,239 @@ a2 = 0.1
     let ticks = observer.take_tick_times_ns().unwrap();
     assert_eq!(ticks.len(), 10_000);
 }
+
+/// Two nodes cooled apart, sharing one `[[loss]]` (current x speed
+/// polynomial) by a split polynomial; the second conductance varies with
+/// speed by `[conductance.speed]`.
+const SPLIT: &str = r#"
+name = "split"
+[[node]]
+name = "stator"
+capacity_j_per_k = 400.0
+[[node]]
+name = "rotor"
+capacity_j_per_k = 300.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["stator", "coolant"]
+g_w_per_k = 10.0
+[[conductance]]
+between = ["rotor", "coolant"]
+r_k_per_w = 0.05
+[conductance.speed]
+column = "speed"
+reference = 4000.0
+a1 = 0.5
+r_exp_k_per_w = 0.2
+exp_rate = 1.5
+[[loss]]
+name = "rest"
+nodes = ["stator", "rotor"]
+current = { column = "current", reference = 100.0 }
+speed = { column = "speed", reference = 4000.0 }
+power = [{ c = 20.0, f = 1 }, { c = 100.0, i = 1, f = 1 }, { c = 5.0, i = 2 }]
+split = [{ c = 0.9 }, { c = -0.2, f = 1 }, { c = -0.1, i = 1, f = 1 }]
+"#;
+
+/// Steady temperatures \[degC\] of every node at constant signals
+/// (`current`, `speed`), from the model file run by the tool.
+fn steady_split(src: &str, current: f64, speed: f64) -> Vec<f64> {
+    let file = ModelFile::parse(src, "split.toml").unwrap();
+    let model = Model::build(&file).unwrap();
+    // The conductance names `speed` first, the loss adds `current`.
+    assert_eq!(model.signals, ["speed", "current"]);
+    let mut plant = FilePlant::new(model).unwrap();
+    let rows = 20_000;
+    let drive = Drive {
+        time_s: (0..rows).map(|k| k as f64).collect(),
+        currents: vec![],
+        boundaries: vec![vec![20.0; rows]],
+        signals: vec![vec![speed; rows], vec![current; rows]],
+    };
+    simulate(&mut plant, &drive, &[20.0, 20.0])
+        .last()
+        .unwrap()
+        .clone()
+}
+
+#[test]
+fn loss_polynomial_split_and_speed_dependent_conductance_reach_their_analytic_steady_state() {
+    for (current, speed) in [
+        (0.0_f64, 0.0_f64),
+        (50.0, 1000.0),
+        (100.0, 4000.0),
+        (180.0, 3000.0),
+    ] {
+        let (i, f) = (current / 100.0, speed / 4000.0);
+        let p = 20.0 * f + 100.0 * i * f + 5.0 * i * i;
+        let a = (0.9 - 0.2 * f - 0.1 * i * f).clamp(0.0, 1.0);
+        let g_rotor = (1.0 + 0.5 * f) / (0.05 + 0.2 * (-1.5 * f).exp());
+        let t = steady_split(SPLIT, current, speed);
+        let want = [20.0 + a * p / 10.0, 20.0 + (1.0 - a) * p / g_rotor];
+        for (got, want) in t.iter().zip(want) {
+            assert!(
+                (got - want).abs() < 1e-6,
+                "{current} A {speed} rpm: {got} vs {want}"
+            );
+        }
+    }
+    // The split is clipped to [0, 1]: at i = 10 and f = 1 the polynomial is
+    // 0.9 - 0.2 - 1.0 < 0, so the rotor takes all of the loss.
+    let t = steady_split(SPLIT, 1000.0, 4000.0);
+    assert!((t[0] - 20.0).abs() < 1e-9, "{t:?}");
+    assert!(t[1] > 100.0);
+}
+
+#[test]
+fn ill_formed_losses_and_speed_laws_are_refused_with_the_entry_named() {
+    let cases = [
+        (
+            "split = [{ c = 0.9 }, { c = -0.2, f = 1 }, { c = -0.1, i = 1, f = 1 }]",
+            "",
+            "two nodes need",
+        ),
+        (
+            "{ c = 5.0, i = 2 }]",
+            "{ c = 5.0, i = 5 }]",
+            "powers above 4",
+        ),
+        (
+            "current = { column = \"current\", reference = 100.0 }\n",
+            "",
+            "uses i but the loss has no `current`",
+        ),
+        (
+            "reference = 100.0",
+            "reference = 0.0",
+            "current.reference must be finite and > 0",
+        ),
+        (
+            "r_exp_k_per_w = 0.2",
+            "r_exp_k_per_w = -0.2",
+            "r_exp_k_per_w must be finite and >= 0",
+        ),
+        (
+            "nodes = [\"stator\", \"rotor\"]",
+            "nodes = [\"stator\", \"stator\"]",
+            "must differ",
+        ),
+    ];
+    for (from, to, want) in cases {
+        let mut src = SPLIT.replace(from, to);
+        if want == "two nodes need" {
+            src = src.replace("\n\n", "\n");
+        }
+        let err = ModelFile::parse(&src, "bad.toml").unwrap_err().to_string();
+        assert!(err.contains(want), "{want}: {err}");
+        assert!(err.starts_with("bad.toml:"), "{err}");
+    }
+}
+
+/// `input_hold = "end"`: a step uses the inputs of the row it ends at (an
+/// explicit Euler of a logged trace); `start` (the default) those of the
+/// row it starts at.
+#[test]
+fn input_hold_end_applies_the_next_rows_inputs() {
+    let src = r#"
+[[node]]
+name = "n"
+capacity_j_per_k = 100.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["n", "coolant"]
+g_w_per_k = 1.0
+[[speed_loss]]
+node = "n"
+column = "speed"
+reference = 1.0
+p1_w = 1.0
+"#;
+    let drive = Drive {
+        time_s: vec![0.0, 1.0, 2.0],
+        currents: vec![],
+        boundaries: vec![vec![20.0; 3]],
+        signals: vec![vec![0.0, 50.0, 100.0]],
+    };
+    for (hold, first) in [("", 0.0), ("input_hold = \"end\"\n", 50.0)] {
+        let file = ModelFile::parse(&format!("{hold}{src}"), "hold.toml").unwrap();
+        let model = Model::build(&file).unwrap();
+        let held = drive.clone().held(model.input_hold);
+        let mut plant = FilePlant::new(model).unwrap();
+        let t = simulate(&mut plant, &held, &[20.0]);
+        // One explicit step of 1 s (h G / C = 0.01): T1 = 20 + P / C.
+        assert!(
+            (t[1][0] - (20.0 + first / 100.0)).abs() < 1e-12,
+            "{hold}: {t:?}"
+        );
+    }
+}
+
+/// `scale_per_kj`: a source's power scale follows its node's capacity, and
+/// a tied calibration name moves every source of one conductor at once.
+#[test]
+fn copper_loss_density_scales_with_capacity_and_ties_in_calibration() {
+    let src = r#"
+[[node]]
+name = "slot"
+capacity_j_per_k = 2000.0
+[[node]]
+name = "overhang"
+capacity_j_per_k = 1000.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["slot", "coolant"]
+g_w_per_k = 10.0
+[[conductance]]
+between = ["overhang", "coolant"]
+g_w_per_k = 10.0
+[[source]]
+name = "slot"
+node = "slot"
+input = "current"
+r0_ohm = 0.01
+scale_per_kj = 0.5
+[[source]]
+name = "overhang"
+node = "overhang"
+input = "current"
+r0_ohm = 0.01
+scale_per_kj = 0.5
+"#;
+    let mut file = ModelFile::parse(src, "density.toml").unwrap();
+    let model = Model::build(&file).unwrap();
+    // k = 0.5 per kJ/K: 1.0 on 2 kJ/K, 0.5 on 1 kJ/K.
+    assert_eq!(model.drives[0].scale, 1.0);
+    assert_eq!(model.drives[1].scale, 0.5);
+    let tied = "source.slot.scale_per_kj|source.overhang.scale_per_kj";
+    assert_eq!(access_param(&mut file, tied, Some(0.8)).unwrap(), 0.5);
+    assert_eq!(file.sources[1].scale_per_kj, Some(0.8));
+    let both = src.replace("scale_per_kj = 0.5\n", "scale_per_kj = 0.5\nscale = 1.0\n");
+    let err = ModelFile::parse(&both, "both.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("scale or scale_per_kj"), "{err}");
+}
+
+/// The observers that hold one fixed network refuse a model whose
+/// conductances change with speed, saying why and what runs it.
+#[test]
+fn fixed_network_observers_refuse_speed_dependent_conductances() {
+    use coil_thermal_host::library_observer::ObserverEstimator;
+    let model = Model::build(&ModelFile::parse(SPLIT, "split.toml").unwrap()).unwrap();
+    assert!(model.has_varying_conductances());
+    let err = ObserverEstimator::new(model.clone(), 1000)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(err.contains("speed-dependent conductances"), "{err}");
+    assert!(err.contains("open loop"), "{err}");
+    let plain = Model::build(&ModelFile::parse(ONE_NODE, "one.toml").unwrap()).unwrap();
+    assert!(!plain.has_varying_conductances());
+    assert!(plain.require_fixed_network("x").is_ok());
+}

@@ -24,7 +24,8 @@ use crate::synth::Rng;
 /// Runs `calibrate`.
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let file = common::model_file(&a.model)?;
-    let info = plant_info(&Model::build(&file)?);
+    let model = Model::build(&file)?;
+    let info = plant_info(&model);
     let bind = common::bindings(&a.trace_args)?;
     let params = a
         .params
@@ -39,10 +40,14 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         let bind = common::trace_bindings(&bind, &a.trace_const, k, all_traces)?;
         let d = FitData {
             label: path.display().to_string(),
-            drive: Drive::from_trace(&info, &trace, &bind)?,
+            drive: Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold),
             targets: common::sensors(&a.measure, "--measure", &info, &trace).context(
                 "calibrate fits every row: fill or drop the rows without a reading (replay skips them)",
             )?,
+            init: common::sensors(&a.init, "--init", &info, &trace)?
+                .into_iter()
+                .map(|s| (s.node, s.values_c[0]))
+                .collect(),
         };
         check_work(
             &FilePlant::new(Model::build(&file)?)?,
@@ -107,19 +112,42 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         report.stop_reason
     );
     println!(
-        "{:<36} {:>14} {:>14}  bounds",
-        "parameter", "initial", "fitted"
+        "{:<36} {:>14} {:>14} {:>12}  bounds",
+        "parameter", "initial", "fitted", "std error"
     );
     for p in &report.params {
+        let se = p
+            .std_error
+            .map_or_else(|| "-".to_string(), |e| format!("{e:.3e}"));
+        let note = match p.bound {
+            Some(b) => format!(
+                "  AT {} BOUND (widen it in --params if physics allows)",
+                b.to_uppercase()
+            ),
+            None => String::new(),
+        };
         println!(
-            "{:<36} {:>14.6e} {:>14.6e}  [{:.3e}, {:.3e}]{}",
-            p.name,
-            p.initial,
-            p.fitted,
-            p.lo,
-            p.hi,
-            if p.at_bound { "  AT BOUND" } else { "" }
+            "{:<36} {:>14.6e} {:>14.6e} {:>12}  [{:.3e}, {:.3e}]{note}",
+            p.name, p.initial, p.fitted, se, p.lo, p.hi,
         );
+    }
+    // Strongly correlated pairs: the data cannot tell these apart.
+    let mut pairs = Vec::new();
+    for (i, row) in report.correlations.iter().enumerate() {
+        for (j, c) in row.iter().enumerate().skip(i + 1) {
+            if let Some(c) = c.filter(|c| c.abs() >= 0.9) {
+                pairs.push(format!(
+                    "  {} ~ {}: {c:+.3}",
+                    report.params[i].name, report.params[j].name
+                ));
+            }
+        }
+    }
+    if pairs.is_empty() {
+        println!("no pair of free parameters correlated beyond |0.9|");
+    } else {
+        println!("correlations beyond |0.9| (the JSON has the full matrix):");
+        pairs.iter().for_each(|p| println!("{p}"));
     }
     println!(
         "{:<48} {:>16} {:>16}",

@@ -518,6 +518,11 @@ pub struct CalibrateArgs {
     /// several.
     #[arg(long = "validate", value_name = "IN.csv")]
     validate: Vec<PathBuf>,
+    /// A column that only sets a node's initial temperature (with
+    /// `[initial] policy = "measured"`), not fitted: `COL=NODE` [degC];
+    /// repeatable.
+    #[arg(long = "init", value_name = "COL=NODE")]
+    init: Vec<String>,
     /// Parameters to fit, comma separated, each `NAME` or `NAME=LO:HI`:
     /// `capacity.NODE` [J/K], `conductance.NAME` [W/K] (`.factor`,
     /// `.h_w_per_m2k` [W/(m^2 K)]), `source.NAME.r0_ohm` [ohm] (`.alpha_per_k`

@@ -10,9 +10,10 @@ use crate::kalman::{KalmanEstimator, KalmanOptions};
 use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
+use crate::observer::Measurement;
 use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
 use crate::plot::render;
-use crate::sim::{Drive, PlantInfo};
+use crate::sim::{Drive, FilePlant, Plant, PlantInfo};
 use crate::trace::write_csv;
 
 /// Alarm events printed in the text summary (`--json` has them all).
@@ -195,13 +196,36 @@ fn median_row_s(time_s: &[f64]) -> f64 {
     dt.get(dt.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// A model file run open loop on the library's explicit stepper at the
+/// trace's rows (for models whose network changes with a signal).
+struct PlantEstimator(FilePlant);
+
+impl Estimator for PlantEstimator {
+    fn info(&self) -> &PlantInfo {
+        self.0.info()
+    }
+    fn reset(&mut self, temps_c: &[f64]) {
+        self.0.reset(temps_c);
+    }
+    fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        self.0.step(dt_s, currents_a, boundary_c, signals);
+    }
+    fn update(&mut self, _measured: &[Measurement]) {}
+    fn estimate_c(&self) -> &[f64] {
+        self.0.temps_c()
+    }
+    fn kind(&self) -> &'static str {
+        "explicit-stepper"
+    }
+}
+
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model = Model::build(&common::model_file(&a.model)?)?;
     let info = crate::sim::plant_info(&model);
     let trace = common::read_trace(&a.trace, &a.trace_args)?;
     let bind = common::bindings(&a.trace_args)?;
-    let drive = Drive::from_trace(&info, &trace, &bind)?;
+    let drive = Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold);
     let mut measured = common::sensors_with(&a.measure, "--measure", &info, &trace, true)?;
     let truth = common::sensors_with(&a.truth, "--truth", &info, &trace, true)?;
     let init_only = common::sensors_with(&a.init, "--init", &info, &trace, true)?;
@@ -255,7 +279,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut observer = None;
     let mut kalman = None;
     let mut disturbance_std = None;
-    let estimator: &mut dyn Estimator = if a.disturbance.is_empty() {
+    // The library's observer holds one network; conductances that change
+    // with speed run open loop on the library's explicit stepper instead.
+    let open_loop = measured.is_empty() && a.disturbance.is_empty();
+    let mut stepped = if model.has_varying_conductances() && open_loop {
+        Some(PlantEstimator(FilePlant::new(model.clone())?))
+    } else {
+        None
+    };
+    let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
+        s
+    } else if a.disturbance.is_empty() {
         let fusion = (!measured.is_empty()).then(|| Fusion {
             sensor_nodes: measured.iter().map(|m| m.node).collect(),
             sensor_sigma_k: a.measurement_noise_k,
