@@ -111,7 +111,7 @@ fn a_time_temperature_recording_with_a_step_profile_imports_without_a_converter(
     assert!(truth_rmse(&right, "temperature") < 0.05, "{right}");
     assert!(truth_rmse(&right, "housing_t") < 0.05, "{right}");
     assert!(truth_rmse(&wrong, "temperature") > 1.0, "{wrong}");
-    assert_eq!(right["schema_version"], 2);
+    assert_eq!(right["schema_version"], 1);
     // The same profile as a --const of the input's column.
     let j = json(
         &ct()
@@ -171,7 +171,7 @@ fn calibrate(dir: &TempDir, validation_ambient: bool) -> Value {
 fn calibrate_takes_per_trace_constants_and_scores_a_held_out_trace() {
     let dir = TempDir::new().unwrap();
     let j = calibrate(&dir, true);
-    assert_eq!(j["schema_version"], 2);
+    assert_eq!(j["schema_version"], 1);
     let fitted = j["fit"]["params"][0]["fitted"].as_f64().unwrap();
     assert!((fitted - 200.0).abs() < 0.5, "{j}");
     for t in j["fit"]["traces"].as_array().unwrap() {

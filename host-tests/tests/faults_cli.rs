@@ -267,7 +267,7 @@ fn one_per_solenoid_stuck_and_drift_meet_the_goals() {
         "stuck",
         "--json",
     ]);
-    assert_eq!(slow["schema_version"], 2);
+    assert_eq!(slow["schema_version"], 1);
     assert_eq!(slow["clean"]["bias_alarm_ticks"], 0);
     for c in cases(&slow, "stuck") {
         assert_eq!(c["flag_goal_met"], true, "{c}");
