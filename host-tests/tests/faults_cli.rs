@@ -363,4 +363,10 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
     .assert()
     .failure()
     .stderr(contains("no thermocouple 1"));
+    // A model without `[observer] sensors` has no thermocouple to fault.
+    let bare = concat!(env!("CARGO_MANIFEST_DIR"), "/models/drive-3node-truth.toml");
+    ct().args(["faults", "--model", bare, "--current-a", "6"])
+        .assert()
+        .failure()
+        .stderr(contains("[observer] sensors"));
 }
