@@ -63,7 +63,7 @@ use serde::Serialize;
 use crate::devices::OmnimagnetPlant;
 use crate::sim::Plant;
 
-mod network;
+pub mod network;
 pub use network::run_model;
 
 /// A shutdown later than the reference's by more than this is late \[s\]
