@@ -53,8 +53,7 @@
 use coil_thermal::observer::omnimagnet::ALARM_NODES;
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::{
-    OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
-    TimedReading,
+    OmniInputs, OmniObserver, OmniObserverState, OmniSettings, SensorStatus, TimedReading,
 };
 use coil_thermal::omnimagnet::observer::ObserverSettings;
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, SOLENOIDS, THERMOCOUPLES, THERMOCOUPLE_NODES};
@@ -63,6 +62,9 @@ use serde::Serialize;
 
 use crate::devices::OmnimagnetPlant;
 use crate::sim::Plant;
+
+pub mod network;
+pub use network::run_model;
 
 /// A shutdown later than the reference's by more than this is late \[s\]
 /// (issue 17).
@@ -203,32 +205,32 @@ impl FaultClass {
     }
 }
 
-/// Solenoid currents over time: a recorded trace's rows.
+/// Input currents over time: a recorded trace's rows.
 #[derive(Debug, Clone, Default)]
 pub struct CurrentTrace {
     /// Row times from the run's start \[s\], increasing.
     pub time_s: Vec<f64>,
-    /// Currents per row \[A\].
-    pub currents_a: Vec<[f64; SOLENOIDS]>,
+    /// Currents per row, one per model input \[A\].
+    pub currents_a: Vec<Vec<f64>>,
 }
 
 impl CurrentTrace {
     /// The currents held at `t_s` \[s\] (the last row at or before it; the
     /// first row before the trace starts).
-    pub fn at(&self, t_s: f64) -> [f64; SOLENOIDS] {
+    pub fn at(&self, t_s: f64) -> &[f64] {
         let k = self.time_s.partition_point(|t| *t <= t_s);
         self.currents_a
             .get(k.saturating_sub(1))
-            .copied()
-            .unwrap_or([0.0; SOLENOIDS])
+            .map_or(&[], Vec::as_slice)
     }
 }
 
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct FaultConfig {
-    /// Constant current of each solenoid \[A\] (without `trace`).
-    pub currents_a: [f64; SOLENOIDS],
+    /// Constant current of each model input (each solenoid) \[A\]
+    /// (without `trace`).
+    pub currents_a: Vec<f64>,
     /// Currents from a recorded trace instead, held from each row to the
     /// next; the run lasts `duration_s` (the CLI sets the trace's span).
     pub trace: Option<CurrentTrace>,
@@ -240,8 +242,9 @@ pub struct FaultConfig {
     pub reading_every: u32,
     /// Ambient \[degC\].
     pub ambient_c: f64,
-    /// Thermocouples in use (order of [`THERMOCOUPLE_NODES`]).
-    pub sensors: [bool; THERMOCOUPLES],
+    /// Thermocouples in use (the Omnimagnet's: order of
+    /// [`THERMOCOUPLE_NODES`]; a model file's: its observer's sensors).
+    pub sensors: Vec<bool>,
     /// Onset times \[s\]; empty: 60 s and half the clean shutdown time (or
     /// half the duration without one).
     pub onsets_s: Vec<f64>,
@@ -261,13 +264,13 @@ pub struct FaultConfig {
 impl Default for FaultConfig {
     fn default() -> Self {
         Self {
-            currents_a: [7.0; SOLENOIDS],
+            currents_a: vec![7.0; SOLENOIDS],
             trace: None,
             duration_s: 1800.0,
             step_us: 100_000,
             reading_every: 5,
             ambient_c: 22.0,
-            sensors: [true; THERMOCOUPLES],
+            sensors: vec![true; THERMOCOUPLES],
             onsets_s: Vec::new(),
             classes: Vec::new(),
             off_s: 600.0,
@@ -495,11 +498,241 @@ impl Restart {
     }
 }
 
-/// The observer's configuration and the run parameters.
-struct Harness<'c> {
-    cfg: &'c FaultConfig,
+/// What the campaign needs of an observer under test and its plant: the
+/// Omnimagnet's [`OmniObserver`] ([`OmniSubject`]) or a model file's
+/// `NetworkObserver` ([`run_model`]). Node indices are the plant's, which
+/// are the observer's.
+pub trait Subject {
+    /// The observer's state.
+    type State;
+    /// Model name for the report.
+    fn name(&self) -> String;
+    /// The plant node each thermocouple reads, in sensor order.
+    fn sensor_nodes(&self) -> &[usize];
+    /// The nodes whose estimate protects (the hot spot is the hottest in
+    /// the truth).
+    fn alarm_nodes(&self) -> &[usize];
+    /// Current inputs of the plant.
+    fn inputs(&self) -> usize;
+    /// A fresh plant, the truth.
+    fn plant(&self) -> Box<dyn Plant>;
+    /// The observer's consistency band and stuck threshold.
+    fn consistency(&self) -> Consistency;
+    /// A state with every node at `ambient_c` \[degC\].
+    fn state(&self, ambient_c: f32) -> Self::State;
+    /// One tick.
+    fn tick(&self, state: &mut Self::State, inputs: &TickInputs<'_>) -> TickView;
+    /// Re-linearises the model at the estimate (default: nothing to do).
+    fn relinearize(&self, _state: &mut Self::State, _temps_c: &[f32], _ambient_c: f64) {}
+    /// The snapshot of `state` at `now_s` \[s\] (`None`: refused).
+    fn save(&self, state: &Self::State, now_s: u32) -> Option<Vec<u8>>;
+    /// Restores a snapshot (`off_s`: the known off time \[s\], cooled).
+    ///
+    /// # Errors
+    /// The library's refusal, as text.
+    fn restore(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        off_s: Option<f32>,
+    ) -> Result<Self::State, String>;
+    /// The latched start from the sensors after a refused snapshot.
+    fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State;
+    /// The state shows the shutdown latched.
+    fn latched(&self, state: &Self::State) -> bool;
+}
+
+/// The band within which a reading is one the physics cannot tell from a
+/// healthy one (see the module docs).
+#[derive(Debug, Clone, Copy)]
+pub struct Consistency {
+    /// Fixed part \[K\].
+    pub offset_k: f64,
+    /// Part proportional to the rise over the ambient.
+    pub fraction: f64,
+    /// A reading this far off the truth is detectably stuck \[K\].
+    pub stuck_threshold_k: f64,
+}
+
+/// One tick's inputs.
+#[derive(Debug, Clone, Copy)]
+pub struct TickInputs<'a> {
+    /// Per plant input \[A\].
+    pub currents_a: &'a [f32],
+    /// Ambient \[degC\].
+    pub ambient_c: f32,
+    /// Per thermocouple.
+    pub readings: &'a [Option<TimedReading>],
+    /// Clock \[us\].
+    pub now_us: u32,
+    /// Time since the last tick \[us\].
+    pub elapsed_us: u32,
+}
+
+/// What the campaign reads of a tick's outputs.
+#[derive(Debug, Clone)]
+pub struct TickView {
+    /// Estimate per plant node \[degC\].
+    pub temps_c: Vec<f32>,
+    /// Per thermocouple.
+    pub sensors: Vec<SensorStatus>,
+    /// The tick's flags.
+    pub flags: InputFlags,
+    /// The shutdown is latched.
+    pub shutdown: bool,
+}
+
+/// The Omnimagnet: the library's [`OmniObserver`] against the paper's
+/// nonlinear plant.
+pub struct OmniSubject {
     observer: OmniObserver,
     settings: OmniSettings,
+}
+
+impl OmniSubject {
+    /// The observer of `cfg` (its sensors, step and reading period).
+    ///
+    /// # Errors
+    /// Not six sensor flags, or an observer that does not build.
+    pub fn new(cfg: &FaultConfig) -> Result<Self, FaultError> {
+        let sensors: [bool; THERMOCOUPLES] = cfg.sensors.clone().try_into().map_err(|_| {
+            FaultError::Invalid(format!("the Omnimagnet has {THERMOCOUPLES} thermocouples"))
+        })?;
+        let defaults = OmniSettings::default();
+        let (flag, loss) = frozen_ticks(cfg.step_us);
+        let settings = OmniSettings {
+            step_us: cfg.step_us,
+            filter: ObserverSettings {
+                sensors,
+                correction_period_s: reading_period_s(cfg),
+                ..defaults.filter
+            },
+            frozen_flag_ticks: flag,
+            frozen_loss_ticks: loss,
+            ..defaults
+        };
+        let observer = OmniObserver::new(
+            &Omnimagnet::PAPER,
+            &[cfg.ambient_c; NODES],
+            cfg.ambient_c,
+            &settings,
+        )
+        .map_err(FaultError::Build)?;
+        Ok(Self { observer, settings })
+    }
+}
+
+/// The frozen-clock counts (to flag, to declare the model lost) at a
+/// step of `step_us`: they are ticks; keep their real time (0.1 s, 1 s, at
+/// a 1 ms loop).
+fn frozen_ticks(step_us: u32) -> (u32, u32) {
+    let per_100ms = (100_000 / step_us.max(1)).max(1);
+    (per_100ms, 10 * per_100ms)
+}
+
+/// The thermocouple sample period \[s\].
+fn reading_period_s(cfg: &FaultConfig) -> f64 {
+    f64::from(cfg.reading_every * cfg.step_us) * 1e-6
+}
+
+impl Subject for OmniSubject {
+    type State = OmniObserverState;
+
+    fn name(&self) -> String {
+        "omnimagnet".into()
+    }
+    fn sensor_nodes(&self) -> &[usize] {
+        &THERMOCOUPLE_NODES
+    }
+    fn alarm_nodes(&self) -> &[usize] {
+        &ALARM_NODES
+    }
+    fn inputs(&self) -> usize {
+        SOLENOIDS
+    }
+    fn plant(&self) -> Box<dyn Plant> {
+        Box::new(OmnimagnetPlant::default())
+    }
+    fn consistency(&self) -> Consistency {
+        Consistency {
+            offset_k: self.settings.consistency_offset_k,
+            fraction: self.settings.consistency_fraction,
+            stuck_threshold_k: self.settings.stuck_threshold_k,
+        }
+    }
+    fn state(&self, ambient_c: f32) -> OmniObserverState {
+        self.observer.state(&[ambient_c; NODES], ambient_c)
+    }
+    fn tick(&self, state: &mut OmniObserverState, i: &TickInputs<'_>) -> TickView {
+        let inputs = OmniInputs {
+            currents_a: core::array::from_fn(|m| i.currents_a.get(m).copied().unwrap_or(0.0)),
+            ambient_c: i.ambient_c,
+            readings: core::array::from_fn(|j| i.readings.get(j).copied().flatten()),
+            now_us: i.now_us,
+            elapsed_us: i.elapsed_us,
+        };
+        let out = self.observer.tick(state, &inputs);
+        TickView {
+            temps_c: out.temps_c.to_vec(),
+            sensors: out.sensors.to_vec(),
+            flags: out.flags,
+            shutdown: out.alarm.shutdown,
+        }
+    }
+    fn relinearize(&self, state: &mut OmniObserverState, temps_c: &[f32], ambient_c: f64) {
+        let op_c: [f64; NODES] =
+            core::array::from_fn(|n| temps_c.get(n).copied().map_or(ambient_c, f64::from));
+        // Kept as it was if the estimate is not a valid operating point.
+        let dt_s = f64::from(self.settings.step_us) * 1e-6;
+        let Ok(lin) = Omnimagnet::PAPER.linearize(&op_c, ambient_c, dt_s) else {
+            return;
+        };
+        if let Ok(model) = self.observer.prepare_model(&lin) {
+            let _ = self.observer.install_model(state, &model);
+        }
+    }
+    fn save(&self, state: &OmniObserverState, now_s: u32) -> Option<Vec<u8>> {
+        let mut bytes = vec![0u8; snapshot_len(NODES)];
+        self.observer.save(state, now_s, &mut bytes).ok()?;
+        Some(bytes)
+    }
+    fn restore(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        off_s: Option<f32>,
+    ) -> Result<OmniObserverState, String> {
+        match off_s {
+            Some(_) => self.observer.restore_after(
+                &Omnimagnet::PAPER,
+                bytes,
+                now_s,
+                max_age_s,
+                ambient_c,
+                off_s,
+            ),
+            None => self.observer.restore(bytes, now_s, max_age_s, ambient_c),
+        }
+        .map_err(|e| e.to_string())
+    }
+    fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
+        let readings: [Option<f32>; THERMOCOUPLES] =
+            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        self.observer.conservative_state(&readings, ambient_c)
+    }
+    fn latched(&self, state: &OmniObserverState) -> bool {
+        state.outputs().alarm.shutdown
+    }
+}
+
+/// The subject and the run parameters.
+struct Harness<'c, S> {
+    cfg: &'c FaultConfig,
+    subject: S,
     dt_s: f64,
 }
 
@@ -511,40 +744,17 @@ struct RunResult {
     snapshot: Option<SnapshotOutcome>,
 }
 
-impl<'c> Harness<'c> {
-    fn new(cfg: &'c FaultConfig) -> Result<Self, FaultError> {
-        let defaults = OmniSettings::default();
-        // The frozen-clock counts are ticks; keep their real time (0.1 s to
-        // flag, 1 s to declare the model lost, at a 1 ms loop) at this step.
-        let per_100ms = (100_000 / cfg.step_us).max(1);
-        let settings = OmniSettings {
-            step_us: cfg.step_us,
-            filter: ObserverSettings {
-                sensors: cfg.sensors,
-                correction_period_s: f64::from(cfg.reading_every * cfg.step_us) * 1e-6,
-                ..defaults.filter
-            },
-            frozen_flag_ticks: per_100ms,
-            frozen_loss_ticks: 10 * per_100ms,
-            ..defaults
-        };
-        let observer = OmniObserver::new(
-            &Omnimagnet::PAPER,
-            &[cfg.ambient_c; NODES],
-            cfg.ambient_c,
-            &settings,
-        )
-        .map_err(FaultError::Build)?;
-        Ok(Self {
+impl<'c, S: Subject> Harness<'c, S> {
+    fn new(cfg: &'c FaultConfig, subject: S) -> Self {
+        Self {
             cfg,
-            observer,
-            settings,
+            subject,
             dt_s: f64::from(cfg.step_us) * 1e-6,
-        })
+        }
     }
 
     /// Whether this tick's outputs show `fault`.
-    fn flagged(fault: &Injected, out: &OmniOutputs) -> bool {
+    fn flagged(fault: &Injected, out: &TickView) -> bool {
         let sensor_flag = |j: usize| {
             !matches!(
                 out.sensors.get(j),
@@ -554,9 +764,7 @@ impl<'c> Harness<'c> {
         let common = out.flags.contains(InputFlags::SENSORS_COLDER_THAN_PHYSICS)
             || out.flags.contains(InputFlags::HEAT_BIAS_BEYOND_MODEL);
         match fault.class {
-            FaultClass::FrozenClock => {
-                out.flags.contains(InputFlags::CLOCK_FROZEN) || out.alarm.shutdown
-            }
+            FaultClass::FrozenClock => out.flags.contains(InputFlags::CLOCK_FROZEN) || out.shutdown,
             FaultClass::HugeCurrent => {
                 out.flags.contains(InputFlags::CURRENT_CLAMPED)
                     || out.flags.contains(InputFlags::CURRENT_NOT_FINITE)
@@ -564,12 +772,13 @@ impl<'c> Harness<'c> {
             FaultClass::CorruptSnapshot | FaultClass::StaleSnapshot | FaultClass::PowerOff => false,
             _ => match fault.sensor {
                 Some(j) => common || sensor_flag(j),
-                None => common || (0..THERMOCOUPLES).any(sensor_flag),
+                None => common || (0..out.sensors.len()).any(sensor_flag),
             },
         }
     }
 
     /// Restores after a restart; the state to go on from and what happened.
+    #[allow(clippy::too_many_arguments)]
     fn restore(
         &self,
         saved: &mut [u8],
@@ -577,8 +786,8 @@ impl<'c> Harness<'c> {
         off_s: f64,
         corrupt: bool,
         cool: bool,
-        truth: &[f32; THERMOCOUPLES],
-    ) -> (OmniObserverState, SnapshotOutcome) {
+        truth: &[f32],
+    ) -> (S::State, SnapshotOutcome) {
         let amb = self.cfg.ambient_c as f32;
         let now_s = saved_at_s + off_s.round() as u32;
         if corrupt {
@@ -586,33 +795,23 @@ impl<'c> Harness<'c> {
             saved[mid] ^= 0x5a;
         }
         let max_age_s = self.cfg.max_snapshot_age_s;
-        let restored = if cool {
-            self.observer.restore_after(
-                &Omnimagnet::PAPER,
-                saved,
-                now_s,
-                max_age_s,
-                amb,
-                Some(off_s as f32),
-            )
-        } else {
-            self.observer.restore(saved, now_s, max_age_s, amb)
-        };
+        let off = cool.then_some(off_s as f32);
+        let restored = self.subject.restore(saved, now_s, max_age_s, amb, off);
         let (state, error) = match restored {
             Ok(state) => (state, None),
             Err(e) => {
-                let readings: [Option<f32>; THERMOCOUPLES] =
-                    core::array::from_fn(|j| self.cfg.sensors[j].then_some(truth[j]));
-                (
-                    self.observer.conservative_state(&readings, amb),
-                    Some(e.to_string()),
-                )
+                let readings: Vec<Option<f32>> = truth
+                    .iter()
+                    .zip(&self.cfg.sensors)
+                    .map(|(t, used)| used.then_some(*t))
+                    .collect();
+                (self.subject.conservative_state(&readings, amb), Some(e))
             }
         };
         let outcome = SnapshotOutcome {
             refused: error.is_some(),
             error,
-            starts_latched: state.outputs().alarm.shutdown,
+            starts_latched: self.subject.latched(&state),
         };
         (state, outcome)
     }
@@ -620,15 +819,19 @@ impl<'c> Harness<'c> {
     fn run(&self, fault: Option<Injected>, restart: Restart) -> RunResult {
         let cfg = self.cfg;
         let amb = cfg.ambient_c;
-        let obs = &self.observer;
-        let mut state: OmniObserverState = obs.state(&[amb as f32; NODES], amb as f32);
-        let mut plant = OmnimagnetPlant::default();
-        plant.reset(&[amb; NODES]);
+        let subject = &self.subject;
+        let mut state = subject.state(amb as f32);
+        let mut plant = subject.plant();
+        plant.reset(&vec![amb; plant.info().nodes.len()]);
+        let boundary_c = vec![amb; plant.info().boundaries.len()];
+        let sensor_nodes = subject.sensor_nodes();
+        let sensors = sensor_nodes.len();
         let window = restart.off_window();
         let off_s = window.map_or(0.0, |(a, b)| b - a);
         let ticks = ((cfg.duration_s + off_s) / self.dt_s).round() as u64;
         let score_from_s = fault.map_or(0.0, |f| f.onset_s);
         let every = u64::from(cfg.reading_every.max(1));
+        let zero_a = vec![0.0; subject.inputs()];
         let relin_every = (cfg.relinearize_s / self.dt_s).round() as u64;
         let mut score = RunScore::default();
         let mut flag_s = None;
@@ -638,7 +841,7 @@ impl<'c> Harness<'c> {
         };
         let mut snapshot = None;
         let mut saved: Option<(Vec<u8>, u32)> = None;
-        let mut held: Option<[f32; THERMOCOUPLES]> = None;
+        let mut held: Option<Vec<f32>> = None;
         let mut faulty_readings = 0u64;
         let mut now_us = 0u32;
         for k in 0..ticks {
@@ -647,17 +850,17 @@ impl<'c> Harness<'c> {
             // snapshot, whatever the rounding of `t_s`.
             let half_dt = 0.5 * self.dt_s;
             let off = window.is_some_and(|(a, b)| t_s > a + half_dt && t_s <= b + half_dt);
-            let currents = match (&cfg.trace, window) {
-                _ if off => [0.0; SOLENOIDS],
+            let currents: &[f64] = match (&cfg.trace, window) {
+                _ if off => &zero_a,
                 // After an off time the trace goes on where it stopped.
                 (Some(trace), Some((_, back_s))) if t_s > back_s + half_dt => trace.at(t_s - off_s),
                 (Some(trace), _) => trace.at(t_s),
-                (None, _) => cfg.currents_a,
+                (None, _) => &cfg.currents_a,
             };
-            plant.step(self.dt_s, &currents, &[amb], &[]);
+            plant.step(self.dt_s, currents, &boundary_c, &[]);
             now_us = now_us.wrapping_add(cfg.step_us);
             let plant_c = plant.temps_c();
-            let truth = THERMOCOUPLE_NODES.map(|n| plant_c[n] as f32);
+            let truth: Vec<f32> = sensor_nodes.iter().map(|n| plant_c[*n] as f32).collect();
             if let Restart::Restore { corrupt, cool, .. } = restart {
                 if off {
                     continue; // powered off: no tick
@@ -673,14 +876,14 @@ impl<'c> Harness<'c> {
             }
             let faulty = fault.filter(|f| t_s >= f.onset_s);
             if faulty.is_some() && held.is_none() {
-                held = Some(truth);
+                held = Some(truth.clone());
             }
-            let hold = held.unwrap_or(truth);
+            let hold = held.as_ref().unwrap_or(&truth);
             let due = k % every == 0;
             if due && faulty.is_some() {
                 faulty_readings += 1;
             }
-            let mut readings = [None; THERMOCOUPLES];
+            let mut readings = vec![None; sensors];
             for (j, slot) in readings.iter_mut().enumerate() {
                 if !cfg.sensors[j] || !due {
                     continue;
@@ -718,28 +921,29 @@ impl<'c> Harness<'c> {
                     sampled_at_us: now_us,
                 });
             }
-            let mut inputs = OmniInputs {
-                currents_a: currents.map(|a| a as f32),
-                ambient_c: amb as f32,
-                readings,
-                now_us,
-                elapsed_us: cfg.step_us,
+            let currents_a: Vec<f32> = match faulty.map(|f| f.class) {
+                Some(FaultClass::HugeCurrent) => vec![HUGE_CURRENT_A; currents.len()],
+                _ => currents.iter().map(|a| *a as f32).collect(),
             };
-            match faulty.map(|f| f.class) {
-                Some(FaultClass::FrozenClock) => inputs.elapsed_us = 0,
-                Some(FaultClass::HugeCurrent) => inputs.currents_a = [HUGE_CURRENT_A; SOLENOIDS],
-                _ => {}
-            }
-            let out: OmniOutputs = *obs.tick(&mut state, &inputs);
+            let inputs = TickInputs {
+                currents_a: &currents_a,
+                ambient_c: amb as f32,
+                readings: &readings,
+                now_us,
+                elapsed_us: match faulty.map(|f| f.class) {
+                    Some(FaultClass::FrozenClock) => 0,
+                    _ => cfg.step_us,
+                },
+            };
+            let out = subject.tick(&mut state, &inputs);
             if relin_every > 0 && (k + 1) % relin_every == 0 {
-                self.relinearize(&mut state, &out, amb);
+                subject.relinearize(&mut state, &out.temps_c, amb);
             }
             if let (Restart::Restore { at_s, .. }, None) = (restart, &saved) {
                 if t_s + 0.5 * self.dt_s >= at_s {
                     // The last snapshot before the power cut.
-                    let mut bytes = vec![0u8; snapshot_len(NODES)];
                     let now_s = t_s.round() as u32;
-                    if obs.save(&state, now_s, &mut bytes).is_ok() {
+                    if let Some(bytes) = subject.save(&state, now_s) {
                         saved = Some((bytes, now_s));
                     }
                 }
@@ -763,18 +967,20 @@ impl<'c> Harness<'c> {
             }
             if t_s + 0.5 * self.dt_s >= score_from_s {
                 let est = out.temps_c;
-                for (j, node) in THERMOCOUPLE_NODES.iter().enumerate() {
+                for (j, node) in sensor_nodes.iter().enumerate() {
                     let e = (f64::from(est[*node]) - f64::from(truth[j])).abs();
                     score.max_error_tc_k = score.max_error_tc_k.max(e);
                 }
-                let hot = ALARM_NODES
-                    .into_iter()
+                let hot = subject
+                    .alarm_nodes()
+                    .iter()
+                    .copied()
                     .max_by(|a, b| plant_c[*a].total_cmp(&plant_c[*b]))
-                    .unwrap_or(ALARM_NODES[0]);
+                    .unwrap_or(0);
                 let e = (f64::from(est[hot]) - plant_c[hot]).abs();
                 score.max_error_hot_spot_k = score.max_error_hot_spot_k.max(e);
             }
-            if out.alarm.shutdown {
+            if out.shutdown {
                 score.shutdown_s = Some(t_s);
                 break;
             }
@@ -787,27 +993,15 @@ impl<'c> Harness<'c> {
         }
     }
 
-    /// Re-linearises the observer's model at its estimate (kept as it was
-    /// if the estimate is not a valid operating point).
-    fn relinearize(&self, state: &mut OmniObserverState, out: &OmniOutputs, ambient_c: f64) {
-        let op_c = out.temps_c.map(f64::from);
-        let Ok(lin) = Omnimagnet::PAPER.linearize(&op_c, ambient_c, self.dt_s) else {
-            return;
-        };
-        if let Ok(model) = self.observer.prepare_model(&lin) {
-            let _ = self.observer.install_model(state, &model);
-        }
-    }
-
     /// Whether a faulty `reading_c` of a `class` fault is one the observer
     /// can tell from the truth `truth_c` \[degC\] (see the module docs).
     fn detectable(&self, class: FaultClass, reading_c: f32, truth_c: f32) -> bool {
-        let s = &self.settings;
+        let s = self.subject.consistency();
         let off_k = f64::from((reading_c - truth_c).abs());
         match class {
             FaultClass::Drift => {
                 let rise_k = (f64::from(truth_c) - self.cfg.ambient_c).max(0.0);
-                off_k > s.consistency_offset_k + s.consistency_fraction * rise_k
+                off_k > s.offset_k + s.fraction * rise_k
             }
             FaultClass::Stuck => off_k > s.stuck_threshold_k,
             _ => true,
@@ -815,11 +1009,17 @@ impl<'c> Harness<'c> {
     }
 }
 
-/// Runs the whole matrix.
+/// Runs the whole matrix on the Omnimagnet.
 ///
 /// # Errors
 /// A configuration out of range, or an observer that does not build.
 pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
+    check(cfg)?;
+    run_on(cfg, OmniSubject::new(cfg)?)
+}
+
+/// Checks what does not depend on the subject.
+fn check(cfg: &FaultConfig) -> Result<(), FaultError> {
     let bad = |m: &str| Err(FaultError::Invalid(m.to_string()));
     if !(cfg.duration_s.is_finite() && cfg.duration_s > 0.0) {
         return bad("--duration-s must be finite and > 0");
@@ -850,7 +1050,36 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     if !(cfg.off_s.is_finite() && cfg.off_s >= 0.0) {
         return bad("--off-s must be finite and >= 0");
     }
-    let harness = Harness::new(cfg)?;
+    Ok(())
+}
+
+/// Runs the whole matrix on `subject`.
+///
+/// # Errors
+/// Currents or sensors that do not fit the subject.
+pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, FaultError> {
+    check(cfg)?;
+    let bad = |m: String| Err(FaultError::Invalid(m));
+    let inputs = subject.inputs();
+    if cfg.sensors.len() != subject.sensor_nodes().len() {
+        return bad(format!(
+            "{} sensor flags for {} sensors",
+            cfg.sensors.len(),
+            subject.sensor_nodes().len()
+        ));
+    }
+    if cfg.trace.is_none() && cfg.currents_a.len() != inputs {
+        return bad(format!(
+            "{} currents for {inputs} inputs",
+            cfg.currents_a.len()
+        ));
+    }
+    if let Some(trace) = &cfg.trace {
+        if trace.currents_a.iter().any(|row| row.len() != inputs) {
+            return bad(format!("the trace needs {inputs} currents per row"));
+        }
+    }
+    let harness = Harness::new(cfg, subject);
     let trace_name = cfg.trace.as_ref().map(|_| String::new());
     let clean = harness.run(None, Restart::None).score;
     let onsets_s = if cfg.onsets_s.is_empty() {
@@ -867,7 +1096,7 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     } else {
         cfg.classes.clone()
     };
-    let sensors: Vec<usize> = (0..THERMOCOUPLES).filter(|j| cfg.sensors[*j]).collect();
+    let sensors: Vec<usize> = (0..cfg.sensors.len()).filter(|j| cfg.sensors[*j]).collect();
     let stale_off_s = f64::from(cfg.max_snapshot_age_s) + 60.0;
     let mut references: Vec<((u64, u64), Option<f64>)> = Vec::new();
     let mut cases = Vec::new();
@@ -935,16 +1164,16 @@ pub fn run(cfg: &FaultConfig) -> Result<FaultReport, FaultError> {
     let summary = summarise(&classes, &cases);
     Ok(FaultReport {
         schema_version: SCHEMA_VERSION,
-        model: "omnimagnet".into(),
+        model: harness.subject.name(),
         currents_a: if cfg.trace.is_some() {
             Vec::new()
         } else {
-            cfg.currents_a.to_vec()
+            cfg.currents_a.clone()
         },
         duration_s: cfg.duration_s,
         trace: trace_name,
         step_us: cfg.step_us,
-        reading_period_s: f64::from(cfg.reading_every * cfg.step_us) * 1e-6,
+        reading_period_s: reading_period_s(cfg),
         sensors,
         onsets_s,
         clean,
@@ -1116,7 +1345,7 @@ mod tests {
     fn trace_currents_are_held_row_to_row() {
         let trace = CurrentTrace {
             time_s: vec![0.0, 10.0, 20.0],
-            currents_a: vec![[1.0; 3], [2.0; 3], [3.0; 3]],
+            currents_a: vec![vec![1.0; 3], vec![2.0; 3], vec![3.0; 3]],
         };
         for (t_s, a) in [
             (-1.0, 1.0),
@@ -1125,7 +1354,7 @@ mod tests {
             (10.0, 2.0),
             (1e6, 3.0),
         ] {
-            assert_eq!(trace.at(t_s), [a; 3], "at {t_s} s");
+            assert_eq!(trace.at(t_s), [a; 3].as_slice(), "at {t_s} s");
         }
     }
 
@@ -1137,7 +1366,7 @@ mod tests {
                 ..FaultConfig::default()
             },
             FaultConfig {
-                sensors: [false; THERMOCOUPLES],
+                sensors: vec![false; THERMOCOUPLES],
                 ..FaultConfig::default()
             },
             FaultConfig {

@@ -298,3 +298,75 @@ fn one_per_solenoid_stuck_and_drift_meet_the_goals() {
     }
     assert_eq!(fast["summary"]["late_shutdowns"], 0);
 }
+
+/// A model file (`--model FILE.toml`): its `[observer]` table built into
+/// the library's network observer, the model itself as the plant, one
+/// thermocouple on the housing. At 6 A the clean run latches (at about
+/// 458 s); a detached (open), stuck or ambient-reading housing sensor is
+/// flagged, and no shutdown is lost or late.
+#[test]
+fn a_model_file_runs_the_matrix_on_its_network_observer() {
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/models/drive-3node-fitted.toml"
+    );
+    let r = json_run(&[
+        "faults",
+        "--model",
+        model,
+        "--current-a",
+        "6",
+        "--duration-s",
+        "600",
+        "--onset-s",
+        "60,200",
+        "--classes",
+        "open,stuck,all-detached,spikes,corrupt-snapshot",
+        "--json",
+    ]);
+    assert_eq!(r["model"], "drive-3node");
+    assert_eq!(r["sensors"], serde_json::json!([0]));
+    let clean_s = r["clean"]["shutdown_s"].as_f64().expect("6 A shuts down");
+    assert!((300.0..600.0).contains(&clean_s), "{clean_s}");
+    assert_eq!(r["clean"]["healthy_flagged"], 0);
+    // 1 sensor x 2 onsets for each class.
+    assert_eq!(r["cases"].as_array().unwrap().len(), 10);
+    for c in r["cases"].as_array().unwrap() {
+        assert_eq!(c["lost_shutdown"], false, "{c}");
+        assert_eq!(c["late_shutdown"], false, "{c}");
+        assert_eq!(c["false_trip"], false, "{c}");
+        assert!(c["flag_s"].as_f64().is_some(), "flagged: {c}");
+    }
+    for class in ["open", "all-detached", "spikes"] {
+        for c in cases(&r, class) {
+            assert!(c["flag_s"].as_f64().unwrap() <= 1.0, "{c}");
+        }
+    }
+    for c in cases(&r, "stuck") {
+        assert_eq!(c["flag_goal_met"], true, "{c}");
+        assert!(c["max_error_tc_k"].as_f64().unwrap() <= 2.0, "{c}");
+    }
+    for c in cases(&r, "corrupt-snapshot") {
+        assert_eq!(c["snapshot"]["refused"], true, "{c}");
+        assert_eq!(c["snapshot"]["starts_latched"], true, "{c}");
+    }
+    // Its sensors are the model's: one.
+    ct().args([
+        "faults",
+        "--model",
+        model,
+        "--current-a",
+        "6",
+        "--sensors",
+        "1",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("no thermocouple 1"));
+    // A model without `[observer] sensors` has no thermocouple to fault.
+    let bare = concat!(env!("CARGO_MANIFEST_DIR"), "/models/drive-3node-truth.toml");
+    ct().args(["faults", "--model", bare, "--current-a", "6"])
+        .assert()
+        .failure()
+        .stderr(contains("[observer] sensors"));
+}

@@ -363,11 +363,14 @@ pub fn sensors_with(
 /// changes meaning, so that a script can refuse a layout it does not know.
 pub const JSON_SCHEMA_VERSION: u32 = 1;
 
-/// Prints a JSON summary as one line on stdout, with its `schema_version`.
+/// Prints a JSON summary as one line on stdout, with its `schema_version`
+/// (a report that carries its own, as `faults`, keeps it).
 pub fn print_json(value: &serde_json::Value) {
     let mut value = value.clone();
     if let Some(object) = value.as_object_mut() {
-        object.insert("schema_version".into(), JSON_SCHEMA_VERSION.into());
+        object
+            .entry("schema_version")
+            .or_insert(JSON_SCHEMA_VERSION.into());
     }
     println!(
         "{}",

@@ -9,18 +9,24 @@ use super::common::{self, ModelSpec, NOT_YET};
 use super::TraceArgs;
 use crate::devices::OmnimagnetPlant;
 use crate::faults::{self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultReport};
-use crate::sim::{Drive, Plant};
-use coil_thermal::omnimagnet::{SOLENOIDS, THERMOCOUPLES};
+use crate::model_file::{Model, ModelFile};
+use crate::sim::{Drive, FilePlant, Plant};
+use coil_thermal::omnimagnet::THERMOCOUPLES;
 
 /// `faults` arguments.
 #[derive(Debug, Args)]
 pub struct FaultsArgs {
     /// Model: `omnimagnet` (the library's `OmniObserver` against the
-    /// paper's nonlinear plant, six thermocouples on the solenoids at 2 Hz).
-    #[arg(long, value_name = "omnimagnet")]
+    /// paper's nonlinear plant, six thermocouples on the solenoids at 2 Hz),
+    /// or a model file FILE.toml (its `[observer]` table built into the
+    /// library's `NetworkObserver`, the model itself as the plant, a
+    /// thermocouple at each `[observer] sensors` node).
+    #[arg(long, value_name = "omnimagnet|FILE.toml")]
     model: String,
-    /// Thermocouples in use, by index (0..=5, order of
-    /// `THERMOCOUPLE_NODES`), e.g. `0,2,4`. Default: all six.
+    /// Thermocouples in use, by index (Omnimagnet: 0..=5, order of
+    /// `THERMOCOUPLE_NODES`, e.g. `0,2,4`; a model file: into its
+    /// `[observer] sensors`, the observer built with those only). Default:
+    /// all.
     #[arg(long, value_name = "J[,J...]", value_delimiter = ',')]
     sensors: Vec<usize>,
     /// A recorded trace whose currents drive the plant (columns `I1_a`,
@@ -31,8 +37,8 @@ pub struct FaultsArgs {
     trace: Option<PathBuf>,
     #[command(flatten)]
     trace_args: TraceArgs,
-    /// Constant current [A]: one for every solenoid or one per solenoid
-    /// (`7,7,7`), from the ambient.
+    /// Constant current [A]: one for every input (solenoid) or one per
+    /// input (`7,7,7`), from the ambient.
     #[arg(
         long,
         value_name = "A[,A...]",
@@ -97,19 +103,28 @@ pub struct FaultsArgs {
 
 /// Runs `faults`.
 pub fn run(a: FaultsArgs) -> Result<()> {
-    match ModelSpec::parse(&a.model)? {
-        ModelSpec::Omnimagnet => {}
-        ModelSpec::File(p) => bail!(
-            "faults --model {}: model files are {NOT_YET} (only `omnimagnet`)",
-            p.display()
+    let file_model = match ModelSpec::parse(&a.model)? {
+        ModelSpec::Omnimagnet => None,
+        ModelSpec::File(p) => {
+            let file = ModelFile::load(&p)?;
+            let model = Model::build(&file)?;
+            let spec = file.observer.clone().unwrap_or_default();
+            Some((model, spec))
+        }
+        _ => bail!(
+            "faults --model {}: {NOT_YET} (`omnimagnet` or a model file)",
+            a.model
         ),
-        _ => bail!("faults --model {}: {NOT_YET} (only `omnimagnet`)", a.model),
-    }
+    };
+    let plant: Box<dyn Plant> = match &file_model {
+        None => Box::new(OmnimagnetPlant::default()),
+        Some((model, _)) => Box::new(FilePlant::new(model.clone())?),
+    };
+    let inputs = plant.info().inputs.len();
     let mut cfg = FaultConfig::default();
     if let Some(path) = &a.trace {
         let trace = common::read_trace(path, &a.trace_args)?;
         let bind = common::bindings(&a.trace_args)?;
-        let plant = OmnimagnetPlant::default();
         let drive = Drive::from_trace(plant.info(), &trace, &bind)?;
         let (Some(&t0), Some(&t1)) = (drive.time_s.first(), drive.time_s.last()) else {
             bail!("{}: the trace has no rows", path.display());
@@ -126,27 +141,31 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         cfg.trace = Some(CurrentTrace {
             time_s: drive.time_s.iter().map(|t| t - t0).collect(),
             currents_a: (0..drive.len())
-                .map(|k| core::array::from_fn(|m| drive.currents[m][k]))
+                .map(|k| (0..inputs).map(|m| drive.currents[m][k]).collect())
                 .collect(),
         });
     }
-    let currents_a: [f64; SOLENOIDS] = match a.current_a.as_slice() {
-        [] if cfg.trace.is_some() => [0.0; SOLENOIDS],
-        [] => bail!("faults needs --current-a A (one for all solenoids, or three) or --trace"),
-        [one] => [*one; SOLENOIDS],
-        [x, y, z] => [*x, *y, *z],
+    let currents_a: Vec<f64> = match a.current_a.as_slice() {
+        [] if cfg.trace.is_some() => vec![0.0; inputs],
+        [] => bail!("faults needs --current-a A (one for all inputs, or one per input) or --trace"),
+        [one] => vec![*one; inputs],
+        many if many.len() == inputs => many.to_vec(),
         other => bail!(
-            "--current-a takes 1 or {SOLENOIDS} values, got {}",
+            "--current-a takes 1 or {inputs} values (the model's inputs), got {}",
             other.len()
         ),
     };
-    let mut sensors = [a.sensors.is_empty(); THERMOCOUPLES];
+    let available = match &file_model {
+        None => THERMOCOUPLES,
+        Some((_, spec)) => spec.sensors.len(),
+    };
+    let mut sensors = vec![a.sensors.is_empty(); available];
     for &j in &a.sensors {
         match sensors.get_mut(j) {
             Some(s) => *s = true,
             None => bail!(
-                "--sensors: no thermocouple {j} (the Omnimagnet has {THERMOCOUPLES}: 0..={})",
-                THERMOCOUPLES - 1
+                "--sensors: no thermocouple {j} (the model has {available}: 0..={})",
+                available.saturating_sub(1)
             ),
         }
     }
@@ -184,7 +203,25 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         relinearize_s: a.relinearize_s,
         ..cfg
     };
-    let mut report = faults::run(&cfg)?;
+    let mut report = match &file_model {
+        None => faults::run(&cfg)?,
+        Some((model, spec)) => {
+            // The observer is built with the sensors in use only.
+            let mut spec = spec.clone();
+            spec.sensors = spec
+                .sensors
+                .iter()
+                .zip(&cfg.sensors)
+                .filter(|(_, used)| **used)
+                .map(|(name, _)| name.clone())
+                .collect();
+            let cfg = FaultConfig {
+                sensors: vec![true; spec.sensors.len()],
+                ..cfg
+            };
+            faults::run_model(model, &spec, &cfg)?
+        }
+    };
     report.trace = a.trace.as_ref().map(|p| p.display().to_string());
     if a.json {
         let mut summary = serde_json::to_value(&report)?;

@@ -1,0 +1,251 @@
+//! The campaign on a model file: its `[observer]` table built into the
+//! library's `NetworkObserver` (as `codegen` builds the firmware's), run
+//! against the model itself as the plant ([`FilePlant`], the explicit
+//! stepper), the thermocouples reading the truth at the observer's sensor
+//! nodes.
+//!
+//! The observer's sizes are types; a model file has them at run time. As
+//! in [`crate::library_observer`], the network is padded to
+//! `Network<C, 2, C>` for `C` in [`CLASSES`] (padding nodes decay to
+//! boundary 0 and touch no real node; padding sources carry no current),
+//! with [`SLOTS`] sensor slots, the unused ones on a padding node that never
+//! reads. The padding sources' heat biases are unobservable, so their noise
+//! is 0: the fusion corrects temperatures, and the consistency checks that
+//! do not need a bias (the physics band, the stuck watch against the
+//! model's prediction) carry the sensor faults.
+
+use coil_thermal::observer::network::{
+    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
+};
+use coil_thermal::observer::snapshot::snapshot_len;
+use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
+
+use super::{
+    frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
+    Subject, TickInputs, TickView,
+};
+use crate::codegen::ObserverSpec;
+use crate::limits::{on_big_stack, padded_with, Padding};
+use crate::model_file::Model;
+use crate::sim::{FilePlant, Plant};
+
+/// The padded sizes `C` the campaign builds (nodes + 1 for the spare
+/// sensor slot, and sources).
+pub const CLASSES: [usize; 2] = [8, 16];
+
+/// Thermocouple slots of the padded observer.
+pub const SLOTS: usize = 4;
+
+/// A model file's observer padded to `C` nodes and sources, `X = 2C`
+/// states, with its plant.
+struct NetSubject<const C: usize, const X: usize> {
+    name: String,
+    observer: NetworkObserver<C, 2, C, X, SLOTS>,
+    settings: NetworkSettings,
+    plant: FilePlant,
+    nodes: usize,
+    sensor_nodes: Vec<usize>,
+    alarm_nodes: Vec<usize>,
+    /// Per source: its input and the factor on that input's current (the
+    /// square root of the source's scale: the same power).
+    drives: Vec<(usize, f32)>,
+}
+
+impl<const C: usize, const X: usize> NetSubject<C, X> {
+    fn build(
+        model: &Model,
+        spec: &ObserverSpec,
+        sensor_nodes: Vec<usize>,
+        cfg: &FaultConfig,
+    ) -> Result<Self, FaultError> {
+        let invalid = |e: anyhow::Error| FaultError::Invalid(format!("{e:#}"));
+        let network = padded_with::<C>(&model.network, Padding::DECAYING).map_err(invalid)?;
+        let mut slots = [model.nodes.len(); SLOTS];
+        slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
+        let mut critical = [None; C];
+        critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
+        let derating = match spec.derating {
+            Some(d) => DeratingRule::new(&[DeratingFactor::new("derating", d)])
+                .map_err(FaultError::Build)?,
+            None => DeratingRule::omnimagnet(),
+        };
+        let (flag, loss) = frozen_ticks(cfg.step_us);
+        let defaults = NetworkSettings::DEFAULT;
+        let settings = NetworkSettings {
+            step_us: cfg.step_us,
+            sensor_sigma_k: spec.sensor_sigma_k.unwrap_or(defaults.sensor_sigma_k),
+            correction_period_s: reading_period_s(cfg),
+            max_current_a: spec.max_current_a.unwrap_or(defaults.max_current_a),
+            // Unobservable padding biases (see the module docs).
+            bias_noise_w2_per_s: 0.0,
+            origin_c: cfg.ambient_c,
+            frozen_flag_ticks: flag,
+            frozen_loss_ticks: loss,
+            ..defaults
+        };
+        let observer = NetworkObserverBuilder::new(&network, slots)
+            .critical_c(critical)
+            .hardware_limit_a([spec.hardware_limit_a.unwrap_or(8.0); C])
+            .derating(derating)
+            .settings(settings)
+            .build::<X>()
+            .map_err(FaultError::Build)?;
+        let plant = FilePlant::new(model.clone()).map_err(invalid)?;
+        let mut alarm_nodes: Vec<usize> = (0..model.nodes.len())
+            .filter(|n| model.critical_c[*n].is_some())
+            .collect();
+        if alarm_nodes.is_empty() {
+            alarm_nodes = (0..model.nodes.len()).collect();
+        }
+        Ok(Self {
+            name: model.name.clone(),
+            observer,
+            settings,
+            plant,
+            nodes: model.nodes.len(),
+            sensor_nodes,
+            alarm_nodes,
+            drives: model
+                .drives
+                .iter()
+                .map(|d| (d.input, d.scale.max(0.0).sqrt() as f32))
+                .collect(),
+        })
+    }
+}
+
+impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
+    type State = NetworkObserverState<C, 2, C, X, SLOTS>;
+
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn sensor_nodes(&self) -> &[usize] {
+        &self.sensor_nodes
+    }
+    fn alarm_nodes(&self) -> &[usize] {
+        &self.alarm_nodes
+    }
+    fn inputs(&self) -> usize {
+        self.plant.info().inputs.len()
+    }
+    fn plant(&self) -> Box<dyn Plant> {
+        Box::new(self.plant.clone())
+    }
+    fn consistency(&self) -> Consistency {
+        Consistency {
+            offset_k: self.settings.consistency_offset_k,
+            fraction: self.settings.consistency_fraction,
+            stuck_threshold_k: self.settings.stuck_threshold_k,
+        }
+    }
+    fn state(&self, ambient_c: f32) -> Self::State {
+        self.observer.state(&[ambient_c; C], &[ambient_c; 2])
+    }
+    fn tick(&self, state: &mut Self::State, i: &TickInputs<'_>) -> TickView {
+        let mut currents_a = [0.0; C];
+        for (c, (input, k)) in currents_a.iter_mut().zip(&self.drives) {
+            *c = i.currents_a.get(*input).copied().unwrap_or(0.0) * k;
+        }
+        let mut readings = [None; SLOTS];
+        for (r, z) in readings.iter_mut().zip(i.readings) {
+            *r = *z;
+        }
+        let inputs = NetworkInputs {
+            currents_a,
+            boundary_c: [i.ambient_c; 2],
+            readings,
+            now_us: i.now_us,
+            elapsed_us: i.elapsed_us,
+        };
+        let out = self.observer.tick(state, &inputs);
+        TickView {
+            temps_c: out.temps_c[..self.nodes].to_vec(),
+            sensors: out.sensors[..self.sensor_nodes.len()].to_vec(),
+            flags: out.flags,
+            shutdown: out.alarm.shutdown,
+        }
+    }
+    fn save(&self, state: &Self::State, now_s: u32) -> Option<Vec<u8>> {
+        let mut bytes = vec![0u8; snapshot_len(C)];
+        self.observer.save(state, now_s, &mut bytes).ok()?;
+        Some(bytes)
+    }
+    fn restore(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        off_s: Option<f32>,
+    ) -> Result<Self::State, String> {
+        self.observer
+            .restore_after(bytes, now_s, max_age_s, &[ambient_c; 2], off_s)
+            .map_err(|e| e.to_string())
+    }
+    fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
+        let mut readings = [None; SLOTS];
+        for (r, z) in readings.iter_mut().zip(readings_c) {
+            *r = *z;
+        }
+        self.observer.conservative_state(&readings, &[ambient_c; 2])
+    }
+    fn latched(&self, state: &Self::State) -> bool {
+        state.outputs().alarm.shutdown
+    }
+}
+
+/// Runs the whole matrix on a model file's observer (`spec`, with
+/// `sensors` the node names of the thermocouples in use) against the
+/// model as the plant; `cfg.sensors` flags each of them. On a thread with
+/// a large stack (the observer's build solves its gain there).
+///
+/// # Errors
+/// No sensor, more than [`SLOTS`], an unknown node, speed-dependent terms,
+/// a model too large for [`CLASSES`], or an observer that does not build.
+pub fn run_model(
+    model: &Model,
+    spec: &ObserverSpec,
+    cfg: &FaultConfig,
+) -> Result<FaultReport, FaultError> {
+    let invalid = |m: String| FaultError::Invalid(m);
+    if spec.sensors.is_empty() || spec.sensors.len() > SLOTS {
+        return Err(invalid(format!(
+            "the observer needs 1 to {SLOTS} sensors: name the node each thermocouple measures in the model's `[observer] sensors = [\"node\"]` (got {})",
+            spec.sensors.len()
+        )));
+    }
+    if !model.speed_losses.is_empty()
+        || !model.losses.is_empty()
+        || model.has_varying_conductances()
+        || model.drives.iter().any(|d| d.speed.is_some())
+    {
+        return Err(invalid(
+            "speed-dependent terms are not inputs of the library observer yet".into(),
+        ));
+    }
+    let sensor_nodes = spec
+        .sensors
+        .iter()
+        .map(|s| model.node_index(s))
+        .collect::<anyhow::Result<Vec<_>>>()
+        .map_err(|e| invalid(format!("{e:#}")))?;
+    let n = model.nodes.len();
+    let m = model.drives.len();
+    let Some(class) = CLASSES.into_iter().find(|c| *c > n && *c >= m) else {
+        return Err(invalid(format!(
+            "{n} nodes and {m} sources: the campaign takes at most {} nodes",
+            CLASSES[CLASSES.len() - 1] - 1
+        )));
+    };
+    let (model, spec, cfg) = (model.clone(), spec.clone(), cfg.clone());
+    let job = move || -> anyhow::Result<Result<FaultReport, FaultError>> {
+        Ok(match class {
+            8 => NetSubject::<8, 16>::build(&model, &spec, sensor_nodes, &cfg)
+                .and_then(|s| run_on(&cfg, s)),
+            _ => NetSubject::<16, 32>::build(&model, &spec, sensor_nodes, &cfg)
+                .and_then(|s| run_on(&cfg, s)),
+        })
+    };
+    on_big_stack("faults", job).map_err(|e| invalid(format!("{e:#}")))?
+}
