@@ -174,8 +174,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     println!(
         "weighting: {} (--weighting rows|traces, --weight K:W)",
         match a.weighting {
-            Weighting::Rows => "rows (every reading the same)",
-            Weighting::Traces => "traces (every trace the same in total)",
+            Weighting::Rows => "rows, every reading the same",
+            Weighting::Traces => "traces, every trace the same in total",
         }
     );
     if !starts.is_empty() {
