@@ -12,7 +12,10 @@
 //!
 //! The residuals are simulated minus measured temperatures \[K\] of every
 //! target sensor at every `stride`-th row (row 0, the initial state, is
-//! skipped), over every trace.
+//! skipped), over every trace; a missing reading (`NaN`, an empty cell)
+//! gives no residual. Each residual is scaled by the square root of its
+//! trace's weight (see [`Weighting`]), and the standard errors and
+//! correlations come from the same weighted residuals.
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -339,6 +342,20 @@ pub struct FitData {
     pub init: Vec<(usize, f64)>,
 }
 
+/// How the traces of a fit share the weight.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Weighting {
+    /// Every reading weighs the same: a trace weighs by its number of
+    /// readings (least squares over all rows; the long traces dominate).
+    #[default]
+    Rows,
+    /// Every trace weighs the same in total: each residual is scaled by
+    /// `1 / sqrt(readings of its trace)` (a short step test counts as much
+    /// as a long duty cycle).
+    Traces,
+}
+
 /// Options of [`fit`].
 #[derive(Debug, Clone)]
 pub struct FitOptions {
@@ -348,6 +365,13 @@ pub struct FitOptions {
     pub stride: usize,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// How the traces share the weight.
+    pub weighting: Weighting,
+    /// A relative weight (> 0, dimensionless) per trace in `data` order,
+    /// multiplying [`Weighting`]'s (empty: all 1). The weights are
+    /// normalised to a mean of 1 per residual, so the cost stays in K^2 of
+    /// the same size and a weight scales only the trace's share.
+    pub trace_weights: Vec<f64>,
 }
 
 impl Default for FitOptions {
@@ -356,6 +380,8 @@ impl Default for FitOptions {
             max_iterations: 100,
             stride: 1,
             progress: false,
+            weighting: Weighting::Rows,
+            trace_weights: Vec::new(),
         }
     }
 }
@@ -393,8 +419,45 @@ pub struct TraceFit {
     pub rmse_before_k: f64,
     /// RMSE after \[K\].
     pub rmse_after_k: f64,
+    /// Weight of each of its squared residuals in the fit (normalised: 1
+    /// for every trace with `--weighting rows` and no `--weight`).
+    pub weight: f64,
     /// Per-sensor scores after the fit.
-    pub sensors: Vec<Score>,
+    pub sensors: Vec<SensorFit>,
+}
+
+/// One measured column of a trace after the fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct SensorFit {
+    /// Its score over its readings.
+    #[serde(flatten)]
+    pub score: Score,
+    /// Readings the fit used (present, every `stride`-th row, row 0 the
+    /// start excluded).
+    pub rows_fitted: usize,
+    /// Missing readings (empty or `NaN` cells) over the whole trace.
+    pub rows_missing: usize,
+}
+
+/// The first present reading of each sensor, for a node that starts at a
+/// measured value: (node index, temperature \[degC\]). A sensor with no
+/// reading at all gives none.
+pub fn first_readings(sensors: &[Sensor]) -> Vec<(usize, f64)> {
+    sensors
+        .iter()
+        .filter_map(|s| {
+            let v = s.values_c.iter().copied().find(|v| !v.is_nan())?;
+            Some((s.node, v))
+        })
+        .collect()
+}
+
+/// The rows of `sensor` the fit compares: present readings at every
+/// `stride`-th row from row 1.
+fn fitted_rows(sensor: &Sensor, stride: usize) -> impl Iterator<Item = usize> + '_ {
+    (1..sensor.values_c.len())
+        .step_by(stride)
+        .filter(|&k| !sensor.values_c[k].is_nan())
 }
 
 /// The outcome of [`fit`].
@@ -485,6 +548,8 @@ struct Problem<'a> {
     data: &'a [FitData],
     inits: Vec<Vec<f64>>,
     stride: usize,
+    /// Square root of each trace's residual weight.
+    scales: Vec<f64>,
     evaluations: usize,
 }
 
@@ -513,12 +578,10 @@ impl Problem<'_> {
     fn residuals(&mut self, x: &DVector<f64>) -> Option<DVector<f64>> {
         let sims = self.simulate(x).ok()?;
         let mut r = Vec::new();
-        for (d, sim) in self.data.iter().zip(&sims) {
+        for ((d, sim), scale) in self.data.iter().zip(&sims).zip(&self.scales) {
             for t in &d.targets {
                 let est = &sim[t.node];
-                for k in (1..est.len()).step_by(self.stride) {
-                    r.push(est[k] - t.values_c[k]);
-                }
+                r.extend(fitted_rows(t, self.stride).map(|k| scale * (est[k] - t.values_c[k])));
             }
         }
         r.iter()
@@ -551,6 +614,52 @@ fn trace_fits(
         .collect())
 }
 
+/// The weight of each squared residual per trace: [`Weighting`] times the
+/// trace's relative weight, normalised to a mean of 1 over the residuals.
+fn trace_weights(data: &[FitData], opts: &FitOptions, stride: usize) -> Result<Vec<f64>> {
+    if !opts.trace_weights.is_empty() && opts.trace_weights.len() != data.len() {
+        bail!(
+            "{} trace weights for {} traces",
+            opts.trace_weights.len(),
+            data.len()
+        );
+    }
+    if let Some(w) = opts
+        .trace_weights
+        .iter()
+        .find(|w| !(w.is_finite() && **w > 0.0))
+    {
+        bail!("a trace weight must be finite and above 0, got {w}");
+    }
+    let rows: Vec<usize> = data
+        .iter()
+        .map(|d| {
+            d.targets
+                .iter()
+                .map(|t| fitted_rows(t, stride).count())
+                .sum()
+        })
+        .collect();
+    let total: usize = rows.iter().sum();
+    if total == 0 {
+        bail!("no reading to fit: every --measure cell after the first row is empty or NaN");
+    }
+    let raw: Vec<f64> = rows
+        .iter()
+        .enumerate()
+        .map(|(k, &n)| {
+            let relative = opts.trace_weights.get(k).copied().unwrap_or(1.0);
+            match opts.weighting {
+                Weighting::Rows => relative,
+                Weighting::Traces if n > 0 => relative / n as f64,
+                Weighting::Traces => 0.0,
+            }
+        })
+        .collect();
+    let sum: f64 = raw.iter().zip(&rows).map(|(w, &n)| w * n as f64).sum();
+    Ok(raw.iter().map(|w| w * total as f64 / sum).collect())
+}
+
 /// Fits `params` of `file` to `data`. Returns the fitted file and a report.
 pub fn fit(
     file: &ModelFile,
@@ -572,15 +681,13 @@ pub fn fit(
     let inits = data
         .iter()
         .map(|d| {
-            let first: Vec<(usize, f64)> = d
-                .targets
-                .iter()
-                .map(|t| (t.node, t.values_c[0]))
-                .chain(d.init.iter().copied())
-                .collect();
+            let mut first = first_readings(&d.targets);
+            first.extend(d.init.iter().copied());
             initial_temps(&info, &d.drive, &first)
         })
         .collect::<Result<Vec<_>>>()?;
+    let stride = opts.stride.max(1);
+    let weights = trace_weights(data, opts, stride)?;
     let mut base = file.clone();
     let mut transforms = Vec::new();
     let mut x0 = Vec::new();
@@ -623,7 +730,8 @@ pub fn fit(
         transforms,
         data,
         inits: inits.clone(),
-        stride: opts.stride.max(1),
+        stride,
+        scales: weights.iter().map(|w| w.sqrt()).collect(),
         evaluations: 0,
     };
     let before = trace_fits(file, data, &inits)?;
@@ -777,11 +885,22 @@ pub fn fit(
     let traces = data
         .iter()
         .zip(before.iter().zip(after))
-        .map(|(d, (b, (rmse, sensors)))| TraceFit {
+        .zip(&weights)
+        .map(|((d, (b, (rmse, scores))), &weight)| TraceFit {
             trace: d.label.clone(),
             rmse_before_k: b.0,
             rmse_after_k: rmse,
-            sensors,
+            weight,
+            sensors: d
+                .targets
+                .iter()
+                .zip(scores)
+                .map(|(t, score)| SensorFit {
+                    score,
+                    rows_fitted: fitted_rows(t, stride).count(),
+                    rows_missing: t.values_c.iter().filter(|v| v.is_nan()).count(),
+                })
+                .collect(),
         })
         .collect();
     Ok((

@@ -229,15 +229,177 @@ fn replay_skips_missing_readings_and_fuses_until_a_time() {
     .failure()
     .stderr(contains("--truth `temperature` is also fused by --measure"))
     .stderr(contains("--measure-until-s"));
-    // calibrate fits every row: a missing reading is a clear error.
-    ct().args(["calibrate", "--model", &model(), "--trace", s(&rec)])
-        .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+}
+
+/// Calibrates the coil's capacity from 300 J/K on `rec` (measured policy
+/// when `model` says so) with `extra` flags.
+fn calibrate_on(dir: &TempDir, model: &Path, recs: &[&Path], extra: &[&str]) -> Value {
+    let mut cmd = ct();
+    cmd.args(["calibrate", "--model", s(model), "--time-column", "time"]);
+    for r in recs {
+        cmd.args(["--trace", s(r)]);
+    }
+    json(
+        &cmd.args(["--const", "current=0:3,400:0"])
+            .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+            .args(["--out", s(&dir.path().join("f.toml")), "--json"])
+            .args(extra)
+            .assert()
+            .success(),
+    )
+}
+
+/// The coil model starting its capacity at `capacity` [J/K], with the
+/// `initial` policy, written to `dir`.
+fn start_model(dir: &TempDir, name: &str, capacity: &str, policy: &str) -> PathBuf {
+    let path = dir.path().join(name);
+    let text = fs::read_to_string(model())
+        .unwrap()
+        .replace(
+            "capacity_j_per_k = 200.0",
+            &format!("capacity_j_per_k = {capacity}"),
+        )
+        .replace("policy = \"boundary\"", &format!("policy = \"{policy}\""));
+    fs::write(&path, text).unwrap();
+    path
+}
+
+fn fitted(j: &Value) -> f64 {
+    j["fit"]["params"][0]["fitted"].as_f64().unwrap()
+}
+
+#[test]
+fn calibrate_skips_missing_readings_and_starts_from_the_first_present_one() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, true);
+    let start = start_model(&dir, "start.toml", "300.0", "boundary");
+    let j = calibrate_on(&dir, &start, &[&rec], &[]);
+    assert!((fitted(&j) - 200.0).abs() < 0.5, "{j}");
+    let sensor = &j["fit"]["traces"][0]["sensors"][0];
+    // Rows 1..=1000 less the 11 empty cells (row 0 is the start).
+    assert_eq!(sensor["rows_fitted"], (ROWS - 1 - HOLES) as u64, "{j}");
+    assert_eq!(sensor["rows_missing"], HOLES as u64, "{j}");
+    assert!(sensor["rmse_k"].as_f64().unwrap() < 0.01, "{j}");
+    // From 60 s on, both readings of the first row missing: with the
+    // measured policy each node starts from its first present reading
+    // (row 1, 61 s), not a NaN and not the ambient.
+    let text = fs::read_to_string(&rec).unwrap();
+    let mut late = String::from("time,temperature,housing_t\n");
+    for (k, line) in text.lines().skip(61).enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        if k == 0 {
+            late.push_str(&format!("{},,\n", f[0]));
+        } else {
+            late.push_str(&format!("{line}\n"));
+        }
+    }
+    let late_rec = dir.path().join("late.csv");
+    fs::write(&late_rec, late).unwrap();
+    let measured = start_model(&dir, "measured.toml", "300.0", "measured");
+    let init = ["--init", "housing_t=housing"];
+    let j = calibrate_on(&dir, &measured, &[&late_rec], &init);
+    let sensor = &j["fit"]["traces"][0]["sensors"][0];
+    // The first row and the 10 holes from row 102 on.
+    assert_eq!(sensor["rows_missing"], 11, "{j}");
+    let rmse_init = sensor["rmse_k"].as_f64().unwrap();
+    // Without --init the housing starts at the ambient, not its reading.
+    let no_init = calibrate_on(&dir, &measured, &[&late_rec], &[]);
+    let rmse_no_init = no_init["fit"]["traces"][0]["sensors"][0]["rmse_k"]
+        .as_f64()
+        .unwrap();
+    assert!((fitted(&j) - 200.0).abs() < 2.0, "{j}");
+    assert!(rmse_init < 0.1, "{j}");
+    assert!(rmse_no_init > 2.0 * rmse_init, "{no_init}");
+    // A missing input is still an error: the model cannot run without it.
+    let holed_input = dir.path().join("holed_input.csv");
+    fs::write(
+        &holed_input,
+        "time,temperature,current\n0,20,3\n1,20.2,\n2,20.5,3\n",
+    )
+    .unwrap();
+    ct().args(["calibrate", "--model", s(&start), "--time-column", "time"])
+        .args(["--trace", s(&holed_input), "--current", "current=current"])
+        .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+        .args(["--out", s(&dir.path().join("g.toml"))])
+        .assert()
+        .failure()
+        .stderr(contains("holed_input.csv:3:3"));
+}
+
+#[test]
+fn calibrate_weighs_by_rows_or_traces_and_by_given_weights() {
+    let dir = TempDir::new().unwrap();
+    // Two coils that disagree: a long recording of the 200 J/K coil and a
+    // short one (150 s) of a 150 J/K coil.
+    let long = recording(&dir, "long", 3.0, 400, 20.0, false);
+    let light = start_model(&dir, "light.toml", "150.0", "boundary");
+    let input = dir.path().join("short_in.csv");
+    fs::write(&input, "time_s,current\n0,3\n150,3\n").unwrap();
+    let sim = dir.path().join("short_sim.csv");
+    ct().args(["simulate", "--model", s(&light), "--trace", s(&input)])
+        .args(["--resample-s", "1", "--out", s(&sim)])
+        .assert()
+        .success();
+    let mut short_text = String::from("time,temperature,housing_t\n");
+    for line in fs::read_to_string(&sim).unwrap().lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        short_text.push_str(&format!("{},{},{}\n", f[0], f[1], f[2]));
+    }
+    let short = dir.path().join("short.csv");
+    fs::write(&short, short_text).unwrap();
+    let start = start_model(&dir, "start.toml", "300.0", "boundary");
+    let both = [long.as_path(), short.as_path()];
+    let rows = calibrate_on(&dir, &start, &both, &[]);
+    let traces = calibrate_on(&dir, &start, &both, &["--weighting", "traces"]);
+    let heavy = calibrate_on(&dir, &start, &both, &["--weight", "2:20"]);
+    let (r, t, h) = (fitted(&rows), fitted(&traces), fitted(&heavy));
+    // Each alone gives its own coil; together they fall between, nearer
+    // the short one when every trace weighs the same (measured: 189.7 by
+    // rows, 167.1 by traces, 157.1 with the short one weighted 20).
+    let alone = |rec: &Path| fitted(&calibrate_on(&dir, &start, &[rec], &[]));
+    assert!((alone(&long) - 200.0).abs() < 0.5);
+    assert!((alone(&short) - 150.0).abs() < 0.5);
+    assert!(r > t && t > 150.0, "rows {r}, traces {t}");
+    assert!(r > h && h > 150.0, "rows {r}, short x20 {h}");
+    let weights = |j: &Value| -> Vec<f64> {
+        j["fit"]["traces"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| t["weight"].as_f64().unwrap())
+            .collect()
+    };
+    assert_eq!(weights(&rows), [1.0, 1.0]);
+    // 1000 and 150 readings share 1150: 575 each.
+    let w = weights(&traces);
+    assert!(
+        (w[0] - 0.575).abs() < 1e-9 && (w[1] - 575.0 / 150.0).abs() < 1e-9,
+        "{w:?}"
+    );
+    // The standard error comes from the weighted residuals.
+    let se = |j: &Value| j["fit"]["params"][0]["std_error"].as_f64().unwrap();
+    for j in [&rows, &traces] {
+        assert!(se(j) > 0.0 && se(j).is_finite(), "{j}");
+    }
+    assert!((se(&rows) - se(&traces)).abs() > 0.01 * se(&rows));
+    for bad in ["1:0", "2:-1", "1:NaN", "1:inf"] {
+        ct().args(["calibrate", "--model", s(&start), "--time-column", "time"])
+            .args(["--trace", s(&long), "--trace", s(&short)])
+            .args(["--const", "current=0:3,400:0", "--weight", bad])
+            .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
+            .args(["--out", s(&dir.path().join("f.toml"))])
+            .assert()
+            .failure()
+            .stderr(contains("a weight must be finite and above 0"));
+    }
+    ct().args(["calibrate", "--model", s(&start), "--time-column", "time"])
+        .args(["--trace", s(&long), "--weight", "2:1"])
+        .args(["--const", "current=0:3,400:0"])
         .args(["--measure", "temperature=coil", "--params", "capacity.coil"])
         .args(["--out", s(&dir.path().join("f.toml"))])
         .assert()
         .failure()
-        .stderr(contains("fill or drop the rows without a reading"))
-        .stderr(contains("rec.csv:7:2: column `temperature`: empty cell"));
+        .stderr(contains("trace 2 does not exist"));
 }
 
 #[test]

@@ -11,7 +11,8 @@ use super::CalibrateArgs;
 use serde::Serialize;
 
 use crate::calibrate::{
-    access_param, default_bounds, fit, FitData, FitOptions, FitReport, ParamSpec,
+    access_param, default_bounds, first_readings, fit, FitData, FitOptions, FitReport, ParamSpec,
+    Weighting,
 };
 use crate::model_file::{Model, ModelFile};
 use crate::observer::{score, Score};
@@ -41,13 +42,11 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         let d = FitData {
             label: path.display().to_string(),
             drive: Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold),
-            targets: common::sensors(&a.measure, "--measure", &info, &trace).context(
-                "calibrate fits every row: fill or drop the rows without a reading (replay skips them)",
-            )?,
-            init: common::sensors(&a.init, "--init", &info, &trace)?
-                .into_iter()
-                .map(|s| (s.node, s.values_c[0]))
-                .collect(),
+            // A missing reading (empty or NaN cell) gives no residual.
+            targets: common::sensors_with(&a.measure, "--measure", &info, &trace, true)?,
+            init: first_readings(&common::sensors_with(
+                &a.init, "--init", &info, &trace, true,
+            )?),
         };
         check_work(
             &FilePlant::new(Model::build(&file)?)?,
@@ -70,6 +69,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         max_iterations: a.max_iterations,
         stride: a.stride.max(1),
         progress: !a.no_progress && std::io::stderr().is_terminal(),
+        weighting: a.weighting,
+        trace_weights: trace_weights(&a.weight, data.len())?,
     };
     let start = Instant::now();
     let (fitted, report, starts) = if a.starts > 1 {
@@ -150,21 +151,33 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         pairs.iter().for_each(|p| println!("{p}"));
     }
     println!(
-        "{:<48} {:>16} {:>16}",
-        "trace", "RMSE before [K]", "RMSE after [K]"
+        "{:<48} {:>16} {:>16} {:>10}",
+        "trace", "RMSE before [K]", "RMSE after [K]", "weight"
     );
     for t in &report.traces {
         println!(
-            "{:<48} {:>16.4} {:>16.4}",
-            t.trace, t.rmse_before_k, t.rmse_after_k
+            "{:<48} {:>16.4} {:>16.4} {:>10.4}",
+            t.trace, t.rmse_before_k, t.rmse_after_k, t.weight
         );
         for s in &t.sensors {
             println!(
-                "  {:<20} -> {:<16} RMSE {:.4} K, max {:.4} K",
-                s.column, s.node, s.rmse_k, s.max_abs_error_k
+                "  {:<20} -> {:<16} RMSE {:.4} K, max {:.4} K, {} readings fitted, {} missing",
+                s.score.column,
+                s.score.node,
+                s.score.rmse_k,
+                s.score.max_abs_error_k,
+                s.rows_fitted,
+                s.rows_missing
             );
         }
     }
+    println!(
+        "weighting: {} (--weighting rows|traces, --weight K:W)",
+        match a.weighting {
+            Weighting::Rows => "rows, every reading the same",
+            Weighting::Traces => "traces, every trace the same in total",
+        }
+    );
     if !starts.is_empty() {
         print_starts(&starts);
     }
@@ -187,6 +200,37 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The relative weight of each fitted trace from `--weight K:W` (K the
+/// trace's 1-based --trace position): 1 unless given.
+fn trace_weights(flags: &[String], traces: usize) -> Result<Vec<f64>> {
+    let mut weights = vec![1.0; traces];
+    for f in flags {
+        let (k, w) = f
+            .split_once(':')
+            .with_context(|| format!("--weight `{f}`: expected K:W (e.g. 2:3.5)"))?;
+        let k: usize = k
+            .trim()
+            .parse()
+            .with_context(|| format!("--weight `{f}`: `{k}` is not a trace position"))?;
+        if k == 0 || k > traces {
+            anyhow::bail!(
+                "--weight `{f}`: trace {k} does not exist (1..={traces}, counting --trace only; a --validate trace is not fitted)"
+            );
+        }
+        let w: f64 = w
+            .trim()
+            .parse()
+            .with_context(|| format!("--weight `{f}`: `{w}` is not a number"))?;
+        if !(w.is_finite() && w > 0.0) {
+            anyhow::bail!(
+                "--weight `{f}`: a weight must be finite and above 0, got {w} (drop the --trace to leave it out)"
+            );
+        }
+        weights[k - 1] = w;
+    }
+    Ok(weights)
+}
+
 /// The fitted model's open-loop score on a held-out trace.
 #[derive(Debug, Serialize)]
 struct Validation {
@@ -203,8 +247,7 @@ struct Validation {
 fn validate(fitted: &ModelFile, d: &FitData) -> Result<Validation> {
     let mut plant = FilePlant::new(Model::build(fitted)?)?;
     let info = plant.info().clone();
-    let first: Vec<(usize, f64)> = d.targets.iter().map(|t| (t.node, t.values_c[0])).collect();
-    let init = initial_temps(&info, &d.drive, &first)?;
+    let init = initial_temps(&info, &d.drive, &first_readings(&d.targets))?;
     let est = by_node(&simulate(&mut plant, &d.drive, &init));
     check_temperatures(
         &info,

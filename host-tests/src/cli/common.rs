@@ -311,18 +311,9 @@ pub fn split_list(text: &str) -> Vec<&str> {
 }
 
 /// Resolves `COL=NODE` flags (each may hold a comma list) to sensors on
-/// `trace`; every cell must hold a finite number.
-pub fn sensors(
-    flags: &[String],
-    flag: &str,
-    info: &PlantInfo,
-    trace: &Trace,
-) -> Result<Vec<Sensor>> {
-    sensors_with(flags, flag, info, trace, false)
-}
-
-/// [`sensors`]; with `allow_missing`, empty and `NaN` cells are missing
-/// readings (`NaN` in `values_c`), skipped by fusion and scoring.
+/// `trace`: every cell must hold a finite number, or with `allow_missing`,
+/// empty and `NaN` cells are missing readings (`NaN` in `values_c`),
+/// skipped by fusion, scoring and calibration.
 pub fn sensors_with(
     flags: &[String],
     flag: &str,

@@ -21,6 +21,7 @@ mod simulate_cmd;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use crate::calibrate::Weighting;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 pub use common::{ModelSpec, NOT_YET};
@@ -554,6 +555,18 @@ pub struct CalibrateArgs {
     /// Fit every STRIDE-th row only (faster on long traces).
     #[arg(long, value_name = "STRIDE", default_value_t = 1)]
     stride: usize,
+    /// How the traces share the fit: `rows` (every reading weighs the same,
+    /// so a long trace dominates; least squares over all rows, the
+    /// default) or `traces` (every trace weighs the same in total: each
+    /// residual scaled by 1/sqrt(readings of its trace)). The standard
+    /// errors and correlations use the same weights.
+    #[arg(long, value_enum, value_name = "rows|traces", default_value_t = Weighting::Rows)]
+    weighting: Weighting,
+    /// A relative weight for one fitted trace: `K:W`, K its 1-based
+    /// --trace position, W finite and > 0 (dimensionless, multiplies the
+    /// --weighting); repeatable.
+    #[arg(long, value_name = "K:W")]
+    weight: Vec<String>,
     /// Where to write the fitted model file (TOML).
     #[arg(long, value_name = "FITTED.toml")]
     out: PathBuf,

@@ -136,7 +136,7 @@ pub fn fit_report(
     let mut plant = FilePlant::new(model)?;
     let mut written = Vec::new();
     for (k, d) in data.iter().enumerate() {
-        let first: Vec<(usize, f64)> = d.targets.iter().map(|t| (t.node, t.values_c[0])).collect();
+        let first = crate::calibrate::first_readings(&d.targets);
         let init = initial_temps(&info, &d.drive, &first)?;
         let est = by_node(&simulate(&mut plant, &d.drive, &init));
         let series = |label: String, values: Vec<f64>, color: usize| Series {
