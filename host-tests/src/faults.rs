@@ -706,18 +706,17 @@ impl Subject for OmniSubject {
         ambient_c: f32,
         off_s: Option<f32>,
     ) -> Result<OmniObserverState, String> {
-        match off_s {
-            Some(_) => self.observer.restore_after(
+        // `restore` is `restore_after` with no off time: no special case.
+        self.observer
+            .restore_after(
                 &Omnimagnet::PAPER,
                 bytes,
                 now_s,
                 max_age_s,
                 ambient_c,
                 off_s,
-            ),
-            None => self.observer.restore(bytes, now_s, max_age_s, ambient_c),
-        }
-        .map_err(|e| e.to_string())
+            )
+            .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
         let readings: [Option<f32>; THERMOCOUPLES] =
