@@ -174,6 +174,21 @@ const SEVEN_ARGS: [&str; 14] = [
     "activewind_2=slot_centre",
 ];
 
+/// `endwind_1` fused into the seven-node model: the disturbance over the
+/// copper, its noise fixed (50 W) rather than the replay default, which
+/// scales with each trace's peak power; every node starts at a measured
+/// reading, so its start is known to 0.5 K (`reproduce.sh`'s `FUSE7`).
+const FUSE_SEVEN: [&str; 8] = [
+    "--measure",
+    "endwind_1=end_winding",
+    "--disturbance",
+    "active_winding,slot_centre,end_winding",
+    "--disturbance-std-w",
+    "50",
+    "--initial-std-k",
+    "0.5",
+];
+
 /// Issue 18's first goal: open loop, the calibrated seven-node model beats
 /// the authors' full published network on both active-winding sensors on
 /// every profile, fitted (0 inverted, 1 3 5 9 11) and held out alike.
@@ -206,29 +221,30 @@ fn seven_node_model_beats_the_full_published_network_open_loop_on_every_profile(
     }
 }
 
-/// With endwind_1 fused (disturbance over the three copper nodes), the
-/// slot centre is held within 0.6 K^2 on profiles 1-13; profile 0 (inverted
-/// standstill, 392 A peaks) is the known exception (docs/hust.md).
+/// Issue 18's second goal on profiles 1-13: with endwind_1 fused
+/// (disturbance over the three copper nodes, the same noise on every
+/// profile), both active-winding sensors, which the filter is never given,
+/// are held within 1 K^2 and 3 K. Profile 0 (inverted standstill, its readings
+/// noisier than the filter's 0.2 K) is not met and not asserted
+/// (docs/hust.md).
 #[test]
-fn seven_node_fused_slot_centre_stays_within_0_6_k2() {
+fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
     let Some(dir) = data_dir() else { return };
     let tmp = TempDir::new().unwrap();
     let mut args = SEVEN_ARGS.to_vec();
-    args.extend([
-        "--measure",
-        "endwind_1=end_winding",
-        "--disturbance",
-        "active_winding,slot_centre,end_winding",
-    ]);
+    args.extend(FUSE_SEVEN);
     for n in FIT.into_iter().chain(SCORED) {
         let path = trace_path(&dir, n, &tmp);
         let fused = scores(&path, "models/hust_motor_slot_fitted.toml", &args, &tmp);
         eprintln!("profile {n}: fused {fused:?}");
-        assert!(
-            fused[1].0 <= 0.6,
-            "profile {n}: activewind_2 {:?}",
-            fused[1]
-        );
+        for (k, (mse, max)) in fused.iter().enumerate() {
+            assert!(
+                *mse <= 1.0 && *max <= 3.0,
+                "profile {n}: activewind_{} {:?}",
+                k + 1,
+                fused[k]
+            );
+        }
     }
 }
 
@@ -274,6 +290,8 @@ fn one_fused_end_winding_sensor_keeps_the_active_winding_within_1_k2() {
         "endwind_1=end_winding",
         "--disturbance",
         "active_winding,end_winding",
+        "--disturbance-std-w",
+        "50",
     ];
     for n in FIT.into_iter().chain(SCORED) {
         let (mse, max) = replay(
@@ -472,7 +490,8 @@ fn seven_node_calibration_reproduces_the_committed_fitted_model() {
         .args(["--measure", "activewind_2=slot_centre"])
         .args(["--init", "mean(slotbottom,outer_yoke)=stator_teeth"])
         .args(["--params", &params.join(",")])
-        .args(["--stride", "10", "--max-iterations", "60", "--no-progress"])
+        .args(["--stride", "10", "--max-iterations", "120"])
+        .args(["--weighting", "traces", "--no-progress"])
         .args(["--out", s(&out)])
         .assert()
         .success();
