@@ -186,6 +186,10 @@ use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use crate::sensors::{SensorFault, SensorResult};
 
+mod parts;
+
+pub use parts::{FilterTables, MeanModelTables, OmniParts, ProtectionTables};
+
 /// Elements with an alarm: wire and cover insulation of each solenoid.
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
 /// Horizons of the time-to-limit predictor.
