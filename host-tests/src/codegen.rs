@@ -29,6 +29,15 @@
 //! current of the observer, in source order; sources sharing an input
 //! (series layers) are fed the same current by the generated
 //! `source_currents_a`.
+//!
+//! # A built-in device: `--device omnimagnet`
+//!
+//! The Omnimagnet observer has fixed sizes, so [`generate_omnimagnet`]
+//! solves it in this process (`OmniObserver::new` with
+//! [`omnimagnet_settings`]) and writes its tables with a `static OBSERVER`
+//! the compiler assembles (`OmniObserver::from_parts` is a `const fn`): the
+//! configuration in flash, nothing built on the target
+//! (`examples/generated/omnimagnet.rs`, [`OMNIMAGNET_COMMAND`]).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

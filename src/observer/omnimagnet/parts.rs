@@ -428,8 +428,8 @@ impl OmniObserver {
     /// `max_steps_per_tick`, `frozen_loss_ticks`), a protection period
     /// below four catch-ups of the clock or a phase beyond it
     /// (`protect_period_us`, `protect_phase_us`), a zero shadow block
-    /// (`shadow_block_steps`), or a time-varying filter
-    /// (`filter.settings`).
+    /// (`shadow_block_steps`), a NaN bias bound (`bias_offset_w`) or
+    /// input limit (`limits`), or a time-varying filter (`filter.settings`).
     pub const fn from_parts(parts: &OmniParts) -> Result<Self, BuildError> {
         let f = &parts.filter;
         if !matches!(f.settings.mode, GainMode::SteadyState) || f.settings.warmup_corrections != 0 {
@@ -462,6 +462,22 @@ impl OmniObserver {
         }
         if !parts.shadow.is_finite() || !finite(&parts.band) {
             return Err(invalid("shadow"));
+        }
+        // An unbounded bias is `+inf`; NaN would silently drop the bound.
+        let mut m = 0;
+        while m < SOLENOIDS {
+            if parts.bias_offset_w[m].is_nan() {
+                return Err(invalid("bias_offset_w"));
+            }
+            m += 1;
+        }
+        if !(parts.bias_fraction.is_finite()
+            && !parts.stuck_threshold_k.is_nan()
+            && parts.max_current_a.is_finite()
+            && parts.min_temp_c.is_finite()
+            && parts.max_temp_c.is_finite())
+        {
+            return Err(invalid("limits"));
         }
         let p = &parts.protection;
         if !(finite(&p.critical_c)
