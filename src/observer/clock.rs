@@ -43,10 +43,10 @@ use crate::input::InputFlags;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StepClock {
-    step_us: u32,
-    max_steps_per_tick: u32,
-    frozen_flag_ticks: u32,
-    frozen_loss_ticks: u32,
+    pub(crate) step_us: u32,
+    pub(crate) max_steps_per_tick: u32,
+    pub(crate) frozen_flag_ticks: u32,
+    pub(crate) frozen_loss_ticks: u32,
 }
 
 /// Consecutive ticks without elapsed time from which every tick is flagged

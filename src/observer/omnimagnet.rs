@@ -60,6 +60,19 @@
 //! # Ok::<(), coil_thermal::BuildError>(())
 //! ```
 //!
+//! # Configuration in flash
+//!
+//! Everything [`OmniObserver::new`] solves (linearisation, steady-state
+//! gain, the predictor's modes, the protection) can be solved on a host:
+//! [`OmniObserver::parts`] gives it as plain tables ([`OmniParts`]),
+//! [`OmniParts::write_rust`] writes them as Rust (`coil-thermal codegen
+//! --device omnimagnet`), and the `const fn` [`OmniObserver::from_parts`]
+//! assembles them, so a `static` initialised with it is evaluated by the
+//! compiler and stays in flash; the tick takes `&self` and needs only the
+//! state in RAM (`examples/observer_m4.rs`, `docs/cost.md`). `from_parts`
+//! copies the tables without arithmetic, so the observer is `new`'s to the
+//! bit; the snapshot fingerprint is carried in the parts, not recomputed.
+//!
 //! # Protection cycle
 //!
 //! A 1 ms step changes a solenoid by about 1e-4 K, so the protection need
@@ -185,6 +198,10 @@ use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 use crate::sensors::{SensorFault, SensorResult};
+
+mod parts;
+
+pub use parts::{FilterTables, MeanModelTables, OmniParts, ProtectionTables};
 
 /// Elements with an alarm: wire and cover insulation of each solenoid.
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];

@@ -180,14 +180,14 @@ pub type ObserverGain<T> = SteadyStateGain<T, STATES, THERMOCOUPLES>;
 pub struct MeanModel<T: RealField + Copy> {
     /// `Ad - I` (dimensionless), formed in `f64`: the step is written as an
     /// increment so that its rounding can be carried (see [`Self::predict`]).
-    phi_minus_i: SMatrix<T, NODES, NODES>,
+    pub(crate) phi_minus_i: SMatrix<T, NODES, NODES>,
     /// Columns: per solenoid `Bd_p` \[K/J\], `Gd` (dimensionless), then the
     /// constant term with the origin shift \[K\].
-    g: SMatrix<T, NODES, INPUTS>,
+    pub(crate) g: SMatrix<T, NODES, INPUTS>,
     /// The operating point \[degC\].
-    origin_c: SVector<T, NODES>,
+    pub(crate) origin_c: SVector<T, NODES>,
     /// Step \[s\].
-    dt_s: f64,
+    pub(crate) dt_s: f64,
 }
 
 impl<T: RealField + Copy> MeanModel<T> {
@@ -450,18 +450,18 @@ impl CorrectionReport {
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObserverConfig<T: RealField + Copy> {
-    settings: ObserverSettings,
-    kalman: ObserverKalman<T>,
-    gain: ObserverGain<T>,
+    pub(crate) settings: ObserverSettings,
+    pub(crate) kalman: ObserverKalman<T>,
+    pub(crate) gain: ObserverGain<T>,
     /// The steady-state predict's model, whose origin is the operating point
     /// of the linearisation.
-    model: MeanModel<T>,
+    pub(crate) model: MeanModel<T>,
     /// `R(T) = r_at_0c + slope T` of each solenoid \[ohm, ohm/K\].
-    resistance: [(T, T); SOLENOIDS],
-    solenoid_nodes: [usize; SOLENOIDS],
-    period: u32,
-    dt_s: f64,
-    gain_stale: bool,
+    pub(crate) resistance: [(T, T); SOLENOIDS],
+    pub(crate) solenoid_nodes: [usize; SOLENOIDS],
+    pub(crate) period: u32,
+    pub(crate) dt_s: f64,
+    pub(crate) gain_stale: bool,
 }
 
 /// Per-device state: the estimate, its covariance (time-varying mode) and

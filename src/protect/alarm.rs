@@ -165,14 +165,14 @@ impl Debounced {
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AlarmConfig<S, const N: usize> {
-    critical_c: [S; N],
-    product: S,
-    warning_margin_k: S,
-    hysteresis_k: S,
-    debounce_ticks: u16,
-    horizon_s: S,
-    horizon_clear_s: S,
-    nominal_ambient_c: S,
+    pub(crate) critical_c: [S; N],
+    pub(crate) product: S,
+    pub(crate) warning_margin_k: S,
+    pub(crate) hysteresis_k: S,
+    pub(crate) debounce_ticks: u16,
+    pub(crate) horizon_s: S,
+    pub(crate) horizon_clear_s: S,
+    pub(crate) nominal_ambient_c: S,
 }
 
 impl<S: Scalar, const N: usize> AlarmConfig<S, N> {

@@ -54,12 +54,12 @@ use crate::scalar::Scalar;
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LimiterConfig<S, const N: usize> {
-    hardware_limit_a: [S; N],
-    taper_k: S,
+    pub(crate) hardware_limit_a: [S; N],
+    pub(crate) taper_k: S,
     /// `1 / taper_k` \[1/K\]: the taper is a multiply per coil, where a
     /// division is a software routine on a core without an FPU.
-    taper_per_k: S,
-    floor_a: S,
+    pub(crate) taper_per_k: S,
+    pub(crate) floor_a: S,
 }
 
 /// One coil's limit for this tick.

@@ -205,11 +205,11 @@ impl Default for UncertaintyMargin {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ElementBound<S> {
     /// `f` (dimensionless).
-    rise_fraction: S,
+    pub(crate) rise_fraction: S,
     /// `f / (1 + f)` (dimensionless), for the mean limit.
-    limit_fraction: S,
+    pub(crate) limit_fraction: S,
     /// `offset_k + k sigma` \[K\].
-    offset_k: S,
+    pub(crate) offset_k: S,
 }
 
 impl<S: Scalar> ElementBound<S> {
@@ -268,7 +268,7 @@ impl<S: Scalar> ElementBound<S> {
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UpperBound<S, const N: usize> {
-    elements: [ElementBound<S>; N],
+    pub(crate) elements: [ElementBound<S>; N],
 }
 
 impl<S: Scalar, const N: usize> UpperBound<S, N> {

@@ -5,15 +5,32 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::codegen::{generate, CodegenRequest};
+use crate::codegen::{generate, generate_omnimagnet, CodegenRequest};
+
+/// A built-in device whose observer `codegen` writes without a model file.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum Device {
+    /// The Omnimagnet (`Omnimagnet::PAPER`) with `examples/observer_m4.rs`'s
+    /// settings: a module whose `static OBSERVER` is assembled by the
+    /// compiler (the configuration in flash).
+    Omnimagnet,
+}
 
 /// `codegen` arguments.
 #[derive(Debug, Args)]
 pub struct CodegenArgs {
     /// The model file (TOML, with an `[observer]` table naming the sensors;
     /// see host-tests/MODEL_FORMAT.md).
-    #[arg(long, value_name = "FILE.toml")]
-    model: PathBuf,
+    #[arg(
+        long,
+        value_name = "FILE.toml",
+        required_unless_present = "device",
+        conflicts_with = "device"
+    )]
+    model: Option<PathBuf>,
+    /// A built-in device instead of a model file.
+    #[arg(long, value_enum)]
+    device: Option<Device>,
     /// Where to write the module (`-`: stdout).
     #[arg(long, value_name = "FILE.rs")]
     out: PathBuf,
@@ -33,12 +50,19 @@ pub struct CodegenArgs {
 
 /// Runs `codegen`.
 pub fn run(a: CodegenArgs) -> Result<()> {
-    let text = generate(&CodegenRequest {
-        model: a.model.clone(),
-        sensors: a.sensors,
-        library: a.library,
-        target_dir: a.target_dir,
-    })?;
+    let (text, source) = match (a.device, a.model) {
+        (Some(Device::Omnimagnet), _) => (generate_omnimagnet()?, "the Omnimagnet".to_string()),
+        (None, Some(model)) => {
+            let text = generate(&CodegenRequest {
+                model: model.clone(),
+                sensors: a.sensors,
+                library: a.library,
+                target_dir: a.target_dir,
+            })?;
+            (text, model.display().to_string())
+        }
+        (None, None) => anyhow::bail!("codegen needs --model FILE.toml or --device"),
+    };
     if a.out.as_os_str() == "-" {
         print!("{text}");
     } else {
@@ -47,7 +71,7 @@ pub fn run(a: CodegenArgs) -> Result<()> {
         eprintln!(
             "{}: the observer of {} ({} lines)",
             a.out.display(),
-            a.model.display(),
+            source,
             text.lines().count()
         );
     }

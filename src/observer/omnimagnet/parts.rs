@@ -1,0 +1,1010 @@
+//! The Omnimagnet observer as data, for a configuration in flash.
+//!
+//! [`OmniObserver::new`] linearises the nonlinear model, solves the
+//! steady-state gain (Riccati), decomposes the network for the predictor
+//! and builds the protection: tens of KiB of stack in `f64`, and a
+//! 16 KiB configuration that, built on the target, lives in RAM. Nothing
+//! of it depends on the device's run: it can be solved once on a host.
+//!
+//! * [`OmniObserver::parts`] (host, or anywhere `new` runs) reads every
+//!   table of a built observer into an [`OmniParts`]: plain row-major
+//!   arrays of the `f32` values the tick reads, the integers and the
+//!   settings, nothing computed again;
+//! * [`OmniParts::write_rust`] writes them as a Rust expression (what
+//!   `coil-thermal codegen --device omnimagnet` puts in
+//!   `examples/generated/omnimagnet.rs`); floats as the shortest text that
+//!   reads back to the same bits;
+//! * [`OmniObserver::from_parts`] is a `const fn`: it checks the tables
+//!   (finite where the tick needs it, indices in range) and copies them
+//!   into the configuration's types, transposing each matrix into
+//!   nalgebra's column-major storage
+//!   ([`SMatrix::from_array_storage`]). So
+//!   `static OMNI: OmniObserver = match OmniObserver::from_parts(&PARTS) { .. }`
+//!   is evaluated by the compiler: the configuration is in `.rodata`
+//!   (flash), never built on the target, and a bad table is a compile
+//!   error naming it.
+//!
+//! Why copies and no arithmetic: `from_parts` must give the observer `new`
+//! gives, to the bit, and any value computed again (`1 / taper_k`, a
+//! square root, an `f64` cast) could round differently from the path that
+//! made it. The snapshot fingerprint is carried too: its hash is not a
+//! `const fn`, and the host round trip (`host-tests/tests/omnimagnet_codegen.rs`)
+//! checks that the generated configuration is `new`'s, fingerprint
+//! included, and runs both side by side.
+//!
+//! The tick takes `&self`, so it runs on `&'static OmniObserver` in flash
+//! and only the [`OmniObserverState`](super::OmniObserverState) is in RAM.
+
+use core::fmt::{self, Write};
+
+use nalgebra::{ArrayStorage, SMatrix};
+
+use super::{OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
+use crate::error::BuildError;
+use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
+use crate::input::ScalarLimits;
+use crate::observer::clock::StepClock;
+use crate::observer::consistency::{Band, BiasBound, StuckTest};
+use crate::observer::network::{GainTables, PredictorTables};
+use crate::omnimagnet::observer::{
+    GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
+};
+use crate::omnimagnet::{NODES, SOLENOIDS, THERMOCOUPLES};
+use crate::protect::alarm::AlarmConfig;
+use crate::protect::limiter::LimiterConfig;
+use crate::protect::margin::{ElementBound, UpperBound};
+use crate::protect::predict::{LimitPredictor, Winding};
+
+const ALARMS: usize = ALARM_NODES.len();
+
+const _: () = assert!(
+    PREDICTOR_POINTS == crate::observer::network::PREDICTOR_POINTS,
+    "the predictor tables are the network observer's"
+);
+
+/// The linear model of one step (see [`MeanModel`]), rows first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeanModelTables {
+    /// `Ad - I` (dimensionless).
+    pub phi_minus_i: [[f32; NODES]; NODES],
+    /// Per solenoid `Bd_p` \[K/J\], `Gd` (dimensionless), the constant term
+    /// \[K\].
+    pub g: [[f32; INPUTS]; NODES],
+    /// The operating point \[degC\].
+    pub origin_c: [f32; NODES],
+    /// Step \[s\].
+    pub dt_s: f64,
+}
+
+/// The steady-state filter (see [`ObserverConfig`]), rows first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterTables {
+    /// The settings it was solved with.
+    pub settings: ObserverSettings,
+    /// `F` (dimensionless; \[K/W\] in the bias columns).
+    pub f: [[f32; STATES]; STATES],
+    /// `G`: \[K/J\], dimensionless and \[K\] columns (see [`MeanModel`]).
+    pub g: [[f32; INPUTS]; STATES],
+    /// `H^T` (dimensionless).
+    pub ht: [[f32; THERMOCOUPLES]; STATES],
+    /// Process noise `Q` \[K^2, W^2\].
+    pub q: [[f32; STATES]; STATES],
+    /// Measurement noise variances \[K^2\].
+    pub r: [f32; THERMOCOUPLES],
+    /// The gate's threshold on `nu^2 / S` (dimensionless; `+inf`: off).
+    pub gate_threshold: f32,
+    /// Consecutive rejections before a sensor is suspect.
+    pub suspect_after: u16,
+    /// Consecutive all-rejected corrections before the recovery.
+    pub recover_after: u16,
+    /// Variances added on recovery \[K^2, W^2\].
+    pub recovery_variance: [f32; STATES],
+    /// First state whose row of `F` is a unit row.
+    pub walk_from: usize,
+    /// The steady-state gain and covariances.
+    pub gain: GainTables<STATES, THERMOCOUPLES>,
+    /// The build-time model of the predict.
+    pub model: MeanModelTables,
+    /// Each solenoid's `R(0 degC)` \[ohm\] and `dR/dT` \[ohm/K\].
+    pub resistance: [[f32; 2]; SOLENOIDS],
+    /// The node of each solenoid's winding.
+    pub solenoid_nodes: [usize; SOLENOIDS],
+    /// Model steps per correction the gain was solved for.
+    pub period: u32,
+    /// Model step \[s\].
+    pub dt_s: f64,
+    /// The gain was solved for another model.
+    pub gain_stale: bool,
+}
+
+/// The alarm, the limiter and the upper bound (see
+/// [`crate::protect`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProtectionTables {
+    /// Critical temperature of each [`ALARM_NODES`] element \[degC\].
+    pub critical_c: [f32; ALARMS],
+    /// The derating rule's product (dimensionless).
+    pub derating_product: f32,
+    /// \[K\].
+    pub warning_margin_k: f32,
+    /// \[K\].
+    pub hysteresis_k: f32,
+    /// Alarm debounce (protection cycles).
+    pub debounce_ticks: u16,
+    /// Predictive alarm horizon \[s\].
+    pub horizon_s: f32,
+    /// The horizon at which the predictive alarm clears \[s\].
+    pub horizon_clear_s: f32,
+    /// \[degC\].
+    pub nominal_ambient_c: f32,
+    /// Each solenoid's hardware current limit \[A\].
+    pub hardware_limit_a: [f32; SOLENOIDS],
+    /// The limiter's taper band \[K\].
+    pub taper_k: f32,
+    /// `1 / taper_k` \[1/K\].
+    pub taper_per_k: f32,
+    /// The limiter's floor \[A\].
+    pub floor_a: f32,
+    /// Each node's upper bound: the share of its rise `f`
+    /// (dimensionless), `f / (1 + f)` and its offset \[K\].
+    pub bound: [[f32; 3]; NODES],
+    /// The time-to-limit predictor (one boundary, the ambient).
+    pub predictor: PredictorTables<NODES, 1, SOLENOIDS>,
+}
+
+/// An [`OmniObserver`] as data (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OmniParts {
+    /// The Kalman filter.
+    pub filter: FilterTables,
+    /// The protection.
+    pub protection: ProtectionTables,
+    /// The unfused shadow model (one correction period per step).
+    pub shadow: MeanModelTables,
+    /// Model step \[us\].
+    pub step_us: u32,
+    /// Catch-up bound (model steps per tick).
+    pub max_steps_per_tick: u32,
+    /// Ticks without elapsed time before the clock is flagged frozen.
+    pub frozen_flag_ticks: u32,
+    /// Ticks without elapsed time before the model is taken as lost.
+    pub frozen_loss_ticks: u32,
+    /// Largest plausible current \[A\].
+    pub max_current_a: f32,
+    /// Lowest plausible ambient \[degC\].
+    pub min_temp_c: f32,
+    /// Highest plausible ambient \[degC\].
+    pub max_temp_c: f32,
+    /// Oldest reading fused \[us\].
+    pub max_reading_age_us: u32,
+    /// A protection cycle \[us\].
+    pub protect_period_us: u32,
+    /// The cycles' phase \[us\].
+    pub protect_phase_us: u32,
+    /// Model steps per shadow step.
+    pub shadow_block_steps: u32,
+    /// The consistency band's fixed part \[K\] and share of the rise.
+    pub band: [f32; 2],
+    /// The band on the heat-input biases \[W\] (`+inf`: unbounded).
+    pub bias_offset_w: [f32; SOLENOIDS],
+    /// The bias bound's share of the Joule power (dimensionless).
+    pub bias_fraction: f32,
+    /// The stuck test's threshold \[K\].
+    pub stuck_threshold_k: f32,
+    /// The stuck test's window (readings).
+    pub stuck_window: u32,
+    /// No reading for this long makes a thermocouple silent \[us\].
+    pub silent_after_us: u32,
+    /// The snapshot fingerprint of this configuration.
+    pub fingerprint: u32,
+    /// The fingerprint of the nonlinear model it was built from.
+    pub plant_fingerprint: u32,
+}
+
+fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
+    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
+}
+
+/// Row-major to nalgebra's column-major storage.
+const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
+    let mut columns = [[0.0f32; R]; C];
+    let mut i = 0;
+    while i < R {
+        let mut j = 0;
+        while j < C {
+            columns[j][i] = rows[i][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    SMatrix::from_array_storage(ArrayStorage(columns))
+}
+
+const fn vector<const R: usize>(values: &[f32; R]) -> SMatrix<f32, R, 1> {
+    SMatrix::from_array_storage(ArrayStorage([*values]))
+}
+
+const fn finite(values: &[f32]) -> bool {
+    let mut k = 0;
+    while k < values.len() {
+        if !values[k].is_finite() {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+const fn finite_rows<const C: usize>(rows: &[[f32; C]]) -> bool {
+    finite(rows.as_flattened())
+}
+
+const fn below(indices: &[usize], n: usize) -> bool {
+    let mut k = 0;
+    while k < indices.len() {
+        if indices[k] >= n {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+const fn invalid(name: &'static str) -> BuildError {
+    BuildError::InvalidParameter { name }
+}
+
+impl MeanModelTables {
+    fn of(model: &MeanModel<f32>) -> Self {
+        Self {
+            phi_minus_i: rows(&model.phi_minus_i),
+            g: rows(&model.g),
+            origin_c: model.origin_c.into(),
+            dt_s: model.dt_s,
+        }
+    }
+
+    const fn is_finite(&self) -> bool {
+        finite_rows(&self.phi_minus_i)
+            && finite_rows(&self.g)
+            && finite(&self.origin_c)
+            && self.dt_s.is_finite()
+            && self.dt_s > 0.0
+    }
+
+    const fn model(&self) -> MeanModel<f32> {
+        MeanModel {
+            phi_minus_i: matrix(&self.phi_minus_i),
+            g: matrix(&self.g),
+            origin_c: vector(&self.origin_c),
+            dt_s: self.dt_s,
+        }
+    }
+}
+
+impl GainTables<STATES, THERMOCOUPLES> {
+    const fn is_finite(&self) -> bool {
+        finite_rows(&self.gain)
+            && finite_rows(&self.prior)
+            && finite_rows(&self.posterior)
+            && finite(&self.innovation_var)
+            && finite_rows(&self.prior_ht)
+            && finite_rows(&self.innovation_cov)
+    }
+}
+
+impl PredictorTables<NODES, 1, SOLENOIDS> {
+    const fn is_valid(&self) -> bool {
+        below(&self.winding_node, NODES)
+            && self.points_per_tick >= 1
+            && self.points_per_tick <= PREDICTOR_POINTS + 1
+            && finite(&self.grid_s)
+            && finite_rows(&self.decay)
+            && finite(&self.lambda_per_s)
+            && finite_rows(&self.v)
+            && finite_rows(&self.v_inv)
+            && finite_rows(&self.gain_power)
+            && finite_rows(&self.mode_gain_power)
+            && finite_rows(&self.gain_boundary)
+            && finite_rows(&self.mode_gain_boundary)
+            && finite(&self.offset_c)
+            && finite(&self.mode_offset)
+            && finite(&self.winding_r_at_0c_ohm)
+            && finite(&self.winding_slope_ohm_per_k)
+            && self.tick_s.is_finite()
+            && self.tick_s > 0.0
+            && self.slowest_time_constant_s.is_finite()
+    }
+}
+
+impl OmniObserver {
+    /// Every table of this configuration as data (see the module docs):
+    /// `from_parts(&self.parts())` is this observer, to the bit.
+    pub fn parts(&self) -> OmniParts {
+        let c = &self.filter;
+        let k = &c.kalman;
+        let gain = &c.gain;
+        let (a, l, p) = (&self.alarm, &self.limiter, &self.predictor);
+        OmniParts {
+            filter: FilterTables {
+                settings: c.settings,
+                f: rows(&k.f),
+                g: rows(&k.g),
+                ht: rows(&k.ht),
+                q: rows(&k.q),
+                r: k.r.into(),
+                gate_threshold: k.gate.threshold,
+                suspect_after: k.gate.suspect_after,
+                recover_after: k.gate.recover_after,
+                recovery_variance: k.recovery_variance.into(),
+                walk_from: k.walk_from,
+                gain: GainTables {
+                    period: gain.period,
+                    gain: rows(&gain.gain),
+                    prior: rows(&gain.prior),
+                    posterior: rows(&gain.posterior),
+                    innovation_var: gain.innovation_var.into(),
+                    prior_ht: rows(&gain.prior_ht),
+                    innovation_cov: rows(&gain.innovation_cov),
+                },
+                model: MeanModelTables::of(&c.model),
+                resistance: c.resistance.map(|(r0, slope)| [r0, slope]),
+                solenoid_nodes: c.solenoid_nodes,
+                period: c.period,
+                dt_s: c.dt_s,
+                gain_stale: c.gain_stale,
+            },
+            protection: ProtectionTables {
+                critical_c: a.critical_c,
+                derating_product: a.product,
+                warning_margin_k: a.warning_margin_k,
+                hysteresis_k: a.hysteresis_k,
+                debounce_ticks: a.debounce_ticks,
+                horizon_s: a.horizon_s,
+                horizon_clear_s: a.horizon_clear_s,
+                nominal_ambient_c: a.nominal_ambient_c,
+                hardware_limit_a: l.hardware_limit_a,
+                taper_k: l.taper_k,
+                taper_per_k: l.taper_per_k,
+                floor_a: l.floor_a,
+                bound: self
+                    .bound
+                    .elements
+                    .map(|e| [e.rise_fraction, e.limit_fraction, e.offset_k]),
+                predictor: PredictorTables {
+                    grid_s: p.grid_s,
+                    decay: p.decay,
+                    lambda_per_s: p.lambda_per_s,
+                    v: p.v,
+                    v_inv: p.v_inv,
+                    gain_power: p.gain_power,
+                    mode_gain_power: p.mode_gain_power,
+                    gain_boundary: p.gain_boundary,
+                    mode_gain_boundary: p.mode_gain_boundary,
+                    offset_c: p.offset_c,
+                    mode_offset: p.mode_offset,
+                    winding_node: p.windings.map(|w| w.node),
+                    winding_r_at_0c_ohm: p.windings.map(|w| w.r_at_0c_ohm),
+                    winding_slope_ohm_per_k: p.windings.map(|w| w.slope_ohm_per_k),
+                    tick_s: p.tick_s,
+                    points_per_tick: p.points_per_tick,
+                    slowest_time_constant_s: p.slowest_time_constant_s,
+                },
+            },
+            shadow: MeanModelTables::of(&self.shadow),
+            step_us: self.clock.step_us,
+            max_steps_per_tick: self.clock.max_steps_per_tick,
+            frozen_flag_ticks: self.clock.frozen_flag_ticks,
+            frozen_loss_ticks: self.clock.frozen_loss_ticks,
+            max_current_a: self.limits.max_current_a,
+            min_temp_c: self.limits.min_temp_c,
+            max_temp_c: self.limits.max_temp_c,
+            max_reading_age_us: self.max_reading_age_us,
+            protect_period_us: self.protect_period_us,
+            protect_phase_us: self.protect_phase_us,
+            shadow_block_steps: self.shadow_block_steps,
+            band: [self.band.offset_k, self.band.fraction],
+            bias_offset_w: self.bias_bound.offset_w,
+            bias_fraction: self.bias_bound.fraction,
+            stuck_threshold_k: self.stuck_test.threshold_k,
+            stuck_window: self.stuck_test.window,
+            silent_after_us: self.silent_after_us,
+            fingerprint: self.fingerprint,
+            plant_fingerprint: self.plant_fingerprint,
+        }
+    }
+
+    /// The observer of `parts`, typically written by
+    /// `coil-thermal codegen --device omnimagnet`: a `const fn`, so a
+    /// `static` initialised with it is evaluated by the compiler and lands
+    /// in flash. Copies the tables (no arithmetic: see the module docs).
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] naming the first inconsistent part:
+    /// a non-finite table entry (`filter`, `filter.gain`, `filter.model`,
+    /// `protection`, `protection.predictor`, `shadow`), an index out of
+    /// range (`filter.solenoid_nodes`, `filter.walk_from`,
+    /// `predictor`), a clock the tick cannot run (`step_us`,
+    /// `max_steps_per_tick`, `frozen_loss_ticks`), a protection period
+    /// below four catch-ups of the clock or a phase beyond it
+    /// (`protect_period_us`, `protect_phase_us`), a zero shadow block
+    /// (`shadow_block_steps`), a NaN bias bound (`bias_offset_w`) or
+    /// input limit (`limits`), or a time-varying filter (`filter.settings`).
+    pub const fn from_parts(parts: &OmniParts) -> Result<Self, BuildError> {
+        let f = &parts.filter;
+        if !matches!(f.settings.mode, GainMode::SteadyState) || f.settings.warmup_corrections != 0 {
+            return Err(invalid("filter.settings"));
+        }
+        if !(finite_rows(&f.f)
+            && finite_rows(&f.g)
+            && finite_rows(&f.ht)
+            && finite_rows(&f.q)
+            && finite(&f.r)
+            && !f.gate_threshold.is_nan()
+            && finite(&f.recovery_variance)
+            && finite_rows(&f.resistance)
+            && f.dt_s.is_finite()
+            && f.dt_s > 0.0)
+        {
+            return Err(invalid("filter"));
+        }
+        if !below(&f.solenoid_nodes, NODES) {
+            return Err(invalid("filter.solenoid_nodes"));
+        }
+        if f.walk_from > STATES {
+            return Err(invalid("filter.walk_from"));
+        }
+        if !f.gain.is_finite() {
+            return Err(invalid("filter.gain"));
+        }
+        if !f.model.is_finite() {
+            return Err(invalid("filter.model"));
+        }
+        if !parts.shadow.is_finite() || !finite(&parts.band) {
+            return Err(invalid("shadow"));
+        }
+        // An unbounded bias is `+inf`; NaN would silently drop the bound.
+        let mut m = 0;
+        while m < SOLENOIDS {
+            if parts.bias_offset_w[m].is_nan() {
+                return Err(invalid("bias_offset_w"));
+            }
+            m += 1;
+        }
+        if !(parts.bias_fraction.is_finite()
+            && !parts.stuck_threshold_k.is_nan()
+            && parts.max_current_a.is_finite()
+            && parts.min_temp_c.is_finite()
+            && parts.max_temp_c.is_finite())
+        {
+            return Err(invalid("limits"));
+        }
+        let p = &parts.protection;
+        if !(finite(&p.critical_c)
+            && p.derating_product.is_finite()
+            && p.warning_margin_k.is_finite()
+            && p.hysteresis_k.is_finite()
+            && p.horizon_s.is_finite()
+            && p.horizon_clear_s.is_finite()
+            && p.nominal_ambient_c.is_finite()
+            && finite(&p.hardware_limit_a)
+            && p.taper_k.is_finite()
+            && p.taper_per_k.is_finite()
+            && p.floor_a.is_finite()
+            && finite_rows(&p.bound))
+        {
+            return Err(invalid("protection"));
+        }
+        if !p.predictor.is_valid() {
+            return Err(invalid("protection.predictor"));
+        }
+        if parts.step_us == 0 {
+            return Err(invalid("step_us"));
+        }
+        if parts.max_steps_per_tick == 0 {
+            return Err(invalid("max_steps_per_tick"));
+        }
+        if parts.frozen_loss_ticks < parts.frozen_flag_ticks {
+            return Err(invalid("frozen_loss_ticks"));
+        }
+        let least_period_us = parts.step_us as u64 * parts.max_steps_per_tick as u64 * 4;
+        if (parts.protect_period_us as u64) < least_period_us {
+            return Err(invalid("protect_period_us"));
+        }
+        if parts.protect_phase_us >= parts.protect_period_us {
+            return Err(invalid("protect_phase_us"));
+        }
+        if parts.shadow_block_steps == 0 {
+            return Err(invalid("shadow_block_steps"));
+        }
+
+        let g = &f.gain;
+        let t = &p.predictor;
+        let mut windings = [Winding {
+            node: 0,
+            r_at_0c_ohm: 0.0,
+            slope_ohm_per_k: 0.0,
+        }; SOLENOIDS];
+        let mut resistance = [(0.0, 0.0); SOLENOIDS];
+        let mut m = 0;
+        while m < SOLENOIDS {
+            windings[m] = Winding {
+                node: t.winding_node[m],
+                r_at_0c_ohm: t.winding_r_at_0c_ohm[m],
+                slope_ohm_per_k: t.winding_slope_ohm_per_k[m],
+            };
+            resistance[m] = (f.resistance[m][0], f.resistance[m][1]);
+            m += 1;
+        }
+        let mut elements = [ElementBound::<f32>::ZERO; NODES];
+        let mut i = 0;
+        while i < NODES {
+            elements[i] = ElementBound {
+                rise_fraction: p.bound[i][0],
+                limit_fraction: p.bound[i][1],
+                offset_k: p.bound[i][2],
+            };
+            i += 1;
+        }
+        Ok(Self {
+            filter: ObserverConfig {
+                settings: f.settings,
+                kalman: KalmanConfig {
+                    f: matrix(&f.f),
+                    g: matrix(&f.g),
+                    ht: matrix(&f.ht),
+                    q: matrix(&f.q),
+                    r: vector(&f.r),
+                    gate: GatePolicy {
+                        threshold: f.gate_threshold,
+                        suspect_after: f.suspect_after,
+                        recover_after: f.recover_after,
+                    },
+                    recovery_variance: vector(&f.recovery_variance),
+                    walk_from: f.walk_from,
+                },
+                gain: SteadyStateGain {
+                    period: g.period,
+                    gain: matrix(&g.gain),
+                    prior: matrix(&g.prior),
+                    posterior: matrix(&g.posterior),
+                    innovation_var: vector(&g.innovation_var),
+                    prior_ht: matrix(&g.prior_ht),
+                    innovation_cov: matrix(&g.innovation_cov),
+                },
+                model: f.model.model(),
+                resistance,
+                solenoid_nodes: f.solenoid_nodes,
+                period: f.period,
+                dt_s: f.dt_s,
+                gain_stale: f.gain_stale,
+            },
+            alarm: AlarmConfig {
+                critical_c: p.critical_c,
+                product: p.derating_product,
+                warning_margin_k: p.warning_margin_k,
+                hysteresis_k: p.hysteresis_k,
+                debounce_ticks: p.debounce_ticks,
+                horizon_s: p.horizon_s,
+                horizon_clear_s: p.horizon_clear_s,
+                nominal_ambient_c: p.nominal_ambient_c,
+            },
+            limiter: LimiterConfig {
+                hardware_limit_a: p.hardware_limit_a,
+                taper_k: p.taper_k,
+                taper_per_k: p.taper_per_k,
+                floor_a: p.floor_a,
+            },
+            predictor: LimitPredictor {
+                grid_s: t.grid_s,
+                decay: t.decay,
+                lambda_per_s: t.lambda_per_s,
+                v: t.v,
+                v_inv: t.v_inv,
+                gain_power: t.gain_power,
+                mode_gain_power: t.mode_gain_power,
+                gain_boundary: t.gain_boundary,
+                mode_gain_boundary: t.mode_gain_boundary,
+                offset_c: t.offset_c,
+                mode_offset: t.mode_offset,
+                windings,
+                tick_s: t.tick_s,
+                points_per_tick: t.points_per_tick,
+                slowest_time_constant_s: t.slowest_time_constant_s,
+            },
+            bound: UpperBound { elements },
+            clock: StepClock {
+                step_us: parts.step_us,
+                max_steps_per_tick: parts.max_steps_per_tick,
+                frozen_flag_ticks: parts.frozen_flag_ticks,
+                frozen_loss_ticks: parts.frozen_loss_ticks,
+            },
+            limits: ScalarLimits {
+                max_current_a: parts.max_current_a,
+                min_temp_c: parts.min_temp_c,
+                max_temp_c: parts.max_temp_c,
+            },
+            max_reading_age_us: parts.max_reading_age_us,
+            step_us: parts.step_us,
+            protect_period_us: parts.protect_period_us,
+            protect_phase_us: parts.protect_phase_us,
+            fingerprint: parts.fingerprint,
+            plant_fingerprint: parts.plant_fingerprint,
+            shadow: parts.shadow.model(),
+            shadow_block_steps: parts.shadow_block_steps,
+            band: Band {
+                offset_k: parts.band[0],
+                fraction: parts.band[1],
+            },
+            bias_bound: BiasBound {
+                offset_w: parts.bias_offset_w,
+                fraction: parts.bias_fraction,
+            },
+            stuck_test: StuckTest {
+                threshold_k: parts.stuck_threshold_k,
+                window: parts.stuck_window,
+            },
+            silent_after_us: parts.silent_after_us,
+        })
+    }
+}
+
+/// A value written as Rust source that reads back to the same bits.
+trait Literal {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result;
+}
+
+macro_rules! float_literal {
+    ($t:ident) => {
+        impl Literal for $t {
+            fn write(&self, out: &mut dyn Write) -> fmt::Result {
+                // `{:?}` is the shortest text that reads back to the same
+                // bits; it spells the non-finite values in no Rust syntax.
+                if self.is_nan() {
+                    write!(out, "{}::NAN", stringify!($t))
+                } else if self.is_infinite() {
+                    let sign = if *self > 0.0 { "" } else { "NEG_" };
+                    write!(out, "{}::{sign}INFINITY", stringify!($t))
+                } else {
+                    write!(out, "{self:?}")
+                }
+            }
+        }
+    };
+}
+float_literal!(f32);
+float_literal!(f64);
+
+macro_rules! debug_literal {
+    ($($t:ty),*) => {$(
+        impl Literal for $t {
+            fn write(&self, out: &mut dyn Write) -> fmt::Result {
+                write!(out, "{self:?}")
+            }
+        }
+    )*};
+}
+debug_literal!(u16, u32, usize, bool);
+
+impl Literal for GainMode {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        write!(
+            out,
+            "coil_thermal::omnimagnet::observer::GainMode::{self:?}"
+        )
+    }
+}
+
+impl<T: Literal, const N: usize> Literal for [T; N] {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        out.write_char('[')?;
+        for (k, v) in self.iter().enumerate() {
+            if k > 0 {
+                out.write_str(", ")?;
+            }
+            v.write(out)?;
+        }
+        out.write_char(']')
+    }
+}
+
+/// Writes a struct expression: `path {`, one `name: value,` per line,
+/// `}`; a table (an array of rows) one row per line.
+struct Fields<'a> {
+    out: &'a mut dyn Write,
+    indent: usize,
+}
+
+impl<'a> Fields<'a> {
+    /// `path` is `module::Type`, written after `coil_thermal::`.
+    fn open(out: &'a mut dyn Write, path: &str, indent: usize) -> Result<Self, fmt::Error> {
+        writeln!(out, "coil_thermal::{path} {{")?;
+        Ok(Self { out, indent })
+    }
+
+    fn pad(&mut self, extra: usize) -> fmt::Result {
+        write!(self.out, "{:1$}", "", 4 * (self.indent + extra))
+    }
+
+    fn field(&mut self, name: &str, value: &dyn Literal) -> fmt::Result {
+        self.pad(1)?;
+        write!(self.out, "{name}: ")?;
+        value.write(self.out)?;
+        self.out.write_str(",\n")
+    }
+
+    fn table<T: Literal>(&mut self, name: &str, rows: &[T]) -> fmt::Result {
+        self.pad(1)?;
+        writeln!(self.out, "{name}: [")?;
+        for row in rows {
+            self.pad(2)?;
+            row.write(self.out)?;
+            self.out.write_str(",\n")?;
+        }
+        self.pad(1)?;
+        self.out.write_str("],\n")
+    }
+
+    /// A nested struct expression as the value of `name`.
+    fn nested(&mut self, name: &str, path: &str) -> Result<Fields<'_>, fmt::Error> {
+        self.pad(1)?;
+        write!(self.out, "{name}: ")?;
+        Fields::open(&mut *self.out, path, self.indent + 1)
+    }
+
+    fn close(mut self, last: bool) -> fmt::Result {
+        self.pad(0)?;
+        self.out.write_str(if last { "}" } else { "},\n" })
+    }
+}
+
+fn write_model(out: &mut Fields<'_>, name: &str, m: &MeanModelTables) -> fmt::Result {
+    let MeanModelTables {
+        phi_minus_i,
+        g,
+        origin_c,
+        dt_s,
+    } = m;
+    let mut w = out.nested(name, "observer::omnimagnet::MeanModelTables")?;
+    w.table("phi_minus_i", phi_minus_i)?;
+    w.table("g", g)?;
+    w.field("origin_c", origin_c)?;
+    w.field("dt_s", dt_s)?;
+    w.close(false)
+}
+
+impl OmniParts {
+    /// Writes these parts as a Rust expression of type [`OmniParts`] that
+    /// names every type by its full path (`coil_thermal::`), for a
+    /// `const` in a generated module. Reading it back gives these parts to
+    /// the bit.
+    ///
+    /// # Errors
+    /// Those of `out`.
+    pub fn write_rust(&self, out: &mut dyn Write) -> fmt::Result {
+        // Destructured whole, so that a field added to the parts (or to
+        // the filter's settings) is a compile error here, not a field
+        // silently left out of the generated file.
+        let Self {
+            filter,
+            protection,
+            shadow,
+            step_us,
+            max_steps_per_tick,
+            frozen_flag_ticks,
+            frozen_loss_ticks,
+            max_current_a,
+            min_temp_c,
+            max_temp_c,
+            max_reading_age_us,
+            protect_period_us,
+            protect_phase_us,
+            shadow_block_steps,
+            band,
+            bias_offset_w,
+            bias_fraction,
+            stuck_threshold_k,
+            stuck_window,
+            silent_after_us,
+            fingerprint,
+            plant_fingerprint,
+        } = self;
+        let mut w = Fields::open(out, "observer::omnimagnet::OmniParts", 0)?;
+        write_filter(&mut w, filter)?;
+        write_protection(&mut w, protection)?;
+        write_model(&mut w, "shadow", shadow)?;
+        w.field("step_us", step_us)?;
+        w.field("max_steps_per_tick", max_steps_per_tick)?;
+        w.field("frozen_flag_ticks", frozen_flag_ticks)?;
+        w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+        w.field("max_current_a", max_current_a)?;
+        w.field("min_temp_c", min_temp_c)?;
+        w.field("max_temp_c", max_temp_c)?;
+        w.field("max_reading_age_us", max_reading_age_us)?;
+        w.field("protect_period_us", protect_period_us)?;
+        w.field("protect_phase_us", protect_phase_us)?;
+        w.field("shadow_block_steps", shadow_block_steps)?;
+        w.field("band", band)?;
+        w.field("bias_offset_w", bias_offset_w)?;
+        w.field("bias_fraction", bias_fraction)?;
+        w.field("stuck_threshold_k", stuck_threshold_k)?;
+        w.field("stuck_window", stuck_window)?;
+        w.field("silent_after_us", silent_after_us)?;
+        w.field("fingerprint", fingerprint)?;
+        w.field("plant_fingerprint", plant_fingerprint)?;
+        w.close(true)
+    }
+}
+
+fn write_filter(out: &mut Fields<'_>, f: &FilterTables) -> fmt::Result {
+    let FilterTables {
+        settings,
+        f,
+        g,
+        ht,
+        q,
+        r,
+        gate_threshold,
+        suspect_after,
+        recover_after,
+        recovery_variance,
+        walk_from,
+        gain,
+        model,
+        resistance,
+        solenoid_nodes,
+        period,
+        dt_s,
+        gain_stale,
+    } = f;
+    let mut w = out.nested("filter", "observer::omnimagnet::FilterTables")?;
+    write_settings(&mut w, settings)?;
+    w.table("f", f)?;
+    w.table("g", g)?;
+    w.table("ht", ht)?;
+    w.table("q", q)?;
+    w.field("r", r)?;
+    w.field("gate_threshold", gate_threshold)?;
+    w.field("suspect_after", suspect_after)?;
+    w.field("recover_after", recover_after)?;
+    w.field("recovery_variance", recovery_variance)?;
+    w.field("walk_from", walk_from)?;
+    write_gain(&mut w, gain)?;
+    write_model(&mut w, "model", model)?;
+    w.field("resistance", resistance)?;
+    w.field("solenoid_nodes", solenoid_nodes)?;
+    w.field("period", period)?;
+    w.field("dt_s", dt_s)?;
+    w.field("gain_stale", gain_stale)?;
+    w.close(false)
+}
+
+fn write_settings(out: &mut Fields<'_>, s: &ObserverSettings) -> fmt::Result {
+    let ObserverSettings {
+        sensors,
+        thermocouple_sigma_k,
+        node_noise_k2_per_s,
+        bias_noise_w2_per_s,
+        initial_common_sigma_k,
+        initial_sigma_k,
+        initial_bias_sigma_w,
+        correction_period_s,
+        gate_threshold,
+        suspect_after,
+        recover_after,
+        mode,
+        warmup_corrections,
+    } = s;
+    let mut w = out.nested("settings", "omnimagnet::observer::ObserverSettings")?;
+    w.field("sensors", sensors)?;
+    w.field("thermocouple_sigma_k", thermocouple_sigma_k)?;
+    w.field("node_noise_k2_per_s", node_noise_k2_per_s)?;
+    w.field("bias_noise_w2_per_s", bias_noise_w2_per_s)?;
+    w.field("initial_common_sigma_k", initial_common_sigma_k)?;
+    w.field("initial_sigma_k", initial_sigma_k)?;
+    w.field("initial_bias_sigma_w", initial_bias_sigma_w)?;
+    w.field("correction_period_s", correction_period_s)?;
+    w.field("gate_threshold", gate_threshold)?;
+    w.field("suspect_after", suspect_after)?;
+    w.field("recover_after", recover_after)?;
+    w.field("mode", mode)?;
+    w.field("warmup_corrections", warmup_corrections)?;
+    w.close(false)
+}
+
+fn write_gain(out: &mut Fields<'_>, g: &GainTables<STATES, THERMOCOUPLES>) -> fmt::Result {
+    let GainTables {
+        period,
+        gain,
+        prior,
+        posterior,
+        innovation_var,
+        prior_ht,
+        innovation_cov,
+    } = g;
+    let mut w = out.nested("gain", "observer::network::GainTables")?;
+    w.field("period", period)?;
+    w.table("gain", gain)?;
+    w.table("prior", prior)?;
+    w.table("posterior", posterior)?;
+    w.field("innovation_var", innovation_var)?;
+    w.table("prior_ht", prior_ht)?;
+    w.table("innovation_cov", innovation_cov)?;
+    w.close(false)
+}
+
+fn write_protection(out: &mut Fields<'_>, p: &ProtectionTables) -> fmt::Result {
+    let ProtectionTables {
+        critical_c,
+        derating_product,
+        warning_margin_k,
+        hysteresis_k,
+        debounce_ticks,
+        horizon_s,
+        horizon_clear_s,
+        nominal_ambient_c,
+        hardware_limit_a,
+        taper_k,
+        taper_per_k,
+        floor_a,
+        bound,
+        predictor,
+    } = p;
+    let mut w = out.nested("protection", "observer::omnimagnet::ProtectionTables")?;
+    w.field("critical_c", critical_c)?;
+    w.field("derating_product", derating_product)?;
+    w.field("warning_margin_k", warning_margin_k)?;
+    w.field("hysteresis_k", hysteresis_k)?;
+    w.field("debounce_ticks", debounce_ticks)?;
+    w.field("horizon_s", horizon_s)?;
+    w.field("horizon_clear_s", horizon_clear_s)?;
+    w.field("nominal_ambient_c", nominal_ambient_c)?;
+    w.field("hardware_limit_a", hardware_limit_a)?;
+    w.field("taper_k", taper_k)?;
+    w.field("taper_per_k", taper_per_k)?;
+    w.field("floor_a", floor_a)?;
+    w.table("bound", bound)?;
+    write_predictor(&mut w, predictor)?;
+    w.close(false)
+}
+
+fn write_predictor(out: &mut Fields<'_>, t: &PredictorTables<NODES, 1, SOLENOIDS>) -> fmt::Result {
+    let PredictorTables {
+        grid_s,
+        decay,
+        lambda_per_s,
+        v,
+        v_inv,
+        gain_power,
+        mode_gain_power,
+        gain_boundary,
+        mode_gain_boundary,
+        offset_c,
+        mode_offset,
+        winding_node,
+        winding_r_at_0c_ohm,
+        winding_slope_ohm_per_k,
+        tick_s,
+        points_per_tick,
+        slowest_time_constant_s,
+    } = t;
+    let mut w = out.nested("predictor", "observer::network::PredictorTables")?;
+    w.field("grid_s", grid_s)?;
+    w.table("decay", decay)?;
+    w.field("lambda_per_s", lambda_per_s)?;
+    w.table("v", v)?;
+    w.table("v_inv", v_inv)?;
+    w.table("gain_power", gain_power)?;
+    w.table("mode_gain_power", mode_gain_power)?;
+    w.table("gain_boundary", gain_boundary)?;
+    w.table("mode_gain_boundary", mode_gain_boundary)?;
+    w.field("offset_c", offset_c)?;
+    w.field("mode_offset", mode_offset)?;
+    w.field("winding_node", winding_node)?;
+    w.field("winding_r_at_0c_ohm", winding_r_at_0c_ohm)?;
+    w.field("winding_slope_ohm_per_k", winding_slope_ohm_per_k)?;
+    w.field("tick_s", tick_s)?;
+    w.field("points_per_tick", points_per_tick)?;
+    w.field("slowest_time_constant_s", slowest_time_constant_s)?;
+    w.close(false)
+}
