@@ -60,6 +60,8 @@ type Grid = GridObserver<f32, 7, 12, 84>;
 const TICKS: u32 = 20_000;
 const AMBIENT_C: f64 = 22.0;
 const OFFSETS_K: [f64; 6] = [0.1, -0.1, 0.05, -0.05, 0.15, -0.15];
+/// The Omnimagnet's model step \[us\]: five ticks.
+const OMNI_STEP_US: u32 = 5_000;
 
 #[entry]
 fn main() -> ! {
@@ -338,8 +340,10 @@ fn build_omni() -> Option<OmniObserver> {
     // and the limiter then run on ticks 9 to 12 after a grid update, which
     // the grid's protection stages (ticks 1 to 8) leave light.
     let settings = OmniSettings {
-        protect_period_steps: 40,
-        protect_phase_steps: 9,
+        step_us: OMNI_STEP_US,
+        max_steps_per_tick: 1,
+        protect_period_steps: 8,
+        protect_phase_steps: 2,
         ..OmniSettings::default()
     };
     OmniObserver::new(&Omnimagnet::PAPER, &op, AMBIENT_C, &settings).ok()
@@ -350,7 +354,9 @@ fn build_omni() -> Option<OmniObserver> {
 #[inline(never)]
 fn relinearised(omni: &OmniObserver, temps_c: &[f32; NODES]) -> Option<MeanModel<f32>> {
     let op = temps_c.map(f64::from);
-    let lin = Omnimagnet::PAPER.linearize(&op, AMBIENT_C, 1e-3).ok()?;
+    let lin = Omnimagnet::PAPER
+        .linearize(&op, AMBIENT_C, omni.step_s())
+        .ok()?;
     omni.prepare_model(&lin).ok()
 }
 

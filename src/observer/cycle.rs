@@ -83,17 +83,24 @@ impl<const M: usize> ProtectionCycle<M> {
         held_currents_a: &[f32; M],
     ) {
         if steps > 0 {
-            for (peak, i) in self.peak_currents_a.iter_mut().zip(held_currents_a) {
-                // As `max` (a NaN current leaves the peak), without its call.
-                if i.abs() > *peak {
-                    *peak = i.abs();
-                }
-            }
+            self.held(held_currents_a);
         }
         self.lag_us = self
             .lag_us
             .saturating_add(steps.saturating_mul(step_us))
             .saturating_add(dropped_us);
+    }
+
+    /// Accounts for a tick that took no model step but held `currents_a`
+    /// \[A\] for some time (a model step several ticks long): the peaks
+    /// take them, as they take every step's.
+    pub(crate) fn held(&mut self, currents_a: &[f32; M]) {
+        for (peak, i) in self.peak_currents_a.iter_mut().zip(currents_a) {
+            // As `max` (a NaN current leaves the peak), without its call.
+            if i.abs() > *peak {
+                *peak = i.abs();
+            }
+        }
     }
 
     /// The stage this tick runs, if any (`busy`: a correction or a

@@ -161,7 +161,7 @@
 
 use nalgebra::SVector;
 
-use super::clock::{ClockState, StepClock};
+use super::clock::{ClockState, StepClock, TickSteps};
 use super::consistency::{
     screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
@@ -273,6 +273,12 @@ pub struct OmniSettings {
     /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
     /// solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K). Default 5.
     pub max_element_sigma_k: f64,
+    /// The control loop's nominal tick \[us\]. Default 1000. A model step
+    /// longer than it (`step_us` of several ticks: the multi-rate model,
+    /// see "Model step and ticks" in the module docs) makes every tick
+    /// that runs a step busy, as a catch-up is: the predictor slice is put
+    /// off to the next tick. With `step_us` equal to it nothing changes.
+    pub loop_period_us: u32,
 }
 
 impl Default for OmniSettings {
@@ -298,6 +304,7 @@ impl Default for OmniSettings {
             consistency_fraction: 0.25,
             stuck_threshold_k: 1.0,
             max_element_sigma_k: 5.0,
+            loop_period_us: 1000,
         }
     }
 }
@@ -481,6 +488,8 @@ pub struct OmniObserver {
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
     silent_after_us: u32,
+    /// The control loop's nominal tick \[us\] ([`OmniSettings::loop_period_us`]).
+    loop_period_us: u32,
 }
 
 /// The per-device state.
@@ -519,6 +528,13 @@ pub struct OmniObserverState {
     /// The solenoids whose measurement is in doubt.
     suspect: Suspicion<SOLENOIDS>,
     outputs: OmniOutputs,
+    /// The step in progress: each solenoid's `I^2` times the time it was
+    /// held \[A^2 us\], over the clock's debt (the part of the step the
+    /// ticks so far covered).
+    step_i2_a2_us: [f32; SOLENOIDS],
+    /// The held currents changed within the step in progress: its power
+    /// takes the mean `I^2`, not the held current.
+    step_mixed: bool,
 }
 
 impl OmniObserverState {
@@ -638,6 +654,7 @@ impl OmniObserver {
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
+            loop_period_us: settings.loop_period_us,
         })
     }
 
@@ -821,6 +838,8 @@ impl OmniObserver {
                 dropped_us: 0,
                 tick: 0,
             },
+            step_i2_a2_us: [0.0; SOLENOIDS],
+            step_mixed: false,
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -925,6 +944,7 @@ impl OmniObserver {
         state: &'s mut OmniObserverState,
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
+        let debt_before_us = state.clock.debt_us;
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
@@ -935,21 +955,38 @@ impl OmniObserver {
             hold_shutdown(&mut state.outputs.limits);
         }
         let mut flags = steps.flags;
+        let previous_a = state.held_currents_a;
         flags |= self
             .limits
             .accept_currents(&inputs.currents_a, &mut state.held_currents_a);
         flags |= self
             .limits
             .accept_temperature(inputs.ambient_c, &mut state.held_ambient_c);
+        let mean_sq_a2 = self.step_mean_square(
+            state,
+            &previous_a,
+            debt_before_us,
+            inputs.elapsed_us,
+            &steps,
+        );
         for _ in 0..steps.steps {
             // The held inputs are finite, so the input is always renewed.
-            self.filter.joule_input(
-                &state.model,
-                &state.estimate.x,
-                &state.held_currents_a,
-                state.held_ambient_c,
-                &mut state.input,
-            );
+            match &mean_sq_a2 {
+                None => self.filter.joule_input(
+                    &state.model,
+                    &state.estimate.x,
+                    &state.held_currents_a,
+                    state.held_ambient_c,
+                    &mut state.input,
+                ),
+                Some(mean_sq_a2) => self.filter.joule_input_mean_sq(
+                    &state.model,
+                    &state.estimate.x,
+                    mean_sq_a2,
+                    state.held_ambient_c,
+                    &mut state.input,
+                ),
+            };
             state
                 .model
                 .predict(&mut state.estimate.x, &state.input, &mut state.residual_k);
@@ -960,10 +997,20 @@ impl OmniObserver {
             steps.dropped_us,
             &state.held_currents_a,
         );
+        if steps.steps == 0 && inputs.elapsed_us > 0 {
+            // A tick between model steps: its current heats all the same,
+            // so the predictor's peak takes it.
+            state.cycle.held(&state.held_currents_a);
+        }
+        // The shadow's blocks take each step's RMS current.
+        let step_rms_a = match &mean_sq_a2 {
+            None => state.held_currents_a,
+            Some(mean_sq_a2) => mean_sq_a2.map(libm::sqrtf),
+        };
         if let Some(rms_a) =
             state
                 .shadow_block
-                .add(steps.steps, &state.held_currents_a, self.shadow_block_steps)
+                .add(steps.steps, &step_rms_a, self.shadow_block_steps)
         {
             let mut u = SVector::<f32, INPUTS>::zeros();
             self.filter.joule_input(
@@ -978,11 +1025,17 @@ impl OmniObserver {
         }
         let (corrected, disagree) = self.correct(state, inputs);
         flags |= disagree;
-        state.outputs.temps_c = self.temps_c(state);
+        // Only a step or a reading (a correction, a common-mode pull)
+        // moves the estimate.
+        if steps.steps > 0 || inputs.readings.iter().any(Option::is_some) {
+            state.outputs.temps_c = self.temps_c(state);
+        }
         state.outputs.corrected = corrected;
 
-        let busy = corrected || steps.steps > 1;
-        match state.cycle.due(busy, self.protect_period_us) {
+        // A catch-up, or a step longer than the loop's tick.
+        let busy = corrected || steps.steps.saturating_mul(self.step_us) > self.loop_period_us;
+        let stage = state.cycle.due(busy, self.protect_period_us);
+        match stage {
             Stage::Idle => {}
             Stage::Predict => {
                 let op = self.operating(
@@ -1015,7 +1068,10 @@ impl OmniObserver {
                 state.cycle.limited();
             }
         }
-        self.age_time_to_limit(state);
+        // The lag moves with the model's time and the predictor's slices.
+        if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
+            self.age_time_to_limit(state);
+        }
         let out = &mut state.outputs;
         out.flags = flags;
         out.steps = steps.steps;
@@ -1026,6 +1082,65 @@ impl OmniObserver {
         }
         out.tick = out.tick.wrapping_add(1);
         &state.outputs
+    }
+
+    /// The mean square current \[A^2\] of this tick's model steps when the
+    /// held currents changed within them (`None`: they did not, and the
+    /// steps take the held currents, to the bit as a model without the
+    /// account), and the account of the step in progress carried on.
+    ///
+    /// Each tick's held current heats for the tick's elapsed time
+    /// (`elapsed_us`, on top of the clock's debt `debt_before_us` that the
+    /// ticks before covered at `previous_a` and earlier currents), so the
+    /// steps taken now (and any time dropped with them) get the energy of
+    /// the whole interval they cover, `sum(I^2 dt) / (steps step_us +
+    /// dropped_us)`, and the time carried past them starts the next step's
+    /// account at the held current. A step several ticks long then heats
+    /// with the exact mean power of its ticks' currents at its start
+    /// temperature, where the held current would sample (alias) a current
+    /// that changes within the step, and could read cold.
+    fn step_mean_square(
+        &self,
+        state: &mut OmniObserverState,
+        previous_a: &[f32; SOLENOIDS],
+        debt_before_us: u32,
+        elapsed_us: u32,
+        steps: &TickSteps,
+    ) -> Option<[f32; SOLENOIDS]> {
+        let held_a = &state.held_currents_a;
+        let changed = held_a.iter().zip(previous_a).any(|(a, b)| a != b);
+        let mixed = state.step_mixed || (changed && debt_before_us > 0);
+        let sum = &mut state.step_i2_a2_us;
+        if steps.steps == 0 {
+            let dt_us = elapsed_us as f32;
+            for (s, i) in sum.iter_mut().zip(held_a) {
+                *s += i * i * dt_us;
+            }
+            state.step_mixed = mixed;
+            return None;
+        }
+        let carried_us = state.clock.debt_us;
+        let mean = mixed.then(|| {
+            // The steps and the dropped time cover the debt before this
+            // tick and this tick's time up to the new debt.
+            let covered_us = steps
+                .steps
+                .saturating_mul(self.step_us)
+                .saturating_add(steps.dropped_us);
+            let now_us = covered_us.saturating_sub(debt_before_us) as f32;
+            let per_us = 1.0 / covered_us.max(1) as f32;
+            let mut mean = [0.0; SOLENOIDS];
+            for ((mean, s), i) in mean.iter_mut().zip(sum.iter()).zip(held_a) {
+                *mean = (s + i * i * now_us) * per_us;
+            }
+            mean
+        });
+        let carried = carried_us as f32;
+        for (s, i) in sum.iter_mut().zip(held_a) {
+            *s = i * i * carried;
+        }
+        state.step_mixed = false;
+        mean
     }
 
     /// The predictor's answers for the [`ALARM_NODES`], made older by the
