@@ -344,6 +344,8 @@ fn build_omni() -> Option<OmniObserver> {
         max_steps_per_tick: 1,
         protect_period_steps: 8,
         protect_phase_steps: 2,
+        predictor_slices_per_cycle: 2,
+        predictor_nodes_per_slice: 5,
         ..OmniSettings::default()
     };
     OmniObserver::new(&Omnimagnet::PAPER, &op, AMBIENT_C, &settings).ok()

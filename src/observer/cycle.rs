@@ -48,6 +48,10 @@ pub(crate) struct ProtectionCycle<const M: usize> {
     /// How much later than a whole period each slice after the first is
     /// due \[us\] (see [`Self::with_phase`]).
     phase_us: u32,
+    /// Predictor slices per cycle (see [`Self::with_slices`]).
+    slices: u32,
+    /// Slices of this cycle still to run.
+    slices_left: u32,
 }
 
 impl<const M: usize> ProtectionCycle<M> {
@@ -60,7 +64,20 @@ impl<const M: usize> ProtectionCycle<M> {
             stage: Stage::Predict,
             slice_put_off: false,
             phase_us: 0,
+            slices: 1,
+            slices_left: 1,
         }
+    }
+
+    /// The same cycle with `slices` (at least 1) predictor slices on
+    /// consecutive ticks before the alarm, each due as the first is (put
+    /// off once by a busy tick), each caught up by its share of the period
+    /// ([`Self::predicted`]): for a predictor whose slice budget is below
+    /// one horizon.
+    pub(crate) fn with_slices(mut self, slices: u32) -> Self {
+        self.slices = slices.max(1);
+        self.slices_left = self.slices;
+        self
     }
 
     /// The same cycle with every slice after the first due `phase_us`
@@ -128,12 +145,17 @@ impl<const M: usize> ProtectionCycle<M> {
         &self.peak_currents_a
     }
 
-    /// The predictor slice ran: its time is caught up by a period, the
-    /// peaks restart from the held currents, the alarm is next.
-    pub(crate) fn predicted(&mut self, period_us: u32, held_currents_a: &[f32; M]) {
-        self.lag_us = self.lag_us.saturating_sub(period_us);
+    /// A predictor slice ran: its time is caught up by `slice_us` (the
+    /// period over the slices per cycle), the peaks restart from the held
+    /// currents, and after the cycle's last slice the alarm is next.
+    pub(crate) fn predicted(&mut self, slice_us: u32, held_currents_a: &[f32; M]) {
+        self.lag_us = self.lag_us.saturating_sub(slice_us);
         self.peak_currents_a = held_currents_a.map(f32::abs);
-        self.stage = Stage::Alarm;
+        self.slices_left = self.slices_left.saturating_sub(1);
+        if self.slices_left == 0 {
+            self.slices_left = self.slices;
+            self.stage = Stage::Alarm;
+        }
     }
 
     /// The alarm ran: the limiter is next.

@@ -279,6 +279,18 @@ pub struct OmniSettings {
     /// that runs a step busy, as a catch-up is: the predictor slice is put
     /// off to the next tick. With `step_us` equal to it nothing changes.
     pub loop_period_us: u32,
+    /// Predictor slices per protection cycle, on consecutive ticks (each
+    /// put off once by a busy tick), at least 1; `protect_period_steps`
+    /// must then be at least `(2 slices + 2) max_steps_per_tick` and the
+    /// cycle's length in microseconds a multiple of it. Default 1. With
+    /// [`Self::predictor_nodes_per_slice`], a sweep of the same length in
+    /// cheaper ticks.
+    pub predictor_slices_per_cycle: u32,
+    /// At most this many nodes' horizons per predictor slice, at least 1
+    /// (the snapshot that starts a sweep then takes a slice of its own;
+    /// see [`PredictorBuilder::elements_per_tick`]). Default `u32::MAX`:
+    /// a whole horizon, the snapshot with the first.
+    pub predictor_nodes_per_slice: u32,
 }
 
 impl Default for OmniSettings {
@@ -305,6 +317,8 @@ impl Default for OmniSettings {
             stuck_threshold_k: 1.0,
             max_element_sigma_k: 5.0,
             loop_period_us: 1000,
+            predictor_slices_per_cycle: 1,
+            predictor_nodes_per_slice: u32::MAX,
         }
     }
 }
@@ -490,6 +504,9 @@ pub struct OmniObserver {
     silent_after_us: u32,
     /// The control loop's nominal tick \[us\] ([`OmniSettings::loop_period_us`]).
     loop_period_us: u32,
+    /// The share of a protection cycle each predictor slice catches up
+    /// \[us\].
+    predictor_slice_us: u32,
 }
 
 /// The per-device state.
@@ -535,6 +552,9 @@ pub struct OmniObserverState {
     /// The held currents changed within the step in progress: its power
     /// takes the mean `I^2`, not the held current.
     step_mixed: bool,
+    /// The last tick corrected with a multi-rate model: the heat-bias
+    /// check is this tick's (see [`OmniObserver::tick`]).
+    bias_check_due: bool,
 }
 
 impl OmniObserverState {
@@ -564,10 +584,16 @@ impl OmniObserver {
             .with_frozen_limits(settings.frozen_flag_ticks, settings.frozen_loss_ticks)?;
         let dt_s = clock.step_s();
         let period = settings.protect_period_steps;
+        let slices = settings.predictor_slices_per_cycle;
+        // A cycle takes at most two ticks per slice (one put off) and the
+        // alarm's and the limiter's: it ends before the next is due.
+        let cycle_ticks = slices.saturating_mul(2).saturating_add(2);
         let protect_period_us = period.checked_mul(settings.step_us);
-        let Some(protect_period_us) =
-            protect_period_us.filter(|_| period >= 4 * settings.max_steps_per_tick)
-        else {
+        let Some(protect_period_us) = protect_period_us.filter(|us| {
+            slices >= 1
+                && us % slices == 0
+                && period >= cycle_ticks.saturating_mul(settings.max_steps_per_tick)
+        }) else {
             return Err(BuildError::InvalidParameter {
                 name: "protect_period_steps",
             });
@@ -598,7 +624,18 @@ impl OmniObserver {
             settings.taper_k,
             0.0,
         )?;
-        let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
+        if settings.predictor_nodes_per_slice == 0 {
+            return Err(BuildError::InvalidParameter {
+                name: "predictor_nodes_per_slice",
+            });
+        }
+        let predictor = Self::predictor(
+            model,
+            op_temps_c,
+            ambient_c,
+            dt_s * f64::from(period) / f64::from(slices),
+            settings.predictor_nodes_per_slice,
+        )?;
         let bound = Self::build_bound(&filter, settings)?;
         let fingerprint = Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound);
         let shadow_block_steps = filter.period().max(1);
@@ -655,6 +692,7 @@ impl OmniObserver {
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
             loop_period_us: settings.loop_period_us,
+            predictor_slice_us: protect_period_us / slices,
         })
     }
 
@@ -677,10 +715,12 @@ impl OmniObserver {
         model: &Omnimagnet,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
-        cycle_s: f64,
+        slice_s: f64,
+        nodes_per_slice: u32,
     ) -> Result<LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>, BuildError> {
         PredictorBuilder::new()
-            .tick_s(cycle_s)
+            .tick_s(slice_s)
+            .elements_per_tick(usize::try_from(nodes_per_slice).unwrap_or(usize::MAX))
             .build(&model.network(op_temps_c, ambient_c)?)
     }
 
@@ -813,7 +853,9 @@ impl OmniObserver {
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
-            cycle: ProtectionCycle::new().with_phase(self.protect_phase_us),
+            cycle: ProtectionCycle::new()
+                .with_phase(self.protect_phase_us)
+                .with_slices(self.protect_period_us / self.predictor_slice_us.max(1)),
             shadow_x: SVector::from_fn(|i, _| {
                 temps_c
                     .get(i)
@@ -840,6 +882,7 @@ impl OmniObserver {
             },
             step_i2_a2_us: [0.0; SOLENOIDS],
             step_mixed: false,
+            bias_check_due: false,
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -945,7 +988,12 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let debt_before_us = state.clock.debt_us;
-        let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        let mut steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        if self.step_us > self.loop_period_us && inputs.readings.iter().any(Option::is_some) {
+            // A step several ticks long waits a tick for a correction's:
+            // the two together would make the heaviest tick.
+            self.clock.defer(&mut state.clock, &mut steps);
+        }
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
             state
@@ -1023,6 +1071,9 @@ impl OmniObserver {
             self.shadow
                 .predict(&mut state.shadow_x, &u, &mut state.shadow_residual_k);
         }
+        if core::mem::take(&mut state.bias_check_due) {
+            flags |= self.check_heat_bias(state);
+        }
         let (corrected, disagree) = self.correct(state, inputs);
         flags |= disagree;
         // Only a step or a reading (a correction, a common-mode pull)
@@ -1046,7 +1097,7 @@ impl OmniObserver {
                 state.predictor.tick(&self.predictor, &op);
                 state
                     .cycle
-                    .predicted(self.protect_period_us, &state.held_currents_a);
+                    .predicted(self.predictor_slice_us, &state.held_currents_a);
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
@@ -1127,11 +1178,21 @@ impl OmniObserver {
                 .steps
                 .saturating_mul(self.step_us)
                 .saturating_add(steps.dropped_us);
-            let now_us = covered_us.saturating_sub(debt_before_us) as f32;
+            // This tick's time up to the new debt (negative after a
+            // deferral, whose carried time this tick's current is charged
+            // for: the energy stays whole).
+            let now_us = if covered_us >= debt_before_us {
+                (covered_us - debt_before_us) as f32
+            } else {
+                -((debt_before_us - covered_us) as f32)
+            };
             let per_us = 1.0 / covered_us.max(1) as f32;
             let mut mean = [0.0; SOLENOIDS];
             for ((mean, s), i) in mean.iter_mut().zip(sum.iter()).zip(held_a) {
-                *mean = (s + i * i * now_us) * per_us;
+                let energy = s + i * i * now_us;
+                // Not below zero (only a deferral's redistribution could
+                // get there, and the carry then holds more than its share).
+                *mean = if energy > 0.0 { energy * per_us } else { 0.0 };
             }
             mean
         });
@@ -1337,14 +1398,28 @@ impl OmniObserver {
             &state.outputs.sensors,
             &state.estimate.gate.consecutive_rejections,
         );
-        // The last step's Joule powers, at the estimate.
-        let powers_w = core::array::from_fn(|m| state.input[m]);
-        let biases_w = state.estimate.x.iter().skip(NODES);
-        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
-            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        if self.step_us > self.loop_period_us {
+            // Multi-rate: the check waits for the next tick, which the
+            // correction's deferred step makes light.
+            state.bias_check_due = true;
+        } else {
+            flags |= self.check_heat_bias(state);
         }
         state.suspect.note(&suspect);
         (true, flags)
+    }
+
+    /// The heat-input biases against the band's image at the last step's
+    /// Joule powers (at the estimate): [`InputFlags::HEAT_BIAS_BEYOND_MODEL`]
+    /// when one is beyond it.
+    fn check_heat_bias(&self, state: &OmniObserverState) -> InputFlags {
+        let powers_w = core::array::from_fn(|m| state.input[m]);
+        let biases_w = state.estimate.x.iter().skip(NODES);
+        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
+            InputFlags::HEAT_BIAS_BEYOND_MODEL
+        } else {
+            InputFlags::NONE
+        }
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched
