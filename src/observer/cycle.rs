@@ -235,7 +235,14 @@ mod tests {
     /// `ticks`, for a cycle of `period_us` with `phase_us`, and the largest
     /// lag seen just before a slice \[us\].
     fn stages(period_us: u32, phase_us: u32, ticks: u32) -> ([u32; 8], u32) {
-        let mut cycle = ProtectionCycle::<1>::new().with_phase(phase_us);
+        stages_sliced(period_us, phase_us, 1, ticks)
+    }
+
+    /// [`stages`] with `slices` predictor slices per cycle.
+    fn stages_sliced(period_us: u32, phase_us: u32, per_cycle: u32, ticks: u32) -> ([u32; 8], u32) {
+        let mut cycle = ProtectionCycle::<1>::new()
+            .with_phase(phase_us)
+            .with_slices(per_cycle);
         let (mut slices, mut n, mut worst_lag) = ([0; 8], 0, 0);
         for tick in 0..ticks {
             cycle.stepped(1, 1000, 0, &[1.0]);
@@ -246,7 +253,7 @@ mod tests {
                         *s = tick;
                     }
                     n += 1;
-                    cycle.predicted(period_us, &[1.0]);
+                    cycle.predicted(period_us / per_cycle, &[1.0]);
                 }
                 Stage::Alarm => cycle.alarmed(),
                 Stage::Limit => cycle.limited(),
@@ -268,5 +275,16 @@ mod tests {
         let (phased, phased_lag) = stages(40_000, 9_000, 330);
         assert_eq!(phased, [0, 49, 89, 129, 169, 209, 249, 289]);
         assert_eq!(phased_lag, 49_000);
+    }
+
+    #[test]
+    fn two_slices_run_on_consecutive_ticks_and_catch_up_one_period() {
+        // Slices at 0, 1, then 50, 51, 90, 91, ... (the first cycle's
+        // second slice, like its first, catches up more than the time
+        // there was): each catches up half a period, so the lag before a
+        // cycle's first slice is the same as with one slice.
+        let (sliced, lag) = stages_sliced(40_000, 9_000, 2, 140);
+        assert_eq!(sliced, [0, 1, 50, 51, 90, 91, 130, 131]);
+        assert_eq!(lag, 49_000);
     }
 }
