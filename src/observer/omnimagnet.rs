@@ -60,13 +60,54 @@
 //! # Ok::<(), coil_thermal::BuildError>(())
 //! ```
 //!
+//! # Model step and ticks
+//!
+//! The model steps every [`OmniSettings::step_us`] of measured time, which
+//! need not be the loop's tick ([`OmniSettings::loop_period_us`]): the
+//! fastest Omnimagnet node (the paper sheet) has a time constant near
+//! 0.25 s and the solenoids minutes, so a step of 5 or 10 ms loses nothing
+//! the thermocouples could see, and costs the 336 multiply-adds of the
+//! predict once per step instead of once per tick (`observer_m4`: the
+//! Omnimagnet part 2 102 -> 1 040 instructions mean at 5 ms,
+//! `docs/cost.md`). Every tick accounts each solenoid's `I^2` times its
+//! elapsed time, and a step heats with the mean `I^2` of the time it
+//! covers times `R(T)` at its start estimate: the exact mean power for a
+//! current that changes every tick (PWM, commutation), where the held
+//! current of the tick the step lands on would sample it and could read
+//! cold (0.74 K cold after 30 s of a 2 ms square wave at 5 ms steps, in
+//! `host-tests/tests/omni_multirate.rs`; with the mean, within 1.6 mK of
+//! the nonlinear model and at most 0.8 mK colder than the 1 ms run). When
+//! the currents held over a step did not change, the step takes them as
+//! they are, to the bit as a model without the account (the defaults keep
+//! every result of a 1 ms model).
+//!
+//! What a longer step costs: the estimate lags the clock by the time not
+//! yet stepped (less than a step; at most a step and a tick after a
+//! deferral below), the published temperatures move once per step, and
+//! `max_steps_per_tick` bounds a catch-up in steps, so 1 at 5 ms still
+//! takes up 5 ms of late time per tick at the price of one step. A tick
+//! that runs a step longer than the loop's tick is busy, as a catch-up is
+//! (the predictor slice waits a tick), and a tick that brings readings
+//! defers its step to the next tick ([`StepClock::defer`], never twice in
+//! a row, no time dropped) and runs the heat-bias check of its correction
+//! on the next tick too: a correction and a step on one tick would make
+//! the heaviest tick. The correction then fuses readings a step's time
+//! younger than the model, which the steady gain takes as it takes a
+//! reading a few milliseconds old. `protect_period_steps`,
+//! `protect_phase_steps` and the correction period are in model steps or
+//! seconds: at 5 ms, 8 and 2 steps keep the 40 ms cycle and put it 10 ms
+//! after a 20 ms grid update (`examples/observer_m4.rs`).
+//!
 //! # Protection cycle
 //!
 //! A 1 ms step changes a solenoid by about 1e-4 K, so the protection need
 //! not follow every step: it runs once every
 //! [`OmniSettings::protect_period_steps`] model steps (default 16 ms), one
 //! stage per tick so that no tick carries more than one: a predictor slice
-//! (one horizon), then the alarm, then the limiter. Between cycles the
+//! (one horizon; or, with [`OmniSettings::predictor_slices_per_cycle`] and
+//! [`OmniSettings::predictor_nodes_per_slice`], several smaller slices on
+//! consecutive ticks: the snapshot alone, then at most that many nodes of
+//! a horizon each), then the alarm, then the limiter. Between cycles the
 //! outputs stand, except the times to limit, which are aged every tick. The
 //! slice is put off by one tick when that tick also corrects or catches up
 //! (never twice in a row), so a correction tick does not carry the most
@@ -200,9 +241,12 @@ const NO_LIMIT_C: f32 = 1000.0;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OmniSettings {
-    /// Model step \[us\]. Default 1000.
+    /// Model step \[us\]. Default 1000. Several ticks long, the steps
+    /// take the mean `I^2` of their ticks (see "Model step and ticks" in
+    /// the module docs); set [`Self::loop_period_us`] to the loop's tick.
     pub step_us: u32,
-    /// Catch-up bound, model steps per tick. Default 4.
+    /// Catch-up bound, model steps per tick (a deferred step comes on
+    /// top). Default 4.
     pub max_steps_per_tick: u32,
     /// The Kalman filter: sensor subset, noise, gate, correction period
     /// (the steady-state gain is solved for one correction every
@@ -223,9 +267,11 @@ pub struct OmniSettings {
     /// Width of the limiter's taper band \[K\]. Default 10.
     pub taper_k: f64,
     /// Model steps per protection cycle (see the module docs), at least
-    /// `4 max_steps_per_tick`: a cycle takes at most four ticks (a put-off
-    /// slice and three stages), so it always ends before the next is due
-    /// and the predictor's lag stays bounded. Default 16.
+    /// `(2 slices + 2) max_steps_per_tick` with `slices` the
+    /// [`Self::predictor_slices_per_cycle`]: a cycle takes at most that
+    /// many ticks (each slice put off once, the alarm and the limiter; 4
+    /// with one slice), so it always ends before the next is due and the
+    /// predictor's lag stays bounded. Default 16.
     pub protect_period_steps: u32,
     /// Model steps by which every protection cycle after the first starts
     /// later than its period's boundary, less than `protect_period_steps`:

@@ -88,6 +88,14 @@
 //! defaults), far inside any useful alarm horizon. Pass RMS currents instead
 //! if peak powers are too pessimistic for your drive.
 //!
+//! Where one horizon is more than a tick's budget,
+//! [`PredictorBuilder::elements_per_tick`] splits it: at most that many
+//! elements per call, the snapshot in a call of its own, the same answers
+//! to the bit (the Omnimagnet's nine limited nodes in slices of five on a
+//! Cortex-M4F: 2 250 to 2 500 instructions a slice instead of about
+//! 3 600 for a horizon, the snapshot alone about 2 050 instead of 5 200
+//! with the first horizon; `docs/cost.md`).
+//!
 //! # Cost per call (`N` elements, `M` windings, `B` boundaries)
 //!
 //! | step | flops |
@@ -797,7 +805,9 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
     }
 
     /// One tick: ages the published answers by the predictor's `tick_s`,
-    /// evaluates `points_per_tick` horizons of the sweep in progress
+    /// evaluates `points_per_tick` horizons (or at most
+    /// `elements_per_tick` elements, or the snapshot alone, when split) of
+    /// the sweep in progress
     /// (starting a new sweep from `op` when none is), and returns every
     /// element's time to its alarm limit \[s\] (`None`: never), ready for
     /// [`AlarmState::tick`](super::alarm::AlarmState::tick).
