@@ -202,7 +202,7 @@
 
 use nalgebra::SVector;
 
-use super::clock::{ClockState, StepClock, TickSteps};
+use super::clock::{ClockState, Deferral, StepClock, TickSteps};
 use super::consistency::{
     screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
@@ -601,6 +601,8 @@ pub struct OmniObserverState {
     /// The last tick corrected with a multi-rate model: the heat-bias
     /// check is this tick's (see [`OmniObserver::tick`]).
     bias_check_due: bool,
+    /// Model steps handed to the next tick (see [`StepClock::defer`]).
+    deferral: Deferral,
 }
 
 impl OmniObserverState {
@@ -929,6 +931,7 @@ impl OmniObserver {
             step_i2_a2_us: [0.0; SOLENOIDS],
             step_mixed: false,
             bias_check_due: false,
+            deferral: Deferral::default(),
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -1034,11 +1037,14 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let debt_before_us = state.clock.debt_us;
-        let mut steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        let mut steps =
+            self.clock
+                .advance_deferring(&mut state.clock, &mut state.deferral, inputs.elapsed_us);
         if self.step_us > self.loop_period_us && inputs.readings.iter().any(Option::is_some) {
             // A step several ticks long waits a tick for a correction's:
             // the two together would make the heaviest tick.
-            self.clock.defer(&mut state.clock, &mut steps);
+            self.clock
+                .defer(&mut state.clock, &mut state.deferral, &mut steps);
         }
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
