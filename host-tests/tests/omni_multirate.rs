@@ -26,7 +26,7 @@ type Pattern = fn(u32) -> [f32; SOLENOIDS];
 fn waves(k: u32) -> [f32; SOLENOIDS] {
     let on = |yes: bool, amps: f32| if yes { amps } else { 0.0 };
     [
-        on(k % 2 == 0, 6.0),
+        on(k.is_multiple_of(2), 6.0),
         on(k % 3 != 2, 5.0),
         on(k % 10 < 2, 7.0),
     ]
