@@ -10,9 +10,11 @@
 //! ```
 //!
 //! Configuration: the grid accounts Joule energy every 1 ms tick and
-//! updates its temperatures every 20 ms; the Omnimagnet predicts every tick
-//! and refreshes its limits and times to limit every 40 ms, 9 ms after a
-//! grid update (`docs/cost.md` gives the figures).
+//! updates its temperatures every 20 ms; the Omnimagnet accounts each
+//! solenoid's `I^2` every tick, steps its model every 5 ms on the mean,
+//! and refreshes its limits and times to limit every 40 ms, 10 ms after a
+//! grid update, its predictor in two slices of at most five nodes
+//! (`docs/cost.md` gives the figures).
 //!
 //! The trace segment is synthetic (made here, deterministic): coil (3, 5) at
 //! 2 A and row 1 at 1 A on the grid, all three solenoids at 3.8 A on the
@@ -334,11 +336,15 @@ fn stack_top() -> usize {
 #[inline(never)]
 fn build_omni() -> Option<OmniObserver> {
     let op = [AMBIENT_C; NODES];
-    // Limits and times to limit every 40 ms (the Omnimagnet's fastest
-    // thermal time constant is minutes), a multiple of the grid's 20 ms
-    // update, and 9 ms after its boundary: the predictor slice, the alarm
-    // and the limiter then run on ticks 9 to 12 after a grid update, which
-    // the grid's protection stages (ticks 1 to 8) leave light.
+    // A 5 ms model step (the fastest node's time constant is 0.25 s, the
+    // solenoids' minutes) on the mean `I^2` of its ticks; one step of
+    // catch-up per tick covers 5 ms of late time. Limits and times to
+    // limit every 40 ms (8 steps), a multiple of the grid's 20 ms update,
+    // and 10 ms (2 steps) after its boundary: the two predictor slices,
+    // the alarm and the limiter then run on ticks 11 to 14 after a grid
+    // update (the step tick at 10 is busy), which the grid's protection
+    // stages (ticks 1 to 8) leave light. Five nodes per slice keep every
+    // slice under 4 000 instructions.
     let settings = OmniSettings {
         step_us: OMNI_STEP_US,
         max_steps_per_tick: 1,
