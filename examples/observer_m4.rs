@@ -10,9 +10,11 @@
 //! ```
 //!
 //! Configuration: the grid accounts Joule energy every 1 ms tick and
-//! updates its temperatures every 20 ms; the Omnimagnet predicts every tick
-//! and refreshes its limits and times to limit every 40 ms, 9 ms after a
-//! grid update (`docs/cost.md` gives the figures).
+//! updates its temperatures every 20 ms; the Omnimagnet accounts each
+//! solenoid's `I^2` every tick, steps its model every 5 ms on the mean,
+//! and refreshes its limits and times to limit every 40 ms, 10 ms after a
+//! grid update, its predictor in two slices of at most five nodes
+//! (`docs/cost.md` gives the figures).
 //!
 //! The trace segment is synthetic (made here, deterministic): coil (3, 5) at
 //! 2 A and row 1 at 1 A on the grid, all three solenoids at 3.8 A on the
@@ -349,7 +351,9 @@ fn stack_top() -> usize {
 #[inline(never)]
 fn relinearised(omni: &OmniObserver, temps_c: &[f32; NODES]) -> Option<MeanModel<f32>> {
     let op = temps_c.map(f64::from);
-    let lin = Omnimagnet::PAPER.linearize(&op, AMBIENT_C, 1e-3).ok()?;
+    let lin = Omnimagnet::PAPER
+        .linearize(&op, AMBIENT_C, omni.step_s())
+        .ok()?;
     omni.prepare_model(&lin).ok()
 }
 

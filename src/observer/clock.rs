@@ -67,6 +67,19 @@ pub struct ClockState {
     pub frozen_ticks: u32,
 }
 
+/// Steps handed back to the next tick ([`StepClock::defer`]; per-device
+/// state, next to a [`ClockState`], for a clock that defers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Deferral {
+    /// Steps the last tick handed back: the next tick takes them on top of
+    /// its catch-up bound.
+    pub steps: u32,
+    /// This tick took deferred steps: it may not defer (never twice in a
+    /// row).
+    pub took: bool,
+}
+
 /// How many model steps a tick takes, and what was dropped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -156,12 +169,30 @@ impl StepClock {
     /// Adds `elapsed_us` \[us\] of real time and returns the steps to take.
     /// Never panics; saturating arithmetic throughout.
     pub fn advance(&self, state: &mut ClockState, elapsed_us: u32) -> TickSteps {
+        self.advance_with(state, elapsed_us, 0)
+    }
+
+    /// [`Self::advance`] for a clock that defers ([`Self::defer`]): the
+    /// steps the last tick handed back come on top of the catch-up bound.
+    pub fn advance_deferring(
+        &self,
+        state: &mut ClockState,
+        deferral: &mut Deferral,
+        elapsed_us: u32,
+    ) -> TickSteps {
+        let extra = core::mem::take(&mut deferral.steps);
+        deferral.took = extra > 0;
+        self.advance_with(state, elapsed_us, extra)
+    }
+
+    #[inline(always)]
+    fn advance_with(&self, state: &mut ClockState, elapsed_us: u32, extra: u32) -> TickSteps {
         state.frozen_ticks = if elapsed_us == 0 {
             state.frozen_ticks.saturating_add(1)
         } else {
             0
         };
-        let mut steps = self.advance_time(state, elapsed_us);
+        let mut steps = self.advance_time(state, elapsed_us, extra);
         if state.frozen_ticks >= self.frozen_flag_ticks {
             steps.flags |= InputFlags::CLOCK_FROZEN;
         }
@@ -169,7 +200,34 @@ impl StepClock {
         steps
     }
 
-    fn advance_time(&self, state: &mut ClockState, elapsed_us: u32) -> TickSteps {
+    /// Hands this tick's steps back (`steps.steps` becomes 0): the next
+    /// tick takes them, beyond its catch-up bound, so no time is dropped
+    /// for them. For a tick that already carries other heavy work (a
+    /// correction) when a model step is several ticks long: the step then
+    /// ends one tick later (the next tick must come through
+    /// [`Self::advance_deferring`]). At most once in a row and never with
+    /// dropped time, so the steps of one tick stay bounded by
+    /// `max_steps_per_tick` plus the deferred ones. Returns whether it
+    /// deferred.
+    pub fn defer(
+        &self,
+        state: &mut ClockState,
+        deferral: &mut Deferral,
+        steps: &mut TickSteps,
+    ) -> bool {
+        if steps.steps == 0 || steps.dropped_us > 0 || deferral.steps > 0 || deferral.took {
+            return false;
+        }
+        state.debt_us = state
+            .debt_us
+            .saturating_add(steps.steps.saturating_mul(self.step_us));
+        deferral.steps = steps.steps;
+        steps.steps = 0;
+        true
+    }
+
+    fn advance_time(&self, state: &mut ClockState, elapsed_us: u32, extra: u32) -> TickSteps {
+        let max_steps = self.max_steps_per_tick.saturating_add(extra);
         // `new` refuses a zero step; `max(1)` lets the compiler see it, so no
         // division check (and no panic path) is left in the tick.
         let step_us = self.step_us.max(1);
@@ -184,7 +242,7 @@ impl StepClock {
                 (total_us / step_us, (total_us % step_us) as u32)
             }
         };
-        if due <= self.max_steps_per_tick as u64 {
+        if due <= max_steps as u64 {
             state.debt_us = remainder;
             TickSteps {
                 steps: due as u32,
@@ -193,11 +251,11 @@ impl StepClock {
                 clock_lost: false,
             }
         } else {
-            let excess_steps = due - self.max_steps_per_tick as u64;
+            let excess_steps = due - max_steps as u64;
             let dropped = excess_steps.saturating_mul(self.step_us as u64);
             state.debt_us = remainder;
             TickSteps {
-                steps: self.max_steps_per_tick,
+                steps: max_steps,
                 dropped_us: u32::try_from(dropped).unwrap_or(u32::MAX),
                 flags: InputFlags::ELAPSED_INVALID,
                 clock_lost: false,
@@ -245,6 +303,37 @@ mod tests {
             (300 + u32::MAX as u64) % 1000,
             "remainder past 2^32"
         );
+    }
+
+    #[test]
+    fn a_deferred_step_comes_with_the_next_tick_and_no_time_is_dropped() {
+        let clock = StepClock::new(5000, 1).unwrap();
+        let mut state = ClockState::default();
+        let mut deferral = Deferral::default();
+        let mut taken = 0;
+        for _ in 0..4 {
+            taken += clock
+                .advance_deferring(&mut state, &mut deferral, 1000)
+                .steps;
+        }
+        let mut t = clock.advance_deferring(&mut state, &mut deferral, 1000);
+        assert_eq!((taken, t.steps), (0, 1));
+        assert!(clock.defer(&mut state, &mut deferral, &mut t));
+        assert_eq!((t.steps, state.debt_us), (0, 5000));
+        // Once in a row only.
+        let mut again = t;
+        again.steps = 1;
+        assert!(!clock.defer(&mut state, &mut deferral, &mut again));
+        // A late tick: its own step and the deferred one, nothing dropped.
+        let mut t = clock.advance_deferring(&mut state, &mut deferral, 5200);
+        assert_eq!((t.steps, t.dropped_us, state.debt_us), (2, 0, 200));
+        assert!(t.flags.is_clean());
+        // Never twice in a row: the tick that takes them keeps them.
+        assert!(!clock.defer(&mut state, &mut deferral, &mut t));
+        assert_eq!(t.steps, 2);
+        // The bound is back to one step.
+        let t = clock.advance_deferring(&mut state, &mut deferral, 10_000);
+        assert_eq!((t.steps, t.dropped_us, state.debt_us), (1, 5000, 200));
     }
 
     #[test]

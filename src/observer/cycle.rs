@@ -48,6 +48,10 @@ pub(crate) struct ProtectionCycle<const M: usize> {
     /// How much later than a whole period each slice after the first is
     /// due \[us\] (see [`Self::with_phase`]).
     phase_us: u32,
+    /// Predictor slices per cycle (see [`Self::with_slices`]).
+    slices: u32,
+    /// Slices of this cycle still to run.
+    slices_left: u32,
 }
 
 impl<const M: usize> ProtectionCycle<M> {
@@ -60,7 +64,20 @@ impl<const M: usize> ProtectionCycle<M> {
             stage: Stage::Predict,
             slice_put_off: false,
             phase_us: 0,
+            slices: 1,
+            slices_left: 1,
         }
+    }
+
+    /// The same cycle with `slices` (at least 1) predictor slices on
+    /// consecutive ticks before the alarm, each due as the first is (put
+    /// off once by a busy tick), each caught up by its share of the period
+    /// ([`Self::predicted`]): for a predictor whose slice budget is below
+    /// one horizon.
+    pub(crate) fn with_slices(mut self, slices: u32) -> Self {
+        self.slices = slices.max(1);
+        self.slices_left = self.slices;
+        self
     }
 
     /// The same cycle with every slice after the first due `phase_us`
@@ -83,17 +100,24 @@ impl<const M: usize> ProtectionCycle<M> {
         held_currents_a: &[f32; M],
     ) {
         if steps > 0 {
-            for (peak, i) in self.peak_currents_a.iter_mut().zip(held_currents_a) {
-                // As `max` (a NaN current leaves the peak), without its call.
-                if i.abs() > *peak {
-                    *peak = i.abs();
-                }
-            }
+            self.held(held_currents_a);
         }
         self.lag_us = self
             .lag_us
             .saturating_add(steps.saturating_mul(step_us))
             .saturating_add(dropped_us);
+    }
+
+    /// Accounts for a tick that took no model step but held `currents_a`
+    /// \[A\] for some time (a model step several ticks long): the peaks
+    /// take them, as they take every step's.
+    pub(crate) fn held(&mut self, currents_a: &[f32; M]) {
+        for (peak, i) in self.peak_currents_a.iter_mut().zip(currents_a) {
+            // As `max` (a NaN current leaves the peak), without its call.
+            if i.abs() > *peak {
+                *peak = i.abs();
+            }
+        }
     }
 
     /// The stage this tick runs, if any (`busy`: a correction or a
@@ -121,12 +145,17 @@ impl<const M: usize> ProtectionCycle<M> {
         &self.peak_currents_a
     }
 
-    /// The predictor slice ran: its time is caught up by a period, the
-    /// peaks restart from the held currents, the alarm is next.
-    pub(crate) fn predicted(&mut self, period_us: u32, held_currents_a: &[f32; M]) {
-        self.lag_us = self.lag_us.saturating_sub(period_us);
+    /// A predictor slice ran: its time is caught up by `slice_us` (the
+    /// period over the slices per cycle), the peaks restart from the held
+    /// currents, and after the cycle's last slice the alarm is next.
+    pub(crate) fn predicted(&mut self, slice_us: u32, held_currents_a: &[f32; M]) {
+        self.lag_us = self.lag_us.saturating_sub(slice_us);
         self.peak_currents_a = held_currents_a.map(f32::abs);
-        self.stage = Stage::Alarm;
+        self.slices_left = self.slices_left.saturating_sub(1);
+        if self.slices_left == 0 {
+            self.slices_left = self.slices;
+            self.stage = Stage::Alarm;
+        }
     }
 
     /// The alarm ran: the limiter is next.
@@ -206,7 +235,14 @@ mod tests {
     /// `ticks`, for a cycle of `period_us` with `phase_us`, and the largest
     /// lag seen just before a slice \[us\].
     fn stages(period_us: u32, phase_us: u32, ticks: u32) -> ([u32; 8], u32) {
-        let mut cycle = ProtectionCycle::<1>::new().with_phase(phase_us);
+        stages_sliced(period_us, phase_us, 1, ticks)
+    }
+
+    /// [`stages`] with `slices` predictor slices per cycle.
+    fn stages_sliced(period_us: u32, phase_us: u32, per_cycle: u32, ticks: u32) -> ([u32; 8], u32) {
+        let mut cycle = ProtectionCycle::<1>::new()
+            .with_phase(phase_us)
+            .with_slices(per_cycle);
         let (mut slices, mut n, mut worst_lag) = ([0; 8], 0, 0);
         for tick in 0..ticks {
             cycle.stepped(1, 1000, 0, &[1.0]);
@@ -217,7 +253,7 @@ mod tests {
                         *s = tick;
                     }
                     n += 1;
-                    cycle.predicted(period_us, &[1.0]);
+                    cycle.predicted(period_us / per_cycle, &[1.0]);
                 }
                 Stage::Alarm => cycle.alarmed(),
                 Stage::Limit => cycle.limited(),
@@ -239,5 +275,16 @@ mod tests {
         let (phased, phased_lag) = stages(40_000, 9_000, 330);
         assert_eq!(phased, [0, 49, 89, 129, 169, 209, 249, 289]);
         assert_eq!(phased_lag, 49_000);
+    }
+
+    #[test]
+    fn two_slices_run_on_consecutive_ticks_and_catch_up_one_period() {
+        // Slices at 0, 1, then 50, 51, 90, 91, ... (the first cycle's
+        // second slice, like its first, catches up more than the time
+        // there was): each catches up half a period, so the lag before a
+        // cycle's first slice is the same as with one slice.
+        let (sliced, lag) = stages_sliced(40_000, 9_000, 2, 140);
+        assert_eq!(sliced, [0, 1, 50, 51, 90, 91, 130, 131]);
+        assert_eq!(lag, 49_000);
     }
 }

@@ -73,13 +73,54 @@
 //! copies the tables without arithmetic, so the observer is `new`'s to the
 //! bit; the snapshot fingerprint is carried in the parts, not recomputed.
 //!
+//! # Model step and ticks
+//!
+//! The model steps every [`OmniSettings::step_us`] of measured time, which
+//! need not be the loop's tick ([`OmniSettings::loop_period_us`]): the
+//! fastest Omnimagnet node (the paper sheet) has a time constant near
+//! 0.25 s and the solenoids minutes, so a step of 5 or 10 ms loses nothing
+//! the thermocouples could see, and costs the 336 multiply-adds of the
+//! predict once per step instead of once per tick (`observer_m4`: the
+//! Omnimagnet part 2 102 -> 1 040 instructions mean at 5 ms,
+//! `docs/cost.md`). Every tick accounts each solenoid's `I^2` times its
+//! elapsed time, and a step heats with the mean `I^2` of the time it
+//! covers times `R(T)` at its start estimate: the exact mean power for a
+//! current that changes every tick (PWM, commutation), where the held
+//! current of the tick the step lands on would sample it and could read
+//! cold (0.74 K cold after 30 s of a 2 ms square wave at 5 ms steps, in
+//! `host-tests/tests/omni_multirate.rs`; with the mean, within 1.6 mK of
+//! the nonlinear model and at most 0.8 mK colder than the 1 ms run). When
+//! the currents held over a step did not change, the step takes them as
+//! they are, to the bit as a model without the account (the defaults keep
+//! every result of a 1 ms model).
+//!
+//! What a longer step costs: the estimate lags the clock by the time not
+//! yet stepped (less than a step; at most a step and a tick after a
+//! deferral below), the published temperatures move once per step, and
+//! `max_steps_per_tick` bounds a catch-up in steps, so 1 at 5 ms still
+//! takes up 5 ms of late time per tick at the price of one step. A tick
+//! that runs a step longer than the loop's tick is busy, as a catch-up is
+//! (the predictor slice waits a tick), and a tick that brings readings
+//! defers its step to the next tick ([`StepClock::defer`], never twice in
+//! a row, no time dropped) and runs the heat-bias check of its correction
+//! on the next tick too: a correction and a step on one tick would make
+//! the heaviest tick. The correction then fuses readings a step's time
+//! younger than the model, which the steady gain takes as it takes a
+//! reading a few milliseconds old. `protect_period_steps`,
+//! `protect_phase_steps` and the correction period are in model steps or
+//! seconds: at 5 ms, 8 and 2 steps keep the 40 ms cycle and put it 10 ms
+//! after a 20 ms grid update (`examples/observer_m4.rs`).
+//!
 //! # Protection cycle
 //!
 //! A 1 ms step changes a solenoid by about 1e-4 K, so the protection need
 //! not follow every step: it runs once every
 //! [`OmniSettings::protect_period_steps`] model steps (default 16 ms), one
 //! stage per tick so that no tick carries more than one: a predictor slice
-//! (one horizon), then the alarm, then the limiter. Between cycles the
+//! (one horizon; or, with [`OmniSettings::predictor_slices_per_cycle`] and
+//! [`OmniSettings::predictor_nodes_per_slice`], several smaller slices on
+//! consecutive ticks: the snapshot alone, then at most that many nodes of
+//! a horizon each), then the alarm, then the limiter. Between cycles the
 //! outputs stand, except the times to limit, which are aged every tick. The
 //! slice is put off by one tick when that tick also corrects or catches up
 //! (never twice in a row), so a correction tick does not carry the most
@@ -174,7 +215,7 @@
 
 use nalgebra::SVector;
 
-use super::clock::{ClockState, StepClock};
+use super::clock::{ClockState, Deferral, StepClock, TickSteps};
 use super::consistency::{
     screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
@@ -217,9 +258,12 @@ const NO_LIMIT_C: f32 = 1000.0;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OmniSettings {
-    /// Model step \[us\]. Default 1000.
+    /// Model step \[us\]. Default 1000. Several ticks long, the steps
+    /// take the mean `I^2` of their ticks (see "Model step and ticks" in
+    /// the module docs); set [`Self::loop_period_us`] to the loop's tick.
     pub step_us: u32,
-    /// Catch-up bound, model steps per tick. Default 4.
+    /// Catch-up bound, model steps per tick (a deferred step comes on
+    /// top). Default 4.
     pub max_steps_per_tick: u32,
     /// The Kalman filter: sensor subset, noise, gate, correction period
     /// (the steady-state gain is solved for one correction every
@@ -240,9 +284,11 @@ pub struct OmniSettings {
     /// Width of the limiter's taper band \[K\]. Default 10.
     pub taper_k: f64,
     /// Model steps per protection cycle (see the module docs), at least
-    /// `4 max_steps_per_tick`: a cycle takes at most four ticks (a put-off
-    /// slice and three stages), so it always ends before the next is due
-    /// and the predictor's lag stays bounded. Default 16.
+    /// `(2 slices + 2) max_steps_per_tick` with `slices` the
+    /// [`Self::predictor_slices_per_cycle`]: a cycle takes at most that
+    /// many ticks (each slice put off once, the alarm and the limiter; 4
+    /// with one slice), so it always ends before the next is due and the
+    /// predictor's lag stays bounded. Default 16.
     pub protect_period_steps: u32,
     /// Model steps by which every protection cycle after the first starts
     /// later than its period's boundary, less than `protect_period_steps`:
@@ -290,6 +336,24 @@ pub struct OmniSettings {
     /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
     /// solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K). Default 5.
     pub max_element_sigma_k: f64,
+    /// The control loop's nominal tick \[us\]. Default 1000. A model step
+    /// longer than it (`step_us` of several ticks: the multi-rate model,
+    /// see "Model step and ticks" in the module docs) makes every tick
+    /// that runs a step busy, as a catch-up is: the predictor slice is put
+    /// off to the next tick. With `step_us` equal to it nothing changes.
+    pub loop_period_us: u32,
+    /// Predictor slices per protection cycle, on consecutive ticks (each
+    /// put off once by a busy tick), at least 1; `protect_period_steps`
+    /// must then be at least `(2 slices + 2) max_steps_per_tick` and the
+    /// cycle's length in microseconds a multiple of it. Default 1. With
+    /// [`Self::predictor_nodes_per_slice`], a sweep of the same length in
+    /// cheaper ticks.
+    pub predictor_slices_per_cycle: u32,
+    /// At most this many nodes' horizons per predictor slice, at least 1
+    /// (the snapshot that starts a sweep then takes a slice of its own;
+    /// see [`PredictorBuilder::elements_per_tick`]). Default `u32::MAX`:
+    /// a whole horizon, the snapshot with the first.
+    pub predictor_nodes_per_slice: u32,
 }
 
 impl Default for OmniSettings {
@@ -315,6 +379,9 @@ impl Default for OmniSettings {
             consistency_fraction: 0.25,
             stuck_threshold_k: 1.0,
             max_element_sigma_k: 5.0,
+            loop_period_us: 1000,
+            predictor_slices_per_cycle: 1,
+            predictor_nodes_per_slice: u32::MAX,
         }
     }
 }
@@ -498,6 +565,11 @@ pub struct OmniObserver {
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
     silent_after_us: u32,
+    /// The control loop's nominal tick \[us\] ([`OmniSettings::loop_period_us`]).
+    loop_period_us: u32,
+    /// The share of a protection cycle each predictor slice catches up
+    /// \[us\].
+    predictor_slice_us: u32,
 }
 
 /// The per-device state.
@@ -536,6 +608,18 @@ pub struct OmniObserverState {
     /// The solenoids whose measurement is in doubt.
     suspect: Suspicion<SOLENOIDS>,
     outputs: OmniOutputs,
+    /// The step in progress: each solenoid's `I^2` times the time it was
+    /// held \[A^2 us\], over the clock's debt (the part of the step the
+    /// ticks so far covered).
+    step_i2_a2_us: [f32; SOLENOIDS],
+    /// The held currents changed within the step in progress: its power
+    /// takes the mean `I^2`, not the held current.
+    step_mixed: bool,
+    /// The last tick corrected with a multi-rate model: the heat-bias
+    /// check is this tick's (see [`OmniObserver::tick`]).
+    bias_check_due: bool,
+    /// Model steps handed to the next tick (see [`StepClock::defer`]).
+    deferral: Deferral,
 }
 
 impl OmniObserverState {
@@ -565,10 +649,16 @@ impl OmniObserver {
             .with_frozen_limits(settings.frozen_flag_ticks, settings.frozen_loss_ticks)?;
         let dt_s = clock.step_s();
         let period = settings.protect_period_steps;
+        let slices = settings.predictor_slices_per_cycle;
+        // A cycle takes at most two ticks per slice (one put off) and the
+        // alarm's and the limiter's: it ends before the next is due.
+        let cycle_ticks = slices.saturating_mul(2).saturating_add(2);
         let protect_period_us = period.checked_mul(settings.step_us);
-        let Some(protect_period_us) =
-            protect_period_us.filter(|_| period >= 4 * settings.max_steps_per_tick)
-        else {
+        let Some(protect_period_us) = protect_period_us.filter(|us| {
+            slices >= 1
+                && us % slices == 0
+                && period >= cycle_ticks.saturating_mul(settings.max_steps_per_tick)
+        }) else {
             return Err(BuildError::InvalidParameter {
                 name: "protect_period_steps",
             });
@@ -599,7 +689,18 @@ impl OmniObserver {
             settings.taper_k,
             0.0,
         )?;
-        let predictor = Self::predictor(model, op_temps_c, ambient_c, dt_s * f64::from(period))?;
+        if settings.predictor_nodes_per_slice == 0 {
+            return Err(BuildError::InvalidParameter {
+                name: "predictor_nodes_per_slice",
+            });
+        }
+        let predictor = Self::predictor(
+            model,
+            op_temps_c,
+            ambient_c,
+            dt_s * f64::from(period) / f64::from(slices),
+            settings.predictor_nodes_per_slice,
+        )?;
         let bound = Self::build_bound(&filter, settings)?;
         let fingerprint = Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound);
         let shadow_block_steps = filter.period().max(1);
@@ -655,6 +756,8 @@ impl OmniObserver {
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
+            loop_period_us: settings.loop_period_us,
+            predictor_slice_us: protect_period_us / slices,
         })
     }
 
@@ -677,10 +780,12 @@ impl OmniObserver {
         model: &Omnimagnet,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
-        cycle_s: f64,
+        slice_s: f64,
+        nodes_per_slice: u32,
     ) -> Result<LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>, BuildError> {
         PredictorBuilder::new()
-            .tick_s(cycle_s)
+            .tick_s(slice_s)
+            .elements_per_tick(usize::try_from(nodes_per_slice).unwrap_or(usize::MAX))
             .build(&model.network(op_temps_c, ambient_c)?)
     }
 
@@ -813,7 +918,9 @@ impl OmniObserver {
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
-            cycle: ProtectionCycle::new().with_phase(self.protect_phase_us),
+            cycle: ProtectionCycle::new()
+                .with_phase(self.protect_phase_us)
+                .with_slices(self.protect_period_us / self.predictor_slice_us.max(1)),
             shadow_x: SVector::from_fn(|i, _| {
                 temps_c
                     .get(i)
@@ -838,6 +945,10 @@ impl OmniObserver {
                 dropped_us: 0,
                 tick: 0,
             },
+            step_i2_a2_us: [0.0; SOLENOIDS],
+            step_mixed: false,
+            bias_check_due: false,
+            deferral: Deferral::default(),
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -942,7 +1053,16 @@ impl OmniObserver {
         state: &'s mut OmniObserverState,
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
-        let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
+        let debt_before_us = state.clock.debt_us;
+        let mut steps =
+            self.clock
+                .advance_deferring(&mut state.clock, &mut state.deferral, inputs.elapsed_us);
+        if self.step_us > self.loop_period_us && inputs.readings.iter().any(Option::is_some) {
+            // A step several ticks long waits a tick for a correction's:
+            // the two together would make the heaviest tick.
+            self.clock
+                .defer(&mut state.clock, &mut state.deferral, &mut steps);
+        }
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
             state
@@ -952,21 +1072,38 @@ impl OmniObserver {
             hold_shutdown(&mut state.outputs.limits);
         }
         let mut flags = steps.flags;
+        let previous_a = state.held_currents_a;
         flags |= self
             .limits
             .accept_currents(&inputs.currents_a, &mut state.held_currents_a);
         flags |= self
             .limits
             .accept_temperature(inputs.ambient_c, &mut state.held_ambient_c);
+        let mean_sq_a2 = self.step_mean_square(
+            state,
+            &previous_a,
+            debt_before_us,
+            inputs.elapsed_us,
+            &steps,
+        );
         for _ in 0..steps.steps {
             // The held inputs are finite, so the input is always renewed.
-            self.filter.joule_input(
-                &state.model,
-                &state.estimate.x,
-                &state.held_currents_a,
-                state.held_ambient_c,
-                &mut state.input,
-            );
+            match &mean_sq_a2 {
+                None => self.filter.joule_input(
+                    &state.model,
+                    &state.estimate.x,
+                    &state.held_currents_a,
+                    state.held_ambient_c,
+                    &mut state.input,
+                ),
+                Some(mean_sq_a2) => self.filter.joule_input_mean_sq(
+                    &state.model,
+                    &state.estimate.x,
+                    mean_sq_a2,
+                    state.held_ambient_c,
+                    &mut state.input,
+                ),
+            };
             state
                 .model
                 .predict(&mut state.estimate.x, &state.input, &mut state.residual_k);
@@ -977,10 +1114,20 @@ impl OmniObserver {
             steps.dropped_us,
             &state.held_currents_a,
         );
+        if steps.steps == 0 && inputs.elapsed_us > 0 {
+            // A tick between model steps: its current heats all the same,
+            // so the predictor's peak takes it.
+            state.cycle.held(&state.held_currents_a);
+        }
+        // The shadow's blocks take each step's RMS current.
+        let step_rms_a = match &mean_sq_a2 {
+            None => state.held_currents_a,
+            Some(mean_sq_a2) => mean_sq_a2.map(libm::sqrtf),
+        };
         if let Some(rms_a) =
             state
                 .shadow_block
-                .add(steps.steps, &state.held_currents_a, self.shadow_block_steps)
+                .add(steps.steps, &step_rms_a, self.shadow_block_steps)
         {
             let mut u = SVector::<f32, INPUTS>::zeros();
             self.filter.joule_input(
@@ -993,13 +1140,22 @@ impl OmniObserver {
             self.shadow
                 .predict(&mut state.shadow_x, &u, &mut state.shadow_residual_k);
         }
+        if core::mem::take(&mut state.bias_check_due) {
+            flags |= self.check_heat_bias(state);
+        }
         let (corrected, disagree) = self.correct(state, inputs);
         flags |= disagree;
-        state.outputs.temps_c = self.temps_c(state);
+        // Only a step or a reading (a correction, a common-mode pull)
+        // moves the estimate.
+        if steps.steps > 0 || inputs.readings.iter().any(Option::is_some) {
+            state.outputs.temps_c = self.temps_c(state);
+        }
         state.outputs.corrected = corrected;
 
-        let busy = corrected || steps.steps > 1;
-        match state.cycle.due(busy, self.protect_period_us) {
+        // A catch-up, or a step longer than the loop's tick.
+        let busy = corrected || steps.steps.saturating_mul(self.step_us) > self.loop_period_us;
+        let stage = state.cycle.due(busy, self.protect_period_us);
+        match stage {
             Stage::Idle => {}
             Stage::Predict => {
                 let op = self.operating(
@@ -1010,7 +1166,7 @@ impl OmniObserver {
                 state.predictor.tick(&self.predictor, &op);
                 state
                     .cycle
-                    .predicted(self.protect_period_us, &state.held_currents_a);
+                    .predicted(self.predictor_slice_us, &state.held_currents_a);
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
@@ -1032,7 +1188,10 @@ impl OmniObserver {
                 state.cycle.limited();
             }
         }
-        self.age_time_to_limit(state);
+        // The lag moves with the model's time and the predictor's slices.
+        if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
+            self.age_time_to_limit(state);
+        }
         let out = &mut state.outputs;
         out.flags = flags;
         out.steps = steps.steps;
@@ -1043,6 +1202,75 @@ impl OmniObserver {
         }
         out.tick = out.tick.wrapping_add(1);
         &state.outputs
+    }
+
+    /// The mean square current \[A^2\] of this tick's model steps when the
+    /// held currents changed within them (`None`: they did not, and the
+    /// steps take the held currents, to the bit as a model without the
+    /// account), and the account of the step in progress carried on.
+    ///
+    /// Each tick's held current heats for the tick's elapsed time
+    /// (`elapsed_us`, on top of the clock's debt `debt_before_us` that the
+    /// ticks before covered at `previous_a` and earlier currents), so the
+    /// steps taken now (and any time dropped with them) get the energy of
+    /// the whole interval they cover, `sum(I^2 dt) / (steps step_us +
+    /// dropped_us)`, and the time carried past them starts the next step's
+    /// account at the held current. A step several ticks long then heats
+    /// with the exact mean power of its ticks' currents at its start
+    /// temperature, where the held current would sample (alias) a current
+    /// that changes within the step, and could read cold.
+    fn step_mean_square(
+        &self,
+        state: &mut OmniObserverState,
+        previous_a: &[f32; SOLENOIDS],
+        debt_before_us: u32,
+        elapsed_us: u32,
+        steps: &TickSteps,
+    ) -> Option<[f32; SOLENOIDS]> {
+        let held_a = &state.held_currents_a;
+        let changed = held_a.iter().zip(previous_a).any(|(a, b)| a != b);
+        let mixed = state.step_mixed || (changed && debt_before_us > 0);
+        let sum = &mut state.step_i2_a2_us;
+        if steps.steps == 0 {
+            let dt_us = elapsed_us as f32;
+            for (s, i) in sum.iter_mut().zip(held_a) {
+                *s += i * i * dt_us;
+            }
+            state.step_mixed = mixed;
+            return None;
+        }
+        let carried_us = state.clock.debt_us;
+        let mean = mixed.then(|| {
+            // The steps and the dropped time cover the debt before this
+            // tick and this tick's time up to the new debt.
+            let covered_us = steps
+                .steps
+                .saturating_mul(self.step_us)
+                .saturating_add(steps.dropped_us);
+            // This tick's time up to the new debt (negative after a
+            // deferral, whose carried time this tick's current is charged
+            // for: the energy stays whole).
+            let now_us = if covered_us >= debt_before_us {
+                (covered_us - debt_before_us) as f32
+            } else {
+                -((debt_before_us - covered_us) as f32)
+            };
+            let per_us = 1.0 / covered_us.max(1) as f32;
+            let mut mean = [0.0; SOLENOIDS];
+            for ((mean, s), i) in mean.iter_mut().zip(sum.iter()).zip(held_a) {
+                let energy = s + i * i * now_us;
+                // Not below zero (only a deferral's redistribution could
+                // get there, and the carry then holds more than its share).
+                *mean = if energy > 0.0 { energy * per_us } else { 0.0 };
+            }
+            mean
+        });
+        let carried = carried_us as f32;
+        for (s, i) in sum.iter_mut().zip(held_a) {
+            *s = i * i * carried;
+        }
+        state.step_mixed = false;
+        mean
     }
 
     /// The predictor's answers for the [`ALARM_NODES`], made older by the
@@ -1239,14 +1467,28 @@ impl OmniObserver {
             &state.outputs.sensors,
             &state.estimate.gate.consecutive_rejections,
         );
-        // The last step's Joule powers, at the estimate.
-        let powers_w = core::array::from_fn(|m| state.input[m]);
-        let biases_w = state.estimate.x.iter().skip(NODES);
-        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
-            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        if self.step_us > self.loop_period_us {
+            // Multi-rate: the check waits for the next tick, which the
+            // correction's deferred step makes light.
+            state.bias_check_due = true;
+        } else {
+            flags |= self.check_heat_bias(state);
         }
         state.suspect.note(&suspect);
         (true, flags)
+    }
+
+    /// The heat-input biases against the band's image at the last step's
+    /// Joule powers (at the estimate): [`InputFlags::HEAT_BIAS_BEYOND_MODEL`]
+    /// when one is beyond it.
+    fn check_heat_bias(&self, state: &OmniObserverState) -> InputFlags {
+        let powers_w = core::array::from_fn(|m| state.input[m]);
+        let biases_w = state.estimate.x.iter().skip(NODES);
+        if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
+            InputFlags::HEAT_BIAS_BEYOND_MODEL
+        } else {
+            InputFlags::NONE
+        }
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched

@@ -687,11 +687,50 @@ impl<T: RealField + Copy> ObserverConfig<T> {
         if !(ambient_c.is_finite() && currents_a.iter().all(|i| i.is_finite())) {
             return false;
         }
-        let solenoids = currents_a
+        self.joule_input_by(model, x, currents_a, ambient_c, u, |r_ohm, current| {
+            r_ohm * current * current
+        });
+        true
+    }
+
+    /// [`Self::joule_input`] for a step over which the currents varied:
+    /// the Joule power `R(T) <I^2>` \[W\] of each solenoid from its mean
+    /// square current over the step `mean_sq_a2` \[A^2\] (the exact mean
+    /// power of the step for the resistance at the estimate, where the
+    /// held current of one tick would sample the heating). Returns `false`
+    /// and leaves `u` as it was when a mean square or the ambient is not
+    /// finite.
+    pub fn joule_input_mean_sq(
+        &self,
+        model: &MeanModel<T>,
+        x: &SVector<T, STATES>,
+        mean_sq_a2: &[T; SOLENOIDS],
+        ambient_c: T,
+        u: &mut SVector<T, INPUTS>,
+    ) -> bool {
+        if !(ambient_c.is_finite() && mean_sq_a2.iter().all(|i| i.is_finite())) {
+            return false;
+        }
+        self.joule_input_by(model, x, mean_sq_a2, ambient_c, u, |r_ohm, i2| r_ohm * i2);
+        true
+    }
+
+    /// The input `u` with each solenoid's power `power(R(T), per_solenoid)`.
+    #[inline(always)]
+    fn joule_input_by(
+        &self,
+        model: &MeanModel<T>,
+        x: &SVector<T, STATES>,
+        per_solenoid: &[T; SOLENOIDS],
+        ambient_c: T,
+        u: &mut SVector<T, INPUTS>,
+        power: impl Fn(T, T) -> T,
+    ) {
+        let solenoids = per_solenoid
             .iter()
             .zip(&self.resistance)
             .zip(&self.solenoid_nodes);
-        for (power, ((current, (r0, slope)), node)) in u.iter_mut().zip(solenoids) {
+        for (power_w, ((current, (r0, slope)), node)) in u.iter_mut().zip(solenoids) {
             // `get` keeps the tick free of a panic path: a node index outside
             // the model (a malformed geometry table) reads as 0 degC.
             let origin = model.origin_c.get(*node).copied().unwrap_or(T::zero());
@@ -699,11 +738,10 @@ impl<T: RealField + Copy> ObserverConfig<T> {
             // Floored at zero, NaN included (as `max`, without its call).
             let r_ohm = *r0 + *slope * (origin + deviation);
             let r_ohm = if r_ohm > T::zero() { r_ohm } else { T::zero() };
-            *power = r_ohm * *current * *current;
+            *power_w = power(r_ohm, *current);
         }
         u[SOLENOIDS] = ambient_c;
         u[INPUTS - 1] = T::one();
-        true
     }
 
     /// The readings of the configured sensors as deviations from `model`'s

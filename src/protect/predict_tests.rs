@@ -330,6 +330,56 @@ fn sliced_answers_are_the_full_answers_aged() {
 }
 
 #[test]
+fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
+    // The same sweep with at most 1, 2 or 3 element evaluations per tick
+    // (and the snapshot in a tick of its own): every sweep it completes
+    // publishes the whole sweep's answers to the bit, in more ticks than
+    // one horizon per tick takes.
+    let network = four_node();
+    let op = op::<f32, 4, 1, 1>([35.0, 30.0, 25.0, 33.0], [1.6], [20.0], [65.36; 4]);
+    let whole = PredictorBuilder::new()
+        .build::<f32, 4, 1, 1, 48>(&network)
+        .unwrap();
+    let powers = whole.conservative_powers_w(&op, 1.0);
+    let expected = whole.full_sweep(&op, &powers);
+    let ticks_per_sweep = |predictor: &LimitPredictor<f32, 4, 1, 1, 48>| {
+        let mut state = PredictorState::new(predictor, &op);
+        let (mut sweeps, mut ticks, mut first_sweep_ticks) = (0, 0, 0);
+        while sweeps < 3 {
+            state.tick(predictor, &op);
+            ticks += 1;
+            if !state.started {
+                assert_eq!(state.published, expected, "sweep {sweeps}");
+                sweeps += 1;
+                if first_sweep_ticks == 0 {
+                    first_sweep_ticks = ticks;
+                }
+            }
+            assert!(ticks < 10_000, "a sweep must end");
+        }
+        first_sweep_ticks
+    };
+    let one_point = ticks_per_sweep(&whole);
+    let mut last = one_point;
+    for elements in [3, 2, 1] {
+        let split = PredictorBuilder::new()
+            .elements_per_tick(elements)
+            .build::<f32, 4, 1, 1, 48>(&network)
+            .unwrap();
+        let ticks = ticks_per_sweep(&split);
+        assert!(
+            ticks > last,
+            "{elements} per tick: {ticks} ticks, {last} before"
+        );
+        last = ticks;
+    }
+    assert!(PredictorBuilder::new()
+        .elements_per_tick(0)
+        .build::<f32, 4, 1, 1, 48>(&network)
+        .is_err());
+}
+
+#[test]
 fn an_element_without_a_limit_is_never_and_leaves_the_others_alone() {
     // The lug (3) without a limit (`+inf`) against the lug at a limit it
     // cannot reach (1000 degC): the same answers for the others, `None`

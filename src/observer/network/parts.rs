@@ -666,6 +666,7 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
         tick_s: t.tick_s,
         points_per_tick: t.points_per_tick,
         slowest_time_constant_s: t.slowest_time_constant_s,
+        elements_per_tick: usize::MAX,
     })
 }
 

@@ -181,6 +181,13 @@ pub struct OmniParts {
     pub protect_period_us: u32,
     /// The cycles' phase \[us\].
     pub protect_phase_us: u32,
+    /// The control loop's tick \[us\] (a tick stepping longer is busy).
+    pub loop_period_us: u32,
+    /// One predictor slice \[us\]: the protection cycle over the slices
+    /// per cycle.
+    pub predictor_slice_us: u32,
+    /// Elements the predictor evaluates per slice (`u32::MAX`: all).
+    pub predictor_elements_per_tick: u32,
     /// Model steps per shadow step.
     pub shadow_block_steps: u32,
     /// The consistency band's fixed part \[K\] and share of the rise.
@@ -402,6 +409,10 @@ impl OmniObserver {
             max_reading_age_us: self.max_reading_age_us,
             protect_period_us: self.protect_period_us,
             protect_phase_us: self.protect_phase_us,
+            loop_period_us: self.loop_period_us,
+            predictor_slice_us: self.predictor_slice_us,
+            predictor_elements_per_tick: u32::try_from(self.predictor.elements_per_tick)
+                .unwrap_or(u32::MAX),
             shadow_block_steps: self.shadow_block_steps,
             band: [self.band.offset_k, self.band.fraction],
             bias_offset_w: self.bias_bound.offset_w,
@@ -507,9 +518,23 @@ impl OmniObserver {
         if parts.frozen_loss_ticks < parts.frozen_flag_ticks {
             return Err(invalid("frozen_loss_ticks"));
         }
-        let least_period_us = parts.step_us as u64 * parts.max_steps_per_tick as u64 * 4;
+        if parts.predictor_slice_us == 0 || parts.protect_period_us % parts.predictor_slice_us != 0
+        {
+            return Err(invalid("predictor_slice_us"));
+        }
+        // As `new`: a cycle takes at most a put-off slice, the slices, the
+        // alarm and the limiter, each up to `max_steps_per_tick` steps late.
+        let slices = (parts.protect_period_us / parts.predictor_slice_us) as u64;
+        let least_period_us =
+            parts.step_us as u64 * parts.max_steps_per_tick as u64 * (2 * slices + 2);
         if (parts.protect_period_us as u64) < least_period_us {
             return Err(invalid("protect_period_us"));
+        }
+        if parts.loop_period_us == 0 {
+            return Err(invalid("loop_period_us"));
+        }
+        if parts.predictor_elements_per_tick == 0 {
+            return Err(invalid("predictor_elements_per_tick"));
         }
         if parts.protect_phase_us >= parts.protect_period_us {
             return Err(invalid("protect_phase_us"));
@@ -611,6 +636,12 @@ impl OmniObserver {
                 tick_s: t.tick_s,
                 points_per_tick: t.points_per_tick,
                 slowest_time_constant_s: t.slowest_time_constant_s,
+                // `u32::MAX` stands for "all" (`new`'s `usize::MAX`).
+                elements_per_tick: if parts.predictor_elements_per_tick == u32::MAX {
+                    usize::MAX
+                } else {
+                    parts.predictor_elements_per_tick as usize
+                },
             },
             bound: UpperBound { elements },
             clock: StepClock {
@@ -628,6 +659,8 @@ impl OmniObserver {
             step_us: parts.step_us,
             protect_period_us: parts.protect_period_us,
             protect_phase_us: parts.protect_phase_us,
+            loop_period_us: parts.loop_period_us,
+            predictor_slice_us: parts.predictor_slice_us,
             fingerprint: parts.fingerprint,
             plant_fingerprint: parts.plant_fingerprint,
             shadow: parts.shadow.model(),
@@ -799,6 +832,9 @@ impl OmniParts {
             max_reading_age_us,
             protect_period_us,
             protect_phase_us,
+            loop_period_us,
+            predictor_slice_us,
+            predictor_elements_per_tick,
             shadow_block_steps,
             band,
             bias_offset_w,
@@ -823,6 +859,9 @@ impl OmniParts {
         w.field("max_reading_age_us", max_reading_age_us)?;
         w.field("protect_period_us", protect_period_us)?;
         w.field("protect_phase_us", protect_phase_us)?;
+        w.field("loop_period_us", loop_period_us)?;
+        w.field("predictor_slice_us", predictor_slice_us)?;
+        w.field("predictor_elements_per_tick", predictor_elements_per_tick)?;
         w.field("shadow_block_steps", shadow_block_steps)?;
         w.field("band", band)?;
         w.field("bias_offset_w", bias_offset_w)?;
