@@ -47,6 +47,7 @@ const LONG_PLAN: ProtectionPlan = ProtectionPlan {
     time_to_limit_parts: 10,
     alarm_parts: 8,
     limiter_parts: 8,
+    wait_for_rows: false,
 };
 
 #[entry]

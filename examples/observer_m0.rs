@@ -61,6 +61,7 @@ const M0_PLAN: ProtectionPlan = ProtectionPlan {
     time_to_limit_parts: 12,
     alarm_parts: 1,
     limiter_parts: 4,
+    wait_for_rows: true,
 };
 
 #[entry]

@@ -54,6 +54,14 @@ pub struct UpdateWork<S, const ROWS: usize, const COLS: usize> {
     rows_done: usize,
 }
 
+impl<S, const ROWS: usize, const COLS: usize> UpdateWork<S, ROWS, COLS> {
+    /// Rows of the next update prepared so far: it changes in the ticks
+    /// that prepare one.
+    pub fn rows_done(&self) -> usize {
+        self.rows_done
+    }
+}
+
 /// Indices `[lo, hi)` of the cells whose neighbour at offset `d` along an
 /// axis of length `len` (at least 1) is inside the axis.
 #[inline(always)]
@@ -196,6 +204,13 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             }
         }
         outcome
+    }
+
+    /// Ticks after an update in which [`CoilGrid::tick_spread`] prepares a
+    /// row of the next update (the first ones of each interval).
+    pub fn row_ticks(&self) -> u32 {
+        let ticks = ROWS.div_ceil(self.rows_per_tick.max(1));
+        u32::try_from(ticks).unwrap_or(u32::MAX)
     }
 
     /// A fresh [`UpdateWork`] for `state`: no neighbour heat summed yet.

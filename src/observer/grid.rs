@@ -167,6 +167,13 @@ pub struct ProtectionPlan {
     /// Parts of the current limiter (the last also publishes the
     /// temperatures and the hottest coil).
     pub limiter_parts: u8,
+    /// No stage in a tick that prepares a row of the next grid update
+    /// (neighbour heat and `R(T) tick_dt`, see [`CoilGrid::tick_spread`]),
+    /// so that no tick carries both: where a row costs as much as a stage
+    /// (fixed point without a hardware multiplier), the worst tick is the
+    /// heavier of the two instead of their sum. The pass then takes the
+    /// grid's row ticks longer ([`GridObserver::protection_ticks`]).
+    pub wait_for_rows: bool,
 }
 
 impl ProtectionPlan {
@@ -177,6 +184,7 @@ impl ProtectionPlan {
         time_to_limit_parts: 2,
         alarm_parts: 3,
         limiter_parts: 2,
+        wait_for_rows: false,
     };
 
     /// Ticks of one protection pass: the sum of the parts.
@@ -616,14 +624,33 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 name: "ProtectionPlan (a step without parts, or above 254 ticks)",
             });
         }
+        // Waiting for the rows needs a tick between updates without one.
+        let between_updates = self.grid.ticks_per_update().saturating_sub(1);
+        if plan.wait_for_rows && self.grid.row_ticks() >= between_updates {
+            return Err(BuildError::InvalidParameter {
+                name: "ProtectionPlan::wait_for_rows (every tick between updates prepares a row)",
+            });
+        }
         self.plan = plan;
         Ok(self)
     }
 
     /// Ticks after a grid update until its protection pass is complete: the
-    /// outputs lag the model by at most this many ticks.
+    /// outputs lag the model by at most this many ticks (with
+    /// [`ProtectionPlan::wait_for_rows`], the plan's ticks and the grid's
+    /// row ticks of each update interval the pass spans).
     pub fn protection_ticks(&self) -> u32 {
-        self.plan.ticks()
+        if self.plan.wait_for_rows {
+            let free = self
+                .grid
+                .ticks_per_update()
+                .saturating_sub(1 + self.grid.row_ticks())
+                .max(1);
+            let intervals = self.plan.ticks().div_ceil(free);
+            self.plan.ticks() + intervals * (self.grid.row_ticks() + 1)
+        } else {
+            self.plan.ticks()
+        }
     }
 
     /// The grid model.
@@ -710,6 +737,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             state.outputs.alarm.shutdown = true;
             hold_shutdown(&mut state.outputs.limits);
         }
+        let rows_before = state.work.rows_done();
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
         let outcome = if steps.steps == 1 {
             self.grid
@@ -737,7 +765,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             } else {
                 state.pass_stale = true;
             }
-        } else {
+        } else if !(self.plan.wait_for_rows && state.work.rows_done() != rows_before) {
             self.protect_stage(state);
         }
         let out = &mut state.outputs;
