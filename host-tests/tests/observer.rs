@@ -990,6 +990,21 @@ fn waiting_for_rows_moves_the_stages_never_what_they_publish() {
     }
     assert!(compared > 190);
     assert!(waited > 190, "{waited}");
+    // A controller 3 ms late every tick prepares a row in every tick
+    // between updates: the stages still run, at least every eighth tick.
+    let mut late = grids[1].state(20.0);
+    let mut passes = 0;
+    let mut published = late.outputs().temps_c;
+    for _ in 0..2000 {
+        let out = tick(&grids[1], &mut late, &currents, 3000);
+        if out.temps_c != published {
+            published = out.temps_c;
+            passes += 1;
+        }
+    }
+    // 2000 ticks of 3 steps, an update every 7 ticks or so; a pass of
+    // 8 stages every ~64 ticks at worst.
+    assert!(passes >= 2000 / 64, "{passes}");
     assert!(states[1].alarm.shutdown_latched(), "the 9 A coil must trip");
     // Rows in every tick between updates: the stages could never run.
     let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])

@@ -169,10 +169,13 @@ pub struct ProtectionPlan {
     pub limiter_parts: u8,
     /// No stage in a tick that prepares a row of the next grid update
     /// (neighbour heat and `R(T) tick_dt`, see [`CoilGrid::tick_spread`]),
-    /// so that no tick carries both: where a row costs as much as a stage
-    /// (fixed point without a hardware multiplier), the worst tick is the
-    /// heavier of the two instead of their sum. The pass then takes the
-    /// grid's row ticks longer ([`GridObserver::protection_ticks`]).
+    /// so that no tick carries both: the worst tick is the heavier of the
+    /// two instead of their sum. The pass then takes the grid's row ticks
+    /// longer ([`GridObserver::protection_ticks`], for one model step per
+    /// tick). A stage is put off at most [`CoilGrid::row_ticks`] ticks in
+    /// a row, so a controller that catches up several steps every tick
+    /// (and so prepares a row in every tick between updates) still gets a
+    /// stage at least every `row_ticks + 1` ticks that do not update.
     pub wait_for_rows: bool,
 }
 
@@ -413,6 +416,9 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     stage: u8,
     /// The grid updated while a pass was running: run another when it ends.
     pass_stale: bool,
+    /// Stages put off in a row for the grid's rows
+    /// ([`ProtectionPlan::wait_for_rows`]).
+    waited: u8,
     /// What the protection stages hand on to each other.
     pass: ProtectPass<S, N>,
     outputs: GridOutputs<S, ROWS, COLS, N>,
@@ -708,6 +714,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             events: EventQueue::new(),
             stage: 0,
             pass_stale: false,
+            waited: 0,
             pass: ProtectPass {
                 limits_c: [S::ZERO; N],
                 own_inflow_w: [0.0; N],
@@ -765,7 +772,18 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             } else {
                 state.pass_stale = true;
             }
-        } else if !(self.plan.wait_for_rows && state.work.rows_done() != rows_before) {
+        } else if self.plan.wait_for_rows
+            && state.stage != 0
+            && state.work.rows_done() != rows_before
+            && u32::from(state.waited) < self.grid.row_ticks().min(254)
+        {
+            // Put off, but never more than one interval's row ticks in a
+            // row: a controller that always catches up several steps
+            // prepares a row in every tick between updates, and the
+            // protection must still progress.
+            state.waited = state.waited.saturating_add(1);
+        } else {
+            state.waited = 0;
             self.protect_stage(state);
         }
         let out = &mut state.outputs;
