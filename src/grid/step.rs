@@ -336,11 +336,34 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
     ) -> InputFlags {
         let mut flags = InputFlags::NONE;
         let max_a = self.limits.max_current_a;
+        let max_sq_a2 = max_a * max_a;
         let rows = currents_a
             .iter()
             .zip(state.held_currents_a.iter_mut())
             .zip(state.pending_current_sq_a2.iter_mut());
         for ((incoming, held), pending) in rows {
+            if !REPEAT && S::CHEAP_MULTIPLY {
+                // The usual row: the sum of its squares below the square
+                // of the limit (false for a NaN or an infinity) puts every
+                // current within the limit (rounding is monotonic, so a
+                // current above it has a square, and the row a sum, at
+                // least `max_sq_a2`). Two instructions a coil here save a
+                // compare and branch a coil below (9 -> 7 on an M4F); the
+                // squares added are the same.
+                let mut sum_sq = S::ZERO;
+                for &i in incoming {
+                    sum_sq += i * i;
+                }
+                if sum_sq < max_sq_a2 {
+                    for ((&i, held), i2) in
+                        incoming.iter().zip(held.iter_mut()).zip(pending.iter_mut())
+                    {
+                        *held = i;
+                        *i2 += i * i;
+                    }
+                    continue;
+                }
+            }
             let coils = incoming.iter().zip(held.iter_mut()).zip(pending.iter_mut());
             for ((&i, held), i2) in coils {
                 // `abs(i) <= max` is false for a NaN: those take the rules,
