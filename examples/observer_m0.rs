@@ -50,17 +50,21 @@ const HOT_A: f32 = 3.3;
 /// Without an FPU the `f32` time to limit (a division and a short `ln`
 /// series per coil, all in software, ~3 800 instructions) is the heaviest
 /// stage: one coil per part; the bound (~1 500 per coil) two coils per part,
-/// the limiter (~1 350) three. 23 ticks: longer than the ten of an update
-/// interval, so the passes run back to back, each on the temperatures of
+/// the limiter (~1 350) three. 23 stages, none in the three ticks after an
+/// update that prepare its rows of neighbour heat (nearly as heavy as a
+/// stage here: `wait_for_rows`), so six per 10 ms update interval: a pass
+/// takes about 38 ms, passes run back to back, each on the temperatures of
 /// the update before it starts, and the limits lag the model by at most
-/// two passes (46 ms, against coil time constants of seconds; see
-/// `GridObserver`'s docs). Nine ticks (two, four, one and two parts) kept
-/// every update's own pass, at a worst tick of 15 552 instructions.
+/// two passes (about 80 ms, against coil time constants of seconds; see
+/// `GridObserver`'s docs). Stages on the row ticks made the worst tick
+/// 11 344 instructions; nine ticks (two, four, one and two parts) kept
+/// every update's own pass, at a worst tick of 15 552.
 const M0_PLAN: ProtectionPlan = ProtectionPlan {
     bound_parts: 6,
     time_to_limit_parts: 12,
     alarm_parts: 1,
     limiter_parts: 4,
+    wait_for_rows: true,
 };
 
 #[entry]

@@ -51,9 +51,7 @@ mod omnimagnet_flash;
 
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::{OmniObserver, SensorStatus, TimedReading};
-use coil_thermal::observer::{
-    GridInputs, GridObserver, OmniInputs, SnapshotError, PROTECTION_TICKS,
-};
+use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, ProtectionPlan, SnapshotError};
 use coil_thermal::omnimagnet::observer::MeanModel;
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -68,6 +66,20 @@ type Grid = GridObserver<f32, 7, 12, 84>;
 const TICKS: u32 = 20_000;
 const AMBIENT_C: f64 = 22.0;
 const OFFSETS_K: [f64; 6] = [0.1, -0.1, 0.05, -0.05, 0.15, -0.15];
+
+/// The grid's protection in 22 stages, none in a tick that prepares a row
+/// of the next update (ticks 1 to 7 after one): 12 stages per 20 ms update
+/// interval, no grid tick above about 3 900 instructions; a pass takes
+/// about 37 ms, passes run back to back, and the limits lag the model by
+/// at most two passes (about 80 ms; the fastest coil time constant is
+/// seconds).
+const GRID_PLAN: ProtectionPlan = ProtectionPlan {
+    bound_parts: 2,
+    time_to_limit_parts: 6,
+    alarm_parts: 8,
+    limiter_parts: 6,
+    wait_for_rows: true,
+};
 
 #[entry]
 fn main() -> ! {
@@ -92,7 +104,9 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
         .build::<f32>()
         .map_err(|_| "grid alarm")?;
     let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).map_err(|_| "grid limiter")?;
-    let grid = Grid::new(&grid_config, alarm, limiter, 4).map_err(|_| "grid observer")?;
+    let grid = Grid::new(&grid_config, alarm, limiter, 4)
+        .and_then(|grid| grid.with_protection_plan(GRID_PLAN))
+        .map_err(|_| "grid observer")?;
     let bare = CoilGrid::<f32, 7, 12>::new(&grid_config).map_err(|_| "bare grid")?;
 
     let lin = reference().ok_or("reference linearisation")?;
@@ -196,8 +210,9 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
             statuses_ok &= sensors_as_expected(k, &omni_out.sensors);
         }
     }
-    // Let the grid's staged protection finish on the last temperatures.
-    for _ in 0..PROTECTION_TICKS {
+    // Let the grid's staged protection finish on the last temperatures:
+    // the pass under way, then the one it owes the last update.
+    for _ in 0..2 * grid.protection_ticks() {
         let idle = GridInputs {
             currents_a: &currents,
             coolant_c: AMBIENT_C as f32,

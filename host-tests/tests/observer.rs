@@ -223,12 +223,14 @@ fn every_protection_plan_publishes_what_the_default_plan_does() {
             time_to_limit_parts: 4,
             alarm_parts: 1,
             limiter_parts: 2,
+            wait_for_rows: false,
         },
         ProtectionPlan {
             bound_parts: 3,
             time_to_limit_parts: 1,
             alarm_parts: 2,
             limiter_parts: 3,
+            wait_for_rows: false,
         },
     ];
     let grids = plans.map(|plan| grid().with_protection_plan(plan).unwrap());
@@ -927,4 +929,99 @@ fn an_omnimagnet_protection_phase_of_a_whole_period_is_refused() {
         })
     ));
     assert!(build(39).is_ok());
+}
+
+/// [`ProtectionPlan::wait_for_rows`] moves the stages off the ticks that
+/// prepare a row of the next update, never what the pass publishes: with
+/// its pass inside the update interval, the same outputs and events as the
+/// same plan without it, within its `protection_ticks` of each update.
+#[test]
+fn waiting_for_rows_moves_the_stages_never_what_they_publish() {
+    let config = GridConfig {
+        ticks_per_update: 20,
+        ..GridConfig::hppa(GridParams::FDM_FITTED)
+    };
+    let build = |wait_for_rows| {
+        let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+            .build()
+            .unwrap();
+        let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).unwrap();
+        Grid::new(&config, alarm, limiter, 4)
+            .unwrap()
+            .with_protection_plan(ProtectionPlan {
+                wait_for_rows,
+                ..ProtectionPlan::DEFAULT
+            })
+            .unwrap()
+    };
+    let grids = [build(false), build(true)];
+    // 7 rows over the 19 ticks between updates: one a tick, ticks 1 to 7.
+    assert_eq!(grids[1].grid().row_ticks(), 7);
+    let lag = grids[1].protection_ticks();
+    assert!((15..20).contains(&lag), "{lag}");
+    let mut states = grids.each_ref().map(|g| g.state(60.0));
+    let mut currents = hot_currents();
+    currents[2][2] = 9.0;
+    let mut events = [0usize; 2];
+    let (mut compared, mut waited) = (0, 0);
+    for k in 0..4000u32 {
+        let outs: Vec<GridOut> = grids
+            .iter()
+            .zip(states.iter_mut())
+            .map(|(g, s)| tick(g, s, &currents, 1000))
+            .collect();
+        for (count, state) in events.iter_mut().zip(states.iter_mut()) {
+            while state.events.pop().is_some() {
+                *count += 1;
+            }
+            *count += state.events.take_dropped() as usize;
+        }
+        // Updates at k = 19, 39, ...; both passes done `lag` ticks later.
+        if k % 20 == (19 + lag) % 20 && k > 20 {
+            assert_eq!(outs[1], outs[0], "tick {k}");
+            assert_eq!(events[1], events[0], "tick {k}");
+            compared += 1;
+        }
+        // Eight ticks after an update the plan without waiting has
+        // published the new temperatures; the waiting one not yet.
+        if k % 20 == 7 && k > 20 && outs[1].temps_c != outs[0].temps_c {
+            waited += 1;
+        }
+    }
+    assert!(compared > 190);
+    assert!(waited > 190, "{waited}");
+    // A controller 3 ms late every tick prepares a row in every tick
+    // between updates: the stages still run, at least every eighth tick.
+    let mut late = grids[1].state(20.0);
+    let mut passes = 0;
+    let mut published = late.outputs().temps_c;
+    for _ in 0..2000 {
+        let out = tick(&grids[1], &mut late, &currents, 3000);
+        if out.temps_c != published {
+            published = out.temps_c;
+            passes += 1;
+        }
+    }
+    // 2000 ticks of 3 steps: an update every 6.7 ticks, ~1 700 ticks that
+    // do not update, a stage in every eighth of them: ~26 passes of 8
+    // stages (none without the guard).
+    assert!(passes >= 20, "{passes}");
+    assert!(states[1].alarm.shutdown_latched(), "the 9 A coil must trip");
+    // Rows in every tick between updates: the stages could never run.
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+        .build()
+        .unwrap();
+    let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).unwrap();
+    let every_tick = GridConfig {
+        ticks_per_update: 8,
+        ..GridConfig::hppa(GridParams::FDM_FITTED)
+    };
+    let plan = ProtectionPlan {
+        wait_for_rows: true,
+        ..ProtectionPlan::DEFAULT
+    };
+    assert!(Grid::new(&every_tick, alarm, limiter, 4)
+        .unwrap()
+        .with_protection_plan(plan)
+        .is_err());
 }

@@ -725,3 +725,43 @@ fn a_current_account_beyond_fixed_point_range_is_refused() {
     };
     assert!(Hppa::<Q32>::new(&within).is_ok());
 }
+
+/// The row check of the `I^2` account (the sum of a row's squares below the
+/// square of the current limit takes the row without a compare per coil)
+/// never takes a current above the limit, however little above, and takes
+/// one at the limit as it is.
+#[test]
+fn the_row_check_of_the_currents_never_passes_one_above_the_limit() {
+    fn check<S: Scalar + core::fmt::Debug>(above: S, clamped: S, at: S) {
+        let grid = Hppa::<S>::new(&GridConfig {
+            ticks_per_update: 10,
+            ..GridConfig::default()
+        })
+        .unwrap();
+        let mut state = GridState::uniform(20.0);
+        let mut currents = [[S::ZERO; 12]; 7];
+        currents[1][3] = above;
+        currents[2][4] = at;
+        // A usual row: eleven coils at 28 A, a sum of squares below 100^2.
+        currents[5] = [S::from_f64(28.0); 12];
+        currents[5][11] = S::ZERO;
+        let out = grid.tick(&mut state, &currents, S::from_f64(20.0), S::from_f64(20.0));
+        assert!(out.flags.contains(InputFlags::CURRENT_CLAMPED));
+        assert_eq!(state.held_currents_a[1][3], clamped);
+        assert_eq!(state.held_currents_a[2][4], at);
+        assert_eq!(state.held_currents_a[5][0], S::from_f64(28.0));
+        assert_eq!(state.pending_current_sq_a2[1][3], clamped * clamped);
+        assert_eq!(state.pending_current_sq_a2[2][4], at * at);
+        let mut calm = GridState::uniform(20.0);
+        let calm_out = grid.tick(
+            &mut calm,
+            &[currents[5]; 7],
+            S::from_f64(20.0),
+            S::from_f64(20.0),
+        );
+        assert_eq!(calm_out.flags, InputFlags::NONE);
+    }
+    check::<f32>(f32::from_bits(100.0f32.to_bits() + 1), 100.0, 100.0);
+    check::<f32>(-f32::from_bits(100.0f32.to_bits() + 1), -100.0, -100.0);
+    check::<f64>(f64::from_bits(100.0f64.to_bits() + 1), 100.0, 100.0);
+}

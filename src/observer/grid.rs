@@ -167,6 +167,16 @@ pub struct ProtectionPlan {
     /// Parts of the current limiter (the last also publishes the
     /// temperatures and the hottest coil).
     pub limiter_parts: u8,
+    /// No stage in a tick that prepares a row of the next grid update
+    /// (neighbour heat and `R(T) tick_dt`, see [`CoilGrid::tick_spread`]),
+    /// so that no tick carries both: the worst tick is the heavier of the
+    /// two instead of their sum. The pass then takes the grid's row ticks
+    /// longer ([`GridObserver::protection_ticks`], for one model step per
+    /// tick). A stage is put off at most [`CoilGrid::row_ticks`] ticks in
+    /// a row, so a controller that catches up several steps every tick
+    /// (and so prepares a row in every tick between updates) still gets a
+    /// stage at least every `row_ticks + 1` ticks that do not update.
+    pub wait_for_rows: bool,
 }
 
 impl ProtectionPlan {
@@ -177,6 +187,7 @@ impl ProtectionPlan {
         time_to_limit_parts: 2,
         alarm_parts: 3,
         limiter_parts: 2,
+        wait_for_rows: false,
     };
 
     /// Ticks of one protection pass: the sum of the parts.
@@ -405,6 +416,9 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     stage: u8,
     /// The grid updated while a pass was running: run another when it ends.
     pass_stale: bool,
+    /// Stages put off in a row for the grid's rows
+    /// ([`ProtectionPlan::wait_for_rows`]).
+    waited: u8,
     /// What the protection stages hand on to each other.
     pass: ProtectPass<S, N>,
     outputs: GridOutputs<S, ROWS, COLS, N>,
@@ -616,14 +630,33 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
                 name: "ProtectionPlan (a step without parts, or above 254 ticks)",
             });
         }
+        // Waiting for the rows needs a tick between updates without one.
+        let between_updates = self.grid.ticks_per_update().saturating_sub(1);
+        if plan.wait_for_rows && self.grid.row_ticks() >= between_updates {
+            return Err(BuildError::InvalidParameter {
+                name: "ProtectionPlan::wait_for_rows (every tick between updates prepares a row)",
+            });
+        }
         self.plan = plan;
         Ok(self)
     }
 
     /// Ticks after a grid update until its protection pass is complete: the
-    /// outputs lag the model by at most this many ticks.
+    /// outputs lag the model by at most this many ticks (with
+    /// [`ProtectionPlan::wait_for_rows`], the plan's ticks and the grid's
+    /// row ticks of each update interval the pass spans).
     pub fn protection_ticks(&self) -> u32 {
-        self.plan.ticks()
+        if self.plan.wait_for_rows {
+            let free = self
+                .grid
+                .ticks_per_update()
+                .saturating_sub(1 + self.grid.row_ticks())
+                .max(1);
+            let intervals = self.plan.ticks().div_ceil(free);
+            self.plan.ticks() + intervals * (self.grid.row_ticks() + 1)
+        } else {
+            self.plan.ticks()
+        }
     }
 
     /// The grid model.
@@ -681,6 +714,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             events: EventQueue::new(),
             stage: 0,
             pass_stale: false,
+            waited: 0,
             pass: ProtectPass {
                 limits_c: [S::ZERO; N],
                 own_inflow_w: [0.0; N],
@@ -710,6 +744,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             state.outputs.alarm.shutdown = true;
             hold_shutdown(&mut state.outputs.limits);
         }
+        let rows_before = state.work.rows_done();
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
         let outcome = if steps.steps == 1 {
             self.grid
@@ -737,7 +772,18 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             } else {
                 state.pass_stale = true;
             }
+        } else if self.plan.wait_for_rows
+            && state.stage != 0
+            && state.work.rows_done() != rows_before
+            && u32::from(state.waited) < self.grid.row_ticks().min(254)
+        {
+            // Put off, but never more than one interval's row ticks in a
+            // row: a controller that always catches up several steps
+            // prepares a row in every tick between updates, and the
+            // protection must still progress.
+            state.waited = state.waited.saturating_add(1);
         } else {
+            state.waited = 0;
             self.protect_stage(state);
         }
         let out = &mut state.outputs;

@@ -62,6 +62,9 @@ pub trait Scalar:
     const ONE: Self;
     /// The largest finite value of the type.
     const MAX: Self;
+    /// A multiply costs about as much as a load (a hardware float
+    /// multiply): worth spending one to save a compare and branch.
+    const CHEAP_MULTIPLY: bool = true;
     /// Converts from `f64`, saturating to the range of fixed-point types; NaN
     /// becomes zero for fixed point.
     fn from_f64(value: f64) -> Self;

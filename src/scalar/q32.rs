@@ -146,23 +146,33 @@ impl SubAssign for Q32 {
 impl Mul for Q32 {
     type Output = Self;
     /// `floor(a b / 2^32)` in bits, saturated: `fixed`'s `saturating_mul`.
-    #[inline]
+    #[inline(always)]
     fn mul(self, rhs: Self) -> Self {
         let (a, b) = (self.to_bits(), rhs.to_bits());
         // A coil without current, a coil inside the grid (no ambient
-        // link): two compares instead of the partial products.
+        // link): two compares in line instead of a call and the partial
+        // products.
         if a == 0 || b == 0 {
             return Self::ZERO;
         }
+        mul_nonzero(a, b)
+    }
+}
+
+/// [`Q32`]'s product of two non-zero bit patterns, out of line: the
+/// partial products are too long to copy into every caller.
+#[inline(never)]
+fn mul_nonzero(a: i64, b: i64) -> Q32 {
+    {
         let negative = (a < 0) != (b < 0);
         let (quotient, overflow, inexact) = mul_shift_32(a.unsigned_abs(), b.unsigned_abs());
         // The floor of a negative quotient: one more when bits were shifted
         // out.
         let (magnitude, carry) = quotient.overflowing_add(u64::from(negative && inexact));
         if overflow || carry {
-            return if negative { Self::MIN } else { Self::MAX };
+            return if negative { Q32::MIN } else { Q32::MAX };
         }
-        Self::saturated(negative, u128::from(magnitude))
+        Q32::saturated(negative, u128::from(magnitude))
     }
 }
 
@@ -283,6 +293,9 @@ impl Scalar for Q32 {
     const ZERO: Self = Self(I32F32::ZERO);
     const ONE: Self = Self(I32F32::ONE);
     const MAX: Self = Self(I32F32::MAX);
+    // A software 64-bit product: about 150 instructions without a 32 x 32
+    // -> 64 multiplier.
+    const CHEAP_MULTIPLY: bool = false;
     #[inline]
     fn from_f64(value: f64) -> Self {
         // Rust's float-to-int `as` saturates and maps NaN to 0, so this path
