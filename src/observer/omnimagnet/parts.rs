@@ -518,7 +518,10 @@ impl OmniObserver {
         if parts.frozen_loss_ticks < parts.frozen_flag_ticks {
             return Err(invalid("frozen_loss_ticks"));
         }
-        if parts.predictor_slice_us == 0 || parts.protect_period_us % parts.predictor_slice_us != 0
+        if parts.predictor_slice_us == 0
+            || !parts
+                .protect_period_us
+                .is_multiple_of(parts.predictor_slice_us)
         {
             return Err(invalid("predictor_slice_us"));
         }
