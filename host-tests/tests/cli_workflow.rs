@@ -177,6 +177,27 @@ fn calibrate_takes_per_trace_constants_and_scores_a_held_out_trace() {
     for t in j["fit"]["traces"].as_array().unwrap() {
         assert!(t["rmse_after_k"].as_f64().unwrap() < 0.01, "{j}");
     }
+    // The fitted file is the input file with only the fitted value
+    // changed: its comments and key order survive, and the value is the
+    // fit's (the JSON report's figure is 1 ulp off the file's).
+    let start = fs::read_to_string(dir.path().join("start.toml")).unwrap();
+    let out = fs::read_to_string(dir.path().join("fitted.toml")).unwrap();
+    let changed: Vec<(&str, &str)> = start
+        .lines()
+        .zip(out.lines())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert_eq!(start.lines().count(), out.lines().count(), "{out}");
+    assert_eq!(changed.len(), 1, "{changed:?}");
+    assert_eq!(changed[0].0, "capacity_j_per_k = 300.0");
+    let (key, value) = changed[0].1.split_once(" = ").unwrap();
+    assert_eq!(key, "capacity_j_per_k");
+    let written: f64 = value.parse().unwrap();
+    assert!((written / fitted - 1.0).abs() < 1e-14, "{written} {fitted}");
+    assert!(
+        out.starts_with("# A coil on a housing in still air"),
+        "{out}"
+    );
     let v = &j["validation"][0];
     assert!(v["trace"].as_str().unwrap().ends_with("r3.csv"), "{j}");
     assert!(v["rmse_k"].as_f64().unwrap() < 0.01, "{j}");
