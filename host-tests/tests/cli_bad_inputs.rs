@@ -340,3 +340,41 @@ fn a_step_profile_starting_after_the_trace_is_refused() {
         &["step profile `5:1,40:0` starts at 5 s, after the first row (0 s)"],
     );
 }
+
+#[test]
+fn a_bad_time_window_is_refused_naming_the_flags() {
+    let dir = TempDir::new().unwrap();
+    let trace = steady_trace(&dir, 2.0);
+    let out = dir.path().join("o.csv");
+    for cmd in ["simulate", "replay"] {
+        for (window, needles) in [
+            (
+                ["--from-s", "50", "--to-s", "50"],
+                ["--from-s below --to-s", "50 s"],
+            ),
+            (
+                ["--from-s", "60", "--to-s", "10"],
+                ["--from-s below --to-s", "60 s"],
+            ),
+            (
+                ["--from-s", "NaN", "--to-s", "10"],
+                ["--from-s must be a finite time", "NaN"],
+            ),
+            (
+                ["--from-s", "0", "--to-s", "inf"],
+                ["--to-s must be a finite time", "inf"],
+            ),
+            (
+                ["--from-s", "200", "--to-s", "300"],
+                ["holds no row", "0 s .. 100 s"],
+            ),
+        ] {
+            refused(
+                ct().args([cmd, "--model", &model(), "--trace", s(&trace)])
+                    .args(window)
+                    .args(["--out", s(&out)]),
+                &needles,
+            );
+        }
+    }
+}

@@ -617,3 +617,57 @@ fn multi_start_keeps_the_best_fit_and_flags_parameters_that_trade_off() {
         assert!((product - 5.69).abs() < 0.01, "{j}");
     }
 }
+
+/// `--from-s`/`--to-s` limit what `replay` and `simulate` write and score,
+/// while the model still runs from the first row: the windowed rows are
+/// the full run's rows, to the bit, and the score is over the window only.
+#[test]
+fn a_time_window_writes_and_scores_the_full_runs_rows_inside_it() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let lines = |p: &Path| -> Vec<String> {
+        fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .map(String::from)
+            .collect()
+    };
+    let replay = |out: &Path, window: &[&str]| {
+        json(
+            &ct()
+                .args(["replay", "--model", &model(), "--trace", s(&rec)])
+                .args(["--time-column", "time", "--current", "0:3,400:0=current"])
+                .args(["--truth", "housing_t=housing", "--out", s(out), "--json"])
+                .args(window)
+                .assert()
+                .success(),
+        )
+    };
+    let (full, part) = (dir.path().join("full.csv"), dir.path().join("part.csv"));
+    let jf = replay(&full, &[]);
+    let jw = replay(&part, &["--from-s", "199.5", "--to-s", "600"]);
+    let (lf, lw) = (lines(&full), lines(&part));
+    assert_eq!(lw[0], lf[0]);
+    // Rows at 200 .. 600 s (time 200 s is row 200, line 201).
+    assert_eq!(lw.len(), 1 + 401, "{}", lw.len());
+    assert_eq!(lw[1..], lf[201..602]);
+    assert_eq!(jw["rows"], 401, "{jw}");
+    assert!(jw["truth"][0]["rmse_k"].as_f64().unwrap() > 0.0);
+    let t = jw["truth"][0]["max_error_time_s"].as_f64().unwrap();
+    assert!((200.0..=600.0).contains(&t), "{jw}");
+    assert_eq!(jf["rows"], ROWS as u64);
+    // simulate: the same rows as the whole run's, from the same start.
+    let input = dir.path().join("rec_in.csv");
+    let sim = |out: &Path, window: &[&str]| {
+        ct().args(["simulate", "--model", &model(), "--trace", s(&input)])
+            .args(["--resample-s", "1", "--out", s(out)])
+            .args(window)
+            .assert()
+            .success();
+    };
+    sim(&full, &[]);
+    sim(&part, &["--from-s", "900", "--to-s", "5000"]);
+    let (lf, lw) = (lines(&full), lines(&part));
+    assert_eq!(lw.len(), 1 + 101);
+    assert_eq!(lw[1..], lf[901..]);
+}
