@@ -671,3 +671,32 @@ fn a_time_window_writes_and_scores_the_full_runs_rows_inside_it() {
     assert_eq!(lw.len(), 1 + 101);
     assert_eq!(lw[1..], lf[901..]);
 }
+
+/// A fit stopped at a bound says which parameter hit which bound and how
+/// to widen it, in the text and in `--json` (`bound`), instead of a bare
+/// "converged".
+#[test]
+fn a_fit_at_its_bound_names_the_parameter_and_how_to_widen_it() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let start = start_model(&dir, "start.toml", "300.0", "boundary");
+    let base = |json: bool| {
+        let mut c = ct();
+        c.args(["calibrate", "--model", s(&start), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+            .args(["--measure", "temperature=coil"])
+            .args(["--params", "capacity.coil=250:400"])
+            .args(["--out", s(&dir.path().join("f.toml"))]);
+        if json {
+            c.arg("--json");
+        }
+        c
+    };
+    base(false)
+        .assert()
+        .success()
+        .stdout(contains("AT LOWER BOUND (widen it in --params"));
+    let j = json(&base(true).assert().success());
+    assert_eq!(j["fit"]["params"][0]["bound"], "lower", "{j}");
+    assert_eq!(fitted(&j), 250.0, "{j}");
+}

@@ -430,18 +430,6 @@ pub fn check_plot_values(data: &PlotData) -> Result<()> {
     Ok(())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lists_split_at_commas_outside_parentheses() {
-        assert_eq!(split_list("a=n1,b=n2"), ["a=n1", "b=n2"]);
-        assert_eq!(split_list("hypot(A,B)=n1, c=n2"), ["hypot(A,B)=n1", "c=n2"]);
-        assert_eq!(split_list("a=n1,"), ["a=n1", ""]);
-    }
-}
-
 /// The rows of `time_s` \[s\] (increasing) inside `--from-s`/`--to-s`
 /// (both ends included); a clear error for a bound that is not finite, a
 /// window with `from >= to`, or one that holds no row.
@@ -476,5 +464,17 @@ pub fn drive_window(drive: &crate::sim::Drive, rows: &std::ops::Range<usize>) ->
         currents: cut(&drive.currents),
         boundaries: cut(&drive.boundaries),
         signals: cut(&drive.signals),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lists_split_at_commas_outside_parentheses() {
+        assert_eq!(split_list("a=n1,b=n2"), ["a=n1", "b=n2"]);
+        assert_eq!(split_list("hypot(A,B)=n1, c=n2"), ["hypot(A,B)=n1", "c=n2"]);
+        assert_eq!(split_list("a=n1,"), ["a=n1", ""]);
     }
 }
