@@ -20,10 +20,15 @@
 //!
 //! # Bounds
 //!
-//! A trace is held in memory (about six times its file size), so files over
-//! [`MAX_TRACE_BYTES`] are refused before reading, with what to do instead;
-//! a trace spanning more than [`MAX_SPAN_S`] is refused too (a time typo
-//! such as `1e300` would otherwise ask for astronomically many model steps).
+//! The file is read row by row through one reused record, and each cell is
+//! held as its `f64` (8 bytes; an empty, `NaN` or text cell as a marked
+//! `NaN`, with the text of each column's first one kept for the error), so a
+//! trace takes about 8 bytes per cell plus 8 per row, roughly its file size
+//! for numbers of 6 to 8 characters instead of about six times it as text
+//! records. Files over [`MAX_TRACE_BYTES`] are refused before reading, with
+//! what to do instead; a trace spanning more than [`MAX_SPAN_S`] is refused
+//! too (a time typo such as `1e300` would otherwise ask for astronomically
+//! many model steps).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -33,9 +38,26 @@ use anyhow::{bail, Result};
 /// The name of the time column \[s\].
 pub const TIME_COLUMN: &str = "time_s";
 
-/// The largest trace file read \[bytes\] (256 MiB; it takes about six
-/// times as much memory).
-pub const MAX_TRACE_BYTES: u64 = 256 << 20;
+/// The largest trace file read \[bytes\] (1 GiB; held as 8 bytes per cell,
+/// about its own size in memory for typical cells).
+pub const MAX_TRACE_BYTES: u64 = 1 << 30;
+
+/// A cell that is empty.
+const EMPTY: u64 = 0x7ff8_0000_0000_0001;
+/// A cell that is text, not a number.
+const TEXT: u64 = 0x7ff8_0000_0000_0002;
+/// A cell that is a number but not finite (`inf`, `-nan`; `nan` itself is
+/// a plain `NaN`, a missing reading where those are allowed).
+const NON_FINITE: u64 = 0x7ff8_0000_0000_0003;
+
+/// The text of a column's first cell of each kind that is no finite
+/// number: the first failing cell of a column is always one of these.
+#[derive(Debug, Clone, Default)]
+struct FirstText {
+    text: Option<String>,
+    nan: Option<String>,
+    non_finite: Option<String>,
+}
 
 /// The longest time a trace may span, last row minus first \[s\] (about
 /// 3.2 years).
@@ -83,12 +105,15 @@ impl fmt::Display for Located {
     }
 }
 
-/// A CSV trace held as text until a column is asked for.
+/// A CSV trace, its cells held as numbers until a column is asked for.
 #[derive(Debug, Clone)]
 pub struct Trace {
     path: PathBuf,
     headers: Vec<String>,
-    rows: Vec<csv::StringRecord>,
+    /// Every cell, row-major (`EMPTY`, `TEXT`, `NON_FINITE` marked).
+    cells: Vec<f64>,
+    /// Per column, the text of its first odd cells, for the errors.
+    first: Vec<FirstText>,
     lines: Vec<u64>,
     time_s: Vec<f64>,
     /// The first non-numeric cell of each column that has one (the time
@@ -289,7 +314,7 @@ impl Trace {
                     1,
                     None,
                     format!(
-                        "the trace is {} MiB; traces are held in memory (about 6x the file) up to {} MiB: \
+                        "the trace is {} MiB; traces are held in memory (8 bytes a cell) up to {} MiB: \
                          keep the columns you use and decimate the rows (e.g. `awk -F, 'NR==1 || NR%10==2'` keeps every 10th), or split it",
                         meta.len() >> 20,
                         MAX_TRACE_BYTES >> 20
@@ -311,10 +336,13 @@ impl Trace {
                 return Err(at(1, Some(i + 1), format!("duplicate column `{h}`")));
             }
         }
-        let mut rows = Vec::new();
+        let mut cells = Vec::new();
+        let mut first = vec![FirstText::default(); headers.len()];
         let mut lines = Vec::new();
-        for record in reader.records() {
-            let record = record.map_err(|e| {
+        let mut non_numeric: Vec<Option<Located>> = vec![None; headers.len()];
+        let mut record = csv::StringRecord::new();
+        loop {
+            let more = reader.read_record(&mut record).map_err(|e| {
                 let line = e.position().map_or(0, |p| p.line());
                 let msg = match e.kind() {
                     csv::ErrorKind::UnequalLengths {
@@ -324,10 +352,44 @@ impl Trace {
                 };
                 at(line, None, msg)
             })?;
-            lines.push(record.position().map_or(0, |p| p.line()));
-            rows.push(record);
+            if !more {
+                break;
+            }
+            let line = record.position().map_or(0, |p| p.line());
+            lines.push(line);
+            for (i, cell) in record.iter().enumerate() {
+                let value = if cell.is_empty() {
+                    f64::from_bits(EMPTY)
+                } else if cell.eq_ignore_ascii_case("nan") {
+                    first[i].nan.get_or_insert_with(|| cell.to_string());
+                    f64::NAN
+                } else {
+                    match cell.parse::<f64>() {
+                        Ok(v) if v.is_finite() => v,
+                        Ok(_) => {
+                            first[i].non_finite.get_or_insert_with(|| cell.to_string());
+                            f64::from_bits(NON_FINITE)
+                        }
+                        Err(_) => {
+                            if first[i].text.is_none() {
+                                first[i].text = Some(cell.to_string());
+                                non_numeric[i] = Some(at(
+                                    line,
+                                    Some(i + 1),
+                                    format!(
+                                        "column `{}` holds `{cell}`, not a number (fine while no flag uses the column)",
+                                        headers[i]
+                                    ),
+                                ));
+                            }
+                            f64::from_bits(TEXT)
+                        }
+                    }
+                };
+                cells.push(value);
+            }
         }
-        if rows.is_empty() {
+        if lines.is_empty() {
             return Err(at(
                 2,
                 None,
@@ -337,7 +399,8 @@ impl Trace {
         let mut trace = Self {
             path: path.to_path_buf(),
             headers,
-            rows,
+            cells,
+            first,
             lines,
             time_s: Vec::new(),
             non_numeric: Vec::new(),
@@ -387,15 +450,15 @@ impl Trace {
                 if !(p.is_finite() && p > 0.0) {
                     return Err(at(1, None, format!("sample period must be > 0 s, got {p}")));
                 }
-                let span_s = (trace.rows.len() - 1) as f64 * p;
+                let span_s = (trace.len() - 1) as f64 * p;
                 if span_s > MAX_SPAN_S {
                     return Err(at(
                         1,
                         None,
-                        format!("{} rows every {p} s span {span_s:e} s; a trace may span at most {MAX_SPAN_S:e} s", trace.rows.len()),
+                        format!("{} rows every {p} s span {span_s:e} s; a trace may span at most {MAX_SPAN_S:e} s", trace.len()),
                     ));
                 }
-                (0..trace.rows.len()).map(|k| k as f64 * p).collect()
+                (0..trace.len()).map(|k| k as f64 * p).collect()
             }
             (None, None) => {
                 return Err(at(
@@ -409,25 +472,12 @@ impl Trace {
             }
         };
         let time_index = trace.index_of(time_column);
-        for (i, name) in trace.headers.iter().enumerate() {
-            if Some(i) == time_index {
-                continue;
-            }
-            let bad = trace.rows.iter().zip(&trace.lines).find(|(row, _)| {
-                let cell = row.get(i).unwrap_or("");
-                !cell.is_empty() && cell.parse::<f64>().is_err()
-            });
-            if let Some((row, line)) = bad {
-                trace.non_numeric.push(at(
-                    *line,
-                    Some(i + 1),
-                    format!(
-                        "column `{name}` holds `{}`, not a number (fine while no flag uses the column)",
-                        row.get(i).unwrap_or("")
-                    ),
-                ));
-            }
-        }
+        trace.non_numeric = non_numeric
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| Some(*i) != time_index)
+            .filter_map(|(_, l)| l)
+            .collect();
         Ok(trace)
     }
 
@@ -450,12 +500,12 @@ impl Trace {
 
     /// Number of data rows.
     pub fn len(&self) -> usize {
-        self.rows.len()
+        self.lines.len()
     }
 
     /// `true` without data rows (never, for a trace that was read).
     pub fn is_empty(&self) -> bool {
-        self.rows.is_empty()
+        self.lines.is_empty()
     }
 
     /// Time of every row \[s\].
@@ -508,30 +558,39 @@ impl Trace {
     /// cell or `NaN` is a missing reading, returned as `NaN`.
     pub fn column_with(&self, name: &str, allow_missing: bool) -> Result<Vec<f64>, Located> {
         let i = self.index_of(name).ok_or_else(|| self.missing(name))?;
-        self.rows
+        let columns = self.headers.len();
+        let first = &self.first[i];
+        let text = |t: &Option<String>| t.clone().unwrap_or_default();
+        self.lines
             .iter()
-            .zip(&self.lines)
-            .map(|(row, line)| {
-                let cell = row.get(i).unwrap_or("");
+            .enumerate()
+            .map(|(k, line)| {
+                let v = self.cells[k * columns + i];
                 let err = |msg: String| Located {
                     file: self.path.display().to_string(),
                     line: *line,
                     col: Some(i + 1),
                     msg: format!("column `{name}`: {msg}"),
                 };
-                if allow_missing && (cell.is_empty() || cell.eq_ignore_ascii_case("nan")) {
-                    return Ok(f64::NAN);
+                if v.is_finite() {
+                    return Ok(v);
                 }
-                if cell.is_empty() {
-                    return Err(err("empty cell".into()));
+                // The first failing cell of a column is its first cell of
+                // that kind, whose text `first` holds.
+                match v.to_bits() {
+                    EMPTY if allow_missing => Ok(f64::NAN),
+                    EMPTY => Err(err("empty cell".into())),
+                    TEXT => Err(err(format!("`{}` is not a number", text(&first.text)))),
+                    NON_FINITE => Err(err(format!(
+                        "`{}` is not a finite number",
+                        text(&first.non_finite)
+                    ))),
+                    _ if allow_missing => Ok(f64::NAN),
+                    _ => Err(err(format!(
+                        "`{}` is not a finite number",
+                        text(&first.nan)
+                    ))),
                 }
-                let v: f64 = cell
-                    .parse()
-                    .map_err(|_| err(format!("`{cell}` is not a number")))?;
-                if !v.is_finite() {
-                    return Err(err(format!("`{cell}` is not a finite number")));
-                }
-                Ok(v)
             })
             .collect()
     }

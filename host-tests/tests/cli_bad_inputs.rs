@@ -266,13 +266,13 @@ fn a_trace_too_large_for_memory_is_refused_before_reading() {
     let path = dir.path().join("huge.csv");
     let f = fs::File::create(&path).unwrap();
     // Sparse: no disk is written, but the size is what the tool checks.
-    f.set_len(300 << 20).unwrap();
+    f.set_len(1100 << 20).unwrap();
     refused(
         ct().args(["simulate", "--model", &model(), "--trace", s(&path)])
             .args(["--out", s(&dir.path().join("o.csv"))]),
         &[
-            "huge.csv:1: the trace is 300 MiB",
-            "up to 256 MiB",
+            "huge.csv:1: the trace is 1100 MiB",
+            "up to 1024 MiB",
             "decimate",
         ],
     );
@@ -338,5 +338,90 @@ fn a_step_profile_starting_after_the_trace_is_refused() {
             .args(["--current", "5:1,40:0=current"])
             .args(["--out", s(&dir.path().join("o.csv"))]),
         &["step profile `5:1,40:0` starts at 5 s, after the first row (0 s)"],
+    );
+}
+
+#[test]
+fn a_bad_time_window_is_refused_naming_the_flags() {
+    let dir = TempDir::new().unwrap();
+    let trace = steady_trace(&dir, 2.0);
+    let out = dir.path().join("o.csv");
+    for cmd in ["simulate", "replay"] {
+        for (window, needles) in [
+            (
+                ["--from-s", "50", "--to-s", "50"],
+                ["--from-s below --to-s", "50 s"],
+            ),
+            (
+                ["--from-s", "60", "--to-s", "10"],
+                ["--from-s below --to-s", "60 s"],
+            ),
+            (
+                ["--from-s", "NaN", "--to-s", "10"],
+                ["--from-s must be a finite time", "NaN"],
+            ),
+            (
+                ["--from-s", "0", "--to-s", "inf"],
+                ["--to-s must be a finite time", "inf"],
+            ),
+            (
+                ["--from-s", "200", "--to-s", "300"],
+                ["holds no row", "0 s .. 100 s"],
+            ),
+        ] {
+            refused(
+                ct().args([cmd, "--model", &model(), "--trace", s(&trace)])
+                    .args(window)
+                    .args(["--out", s(&out)]),
+                &needles,
+            );
+        }
+    }
+}
+
+/// A 2-million-row trace (31 MB) is held as 8-byte cells, not as text
+/// records: `simulate` of it peaks at about 210 MB where the text records
+/// took 413 MB (measured with `/usr/bin/time -v` on both builds). The bound,
+/// 320 MB, is 160 bytes per row: the trace's three cells, its row's line
+/// and time (40 bytes), the run's inputs and states (64) and the
+/// allocator's slack; the text records alone exceeded it. Memory still grows
+/// with the trace (streaming is issue 19's open item); this keeps it from
+/// growing back. Skipped where `/usr/bin/time` is missing.
+#[test]
+fn a_long_trace_is_held_as_numbers_within_a_memory_bound() {
+    let time = Path::new("/usr/bin/time");
+    if !time.exists() {
+        eprintln!("skipped: no /usr/bin/time to read the peak memory");
+        return;
+    }
+    let dir = TempDir::new().unwrap();
+    let path = dir.path().join("long.csv");
+    let mut text = String::with_capacity(32 << 20);
+    text.push_str("time_s,current,note\n");
+    for k in 0..2_000_000u32 {
+        let i = if (k / 1000) % 2 == 1 { "2.5" } else { "0" };
+        text.push_str(&format!("{k},{i},{}.25\n", k % 7));
+    }
+    fs::write(&path, text).unwrap();
+    let out = std::process::Command::new(time)
+        .args(["-f", "peak_kb=%M"])
+        .arg(env!("CARGO_BIN_EXE_coil-thermal"))
+        .args(["simulate", "--model", &model(), "--trace", s(&path)])
+        .args(["--out", s(&dir.path().join("o.csv"))])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let peak_kb: f64 = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("peak_kb="))
+        .unwrap_or_else(|| panic!("{stderr}"))
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(peak_kb < 320e3, "peak {peak_kb} kB");
+    assert!(
+        peak_kb > 50e3,
+        "peak {peak_kb} kB: the measurement is not the run's"
     );
 }

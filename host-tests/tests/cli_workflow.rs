@@ -177,6 +177,27 @@ fn calibrate_takes_per_trace_constants_and_scores_a_held_out_trace() {
     for t in j["fit"]["traces"].as_array().unwrap() {
         assert!(t["rmse_after_k"].as_f64().unwrap() < 0.01, "{j}");
     }
+    // The fitted file is the input file with only the fitted value
+    // changed: its comments and key order survive, and the value is the
+    // fit's (the JSON report's figure is 1 ulp off the file's).
+    let start = fs::read_to_string(dir.path().join("start.toml")).unwrap();
+    let out = fs::read_to_string(dir.path().join("fitted.toml")).unwrap();
+    let changed: Vec<(&str, &str)> = start
+        .lines()
+        .zip(out.lines())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert_eq!(start.lines().count(), out.lines().count(), "{out}");
+    assert_eq!(changed.len(), 1, "{changed:?}");
+    assert_eq!(changed[0].0, "capacity_j_per_k = 300.0");
+    let (key, value) = changed[0].1.split_once(" = ").unwrap();
+    assert_eq!(key, "capacity_j_per_k");
+    let written: f64 = value.parse().unwrap();
+    assert!((written / fitted - 1.0).abs() < 1e-14, "{written} {fitted}");
+    assert!(
+        out.starts_with("# A coil on a housing in still air"),
+        "{out}"
+    );
     let v = &j["validation"][0];
     assert!(v["trace"].as_str().unwrap().ends_with("r3.csv"), "{j}");
     assert!(v["rmse_k"].as_f64().unwrap() < 0.01, "{j}");
@@ -595,4 +616,87 @@ fn multi_start_keeps_the_best_fit_and_flags_parameters_that_trade_off() {
         let product = r["fitted"][0].as_f64().unwrap() * r["fitted"][1].as_f64().unwrap();
         assert!((product - 5.69).abs() < 0.01, "{j}");
     }
+}
+
+/// `--from-s`/`--to-s` limit what `replay` and `simulate` write and score,
+/// while the model still runs from the first row: the windowed rows are
+/// the full run's rows, to the bit, and the score is over the window only.
+#[test]
+fn a_time_window_writes_and_scores_the_full_runs_rows_inside_it() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let lines = |p: &Path| -> Vec<String> {
+        fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .map(String::from)
+            .collect()
+    };
+    let replay = |out: &Path, window: &[&str]| {
+        json(
+            &ct()
+                .args(["replay", "--model", &model(), "--trace", s(&rec)])
+                .args(["--time-column", "time", "--current", "0:3,400:0=current"])
+                .args(["--truth", "housing_t=housing", "--out", s(out), "--json"])
+                .args(window)
+                .assert()
+                .success(),
+        )
+    };
+    let (full, part) = (dir.path().join("full.csv"), dir.path().join("part.csv"));
+    let jf = replay(&full, &[]);
+    let jw = replay(&part, &["--from-s", "199.5", "--to-s", "600"]);
+    let (lf, lw) = (lines(&full), lines(&part));
+    assert_eq!(lw[0], lf[0]);
+    // Rows at 200 .. 600 s (time 200 s is row 200, line 201).
+    assert_eq!(lw.len(), 1 + 401, "{}", lw.len());
+    assert_eq!(lw[1..], lf[201..602]);
+    assert_eq!(jw["rows"], 401, "{jw}");
+    assert!(jw["truth"][0]["rmse_k"].as_f64().unwrap() > 0.0);
+    let t = jw["truth"][0]["max_error_time_s"].as_f64().unwrap();
+    assert!((200.0..=600.0).contains(&t), "{jw}");
+    assert_eq!(jf["rows"], ROWS as u64);
+    // simulate: the same rows as the whole run's, from the same start.
+    let input = dir.path().join("rec_in.csv");
+    let sim = |out: &Path, window: &[&str]| {
+        ct().args(["simulate", "--model", &model(), "--trace", s(&input)])
+            .args(["--resample-s", "1", "--out", s(out)])
+            .args(window)
+            .assert()
+            .success();
+    };
+    sim(&full, &[]);
+    sim(&part, &["--from-s", "900", "--to-s", "5000"]);
+    let (lf, lw) = (lines(&full), lines(&part));
+    assert_eq!(lw.len(), 1 + 101);
+    assert_eq!(lw[1..], lf[901..]);
+}
+
+/// A fit stopped at a bound says which parameter hit which bound and how
+/// to widen it, in the text and in `--json` (`bound`), instead of a bare
+/// "converged".
+#[test]
+fn a_fit_at_its_bound_names_the_parameter_and_how_to_widen_it() {
+    let dir = TempDir::new().unwrap();
+    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
+    let start = start_model(&dir, "start.toml", "300.0", "boundary");
+    let base = |json: bool| {
+        let mut c = ct();
+        c.args(["calibrate", "--model", s(&start), "--trace", s(&rec)])
+            .args(["--time-column", "time", "--const", "current=0:3,400:0"])
+            .args(["--measure", "temperature=coil"])
+            .args(["--params", "capacity.coil=250:400"])
+            .args(["--out", s(&dir.path().join("f.toml"))]);
+        if json {
+            c.arg("--json");
+        }
+        c
+    };
+    base(false)
+        .assert()
+        .success()
+        .stdout(contains("AT LOWER BOUND (widen it in --params"));
+    let j = json(&base(true).assert().success());
+    assert_eq!(j["fit"]["params"][0]["bound"], "lower", "{j}");
+    assert_eq!(fitted(&j), 250.0, "{j}");
 }

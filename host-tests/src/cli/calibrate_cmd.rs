@@ -22,6 +22,115 @@ use crate::sim::{
 };
 use crate::synth::Rng;
 
+/// The fitted model's file text, and whether it is the input model file
+/// with only the fitted values changed (its comments, key order and
+/// number formats kept). A built-in model, or a file the edit cannot
+/// reproduce exactly (checked by parsing the edited text back and
+/// comparing it with the fit), is written plainly from the parsed model.
+fn fitted_text(model: &str, fitted: &ModelFile) -> Result<(String, bool)> {
+    let plain = fitted.to_toml()?;
+    let common::ModelSpec::File(path) = common::ModelSpec::parse(model)? else {
+        return Ok((plain, false));
+    };
+    let source = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: cannot read model file", path.display()))?;
+    match with_values_of(&source, &plain) {
+        Some(edited)
+            if ModelFile::parse(&edited, model)
+                .ok()
+                .and_then(|m| m.to_toml().ok())
+                .is_some_and(|t| t == plain) =>
+        {
+            Ok((edited, true))
+        }
+        _ => {
+            eprintln!(
+                "warning: {model}: the fitted values could not be written into the file as it is; \
+                 the fitted file is written from the parsed model, without the input's comments"
+            );
+            Ok((plain, false))
+        }
+    }
+}
+
+/// `source` with every value that `fitted` holds differently replaced
+/// (the value's surrounding comments and spacing kept), keys and tables
+/// that `fitted` adds appended; `None` if either does not parse.
+fn with_values_of(source: &str, fitted: &str) -> Option<String> {
+    let mut doc: toml_edit::DocumentMut = source.parse().ok()?;
+    let new: toml_edit::DocumentMut = fitted.parse().ok()?;
+    merge_table(doc.as_table_mut(), new.as_table());
+    Some(doc.to_string())
+}
+
+fn merge_table(old: &mut dyn toml_edit::TableLike, new: &dyn toml_edit::TableLike) {
+    for (key, item) in new.iter() {
+        match old.get_mut(key) {
+            Some(slot) => merge_item(slot, item),
+            None => {
+                old.insert(key, item.clone());
+            }
+        }
+    }
+}
+
+fn merge_item(old: &mut toml_edit::Item, new: &toml_edit::Item) {
+    use toml_edit::{Item, Value};
+    match (old, new) {
+        (Item::ArrayOfTables(o), Item::ArrayOfTables(n)) => {
+            for (i, table) in n.iter().enumerate() {
+                match o.get_mut(i) {
+                    Some(slot) => merge_table(slot, table),
+                    None => o.push(table.clone()),
+                }
+            }
+        }
+        (Item::Value(Value::Array(o)), Item::Value(Value::Array(n))) if o.len() == n.len() => {
+            for (i, v) in n.iter().enumerate() {
+                if let Some(slot) = o.get_mut(i) {
+                    merge_value(slot, v);
+                }
+            }
+        }
+        (Item::Value(o), Item::Value(n)) => {
+            if let (Some(ot), Some(nt)) = (o.as_inline_table_mut(), n.as_inline_table()) {
+                merge_table(ot, nt);
+            } else {
+                merge_value(o, n);
+            }
+        }
+        (o, n) => match (o.as_table_like_mut(), n.as_table_like()) {
+            (Some(ot), Some(nt)) => merge_table(ot, nt),
+            _ => *o = n.clone(),
+        },
+    }
+}
+
+/// Replaces `old` by `new` unless they are the same number or text,
+/// keeping `old`'s decoration (the comment after it).
+fn merge_value(old: &mut toml_edit::Value, new: &toml_edit::Value) {
+    use toml_edit::Value;
+    let number = |v: &Value| match v {
+        Value::Integer(i) => Some(*i.value() as f64),
+        Value::Float(f) => Some(*f.value()),
+        _ => None,
+    };
+    let bare = |v: &Value| {
+        let mut v = v.clone();
+        v.decor_mut().clear();
+        v.to_string()
+    };
+    let same = match (number(old), number(new)) {
+        (Some(a), Some(b)) => a == b,
+        _ => bare(old) == bare(new),
+    };
+    if !same {
+        let decor = old.decor().clone();
+        *old = new.clone();
+        *old.decor_mut() = decor;
+    }
+}
+
 /// Runs `calibrate`.
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let file = common::model_file(&a.model)?;
@@ -84,7 +193,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         .iter()
         .map(|d| validate(&fitted, d))
         .collect::<Result<Vec<_>>>()?;
-    std::fs::write(&a.out, fitted.to_toml()?)
+    let (text, kept_comments) = fitted_text(&a.model.model, &fitted)?;
+    std::fs::write(&a.out, text)
         .with_context(|| format!("{}: cannot write the fitted model", a.out.display()))?;
     let figures = match &a.plot {
         Some(path) => super::plot_cmd::fit_report(&fitted, &data, path)?,
@@ -193,7 +303,15 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             );
         }
     }
-    println!("fitted model written to {}", a.out.display());
+    println!(
+        "fitted model written to {}{}",
+        a.out.display(),
+        if kept_comments {
+            " (the input file with only the fitted values changed)"
+        } else {
+            ""
+        }
+    );
     for p in &figures {
         println!("fit report drawn to {}", p.display());
     }

@@ -430,6 +430,43 @@ pub fn check_plot_values(data: &PlotData) -> Result<()> {
     Ok(())
 }
 
+/// The rows of `time_s` \[s\] (increasing) inside `--from-s`/`--to-s`
+/// (both ends included); a clear error for a bound that is not finite, a
+/// window with `from >= to`, or one that holds no row.
+pub fn window_rows(w: &super::WindowArgs, time_s: &[f64]) -> Result<std::ops::Range<usize>> {
+    for (flag, v) in [("--from-s", w.from_s), ("--to-s", w.to_s)] {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            bail!("{flag} must be a finite time [s], got {v}");
+        }
+    }
+    let from = w.from_s.unwrap_or(f64::NEG_INFINITY);
+    let to = w.to_s.unwrap_or(f64::INFINITY);
+    if from >= to {
+        bail!("the window must have --from-s below --to-s, got {from} s and {to} s");
+    }
+    let start = time_s.partition_point(|t| *t < from);
+    let end = time_s.partition_point(|t| *t <= to);
+    if start >= end {
+        let (t0, t1) = (
+            time_s.first().copied().unwrap_or(0.0),
+            time_s.last().copied().unwrap_or(0.0),
+        );
+        bail!("the window {from} s .. {to} s holds no row of the run ({t0} s .. {t1} s)");
+    }
+    Ok(start..end)
+}
+
+/// `drive` limited to `rows`.
+pub fn drive_window(drive: &crate::sim::Drive, rows: &std::ops::Range<usize>) -> crate::sim::Drive {
+    let cut = |all: &[Vec<f64>]| all.iter().map(|v| v[rows.clone()].to_vec()).collect();
+    crate::sim::Drive {
+        time_s: drive.time_s[rows.clone()].to_vec(),
+        currents: cut(&drive.currents),
+        boundaries: cut(&drive.boundaries),
+        signals: cut(&drive.signals),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -70,6 +70,20 @@ enum Command {
     Faults(faults_cmd::FaultsArgs),
 }
 
+/// A time window of a run's output: the model runs from the start (so
+/// its state is right), only the written rows, the scores and the summary
+/// are limited to the window.
+#[derive(Debug, Clone, Default, Args)]
+pub struct WindowArgs {
+    /// Write and score from this time on [s] (the run still starts at the
+    /// trace's first row).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub from_s: Option<f64>,
+    /// Write and score up to this time [s].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub to_s: Option<f64>,
+}
+
 /// Which model to run.
 #[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
@@ -226,6 +240,8 @@ pub struct SimulateArgs {
     with_inputs: bool,
     #[command(flatten)]
     trace_args: TraceArgs,
+    #[command(flatten)]
+    window: WindowArgs,
     /// Output CSV: `time_s` [s] then one column per node [degC].
     #[arg(long, value_name = "OUT.csv")]
     out: PathBuf,
@@ -245,6 +261,8 @@ pub struct SimulateArgs {
 pub struct ReplayArgs {
     #[command(flatten)]
     model: ModelArgs,
+    #[command(flatten)]
+    window: WindowArgs,
     /// Recorded trace (CSV) with inputs and measured temperatures.
     #[arg(long, value_name = "IN.csv")]
     trace: PathBuf,

@@ -344,9 +344,40 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // not scored.
     let mut init_sensors = truth.clone();
     init_sensors.extend(init_only);
+    let window = common::window_rows(&a.window, &drive.time_s)?;
     let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
     crate::sim::check_temperatures(&info, &drive.time_s, &result.estimate, "replay")?;
     result.scores.truncate(truth.len());
+    // The model ran from the first row; the rows written, the scores, the
+    // hot spot, the listed alarm events and the plot are the window's.
+    let windowed = window.len() < drive.len();
+    let (drive, truth, measured) = if windowed {
+        let cut = |sensors: &[crate::observer::Sensor]| -> Vec<crate::observer::Sensor> {
+            sensors
+                .iter()
+                .map(|s| crate::observer::Sensor {
+                    values_c: s.values_c[window.clone()].to_vec(),
+                    ..s.clone()
+                })
+                .collect()
+        };
+        for series in &mut result.estimate {
+            *series = series[window.clone()].to_vec();
+        }
+        let drive = common::drive_window(&drive, &window);
+        let truth = cut(&truth);
+        result.scores = truth
+            .iter()
+            .map(|t| {
+                crate::observer::score(t, &info.nodes[t.node], &result.estimate, &drive.time_s)
+            })
+            .collect();
+        let (t0, t1) = (drive.time_s[0], drive.time_s[drive.len() - 1]);
+        result.alarms.retain(|e| (t0..=t1).contains(&e.time_s));
+        (drive, truth, cut(&measured))
+    } else {
+        (drive, truth, measured)
+    };
     let kind = estimator.kind();
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
         json!({

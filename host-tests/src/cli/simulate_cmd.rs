@@ -103,9 +103,13 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         Some(t) => t,
         None => initial_temps(&info, &drive, &[])?,
     };
+    let window = common::window_rows(&a.window, &drive.time_s)?;
     check_work(plant.as_ref(), &drive.time_s, "simulate")?;
     let states = by_node(&simulate(plant.as_mut(), &drive, &init));
     check_temperatures(&info, &drive.time_s, &states, "simulate")?;
+    // The run starts at the first row; only its output is windowed.
+    let states: Vec<Vec<f64>> = states.iter().map(|s| s[window.clone()].to_vec()).collect();
+    let drive = common::drive_window(&drive, &window);
     let mut names = info.nodes.clone();
     let mut written = states.clone();
     if let Some(sigma) = a.noise_k.filter(|k| *k > 0.0) {
