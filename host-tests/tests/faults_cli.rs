@@ -71,6 +71,14 @@ fn overload_open_circuit_flagged_at_once_and_spikes_trip_on_time() {
         let delay = c["shutdown_delay_s"].as_f64().expect("trips under spikes");
         assert!(delay <= 1.0, "{c}");
     }
+    // The only sensor drifting -0.05 K/s: once the gate has refused it
+    // twice it is held out of the gate's recovery and the estimate goes
+    // back to the model (it was dragged 7.8 K below the truth).
+    for c in cases(&r, "drift") {
+        assert_eq!(c["flag_goal_met"], true, "{c}");
+        assert!(c["max_error_tc_k"].as_f64().unwrap() <= 2.0, "{c}");
+        assert!(c["max_error_hot_spot_k"].as_f64().unwrap() <= 2.0, "{c}");
+    }
     for c in cases(&r, "corrupt-snapshot") {
         assert_eq!(c["snapshot"]["refused"], true, "{c}");
         assert_eq!(c["snapshot"]["starts_latched"], true, "{c}");
@@ -321,7 +329,7 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
         "--onset-s",
         "60,200",
         "--classes",
-        "open,stuck,all-detached,spikes,corrupt-snapshot",
+        "open,stuck,drift,all-detached,spikes,corrupt-snapshot",
         "--json",
     ]);
     assert_eq!(r["model"], "drive-3node");
@@ -330,7 +338,7 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
     assert!((300.0..600.0).contains(&clean_s), "{clean_s}");
     assert_eq!(r["clean"]["healthy_flagged"], 0);
     // 1 sensor x 2 onsets for each class.
-    assert_eq!(r["cases"].as_array().unwrap().len(), 10);
+    assert_eq!(r["cases"].as_array().unwrap().len(), 12);
     for c in r["cases"].as_array().unwrap() {
         assert_eq!(c["lost_shutdown"], false, "{c}");
         assert_eq!(c["late_shutdown"], false, "{c}");

@@ -163,7 +163,8 @@ use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
 use super::consistency::{
-    screen_readings, Band, BiasBound, BlockMean, SilenceWatch, StuckTest, StuckWatch, Suspicion,
+    raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean, SilenceWatch,
+    StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
@@ -1054,14 +1055,7 @@ impl OmniObserver {
         let shadow_c: [f32; NODES] = core::array::from_fn(|i| origin[i] + state.shadow_x[i]);
         let mut shadow_upper_c = [f32::NAN; NODES];
         self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
-        for node in ALARM_NODES {
-            if let (Some(u), Some(s)) = (out.upper_c.get_mut(node), shadow_upper_c.get(node)) {
-                // Not `max`: a NaN must win (the limiter then gives the floor).
-                if s.is_nan() || *s > *u {
-                    *u = *s;
-                }
-            }
-        }
+        raise_to_shadow(&mut out.upper_c, &shadow_upper_c, ALARM_NODES.into_iter());
     }
 
     /// Which solenoids lost their measurement this tick: a thermocouple in
@@ -1086,11 +1080,10 @@ impl OmniObserver {
             else {
                 continue;
             };
-            match status {
-                SensorStatus::Fused { .. } => *fused = true,
-                SensorStatus::NoReading => {}
-                SensorStatus::Rejected { .. } => *doubt |= *rejections >= 2,
-                _ => *doubt = true,
+            match sensor_doubt(status, *rejections) {
+                Some(false) => *fused = true,
+                Some(true) => *doubt = true,
+                None => {}
             }
         }
         core::array::from_fn(|m| doubt[m] && !fused[m])
