@@ -305,6 +305,31 @@ fn one_per_solenoid_stuck_and_drift_meet_the_goals() {
         assert_eq!(c["lost_shutdown"], false, "{c}");
     }
     assert_eq!(fast["summary"]["late_shutdowns"], 0);
+    // Re-linearised every 10 s (the documented configuration for one per
+    // solenoid), a -0.05 K/s drift no longer drags its solenoid 2.1 K:
+    // once it is in doubt its negative heat bias is dropped and the
+    // estimate returns toward the model.
+    let relin = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "3.1",
+        "--sensors",
+        "0,2,4",
+        "--relinearize-s",
+        "10",
+        "--classes",
+        "drift,open",
+        "--json",
+    ]);
+    for class in ["drift", "open"] {
+        for c in cases(&relin, class) {
+            assert_eq!(c["flag_goal_met"], true, "{c}");
+            assert!(c["max_error_tc_k"].as_f64().unwrap() <= 2.0, "{c}");
+            assert!(c["max_error_hot_spot_k"].as_f64().unwrap() <= 2.0, "{c}");
+        }
+    }
 }
 
 /// A model file (`--model FILE.toml`): its `[observer]` table built into

@@ -234,6 +234,24 @@ pub(crate) fn sensor_doubt(status: &SensorStatus, rejections: u16) -> Option<boo
     }
 }
 
+/// Drops the negative heat-input biases \[W\] of the inputs in doubt: a
+/// sensor that lied cold before it was caught left its input's bias
+/// negative, and with no reading fused the model would go on heating too
+/// little on it (one thermocouple per Omnimagnet solenoid drifting -0.05
+/// K/s: the estimate went on falling behind the truth after the gate had
+/// refused the sensor). Without the bias the estimate returns toward the
+/// model; erring hot, a positive bias is kept.
+pub(crate) fn drop_cold_biases<'b, const M: usize>(
+    biases_w: impl Iterator<Item = &'b mut f32>,
+    doubt: &[bool; M],
+) {
+    for (bias, doubt) in biases_w.zip(doubt) {
+        if *doubt && *bias < 0.0 {
+            *bias = 0.0;
+        }
+    }
+}
+
 /// Raises each upper bound \[degC\] in `nodes` to the shadow's,
 /// `shadow_upper_c`, where that is hotter (or NaN: a NaN must win, the
 /// limiter then gives the floor): the protection while a measurement is

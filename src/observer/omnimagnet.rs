@@ -163,8 +163,8 @@ use nalgebra::SVector;
 
 use super::clock::{ClockState, StepClock};
 use super::consistency::{
-    raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean, SilenceWatch,
-    StuckTest, StuckWatch, Suspicion,
+    drop_cold_biases, raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
+    SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
@@ -1197,6 +1197,7 @@ impl OmniObserver {
             );
             if suspect.contains(&true) {
                 state.suspect.note(&suspect);
+                self.drop_cold_biases(state, &suspect);
             }
             return (false, flags);
         }
@@ -1222,7 +1223,20 @@ impl OmniObserver {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
         state.suspect.note(&suspect);
+        self.drop_cold_biases(state, &suspect);
         (true, flags)
+    }
+
+    /// [`drop_cold_biases`] on the solenoids in doubt, once the model is
+    /// re-linearised ([`Self::install_model`]): linearised at the estimate
+    /// it needs no bias, so a negative one is what a lying sensor dragged.
+    /// The build-time linearisation at the ambient runs hot, and a healthy
+    /// negative bias corrects it: dropping it put a stuck thermocouple's
+    /// solenoid (one per solenoid, 3.1 A) 2.56 K off instead of 1.91 K.
+    fn drop_cold_biases(&self, state: &mut OmniObserverState, doubt: &[bool; SOLENOIDS]) {
+        if state.model.origin_c() != self.shadow.origin_c() {
+            drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
+        }
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched
