@@ -128,9 +128,15 @@
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
 //! the model until a sensor agrees with it again. A reading that repeats
 //! its value (to the bit) while the shadow at its node has moved by more
-//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 20 s
+//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s
 //! is stuck ([`SensorStatus::Stuck`]) and not fused until it moves: a test
-//! that does not lean on the estimate the sensor drags. Its cost: a block step
+//! that does not lean on the estimate the sensor drags. A reading the gate
+//! refused twice in a row, colder than the estimate and the shadow, is held
+//! out of the gate's recovery while it keeps drifting colder than the
+//! shadow (the estimate raised to the shadow when nothing else is fused),
+//! and while any sensor is in doubt every limited element is protected on
+//! the hotter of the estimate's and the shadow's upper bound (see
+//! docs/protection.md). Its cost: a block step
 //! (`N^2 + N (M + B)` multiply-adds) once per correction period.
 //!
 //! # Readings, clock, snapshots
