@@ -203,9 +203,71 @@ impl<const M: usize> Suspicion<M> {
         }
     }
 
+    /// Renews the doubt where `doubt`, leaving the rest as it is (a tick
+    /// without a correction: a silent sensor).
+    pub(crate) fn renew(&mut self, doubt: &[bool; M]) {
+        for (left, doubt) in self.left.iter_mut().zip(doubt) {
+            if *doubt {
+                *left = DOUBT_HOLD_CORRECTIONS;
+            }
+        }
+    }
+
     /// Some input is in doubt.
     pub(crate) fn any(&self) -> bool {
         self.left.iter().any(|l| *l > 0)
+    }
+}
+
+/// One sensor's sign of trouble this tick, for [`Suspicion`]: `Some(true)`
+/// when its reading was not fused for a reason that puts its measurement in
+/// doubt (a fault, too old, colder than the physics, stuck, silent, or
+/// refused by the gate `rejections >= 2` times in a row: a single rejection
+/// is the gate refusing a spike), `Some(false)` when it was fused, `None`
+/// when it said nothing.
+pub(crate) fn sensor_doubt(status: &SensorStatus, rejections: u16) -> Option<bool> {
+    match status {
+        SensorStatus::Fused { .. } => Some(false),
+        SensorStatus::NoReading => None,
+        SensorStatus::Rejected { .. } => (rejections >= 2).then_some(true),
+        _ => Some(true),
+    }
+}
+
+/// Drops the negative heat-input biases \[W\] of the inputs in doubt: a
+/// sensor that lied cold before it was caught left its input's bias
+/// negative, and with no reading fused the model would go on heating too
+/// little on it (one thermocouple per Omnimagnet solenoid drifting -0.05
+/// K/s: the estimate went on falling behind the truth after the gate had
+/// refused the sensor). Without the bias the estimate returns toward the
+/// model; erring hot, a positive bias is kept.
+pub(crate) fn drop_cold_biases<'b, const M: usize>(
+    biases_w: impl Iterator<Item = &'b mut f32>,
+    doubt: &[bool; M],
+) {
+    for (bias, doubt) in biases_w.zip(doubt) {
+        if *doubt && *bias < 0.0 {
+            *bias = 0.0;
+        }
+    }
+}
+
+/// Raises each upper bound \[degC\] in `nodes` to the shadow's,
+/// `shadow_upper_c`, where that is hotter (or NaN: a NaN must win, the
+/// limiter then gives the floor): the protection while a measurement is
+/// in doubt (see [`Suspicion`]).
+pub(crate) fn raise_to_shadow<const N: usize>(
+    upper_c: &mut [f32; N],
+    shadow_upper_c: &[f32; N],
+    nodes: impl Iterator<Item = usize>,
+) {
+    for node in nodes {
+        if let (Some(u), Some(s)) = (upper_c.get_mut(node), shadow_upper_c.get(node)) {
+            // Not `max`: a NaN must win.
+            if s.is_nan() || *s > *u {
+                *u = *s;
+            }
+        }
     }
 }
 
@@ -292,6 +354,139 @@ impl<const P: usize> StuckWatch<P> {
                 };
             }
         }
+    }
+}
+
+/// Readings the gate refused as colder than the estimate, held out of the
+/// gate's *recovery* while they move away from the physics.
+///
+/// Why: the gate judges a reading against the estimate it pulls, and after
+/// `recover_after` corrections in which every reading was refused it widens
+/// the covariance and fuses them anyway (the model may be what is wrong). A
+/// thermocouple drifting down 0.05 K/s on a model file's only sensor was
+/// refused four times in a row, then the recovery fused it in one step
+/// (the housing's estimate fell 0.9 K at once) and the steady gain followed
+/// it again until the next refusals: a ratchet that left the estimate 4.3 K
+/// below the truth (7.8 K from the later onset) while the reading was still
+/// inside the physics band. The shadow breaks the tie the gate cannot: a
+/// reading the gate refused `suspect_after` times in a row, colder than
+/// the estimate and than the shadow, is *held* (not offered to the gate, so
+/// no recovery takes it; reported [`SensorStatus::Rejected`]) for as long as
+/// the gate would still refuse it against the estimate. The caller raises
+/// the estimate to the shadow when nothing else was fused (erring hot: the
+/// physics no reading moved).
+///
+/// A model that is off (not a sensor) must still be corrected: a held
+/// reading whose offset from the shadow has not grown colder by the stuck
+/// threshold within the stuck window is released to the gate and its
+/// recovery (a steady offset is the model's error; a drift moves), and is
+/// not held again before it is fused once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct DriftHold<const P: usize> {
+    held: [bool; P],
+    /// `reading - shadow` when the hold began \[K\].
+    offset_at_hold_k: [f32; P],
+    /// Readings since the hold began.
+    since: [u32; P],
+    /// Moved colder than the shadow by the threshold while held.
+    drifting: [bool; P],
+    /// Released after a steady window; not held again until fused.
+    spent: [bool; P],
+}
+
+/// What [`DriftHold::screen`] needs of the filter for one sensor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct GateView {
+    /// The estimate at the sensor's node \[degC\].
+    pub estimate_c: f32,
+    /// The gate's innovation variance \[K^2\].
+    pub innovation_var_k2: f32,
+    /// The gate's consecutive rejections of this sensor.
+    pub rejections: u16,
+}
+
+impl<const P: usize> DriftHold<P> {
+    /// Nothing held.
+    pub(crate) const fn new() -> Self {
+        Self {
+            held: [false; P],
+            offset_at_hold_k: [0.0; P],
+            since: [0; P],
+            drifting: [false; P],
+            spent: [false; P],
+        }
+    }
+
+    /// Takes the held samples out of the correction (see the type's docs),
+    /// marking them [`SensorStatus::Rejected`]; `gate[j]` is the filter's
+    /// view of sensor `j`, `threshold` the gate's, `suspect_after` its
+    /// consecutive rejections that make a sensor suspect, `move_k` \[K\] and
+    /// `window` (readings) the stuck test's. Returns whether any was held.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn screen(
+        &mut self,
+        samples: &mut [Option<f32>; P],
+        statuses: &mut [SensorStatus; P],
+        shadow_c: &[f32; P],
+        gate: &[GateView; P],
+        threshold: f32,
+        suspect_after: u16,
+        stuck: &StuckTest,
+    ) -> bool {
+        let mut any = false;
+        for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
+            let (Some(t), Some(shadow), Some(g)) = (*sample, shadow_c.get(j), gate.get(j)) else {
+                continue;
+            };
+            let (Some(held), Some(at), Some(since), Some(drifting), Some(spent)) = (
+                self.held.get_mut(j),
+                self.offset_at_hold_k.get_mut(j),
+                self.since.get_mut(j),
+                self.drifting.get_mut(j),
+                self.spent.get_mut(j),
+            ) else {
+                continue;
+            };
+            let nu = t - g.estimate_c;
+            let nis = nu * nu / g.innovation_var_k2;
+            // NaN refuses: no verdict is no admission.
+            let refused = nis.is_nan() || nis > threshold;
+            if g.rejections == 0 {
+                *spent = false;
+            }
+            let colder = t < *shadow && t < g.estimate_c;
+            if !*held {
+                if *spent
+                    || suspect_after == 0
+                    || g.rejections < suspect_after
+                    || !colder
+                    || !refused
+                {
+                    continue;
+                }
+                *held = true;
+                *at = t - shadow;
+                *since = 0;
+                *drifting = false;
+            }
+            if !refused || t >= *shadow {
+                // The gate takes it again against the estimate.
+                *held = false;
+                continue;
+            }
+            *since = since.saturating_add(1);
+            *drifting |= *at - (t - shadow) > stuck.threshold_k;
+            if !*drifting && *since >= stuck.window {
+                // A steady offset: the model's error, for the recovery.
+                *held = false;
+                *spent = true;
+                continue;
+            }
+            *sample = None;
+            *status = SensorStatus::Rejected { nis };
+            any = true;
+        }
+        any
     }
 }
 
@@ -592,6 +787,73 @@ mod tests {
             watch.screen(&mut samples, &mut statuses, &[shadow], 1.0, 10);
             assert_eq!(samples, [Some(50.0)], "reading {k}");
         }
+    }
+
+    /// One sensor against a still shadow at 50 degC with the estimate on
+    /// it (innovation variance 0.1 K^2, gate 10.83, suspect after 2, stuck
+    /// test 1 K within 10 readings): whether each reading of `readings`
+    /// is held, the gate refusing every reading it is offered.
+    fn holds(readings: impl Iterator<Item = f32>) -> Vec<bool> {
+        let mut hold = DriftHold::<1>::new();
+        let stuck = StuckTest {
+            threshold_k: 1.0,
+            window: 10,
+        };
+        let mut rejections = 0u16;
+        readings
+            .map(|t| {
+                let mut samples = [Some(t)];
+                let mut statuses = [SensorStatus::NoReading];
+                let gate = [GateView {
+                    estimate_c: 50.0,
+                    innovation_var_k2: 0.1,
+                    rejections,
+                }];
+                let held = hold.screen(
+                    &mut samples,
+                    &mut statuses,
+                    &[50.0],
+                    &gate,
+                    10.83,
+                    2,
+                    &stuck,
+                );
+                assert_eq!(held, samples[0].is_none());
+                if !held {
+                    let nis = (t - 50.0) * (t - 50.0) / 0.1;
+                    rejections = if nis > 10.83 { rejections + 1 } else { 0 };
+                }
+                held
+            })
+            .collect()
+    }
+
+    /// A reading drifting colder than the physics is held from its third
+    /// refusal on, for as long as it drifts; one that comes back within
+    /// the gate is the gate's again.
+    #[test]
+    fn a_reading_drifting_colder_than_the_physics_is_held() {
+        // Fused at first (49 degC is inside the gate), refused twice, then
+        // held while it drifts 0.2 K a reading.
+        let drift = (0..60).map(|k| 49.0 - 0.2 * k as f32);
+        let held = holds(drift);
+        assert_eq!(held[..3], [false, false, false]);
+        assert!(held[3..].iter().all(|h| *h), "{held:?}");
+        let back = (0..20).map(|k| if k < 10 { 48.0 - 0.2 * k as f32 } else { 49.9 });
+        let held = holds(back);
+        assert!(held[2..10].iter().all(|h| *h), "{held:?}");
+        assert!(held[10..].iter().all(|h| !*h), "{held:?}");
+    }
+
+    /// A steady offset below the physics (the model's error, not a drift)
+    /// is released to the gate after the window and not held again; a
+    /// reading hotter than the physics is never held.
+    #[test]
+    fn a_steady_offset_or_a_hot_reading_is_not_held() {
+        let held = holds(core::iter::repeat_n(48.5, 40));
+        assert!(held[2..11].iter().all(|h| *h), "{held:?}");
+        assert!(held[11..].iter().all(|h| !*h), "{held:?}");
+        assert!(holds(core::iter::repeat_n(52.0, 40)).iter().all(|h| !*h));
     }
 
     #[test]

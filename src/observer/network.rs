@@ -128,9 +128,15 @@
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
 //! the model until a sensor agrees with it again. A reading that repeats
 //! its value (to the bit) while the shadow at its node has moved by more
-//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 20 s
+//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s
 //! is stuck ([`SensorStatus::Stuck`]) and not fused until it moves: a test
-//! that does not lean on the estimate the sensor drags. Its cost: a block step
+//! that does not lean on the estimate the sensor drags. A reading the gate
+//! refused twice in a row, colder than the estimate and the shadow, is held
+//! out of the gate's recovery while it keeps drifting colder than the
+//! shadow (the estimate raised to the shadow when nothing else is fused),
+//! and while any sensor is in doubt every limited element is protected on
+//! the hotter of the estimate's and the shadow's upper bound (see
+//! docs/protection.md). Its cost: a block step
 //! (`N^2 + N (M + B)` multiply-adds) once per correction period.
 //!
 //! # Readings, clock, snapshots
@@ -145,7 +151,8 @@ use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
 use super::consistency::{
-    screen_readings, Shadow, ShadowState, SilenceWatch, StuckTest, StuckWatch,
+    raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
+    SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
@@ -533,6 +540,9 @@ pub struct NetworkObserverState<
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
     stuck: StuckWatch<P>,
+    drift: DriftHold<P>,
+    /// The sensors whose measurement is in doubt.
+    suspect: Suspicion<P>,
     silence: SilenceWatch<P>,
     /// The time-varying warm-up's covariance, while it runs.
     warmup_cov: SMatrix<f32, X, X>,
@@ -658,6 +668,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             },
             warmup_left: self.warmup_corrections,
             stuck: StuckWatch::new(),
+            drift: DriftHold::new(),
+            suspect: Suspicion::new(),
             silence: SilenceWatch::new(),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
@@ -673,6 +685,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 tick: 0,
             },
         };
+        self.bound.upper_c(
+            &state.outputs.temps_c,
+            ambient_c,
+            &mut state.outputs.upper_c,
+        );
         self.limit(&mut state.outputs, ambient_c);
         state
     }
@@ -822,9 +839,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
+                self.publish_upper(state, ambient_c);
                 let out = &mut state.outputs;
-                self.bound
-                    .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
                 out.alarm = state.alarm.tick(
                     &self.alarm,
                     &out.upper_c,
@@ -835,6 +851,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 state.cycle.alarmed();
             }
             Stage::Limit => {
+                self.publish_upper(state, ambient_c);
                 self.limit(&mut state.outputs, ambient_c);
                 state.cycle.limited();
             }
@@ -870,13 +887,31 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    /// The limiter at the upper bounds of the present estimate (which it
-    /// publishes): a taper factor per limited element, each current held
-    /// at its hardware limit times the smallest factor of the elements it
-    /// heats.
-    fn limit(&self, out: &mut NetworkOutputs<N, M, P>, ambient_c: f32) {
+    /// Publishes every node's upper bound: of the estimate, and while a
+    /// sensor's measurement is in doubt, on every limited element of the
+    /// hotter of the estimate's and the shadow's (see
+    /// [`Suspicion`](super::consistency::Suspicion); the Omnimagnet's rule:
+    /// the nodes exchange heat, so what a lying sensor dragged on its node
+    /// is felt by the others' estimates).
+    fn publish_upper(&self, state: &mut NetworkObserverState<N, B, M, X, P>, ambient_c: f32) {
+        let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
+        if !state.suspect.any() {
+            return;
+        }
+        let shadow_c: [f32; N] = core::array::from_fn(|i| self.origin_c + state.shadow.dev_k(i));
+        let mut shadow_upper_c = [f32::NAN; N];
+        self.bound
+            .upper_c(&shadow_c, ambient_c, &mut shadow_upper_c);
+        let limited = (0..N).filter(|i| self.limited.get(*i).copied().unwrap_or(false));
+        raise_to_shadow(&mut out.upper_c, &shadow_upper_c, limited);
+    }
+
+    /// The limiter at the published upper bounds: a taper factor per
+    /// limited element, each current held at its hardware limit times the
+    /// smallest factor of the elements it heats.
+    fn limit(&self, out: &mut NetworkOutputs<N, M, P>, ambient_c: f32) {
         let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let mut factors = [CoilLimit::<f32>::default(); N];
         self.limiter
@@ -929,7 +964,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let shadow_c = self
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
-        let common_mode = screen_readings(
+        let present = samples.iter().any(Option::is_some);
+        let mut common_mode = screen_readings(
             &self.shadow.band,
             &self.stuck_test,
             &mut state.stuck,
@@ -938,6 +974,31 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &shadow_c,
             ambient_c,
         );
+        let gate_view: [GateView; P] = core::array::from_fn(|j| GateView {
+            estimate_c: self.origin_c
+                + state
+                    .estimate
+                    .x
+                    .get(self.sensor_nodes[j])
+                    .copied()
+                    .unwrap_or(f32::NAN),
+            innovation_var_k2: self.gain.innovation_var()[j],
+            rejections: state.estimate.gate.consecutive_rejections[j],
+        });
+        let gate = self.kalman.gate();
+        let held = state.drift.screen(
+            &mut samples,
+            &mut state.outputs.sensors,
+            &shadow_c,
+            &gate_view,
+            gate.threshold,
+            gate.suspect_after,
+            &self.stuck_test,
+        );
+        // Every reading refused, one held as drifting colder than the
+        // physics: the estimate goes back to the model, as for a
+        // common-mode fault.
+        common_mode |= held && present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.
@@ -959,6 +1020,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // off to be a deviation.
         let z = samples.map(|t| t.map(|t| t - self.origin_c));
         if z.iter().all(Option::is_none) {
+            self.note_doubt(state, present);
             return (false, flags);
         }
         let report = if state.warmup_left > 0 {
@@ -984,7 +1046,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if self.biases_beyond(state).contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
+        self.note_doubt(state, true);
         (true, flags)
+    }
+
+    /// Notes which sensors' measurements are in doubt this tick (see
+    /// [`Suspicion`](super::consistency::Suspicion)): at a correction (some
+    /// reading arrived), every sensor's verdict counts; between them only
+    /// a silent sensor renews its doubt.
+    fn note_doubt(&self, state: &mut NetworkObserverState<N, B, M, X, P>, correction: bool) {
+        let rejections = &state.estimate.gate.consecutive_rejections;
+        let doubt: [bool; P] = core::array::from_fn(|j| {
+            sensor_doubt(&state.outputs.sensors[j], rejections[j]).unwrap_or(false)
+        });
+        if correction {
+            state.suspect.note(&doubt);
+        } else if doubt.contains(&true) {
+            state.suspect.renew(&doubt);
+        }
     }
 
     /// Which heat-input biases are beyond the model's uncertainty (see
