@@ -948,6 +948,31 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &mut NetworkObserverState<N, B, M, X, P>,
         inputs: &NetworkInputs<B, M, P>,
     ) -> (bool, InputFlags) {
+        if inputs.readings.iter().all(Option::is_none) {
+            // Most ticks: nothing to sort, screen or fuse. The same statuses
+            // and doubt as the full path below, which skips every screen
+            // for a missing reading.
+            state.outputs.sensors = [SensorStatus::NoReading; P];
+            state.silence.watch(
+                &[false; P],
+                inputs.now_us,
+                self.silent_after_us,
+                &mut state.outputs.sensors,
+            );
+            self.note_doubt(state, false);
+            return (false, InputFlags::NONE);
+        }
+        self.fuse_readings(state, inputs)
+    }
+
+    /// The correction of a tick that brought readings; out of line so that
+    /// the ticks without one do not pay for its frame.
+    #[inline(never)]
+    fn fuse_readings(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P>,
+        inputs: &NetworkInputs<B, M, P>,
+    ) -> (bool, InputFlags) {
         let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,

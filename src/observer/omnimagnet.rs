@@ -1379,10 +1379,10 @@ impl OmniObserver {
     /// steady-state correction if any is usable; returns whether it ran and
     /// the common-mode flag.
     fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> (bool, InputFlags) {
-        let fitted = self.filter.settings().sensors;
         if inputs.readings.iter().all(Option::is_none) {
             // Most ticks: nothing to sort, screen or fuse; only the silence
             // watch runs (the same statuses as the full path below).
+            let fitted = self.filter.settings().sensors;
             state.outputs.sensors = [SensorStatus::NoReading; THERMOCOUPLES];
             state.silence.watch(
                 &fitted.map(|f| !f),
@@ -1392,6 +1392,21 @@ impl OmniObserver {
             );
             return (false, InputFlags::NONE);
         }
+        self.fuse_readings(state, inputs)
+    }
+
+    /// The correction of a tick that brought readings. Out of line: it is
+    /// large (screens, gate, gain, doubt), and when the compiler inlined
+    /// it, or gave the whole of [`Self::correct`] its frame, every tick
+    /// without a reading paid for its prologue (about 150 instructions
+    /// in `observer_m4`).
+    #[inline(never)]
+    fn fuse_readings(
+        &self,
+        state: &mut OmniObserverState,
+        inputs: &OmniInputs,
+    ) -> (bool, InputFlags) {
+        let fitted = self.filter.settings().sensors;
         let mut samples = sample_readings(
             &inputs.readings,
             inputs.now_us,
@@ -1498,23 +1513,11 @@ impl OmniObserver {
     /// The build-time linearisation at the ambient runs hot, and a healthy
     /// negative bias corrects it: dropping it put a stuck thermocouple's
     /// solenoid (one per solenoid, 3.1 A) 2.56 K off instead of 1.91 K.
-    ///
-    /// Kept out of line and behind a flag: the correction it follows is
-    /// on the tick's path, and inlined it cost every tick about 150
-    /// instructions in `observer_m4` (the compiler's layout of the tick).
     fn drop_cold_biases(&self, state: &mut OmniObserverState, doubt: &[bool; SOLENOIDS]) {
-        if state.relinearised && doubt.contains(&true) {
-            drop_doubted_biases(state, doubt);
+        if state.relinearised {
+            drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
         }
     }
-}
-
-#[inline(never)]
-fn drop_doubted_biases(state: &mut OmniObserverState, doubt: &[bool; SOLENOIDS]) {
-    drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
-}
-
-impl OmniObserver {
     /// Writes a snapshot of the node estimates \[degC\] and the latched
     /// shutdown, stamped `now_s` \[s\]; returns its length
     /// (`snapshot_len(16)` bytes). The heat-input biases are not saved: a
