@@ -646,28 +646,51 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
             && t.slowest_time_constant_s.is_finite(),
         "predictor",
     )?;
-    Ok(LimitPredictor {
-        grid_s: t.grid_s,
-        decay: t.decay,
-        lambda_per_s: t.lambda_per_s,
-        v: t.v,
-        v_inv: t.v_inv,
-        gain_power: t.gain_power,
-        mode_gain_power: t.mode_gain_power,
-        gain_boundary: t.gain_boundary,
-        mode_gain_boundary: t.mode_gain_boundary,
-        offset_c: t.offset_c,
-        mode_offset: t.mode_offset,
-        windings: core::array::from_fn(|m| Winding {
-            node: t.winding_node[m],
-            r_at_0c_ohm: t.winding_r_at_0c_ohm[m],
-            slope_ohm_per_k: t.winding_slope_ohm_per_k[m],
-        }),
-        tick_s: t.tick_s,
-        points_per_tick: t.points_per_tick,
-        slowest_time_constant_s: t.slowest_time_constant_s,
-        elements_per_tick: usize::MAX,
-    })
+    Ok(t.predictor(usize::MAX))
+}
+
+impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
+    /// The predictor of these tables, evaluating `elements_per_tick`
+    /// elements per tick (`usize::MAX`: all). Copies, no arithmetic and no
+    /// checks (the callers check): a `const fn`, so the Omnimagnet's
+    /// configuration can be assembled by the compiler.
+    pub(crate) const fn predictor(
+        &self,
+        elements_per_tick: usize,
+    ) -> LimitPredictor<f32, N, B, M, PREDICTOR_POINTS> {
+        let mut windings = [Winding {
+            node: 0,
+            r_at_0c_ohm: 0.0,
+            slope_ohm_per_k: 0.0,
+        }; M];
+        let mut m = 0;
+        while m < M {
+            windings[m] = Winding {
+                node: self.winding_node[m],
+                r_at_0c_ohm: self.winding_r_at_0c_ohm[m],
+                slope_ohm_per_k: self.winding_slope_ohm_per_k[m],
+            };
+            m += 1;
+        }
+        LimitPredictor {
+            grid_s: self.grid_s,
+            decay: self.decay,
+            lambda_per_s: self.lambda_per_s,
+            v: self.v,
+            v_inv: self.v_inv,
+            gain_power: self.gain_power,
+            mode_gain_power: self.mode_gain_power,
+            gain_boundary: self.gain_boundary,
+            mode_gain_boundary: self.mode_gain_boundary,
+            offset_c: self.offset_c,
+            mode_offset: self.mode_offset,
+            windings,
+            tick_s: self.tick_s,
+            points_per_tick: self.points_per_tick,
+            slowest_time_constant_s: self.slowest_time_constant_s,
+            elements_per_tick,
+        }
+    }
 }
 
 /// The readings in [`STUCK_WINDOW_S`] at one per `correction_period_s`

@@ -53,7 +53,6 @@ use crate::omnimagnet::{NODES, SOLENOIDS, THERMOCOUPLES};
 use crate::protect::alarm::AlarmConfig;
 use crate::protect::limiter::LimiterConfig;
 use crate::protect::margin::{ElementBound, UpperBound};
-use crate::protect::predict::{LimitPredictor, Winding};
 
 const ALARMS: usize = ALARM_NODES.len();
 
@@ -548,19 +547,9 @@ impl OmniObserver {
 
         let g = &f.gain;
         let t = &p.predictor;
-        let mut windings = [Winding {
-            node: 0,
-            r_at_0c_ohm: 0.0,
-            slope_ohm_per_k: 0.0,
-        }; SOLENOIDS];
         let mut resistance = [(0.0, 0.0); SOLENOIDS];
         let mut m = 0;
         while m < SOLENOIDS {
-            windings[m] = Winding {
-                node: t.winding_node[m],
-                r_at_0c_ohm: t.winding_r_at_0c_ohm[m],
-                slope_ohm_per_k: t.winding_slope_ohm_per_k[m],
-            };
             resistance[m] = (f.resistance[m][0], f.resistance[m][1]);
             m += 1;
         }
@@ -623,29 +612,12 @@ impl OmniObserver {
                 taper_per_k: p.taper_per_k,
                 floor_a: p.floor_a,
             },
-            predictor: LimitPredictor {
-                grid_s: t.grid_s,
-                decay: t.decay,
-                lambda_per_s: t.lambda_per_s,
-                v: t.v,
-                v_inv: t.v_inv,
-                gain_power: t.gain_power,
-                mode_gain_power: t.mode_gain_power,
-                gain_boundary: t.gain_boundary,
-                mode_gain_boundary: t.mode_gain_boundary,
-                offset_c: t.offset_c,
-                mode_offset: t.mode_offset,
-                windings,
-                tick_s: t.tick_s,
-                points_per_tick: t.points_per_tick,
-                slowest_time_constant_s: t.slowest_time_constant_s,
-                // `u32::MAX` stands for "all" (`new`'s `usize::MAX`).
-                elements_per_tick: if parts.predictor_elements_per_tick == u32::MAX {
-                    usize::MAX
-                } else {
-                    parts.predictor_elements_per_tick as usize
-                },
-            },
+            // `u32::MAX` stands for "all" (`new`'s `usize::MAX`).
+            predictor: t.predictor(if parts.predictor_elements_per_tick == u32::MAX {
+                usize::MAX
+            } else {
+                parts.predictor_elements_per_tick as usize
+            }),
             bound: UpperBound { elements },
             clock: StepClock {
                 step_us: parts.step_us,
