@@ -14,10 +14,14 @@
 //! Every public per-tick function is called (the list `docs/cost.md`
 //! gives as what is proven):
 //!
-//! * the grid: `GridObserver::tick` in `f32` (84 coils) and `Q32` (12
-//!   coils; the spread step, one step or a catch-up, the update, time to
-//!   limit, alarm and limiter in parts, hottest coil) and the bare
-//!   `CoilGrid::tick`, `accumulate` and `update` in `f32` and `Q32`;
+//! * the grid: `GridObserver::tick` in `f32` (84 coils), `Q32` and `f64`
+//!   (12 coils; the spread step, one step or a catch-up, the update, time
+//!   to limit, alarm and limiter in parts, hottest coil) and the bare
+//!   `CoilGrid::tick`, `accumulate`, `update`, `tick_spread` and
+//!   `ticks_spread` in `f32` and `Q32`;
+//! * the protection's blocks called directly: the alarm's `tick` and
+//!   `tick_part`, the limiter's `apply`, `apply_part` and `clamp_a` (`f32`,
+//!   `Q32`), the time-to-limit predictor's `tick` and `predict` (`f32`);
 //! * the Omnimagnet: `OmniObserver::tick` and `install_model` (`f32`:
 //!   the carried mean predict, `update_steady`, the shadow and the reading
 //!   screens, predictor slice, alarm, limiter) and the Kalman
@@ -37,7 +41,9 @@
 //! sensor decoders (the software-float observers do not fit its flash
 //! together; see `checks`). Checked by inserting a `panic!` in
 //! `OmnimagnetObserver::predict`, `CoilGrid::tick` (both targets),
-//! `filter::update_virtual` and `max31855::decode` (M0): each link fails.
+//! `filter::update_virtual`, `max31855::decode` (M0),
+//! `PredictorState::tick` (M4F) and `AlarmState::tick_part` (M0): each link
+//! fails.
 #![no_std]
 #![no_main]
 // The Cortex-M0 build proves a subset (see `checks`).
@@ -51,10 +57,12 @@ use coil_thermal::observer::{
 };
 use coil_thermal::omnimagnet::observer::{MeanModel, OmnimagnetObserver};
 use coil_thermal::omnimagnet::NODES;
-use coil_thermal::protect::alarm::AlarmBuilder;
+use coil_thermal::protect::alarm::{AlarmBuilder, AlarmState};
 use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
-use coil_thermal::protect::limiter::LimiterConfig;
+use coil_thermal::protect::events::EventQueue;
+use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
 use coil_thermal::protect::margin::{UncertaintyMargin, UpperBoundBuilder};
+use coil_thermal::protect::predict::{LimitPredictor, Operating, PredictorState};
 use coil_thermal::protect::resistance_sensor::MeanTemperatureReading;
 use coil_thermal::sensors::{max31855, max31856, PlausibilityCheck, PlausibilityState};
 use coil_thermal::{
@@ -274,8 +282,12 @@ fn margins() -> bool {
 #[cfg(target_abi = "eabihf")]
 fn checks() -> bool {
     observers()
-        && fixed_point_grid_observer()
+        && small_grid_observer::<Q32>()
+        && small_grid_observer::<f64>()
         && network_observer()
+        && protection_blocks::<f32>()
+        && protection_blocks::<Q32>()
+        && time_to_limit()
         && time_varying_filter()
         && kalman_observers::<f32>()
         && kalman_observers::<f64>()
@@ -288,13 +300,14 @@ fn checks() -> bool {
 
 /// On the Cortex-M0 (`thumbv6m-none-eabi`, no FPU) what a fixed-point
 /// firmware runs: the `Q32` grid observer and bare grid, the steppers,
-/// the bounds, the sensor decoders. The `f32` and `f64` observers in
-/// software floating point do not fit the microbit's 256 KiB of flash
-/// together, and are proven on the M4F build.
+/// the bounds, the alarm and limiter blocks, the sensor decoders. The
+/// `f32` and `f64` observers in software floating point do not fit the
+/// microbit's 256 KiB of flash together, and are proven on the M4F build.
 #[cfg(not(target_abi = "eabihf"))]
 fn checks() -> bool {
-    fixed_point_grid_observer()
+    small_grid_observer::<Q32>()
         && bare_grids::<Q32>()
+        && protection_blocks::<Q32>()
         && sensor_decoders()
         && steppers()
         && margins()
@@ -313,11 +326,13 @@ fn main() -> ! {
     }
 }
 
-/// The grid observer in `Q32` (the Cortex-M0's), 12 coils, hostile inputs.
+/// The grid observer in `S`, 12 coils, hostile inputs: `Q32` (the
+/// Cortex-M0's), and `f64` on the Cortex-M4F (the 84-coil `f32` one is in
+/// [`observers`]).
 #[inline(never)]
-fn fixed_point_grid_observer() -> bool {
-    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 12]).build::<Q32>();
-    let limiter = LimiterConfig::<Q32, 12>::new(black_box([6.0; 12]), 10.0, 0.0);
+fn small_grid_observer<S: Scalar>() -> bool {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 12]).build::<S>();
+    let limiter = LimiterConfig::<S, 12>::new(black_box([6.0; 12]), 10.0, 0.0);
     let config = GridConfig {
         ticks_per_update: black_box(10),
         ..GridConfig::default()
@@ -325,13 +340,13 @@ fn fixed_point_grid_observer() -> bool {
     let (Ok(alarm), Ok(limiter)) = (alarm, limiter) else {
         return false;
     };
-    let Ok(grid) = GridObserver::<Q32, 3, 4, 12>::new(&config, alarm, limiter, black_box(4)) else {
+    let Ok(grid) = GridObserver::<S, 3, 4, 12>::new(&config, alarm, limiter, black_box(4)) else {
         return false;
     };
     let mut state = grid.state(20.0);
     for k in 0..black_box(500u32) {
-        let current = Q32::from_f32(black_box(if k % 7 == 0 { 1e30 } else { 2.0 }));
-        let temp = Q32::from_f32(black_box(if k % 11 == 0 { f32::NAN } else { 20.0 }));
+        let current = S::from_f32(black_box(if k % 7 == 0 { 1e30 } else { 2.0 }));
+        let temp = S::from_f32(black_box(if k % 11 == 0 { f32::NAN } else { 20.0 }));
         let elapsed_us = black_box(if k % 13 == 0 { u32::MAX } else { 1000 });
         black_box(grid.tick(
             &mut state,
@@ -346,7 +361,94 @@ fn fixed_point_grid_observer() -> bool {
     true
 }
 
-/// The bare grid's `tick`, `accumulate` and `update` in `S`, hostile
+/// The protection's building blocks called directly, as a firmware that
+/// composes its own observer calls them: the alarm's `tick` and
+/// `tick_part`, the limiter's `apply`, `apply_part` and `clamp_a`, in `S`,
+/// with NaN, infinities and parts beyond the elements.
+#[inline(never)]
+fn protection_blocks<S: Scalar>() -> bool {
+    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 4]).build::<S>();
+    let limiter = LimiterConfig::<S, 4>::new(black_box([3.0; 4]), 10.0, 0.0);
+    let (Ok(alarm), Ok(limiter)) = (alarm, limiter) else {
+        return false;
+    };
+    let mut state = AlarmState::new(&alarm);
+    let mut events = EventQueue::<8>::new();
+    let mut limits = [CoilLimit::<S>::default(); 4];
+    for k in 0..black_box(100u32) {
+        let temp = S::from_f32(black_box(if k % 7 == 0 { f32::NAN } else { 160.0 }));
+        let ambient = S::from_f32(black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 }));
+        let temps = [
+            temp,
+            S::from_f32(-1e30),
+            S::from_f32(1e30),
+            S::from_f32(20.0),
+        ];
+        let time_to_limit_s = [Some(temp), None, Some(S::ZERO), Some(ambient)];
+        let range = black_box(k as usize % 6)..black_box(k as usize % 9);
+        black_box(state.tick(&alarm, &temps, ambient, &time_to_limit_s, &mut events));
+        black_box(state.tick_part(
+            &alarm,
+            &temps,
+            ambient,
+            &time_to_limit_s,
+            &mut events,
+            range.clone(),
+        ));
+        let alarm_limits_c = alarm.alarm_limits_c(ambient);
+        black_box(limiter.apply(&temps, &alarm_limits_c, ambient, &mut limits));
+        black_box(limiter.apply_part(&temps, &alarm_limits_c, ambient, &mut limits, range));
+        black_box(limits[k as usize % 4].clamp_a(temp));
+        while events.pop().is_some() {}
+    }
+    black_box(&limits);
+    true
+}
+
+/// A time-to-limit predictor the optimiser knows nothing about, for the
+/// same reason as [`omni_config`] (its build decomposes the network into
+/// modes with checked indices).
+#[inline(never)]
+fn limit_predictor() -> LimitPredictor<f32, 4, 1, 2> {
+    // SAFETY: every field (f32 arrays, usize, f64, the windings' usize and
+    // f32) has all-zero bits as a valid value. Hidden behind `black_box`.
+    black_box(unsafe { core::mem::zeroed() })
+}
+
+/// The time-to-limit predictor's `tick` (a sweep in slices) and `predict`
+/// (a full sweep), `f32`, hostile operating points.
+#[inline(never)]
+fn time_to_limit() -> bool {
+    let predictor = limit_predictor();
+    let operating = |k: u32| {
+        let temp = black_box(if k.is_multiple_of(7) { f32::NAN } else { 60.0 });
+        let current = black_box(if k.is_multiple_of(11) {
+            f32::INFINITY
+        } else {
+            3.0
+        });
+        Operating {
+            temps_c: [temp, 40.0, -1e30, 1e30],
+            currents_a: [current, -current],
+            boundary_c: [black_box(20.0)],
+            limits_c: [155.0, f32::INFINITY, black_box(f32::NAN), 100.0],
+        }
+    };
+    let mut state = PredictorState::new(&predictor, &operating(1));
+    let mut full = [None; 4];
+    for k in 0..black_box(100u32) {
+        let op = operating(k);
+        black_box(state.tick(&predictor, &op));
+        if k % 10 == 0 {
+            predictor.predict(&op, &mut full);
+        }
+    }
+    black_box(&full);
+    true
+}
+
+/// The bare grid's `tick`, `accumulate`, `update`, `tick_spread` and
+/// `ticks_spread` (catch-ups up to 40 ticks) in `S`, hostile
 /// currents and boundaries.
 #[inline(never)]
 fn bare_grids<S: Scalar>() -> bool {
@@ -358,6 +460,8 @@ fn bare_grids<S: Scalar>() -> bool {
         return false;
     };
     let mut state = GridState::<S, 7, 12>::uniform(20.0);
+    let mut spread = GridState::<S, 7, 12>::uniform(20.0);
+    let mut work = grid.update_work(&spread);
     for k in 0..black_box(100u32) {
         let current = S::from_f32(black_box(if k % 7 == 0 { f32::NAN } else { 2.0 }));
         let temp = S::from_f32(black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 }));
@@ -367,8 +471,12 @@ fn bare_grids<S: Scalar>() -> bool {
         if k % 5 == 0 {
             grid.update(&mut state);
         }
+        black_box(grid.tick_spread(&mut spread, &mut work, &currents, temp, temp));
+        let catch_up = black_box(if k % 17 == 0 { 40 } else { k % 4 });
+        black_box(grid.ticks_spread(&mut spread, &mut work, &currents, temp, temp, catch_up));
     }
     black_box(&state);
+    black_box(&spread);
     true
 }
 
