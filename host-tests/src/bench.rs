@@ -4,7 +4,8 @@
 //! clock) and reports the median over `repeats` runs of the mean time per
 //! step \[ns\]. Keys name the model, its size, the scalar type and the unit,
 //! e.g. `network_16_f32_ns` (library `ExplicitStepper`, a 16-node chain with a
-//! current input per node). Device models and the filter:
+//! current input per node; chains of 3, 16, 84 and 336 nodes). Device
+//! models and the filter:
 //!
 //! * `grid_84_{f32,f64,q32}_ns`: one 1 ms `CoilGrid::<S, 7, 12>::tick` of
 //!   the HPPA grid (FDM-fitted parameters, update every tick: the worst
@@ -636,6 +637,16 @@ pub fn run(min_time: Duration, repeats: usize) -> Vec<Timing> {
     scalar_steps("network", &chain::<3>(), 1e-3, min_time, repeats, &mut out);
     scalar_steps("network", &chain::<16>(), 1e-3, min_time, repeats, &mut out);
     scalar_steps("network", &chain::<84>(), 1e-3, min_time, repeats, &mut out);
+    // The size issue 20 measured the stepper's pair scan at (70-80 % of the
+    // budget before it stored the connected pairs only).
+    scalar_steps(
+        "network",
+        &chain::<336>(),
+        1e-3,
+        min_time,
+        repeats,
+        &mut out,
+    );
     let sol = SolenoidParams::HESE
         .network::<30>()
         .expect("HeSE defaults are valid");
