@@ -316,25 +316,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
                 prior_ht: rows(&gain.prior_ht),
                 innovation_cov: rows(&gain.innovation_cov),
             },
-            predictor: PredictorTables {
-                grid_s: predictor.grid_s,
-                decay: predictor.decay,
-                lambda_per_s: predictor.lambda_per_s,
-                v: predictor.v,
-                v_inv: predictor.v_inv,
-                gain_power: predictor.gain_power,
-                mode_gain_power: predictor.mode_gain_power,
-                gain_boundary: predictor.gain_boundary,
-                mode_gain_boundary: predictor.mode_gain_boundary,
-                offset_c: predictor.offset_c,
-                mode_offset: predictor.mode_offset,
-                winding_node: predictor.windings.map(|w| w.node),
-                winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
-                winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
-                tick_s: predictor.tick_s,
-                points_per_tick: predictor.points_per_tick,
-                slowest_time_constant_s: predictor.slowest_time_constant_s,
-            },
+            predictor: PredictorTables::of(&predictor),
             shadow: ShadowTables {
                 block_steps: timing.correction_period,
                 phi_minus_i: rows(&block.phi_minus_i),
@@ -650,6 +632,30 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
 }
 
 impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
+    /// The tables of `predictor`, the inverse of [`Self::predictor`] (the
+    /// per-tick element budget is a setting, not a table).
+    pub(crate) fn of(predictor: &LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>) -> Self {
+        Self {
+            grid_s: predictor.grid_s,
+            decay: predictor.decay,
+            lambda_per_s: predictor.lambda_per_s,
+            v: predictor.v,
+            v_inv: predictor.v_inv,
+            gain_power: predictor.gain_power,
+            mode_gain_power: predictor.mode_gain_power,
+            gain_boundary: predictor.gain_boundary,
+            mode_gain_boundary: predictor.mode_gain_boundary,
+            offset_c: predictor.offset_c,
+            mode_offset: predictor.mode_offset,
+            winding_node: predictor.windings.map(|w| w.node),
+            winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
+            winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
+            tick_s: predictor.tick_s,
+            points_per_tick: predictor.points_per_tick,
+            slowest_time_constant_s: predictor.slowest_time_constant_s,
+        }
+    }
+
     /// The predictor of these tables, evaluating `elements_per_tick`
     /// elements per tick (`usize::MAX`: all). Copies, no arithmetic and no
     /// checks (the callers check): a `const fn`, so the Omnimagnet's
