@@ -410,7 +410,10 @@ pub struct OmniSettings {
     /// "Model refresh" in the module docs). A sensor set that leaves a
     /// solenoid with at most one thermocouple needs it, at most
     /// [`MAX_MODEL_REFRESH_S`] ([`BuildError::ModelRefreshRequired`]).
-    /// Finite and `> 0`. Default `None`.
+    /// The watchdog counts installs, not changes: a task whose
+    /// [`Relinearizer`](crate::omnimagnet::Relinearizer) did not swap in a
+    /// period installs its active linearisation again (the estimate does
+    /// not move). Finite and `> 0`. Default `None`.
     pub model_refresh_s: Option<f64>,
 }
 

@@ -100,6 +100,16 @@ fn from_parts_refuses_what_new_refuses_and_the_fingerprint_covers_the_refresh() 
     // fingerprint is what it was before the setting existed (the refresh is
     // folded in only when declared), so it differs only by the refresh.
     assert_ne!(six.fingerprint(), declared.fingerprint());
+    let amb = AMBIENT_C as f32;
+    let mut bytes = [0u8; crate::observer::snapshot::snapshot_len(NODES)];
+    declared
+        .save(&declared.state(&[30.0; NODES], amb), 100, &mut bytes)
+        .unwrap();
+    assert!(declared.restore(&bytes, 100, 3600, amb).is_ok());
+    assert_eq!(
+        six.restore(&bytes, 100, 3600, amb).err(),
+        Some(crate::observer::snapshot::SnapshotError::ConfigMismatch)
+    );
     let mut parts = six.parts();
     assert_eq!(parts.model_stale_after_steps, u32::MAX);
     assert!(OmniObserver::from_parts(&parts).is_ok());
