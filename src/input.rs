@@ -54,6 +54,16 @@ impl InputFlags {
     /// device gets heat (or loses it) the model does not know. An alarm
     /// for the engineer; the estimate is left as it is.
     pub const HEAT_BIAS_BEYOND_MODEL: Self = Self(64);
+    /// The model refresh the configuration declares
+    /// ([`OmniSettings::model_refresh_s`](crate::observer::OmniSettings::model_refresh_s))
+    /// has not happened for
+    /// [`MODEL_STALE_PERIODS`](crate::observer::omnimagnet::MODEL_STALE_PERIODS)
+    /// refresh periods of model time: the background task that
+    /// re-linearises the model is dead or starved. Set on every tick until
+    /// the next `install_model`; meanwhile the protection acts on the hotter
+    /// of the estimate's and the unfused shadow's upper bounds, as for a
+    /// sensor in doubt.
+    pub const MODEL_STALE: Self = Self(128);
 
     /// `true` when no rule fired.
     #[inline]

@@ -3925,6 +3925,7 @@ pub const PARTS: OmniParts = coil_thermal::observer::omnimagnet::OmniParts {
     silent_after_us: 1000000,
     fingerprint: 3711699130,
     plant_fingerprint: 4022263892,
+    model_stale_after_steps: 4294967295,
 };
 
 /// The observer, assembled by the compiler (a bad table is a compile

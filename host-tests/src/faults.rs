@@ -26,7 +26,9 @@
 //!   tell from a sample not yet due: never flagged by the observer. Frozen
 //!   clock: [`InputFlags::CLOCK_FROZEN`] or the shutdown. Huge current:
 //!   [`InputFlags::CURRENT_CLAMPED`] / `CURRENT_NOT_FINITE`. A refused
-//!   snapshot is flagged at the restart (0 s) by the refusal itself;
+//!   snapshot is flagged at the restart (0 s) by the refusal itself. The
+//!   model refresh stopping (`refresh-stops`, run only with a refresh):
+//!   [`InputFlags::MODEL_STALE`];
 //! * **detectable** \[s\] after the onset, for the two faults that start
 //!   harmless: a *drift* from the first reading whose offset from the
 //!   truth exceeds the band the model's uncertainty allows at the truth
@@ -49,7 +51,16 @@
 //!   current: clamped to the input limit, the observer heats at it; a
 //!   refused snapshot: the conservative start is latched) is counted as a
 //!   **protective trip**, not a false one.
+//!
+//! A sensor set that leaves a solenoid with one thermocouple (`--sensors
+//! 0,2,4`) is accepted by the observer only with a declared model refresh
+//! (`OmniSettings::model_refresh_s`, issue 17): the campaign declares
+//! [`DEFAULT_REFRESH_S`] for it and re-linearises the model at the
+//! estimate at that period, as the firmware's background task does
+//! (`--relinearize-s` overrides it; `0` declares none, which such a set
+//! refuses at build).
 
+use coil_thermal::observer::omnimagnet::needs_model_refresh;
 use coil_thermal::observer::omnimagnet::ALARM_NODES;
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::{
@@ -81,6 +92,10 @@ pub const DRIFT_K_PER_S: f64 = -0.05;
 pub const JUMP_K: f64 = 50.0;
 /// The current a `huge-current` fault reports \[A\].
 pub const HUGE_CURRENT_A: f32 = 1e20;
+/// The model refresh the campaign declares, and runs, for an Omnimagnet
+/// sensor set that needs one (one thermocouple on a solenoid) \[s\]: the
+/// period docs/protection.md measured every goal at.
+pub const DEFAULT_REFRESH_S: f64 = 10.0;
 
 /// A fault class.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -120,11 +135,15 @@ pub enum FaultClass {
     /// Restart after the device was off (no current) for the off time,
     /// through `restore_after`.
     PowerOff,
+    /// The model refresh (the firmware's background task that
+    /// re-linearises the model) stops at the onset; run only with a
+    /// refresh.
+    RefreshStops,
 }
 
 impl FaultClass {
     /// Every class, in report order.
-    pub const ALL: [Self; 16] = [
+    pub const ALL: [Self; 17] = [
         Self::Open,
         Self::ShortGnd,
         Self::ShortVcc,
@@ -141,6 +160,7 @@ impl FaultClass {
         Self::CorruptSnapshot,
         Self::StaleSnapshot,
         Self::PowerOff,
+        Self::RefreshStops,
     ];
 
     /// The name on the command line and in the report.
@@ -162,6 +182,7 @@ impl FaultClass {
             Self::CorruptSnapshot => "corrupt-snapshot",
             Self::StaleSnapshot => "stale-snapshot",
             Self::PowerOff => "power-off",
+            Self::RefreshStops => "refresh-stops",
         }
     }
 
@@ -254,11 +275,15 @@ pub struct FaultConfig {
     pub off_s: f64,
     /// Oldest snapshot a restart accepts \[s\].
     pub max_snapshot_age_s: u32,
-    /// Re-linearise the observer's model at its estimate this often \[s\]
-    /// (`OmniObserver::prepare_model` and `install_model`, what a firmware's
-    /// background task does; 0: never, the build-time linearisation at the
-    /// ambient throughout).
-    pub relinearize_s: f64,
+    /// The Omnimagnet's model refresh \[s\]: declared to the observer
+    /// (`OmniSettings::model_refresh_s`) and run, the model re-linearised
+    /// at its estimate at this period (`OmniObserver::prepare_model` and
+    /// `install_model`, what a firmware's background task does). `None`:
+    /// [`DEFAULT_REFRESH_S`] for a sensor set that needs a refresh, none
+    /// otherwise; `Some(0.0)`: none (the build-time linearisation at the
+    /// ambient throughout), which a sensor set that needs one refuses at
+    /// build.
+    pub relinearize_s: Option<f64>,
 }
 
 impl Default for FaultConfig {
@@ -275,7 +300,7 @@ impl Default for FaultConfig {
             classes: Vec::new(),
             off_s: 600.0,
             max_snapshot_age_s: 3600,
-            relinearize_s: 0.0,
+            relinearize_s: None,
         }
     }
 }
@@ -440,6 +465,8 @@ pub struct FaultReport {
     pub sensors: Vec<usize>,
     /// Onsets \[s\].
     pub onsets_s: Vec<f64>,
+    /// The model refresh declared and run \[s\] (0: none).
+    pub relinearize_s: f64,
     /// The clean run.
     pub clean: RunScore,
     /// Every case.
@@ -522,6 +549,11 @@ pub trait Subject {
     fn state(&self, ambient_c: f32) -> Self::State;
     /// One tick.
     fn tick(&self, state: &mut Self::State, inputs: &TickInputs<'_>) -> TickView;
+    /// The model refresh the observer declares, which the campaign runs
+    /// \[s\] (default 0: none).
+    fn refresh_s(&self) -> f64 {
+        0.0
+    }
     /// Re-linearises the model at the estimate (default: nothing to do).
     fn relinearize(&self, _state: &mut Self::State, _temps_c: &[f32], _ambient_c: f64) {}
     /// The snapshot of `state` at `now_s` \[s\] (`None`: refused).
@@ -589,19 +621,29 @@ pub struct TickView {
 pub struct OmniSubject {
     observer: OmniObserver,
     settings: OmniSettings,
+    /// The declared model refresh \[s\] (0: none).
+    refresh_s: f64,
 }
 
 impl OmniSubject {
-    /// The observer of `cfg` (its sensors, step and reading period).
+    /// The observer of `cfg` (its sensors, step, reading period and model
+    /// refresh: see [`FaultConfig::relinearize_s`]).
     ///
     /// # Errors
-    /// Not six sensor flags, or an observer that does not build.
+    /// Not six sensor flags, or an observer that does not build (a sensor
+    /// set that needs a model refresh with `relinearize_s` 0 or above the
+    /// observer's bound: [`coil_thermal::BuildError::ModelRefreshRequired`]).
     pub fn new(cfg: &FaultConfig) -> Result<Self, FaultError> {
         let sensors: [bool; THERMOCOUPLES] = cfg.sensors.clone().try_into().map_err(|_| {
             FaultError::Invalid(format!("the Omnimagnet has {THERMOCOUPLES} thermocouples"))
         })?;
         let defaults = OmniSettings::default();
         let (flag, loss) = frozen_ticks(cfg.step_us);
+        let refresh_s = match cfg.relinearize_s {
+            None if needs_model_refresh(&sensors).is_some() => DEFAULT_REFRESH_S,
+            None => 0.0,
+            Some(r) => r,
+        };
         let settings = OmniSettings {
             step_us: cfg.step_us,
             filter: ObserverSettings {
@@ -611,6 +653,7 @@ impl OmniSubject {
             },
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
+            model_refresh_s: (refresh_s > 0.0).then_some(refresh_s),
             ..defaults
         };
         let observer = OmniObserver::new(
@@ -620,7 +663,11 @@ impl OmniSubject {
             &settings,
         )
         .map_err(FaultError::Build)?;
-        Ok(Self { observer, settings })
+        Ok(Self {
+            observer,
+            settings,
+            refresh_s,
+        })
     }
 }
 
@@ -680,6 +727,9 @@ impl Subject for OmniSubject {
             flags: out.flags,
             shutdown: out.alarm.shutdown,
         }
+    }
+    fn refresh_s(&self) -> f64 {
+        self.refresh_s
     }
     fn relinearize(&self, state: &mut OmniObserverState, temps_c: &[f32], ambient_c: f64) {
         let op_c: [f64; NODES] =
@@ -769,6 +819,7 @@ impl<'c, S: Subject> Harness<'c, S> {
                     || out.flags.contains(InputFlags::CURRENT_NOT_FINITE)
             }
             FaultClass::CorruptSnapshot | FaultClass::StaleSnapshot | FaultClass::PowerOff => false,
+            FaultClass::RefreshStops => out.flags.contains(InputFlags::MODEL_STALE),
             _ => match fault.sensor {
                 Some(j) => common || sensor_flag(j),
                 None => common || (0..out.sensors.len()).any(sensor_flag),
@@ -831,7 +882,7 @@ impl<'c, S: Subject> Harness<'c, S> {
         let score_from_s = fault.map_or(0.0, |f| f.onset_s);
         let every = u64::from(cfg.reading_every.max(1));
         let zero_a = vec![0.0; subject.inputs()];
-        let relin_every = (cfg.relinearize_s / self.dt_s).round() as u64;
+        let relin_every = (subject.refresh_s() / self.dt_s).round() as u64;
         let mut score = RunScore::default();
         let mut flag_s = None;
         let mut detectable_s = match fault.map(|f| f.class) {
@@ -935,7 +986,8 @@ impl<'c, S: Subject> Harness<'c, S> {
                 },
             };
             let out = subject.tick(&mut state, &inputs);
-            if relin_every > 0 && (k + 1) % relin_every == 0 {
+            let task_dead = faulty.is_some_and(|f| f.class == FaultClass::RefreshStops);
+            if relin_every > 0 && (k + 1) % relin_every == 0 && !task_dead {
                 subject.relinearize(&mut state, &out.temps_c, amb);
             }
             if let (Restart::Restore { at_s, .. }, None) = (restart, &saved) {
@@ -1043,7 +1095,10 @@ fn check(cfg: &FaultConfig) -> Result<(), FaultError> {
     if cfg.onsets_s.iter().any(|t| !(t.is_finite() && *t >= 0.0)) {
         return bad("--onset-s must be finite and >= 0");
     }
-    if !(cfg.relinearize_s.is_finite() && cfg.relinearize_s >= 0.0) {
+    if cfg
+        .relinearize_s
+        .is_some_and(|r| !(r.is_finite() && r >= 0.0))
+    {
         return bad("--relinearize-s must be finite and >= 0");
     }
     if !(cfg.off_s.is_finite() && cfg.off_s >= 0.0) {
@@ -1090,8 +1145,18 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
     } else {
         cfg.onsets_s.clone()
     };
+    let refresh_s = harness.subject.refresh_s();
     let classes = if cfg.classes.is_empty() {
-        FaultClass::ALL.to_vec()
+        // The refresh can stop only where there is one.
+        FaultClass::ALL
+            .into_iter()
+            .filter(|c| *c != FaultClass::RefreshStops || refresh_s > 0.0)
+            .collect()
+    } else if cfg.classes.contains(&FaultClass::RefreshStops) && refresh_s <= 0.0 {
+        return bad(
+            "--classes refresh-stops needs a model refresh (--relinearize-s S, the Omnimagnet only)"
+                .into(),
+        );
     } else {
         cfg.classes.clone()
     };
@@ -1175,6 +1240,7 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
         reading_period_s: reading_period_s(cfg),
         sensors,
         onsets_s,
+        relinearize_s: refresh_s,
         clean,
         cases,
         summary,
@@ -1370,6 +1436,10 @@ mod tests {
             },
             FaultConfig {
                 onsets_s: vec![f64::NAN],
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                relinearize_s: Some(f64::NAN),
                 ..FaultConfig::default()
             },
         ] {

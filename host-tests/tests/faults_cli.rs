@@ -403,3 +403,108 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
         .failure()
         .stderr(contains("[observer] sensors"));
 }
+
+/// One thermocouple per solenoid is accepted only with the model refresh
+/// (issue 17): the campaign declares and runs it by default (10 s), and
+/// `--relinearize-s 0` (no refresh) is refused at build, naming the
+/// solenoid and what to do.
+#[test]
+fn one_per_solenoid_needs_the_model_refresh() {
+    ct().args([
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--sensors",
+        "0,2,4",
+        "--relinearize-s",
+        "0",
+        "--classes",
+        "open",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("solenoid 0"))
+    .stderr(contains("model_refresh_s"))
+    .stderr(contains("--relinearize-s"));
+    // Slower than the observer's bound (30 s): refused too.
+    ct().args([
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--sensors",
+        "0,2,4",
+        "--relinearize-s",
+        "31",
+        "--classes",
+        "open",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("at most 30 s"));
+    // Six thermocouples need none, and get none by default.
+    let six = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--duration-s",
+        "100",
+        "--classes",
+        "open",
+        "--json",
+    ]);
+    assert_eq!(six["relinearize_s"], 0.0);
+    // Without the refresh an open sensor left its solenoid 3.7 K off at
+    // 7 A; with it, the model alone follows.
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--sensors",
+        "0,2,4",
+        "--duration-s",
+        "600",
+        "--classes",
+        "open,refresh-stops",
+        "--json",
+    ]);
+    assert_eq!(r["relinearize_s"], 10.0);
+    for c in cases(&r, "open") {
+        assert!(c["max_error_tc_k"].as_f64().unwrap() <= 2.0, "{c}");
+        assert!(c["max_error_hot_spot_k"].as_f64().unwrap() <= 2.0, "{c}");
+    }
+    // The background task dies at the onset: flagged `MODEL_STALE` once
+    // three periods (30 s) have passed since its last install, and the
+    // protection then errs hot (the shadow's bound): never later than the
+    // clean run, never lost.
+    let stops = cases(&r, "refresh-stops");
+    assert_eq!(stops.len(), 2);
+    for c in stops {
+        let flag = c["flag_s"].as_f64().expect("a dead refresh is flagged");
+        assert!((20.0..=30.5).contains(&flag), "{c}");
+        let delay = c["shutdown_delay_s"].as_f64().expect("shuts down");
+        assert!(delay <= 0.0, "{c}");
+        assert_eq!(c["lost_shutdown"], false, "{c}");
+        assert!(c["max_error_hot_spot_k"].as_f64().unwrap() <= 2.0, "{c}");
+    }
+    // No refresh, no such case.
+    ct().args([
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--classes",
+        "refresh-stops",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("needs a model refresh"));
+}

@@ -104,6 +104,25 @@
 //! state has no place for a residual; the time-varying filter it belongs to
 //! runs in `f64` where it matters.
 //!
+//! # No model refresh, no single-sensor rule
+//!
+//! The Omnimagnet observer refuses a sensor set that a single fault leaves
+//! a solenoid without a thermocouple unless the firmware re-linearises its
+//! model ([`OmniSettings::model_refresh_s`](super::OmniSettings::model_refresh_s)):
+//! its plant is nonlinear (conductances that move with temperature), and
+//! its build-time linearisation at the ambient is 3.7 K off a hot solenoid
+//! left to the model alone. Here the network *is* linear: its conductances
+//! and capacities are constants, and its one nonlinearity, `R(T)`, is taken
+//! at the estimated winding temperature every step. There is no operating
+//! point to go stale, so nothing to refresh and no such rule: a node left
+//! to the model alone is off by the model's parameter error, which the
+//! unmeasured margin ([`NetworkSettings::unmeasured_margin`]) and the doubt
+//! rule's shadow bound cover (`drive-3node` at 6 A, one housing
+//! thermocouple: every goal of the fault campaign met without a refresh,
+//! docs/protection.md). A sensor set that
+//! leaves a limited element unobservable is refused as ever
+//! ([`BuildError::Unobservable`]).
+//!
 //! # Sensors against the physics
 //!
 //! The filter explains a disagreement between its model and a

@@ -8,10 +8,13 @@ use clap::Args;
 use super::common::{self, ModelSpec, NOT_YET};
 use super::TraceArgs;
 use crate::devices::OmnimagnetPlant;
-use crate::faults::{self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultReport};
+use crate::faults::{
+    self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultError, FaultReport,
+};
 use crate::model_file::{Model, ModelFile};
 use crate::sim::{Drive, FilePlant, Plant};
 use coil_thermal::omnimagnet::THERMOCOUPLES;
+use coil_thermal::BuildError;
 
 /// `faults` arguments.
 #[derive(Debug, Args)]
@@ -70,7 +73,8 @@ pub struct FaultsArgs {
     /// Fault classes to run (default: all): open, short-gnd, short-vcc,
     /// stuck, drift, jump-up, jump-down, spikes, dropout, all-detached,
     /// all-stuck, frozen-clock, huge-current, corrupt-snapshot,
-    /// stale-snapshot, power-off.
+    /// stale-snapshot, power-off, refresh-stops (the model refresh's task
+    /// dies; by default run only with a refresh).
     #[arg(long, value_name = "CLASS[,CLASS...]", value_delimiter = ',')]
     classes: Vec<String>,
     /// Off time of the power-off restart [s].
@@ -85,17 +89,16 @@ pub struct FaultsArgs {
     /// long and a minute).
     #[arg(long, value_name = "S", default_value_t = 3600)]
     max_snapshot_age_s: u32,
-    /// Re-linearise the observer's model at its estimate every S seconds,
-    /// as a firmware's background task does (`OmniObserver::prepare_model`,
-    /// `install_model`); 0: never (the build-time linearisation at the
-    /// ambient).
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    relinearize_s: f64,
+    /// The Omnimagnet's model refresh [s]: declared to the observer
+    /// (`OmniSettings::model_refresh_s`, watched: `MODEL_STALE`) and run,
+    /// the model re-linearised at its estimate every S seconds as a
+    /// firmware's background task does (`OmniObserver::prepare_model`,
+    /// `install_model`). Default: 10 for a sensor set with one thermocouple
+    /// on a solenoid (e.g. `--sensors 0,2,4`, which the observer accepts
+    /// only with a refresh of at most 30 s), none otherwise; 0: none (the
+    /// build-time linearisation at the ambient).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    relinearize_s: Option<f64>,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -204,7 +207,14 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         ..cfg
     };
     let mut report = match &file_model {
-        None => faults::run(&cfg)?,
+        None => faults::run(&cfg).map_err(|e| match e {
+            FaultError::Build(BuildError::ModelRefreshRequired { .. }) => anyhow::anyhow!(
+                "faults --sensors {:?}: {e}; the campaign declares and runs the refresh with --relinearize-s S (default {} s for such a sensor set; 0 declares none)",
+                a.sensors,
+                faults::DEFAULT_REFRESH_S
+            ),
+            e => e.into(),
+        })?,
         Some((model, spec)) => {
             // The observer is built with the sensors in use only.
             let mut spec = spec.clone();
@@ -273,8 +283,13 @@ fn print_text(r: &FaultReport) {
         Some(path) => format!("the currents of {path}"),
         None => format!("{:?} A", r.currents_a),
     };
+    let refresh = if r.relinearize_s > 0.0 {
+        format!("model re-linearised every {} s", r.relinearize_s)
+    } else {
+        "no model refresh".into()
+    };
     println!(
-        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s",
+        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s, {refresh}",
         r.model, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
     );
     println!(

@@ -39,7 +39,7 @@ use core::fmt::{self, Write};
 
 use nalgebra::{ArrayStorage, SMatrix};
 
-use super::{OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
+use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
 use crate::error::BuildError;
 use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
 use crate::input::ScalarLimits;
@@ -205,6 +205,10 @@ pub struct OmniParts {
     pub fingerprint: u32,
     /// The fingerprint of the nonlinear model it was built from.
     pub plant_fingerprint: u32,
+    /// Model steps without an `install_model` after which the declared
+    /// model refresh is stale (`u32::MAX`: none declared; see
+    /// [`OmniSettings::model_refresh_s`](super::OmniSettings::model_refresh_s)).
+    pub model_stale_after_steps: u32,
 }
 
 fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
@@ -403,6 +407,7 @@ impl OmniObserver {
             silent_after_us: self.silent_after_us,
             fingerprint: self.fingerprint,
             plant_fingerprint: self.plant_fingerprint,
+            model_stale_after_steps: self.model_stale_after_steps,
         }
     }
 
@@ -421,7 +426,9 @@ impl OmniObserver {
     /// below four catch-ups of the clock or a phase beyond it
     /// (`protect_period_us`, `protect_phase_us`), a zero shadow block
     /// (`shadow_block_steps`), a NaN bias bound (`bias_offset_w`) or
-    /// input limit (`limits`), or a time-varying filter (`filter.settings`).
+    /// input limit (`limits`), or a time-varying filter (`filter.settings`);
+    /// [`BuildError::ModelRefreshRequired`] for a sensor set that needs a
+    /// model refresh the parts do not declare, as [`OmniObserver::new`].
     pub const fn from_parts(parts: &OmniParts) -> Result<Self, BuildError> {
         let f = &parts.filter;
         if !matches!(f.settings.mode, GainMode::SteadyState) || f.settings.warmup_corrections != 0 {
@@ -525,6 +532,13 @@ impl OmniObserver {
         }
         if parts.shadow_block_steps == 0 {
             return Err(invalid("shadow_block_steps"));
+        }
+        if let Err(e) = check_refresh(
+            &f.settings.sensors,
+            parts.model_stale_after_steps,
+            parts.step_us,
+        ) {
+            return Err(e);
         }
 
         let g = &f.gain;
@@ -635,6 +649,7 @@ impl OmniObserver {
                 window: parts.stuck_window,
             },
             silent_after_us: parts.silent_after_us,
+            model_stale_after_steps: parts.model_stale_after_steps,
         })
     }
 }
@@ -801,6 +816,7 @@ impl OmniParts {
             silent_after_us,
             fingerprint,
             plant_fingerprint,
+            model_stale_after_steps,
         } = self;
         let mut w = Fields::open(out, "observer::omnimagnet::OmniParts", 0)?;
         write_filter(&mut w, filter)?;
@@ -828,6 +844,7 @@ impl OmniParts {
         w.field("silent_after_us", silent_after_us)?;
         w.field("fingerprint", fingerprint)?;
         w.field("plant_fingerprint", plant_fingerprint)?;
+        w.field("model_stale_after_steps", model_stale_after_steps)?;
         w.close(true)
     }
 }
