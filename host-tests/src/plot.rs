@@ -399,6 +399,17 @@ impl Decimated {
     }
 }
 
+/// A thick polyline as separate two-point segments: drawn as one path,
+/// its miter joins spike far out of the chart at the sharp turns of a
+/// dense series (a decimated one turns at each bucket's lowest and
+/// highest sample); segments have no joins.
+fn segments(
+    points: Vec<(f64, f64)>,
+    style: ShapeStyle,
+) -> impl Iterator<Item = PathElement<(f64, f64)>> {
+    (1..points.len().max(1)).map(move |i| PathElement::new(vec![points[i - 1], points[i]], style))
+}
+
 fn range(series: &[&Series], extra: &[f64]) -> Option<(f64, f64, f64, f64)> {
     let mut r: Option<(f64, f64, f64, f64)> = None;
     for s in series {
@@ -613,7 +624,7 @@ where
     for (k, s) in data.estimated.iter().enumerate() {
         let c = color(s.color);
         let drawn = chart
-            .draw_series(LineSeries::new(points(s, MAX_POINTS), c.stroke_width(2)))
+            .draw_series(segments(points(s, MAX_POINTS), c.stroke_width(2)))
             .map_err(e)?;
         if k % label_every == 0 {
             drawn.label(&s.label).legend(move |(x, y)| {
@@ -742,7 +753,7 @@ where
         for s in &data.residuals {
             let c = darker(color(s.color));
             chart
-                .draw_series(LineSeries::new(points(s, MAX_POINTS), c.stroke_width(2)))
+                .draw_series(segments(points(s, MAX_POINTS), c.stroke_width(2)))
                 .map_err(e)?
                 .label(&s.label)
                 .legend(move |(x, y)| {
