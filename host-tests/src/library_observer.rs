@@ -234,7 +234,7 @@ pub struct ObserverEstimator {
     asked_s: f64,
     temps: Vec<f64>,
     effective: Vec<f64>,
-    tick_ns: Vec<u32>,
+    tick_ns: crate::observer::TimeHistogram,
     size_class: usize,
     sensors: Vec<usize>,
     /// Readings handed over, not yet seen by a tick.
@@ -345,7 +345,7 @@ impl ObserverEstimator {
             asked_s: 0.0,
             temps: vec![0.0; n],
             effective: Vec::new(),
-            tick_ns: Vec::new(),
+            tick_ns: crate::observer::TimeHistogram::default(),
             size_class: class,
             statuses: vec![SensorStatus::NoReading; sensors.len()],
             stats: sensors
@@ -420,7 +420,7 @@ impl Estimator for ObserverEstimator {
         let tick = u64::from(self.tick_us);
         while self.done_us + tick <= target_us {
             let ns = self.observer.tick(self.tick_us);
-            self.tick_ns.push(u32::try_from(ns).unwrap_or(u32::MAX));
+            self.tick_ns.record(ns);
             self.done_us += tick;
             if self.awaiting {
                 self.awaiting = false;
@@ -468,7 +468,7 @@ impl Estimator for ObserverEstimator {
         "network-observer"
     }
 
-    fn take_tick_times_ns(&mut self) -> Option<Vec<u32>> {
+    fn take_tick_times_ns(&mut self) -> Option<crate::observer::TimeHistogram> {
         Some(std::mem::take(&mut self.tick_ns))
     }
 }

@@ -29,7 +29,7 @@ use serde::Serialize;
 
 use crate::limits::{TimeToLimit, NO_LIMIT_C, SIZE_CLASSES};
 
-use crate::sim::{initial_temps, Drive, PlantInfo};
+use crate::sim::{InputRow, PlantInfo, RowSource};
 
 /// A measured temperature for one node at one row.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,10 +54,10 @@ pub trait Estimator {
     fn estimate_c(&self) -> &[f64];
     /// Short description for reports (e.g. `open-loop`).
     fn kind(&self) -> &'static str;
-    /// The host time of every library tick since the last call \[ns\],
+    /// The host times of the library ticks since the last call \[ns\],
     /// for an estimator that runs the library's observer tick by tick;
     /// `None` for one that steps once per trace row.
-    fn take_tick_times_ns(&mut self) -> Option<Vec<u32>> {
+    fn take_tick_times_ns(&mut self) -> Option<TimeHistogram> {
         None
     }
 }
@@ -241,7 +241,7 @@ struct Prediction {
     /// Each node's alarm limit of this row (`None`: not watched) \[degC\].
     limits_c: Vec<Option<f64>>,
     summary: TimeToLimitSummary,
-    sweep_ns: Vec<f64>,
+    sweep_ns: TimeHistogram,
 }
 
 /// What the time-to-limit prediction saw over a replay.
@@ -370,7 +370,7 @@ impl LibraryAlarm {
                 horizon_s,
                 ..Default::default()
             },
-            sweep_ns: Vec::new(),
+            sweep_ns: TimeHistogram::default(),
         });
         Ok(self)
     }
@@ -380,10 +380,9 @@ impl LibraryAlarm {
     pub fn time_to_limit(&self) -> Option<TimeToLimitSummary> {
         self.prediction.as_ref().map(|p| {
             let mut summary = p.summary.clone();
-            let mut ns = p.sweep_ns.clone();
-            ns.sort_by(f64::total_cmp);
-            summary.sweep_p50_ns = ns.get(ns.len() / 2).copied().unwrap_or(0.0);
-            summary.sweep_max_ns = ns.last().copied().unwrap_or(0.0);
+            let ns = &p.sweep_ns;
+            summary.sweep_p50_ns = ns.nth(ns.count() / 2).map_or(0.0, |v| v as f64);
+            summary.sweep_max_ns = ns.max().map_or(0.0, |v| v as f64);
             summary
         })
     }
@@ -409,7 +408,7 @@ impl LibraryAlarm {
         let ttl = p
             .predictor
             .predict(estimate_c, currents_a, boundary_c, signals, &p.limits_c);
-        p.sweep_ns.push(start.elapsed().as_nanos() as f64);
+        p.sweep_ns.record(start.elapsed().as_nanos());
         let s = &mut p.summary;
         let mut unknown = false;
         for ((out, &node), name) in self
@@ -543,31 +542,15 @@ pub struct Score {
 /// Scores an estimate `[node][row]` against a sensor, over the rows that
 /// have a reading (a `NaN` reading is missing and skipped).
 pub fn score(sensor: &Sensor, node_name: &str, estimate: &[Vec<f64>], time_s: &[f64]) -> Score {
-    let est = &estimate[sensor.node];
-    let mut sq = 0.0;
-    let mut n = 0usize;
-    let mut worst = (0.0f64, 0.0);
-    // A missing reading (`NaN`, an empty cell) is not scored.
-    for (k, (e, m)) in est.iter().zip(&sensor.values_c).enumerate() {
-        if m.is_nan() {
-            continue;
-        }
-        let err = e - m;
-        sq += err * err;
-        n += 1;
-        if err.abs() > worst.0 {
-            worst = (err.abs(), time_s[k]);
-        }
+    let mut sum = ScoreSum::default();
+    for ((e, m), t) in estimate[sensor.node]
+        .iter()
+        .zip(&sensor.values_c)
+        .zip(time_s)
+    {
+        sum.push(*t, *e, *m);
     }
-    let mse = sq / n.max(1) as f64;
-    Score {
-        column: sensor.column.clone(),
-        node: node_name.to_string(),
-        mse_k2: mse,
-        rmse_k: mse.sqrt(),
-        max_abs_error_k: worst.0,
-        max_error_time_s: worst.1,
-    }
+    sum.score(&sensor.column, node_name)
 }
 
 /// Per-step time statistics against a budget.
@@ -599,139 +582,232 @@ pub struct StepTimes {
 pub const STEP_BUDGET_NS: f64 = 100_000.0;
 
 impl StepTimes {
-    /// Percentiles of library ticks' times \[ns\] (sorted in place).
-    pub fn from_ticks(ticks_ns: &mut [u32]) -> Self {
-        ticks_ns.sort_unstable();
-        let pct = |p: f64| -> f64 {
-            if ticks_ns.is_empty() {
-                return 0.0;
-            }
-            let k = ((ticks_ns.len() - 1) as f64 * p).round() as usize;
-            f64::from(ticks_ns[k])
-        };
-        let p99 = pct(0.99);
-        Self {
-            step: "library tick",
-            steps: ticks_ns.len(),
-            min_ns: pct(0.0),
-            p50_ns: pct(0.5),
-            p90_ns: pct(0.9),
-            p99_ns: p99,
-            max_ns: pct(1.0),
-            budget_ns: STEP_BUDGET_NS,
-            p99_over_budget: p99 / STEP_BUDGET_NS,
-        }
+    /// Percentiles of library ticks' times \[ns\].
+    pub fn from_ticks(ticks_ns: &TimeHistogram) -> Self {
+        Self::from_histogram("library tick", ticks_ns)
     }
 
-    /// Percentiles of per-row times `samples_ns` (sorted in place).
-    pub fn from_samples(samples_ns: &mut [f64]) -> Self {
-        samples_ns.sort_by(f64::total_cmp);
+    /// Percentiles of per-row times \[ns\].
+    pub fn from_samples(samples_ns: &TimeHistogram) -> Self {
+        Self::from_histogram("trace row", samples_ns)
+    }
+
+    /// The element `round((n - 1) p)` of the sorted times, for `p` in
+    /// 0, 0.5, 0.9, 0.99 and 1 (the smallest and largest exact, the others
+    /// within [`TimeHistogram`]'s resolution).
+    fn from_histogram(step: &'static str, h: &TimeHistogram) -> Self {
+        let n = h.count();
         let pct = |p: f64| -> f64 {
-            if samples_ns.is_empty() {
+            if n == 0 {
                 return 0.0;
             }
-            let k = ((samples_ns.len() - 1) as f64 * p).round() as usize;
-            samples_ns[k]
+            let k = ((n - 1) as f64 * p).round() as u64;
+            h.nth(k).map_or(0.0, |v| v as f64)
         };
         let p99 = pct(0.99);
         Self {
-            step: "trace row",
-            steps: samples_ns.len(),
-            min_ns: pct(0.0),
+            step,
+            steps: n as usize,
+            min_ns: h.min().map_or(0.0, |v| v as f64),
             p50_ns: pct(0.5),
             p90_ns: pct(0.9),
             p99_ns: p99,
-            max_ns: samples_ns.last().copied().unwrap_or(0.0),
+            max_ns: h.max().map_or(0.0, |v| v as f64),
             budget_ns: STEP_BUDGET_NS,
             p99_over_budget: p99 / STEP_BUDGET_NS,
         }
     }
 }
 
-/// What a replay produced.
-#[derive(Debug, Clone)]
-pub struct ReplayResult {
-    /// Estimates `[node][row]` \[degC\].
-    pub estimate: Vec<Vec<f64>>,
-    /// Scores of the `--truth` sensors.
-    pub scores: Vec<Score>,
-    /// Alarm events, in order.
-    pub alarms: Vec<AlarmEvent>,
-    /// Timing of each library tick, or of predict + update per row.
-    pub times: StepTimes,
+/// Host times \[ns\] counted in memory that does not grow with their
+/// number: exact below 2048 ns, above in buckets of 1/1024 of their size
+/// (a percentile is its bucket's lowest time, within 0.1 %); the smallest
+/// and largest exact. Times beyond `u32::MAX` ns (4.3 s) count as that.
+#[derive(Debug, Clone, Default)]
+pub struct TimeHistogram {
+    counts: Vec<u64>,
+    n: u64,
+    min: Option<u64>,
+    max: Option<u64>,
 }
 
-/// Runs `estimator` and `protection` over `drive`, fusing `measured` and
-/// scoring `truth`. Row `k`: update with row `k`'s measurements, record,
-/// check, then predict over `[t_k, t_k+1)` with row `k`'s inputs.
+/// Sub-buckets per power of two above the exact range.
+const SUB_BITS: u32 = 10;
+
+impl TimeHistogram {
+    fn bucket(v: u64) -> usize {
+        if v < 2 << SUB_BITS {
+            v as usize
+        } else {
+            let e = 63 - v.leading_zeros() - SUB_BITS;
+            (((e + 1) << SUB_BITS) as u64 + (v >> e) - (1 << SUB_BITS)) as usize
+        }
+    }
+
+    fn lowest(b: usize) -> u64 {
+        if b < 2 << SUB_BITS {
+            b as u64
+        } else {
+            let e = (b >> SUB_BITS) - 1;
+            (((b & ((1 << SUB_BITS) - 1)) + (1 << SUB_BITS)) as u64) << e
+        }
+    }
+
+    /// Counts one time \[ns\].
+    pub fn record(&mut self, ns: impl TryInto<u32>) {
+        let v = u64::from(ns.try_into().unwrap_or(u32::MAX));
+        let b = Self::bucket(v);
+        if b >= self.counts.len() {
+            self.counts.resize(b + 1, 0);
+        }
+        self.counts[b] += 1;
+        self.n += 1;
+        self.min = Some(self.min.map_or(v, |m| m.min(v)));
+        self.max = Some(self.max.map_or(v, |m| m.max(v)));
+    }
+
+    /// How many times were counted.
+    pub fn count(&self) -> u64 {
+        self.n
+    }
+
+    /// The smallest time \[ns\].
+    pub fn min(&self) -> Option<u64> {
+        self.min
+    }
+
+    /// The largest time \[ns\].
+    pub fn max(&self) -> Option<u64> {
+        self.max
+    }
+
+    /// The `k`-th smallest time (0-based) \[ns\]: exact below 2048 ns,
+    /// else its bucket's lowest (the largest exact).
+    pub fn nth(&self, k: u64) -> Option<u64> {
+        if k + 1 >= self.n {
+            return self.max.filter(|_| k < self.n);
+        }
+        let mut below = 0;
+        for (b, c) in self.counts.iter().enumerate() {
+            below += c;
+            if below > k {
+                return Some(Self::lowest(b).max(self.min.unwrap_or(0)));
+            }
+        }
+        None
+    }
+}
+
+/// One row of a replay, as [`replay`] hands it on.
+pub struct ReplayRow<'a> {
+    /// The row's inputs (time, currents, boundaries, signals, readings).
+    pub row: &'a InputRow,
+    /// The estimate at the row, after its readings \[degC\].
+    pub estimate_c: &'a [f64],
+    /// The alarm events of the row, in order.
+    pub events: &'a [AlarmEvent],
+}
+
+/// Runs `estimator` and `protection` over the rows of `source`, from
+/// `init` \[degC\], fusing the readings `fused` (node, position in
+/// [`InputRow::extra`]) at rows up to `fuse_until_s` \[s\] (all rows
+/// without it); hands every row to `sink` and returns the step times. Row
+/// `k`: update with row `k`'s readings, check, hand on, then predict over
+/// `[t_k, t_k+1)` with row `k`'s inputs. Nothing is kept per row.
 pub fn replay(
     estimator: &mut dyn Estimator,
     protection: &mut dyn Protection,
-    drive: &Drive,
-    measured: &[Sensor],
-    truth: &[Sensor],
-) -> Result<ReplayResult> {
-    let info = estimator.info().clone();
-    // A sensor's first reading sets its node's start (with the `measured`
-    // policy); one whose first rows are missing starts from its first
-    // reading.
-    let first: Vec<(usize, f64)> = measured
-        .iter()
-        .chain(truth)
-        .filter_map(|s| {
-            let v = s.values_c.iter().copied().find(|v| !v.is_nan())?;
-            Some((s.node, v))
-        })
-        .collect();
-    estimator.reset(&initial_temps(&info, drive, &first)?);
-    let rows = drive.len();
-    let mut estimate = vec![Vec::with_capacity(rows); info.nodes.len()];
-    let mut alarms = Vec::new();
-    let mut samples = Vec::with_capacity(rows);
-    let (mut c, mut b, mut s) = (Vec::new(), Vec::new(), Vec::new());
-    let mut meas = Vec::with_capacity(measured.len());
-    for k in 0..rows {
+    init: &[f64],
+    source: &mut dyn RowSource,
+    fused: &[(usize, usize)],
+    fuse_until_s: Option<f64>,
+    sink: &mut dyn FnMut(&ReplayRow) -> Result<()>,
+) -> Result<StepTimes> {
+    estimator.reset(init);
+    let mut samples = TimeHistogram::default();
+    let mut events = Vec::new();
+    let mut meas = Vec::with_capacity(fused.len());
+    let mut current = source.next_row()?;
+    while let Some(row) = current {
+        let after = fuse_until_s.is_some_and(|until| row.time_s > until);
         meas.clear();
-        meas.extend(measured.iter().map(|m| Measurement {
-            node: m.node,
-            value_c: m.values_c[k],
+        meas.extend(fused.iter().map(|(node, j)| Measurement {
+            node: *node,
+            value_c: if after { f64::NAN } else { row.extra[*j] },
         }));
         let start = Instant::now();
         estimator.update(&meas);
         let mut elapsed = start.elapsed();
-        for (series, t) in estimate.iter_mut().zip(estimator.estimate_c()) {
-            series.push(*t);
-        }
-        drive.row(k, &mut c, &mut b, &mut s);
+        events.clear();
         protection.check(
-            drive.time_s[k],
+            row.time_s,
             estimator.estimate_c(),
-            &c,
-            &b,
-            &s,
-            &mut alarms,
+            &row.currents,
+            &row.boundaries,
+            &row.signals,
+            &mut events,
         );
-        if k + 1 < rows {
+        sink(&ReplayRow {
+            row: &row,
+            estimate_c: estimator.estimate_c(),
+            events: &events,
+        })?;
+        let next = source.next_row()?;
+        if let Some(next) = &next {
             let start = Instant::now();
-            estimator.predict(drive.time_s[k + 1] - drive.time_s[k], &c, &b, &s);
+            estimator.predict(
+                next.time_s - row.time_s,
+                &row.currents,
+                &row.boundaries,
+                &row.signals,
+            );
             elapsed += start.elapsed();
         }
-        samples.push(elapsed.as_nanos() as f64);
+        samples.record(elapsed.as_nanos());
+        current = next;
     }
-    let scores = truth
-        .iter()
-        .map(|t| score(t, &info.nodes[t.node], &estimate, &drive.time_s))
-        .collect();
-    let times = match estimator.take_tick_times_ns() {
-        Some(mut ticks) => StepTimes::from_ticks(&mut ticks),
-        None => StepTimes::from_samples(&mut samples),
-    };
-    Ok(ReplayResult {
-        estimate,
-        scores,
-        alarms,
-        times,
+    Ok(match estimator.take_tick_times_ns() {
+        Some(ticks) => StepTimes::from_ticks(&ticks),
+        None => StepTimes::from_samples(&samples),
     })
+}
+
+/// A `--truth` sensor's score, accumulated row by row (what [`score`]
+/// computes over a whole series, in the same order).
+#[derive(Debug, Clone, Default)]
+pub struct ScoreSum {
+    sq: f64,
+    n: usize,
+    worst: (f64, f64),
+}
+
+impl ScoreSum {
+    /// Adds a row at `time_s` \[s\]: estimate and reading \[degC\] (a
+    /// `NaN` reading is missing and skipped).
+    pub fn push(&mut self, time_s: f64, estimate_c: f64, reading_c: f64) {
+        if reading_c.is_nan() {
+            return;
+        }
+        let err = estimate_c - reading_c;
+        self.sq += err * err;
+        self.n += 1;
+        if err.abs() > self.worst.0 {
+            self.worst = (err.abs(), time_s);
+        }
+    }
+
+    /// The score of column `column` on node `node`.
+    pub fn score(&self, column: &str, node: &str) -> Score {
+        let mse = self.sq / self.n.max(1) as f64;
+        Score {
+            column: column.to_string(),
+            node: node.to_string(),
+            mse_k2: mse,
+            rmse_k: mse.sqrt(),
+            max_abs_error_k: self.worst.0,
+            max_error_time_s: self.worst.1,
+        }
+    }
 }
 
 #[cfg(test)]

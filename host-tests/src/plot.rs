@@ -199,19 +199,215 @@ impl PlotData {
 }
 
 /// Most points drawn per series (longer series are decimated).
-const MAX_POINTS: usize = 4000;
+pub const MAX_POINTS: usize = 4000;
 /// Most markers drawn per fused sensor.
 const MAX_MARKERS: usize = 150;
 
+/// The largest magnitude a plotted temperature or current may have; beyond
+/// it the axes cannot be laid out (and no thermal model reads that).
+pub const MAX_PLOT_MAGNITUDE: f64 = 1e9;
+
 fn points(s: &Series, most: usize) -> Vec<(f64, f64)> {
-    let stride = s.time_s.len().div_ceil(most).max(1);
-    s.time_s
+    let finite = s
+        .time_s
         .iter()
         .zip(&s.values)
-        .step_by(stride)
         .filter(|(t, v)| t.is_finite() && v.is_finite())
-        .map(|(t, v)| (*t, *v))
-        .collect()
+        .map(|(t, v)| (*t, *v));
+    if s.time_s.len() <= most {
+        return finite.collect();
+    }
+    let mut d = Decimated::with_buckets(most / 4);
+    finite.for_each(|(t, v)| d.push(t, v));
+    d.points().into_iter().map(|p| (p.t, p.v)).collect()
+}
+
+/// One sample of a [`Decimated`] series: its index, time \[s\] and value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Point {
+    k: usize,
+    t: f64,
+    v: f64,
+}
+
+/// The samples a bucket keeps: its first, lowest, highest and last.
+#[derive(Debug, Clone, Copy)]
+struct Bucket {
+    first: Point,
+    min: Point,
+    max: Point,
+    last: Point,
+    samples: usize,
+}
+
+impl Bucket {
+    fn new(p: Point) -> Self {
+        Self {
+            first: p,
+            min: p,
+            max: p,
+            last: p,
+            samples: 1,
+        }
+    }
+
+    fn take(&mut self, p: Point) {
+        if p.v < self.min.v {
+            self.min = p;
+        }
+        if p.v > self.max.v {
+            self.max = p;
+        }
+        self.last = p;
+        self.samples += 1;
+    }
+
+    fn merged(self, later: Bucket) -> Self {
+        Self {
+            first: self.first,
+            min: if later.min.v < self.min.v {
+                later.min
+            } else {
+                self.min
+            },
+            max: if later.max.v > self.max.v {
+                later.max
+            } else {
+                self.max
+            },
+            last: later.last,
+            samples: self.samples + later.samples,
+        }
+    }
+}
+
+/// A series reduced as it comes, in memory that does not grow with it:
+/// consecutive samples share a bucket that keeps its first, lowest,
+/// highest and last sample, so no peak is lost from a figure; when the
+/// buckets fill, neighbours merge and each bucket takes twice the samples.
+/// A series of at most the bucket count is kept whole. The first sample
+/// beyond +-[`MAX_PLOT_MAGNITUDE`] is kept too, for the refusal that names
+/// it. `NaN` values (missing readings) are skipped.
+#[derive(Debug, Clone)]
+pub struct Decimated {
+    buckets: Vec<Bucket>,
+    current: Option<Bucket>,
+    /// Samples per bucket.
+    per: usize,
+    most: usize,
+    seen: usize,
+    beyond: Option<Point>,
+}
+
+impl Default for Decimated {
+    /// At most [`MAX_POINTS`] points: drawn as they are.
+    fn default() -> Self {
+        // 4 points a bucket, the partial bucket and the first sample
+        // beyond the plottable range included.
+        Self::with_buckets((MAX_POINTS - 5) / 4 / 2 * 2)
+    }
+}
+
+impl Decimated {
+    /// A series of at most `buckets` buckets (4 points each).
+    pub fn with_buckets(buckets: usize) -> Self {
+        Self {
+            buckets: Vec::new(),
+            current: None,
+            per: 1,
+            most: buckets.max(2) / 2 * 2,
+            seen: 0,
+            beyond: None,
+        }
+    }
+
+    /// Adds a sample at `t` \[s\] (`NaN` values are skipped).
+    pub fn push(&mut self, t: f64, v: f64) {
+        if v.is_nan() {
+            return;
+        }
+        let p = Point { k: self.seen, t, v };
+        self.seen += 1;
+        if self.beyond.is_none() && (v.is_infinite() || v.abs() > MAX_PLOT_MAGNITUDE) {
+            self.beyond = Some(p);
+        }
+        match self.current.as_mut() {
+            Some(b) if b.samples < self.per => b.take(p),
+            _ => {
+                if let Some(full) = self.current.take() {
+                    self.buckets.push(full);
+                }
+                if self.buckets.len() >= self.most {
+                    let pairs: Vec<Bucket> = self
+                        .buckets
+                        .chunks(2)
+                        .map(|c| {
+                            if c.len() == 2 {
+                                c[0].merged(c[1])
+                            } else {
+                                c[0]
+                            }
+                        })
+                        .collect();
+                    self.buckets = pairs;
+                    self.per *= 2;
+                }
+                self.current = Some(Bucket::new(p));
+            }
+        }
+    }
+
+    /// The kept samples in order.
+    fn points(&self) -> Vec<Point> {
+        let mut out: Vec<Point> = Vec::new();
+        for b in self.buckets.iter().chain(&self.current) {
+            let mut four = [b.first, b.min, b.max, b.last];
+            four.sort_by_key(|p| p.k);
+            for p in four {
+                if out.last().is_none_or(|l| l.k < p.k) {
+                    out.push(p);
+                }
+            }
+        }
+        if let Some(p) = self.beyond {
+            let at = out.partition_point(|q| q.k < p.k);
+            if out.get(at).is_none_or(|q| q.k != p.k) {
+                out.insert(at, p);
+            }
+        }
+        out
+    }
+
+    /// The series to draw.
+    pub fn series(&self, label: String, color: usize) -> Series {
+        let (time_s, values) = self.points().into_iter().map(|p| (p.t, p.v)).unzip();
+        Series {
+            label,
+            time_s,
+            values,
+            color,
+        }
+    }
+
+    /// The largest value pushed (`f64::MIN` before any).
+    pub fn max(&self) -> f64 {
+        self.buckets
+            .iter()
+            .chain(&self.current)
+            .map(|b| b.max.v)
+            .fold(f64::MIN, f64::max)
+    }
+}
+
+/// A thick polyline as separate two-point segments: drawn as one path,
+/// its miter joins spike far out of the chart at the sharp turns of a
+/// dense series (a decimated one turns at each bucket's lowest and
+/// highest sample); segments have no joins.
+fn segments(
+    points: Vec<(f64, f64)>,
+    style: ShapeStyle,
+) -> impl Iterator<Item = PathElement<(f64, f64)>> {
+    (1..points.len().max(1)).map(move |i| PathElement::new(vec![points[i - 1], points[i]], style))
 }
 
 fn range(series: &[&Series], extra: &[f64]) -> Option<(f64, f64, f64, f64)> {
@@ -428,7 +624,7 @@ where
     for (k, s) in data.estimated.iter().enumerate() {
         let c = color(s.color);
         let drawn = chart
-            .draw_series(LineSeries::new(points(s, MAX_POINTS), c.stroke_width(2)))
+            .draw_series(segments(points(s, MAX_POINTS), c.stroke_width(2)))
             .map_err(e)?;
         if k % label_every == 0 {
             drawn.label(&s.label).legend(move |(x, y)| {
@@ -557,7 +753,7 @@ where
         for s in &data.residuals {
             let c = darker(color(s.color));
             chart
-                .draw_series(LineSeries::new(points(s, MAX_POINTS), c.stroke_width(2)))
+                .draw_series(segments(points(s, MAX_POINTS), c.stroke_width(2)))
                 .map_err(e)?
                 .label(&s.label)
                 .legend(move |(x, y)| {
@@ -644,6 +840,46 @@ pub fn render_svg(data: &PlotData, width: u32, height: u32) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A decimated series keeps a short one whole, and of a long one at
+    /// most MAX_POINTS points with every peak and dip, in time order.
+    #[test]
+    fn decimation_keeps_the_peaks_in_bounded_points() {
+        let mut short = Decimated::default();
+        for k in 0..500 {
+            short.push(k as f64, (k % 7) as f64);
+        }
+        let s = short.series("s".into(), 0);
+        assert_eq!(
+            s.values,
+            (0..500).map(|k| (k % 7) as f64).collect::<Vec<_>>()
+        );
+        let mut long = Decimated::default();
+        let n = 2_000_003usize;
+        for k in 0..n {
+            let v = match k {
+                1_234_567 => 99.0,
+                777 => -5.0,
+                1_500_000 => 2e9,
+                _ if k % 3 == 0 => f64::NAN,
+                _ => (k as f64 * 1e-3).sin(),
+            };
+            long.push(k as f64, v);
+        }
+        let s = long.series("l".into(), 0);
+        let n_points = s.time_s.len();
+        assert!(
+            n_points <= MAX_POINTS && n_points > MAX_POINTS / 4,
+            "{n_points}"
+        );
+        assert!(s.time_s.windows(2).all(|w| w[0] < w[1]));
+        for (t, v) in [(1_234_567.0, 99.0), (777.0, -5.0), (1_500_000.0, 2e9)] {
+            assert!(s.time_s.iter().zip(&s.values).any(|p| p == (&t, &v)), "{t}");
+        }
+        assert_eq!(s.time_s[0], 1.0);
+        assert_eq!(*s.time_s.last().unwrap(), (n - 1) as f64);
+        assert_eq!(long.max(), 2e9);
+    }
 
     fn series(label: &str, color: usize, f: impl Fn(f64) -> f64) -> Series {
         let time_s: Vec<f64> = (0..=600).map(f64::from).collect();

@@ -15,6 +15,9 @@ use crate::limits::{class_of, padded_with, Padding, SIZE_CLASSES};
 use crate::model_file::{InitialPolicy, InitialSpec, InputHold, Model};
 use crate::trace::{num, ColumnExpr, Trace};
 
+mod stream;
+pub use stream::{DriveRows, InputRow, RowSource, TraceDrive, TraceRows};
+
 /// One named input channel of a plant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Channel {
@@ -339,29 +342,56 @@ impl Plant for FilePlant {
 /// model steps over `time_s` \[s\] (a stiff model, a huge row gap or a
 /// very long span), before it starts, naming what to change.
 pub fn check_work(plant: &dyn Plant, time_s: &[f64], what: &str) -> Result<()> {
-    let mut total = 0.0;
-    let mut widest = (0.0, 0.0);
-    for w in time_s.windows(2) {
-        let dt = w[1] - w[0];
-        total += plant.steps_for(dt);
-        if dt > widest.0 {
-            widest = (dt, w[0]);
+    let mut work = Work::default();
+    for t in time_s {
+        work.push(plant, *t);
+    }
+    work.check(plant, what)
+}
+
+/// The internal model steps of a run, counted row by row (for
+/// [`check_work`] over rows that are not held).
+#[derive(Debug, Clone, Default)]
+pub struct Work {
+    total: f64,
+    /// The widest gap \[s\] and the time it starts at \[s\].
+    widest: (f64, f64),
+    first_s: Option<f64>,
+    last_s: Option<f64>,
+}
+
+impl Work {
+    /// Counts the interval up to the row at `time_s` \[s\].
+    pub fn push(&mut self, plant: &dyn Plant, time_s: f64) {
+        if let Some(prev) = self.last_s {
+            let dt = time_s - prev;
+            self.total += plant.steps_for(dt);
+            if dt > self.widest.0 {
+                self.widest = (dt, prev);
+            }
         }
+        self.first_s.get_or_insert(time_s);
+        self.last_s = Some(time_s);
     }
-    if total > MAX_MODEL_STEPS || !total.is_finite() {
-        let per_s = plant.steps_for(1e6) / 1e6;
-        bail!(
-            "{what}: the run needs {total:.3e} internal steps of model `{}`, at most {MAX_MODEL_STEPS:.0e}: \
-             its stable step is {:.3e} s (a tiny capacity_j_per_k or a huge g_w_per_k makes it stiff: check the model for a typo) \
-             and the rows span {:.3e} s (widest gap {:.3e} s after t = {} s)",
-            plant.info().name,
-            1.0 / per_s,
-            time_s.last().unwrap_or(&0.0) - time_s.first().unwrap_or(&0.0),
-            widest.0,
-            num(widest.1)
-        );
+
+    /// Refuses more than [`MAX_MODEL_STEPS`] (see [`check_work`]).
+    pub fn check(&self, plant: &dyn Plant, what: &str) -> Result<()> {
+        let total = self.total;
+        if total > MAX_MODEL_STEPS || !total.is_finite() {
+            let per_s = plant.steps_for(1e6) / 1e6;
+            bail!(
+                "{what}: the run needs {total:.3e} internal steps of model `{}`, at most {MAX_MODEL_STEPS:.0e}: \
+                 its stable step is {:.3e} s (a tiny capacity_j_per_k or a huge g_w_per_k makes it stiff: check the model for a typo) \
+                 and the rows span {:.3e} s (widest gap {:.3e} s after t = {} s)",
+                plant.info().name,
+                1.0 / per_s,
+                self.last_s.unwrap_or(0.0) - self.first_s.unwrap_or(0.0),
+                self.widest.0,
+                num(self.widest.1)
+            );
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 /// Temperatures beyond this are a runaway, not a result \[degC\] (copper
@@ -391,7 +421,35 @@ pub fn check_temperatures(
     let Some((node, k, v)) = first else {
         return Ok(());
     };
-    bail!(
+    Err(runaway(
+        info,
+        node,
+        v,
+        time_s.get(k).copied().unwrap_or(f64::NAN),
+        what,
+    ))
+}
+
+/// Refuses one row's temperatures `temps_c` \[degC\] at `time_s` \[s\]
+/// as [`check_temperatures`] does (its first bad node), for a run checked
+/// row by row.
+pub fn check_row_temperatures(
+    info: &PlantInfo,
+    time_s: f64,
+    temps_c: &[f64],
+    what: &str,
+) -> Result<()> {
+    match temps_c
+        .iter()
+        .position(|v| !(v.is_finite() && *v > -273.15 && *v < RUNAWAY_C))
+    {
+        Some(node) => Err(runaway(info, node, temps_c[node], time_s, what)),
+        None => Ok(()),
+    }
+}
+
+fn runaway(info: &PlantInfo, node: usize, v: f64, time_s: f64, what: &str) -> anyhow::Error {
+    anyhow!(
         "{what}: model `{}` ran away: node `{}` is {} degC at t = {} s (outside -273.15 .. {RUNAWAY_C} degC). \
          The heating outgrows the cooling: a current beyond the model's range, or a resistance temperature \
          coefficient (alpha_per_k, slope_ohm_per_k) that makes the power grow faster than the losses \
@@ -399,8 +457,8 @@ pub fn check_temperatures(
         info.name,
         info.nodes[node],
         num(v),
-        num(time_s.get(k).copied().unwrap_or(f64::NAN))
-    );
+        num(time_s)
+    )
 }
 
 /// The most output rows a run writes (constant currents, resampling).
@@ -659,10 +717,21 @@ pub fn initial_temps(
     drive: &Drive,
     measured: &[(usize, f64)],
 ) -> Result<Vec<f64>> {
-    let boundary_mean = if drive.boundaries.is_empty() {
+    let first: Vec<f64> = drive.boundaries.iter().map(|b| b[0]).collect();
+    initial_temps_at(info, &first, measured)
+}
+
+/// [`initial_temps`] from the first row's boundary temperatures
+/// `boundaries_c` \[degC\].
+pub fn initial_temps_at(
+    info: &PlantInfo,
+    boundaries_c: &[f64],
+    measured: &[(usize, f64)],
+) -> Result<Vec<f64>> {
+    let boundary_mean = if boundaries_c.is_empty() {
         None
     } else {
-        Some(drive.boundaries.iter().map(|b| b[0]).sum::<f64>() / drive.boundaries.len() as f64)
+        Some(boundaries_c.iter().sum::<f64>() / boundaries_c.len() as f64)
     };
     let fallback = || {
         boundary_mean

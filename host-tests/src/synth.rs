@@ -29,6 +29,15 @@ impl Rng {
         ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
+    /// The generator after `n` more [`Self::normal`] draws (two 64-bit
+    /// draws each), without drawing them.
+    pub fn skipping_normals(mut self, n: u64) -> Self {
+        self.0 = self
+            .0
+            .wrapping_add(n.wrapping_mul(2).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        self
+    }
+
     /// Standard normal.
     pub fn normal(&mut self) -> f64 {
         let (u1, u2) = (self.uniform(), self.uniform());

@@ -18,28 +18,37 @@
 //! Lines starting with `#` are comments (the committed HPPA traces describe
 //! themselves that way); line numbers in errors count them.
 //!
-//! # Bounds
+//! # Streams and bounds
 //!
-//! The file is read row by row through one reused record, and each cell is
-//! held as its `f64` (8 bytes; an empty, `NaN` or text cell as a marked
-//! `NaN`, with the text of each column's first one kept for the error), so a
-//! trace takes about 8 bytes per cell plus 8 per row, roughly its file size
-//! for numbers of 6 to 8 characters instead of about six times it as text
-//! records. Files over [`MAX_TRACE_BYTES`] are refused before reading, with
-//! what to do instead; a trace spanning more than [`MAX_SPAN_S`] is refused
-//! too (a time typo such as `1e300` would otherwise ask for astronomically
-//! many model steps).
+//! `replay`, `simulate --trace` and `plot` stream a trace ([`TraceFile`]:
+//! a checking scan, then passes over the rows through one reused record,
+//! column expressions evaluated row by row by an [`Evaluator`]), in memory
+//! that does not grow with its length, and write results row by row
+//! ([`CsvOut`]). A trace spanning more than [`MAX_SPAN_S`] is refused (a
+//! time typo such as `1e300` would otherwise ask for astronomically many
+//! model steps).
+//!
+//! `calibrate` and `faults` hold a whole [`Trace`]: read row by row, each
+//! cell held as its `f64` (8 bytes; an empty, `NaN` or text cell as a marked
+//! `NaN`, with the text of each column's first one kept for the error), so
+//! a trace takes about 8 bytes per cell plus 8 per row, roughly its file
+//! size for numbers of 6 to 8 characters. Files over [`MAX_TRACE_BYTES`] are
+//! refused there before reading, with what to do instead.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
 
+mod stream;
+pub use stream::{CsvOut, Evaluator, GapMedian, Row, Rows, TraceFile};
+
 /// The name of the time column \[s\].
 pub const TIME_COLUMN: &str = "time_s";
 
-/// The largest trace file read \[bytes\] (1 GiB; held as 8 bytes per cell,
-/// about its own size in memory for typical cells).
+/// The largest trace file held whole by [`Trace::read_with`] \[bytes\]
+/// (1 GiB; held as 8 bytes per cell, about its own size in memory for
+/// typical cells). Streamed traces ([`TraceFile`]) have no such bound.
 pub const MAX_TRACE_BYTES: u64 = 1 << 30;
 
 /// A cell that is empty.
@@ -105,7 +114,8 @@ impl fmt::Display for Located {
     }
 }
 
-/// A CSV trace, its cells held as numbers until a column is asked for.
+/// A CSV trace held whole, its cells as numbers until a column is asked
+/// for (for runs that iterate over it; [`TraceFile`] streams it).
 #[derive(Debug, Clone)]
 pub struct Trace {
     path: PathBuf,
@@ -245,6 +255,20 @@ impl ColumnExpr {
         }
     }
 
+    /// A constant's value, or a step profile's at `time_s` \[s\] (the
+    /// step in force, the first one before it: what [`Self::at_times`]
+    /// gives, one time at a time); `NaN` for a column expression.
+    pub fn value_at(&self, time_s: f64) -> f64 {
+        match self {
+            Self::Constant(v) => *v,
+            Self::Steps(steps) => {
+                let k = steps.partition_point(|s| s.0 <= time_s).saturating_sub(1);
+                steps[k].1
+            }
+            _ => f64::NAN,
+        }
+    }
+
     /// The columns the expression reads.
     pub fn columns(&self) -> Vec<&str> {
         match self {
@@ -301,13 +325,8 @@ impl Trace {
             col,
             msg,
         };
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .flexible(false)
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .from_path(path)
-            .map_err(|e| at(1, None, format!("cannot open trace: {e}")))?;
+        let mut reader =
+            open_csv(path).map_err(|e| at(1, None, format!("cannot open trace: {e}")))?;
         if let Ok(meta) = std::fs::metadata(path) {
             if meta.len() > MAX_TRACE_BYTES {
                 return Err(at(
@@ -322,70 +341,36 @@ impl Trace {
                 ));
             }
         }
-        let headers: Vec<String> = reader
-            .headers()
-            .map_err(|e| at(1, None, format!("cannot read the header row: {e}")))?
-            .iter()
-            .map(str::to_string)
-            .collect();
-        for (i, h) in headers.iter().enumerate() {
-            if h.is_empty() {
-                return Err(at(1, Some(i + 1), "empty column name in the header".into()));
-            }
-            if headers[..i].contains(h) {
-                return Err(at(1, Some(i + 1), format!("duplicate column `{h}`")));
-            }
-        }
+        let headers = read_headers(&mut reader, &at)?;
         let mut cells = Vec::new();
         let mut first = vec![FirstText::default(); headers.len()];
         let mut lines = Vec::new();
         let mut non_numeric: Vec<Option<Located>> = vec![None; headers.len()];
         let mut record = csv::StringRecord::new();
         loop {
-            let more = reader.read_record(&mut record).map_err(|e| {
-                let line = e.position().map_or(0, |p| p.line());
-                let msg = match e.kind() {
-                    csv::ErrorKind::UnequalLengths {
-                        expected_len, len, ..
-                    } => format!("row has {len} fields, the header has {expected_len}"),
-                    _ => format!("malformed CSV: {e}"),
-                };
-                at(line, None, msg)
-            })?;
+            let more = reader
+                .read_record(&mut record)
+                .map_err(|e| csv_error(&at, &e))?;
             if !more {
                 break;
             }
             let line = record.position().map_or(0, |p| p.line());
             lines.push(line);
             for (i, cell) in record.iter().enumerate() {
-                let value = if cell.is_empty() {
-                    f64::from_bits(EMPTY)
-                } else if cell.eq_ignore_ascii_case("nan") {
-                    first[i].nan.get_or_insert_with(|| cell.to_string());
-                    f64::NAN
-                } else {
-                    match cell.parse::<f64>() {
-                        Ok(v) if v.is_finite() => v,
-                        Ok(_) => {
-                            first[i].non_finite.get_or_insert_with(|| cell.to_string());
-                            f64::from_bits(NON_FINITE)
-                        }
-                        Err(_) => {
-                            if first[i].text.is_none() {
-                                first[i].text = Some(cell.to_string());
-                                non_numeric[i] = Some(at(
-                                    line,
-                                    Some(i + 1),
-                                    format!(
-                                        "column `{}` holds `{cell}`, not a number (fine while no flag uses the column)",
-                                        headers[i]
-                                    ),
-                                ));
-                            }
-                            f64::from_bits(TEXT)
-                        }
+                let value = cell_value(cell);
+                match value.to_bits() {
+                    TEXT if first[i].text.is_none() => {
+                        first[i].text = Some(cell.to_string());
+                        non_numeric[i] = Some(non_numeric_cell(&at, line, i, &headers[i], cell));
                     }
-                };
+                    NON_FINITE => {
+                        first[i].non_finite.get_or_insert_with(|| cell.to_string());
+                    }
+                    _ if value.is_nan() && value.to_bits() != EMPTY && value.to_bits() != TEXT => {
+                        first[i].nan.get_or_insert_with(|| cell.to_string());
+                    }
+                    _ => {}
+                }
                 cells.push(value);
             }
         }
@@ -528,25 +513,7 @@ impl Trace {
     }
 
     fn missing(&self, name: &str) -> Located {
-        // The closest header by edit distance (case-insensitive), if close.
-        let lower = name.to_lowercase();
-        let hint = self
-            .headers
-            .iter()
-            .map(|h| (edit_distance(&h.to_lowercase(), &lower), h))
-            .filter(|(d, _)| *d <= 2.max(name.len() / 3))
-            .min_by_key(|(d, _)| *d)
-            .map(|(_, h)| format!("; did you mean `{h}`?"))
-            .unwrap_or_default();
-        Located {
-            file: self.path.display().to_string(),
-            line: 1,
-            col: None,
-            msg: format!(
-                "missing column `{name}` (columns: {}){hint}",
-                self.headers.join(", ")
-            ),
-        }
+        missing_column(&self.path, &self.headers, name)
     }
 
     /// A column parsed as finite numbers.
@@ -645,6 +612,124 @@ impl Trace {
     }
 }
 
+/// Opens a trace as the reader every pass uses: a header row, `#`
+/// comments, cells trimmed, every row as long as the header.
+fn open_csv(path: &Path) -> csv::Result<csv::Reader<std::fs::File>> {
+    csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(false)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_path(path)
+}
+
+/// The header row: no empty and no duplicate name.
+fn read_headers(
+    reader: &mut csv::Reader<std::fs::File>,
+    at: &impl Fn(u64, Option<usize>, String) -> Located,
+) -> Result<Vec<String>, Located> {
+    let headers: Vec<String> = reader
+        .headers()
+        .map_err(|e| at(1, None, format!("cannot read the header row: {e}")))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    for (i, h) in headers.iter().enumerate() {
+        if h.is_empty() {
+            return Err(at(1, Some(i + 1), "empty column name in the header".into()));
+        }
+        if headers[..i].contains(h) {
+            return Err(at(1, Some(i + 1), format!("duplicate column `{h}`")));
+        }
+    }
+    Ok(headers)
+}
+
+/// A CSV reading error at its line.
+fn csv_error(at: &impl Fn(u64, Option<usize>, String) -> Located, e: &csv::Error) -> Located {
+    let line = e.position().map_or(0, |p| p.line());
+    let msg = match e.kind() {
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!("row has {len} fields, the header has {expected_len}"),
+        _ => format!("malformed CSV: {e}"),
+    };
+    at(line, None, msg)
+}
+
+/// The warning for a column's first text cell.
+fn non_numeric_cell(
+    at: &impl Fn(u64, Option<usize>, String) -> Located,
+    line: u64,
+    i: usize,
+    header: &str,
+    cell: &str,
+) -> Located {
+    at(
+        line,
+        Some(i + 1),
+        format!(
+            "column `{header}` holds `{cell}`, not a number (fine while no flag uses the column)"
+        ),
+    )
+}
+
+/// A cell as a number: finite, a plain `NaN` (`nan`), or a marked `NaN`
+/// (`EMPTY`, `TEXT`, `NON_FINITE`).
+fn cell_value(cell: &str) -> f64 {
+    if cell.is_empty() {
+        f64::from_bits(EMPTY)
+    } else if cell.eq_ignore_ascii_case("nan") {
+        f64::NAN
+    } else {
+        match cell.parse::<f64>() {
+            Ok(v) if v.is_finite() => v,
+            Ok(_) => f64::from_bits(NON_FINITE),
+            Err(_) => f64::from_bits(TEXT),
+        }
+    }
+}
+
+/// A cell (`value` from [`cell_value`], `cell` its text) as a finite
+/// number; with `allow_missing`, an empty cell or `NaN` is a missing
+/// reading (`NaN`). The error is the one [`Trace::column_with`] gives.
+fn cell_checked(value: f64, cell: &str, allow_missing: bool) -> Result<f64, String> {
+    if value.is_finite() {
+        return Ok(value);
+    }
+    match value.to_bits() {
+        EMPTY if allow_missing => Ok(f64::NAN),
+        EMPTY => Err("empty cell".into()),
+        TEXT => Err(format!("`{cell}` is not a number")),
+        NON_FINITE => Err(format!("`{cell}` is not a finite number")),
+        _ if allow_missing => Ok(f64::NAN),
+        _ => Err(format!("`{cell}` is not a finite number")),
+    }
+}
+
+/// The error for a column the trace lacks, with the closest header as a
+/// hint.
+fn missing_column(path: &Path, headers: &[String], name: &str) -> Located {
+    // The closest header by edit distance (case-insensitive), if close.
+    let lower = name.to_lowercase();
+    let hint = headers
+        .iter()
+        .map(|h| (edit_distance(&h.to_lowercase(), &lower), h))
+        .filter(|(d, _)| *d <= 2.max(name.len() / 3))
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, h)| format!("; did you mean `{h}`?"))
+        .unwrap_or_default();
+    Located {
+        file: path.display().to_string(),
+        line: 1,
+        col: None,
+        msg: format!(
+            "missing column `{name}` (columns: {}){hint}",
+            headers.join(", ")
+        ),
+    }
+}
+
 /// Levenshtein distance between two strings (by characters).
 fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
@@ -663,18 +748,11 @@ fn edit_distance(a: &str, b: &str) -> usize {
 
 /// Writes `time_s` then one column per series (all equal length).
 pub fn write_csv(path: &Path, names: &[String], time_s: &[f64], series: &[Vec<f64>]) -> Result<()> {
-    let mut w = csv::Writer::from_path(path)
-        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
-    let mut header = vec![TIME_COLUMN.to_string()];
-    header.extend(names.iter().cloned());
-    w.write_record(&header)?;
+    let mut w = CsvOut::create(path, names)?;
     for (k, t) in time_s.iter().enumerate() {
-        let mut rec = vec![format!("{t}")];
-        rec.extend(series.iter().map(|s| format!("{:.6}", s[k])));
-        w.write_record(&rec)?;
+        w.row(*t, series.iter().map(|s| s[k]))?;
     }
-    w.flush()?;
-    Ok(())
+    w.finish()
 }
 
 #[cfg(test)]

@@ -122,7 +122,7 @@ a2 = 0.1
     let t = observer.estimate_c()[0];
     assert!((t - 27.8125).abs() < 2e-3, "{t}");
     let ticks = observer.take_tick_times_ns().unwrap();
-    assert_eq!(ticks.len(), 10_000);
+    assert_eq!(ticks.count(), 10_000);
 }
 
 /// Two nodes cooled apart, sharing one `[[loss]]` (current x speed

@@ -11,8 +11,8 @@ use crate::devices;
 use crate::model_file::{Model, ModelFile};
 use crate::observer::Sensor;
 use crate::plot::PlotData;
-use crate::sim::{Bindings, FilePlant, Plant, PlantInfo};
-use crate::trace::{ColumnExpr, TimeSource, Trace};
+use crate::sim::{Bindings, FilePlant, Plant, PlantInfo, TraceDrive};
+use crate::trace::{ColumnExpr, TimeSource, Trace, TraceFile};
 
 /// Marker text of every "not yet available" error (tests look for it).
 pub const NOT_YET: &str = "not yet available";
@@ -290,6 +290,109 @@ pub fn read_trace(path: &Path, args: &TraceArgs) -> Result<Trace> {
     Ok(trace)
 }
 
+/// Scans a trace with the time flags for a streamed run (see
+/// [`crate::trace::TraceFile`]); warns on stderr of non-numeric cells in
+/// columns (refused only if a flag uses them).
+pub fn scan_trace(path: &Path, args: &TraceArgs) -> Result<TraceFile> {
+    let file = TraceFile::scan(
+        path,
+        &TimeSource {
+            column: args.time_column.clone(),
+            sample_period_s: args.sample_period_s,
+        },
+    )?;
+    for w in file.non_numeric() {
+        eprintln!("warning: {w}");
+    }
+    Ok(file)
+}
+
+/// A sensor of a streamed trace: its column, node and position in
+/// [`crate::sim::InputRow::extra`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamSensor {
+    /// Column name (or expression text).
+    pub column: String,
+    /// Node index.
+    pub node: usize,
+    /// Position of its reading in each row's `extra`.
+    pub slot: usize,
+}
+
+/// `COL=NODE` flags resolved on a streamed trace: the streaming form of
+/// [`sensors_with`], each item with the error it met, reported by
+/// [`Self::check`] after a pass in the order `sensors_with` reports.
+pub struct SensorFlags {
+    flag: String,
+    items: Vec<(String, Result<StreamSensor>)>,
+}
+
+impl SensorFlags {
+    /// Resolves `flags` (each may hold a comma list) on `drive`'s trace.
+    pub fn new(
+        flags: &[String],
+        flag: &str,
+        info: &PlantInfo,
+        drive: &mut TraceDrive,
+        allow_missing: bool,
+    ) -> Self {
+        let items = flags
+            .iter()
+            .flat_map(|f| split_list(f))
+            .map(|m| {
+                let sensor = (|| {
+                    let (col, node) = split_mapping(m, flag, "COL=NODE")?;
+                    let index = info.nodes.iter().position(|n| n == node).with_context(|| {
+                        format!(
+                            "{flag} `{m}`: model `{}` has no node `{node}` (nodes: {})",
+                            info.name,
+                            info.nodes.join(", ")
+                        )
+                    })?;
+                    let expr = ColumnExpr::parse(col).with_context(|| format!("{flag} `{m}`"))?;
+                    Ok(StreamSensor {
+                        column: col.to_string(),
+                        node: index,
+                        slot: drive.add(&expr, allow_missing),
+                    })
+                })();
+                (m.to_string(), sensor)
+            })
+            .collect();
+        Self {
+            flag: flag.to_string(),
+            items,
+        }
+    }
+
+    /// After a full pass: the first item's error, as [`sensors_with`]
+    /// reports it (a bad flag, a failing cell, a column without a reading).
+    pub fn check(&mut self, drive: &TraceDrive) -> Result<()> {
+        let flag = &self.flag;
+        for (m, item) in &mut self.items {
+            let s = match item {
+                Err(e) => return Err(std::mem::replace(e, anyhow::anyhow!("reported"))),
+                Ok(s) => s,
+            };
+            if let Some(e) = drive.extra_error(s.slot) {
+                bail!("{e} (for {flag} {m})");
+            }
+            if !drive.extra_seen(s.slot) {
+                bail!("{flag} `{m}`: column `{}` has no reading at all", s.column);
+            }
+        }
+        Ok(())
+    }
+
+    /// The sensors (after [`Self::check`]).
+    pub fn sensors(&self) -> Vec<StreamSensor> {
+        self.items
+            .iter()
+            .filter_map(|(_, s)| s.as_ref().ok().cloned())
+            .collect()
+    }
+}
+
 /// Splits a flag value at the commas outside parentheses: `a=n1,b=n2`
 /// is two items, `hypot(A,B)=n1` one.
 pub fn split_list(text: &str) -> Vec<&str> {
@@ -372,36 +475,63 @@ pub fn print_json(value: &serde_json::Value) {
 /// The series worth plotting: all of them up to 12, else the 8 with the
 /// largest maximum (a grid has 84 coils).
 pub fn plotted(series: &[Vec<f64>]) -> Vec<usize> {
-    if series.len() <= 12 {
-        return (0..series.len()).collect();
-    }
-    let mut order: Vec<(usize, f64)> = series
+    let maxima: Vec<f64> = series
         .iter()
-        .enumerate()
-        .map(|(i, s)| (i, s.iter().copied().fold(f64::MIN, f64::max)))
+        .map(|s| s.iter().copied().fold(f64::MIN, f64::max))
         .collect();
+    plotted_by_max(&maxima)
+}
+
+/// [`plotted`] from each series' maximum.
+pub fn plotted_by_max(maxima: &[f64]) -> Vec<usize> {
+    if maxima.len() <= 12 {
+        return (0..maxima.len()).collect();
+    }
+    let mut order: Vec<(usize, f64)> = maxima.iter().copied().enumerate().collect();
     order.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
     let mut keep: Vec<usize> = order.into_iter().take(8).map(|(i, _)| i).collect();
     keep.sort_unstable();
     keep
 }
 
-/// The hottest node over a run `[node][row]`: (node, max degC, time s).
-pub fn hot_spot(states: &[Vec<f64>], time_s: &[f64]) -> (usize, f64, f64) {
-    let mut hot = (0, f64::MIN, 0.0);
-    for (i, s) in states.iter().enumerate() {
-        for (k, v) in s.iter().enumerate() {
-            if *v > hot.1 {
-                hot = (i, *v, time_s[k]);
+/// The hottest node of a run, row by row: each node's first maximum, and
+/// of those the first node's with the largest.
+#[derive(Debug, Clone)]
+pub struct HotSpot {
+    /// Per node: its maximum \[degC\] and the first time it had it \[s\].
+    pub max: Vec<(f64, f64)>,
+}
+
+impl HotSpot {
+    /// For `nodes` nodes.
+    pub fn new(nodes: usize) -> Self {
+        Self {
+            max: vec![(f64::MIN, 0.0); nodes],
+        }
+    }
+
+    /// Adds a row's temperatures \[degC\] at `time_s` \[s\].
+    pub fn push(&mut self, time_s: f64, temps_c: &[f64]) {
+        for (m, v) in self.max.iter_mut().zip(temps_c) {
+            if *v > m.0 {
+                *m = (*v, time_s);
             }
         }
     }
-    hot
+
+    /// (node, max degC, time s).
+    pub fn hottest(&self) -> (usize, f64, f64) {
+        let mut hot = (0, f64::MIN, 0.0);
+        for (i, (v, t)) in self.max.iter().enumerate() {
+            if *v > hot.1 {
+                hot = (i, *v, *t);
+            }
+        }
+        hot
+    }
 }
 
-/// The largest magnitude a plotted temperature or current may have; beyond
-/// it the axes cannot be laid out (and no thermal model reads that).
-pub const MAX_PLOT_MAGNITUDE: f64 = 1e9;
+pub use crate::plot::MAX_PLOT_MAGNITUDE;
 
 /// Refuses a plot whose series hold values no axis can span (e.g. `1e308`
 /// from a runaway), naming the series and the time.
@@ -430,41 +560,32 @@ pub fn check_plot_values(data: &PlotData) -> Result<()> {
     Ok(())
 }
 
-/// The rows of `time_s` \[s\] (increasing) inside `--from-s`/`--to-s`
-/// (both ends included); a clear error for a bound that is not finite, a
-/// window with `from >= to`, or one that holds no row.
-pub fn window_rows(w: &super::WindowArgs, time_s: &[f64]) -> Result<std::ops::Range<usize>> {
+/// The window's bounds \[s\] (infinite where not given): a row at `t` is
+/// in it when `from <= t <= to`.
+pub fn window(w: &super::WindowArgs) -> (f64, f64) {
+    (
+        w.from_s.unwrap_or(f64::NEG_INFINITY),
+        w.to_s.unwrap_or(f64::INFINITY),
+    )
+}
+
+/// Refuses a window whose bound is not finite, with `from >= to`, or
+/// without a row (`inside` counts the run's rows in it; `t0`, `t1` are the
+/// run's first and last time \[s\]).
+pub fn check_window(w: &super::WindowArgs, inside: usize, t0: f64, t1: f64) -> Result<()> {
     for (flag, v) in [("--from-s", w.from_s), ("--to-s", w.to_s)] {
         if let Some(v) = v.filter(|v| !v.is_finite()) {
             bail!("{flag} must be a finite time [s], got {v}");
         }
     }
-    let from = w.from_s.unwrap_or(f64::NEG_INFINITY);
-    let to = w.to_s.unwrap_or(f64::INFINITY);
+    let (from, to) = window(w);
     if from >= to {
         bail!("the window must have --from-s below --to-s, got {from} s and {to} s");
     }
-    let start = time_s.partition_point(|t| *t < from);
-    let end = time_s.partition_point(|t| *t <= to);
-    if start >= end {
-        let (t0, t1) = (
-            time_s.first().copied().unwrap_or(0.0),
-            time_s.last().copied().unwrap_or(0.0),
-        );
+    if inside == 0 {
         bail!("the window {from} s .. {to} s holds no row of the run ({t0} s .. {t1} s)");
     }
-    Ok(start..end)
-}
-
-/// `drive` limited to `rows`.
-pub fn drive_window(drive: &crate::sim::Drive, rows: &std::ops::Range<usize>) -> crate::sim::Drive {
-    let cut = |all: &[Vec<f64>]| all.iter().map(|v| v[rows.clone()].to_vec()).collect();
-    crate::sim::Drive {
-        time_s: drive.time_s[rows.clone()].to_vec(),
-        currents: cut(&drive.currents),
-        boundaries: cut(&drive.boundaries),
-        signals: cut(&drive.signals),
-    }
+    Ok(())
 }
 
 #[cfg(test)]

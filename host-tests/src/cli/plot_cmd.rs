@@ -4,13 +4,23 @@ use anyhow::{bail, Context, Result};
 use serde_json::json;
 
 use super::common;
+use super::common::StreamSensor;
 use super::PlotArgs;
-use crate::plot::{render, PlotData, Series};
-use crate::trace::{ColumnExpr, TimeSource, Trace, TIME_COLUMN};
+use crate::observer::{AlarmEvent, AlarmSettings, ReplayRow};
+use crate::plot::{render, Decimated, PlotData, Series};
+use crate::sim::PlantInfo;
+use crate::trace::{ColumnExpr, Evaluator, TimeSource, TraceFile, TIME_COLUMN};
 
-/// Runs `plot`.
+/// Runs `plot`. Both files are streamed, twice each (a scan, then the
+/// series), and each series kept [`Decimated`] inside the window: memory
+/// does not grow with their length.
 pub fn run(a: PlotArgs) -> Result<()> {
-    let est = Trace::read(&a.estimate, None)?;
+    let window = (
+        a.from_s.unwrap_or(f64::NEG_INFINITY),
+        a.to_s.unwrap_or(f64::INFINITY),
+    );
+    let inside = |t: f64| (window.0..=window.1).contains(&t);
+    let est = TraceFile::scan(&a.estimate, &TimeSource::default())?;
     let columns: Vec<String> = if a.nodes.is_empty() {
         est.headers()
             .iter()
@@ -33,54 +43,63 @@ pub fn run(a: PlotArgs) -> Result<()> {
             .unwrap_or_else(|| a.estimate.display().to_string()),
         ..PlotData::default()
     };
-    for (i, c) in columns.iter().enumerate() {
-        data.estimated.push(Series {
-            label: c.clone(),
-            time_s: est.time_s().to_vec(),
-            values: est.column(c)?,
-            color: i,
-        });
+    let mut ev = Evaluator::new(&est);
+    for c in &columns {
+        ev.add(&ColumnExpr::Column(c.clone()), false);
+    }
+    let series = stream_series(&est, &mut ev, inside)?;
+    for (i, (c, d)) in columns.iter().zip(series).enumerate() {
+        if let Some(e) = ev.error(i) {
+            return Err(e.into());
+        }
+        data.estimated.push(d.series(c.clone(), i));
     }
     if let Some(path) = &a.trace {
-        let trace = Trace::read_with(
+        let trace = TraceFile::scan(
             path,
             &TimeSource {
                 column: a.time_column.clone(),
                 sample_period_s: a.sample_period_s,
             },
         )?;
+        let mut ev = Evaluator::new(&trace);
+        // Each flag as the whole-trace code met it: its error, or its
+        // expression's position, label and colour.
+        let mut planned: Vec<Result<(usize, String, usize)>> = Vec::new();
         for m in &a.measure {
-            let (col, node) = common::split_mapping(m, "--measure", "COL=NODE")?;
-            let color = columns.iter().position(|c| c == node).with_context(|| {
-                format!(
-                    "--measure `{m}`: no column `{node}` in {} (columns: {})",
-                    a.estimate.display(),
-                    columns.join(", ")
-                )
-            })?;
-            let expr = ColumnExpr::parse(col)?;
-            // Missing readings (empty or NaN cells) are left out.
-            let (time_s, values) = trace
-                .time_s()
-                .iter()
-                .zip(trace.eval_with(&expr, true)?)
-                .filter(|(_, v)| !v.is_nan())
-                .unzip();
-            data.measured.push(Series {
-                label: format!("{col} (measured)"),
-                time_s,
-                values,
-                color,
-            });
+            planned.push((|| {
+                let (col, node) = common::split_mapping(m, "--measure", "COL=NODE")?;
+                let color = columns.iter().position(|c| c == node).with_context(|| {
+                    format!(
+                        "--measure `{m}`: no column `{node}` in {} (columns: {})",
+                        a.estimate.display(),
+                        columns.join(", ")
+                    )
+                })?;
+                let expr = ColumnExpr::parse(col)?;
+                // Missing readings (empty or NaN cells) are left out.
+                Ok((ev.add(&expr, true), format!("{col} (measured)"), color))
+            })());
         }
+        let measures = planned.len();
         for (i, c) in a.currents.iter().enumerate() {
-            let expr = ColumnExpr::parse(c)?;
-            data.currents.push(Series {
-                label: format!("{c} [A]"),
-                time_s: trace.time_s().to_vec(),
-                values: trace.eval(&expr)?,
-                color: i,
-            });
+            planned.push((|| {
+                let expr = ColumnExpr::parse(c)?;
+                Ok((ev.add(&expr, false), format!("{c} [A]"), i))
+            })());
+        }
+        let series = stream_series(&trace, &mut ev, inside)?;
+        for (k, p) in planned.into_iter().enumerate() {
+            let (i, label, color) = p?;
+            if let Some(e) = ev.error(i) {
+                return Err(e.into());
+            }
+            let s = series[i].series(label, color);
+            if k < measures {
+                data.measured.push(s);
+            } else {
+                data.currents.push(s);
+            }
         }
     } else if !a.measure.is_empty() || !a.currents.is_empty() {
         bail!("--measure and --current read the recorded trace: pass --trace IN.csv");
@@ -118,6 +137,28 @@ pub fn run(a: PlotArgs) -> Result<()> {
         println!("wrote {} ({}x{} px)", a.out.display(), a.width, a.height);
     }
     Ok(())
+}
+
+/// Every expression of `ev` over the rows of `file` inside the window,
+/// decimated (a missing reading, `NaN`, is left out).
+fn stream_series(
+    file: &TraceFile,
+    ev: &mut Evaluator,
+    inside: impl Fn(f64) -> bool,
+) -> Result<Vec<Decimated>> {
+    let mut series = Vec::new();
+    let mut values = Vec::new();
+    let mut rows = file.rows()?;
+    while let Some(row) = rows.next_row()? {
+        ev.eval(&row, &mut values);
+        series.resize(values.len(), Decimated::default());
+        if inside(row.time_s) {
+            for (d, v) in series.iter_mut().zip(&values) {
+                d.push(row.time_s, *v);
+            }
+        }
+    }
+    Ok(series)
 }
 
 /// The fit report of `calibrate`: per trace, the fitted model (solid)
@@ -231,137 +272,145 @@ pub fn fit_report(
     Ok(written)
 }
 
-/// What `replay --plot` draws.
-pub struct ReplayFigure<'a> {
-    /// The model's nodes and inputs.
-    pub info: &'a crate::sim::PlantInfo,
-    /// The replayed trace (for the title).
-    pub trace: &'a std::path::Path,
-    /// The replay's inputs, row by row.
-    pub drive: &'a crate::sim::Drive,
-    /// The estimate `[node][row]` \[degC\].
-    pub estimate: &'a [Vec<f64>],
-    /// The `--truth` sensors (scored, not fused).
-    pub truth: &'a [crate::observer::Sensor],
-    /// The `--measure` sensors (fused).
-    pub fused: &'a [crate::observer::Sensor],
-    /// The alarm events.
-    pub alarms: &'a [crate::observer::AlarmEvent],
-    /// The alarm settings (each node's derated limit).
-    pub settings: &'a crate::observer::AlarmSettings,
+/// What `replay --plot` draws, gathered row by row in bounded memory
+/// (each series [`Decimated`]).
+pub struct ReplaySeries {
+    /// Per node, the estimate \[degC\].
+    estimate: Vec<Decimated>,
+    /// Per `--truth` sensor: its readings and the estimate minus them
+    /// \[degC\], \[K\].
+    truth: Vec<(StreamSensor, Decimated, Decimated)>,
+    /// Per `--measure` sensor (fused): its readings \[degC\].
+    fused: Vec<(StreamSensor, Decimated)>,
+    /// Per input, the current \[A\].
+    currents: Vec<Decimated>,
 }
 
-/// The replay figure: the estimates (at most 12 nodes, else the 8 hottest,
-/// plus every node a sensor sits on), each drawn node's derated alarm limit
-/// at the nominal ambient, truth and fused readings, warning, predictive
-/// and shutdown events, the residual of every truth column and the
-/// currents.
-pub fn replay_figure(f: &ReplayFigure) -> PlotData {
-    // Missing readings (NaN cells) are left out of a line, not drawn as
-    // spikes to the axis.
-    let series = |label: String, values: &Vec<f64>, color: usize| {
-        let (time_s, values) = f
-            .drive
-            .time_s
-            .iter()
-            .zip(values)
-            .filter(|(_, v)| !v.is_nan())
-            .map(|(t, v)| (*t, *v))
-            .unzip();
-        Series {
-            label,
-            time_s,
-            values,
-            color,
-        }
-    };
-    let mut nodes = common::plotted(f.estimate);
-    for s in f.truth.iter().chain(f.fused) {
-        if !nodes.contains(&s.node) {
-            nodes.push(s.node);
+impl ReplaySeries {
+    /// For `info`'s nodes and inputs and these sensors.
+    pub fn new(info: &PlantInfo, truth: &[StreamSensor], fused: &[StreamSensor]) -> Self {
+        Self {
+            estimate: vec![Decimated::default(); info.nodes.len()],
+            truth: truth
+                .iter()
+                .map(|s| (s.clone(), Decimated::default(), Decimated::default()))
+                .collect(),
+            fused: fused
+                .iter()
+                .map(|s| (s.clone(), Decimated::default()))
+                .collect(),
+            currents: vec![Decimated::default(); info.inputs.len()],
         }
     }
-    let events = |level: &str| -> Vec<(f64, String)> {
-        f.alarms
-            .iter()
-            .filter(|e| e.level == level && e.kind != "cleared")
-            .map(|e| (e.time_s, e.node.clone().unwrap_or_default()))
-            .collect()
-    };
-    PlotData {
-        title: format!("{}: replay of {}", f.info.name, f.trace.display()),
-        estimated: nodes
-            .iter()
-            .map(|i| {
-                series(
-                    format!("{} (estimate)", f.info.nodes[*i]),
-                    &f.estimate[*i],
-                    *i,
-                )
-            })
-            .collect(),
-        measured: f
+
+    /// Adds a replayed row (fused readings after `fuse_until_s` \[s\] are
+    /// not fused, and not drawn).
+    pub fn push(&mut self, r: &ReplayRow, fuse_until_s: Option<f64>) {
+        let t = r.row.time_s;
+        for (d, v) in self.estimate.iter_mut().zip(r.estimate_c) {
+            d.push(t, *v);
+        }
+        for (s, readings, residual) in &mut self.truth {
+            let m = r.row.extra[s.slot];
+            readings.push(t, m);
+            residual.push(t, r.estimate_c[s.node] - m);
+        }
+        let after = fuse_until_s.is_some_and(|u| t > u);
+        for (s, readings) in &mut self.fused {
+            readings.push(t, if after { f64::NAN } else { r.row.extra[s.slot] });
+        }
+        for (d, i) in self.currents.iter_mut().zip(&r.row.currents) {
+            d.push(t, *i);
+        }
+    }
+
+    /// The replay figure: the estimates (at most 12 nodes, else the 8
+    /// hottest, plus every node a sensor sits on), each drawn node's
+    /// derated alarm limit at the nominal ambient, truth and fused
+    /// readings, warning, predictive and shutdown events, the residual of
+    /// every truth column and the currents.
+    pub fn figure(
+        &self,
+        info: &PlantInfo,
+        trace: &std::path::Path,
+        alarms: &[AlarmEvent],
+        settings: &AlarmSettings,
+    ) -> PlotData {
+        let maxima: Vec<f64> = self.estimate.iter().map(Decimated::max).collect();
+        let mut nodes = common::plotted_by_max(&maxima);
+        for s in self
             .truth
             .iter()
-            .map(|t| {
-                series(
-                    format!("{} (truth -> {})", t.column, f.info.nodes[t.node]),
-                    &t.values_c,
-                    t.node,
-                )
-            })
-            .collect(),
-        fused: f
-            .fused
-            .iter()
-            .map(|m| {
-                series(
-                    format!("{} (fused -> {})", m.column, f.info.nodes[m.node]),
-                    &m.values_c,
-                    m.node,
-                )
-            })
-            .collect(),
-        residuals: f
-            .truth
-            .iter()
-            .map(|t| {
-                let r: Vec<f64> = f.estimate[t.node]
-                    .iter()
-                    .zip(&t.values_c)
-                    .map(|(e, m)| e - m)
-                    .collect();
-                series(format!("{} (estimate - truth)", t.column), &r, t.node)
-            })
-            .collect(),
-        currents: common::plotted(&f.drive.currents)
-            .into_iter()
-            .map(|i| {
-                series(
-                    format!("{} [A]", f.info.inputs[i].name),
-                    &f.drive.currents[i],
-                    i,
-                )
-            })
-            .collect(),
-        node_limits: nodes
-            .iter()
-            .filter_map(|i| {
-                let critical_c = f.settings.critical_c.get(*i).copied().flatten()?;
-                Some(crate::plot::NodeLimit {
-                    node: f.info.nodes[*i].clone(),
-                    kind: "alarm limit".into(),
-                    limit_c: f
-                        .settings
-                        .rule
-                        .alarm_limit_c(critical_c, f.settings.nominal_ambient_c),
-                    color: *i,
+            .map(|t| &t.0)
+            .chain(self.fused.iter().map(|f| &f.0))
+        {
+            if !nodes.contains(&s.node) {
+                nodes.push(s.node);
+            }
+        }
+        let events = |level: &str| -> Vec<(f64, String)> {
+            alarms
+                .iter()
+                .filter(|e| e.level == level && e.kind != "cleared")
+                .map(|e| (e.time_s, e.node.clone().unwrap_or_default()))
+                .collect()
+        };
+        let current_max: Vec<f64> = self.currents.iter().map(Decimated::max).collect();
+        PlotData {
+            title: format!("{}: replay of {}", info.name, trace.display()),
+            estimated: nodes
+                .iter()
+                .map(|i| self.estimate[*i].series(format!("{} (estimate)", info.nodes[*i]), *i))
+                .collect(),
+            measured: self
+                .truth
+                .iter()
+                .map(|(t, readings, _)| {
+                    readings.series(
+                        format!("{} (truth -> {})", t.column, info.nodes[t.node]),
+                        t.node,
+                    )
                 })
-            })
-            .collect(),
-        limits: Vec::new(),
-        alarms: events("shutdown"),
-        warnings: events("warning"),
-        predictive: events("predictive"),
+                .collect(),
+            fused: self
+                .fused
+                .iter()
+                .map(|(m, readings)| {
+                    readings.series(
+                        format!("{} (fused -> {})", m.column, info.nodes[m.node]),
+                        m.node,
+                    )
+                })
+                .collect(),
+            residuals: self
+                .truth
+                .iter()
+                .map(|(t, _, residual)| {
+                    residual.series(format!("{} (estimate - truth)", t.column), t.node)
+                })
+                .collect(),
+            currents: common::plotted_by_max(&current_max)
+                .into_iter()
+                .map(|i| self.currents[i].series(format!("{} [A]", info.inputs[i].name), i))
+                .collect(),
+            node_limits: nodes
+                .iter()
+                .filter_map(|i| {
+                    let critical_c = settings.critical_c.get(*i).copied().flatten()?;
+                    Some(crate::plot::NodeLimit {
+                        node: info.nodes[*i].clone(),
+                        kind: "alarm limit".into(),
+                        limit_c: settings
+                            .rule
+                            .alarm_limit_c(critical_c, settings.nominal_ambient_c),
+                        color: *i,
+                    })
+                })
+                .collect(),
+            limits: Vec::new(),
+            alarms: events("shutdown"),
+            warnings: events("warning"),
+            predictive: events("predictive"),
+        }
     }
 }

@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use serde_json::json;
 
 use super::common;
+use super::plot_cmd::ReplaySeries;
 use super::ReplayArgs;
 use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
@@ -11,10 +12,11 @@ use crate::library_observer::{Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::Measurement;
-use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm};
+use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, ScoreSum};
 use crate::plot::render;
-use crate::sim::{Drive, FilePlant, Plant, PlantInfo};
-use crate::trace::write_csv;
+use crate::sim::{FilePlant, InputRow, Plant, PlantInfo, RowSource, TraceDrive};
+use crate::trace::CsvOut;
+use common::{SensorFlags, StreamSensor};
 
 /// Alarm events printed in the text summary (`--json` has them all).
 const MAX_PRINTED_EVENTS: usize = 20;
@@ -23,7 +25,12 @@ const MAX_PRINTED_EVENTS: usize = 20;
 /// `--critical-c`), the device's derating rule (or `--factors`), the
 /// measured ambient from `--ambient-boundary` (default `ambient`, else the
 /// first boundary).
-fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<AlarmSettings> {
+fn alarm_settings(
+    a: &ReplayArgs,
+    info: &PlantInfo,
+    first_boundaries_c: &[f64],
+    median_row_s: f64,
+) -> Result<AlarmSettings> {
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let rule = common::derating_rule(&a.factors, common::default_rule(&spec))?;
     let non_negative = |v: f64, flag: &str| {
@@ -67,7 +74,7 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
             .or((!info.boundaries.is_empty()).then_some(0)),
     };
     let nominal_ambient_c = ambient_boundary
-        .and_then(|b| drive.boundaries[b].first().copied())
+        .and_then(|b| first_boundaries_c.get(b).copied())
         .filter(|t| t.is_finite())
         .unwrap_or(devices::GRID_DEFAULT_C);
     Ok(AlarmSettings {
@@ -78,7 +85,7 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
         },
         warning_margin_k: non_negative(a.warning_margin_k, "--warning-margin-k")?,
         hysteresis_k: non_negative(a.hysteresis_k, "--hysteresis-k")?,
-        debounce_rows: debounce_rows(a, &drive.time_s)?,
+        debounce_rows: debounce_rows(a, median_row_s)?,
         horizon_s: positive(a.horizon_s, "--horizon-s")?,
         ambient_boundary,
         nominal_ambient_c,
@@ -86,8 +93,8 @@ fn alarm_settings(a: &ReplayArgs, info: &PlantInfo, drive: &Drive) -> Result<Ala
 }
 
 /// The alarm's debounce in rows: `--debounce-rows`, or `--debounce-s`
-/// over the trace's median row spacing (at least 1 row).
-fn debounce_rows(a: &ReplayArgs, time_s: &[f64]) -> Result<u16> {
+/// over the trace's median row spacing `row_s` \[s\] (at least 1 row).
+fn debounce_rows(a: &ReplayArgs, row_s: f64) -> Result<u16> {
     if let Some(rows) = a.debounce_rows {
         if rows == 0 {
             bail!("--debounce-rows must be at least 1");
@@ -98,7 +105,6 @@ fn debounce_rows(a: &ReplayArgs, time_s: &[f64]) -> Result<u16> {
     if !(s.is_finite() && s >= 0.0) {
         bail!("--debounce-s must be finite and >= 0 s, got {s}");
     }
-    let row_s = median_row_s(time_s);
     let rows = if row_s > 0.0 {
         (s / row_s).round()
     } else {
@@ -110,58 +116,19 @@ fn debounce_rows(a: &ReplayArgs, time_s: &[f64]) -> Result<u16> {
 /// The most library ticks one replay runs (about 14 h of trace at 1 ms).
 const MAX_TICKS: f64 = 5e7;
 
-/// The trace's peak heating power \[W\]: the largest over its rows of the
-/// sources' `R I^2` at the first row's boundary temperature (20 degC
-/// without a boundary) plus the fixed powers.
-fn peak_heating_w(model: &Model, drive: &Drive) -> f64 {
-    let net = &model.network;
-    let t_c = drive
-        .boundaries
-        .first()
-        .and_then(|b| b.first().copied())
-        .unwrap_or(20.0);
-    let fixed_w: f64 = net.fixed_powers_w().iter().sum();
-    let (mut c, mut b, mut s) = (Vec::new(), Vec::new(), Vec::new());
-    let mut effective = Vec::new();
-    let mut peak = 0.0f64;
-    for k in 0..drive.len() {
-        drive.row(k, &mut c, &mut b, &mut s);
-        model.effective_currents(&c, &s, &mut effective);
-        let joule: f64 = net
-            .sources()
-            .iter()
-            .zip(&effective)
-            .map(|(src, i)| {
-                let r = src.resistance.r_at_0c_ohm + src.resistance.slope_ohm_per_k * t_c;
-                r.max(0.0) * i * i
-            })
-            .sum();
-        peak = peak.max(joule + fixed_w);
-    }
-    peak
-}
-
 /// Prints the event counts per level and kind, the first predictive
 /// alarm, and the other events (at most [`MAX_PRINTED_EVENTS`]): with
 /// currents that move every row the predictive alarm can rise and clear
 /// often, and it would hide the rest.
-fn print_events(events: &[AlarmEvent]) {
-    if events.is_empty() {
+fn print_events(log: &EventLog) {
+    if log.total == 0 {
         println!("alarm events: none");
         return;
     }
-    let mut counts: Vec<(String, usize)> = Vec::new();
-    for e in events {
-        let key = format!("{} {}", e.level, e.kind);
-        match counts.iter_mut().find(|(k, _)| *k == key) {
-            Some((_, n)) => *n += 1,
-            None => counts.push((key, 1)),
-        }
-    }
     println!(
         "alarm events: {} ({})",
-        events.len(),
-        counts
+        log.total,
+        log.counts
             .iter()
             .map(|(k, n)| format!("{k} {n}"))
             .collect::<Vec<_>>()
@@ -175,25 +142,17 @@ fn print_events(events: &[AlarmEvent]) {
         };
         println!("{} {} at t = {:.1} s{at}", e.level, e.kind, e.time_s);
     };
-    if let Some(first) = events.iter().find(|e| e.level == "predictive") {
+    if let Some(first) = &log.first_predictive {
         print!("first ");
         line(first);
     }
-    let others: Vec<&AlarmEvent> = events.iter().filter(|e| e.level != "predictive").collect();
-    others.iter().take(MAX_PRINTED_EVENTS).for_each(|e| line(e));
-    if others.len() > MAX_PRINTED_EVENTS {
+    log.others.iter().for_each(line);
+    if log.others_total > MAX_PRINTED_EVENTS {
         println!(
             "... and {} more (--json lists every event)",
-            others.len() - MAX_PRINTED_EVENTS
+            log.others_total - MAX_PRINTED_EVENTS
         );
     }
-}
-
-/// The median spacing of the trace's rows \[s\] (0 for fewer than 2 rows).
-fn median_row_s(time_s: &[f64]) -> f64 {
-    let mut dt: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
-    dt.sort_by(f64::total_cmp);
-    dt.get(dt.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// A model file run open loop on the library's explicit stepper at the
@@ -219,16 +178,145 @@ impl Estimator for PlantEstimator {
     }
 }
 
+/// The alarm events a replay keeps for `--json` and the figure (the first
+/// ones; the counts cover all).
+const MAX_KEPT_EVENTS: usize = 10_000;
+
+/// What a replay's pass over the trace before the run found: the first
+/// row's inputs, each sensor's first reading, the rows inside the window
+/// and their median spacing, the peak heating power.
+struct Survey {
+    first: Option<InputRow>,
+    first_readings: Vec<Option<f64>>,
+    inside: usize,
+    window_gaps: crate::trace::GapMedian,
+    peak_heating_w: f64,
+}
+
+/// The pass before the run: every row's channels and sensors evaluated
+/// (their errors kept for the checks), and what the run needs first.
+fn survey(
+    drive: &mut TraceDrive,
+    model: &Model,
+    sensors: &[(StreamSensor, bool)],
+    until_s: Option<f64>,
+    window: (f64, f64),
+    peak: bool,
+) -> Result<Survey> {
+    let mut s = Survey {
+        first: None,
+        first_readings: vec![None; sensors.len()],
+        inside: 0,
+        window_gaps: crate::trace::GapMedian::default(),
+        peak_heating_w: 0.0,
+    };
+    let net = &model.network;
+    let fixed_w: f64 = net.fixed_powers_w().iter().sum();
+    let mut effective = Vec::new();
+    let mut last_inside: Option<f64> = None;
+    let mut rows = drive.rows()?;
+    while let Some(row) = rows.next_row()? {
+        for ((sensor, fused), first) in sensors.iter().zip(&mut s.first_readings) {
+            let masked = *fused && until_s.is_some_and(|u| row.time_s > u);
+            let v = row.extra[sensor.slot];
+            if first.is_none() && !v.is_nan() && !masked {
+                *first = Some(v);
+            }
+        }
+        if (window.0..=window.1).contains(&row.time_s) {
+            s.inside += 1;
+            if let Some(prev) = last_inside {
+                s.window_gaps.push(row.time_s - prev);
+            }
+            last_inside = Some(row.time_s);
+        }
+        let first = s.first.get_or_insert_with(|| row.clone());
+        if peak {
+            // The sources' R I^2 at the first row's boundary temperature
+            // (20 degC without a boundary) plus the fixed powers.
+            let t_c = first.boundaries.first().copied().unwrap_or(20.0);
+            model.effective_currents(&row.currents, &row.signals, &mut effective);
+            let joule: f64 = net
+                .sources()
+                .iter()
+                .zip(&effective)
+                .map(|(src, i)| {
+                    let r = src.resistance.r_at_0c_ohm + src.resistance.slope_ohm_per_k * t_c;
+                    r.max(0.0) * i * i
+                })
+                .sum();
+            s.peak_heating_w = s.peak_heating_w.max(joule + fixed_w);
+        }
+    }
+    Ok(s)
+}
+
+/// The alarm events of a replay: the first [`MAX_KEPT_EVENTS`], and the
+/// counts and first lines the text summary prints of all of them.
+#[derive(Default)]
+struct EventLog {
+    kept: Vec<AlarmEvent>,
+    total: usize,
+    counts: Vec<(String, usize)>,
+    first_predictive: Option<AlarmEvent>,
+    others: Vec<AlarmEvent>,
+    others_total: usize,
+}
+
+impl EventLog {
+    fn push(&mut self, e: &AlarmEvent) {
+        self.total += 1;
+        if self.kept.len() < MAX_KEPT_EVENTS {
+            self.kept.push(e.clone());
+        }
+        let key = format!("{} {}", e.level, e.kind);
+        match self.counts.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, n)) => *n += 1,
+            None => self.counts.push((key, 1)),
+        }
+        if e.level == "predictive" {
+            if self.first_predictive.is_none() {
+                self.first_predictive = Some(e.clone());
+            }
+        } else {
+            self.others_total += 1;
+            if self.others.len() < MAX_PRINTED_EVENTS {
+                self.others.push(e.clone());
+            }
+        }
+    }
+}
+
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model = Model::build(&common::model_file(&a.model)?)?;
     let info = crate::sim::plant_info(&model);
-    let trace = common::read_trace(&a.trace, &a.trace_args)?;
+    let file = common::scan_trace(&a.trace, &a.trace_args)?;
     let bind = common::bindings(&a.trace_args)?;
-    let drive = Drive::from_trace(&info, &trace, &bind)?.held(model.input_hold);
-    let mut measured = common::sensors_with(&a.measure, "--measure", &info, &trace, true)?;
-    let truth = common::sensors_with(&a.truth, "--truth", &info, &trace, true)?;
-    let init_only = common::sensors_with(&a.init, "--init", &info, &trace, true)?;
+    let mut drive = TraceDrive::new(&info, &file, &bind, model.input_hold)?;
+    let mut measured = SensorFlags::new(&a.measure, "--measure", &info, &mut drive, true);
+    let mut truth = SensorFlags::new(&a.truth, "--truth", &info, &mut drive, true);
+    let mut init_only = SensorFlags::new(&a.init, "--init", &info, &mut drive, true);
+    // A sensor's first reading sets its node's start (with the `measured`
+    // policy): the fused ones', then the truth and initial-only ones'.
+    let mut all: Vec<(StreamSensor, bool)> = Vec::new();
+    for (flags, fused) in [(&measured, true), (&truth, false), (&init_only, false)] {
+        all.extend(flags.sensors().into_iter().map(|s| (s, fused)));
+    }
+    let window = common::window(&a.window);
+    let survey = survey(
+        &mut drive,
+        &model,
+        &all,
+        a.measure_until_s,
+        window,
+        !a.disturbance.is_empty() && a.disturbance_std_w.is_none(),
+    )?;
+    drive.check()?;
+    measured.check(&drive)?;
+    truth.check(&drive)?;
+    init_only.check(&drive)?;
+    let (measured, truth) = (measured.sensors(), truth.sensors());
     if let Some(t) = truth
         .iter()
         .find(|t| measured.iter().any(|m| m.column == t.column))
@@ -246,16 +334,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         if measured.is_empty() {
             bail!("--measure-until-s needs a --measure sensor");
         }
-        for m in &mut measured {
-            for (v, t) in m.values_c.iter_mut().zip(&drive.time_s) {
-                if *t > until {
-                    *v = f64::NAN;
-                }
-            }
-        }
     }
+    let first_row = survey.first.as_ref().context("the trace has no row")?;
+    let median_row_s = file.median_gap_s()?;
     if a.disturbance.is_empty() {
-        let span_s = drive.time_s[drive.len() - 1] - drive.time_s[0];
+        let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
         if ticks > MAX_TICKS {
             bail!(
@@ -265,7 +348,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             );
         }
     }
-    let settings = alarm_settings(&a, &info, &drive)?;
+    let settings = alarm_settings(&a, &info, &first_row.boundaries, median_row_s)?;
     let rule_product = settings.rule.product();
     let predictor = TimeToLimit::new(&model)?;
     let mut protection = LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
@@ -294,7 +377,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             sensor_nodes: measured.iter().map(|m| m.node).collect(),
             sensor_sigma_k: a.measurement_noise_k,
             node_noise_k2_per_s: a.process_noise_k2_per_s,
-            correction_period_s: median_row_s(&drive.time_s),
+            correction_period_s: median_row_s,
         });
         observer.insert(ObserverEstimator::with_fusion(
             model.clone(),
@@ -325,7 +408,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             .collect::<Result<Vec<_>>>()?;
         let disturbance_std_w = match a.disturbance_std_w {
             Some(w) => w,
-            None => (0.1 * peak_heating_w(&model, &drive)).max(0.01),
+            None => (0.1 * survey.peak_heating_w).max(0.01),
         };
         disturbance_std = Some(disturbance_std_w);
         let opts = KalmanOptions {
@@ -340,44 +423,70 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
         kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
     };
-    // Initial-only columns join the truth list for the initial state but are
-    // not scored.
-    let mut init_sensors = truth.clone();
-    init_sensors.extend(init_only);
-    let window = common::window_rows(&a.window, &drive.time_s)?;
-    let mut result = replay(estimator, &mut protection, &drive, &measured, &init_sensors)?;
-    crate::sim::check_temperatures(&info, &drive.time_s, &result.estimate, "replay")?;
-    result.scores.truncate(truth.len());
-    // The model ran from the first row; the rows written, the scores, the
+    common::check_window(
+        &a.window,
+        survey.inside,
+        file.first_time_s(),
+        file.last_time_s(),
+    )?;
+    let first: Vec<(usize, f64)> = all
+        .iter()
+        .zip(&survey.first_readings)
+        .filter_map(|((s, _), v)| v.map(|v| (s.node, v)))
+        .collect();
+    let init = crate::sim::initial_temps_at(&info, &first_row.boundaries, &first)?;
+    // The model runs from the first row; the rows written, the scores, the
     // hot spot, the listed alarm events and the plot are the window's.
-    let windowed = window.len() < drive.len();
-    let (drive, truth, measured) = if windowed {
-        let cut = |sensors: &[crate::observer::Sensor]| -> Vec<crate::observer::Sensor> {
-            sensors
-                .iter()
-                .map(|s| crate::observer::Sensor {
-                    values_c: s.values_c[window.clone()].to_vec(),
-                    ..s.clone()
-                })
-                .collect()
-        };
-        for series in &mut result.estimate {
-            *series = series[window.clone()].to_vec();
-        }
-        let drive = common::drive_window(&drive, &window);
-        let truth = cut(&truth);
-        result.scores = truth
-            .iter()
-            .map(|t| {
-                crate::observer::score(t, &info.nodes[t.node], &result.estimate, &drive.time_s)
-            })
-            .collect();
-        let (t0, t1) = (drive.time_s[0], drive.time_s[drive.len() - 1]);
-        result.alarms.retain(|e| (t0..=t1).contains(&e.time_s));
-        (drive, truth, cut(&measured))
-    } else {
-        (drive, truth, measured)
+    let inside = |t: f64| (window.0..=window.1).contains(&t);
+    let mut out = match &a.out {
+        Some(path) => Some(CsvOut::create(path, &info.nodes)?),
+        None => None,
     };
+    let mut scores = vec![ScoreSum::default(); truth.len()];
+    let mut hot = common::HotSpot::new(info.nodes.len());
+    let mut events = EventLog::default();
+    let mut figure = a
+        .plot
+        .as_ref()
+        .map(|_| ReplaySeries::new(&info, &truth, &measured));
+    let fused: Vec<(usize, usize)> = measured.iter().map(|m| (m.node, m.slot)).collect();
+    let mut rows = drive.rows()?;
+    let times = replay(
+        estimator,
+        &mut protection,
+        &init,
+        &mut rows,
+        &fused,
+        a.measure_until_s,
+        &mut |r| {
+            let t = r.row.time_s;
+            crate::sim::check_row_temperatures(&info, t, r.estimate_c, "replay")?;
+            if !inside(t) {
+                return Ok(());
+            }
+            if let Some(out) = out.as_mut() {
+                out.row(t, r.estimate_c.iter().copied())?;
+            }
+            for (sum, s) in scores.iter_mut().zip(&truth) {
+                sum.push(t, r.estimate_c[s.node], r.row.extra[s.slot]);
+            }
+            hot.push(t, r.estimate_c);
+            r.events.iter().for_each(|e| events.push(e));
+            if let Some(f) = figure.as_mut() {
+                f.push(r, a.measure_until_s);
+            }
+            Ok(())
+        },
+    )?;
+    if let Some(out) = out {
+        out.finish()?;
+    }
+    let scores: Vec<crate::observer::Score> = scores
+        .iter()
+        .zip(&truth)
+        .map(|(sum, s)| sum.score(&s.column, &info.nodes[s.node]))
+        .collect();
+    let rows_inside = survey.inside;
     let kind = estimator.kind();
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
         json!({
@@ -401,23 +510,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "final_disturbances_w": k.disturbances_w(),
         })
     });
-    if let Some(out) = &a.out {
-        write_csv(out, &info.nodes, &drive.time_s, &result.estimate)?;
-    }
-    if let Some(path) = &a.plot {
-        let data = super::plot_cmd::replay_figure(&super::plot_cmd::ReplayFigure {
-            info: &info,
-            trace: &a.trace,
-            drive: &drive,
-            estimate: &result.estimate,
-            truth: &truth,
-            fused: &measured,
-            alarms: &result.alarms,
-            settings: &settings,
-        });
+    if let (Some(path), Some(f)) = (&a.plot, figure) {
+        let data = f.figure(&info, &a.trace, &events.kept, &settings);
         render(&data, path, 1200, 800)?;
     }
-    let hot = common::hot_spot(&result.estimate, &drive.time_s);
+    let hot = hot.hottest();
     let ttl = protection.time_to_limit();
     let summary = json!({
         "command": "replay",
@@ -426,16 +523,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "estimator": kind,
         "fusion": fusion.or(observer_fusion),
         "trace": a.trace.display().to_string(),
-        "rows": drive.len(),
-        "truth": result.scores,
+        "rows": rows_inside,
+        "truth": scores,
         "alarm": {
             "watched_nodes": protection.watched().len(),
             "derating_product": rule_product,
             "shutdown_latched": protection.shutdown_latched(),
             "time_to_limit": ttl,
         },
-        "alarms": result.alarms,
-        "step_time": result.times,
+        "alarms": events.kept,
+        "alarms_total": events.total,
+        "step_time": times,
         "disturbance_std_w": disturbance_std,
         "out": a.out.as_ref().map(|p| p.display().to_string()),
     });
@@ -447,7 +545,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "replayed `{}` ({}) over {} rows of {}{}",
         info.name,
         kind,
-        drive.len(),
+        rows_inside,
         a.trace.display(),
         a.out
             .as_ref()
@@ -457,12 +555,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "hot spot: {} at {:.3} degC (t = {:.1} s)",
         info.nodes[hot.0], hot.1, hot.2
     );
-    if !result.scores.is_empty() {
+    if !scores.is_empty() {
         println!(
             "{:<20} {:<16} {:>10} {:>10} {:>12} {:>10}",
             "truth column", "node", "MSE [K^2]", "RMSE [K]", "max err [K]", "at [s]"
         );
-        for s in &result.scores {
+        for s in &scores {
             println!(
                 "{:<20} {:<16} {:>10.4} {:>10.4} {:>12.4} {:>10.1}",
                 s.column, s.node, s.mse_k2, s.rmse_k, s.max_abs_error_k, s.max_error_time_s
@@ -523,8 +621,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             );
         }
     }
-    print_events(&result.alarms);
-    let t = &result.times;
+    print_events(&events);
+    let t = &times;
     match &observer {
         Some(o) => println!(
             "library tick time [us] over {} ticks of {} ms (NetworkObserver padded to {} nodes): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
@@ -539,7 +637,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         ),
         None => println!(
             "step time [us] per trace row of {:.3} s (the library filter's predict and update): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
-            median_row_s(&drive.time_s),
+            survey.window_gaps.median().unwrap_or(median_row_s),
             t.min_ns * 1e-3,
             t.p50_ns * 1e-3,
             t.p99_ns * 1e-3,

@@ -1,6 +1,6 @@
 //! `coil-thermal simulate`.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use serde_json::json;
 
 use coil_thermal::omnimagnet::{Omnimagnet, Preset, EXPERIMENT_STOP_C};
@@ -8,12 +8,14 @@ use coil_thermal::omnimagnet::{Omnimagnet, Preset, EXPERIMENT_STOP_C};
 use super::common::{self, ModelSpec};
 use super::SimulateArgs;
 use crate::devices;
-use crate::plot::{render, PlotData, Series};
+use crate::model_file::InputHold;
+use crate::plot::{render, Decimated, PlotData};
 use crate::sim::{
-    by_node, check_temperatures, check_work, initial_temps, simulate, Drive, MAX_CELLS, MAX_ROWS,
+    check_row_temperatures, Drive, InputRow, PlantInfo, RowSource, TraceDrive, Work, MAX_CELLS,
+    MAX_ROWS,
 };
 use crate::synth::Rng;
-use crate::trace::write_csv;
+use crate::trace::{CsvOut, TraceFile};
 
 /// Runs `simulate`.
 pub fn run(a: SimulateArgs) -> Result<()> {
@@ -35,16 +37,22 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     }
     let mut preset_init = None;
     let mut preset_name = None;
-    let drive = if let Some(path) = &a.trace {
-        if a.ambient_c.is_some() {
-            bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
+    // A trace is streamed; the other drives are generated in memory.
+    let file = match &a.trace {
+        Some(path) => {
+            if a.ambient_c.is_some() {
+                bail!("--ambient-c applies to constant currents; with --trace use --boundary COL=NAME or --const COL=VALUE");
+            }
+            Some(common::scan_trace(path, &a.trace_args)?)
         }
-        let trace = common::read_trace(path, &a.trace_args)?;
-        let drive = Drive::from_trace(&info, &trace, &bind)?;
-        match a.resample_s {
-            Some(s) => resample(&drive, s)?,
-            None => drive,
-        }
+        None => None,
+    };
+    let mut trace_drive = match &file {
+        Some(f) => Some(TraceDrive::new(&info, f, &bind, InputHold::Start)?),
+        None => None,
+    };
+    let memory = if trace_drive.is_some() {
+        None
     } else if let Some(pattern) = a.pattern {
         let (rows, cols) = common::grid_dims(&a.model);
         let amps = match a.current_a.as_slice() {
@@ -62,7 +70,14 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             })
             .collect();
         let duration = a.duration_s.unwrap_or(1800.0);
-        Drive::constant(&info, duration, a.dt_s, &currents, a.ambient_c, &bind)?
+        Some(Drive::constant(
+            &info,
+            duration,
+            a.dt_s,
+            &currents,
+            a.ambient_c,
+            &bind,
+        )?)
     } else if let Some(name) = &a.preset {
         let preset = devices::omnimagnet_preset(name)?;
         if preset != Preset::PassiveCooling {
@@ -86,7 +101,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         }
         let init = preset.initial_temps_c(&Omnimagnet::PAPER, ambient);
         preset_init = Some(init.to_vec());
-        drive
+        Some(drive)
     } else {
         let Some(duration) = a.duration_s else {
             bail!("give --duration-s S with --current-a, or --trace IN.csv");
@@ -97,67 +112,161 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         if let Some(bad) = a.current_a.iter().find(|v| !v.is_finite()) {
             bail!("--current-a must be finite, got {bad}");
         }
-        Drive::constant(&info, duration, a.dt_s, &a.current_a, a.ambient_c, &bind)?
+        Some(Drive::constant(
+            &info,
+            duration,
+            a.dt_s,
+            &a.current_a,
+            a.ambient_c,
+            &bind,
+        )?)
     };
+    // `--resample-s`: checked before the pass (a bad period would never
+    // end it), refused after the trace's own errors.
+    let resample_period = match (&file, a.resample_s) {
+        (Some(f), Some(p)) => Some(resample_check(f, &info, p)),
+        _ => None,
+    };
+    let period = resample_period
+        .as_ref()
+        .and_then(|r| r.as_ref().ok())
+        .copied();
+    let window = common::window(&a.window);
+    let inside = |t: f64| (window.0..=window.1).contains(&t);
+    // The pass before the run: the trace's errors, the first row, the
+    // model's work and the rows in the window.
+    let mut first: Option<InputRow> = None;
+    let mut work = Work::default();
+    let mut rows_inside = 0usize;
+    let (mut t_first, mut t_last) = (f64::NAN, f64::NAN);
+    {
+        let mut source = source(&mut trace_drive, memory.as_ref(), period)?;
+        while let Some(row) = source.next_row()? {
+            work.push(plant.as_ref(), row.time_s);
+            rows_inside += usize::from(inside(row.time_s));
+            if first.is_none() {
+                t_first = row.time_s;
+            }
+            t_last = row.time_s;
+            first.get_or_insert(row);
+        }
+    }
+    if let Some(d) = trace_drive.as_mut() {
+        d.check()?;
+    }
+    if let Some(r) = resample_period {
+        r?;
+    }
+    let first = first.context("the run has no row")?;
     let init = match preset_init {
         Some(t) => t,
-        None => initial_temps(&info, &drive, &[])?,
+        None => crate::sim::initial_temps_at(&info, &first.boundaries, &[])?,
     };
-    let window = common::window_rows(&a.window, &drive.time_s)?;
-    check_work(plant.as_ref(), &drive.time_s, "simulate")?;
-    let states = by_node(&simulate(plant.as_mut(), &drive, &init));
-    check_temperatures(&info, &drive.time_s, &states, "simulate")?;
+    common::check_window(&a.window, rows_inside, t_first, t_last)?;
+    work.check(plant.as_ref(), "simulate")?;
     // The run starts at the first row; only its output is windowed.
-    let states: Vec<Vec<f64>> = states.iter().map(|s| s[window.clone()].to_vec()).collect();
-    let drive = common::drive_window(&drive, &window);
     let mut names = info.nodes.clone();
-    let mut written = states.clone();
-    if let Some(sigma) = a.noise_k.filter(|k| *k > 0.0) {
-        let mut rng = Rng::new(a.seed);
-        for series in &mut written {
-            for v in series.iter_mut() {
-                *v += sigma * rng.normal();
+    if a.with_inputs {
+        names.extend(info.inputs.iter().map(|ch| ch.column.clone()));
+        names.extend(info.boundaries.iter().map(|ch| ch.column.clone()));
+    }
+    let mut out = CsvOut::create(&a.out, &names)?;
+    // The noise of node `i` at window row `k` is draw `i * rows + k` of
+    // one generator, as when it was added node by node.
+    let noise = a.noise_k.filter(|k| *k > 0.0);
+    let mut rngs: Vec<Rng> = (0..info.nodes.len())
+        .map(|i| Rng::new(a.seed).skipping_normals((i * rows_inside) as u64))
+        .collect();
+    let n = info.nodes.len();
+    let mut hot = common::HotSpot::new(n);
+    let mut final_c = vec![f64::NAN; n];
+    let mut first_critical: Vec<Option<f64>> = vec![None; n];
+    let mut first_stop: Vec<Option<f64>> = vec![None; n];
+    let mut figure = a.plot.as_ref().map(|_| {
+        (
+            vec![Decimated::default(); n],
+            vec![Decimated::default(); info.inputs.len()],
+        )
+    });
+    let (mut t0, mut t1) = (f64::NAN, f64::NAN);
+    let mut values = Vec::with_capacity(names.len());
+    plant.reset(&init);
+    let mut source = source(&mut trace_drive, memory.as_ref(), period)?;
+    let mut prev: Option<InputRow> = None;
+    while let Some(row) = source.next_row()? {
+        if let Some(p) = &prev {
+            plant.step(
+                row.time_s - p.time_s,
+                &p.currents,
+                &p.boundaries,
+                &p.signals,
+            );
+        }
+        let t = row.time_s;
+        let temps = plant.temps_c();
+        check_row_temperatures(&info, t, temps, "simulate")?;
+        if inside(t) {
+            if t0.is_nan() {
+                t0 = t;
+            }
+            t1 = t;
+            hot.push(t, temps);
+            final_c.copy_from_slice(temps);
+            for (i, v) in temps.iter().enumerate() {
+                if let Some(limit_c) = info.critical_c[i] {
+                    if first_critical[i].is_none() && *v >= limit_c {
+                        first_critical[i] = Some(t);
+                    }
+                }
+                if first_stop[i].is_none() && *v >= EXPERIMENT_STOP_C {
+                    first_stop[i] = Some(t);
+                }
+            }
+            values.clear();
+            match noise {
+                Some(sigma) => values.extend(
+                    temps
+                        .iter()
+                        .zip(&mut rngs)
+                        .map(|(v, rng)| v + sigma * rng.normal()),
+                ),
+                None => values.extend_from_slice(temps),
+            }
+            if a.with_inputs {
+                values.extend_from_slice(&row.currents);
+                values.extend_from_slice(&row.boundaries);
+            }
+            out.row(t, values.iter().copied())?;
+            if let Some((nodes, currents)) = figure.as_mut() {
+                nodes.iter_mut().zip(temps).for_each(|(d, v)| d.push(t, *v));
+                currents
+                    .iter_mut()
+                    .zip(&row.currents)
+                    .for_each(|(d, v)| d.push(t, *v));
             }
         }
+        prev = Some(row);
     }
-    if a.with_inputs {
-        for (ch, series) in info.inputs.iter().zip(&drive.currents) {
-            names.push(ch.column.clone());
-            written.push(series.clone());
-        }
-        for (ch, series) in info.boundaries.iter().zip(&drive.boundaries) {
-            names.push(ch.column.clone());
-            written.push(series.clone());
-        }
-    }
-    write_csv(&a.out, &names, &drive.time_s, &written)?;
+    drop(source);
+    out.finish()?;
     if let Some(path) = &a.write_model {
         std::fs::write(path, common::model_file(&a.model)?.to_toml()?)?;
     }
-    if let Some(path) = &a.plot {
+    let maxima: Vec<f64> = hot.max.iter().map(|m| m.0).collect();
+    if let (Some(path), Some((nodes, currents))) = (&a.plot, &figure) {
+        let current_max: Vec<f64> = currents.iter().map(Decimated::max).collect();
         let data = PlotData {
             title: format!("{}: simulation", info.name),
-            estimated: common::plotted(&states)
+            estimated: common::plotted_by_max(&maxima)
                 .into_iter()
                 .enumerate()
-                .map(|(c, i)| Series {
-                    label: info.nodes[i].clone(),
-                    time_s: drive.time_s.clone(),
-                    values: states[i].clone(),
-                    color: c,
-                })
+                .map(|(c, i)| nodes[i].series(info.nodes[i].clone(), c))
                 .collect(),
-            currents: common::plotted(&drive.currents)
+            currents: common::plotted_by_max(&current_max)
                 .into_iter()
-                .map(|i| (i, (&info.inputs[i], &drive.currents[i])))
-                .map(|(i, (ch, v))| Series {
-                    label: format!("{} [A]", ch.name),
-                    time_s: drive.time_s.clone(),
-                    values: v.clone(),
-                    color: i,
-                })
+                .map(|i| currents[i].series(format!("{} [A]", info.inputs[i].name), i))
                 .collect(),
-            node_limits: common::plotted(&states)
+            node_limits: common::plotted_by_max(&maxima)
                 .into_iter()
                 .enumerate()
                 .filter_map(|(c, i)| {
@@ -173,37 +282,22 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         };
         render(&data, path, 1200, 800)?;
     }
-    let last = drive.len() - 1;
-    let mut hot = (0, f64::MIN, 0.0);
+    let hot = hot.hottest();
     let mut max_c = serde_json::Map::new();
-    let mut final_c = serde_json::Map::new();
-    for (i, s) in states.iter().enumerate() {
-        let (k, m) =
-            s.iter().enumerate().fold(
-                (0, f64::MIN),
-                |acc, (k, v)| if *v > acc.1 { (k, *v) } else { acc },
-            );
-        if m > hot.1 {
-            hot = (i, m, drive.time_s[k]);
-        }
-        max_c.insert(info.nodes[i].clone(), json!(m));
-        final_c.insert(info.nodes[i].clone(), json!(s[last]));
+    let mut final_map = serde_json::Map::new();
+    for (i, node) in info.nodes.iter().enumerate() {
+        max_c.insert(node.clone(), json!(maxima[i]));
+        final_map.insert(node.clone(), json!(final_c[i]));
     }
     // First time each node passes its critical temperature, and for an
     // Omnimagnet heating preset the paper's experiment stop (115 degC on a
     // solenoid): what a reader checks the model against.
-    let first_at = |series: &[f64], limit_c: f64| {
-        series
-            .iter()
-            .position(|v| *v >= limit_c)
-            .map(|k| drive.time_s[k])
-    };
     let mut critical = serde_json::Map::new();
     for (i, limit) in info.critical_c.iter().enumerate() {
         if let Some(limit_c) = limit {
             critical.insert(
                 info.nodes[i].clone(),
-                json!({"critical_c": limit_c, "first_time_s": first_at(&states[i], *limit_c)}),
+                json!({"critical_c": limit_c, "first_time_s": first_critical[i]}),
             );
         }
     }
@@ -212,16 +306,18 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             .geometry()
             .solenoids
             .iter()
-            .filter_map(|s| first_at(&states[s.node], EXPERIMENT_STOP_C))
+            .filter_map(|s| first_stop[s.node])
             .reduce(f64::min);
         json!({"stop_c": EXPERIMENT_STOP_C, "first_time_s": stop_s})
     });
+    let final_c = final_map;
+    let duration_s = t1 - t0;
     let summary = json!({
         "command": "simulate",
         "model": info.name,
         "nodes": info.nodes,
-        "rows": drive.len(),
-        "duration_s": drive.time_s[last] - drive.time_s[0],
+        "rows": rows_inside,
+        "duration_s": duration_s,
         "final_c": final_c,
         "max_c": max_c,
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
@@ -237,16 +333,16 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             "simulated `{}`: {} nodes, {} rows over {:.3} s -> {}",
             info.name,
             info.nodes.len(),
-            drive.len(),
-            drive.time_s[last] - drive.time_s[0],
+            rows_inside,
+            duration_s,
             a.out.display()
         );
         println!("{:<24} {:>12} {:>12}", "node", "final [degC]", "max [degC]");
-        for (i, n) in info.nodes.iter().enumerate() {
+        for n in &info.nodes {
             println!(
                 "{:<24} {:>12.3} {:>12.3}",
                 n,
-                states[i][last],
+                final_c[n].as_f64().unwrap_or(f64::NAN),
                 max_c[n].as_f64().unwrap_or(0.0)
             );
         }
@@ -275,15 +371,16 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     Ok(())
 }
 
-/// The drive sampled every `period_s` from its first time to its last, each
-/// sample holding the inputs of the last row at or before it.
-fn resample(drive: &Drive, period_s: f64) -> Result<Drive> {
+/// Refuses `--resample-s` as the whole-trace code did: a period that is
+/// not finite and positive, or more output rows or values than a run
+/// writes; returns the period \[s\].
+fn resample_check(file: &TraceFile, info: &PlantInfo, period_s: f64) -> Result<f64> {
     if !(period_s.is_finite() && period_s > 0.0) {
         bail!("--resample-s must be finite and > 0 s, got {period_s}");
     }
-    let (t0, t1) = (drive.time_s[0], drive.time_s[drive.len() - 1]);
+    let (t0, t1) = (file.first_time_s(), file.last_time_s());
     let steps_f = ((t1 - t0) / period_s).floor();
-    let channels = drive.currents.len() + drive.boundaries.len() + drive.signals.len() + 1;
+    let channels = info.inputs.len() + info.boundaries.len() + info.signals.len() + 1;
     if steps_f + 1.0 > MAX_ROWS as f64 || (steps_f + 1.0) * channels as f64 > MAX_CELLS as f64 {
         bail!(
             "--resample-s {} s over the trace's {:.3} s is {:.3e} rows; at most {MAX_ROWS} rows \
@@ -293,29 +390,92 @@ fn resample(drive: &Drive, period_s: f64) -> Result<Drive> {
             steps_f + 1.0
         );
     }
-    let steps = steps_f as usize;
-    let mut time_s: Vec<f64> = (0..=steps).map(|k| t0 + k as f64 * period_s).collect();
-    if t1 - time_s[steps] > 1e-9 * period_s.max(1.0) {
-        time_s.push(t1);
-    }
-    let mut rows = Vec::with_capacity(time_s.len());
-    let mut k = 0;
-    for t in &time_s {
-        while k + 1 < drive.len() && drive.time_s[k + 1] <= *t {
-            k += 1;
+    Ok(period_s)
+}
+
+/// The run's rows: the trace's (every `period_s` with `--resample-s`), or
+/// the generated drive's.
+fn source<'s>(
+    trace: &'s mut Option<TraceDrive<'_>>,
+    memory: Option<&'s Drive>,
+    period_s: Option<f64>,
+) -> Result<Box<dyn RowSource + 's>> {
+    Ok(match (trace.as_mut(), memory) {
+        (Some(t), _) => {
+            let (t0, t1) = (t.file().first_time_s(), t.file().last_time_s());
+            let rows = t.rows()?;
+            match period_s {
+                Some(p) => Box::new(Resampled::new(Box::new(rows), t0, t1, p)),
+                None => Box::new(rows),
+            }
         }
-        rows.push(k);
-    }
-    let pick = |series: &Vec<Vec<f64>>| -> Vec<Vec<f64>> {
-        series
-            .iter()
-            .map(|s| rows.iter().map(|&k| s[k]).collect())
-            .collect()
-    };
-    Ok(Drive {
-        currents: pick(&drive.currents),
-        boundaries: pick(&drive.boundaries),
-        signals: pick(&drive.signals),
-        time_s,
+        (None, Some(d)) => Box::new(d.rows()),
+        (None, None) => bail!("no input rows"),
     })
+}
+
+/// Rows sampled every `period_s` from the first time `t0` to the last
+/// `t1`, each sample holding the inputs of the last row at or before it
+/// (the last sample at `t1` when the grid stops short of it).
+struct Resampled<'s> {
+    rows: Box<dyn RowSource + 's>,
+    t0: f64,
+    t1: f64,
+    period_s: f64,
+    steps: usize,
+    k: usize,
+    extra_end: bool,
+    current: Option<InputRow>,
+    next: Option<InputRow>,
+    started: bool,
+}
+
+impl<'s> Resampled<'s> {
+    fn new(rows: Box<dyn RowSource + 's>, t0: f64, t1: f64, period_s: f64) -> Self {
+        let steps = ((t1 - t0) / period_s).floor() as usize;
+        let extra_end = t1 - (t0 + steps as f64 * period_s) > 1e-9 * period_s.max(1.0);
+        Self {
+            rows,
+            t0,
+            t1,
+            period_s,
+            steps,
+            k: 0,
+            extra_end,
+            current: None,
+            next: None,
+            started: false,
+        }
+    }
+}
+
+impl RowSource for Resampled<'_> {
+    fn next_row(&mut self) -> Result<Option<InputRow>> {
+        if !self.started {
+            self.started = true;
+            self.current = self.rows.next_row()?;
+            self.next = self.rows.next_row()?;
+        }
+        let t = if self.k <= self.steps {
+            self.t0 + self.k as f64 * self.period_s
+        } else if self.k == self.steps + 1 && self.extra_end {
+            self.t1
+        } else {
+            return Ok(None);
+        };
+        while self.next.as_ref().is_some_and(|n| n.time_s <= t) {
+            self.current = self.next.take();
+            self.next = self.rows.next_row()?;
+        }
+        let Some(row) = self.current.as_ref() else {
+            return Ok(None);
+        };
+        let out = InputRow {
+            index: self.k,
+            time_s: t,
+            ..row.clone()
+        };
+        self.k += 1;
+        Ok(Some(out))
+    }
 }
