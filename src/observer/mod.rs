@@ -30,6 +30,7 @@ pub mod network;
 pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
+mod tables;
 
 pub use clock::{
     ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,
@@ -49,3 +50,4 @@ pub use shared::{Mailbox, Shared};
 pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
+pub use tables::{AlarmTables, ClockTables, LimiterTables};
