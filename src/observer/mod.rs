@@ -36,7 +36,8 @@ pub use clock::{
     ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,
 };
 pub use grid::{
-    GridInputs, GridObserver, GridObserverState, GridOutputs, ProtectionPlan, PROTECTION_TICKS,
+    GridInputs, GridObserver, GridObserverState, GridOutputs, GridParts, ProtectionPlan,
+    PROTECTION_TICKS,
 };
 pub use network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkOutputs,

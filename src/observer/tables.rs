@@ -2,8 +2,8 @@
 //! `const` checks and copies that assemble it, and the writer that prints
 //! parts as Rust.
 //!
-//! Each observer kept in flash ([`OmniParts`](super::omnimagnet::OmniParts))
-//! is read into plain tables by its
+//! Each observer kept in flash ([`OmniParts`](super::omnimagnet::OmniParts),
+//! [`GridParts`](super::grid::GridParts)) is read into plain tables by its
 //! `parts()`, written as a Rust expression by its `write_rust` (through
 //! [`Fields`] and [`Literal`] here, so every generated file spells values
 //! the same way: floats as the shortest text that reads back to the same
@@ -319,6 +319,21 @@ impl<'a> Fields<'a> {
 
     pub(crate) fn table<T: Literal>(&mut self, name: &str, rows: &[T]) -> fmt::Result {
         self.rows(name, "[", rows, "]")
+    }
+
+    /// A table that may be absent: `None` or `Some([..])`, one row per line.
+    pub(crate) fn optional_table<T: Literal>(
+        &mut self,
+        name: &str,
+        rows: Option<&[T]>,
+    ) -> fmt::Result {
+        match rows {
+            Some(rows) => self.rows(name, "Some([", rows, "])"),
+            None => {
+                self.pad(1)?;
+                writeln!(self.out, "{name}: None,")
+            }
+        }
     }
 
     fn rows<T: Literal>(&mut self, name: &str, open: &str, rows: &[T], close: &str) -> fmt::Result {
