@@ -14,7 +14,15 @@
 //! solenoid's `I^2` every tick, steps its model every 5 ms on the mean,
 //! and refreshes its limits and times to limit every 40 ms, 10 ms after a
 //! grid update, its predictor in two slices of at most five nodes
-//! (`docs/cost.md` gives the figures).
+//! (`docs/cost.md` gives the figures). Both configurations are generated
+//! on the host (`examples/generated/`, by `coil-thermal codegen --device
+//! omnimagnet` and `--device hppa-grid`) and assembled by the compiler:
+//! `static`s in flash, ticked by reference; only the states are in RAM.
+//! The grid's protection runs in 22 stages, none in a tick that prepares a
+//! row of the next update (ticks 1 to 7 after one): 12 stages per 20 ms
+//! update interval; a pass takes about 37 ms, passes run back to back, and
+//! the limits lag the model by at most two passes (about 80 ms; the
+//! fastest coil time constant is seconds).
 //!
 //! The trace segment is synthetic (made here, deterministic): coil (3, 5) at
 //! 2 A and row 1 at 1 A on the grid, all three solenoids at 3.8 A on the
@@ -43,20 +51,18 @@ use exit::fail;
 #[path = "support/cost.rs"]
 mod cost;
 
-// The Omnimagnet's configuration, generated on the host by
-// `coil-thermal codegen --device omnimagnet` and assembled by the compiler:
-// a `static` in flash, nothing of it built here.
+// Both configurations, generated on the host by `coil-thermal codegen
+// --device omnimagnet` and `--device hppa-grid` and assembled by the
+// compiler: `static`s in flash, nothing of them built here.
+#[path = "generated/hppa_grid.rs"]
+mod grid_flash;
 #[path = "generated/omnimagnet.rs"]
 mod omnimagnet_flash;
 
-use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::omnimagnet::{OmniObserver, SensorStatus, TimedReading};
-use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, ProtectionPlan, SnapshotError};
+use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, SnapshotError};
 use coil_thermal::omnimagnet::observer::MeanModel;
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, THERMOCOUPLE_NODES};
-use coil_thermal::protect::alarm::AlarmBuilder;
-use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
-use coil_thermal::protect::limiter::LimiterConfig;
 use coil_thermal::{CoilGrid, GridState, Reading, SensorFault};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
@@ -67,20 +73,6 @@ const TICKS: u32 = 20_000;
 const AMBIENT_C: f64 = 22.0;
 const OFFSETS_K: [f64; 6] = [0.1, -0.1, 0.05, -0.05, 0.15, -0.15];
 
-/// The grid's protection in 22 stages, none in a tick that prepares a row
-/// of the next update (ticks 1 to 7 after one): 12 stages per 20 ms update
-/// interval, no grid tick above about 3 900 instructions; a pass takes
-/// about 37 ms, passes run back to back, and the limits lag the model by
-/// at most two passes (about 80 ms; the fastest coil time constant is
-/// seconds).
-const GRID_PLAN: ProtectionPlan = ProtectionPlan {
-    bound_parts: 2,
-    time_to_limit_parts: 6,
-    alarm_parts: 8,
-    limiter_parts: 6,
-    wait_for_rows: true,
-};
-
 #[entry]
 fn main() -> ! {
     cost::paint_stack();
@@ -88,26 +80,21 @@ fn main() -> ! {
         fail("peripherals")
     };
     let meter = cost::Meter::new(&mut peripherals.SYST);
-    match run(&meter, &omnimagnet_flash::OBSERVER) {
+    match run(&meter, &grid_flash::OBSERVER, &omnimagnet_flash::OBSERVER) {
         Ok(()) => exit::exit(true),
         Err(what) => fail(what),
     }
 }
 
 #[inline(never)]
-fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static str> {
-    let grid_config = GridConfig {
-        ticks_per_update: 20,
-        ..GridConfig::default()
-    };
-    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
-        .build::<f32>()
-        .map_err(|_| "grid alarm")?;
-    let limiter = LimiterConfig::new([3.0; 84], 10.0, 0.0).map_err(|_| "grid limiter")?;
-    let grid = Grid::new(&grid_config, alarm, limiter, 4)
-        .and_then(|grid| grid.with_protection_plan(GRID_PLAN))
-        .map_err(|_| "grid observer")?;
-    let bare = CoilGrid::<f32, 7, 12>::new(&grid_config).map_err(|_| "bare grid")?;
+fn run(
+    meter: &cost::Meter,
+    grid: &'static Grid,
+    omni: &'static OmniObserver,
+) -> Result<(), &'static str> {
+    // The reference the grid observer is checked against, built here from
+    // the configuration the generated one carries.
+    let bare = CoilGrid::<f32, 7, 12>::new(grid.grid().config()).map_err(|_| "bare grid")?;
 
     let lin = reference().ok_or("reference linearisation")?;
     let build_stack = cost::stack_peak();
@@ -268,7 +255,7 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
         protect_ok
     );
 
-    let snapshot_ok = snapshots(&grid, &gs, omni, &os);
+    let snapshot_ok = snapshots(grid, &gs, omni, &os);
     hprintln!("snapshots: {}", snapshot_ok);
 
     // A re-linearisation at the present estimate, made as a background task
@@ -297,20 +284,21 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
         grid_cost.mean(),
         grid_cost.worst()
     );
-    // What the ticks read or write outside flash: both states and the
-    // grid's configuration (built here). The Omnimagnet's configuration is
-    // the generated `static` in flash (checked: its address is not in RAM).
+    // What the ticks read or write outside flash: both states. Both
+    // configurations are the generated `static`s in flash (checked: their
+    // addresses are not in RAM).
     let omni_config = (size_of::<OmniObserver>(), in_flash(omni));
-    let omni_state = size_of_val(&os);
-    let grid_bytes = (size_of::<Grid>(), size_of_val(&gs));
+    let grid_config = (size_of::<Grid>(), in_flash(grid));
+    let (omni_state, grid_state) = (size_of_val(&os), size_of_val(&gs));
     hprintln!(
-        "cost: ram of the running observers {} B (omnimagnet state {} B; grid configuration {} B, state {} B; not counted: the omnimagnet configuration, {} B in flash: {}); tick stack {} B",
-        omni_state + grid_bytes.0 + grid_bytes.1,
+        "cost: ram of the running observers {} B (omnimagnet state {} B, grid state {} B; not counted: the configurations in flash, omnimagnet {} B: {}, grid {} B: {}); tick stack {} B",
+        omni_state + grid_state,
         omni_state,
-        grid_bytes.0,
-        grid_bytes.1,
+        grid_state,
         omni_config.0,
         omni_config.1,
+        grid_config.0,
+        grid_config.1,
         run_stack.saturating_sub(depth_at_loop)
     );
     let (flash, ram) = cost::image_sizes();
@@ -337,6 +325,9 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
     );
     if !(grid_ok && omni_ok && statuses_ok && protect_ok && snapshot_ok && relinearised_ok) {
         return Err("a check failed");
+    }
+    if !(omni_config.1 && grid_config.1) {
+        return Err("a configuration is not in flash");
     }
     if corrected.count() != TICKS / 500 {
         return Err("corrections counted");

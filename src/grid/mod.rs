@@ -147,26 +147,26 @@ const DIRECTIONS: [(isize, isize); 8] = [
 /// [`GridState`].
 #[derive(Debug, Clone)]
 pub struct CoilGrid<S, const ROWS: usize, const COLS: usize> {
-    config: GridConfig,
-    stability_ratio: f64,
+    pub(crate) config: GridConfig,
+    pub(crate) stability_ratio: f64,
     /// `G dt` per grid step \[J/K\] towards each direction; zero where there
     /// is no link or the neighbour is outside the grid.
-    neighbour_g_dt: [[[S; COLS]; ROWS]; 8],
+    pub(crate) neighbour_g_dt: [[[S; COLS]; ROWS]; 8],
     /// Whether direction `d` has any link in even (`[d][0]`) / odd rows.
-    direction_used: [[bool; 2]; 8],
+    pub(crate) direction_used: [[bool; 2]; 8],
     /// `G dt` to the ambient padding per grid step \[J/K\].
-    ambient_g_dt: [[S; COLS]; ROWS],
+    pub(crate) ambient_g_dt: [[S; COLS]; ROWS],
     /// `dt / Rz` per grid step \[J/K\].
-    base_g_dt: S,
+    pub(crate) base_g_dt: S,
     /// `1 / C` \[K/J\].
-    inverse_capacity: S,
+    pub(crate) inverse_capacity: S,
     /// `R(0 degC) * tick_dt` \[ohm s\].
-    r_at_0c_tick_dt: S,
+    pub(crate) r_at_0c_tick_dt: S,
     /// `dR/dT * tick_dt` \[ohm s / K\].
-    slope_tick_dt: S,
+    pub(crate) slope_tick_dt: S,
     /// Rows of neighbour heat [`CoilGrid::tick_spread`] sums per tick.
-    rows_per_tick: usize,
-    limits: ScalarLimits<S>,
+    pub(crate) rows_per_tick: usize,
+    pub(crate) limits: ScalarLimits<S>,
 }
 
 /// The per-device state of a grid: what a snapshot saves.
@@ -256,12 +256,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
             inverse_capacity: S::from_f64(1.0 / p.capacity_j_per_k()),
             r_at_0c_tick_dt: S::from_f64(r.r_at_0c_ohm * tick),
             slope_tick_dt: S::from_f64(r.slope_ohm_per_k * tick),
-            // Every row done by the tick before the update, which then only
-            // finishes; with an update every tick, that tick does it all.
-            rows_per_tick: match config.ticks_per_update {
-                1 => ROWS,
-                n => ROWS.div_ceil(n as usize - 1),
-            },
+            rows_per_tick: Self::rows_per_tick_at(config.ticks_per_update),
             limits: config.limits.to_scalar(),
         };
         let mut worst = (0, 0.0f64);
@@ -304,6 +299,17 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize> CoilGrid<S, ROWS, COLS> {
         }
         grid.stability_ratio = worst.1;
         Ok(grid)
+    }
+
+    /// Rows of neighbour heat [`CoilGrid::tick_spread`] sums per tick at
+    /// `ticks_per_update` ticks per update (at least 1): every row done by
+    /// the tick before the update, which then only finishes; with an update
+    /// every tick, that tick does it all.
+    pub(crate) const fn rows_per_tick_at(ticks_per_update: u32) -> usize {
+        match ticks_per_update {
+            0 | 1 => ROWS,
+            n => ROWS.div_ceil(n as usize - 1),
+        }
     }
 
     /// `G` \[W/K\] of the stencil link of a coil in `row` towards

@@ -93,6 +93,16 @@
 //! throughout (also for fixed-point grids: the answer is a time, not a
 //! temperature).
 //!
+//! # Configuration in flash
+//!
+//! [`GridObserver::parts`] reads a built observer into plain tables
+//! ([`GridParts`]), `write_rust` prints them as Rust, and the `const fn`
+//! [`GridObserver::from_parts`] assembles them again, to the bit: a
+//! `static` the compiler evaluates, so the configuration lives in flash
+//! and nothing of it is derived on the target
+//! (`coil-thermal codegen --device hppa-grid`; see
+//! `src/observer/grid/parts.rs`).
+//!
 //! # Warm restart
 //!
 //! [`GridObserver::save`] writes the coil temperatures and the latched
@@ -128,6 +138,10 @@ use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
+
+mod parts;
+
+pub use parts::{GridModelTables, GridParts, TimeToLimitTables};
 
 /// Capacity of each observer's alarm event queue.
 pub const EVENT_CAPACITY: usize = 16;

@@ -30,12 +30,14 @@ pub mod network;
 pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
+mod tables;
 
 pub use clock::{
     ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,
 };
 pub use grid::{
-    GridInputs, GridObserver, GridObserverState, GridOutputs, ProtectionPlan, PROTECTION_TICKS,
+    GridInputs, GridObserver, GridObserverState, GridOutputs, GridParts, ProtectionPlan,
+    PROTECTION_TICKS,
 };
 pub use network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkOutputs,
@@ -49,3 +51,4 @@ pub use shared::{Mailbox, Shared};
 pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
+pub use tables::{AlarmTables, ClockTables, LimiterTables};

@@ -222,6 +222,16 @@ impl Fingerprint {
     pub const fn finish(self) -> u32 {
         self.0.finish()
     }
+    /// The CRC register fed so far (not the finished fingerprint): what
+    /// an observer's parts carry of a fingerprint still to be fed.
+    pub(crate) const fn register(self) -> u32 {
+        self.0 .0
+    }
+    /// The fingerprint whose register is `register` (see
+    /// [`Self::register`]).
+    pub(crate) const fn from_register(register: u32) -> Self {
+        Self(Crc32(register))
+    }
 }
 
 /// Writes a snapshot of `temps_c` \[degC\] into `out`; returns the bytes

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::codegen::{generate, generate_omnimagnet, CodegenRequest};
+use crate::codegen::{generate, generate_grid, generate_omnimagnet, CodegenRequest};
 
 /// A built-in device whose observer `codegen` writes without a model file.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -14,6 +14,10 @@ pub enum Device {
     /// settings: a module whose `static OBSERVER` is assembled by the
     /// compiler (the configuration in flash).
     Omnimagnet,
+    /// The 84-coil HPPA grid with `examples/observer_m4.rs`'s settings (20 ms
+    /// updates, HPPA derating, 3 A limiter, its protection plan): a module
+    /// whose `static OBSERVER` is assembled by the compiler.
+    HppaGrid,
 }
 
 /// `codegen` arguments.
@@ -52,6 +56,7 @@ pub struct CodegenArgs {
 pub fn run(a: CodegenArgs) -> Result<()> {
     let (text, source) = match (a.device, a.model) {
         (Some(Device::Omnimagnet), _) => (generate_omnimagnet()?, "the Omnimagnet".to_string()),
+        (Some(Device::HppaGrid), _) => (generate_grid()?, "the HPPA grid".to_string()),
         (None, Some(model)) => {
             let text = generate(&CodegenRequest {
                 model: model.clone(),

@@ -43,16 +43,16 @@ use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
 use crate::error::BuildError;
 use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
 use crate::input::ScalarLimits;
-use crate::observer::clock::StepClock;
 use crate::observer::consistency::{Band, BiasBound, StuckTest};
 use crate::observer::network::{GainTables, PredictorTables};
+use crate::observer::tables::{
+    below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
+    write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
+};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
 use crate::omnimagnet::{NODES, SOLENOIDS, THERMOCOUPLES};
-use crate::protect::alarm::AlarmConfig;
-use crate::protect::limiter::LimiterConfig;
-use crate::protect::margin::{ElementBound, UpperBound};
 
 const ALARMS: usize = ALARM_NODES.len();
 
@@ -120,30 +120,10 @@ pub struct FilterTables {
 /// [`crate::protect`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProtectionTables {
-    /// Critical temperature of each [`ALARM_NODES`] element \[degC\].
-    pub critical_c: [f32; ALARMS],
-    /// The derating rule's product (dimensionless).
-    pub derating_product: f32,
-    /// \[K\].
-    pub warning_margin_k: f32,
-    /// \[K\].
-    pub hysteresis_k: f32,
-    /// Alarm debounce (protection cycles).
-    pub debounce_ticks: u16,
-    /// Predictive alarm horizon \[s\].
-    pub horizon_s: f32,
-    /// The horizon at which the predictive alarm clears \[s\].
-    pub horizon_clear_s: f32,
-    /// \[degC\].
-    pub nominal_ambient_c: f32,
-    /// Each solenoid's hardware current limit \[A\].
-    pub hardware_limit_a: [f32; SOLENOIDS],
-    /// The limiter's taper band \[K\].
-    pub taper_k: f32,
-    /// `1 / taper_k` \[1/K\].
-    pub taper_per_k: f32,
-    /// The limiter's floor \[A\].
-    pub floor_a: f32,
+    /// The alarm of each [`ALARM_NODES`] element.
+    pub alarm: AlarmTables<f32, ALARMS>,
+    /// The limiter of each solenoid's current.
+    pub limiter: LimiterTables<f32, SOLENOIDS>,
     /// Each node's upper bound: the share of its rise `f`
     /// (dimensionless), `f / (1 + f)` and its offset \[K\].
     pub bound: [[f32; 3]; NODES],
@@ -160,14 +140,8 @@ pub struct OmniParts {
     pub protection: ProtectionTables,
     /// The unfused shadow model (one correction period per step).
     pub shadow: MeanModelTables,
-    /// Model step \[us\].
-    pub step_us: u32,
-    /// Catch-up bound (model steps per tick).
-    pub max_steps_per_tick: u32,
-    /// Ticks without elapsed time before the clock is flagged frozen.
-    pub frozen_flag_ticks: u32,
-    /// Ticks without elapsed time before the model is taken as lost.
-    pub frozen_loss_ticks: u32,
+    /// The step clock.
+    pub clock: ClockTables,
     /// Largest plausible current \[A\].
     pub max_current_a: f32,
     /// Lowest plausible ambient \[degC\].
@@ -232,36 +206,6 @@ const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix
 
 const fn vector<const R: usize>(values: &[f32; R]) -> SMatrix<f32, R, 1> {
     SMatrix::from_array_storage(ArrayStorage([*values]))
-}
-
-const fn finite(values: &[f32]) -> bool {
-    let mut k = 0;
-    while k < values.len() {
-        if !values[k].is_finite() {
-            return false;
-        }
-        k += 1;
-    }
-    true
-}
-
-const fn finite_rows<const C: usize>(rows: &[[f32; C]]) -> bool {
-    finite(rows.as_flattened())
-}
-
-const fn below(indices: &[usize], n: usize) -> bool {
-    let mut k = 0;
-    while k < indices.len() {
-        if indices[k] >= n {
-            return false;
-        }
-        k += 1;
-    }
-    true
-}
-
-const fn invalid(name: &'static str) -> BuildError {
-    BuildError::InvalidParameter { name }
 }
 
 impl MeanModelTables {
@@ -365,29 +309,13 @@ impl OmniObserver {
                 gain_stale: c.gain_stale,
             },
             protection: ProtectionTables {
-                critical_c: a.critical_c,
-                derating_product: a.product,
-                warning_margin_k: a.warning_margin_k,
-                hysteresis_k: a.hysteresis_k,
-                debounce_ticks: a.debounce_ticks,
-                horizon_s: a.horizon_s,
-                horizon_clear_s: a.horizon_clear_s,
-                nominal_ambient_c: a.nominal_ambient_c,
-                hardware_limit_a: l.hardware_limit_a,
-                taper_k: l.taper_k,
-                taper_per_k: l.taper_per_k,
-                floor_a: l.floor_a,
-                bound: self
-                    .bound
-                    .elements
-                    .map(|e| [e.rise_fraction, e.limit_fraction, e.offset_k]),
+                alarm: AlarmTables::of(a),
+                limiter: LimiterTables::of(l),
+                bound: bound_rows(&self.bound),
                 predictor: PredictorTables::of(p),
             },
             shadow: MeanModelTables::of(&self.shadow),
-            step_us: self.clock.step_us,
-            max_steps_per_tick: self.clock.max_steps_per_tick,
-            frozen_flag_ticks: self.clock.frozen_flag_ticks,
-            frozen_loss_ticks: self.clock.frozen_loss_ticks,
+            clock: ClockTables::of(&self.clock),
             max_current_a: self.limits.max_current_a,
             min_temp_c: self.limits.min_temp_c,
             max_temp_c: self.limits.max_temp_c,
@@ -421,9 +349,10 @@ impl OmniObserver {
     /// a non-finite table entry (`filter`, `filter.gain`, `filter.model`,
     /// `protection`, `protection.predictor`, `shadow`), an index out of
     /// range (`filter.solenoid_nodes`, `filter.walk_from`,
-    /// `predictor`), a clock the tick cannot run (`step_us`,
-    /// `max_steps_per_tick`, `frozen_loss_ticks`), a protection period
-    /// below four catch-ups of the clock or a phase beyond it
+    /// `predictor`), a clock the tick cannot run (`clock.step_us`,
+    /// `clock.max_steps_per_tick`, `clock.frozen_flag_ticks`,
+    /// `clock.frozen_loss_ticks`), a protection period below four
+    /// catch-ups of the clock or a phase beyond it
     /// (`protect_period_us`, `protect_phase_us`), a zero shadow block
     /// (`shadow_block_steps`), a NaN bias bound (`bias_offset_w`) or
     /// input limit (`limits`), or a time-varying filter (`filter.settings`);
@@ -479,33 +408,16 @@ impl OmniObserver {
             return Err(invalid("limits"));
         }
         let p = &parts.protection;
-        if !(finite(&p.critical_c)
-            && p.derating_product.is_finite()
-            && p.warning_margin_k.is_finite()
-            && p.hysteresis_k.is_finite()
-            && p.horizon_s.is_finite()
-            && p.horizon_clear_s.is_finite()
-            && p.nominal_ambient_c.is_finite()
-            && finite(&p.hardware_limit_a)
-            && p.taper_k.is_finite()
-            && p.taper_per_k.is_finite()
-            && p.floor_a.is_finite()
-            && finite_rows(&p.bound))
-        {
+        if !(p.alarm.is_finite() && p.limiter.is_finite() && finite_rows(&p.bound)) {
             return Err(invalid("protection"));
         }
         if !p.predictor.is_valid() {
             return Err(invalid("protection.predictor"));
         }
-        if parts.step_us == 0 {
-            return Err(invalid("step_us"));
-        }
-        if parts.max_steps_per_tick == 0 {
-            return Err(invalid("max_steps_per_tick"));
-        }
-        if parts.frozen_loss_ticks < parts.frozen_flag_ticks {
-            return Err(invalid("frozen_loss_ticks"));
-        }
+        let clock = match parts.clock.clock() {
+            Ok(clock) => clock,
+            Err(e) => return Err(e),
+        };
         if parts.predictor_slice_us == 0
             || !parts
                 .protect_period_us
@@ -517,7 +429,7 @@ impl OmniObserver {
         // alarm and the limiter, each up to `max_steps_per_tick` steps late.
         let slices = (parts.protect_period_us / parts.predictor_slice_us) as u64;
         let least_period_us =
-            parts.step_us as u64 * parts.max_steps_per_tick as u64 * (2 * slices + 2);
+            clock.step_us as u64 * clock.max_steps_per_tick as u64 * (2 * slices + 2);
         if (parts.protect_period_us as u64) < least_period_us {
             return Err(invalid("protect_period_us"));
         }
@@ -536,7 +448,7 @@ impl OmniObserver {
         if let Err(e) = check_refresh(
             &f.settings.sensors,
             parts.model_stale_after_steps,
-            parts.step_us,
+            parts.clock.step_us,
         ) {
             return Err(e);
         }
@@ -548,16 +460,6 @@ impl OmniObserver {
         while m < SOLENOIDS {
             resistance[m] = (f.resistance[m][0], f.resistance[m][1]);
             m += 1;
-        }
-        let mut elements = [ElementBound::<f32>::ZERO; NODES];
-        let mut i = 0;
-        while i < NODES {
-            elements[i] = ElementBound {
-                rise_fraction: p.bound[i][0],
-                limit_fraction: p.bound[i][1],
-                offset_k: p.bound[i][2],
-            };
-            i += 1;
         }
         Ok(Self {
             filter: ObserverConfig {
@@ -592,42 +494,23 @@ impl OmniObserver {
                 dt_s: f.dt_s,
                 gain_stale: f.gain_stale,
             },
-            alarm: AlarmConfig {
-                critical_c: p.critical_c,
-                product: p.derating_product,
-                warning_margin_k: p.warning_margin_k,
-                hysteresis_k: p.hysteresis_k,
-                debounce_ticks: p.debounce_ticks,
-                horizon_s: p.horizon_s,
-                horizon_clear_s: p.horizon_clear_s,
-                nominal_ambient_c: p.nominal_ambient_c,
-            },
-            limiter: LimiterConfig {
-                hardware_limit_a: p.hardware_limit_a,
-                taper_k: p.taper_k,
-                taper_per_k: p.taper_per_k,
-                floor_a: p.floor_a,
-            },
+            alarm: p.alarm.config(),
+            limiter: p.limiter.config(),
             // `u32::MAX` stands for "all" (`new`'s `usize::MAX`).
             predictor: t.predictor(if parts.predictor_elements_per_tick == u32::MAX {
                 usize::MAX
             } else {
                 parts.predictor_elements_per_tick as usize
             }),
-            bound: UpperBound { elements },
-            clock: StepClock {
-                step_us: parts.step_us,
-                max_steps_per_tick: parts.max_steps_per_tick,
-                frozen_flag_ticks: parts.frozen_flag_ticks,
-                frozen_loss_ticks: parts.frozen_loss_ticks,
-            },
+            bound: upper_bound(&p.bound),
+            clock,
             limits: ScalarLimits {
                 max_current_a: parts.max_current_a,
                 min_temp_c: parts.min_temp_c,
                 max_temp_c: parts.max_temp_c,
             },
             max_reading_age_us: parts.max_reading_age_us,
-            step_us: parts.step_us,
+            step_us: parts.clock.step_us,
             protect_period_us: parts.protect_period_us,
             protect_phase_us: parts.protect_phase_us,
             loop_period_us: parts.loop_period_us,
@@ -654,112 +537,12 @@ impl OmniObserver {
     }
 }
 
-/// A value written as Rust source that reads back to the same bits.
-trait Literal {
-    fn write(&self, out: &mut dyn Write) -> fmt::Result;
-}
-
-macro_rules! float_literal {
-    ($t:ident) => {
-        impl Literal for $t {
-            fn write(&self, out: &mut dyn Write) -> fmt::Result {
-                // `{:?}` is the shortest text that reads back to the same
-                // bits; it spells the non-finite values in no Rust syntax.
-                if self.is_nan() {
-                    write!(out, "{}::NAN", stringify!($t))
-                } else if self.is_infinite() {
-                    let sign = if *self > 0.0 { "" } else { "NEG_" };
-                    write!(out, "{}::{sign}INFINITY", stringify!($t))
-                } else {
-                    write!(out, "{self:?}")
-                }
-            }
-        }
-    };
-}
-float_literal!(f32);
-float_literal!(f64);
-
-macro_rules! debug_literal {
-    ($($t:ty),*) => {$(
-        impl Literal for $t {
-            fn write(&self, out: &mut dyn Write) -> fmt::Result {
-                write!(out, "{self:?}")
-            }
-        }
-    )*};
-}
-debug_literal!(u16, u32, usize, bool);
-
 impl Literal for GainMode {
     fn write(&self, out: &mut dyn Write) -> fmt::Result {
         write!(
             out,
             "coil_thermal::omnimagnet::observer::GainMode::{self:?}"
         )
-    }
-}
-
-impl<T: Literal, const N: usize> Literal for [T; N] {
-    fn write(&self, out: &mut dyn Write) -> fmt::Result {
-        out.write_char('[')?;
-        for (k, v) in self.iter().enumerate() {
-            if k > 0 {
-                out.write_str(", ")?;
-            }
-            v.write(out)?;
-        }
-        out.write_char(']')
-    }
-}
-
-/// Writes a struct expression: `path {`, one `name: value,` per line,
-/// `}`; a table (an array of rows) one row per line.
-struct Fields<'a> {
-    out: &'a mut dyn Write,
-    indent: usize,
-}
-
-impl<'a> Fields<'a> {
-    /// `path` is `module::Type`, written after `coil_thermal::`.
-    fn open(out: &'a mut dyn Write, path: &str, indent: usize) -> Result<Self, fmt::Error> {
-        writeln!(out, "coil_thermal::{path} {{")?;
-        Ok(Self { out, indent })
-    }
-
-    fn pad(&mut self, extra: usize) -> fmt::Result {
-        write!(self.out, "{:1$}", "", 4 * (self.indent + extra))
-    }
-
-    fn field(&mut self, name: &str, value: &dyn Literal) -> fmt::Result {
-        self.pad(1)?;
-        write!(self.out, "{name}: ")?;
-        value.write(self.out)?;
-        self.out.write_str(",\n")
-    }
-
-    fn table<T: Literal>(&mut self, name: &str, rows: &[T]) -> fmt::Result {
-        self.pad(1)?;
-        writeln!(self.out, "{name}: [")?;
-        for row in rows {
-            self.pad(2)?;
-            row.write(self.out)?;
-            self.out.write_str(",\n")?;
-        }
-        self.pad(1)?;
-        self.out.write_str("],\n")
-    }
-
-    /// A nested struct expression as the value of `name`.
-    fn nested(&mut self, name: &str, path: &str) -> Result<Fields<'_>, fmt::Error> {
-        self.pad(1)?;
-        write!(self.out, "{name}: ")?;
-        Fields::open(&mut *self.out, path, self.indent + 1)
-    }
-
-    fn close(mut self, last: bool) -> fmt::Result {
-        self.pad(0)?;
-        self.out.write_str(if last { "}" } else { "},\n" })
     }
 }
 
@@ -794,10 +577,7 @@ impl OmniParts {
             filter,
             protection,
             shadow,
-            step_us,
-            max_steps_per_tick,
-            frozen_flag_ticks,
-            frozen_loss_ticks,
+            clock,
             max_current_a,
             min_temp_c,
             max_temp_c,
@@ -822,10 +602,7 @@ impl OmniParts {
         write_filter(&mut w, filter)?;
         write_protection(&mut w, protection)?;
         write_model(&mut w, "shadow", shadow)?;
-        w.field("step_us", step_us)?;
-        w.field("max_steps_per_tick", max_steps_per_tick)?;
-        w.field("frozen_flag_ticks", frozen_flag_ticks)?;
-        w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+        write_clock(&mut w, clock)?;
         w.field("max_current_a", max_current_a)?;
         w.field("min_temp_c", min_temp_c)?;
         w.field("max_temp_c", max_temp_c)?;
@@ -948,34 +725,14 @@ fn write_gain(out: &mut Fields<'_>, g: &GainTables<STATES, THERMOCOUPLES>) -> fm
 
 fn write_protection(out: &mut Fields<'_>, p: &ProtectionTables) -> fmt::Result {
     let ProtectionTables {
-        critical_c,
-        derating_product,
-        warning_margin_k,
-        hysteresis_k,
-        debounce_ticks,
-        horizon_s,
-        horizon_clear_s,
-        nominal_ambient_c,
-        hardware_limit_a,
-        taper_k,
-        taper_per_k,
-        floor_a,
+        alarm,
+        limiter,
         bound,
         predictor,
     } = p;
     let mut w = out.nested("protection", "observer::omnimagnet::ProtectionTables")?;
-    w.field("critical_c", critical_c)?;
-    w.field("derating_product", derating_product)?;
-    w.field("warning_margin_k", warning_margin_k)?;
-    w.field("hysteresis_k", hysteresis_k)?;
-    w.field("debounce_ticks", debounce_ticks)?;
-    w.field("horizon_s", horizon_s)?;
-    w.field("horizon_clear_s", horizon_clear_s)?;
-    w.field("nominal_ambient_c", nominal_ambient_c)?;
-    w.field("hardware_limit_a", hardware_limit_a)?;
-    w.field("taper_k", taper_k)?;
-    w.field("taper_per_k", taper_per_k)?;
-    w.field("floor_a", floor_a)?;
+    write_alarm(&mut w, "alarm", alarm)?;
+    write_limiter(&mut w, "limiter", limiter)?;
     w.table("bound", bound)?;
     write_predictor(&mut w, predictor)?;
     w.close(false)

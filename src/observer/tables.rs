@@ -1,0 +1,428 @@
+//! What the observers' parts share: the protection as plain tables, the
+//! `const` checks and copies that assemble it, and the writer that prints
+//! parts as Rust.
+//!
+//! Each observer kept in flash ([`OmniParts`](super::omnimagnet::OmniParts),
+//! [`GridParts`](super::grid::GridParts)) is read into plain tables by its
+//! `parts()`, written as a Rust expression by its `write_rust` (through
+//! [`Fields`] and [`Literal`] here, so every generated file spells values
+//! the same way: floats as the shortest text that reads back to the same
+//! bits) and assembled again by its `const fn from_parts`, which copies
+//! and checks but computes nothing (see the Omnimagnet's parts).
+//!
+//! The alarm and the limiter are generic over the scalar: their tables
+//! ([`AlarmTables`], [`LimiterTables`]) and the upper bound's rows are
+//! copied into their configurations by `const fn`s that only move `Copy`
+//! values, so one assembly serves every scalar.
+
+use core::fmt::{self, Write};
+
+use super::clock::StepClock;
+use crate::error::BuildError;
+use crate::protect::alarm::AlarmConfig;
+use crate::protect::limiter::LimiterConfig;
+use crate::protect::margin::{ElementBound, UpperBound};
+use crate::scalar::Scalar;
+
+/// An [`AlarmConfig`] as data: the scalar values it holds, nothing
+/// computed again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlarmTables<S, const N: usize> {
+    /// Critical temperature of each element \[degC\].
+    pub critical_c: [S; N],
+    /// The derating rule's product (dimensionless).
+    pub derating_product: S,
+    /// Warning margin below the alarm limit \[K\].
+    pub warning_margin_k: S,
+    /// Hysteresis of the alarm's clear \[K\].
+    pub hysteresis_k: S,
+    /// Alarm debounce (protection cycles).
+    pub debounce_ticks: u16,
+    /// Predictive alarm horizon \[s\].
+    pub horizon_s: S,
+    /// The horizon at which the predictive alarm clears \[s\].
+    pub horizon_clear_s: S,
+    /// The ambient the derating is taken at when none is measured \[degC\].
+    pub nominal_ambient_c: S,
+}
+
+impl<S: Copy, const N: usize> AlarmTables<S, N> {
+    pub(crate) fn of(a: &AlarmConfig<S, N>) -> Self {
+        Self {
+            critical_c: a.critical_c,
+            derating_product: a.product,
+            warning_margin_k: a.warning_margin_k,
+            hysteresis_k: a.hysteresis_k,
+            debounce_ticks: a.debounce_ticks,
+            horizon_s: a.horizon_s,
+            horizon_clear_s: a.horizon_clear_s,
+            nominal_ambient_c: a.nominal_ambient_c,
+        }
+    }
+
+    /// The configuration, copied field by field.
+    pub(crate) const fn config(&self) -> AlarmConfig<S, N> {
+        AlarmConfig {
+            critical_c: self.critical_c,
+            product: self.derating_product,
+            warning_margin_k: self.warning_margin_k,
+            hysteresis_k: self.hysteresis_k,
+            debounce_ticks: self.debounce_ticks,
+            horizon_s: self.horizon_s,
+            horizon_clear_s: self.horizon_clear_s,
+            nominal_ambient_c: self.nominal_ambient_c,
+        }
+    }
+}
+
+impl<const N: usize> AlarmTables<f32, N> {
+    /// Every value finite.
+    pub(crate) const fn is_finite(&self) -> bool {
+        finite(&self.critical_c)
+            && finite(&[
+                self.derating_product,
+                self.warning_margin_k,
+                self.hysteresis_k,
+                self.horizon_s,
+                self.horizon_clear_s,
+                self.nominal_ambient_c,
+            ])
+    }
+}
+
+/// A [`LimiterConfig`] as data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LimiterTables<S, const N: usize> {
+    /// Each current's hardware limit \[A\].
+    pub hardware_limit_a: [S; N],
+    /// The taper band below the alarm limit \[K\].
+    pub taper_k: S,
+    /// `1 / taper_k` \[1/K\] (as the limiter holds it).
+    pub taper_per_k: S,
+    /// The floor of every limit \[A\].
+    pub floor_a: S,
+}
+
+impl<S: Copy, const N: usize> LimiterTables<S, N> {
+    pub(crate) fn of(l: &LimiterConfig<S, N>) -> Self {
+        Self {
+            hardware_limit_a: l.hardware_limit_a,
+            taper_k: l.taper_k,
+            taper_per_k: l.taper_per_k,
+            floor_a: l.floor_a,
+        }
+    }
+
+    /// The configuration, copied field by field.
+    pub(crate) const fn config(&self) -> LimiterConfig<S, N> {
+        LimiterConfig {
+            hardware_limit_a: self.hardware_limit_a,
+            taper_k: self.taper_k,
+            taper_per_k: self.taper_per_k,
+            floor_a: self.floor_a,
+        }
+    }
+}
+
+impl<const N: usize> LimiterTables<f32, N> {
+    /// Every value finite.
+    pub(crate) const fn is_finite(&self) -> bool {
+        finite(&self.hardware_limit_a) && finite(&[self.taper_k, self.taper_per_k, self.floor_a])
+    }
+}
+
+/// A [`StepClock`] as data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClockTables {
+    /// Model step \[us\].
+    pub step_us: u32,
+    /// Catch-up bound (model steps per tick).
+    pub max_steps_per_tick: u32,
+    /// Ticks without elapsed time before the clock is flagged frozen.
+    pub frozen_flag_ticks: u32,
+    /// Ticks without elapsed time before the model is taken as lost.
+    pub frozen_loss_ticks: u32,
+}
+
+impl ClockTables {
+    pub(crate) fn of(c: &StepClock) -> Self {
+        Self {
+            step_us: c.step_us,
+            max_steps_per_tick: c.max_steps_per_tick,
+            frozen_flag_ticks: c.frozen_flag_ticks,
+            frozen_loss_ticks: c.frozen_loss_ticks,
+        }
+    }
+
+    /// The clock, copied: what [`StepClock::new`] and
+    /// [`StepClock::with_frozen_limits`] refuse is refused here too, named
+    /// `clock.step_us`, `clock.max_steps_per_tick`,
+    /// `clock.frozen_flag_ticks` or `clock.frozen_loss_ticks`.
+    pub(crate) const fn clock(&self) -> Result<StepClock, BuildError> {
+        let name = if self.step_us == 0 {
+            "clock.step_us"
+        } else if self.max_steps_per_tick == 0 {
+            "clock.max_steps_per_tick"
+        } else if self.frozen_flag_ticks == 0 {
+            "clock.frozen_flag_ticks"
+        } else if self.frozen_loss_ticks < self.frozen_flag_ticks {
+            "clock.frozen_loss_ticks"
+        } else {
+            return Ok(StepClock {
+                step_us: self.step_us,
+                max_steps_per_tick: self.max_steps_per_tick,
+                frozen_flag_ticks: self.frozen_flag_ticks,
+                frozen_loss_ticks: self.frozen_loss_ticks,
+            });
+        };
+        Err(invalid(name))
+    }
+}
+
+/// Each element's upper bound as a row: the share of its rise `f`
+/// (dimensionless), `f / (1 + f)` and its offset \[K\].
+pub(crate) fn bound_rows<S: Copy, const N: usize>(bound: &UpperBound<S, N>) -> [[S; 3]; N] {
+    bound
+        .elements
+        .map(|e| [e.rise_fraction, e.limit_fraction, e.offset_k])
+}
+
+/// The upper bound of [`bound_rows`]' rows, copied.
+pub(crate) const fn upper_bound<S: Scalar, const N: usize>(rows: &[[S; 3]; N]) -> UpperBound<S, N> {
+    let mut elements = [ElementBound::<S>::ZERO; N];
+    let mut i = 0;
+    while i < N {
+        elements[i] = ElementBound {
+            rise_fraction: rows[i][0],
+            limit_fraction: rows[i][1],
+            offset_k: rows[i][2],
+        };
+        i += 1;
+    }
+    UpperBound { elements }
+}
+
+pub(crate) const fn finite(values: &[f32]) -> bool {
+    let mut k = 0;
+    while k < values.len() {
+        if !values[k].is_finite() {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+pub(crate) const fn finite_rows<const C: usize>(rows: &[[f32; C]]) -> bool {
+    finite(rows.as_flattened())
+}
+
+pub(crate) const fn below(indices: &[usize], n: usize) -> bool {
+    let mut k = 0;
+    while k < indices.len() {
+        if indices[k] >= n {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+pub(crate) const fn invalid(name: &'static str) -> BuildError {
+    BuildError::InvalidParameter { name }
+}
+
+/// A value written as Rust source that reads back to the same bits.
+pub(crate) trait Literal {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result;
+}
+
+macro_rules! float_literal {
+    ($t:ident) => {
+        impl Literal for $t {
+            fn write(&self, out: &mut dyn Write) -> fmt::Result {
+                // `{:?}` is the shortest text that reads back to the same
+                // bits; it spells the non-finite values in no Rust syntax.
+                if self.is_nan() {
+                    write!(out, "{}::NAN", stringify!($t))
+                } else if self.is_infinite() {
+                    let sign = if *self > 0.0 { "" } else { "NEG_" };
+                    write!(out, "{}::{sign}INFINITY", stringify!($t))
+                } else {
+                    write!(out, "{self:?}")
+                }
+            }
+        }
+    };
+}
+float_literal!(f32);
+float_literal!(f64);
+
+macro_rules! debug_literal {
+    ($($t:ty),*) => {$(
+        impl Literal for $t {
+            fn write(&self, out: &mut dyn Write) -> fmt::Result {
+                write!(out, "{self:?}")
+            }
+        }
+    )*};
+}
+debug_literal!(u8, u16, u32, usize, bool);
+
+impl Literal for crate::scalar::Q32 {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        write!(out, "coil_thermal::Q32::from_bits({})", self.to_bits())
+    }
+}
+
+impl<T: Literal, const N: usize> Literal for [T; N] {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        out.write_char('[')?;
+        for (k, v) in self.iter().enumerate() {
+            if k > 0 {
+                out.write_str(", ")?;
+            }
+            v.write(out)?;
+        }
+        out.write_char(']')
+    }
+}
+
+/// Writes a struct expression: `path {`, one `name: value,` per line,
+/// `}`; a table (an array of rows) one row per line.
+pub(crate) struct Fields<'a> {
+    out: &'a mut dyn Write,
+    indent: usize,
+}
+
+impl<'a> Fields<'a> {
+    /// `path` is `module::Type`, written after `coil_thermal::`.
+    pub(crate) fn open(
+        out: &'a mut dyn Write,
+        path: &str,
+        indent: usize,
+    ) -> Result<Self, fmt::Error> {
+        writeln!(out, "coil_thermal::{path} {{")?;
+        Ok(Self { out, indent })
+    }
+
+    fn pad(&mut self, extra: usize) -> fmt::Result {
+        write!(self.out, "{:1$}", "", 4 * (self.indent + extra))
+    }
+
+    pub(crate) fn field(&mut self, name: &str, value: &dyn Literal) -> fmt::Result {
+        self.pad(1)?;
+        write!(self.out, "{name}: ")?;
+        value.write(self.out)?;
+        self.out.write_str(",\n")
+    }
+
+    pub(crate) fn table<T: Literal>(&mut self, name: &str, rows: &[T]) -> fmt::Result {
+        self.rows(name, "[", rows, "]")
+    }
+
+    /// A table that may be absent: `None` or `Some([..])`, one row per line.
+    pub(crate) fn optional_table<T: Literal>(
+        &mut self,
+        name: &str,
+        rows: Option<&[T]>,
+    ) -> fmt::Result {
+        match rows {
+            Some(rows) => self.rows(name, "Some([", rows, "])"),
+            None => {
+                self.pad(1)?;
+                writeln!(self.out, "{name}: None,")
+            }
+        }
+    }
+
+    fn rows<T: Literal>(&mut self, name: &str, open: &str, rows: &[T], close: &str) -> fmt::Result {
+        self.pad(1)?;
+        writeln!(self.out, "{name}: {open}")?;
+        for row in rows {
+            self.pad(2)?;
+            row.write(self.out)?;
+            self.out.write_str(",\n")?;
+        }
+        self.pad(1)?;
+        writeln!(self.out, "{close},")
+    }
+
+    /// A nested struct expression as the value of `name`.
+    pub(crate) fn nested(&mut self, name: &str, path: &str) -> Result<Fields<'_>, fmt::Error> {
+        self.pad(1)?;
+        write!(self.out, "{name}: ")?;
+        Fields::open(&mut *self.out, path, self.indent + 1)
+    }
+
+    pub(crate) fn close(mut self, last: bool) -> fmt::Result {
+        self.pad(0)?;
+        self.out.write_str(if last { "}" } else { "},\n" })
+    }
+}
+
+/// Writes `a` as the field `name`, an [`AlarmTables`] expression.
+pub(crate) fn write_alarm<S: Literal, const N: usize>(
+    out: &mut Fields<'_>,
+    name: &str,
+    a: &AlarmTables<S, N>,
+) -> fmt::Result {
+    // Destructured whole: a field added to the tables is a compile error
+    // here, not a field silently left out of the generated file.
+    let AlarmTables {
+        critical_c,
+        derating_product,
+        warning_margin_k,
+        hysteresis_k,
+        debounce_ticks,
+        horizon_s,
+        horizon_clear_s,
+        nominal_ambient_c,
+    } = a;
+    let mut w = out.nested(name, "observer::AlarmTables")?;
+    w.field("critical_c", critical_c)?;
+    w.field("derating_product", derating_product)?;
+    w.field("warning_margin_k", warning_margin_k)?;
+    w.field("hysteresis_k", hysteresis_k)?;
+    w.field("debounce_ticks", debounce_ticks)?;
+    w.field("horizon_s", horizon_s)?;
+    w.field("horizon_clear_s", horizon_clear_s)?;
+    w.field("nominal_ambient_c", nominal_ambient_c)?;
+    w.close(false)
+}
+
+/// Writes `l` as the field `name`, a [`LimiterTables`] expression.
+pub(crate) fn write_limiter<S: Literal, const N: usize>(
+    out: &mut Fields<'_>,
+    name: &str,
+    l: &LimiterTables<S, N>,
+) -> fmt::Result {
+    let LimiterTables {
+        hardware_limit_a,
+        taper_k,
+        taper_per_k,
+        floor_a,
+    } = l;
+    let mut w = out.nested(name, "observer::LimiterTables")?;
+    w.field("hardware_limit_a", hardware_limit_a)?;
+    w.field("taper_k", taper_k)?;
+    w.field("taper_per_k", taper_per_k)?;
+    w.field("floor_a", floor_a)?;
+    w.close(false)
+}
+
+/// Writes `c` as the field `clock`, a [`ClockTables`] expression.
+pub(crate) fn write_clock(out: &mut Fields<'_>, c: &ClockTables) -> fmt::Result {
+    let ClockTables {
+        step_us,
+        max_steps_per_tick,
+        frozen_flag_ticks,
+        frozen_loss_ticks,
+    } = c;
+    let mut w = out.nested("clock", "observer::ClockTables")?;
+    w.field("step_us", step_us)?;
+    w.field("max_steps_per_tick", max_steps_per_tick)?;
+    w.field("frozen_flag_ticks", frozen_flag_ticks)?;
+    w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+    w.close(false)
+}
