@@ -333,7 +333,7 @@ fn radix_select(
 }
 
 /// The median of positive numbers pushed one at a time, counted by value
-/// while at most [`MAX_DISTINCT_GAPS`] are distinct (row spacings, which
+/// while at most `MAX_DISTINCT_GAPS` (4096) are distinct (row spacings, which
 /// repeat); `None` beyond.
 #[derive(Debug, Clone)]
 pub struct GapMedian {
