@@ -471,6 +471,46 @@ pub fn omnimagnet_settings() -> coil_thermal::observer::omnimagnet::OmniSettings
     }
 }
 
+/// What `codegen --device omnimagnet` may change of
+/// [`omnimagnet_settings`]: the thermocouples fitted and the firmware's
+/// declared model refresh (`OmniSettings::model_refresh_s`), which a
+/// sensor set that leaves a solenoid with one thermocouple needs. The
+/// default (all six, no refresh) is `examples/observer_m4.rs`'s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OmniCodegen {
+    /// Which of the six thermocouples are fitted.
+    pub thermocouples: [bool; coil_thermal::omnimagnet::THERMOCOUPLES],
+    /// The declared re-linearisation period \[s\] (`None`: none).
+    pub model_refresh_s: Option<f64>,
+}
+
+impl Default for OmniCodegen {
+    fn default() -> Self {
+        Self {
+            thermocouples: [true; coil_thermal::omnimagnet::THERMOCOUPLES],
+            model_refresh_s: None,
+        }
+    }
+}
+
+impl OmniCodegen {
+    /// The command line's options for this choice (empty for the default).
+    fn options(&self) -> String {
+        let mut o = String::new();
+        if self.thermocouples.iter().any(|f| !f) {
+            let on: Vec<String> = (0..self.thermocouples.len())
+                .filter(|j| self.thermocouples[*j])
+                .map(|j| j.to_string())
+                .collect();
+            let _ = write!(o, " --thermocouples {}", on.join(","));
+        }
+        if let Some(r) = self.model_refresh_s {
+            let _ = write!(o, " --model-refresh-s {r}");
+        }
+        o
+    }
+}
+
 /// The Omnimagnet observer built on the host as `new` builds it
 /// ([`Omnimagnet::PAPER`](coil_thermal::omnimagnet::Omnimagnet::PAPER) at
 /// [`OMNIMAGNET_AMBIENT_C`], [`omnimagnet_settings`]).
@@ -478,12 +518,34 @@ pub fn omnimagnet_settings() -> coil_thermal::observer::omnimagnet::OmniSettings
 /// # Errors
 /// A refusal of the library's builder.
 pub fn omnimagnet_observer() -> Result<coil_thermal::observer::omnimagnet::OmniObserver> {
+    omnimagnet_observer_with(&OmniCodegen::default())
+}
+
+/// [`omnimagnet_observer`] with the thermocouples and the model refresh
+/// of `choice`.
+///
+/// # Errors
+/// A refusal of the library's builder (a sensor set that needs a model
+/// refresh without one, or with a period above the library's bound:
+/// `BuildError::ModelRefreshRequired`, which names the solenoid).
+pub fn omnimagnet_observer_with(
+    choice: &OmniCodegen,
+) -> Result<coil_thermal::observer::omnimagnet::OmniObserver> {
     use coil_thermal::omnimagnet::{Omnimagnet, NODES};
+    let defaults = omnimagnet_settings();
+    let settings = coil_thermal::observer::omnimagnet::OmniSettings {
+        filter: coil_thermal::omnimagnet::observer::ObserverSettings {
+            sensors: choice.thermocouples,
+            ..defaults.filter
+        },
+        model_refresh_s: choice.model_refresh_s,
+        ..defaults
+    };
     coil_thermal::observer::omnimagnet::OmniObserver::new(
         &Omnimagnet::PAPER,
         &[OMNIMAGNET_AMBIENT_C; NODES],
         OMNIMAGNET_AMBIENT_C,
-        &omnimagnet_settings(),
+        &settings,
     )
     .map_err(|e| anyhow::anyhow!("the Omnimagnet observer: {e}"))
 }
@@ -499,8 +561,21 @@ pub fn omnimagnet_observer() -> Result<coil_thermal::observer::omnimagnet::OmniO
 /// # Errors
 /// A refusal of the library's builder.
 pub fn generate_omnimagnet() -> Result<String> {
-    let observer = omnimagnet_observer()?;
+    generate_omnimagnet_with(&OmniCodegen::default())
+}
+
+/// [`generate_omnimagnet`] with the thermocouples and the model refresh of
+/// `choice` (`codegen --device omnimagnet --thermocouples J,...
+/// --model-refresh-s S`); the default writes the committed module.
+///
+/// # Errors
+/// A refusal of the library's builder (see [`omnimagnet_observer_with`]).
+pub fn generate_omnimagnet_with(choice: &OmniCodegen) -> Result<String> {
+    let observer = omnimagnet_observer_with(choice)?;
     let s = omnimagnet_settings();
+    let options = choice.options();
+    let device = format!("omnimagnet{options}");
+    let command = format!("{OMNIMAGNET_COMMAND}{options}");
     let about = format!(
         "//! The Omnimagnet observer of `examples/observer_m4.rs` (`Omnimagnet::PAPER`\n\
          //! linearised at {ambient} degC, ambient {ambient} degC, a {step} us model step,\n\
@@ -514,8 +589,8 @@ pub fn generate_omnimagnet() -> Result<String> {
     );
     flash_module(&FlashModule {
         about: &about,
-        command: OMNIMAGNET_COMMAND,
-        device: "omnimagnet",
+        command: &command,
+        device: &device,
         assembly: "OmniObserver::from_parts",
         imports: "coil_thermal::observer::omnimagnet::{OmniObserver, OmniParts}",
         parts_type: "OmniParts",

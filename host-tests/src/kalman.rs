@@ -256,6 +256,12 @@ pub struct FusionStats {
     pub fused: usize,
     /// Readings rejected by the gate.
     pub rejected: usize,
+    /// Readings judged stuck against the physics (the library observer's
+    /// stuck watch; always 0 for the row-rate Kalman filter).
+    pub stuck: usize,
+    /// Readings refused as colder than the physics (the library
+    /// observer's band; always 0 for the row-rate Kalman filter).
+    pub colder_than_physics: usize,
 }
 
 /// A Kalman filter on a model file (see the module docs).
@@ -336,6 +342,8 @@ impl KalmanEstimator {
                 node,
                 fused: 0,
                 rejected: 0,
+                stuck: 0,
+                colder_than_physics: 0,
             })
             .collect();
         let size = states.max(b.ncols()).max(sensor_nodes.len());

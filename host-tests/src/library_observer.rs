@@ -354,6 +354,8 @@ impl ObserverEstimator {
                     node,
                     fused: 0,
                     rejected: 0,
+                    stuck: 0,
+                    colder_than_physics: 0,
                 })
                 .collect(),
             sensors,
@@ -429,6 +431,8 @@ impl Estimator for ObserverEstimator {
                     match status {
                         SensorStatus::Fused { .. } => s.fused += 1,
                         SensorStatus::Rejected { .. } => s.rejected += 1,
+                        SensorStatus::Stuck { .. } => s.stuck += 1,
+                        SensorStatus::ColderThanPhysics { .. } => s.colder_than_physics += 1,
                         _ => {}
                     }
                 }

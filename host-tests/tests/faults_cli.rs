@@ -404,6 +404,44 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
         .stderr(contains("[observer] sensors"));
 }
 
+/// On its recorded trace the drive's housing warms 1 K in 273 s but never
+/// 1 K within the stuck test's 120 s window before about 300 s: a sensor
+/// stuck at the 60 s onset is flagged within 10 s of the truth leaving its
+/// reading by 1 K (the slow test, since the reading's last change; with
+/// the window alone it was 65 s late), and the estimate stays within 2 K.
+#[test]
+fn a_sensor_stuck_near_the_ambient_on_the_trace_is_flagged_in_time() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let model = format!("{dir}/models/drive-3node-fitted.toml");
+    let trace = format!("{dir}/traces/drive-3node.csv");
+    let r = json_run(&[
+        "faults",
+        "--model",
+        &model,
+        "--trace",
+        &trace,
+        "--classes",
+        "stuck",
+        "--onset-s",
+        "60",
+        "--json",
+    ]);
+    assert_eq!(r["clean"]["healthy_flagged"], 0);
+    let stuck = cases(&r, "stuck");
+    assert_eq!(stuck.len(), 1);
+    let c = stuck[0];
+    let (flag_s, detectable_s) = (
+        c["flag_s"].as_f64().expect("flagged"),
+        c["detectable_s"].as_f64().expect("detectable"),
+    );
+    assert!(
+        (0.0..=10.0).contains(&(flag_s - detectable_s)),
+        "flagged {flag_s} s, detectable {detectable_s} s"
+    );
+    assert_eq!(c["flag_goal_met"], true, "{c}");
+    assert!(c["max_error_tc_k"].as_f64().unwrap() <= 2.0, "{c}");
+}
+
 /// One thermocouple per solenoid is accepted only with the model refresh
 /// (issue 17): the campaign declares and runs it by default (10 s), and
 /// `--relinearize-s 0` (no refresh) is refused at build, naming the

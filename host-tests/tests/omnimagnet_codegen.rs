@@ -141,3 +141,98 @@ fn nan_limits_and_bias_bounds_are_refused() {
     p.bias_offset_w[0] = f32::INFINITY;
     assert!(OmniObserver::from_parts(&p).is_ok());
 }
+
+/// One thermocouple per solenoid (0, 2, 4) needs the firmware's model
+/// refresh: `codegen --device omnimagnet --thermocouples 0,2,4` alone is
+/// refused with the library's reason, and with `--model-refresh-s 10` it
+/// writes parts that assemble into the built observer (the sensor set, the
+/// watched refresh and the fingerprint), the command named in the header.
+#[test]
+fn one_per_solenoid_generates_with_a_declared_model_refresh() {
+    use coil_thermal_host::codegen::{
+        generate_omnimagnet_with, omnimagnet_observer_with, OmniCodegen,
+    };
+    let one_each = OmniCodegen {
+        thermocouples: [true, false, true, false, true, false],
+        model_refresh_s: None,
+    };
+    let refused = generate_omnimagnet_with(&one_each).unwrap_err().to_string();
+    assert!(refused.contains("model_refresh_s"), "{refused}");
+    let declared = OmniCodegen {
+        model_refresh_s: Some(10.0),
+        ..one_each
+    };
+    let text = generate_omnimagnet_with(&declared).expect("generates");
+    assert!(
+        text.contains("codegen --device omnimagnet --thermocouples 0,2,4 --model-refresh-s 10`"),
+        "{}",
+        &text[..800]
+    );
+    let built = omnimagnet_observer_with(&declared).expect("builds");
+    let parts = built.parts();
+    assert!(parts.model_stale_after_steps < u32::MAX);
+    assert_ne!(
+        built.fingerprint(),
+        omnimagnet_observer().unwrap().fingerprint()
+    );
+    let again = OmniObserver::from_parts(&parts).expect("assembles");
+    assert_eq!(again.fingerprint(), built.fingerprint());
+    // The command line: refused without the refresh, written with it.
+    let out = tempfile::TempDir::new().unwrap();
+    let file = out.path().join("omni.rs");
+    let ct = || assert_cmd::Command::cargo_bin("coil-thermal").unwrap();
+    ct().args([
+        "codegen",
+        "--device",
+        "omnimagnet",
+        "--thermocouples",
+        "0,2,4",
+        "--out",
+    ])
+    .arg(&file)
+    .assert()
+    .failure()
+    .stderr(predicates::str::contains("model_refresh_s"));
+    ct().args([
+        "codegen",
+        "--device",
+        "omnimagnet",
+        "--thermocouples",
+        "0,2,4",
+        "--model-refresh-s",
+        "10",
+        "--out",
+    ])
+    .arg(&file)
+    .assert()
+    .success();
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), text);
+    ct().args([
+        "codegen",
+        "--device",
+        "omnimagnet",
+        "--thermocouples",
+        "6",
+        "--out",
+        "-",
+    ])
+    .assert()
+    .failure()
+    .stderr(predicates::str::contains("thermocouples 0 to 5"));
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/models/drive-3node-fitted.toml"
+    );
+    ct().args([
+        "codegen",
+        "--model",
+        model,
+        "--model-refresh-s",
+        "10",
+        "--out",
+        "-",
+    ])
+    .assert()
+    .failure()
+    .stderr(predicates::str::contains("for --device omnimagnet"));
+}

@@ -147,9 +147,11 @@
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
 //! the model until a sensor agrees with it again. A reading that repeats
 //! its value (to the bit) while the shadow at its node has moved by more
-//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s
-//! is stuck ([`SensorStatus::Stuck`]) and not fused until it moves: a test
-//! that does not lean on the estimate the sensor drags. A reading the gate
+//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s, or
+//! since the reading last changed by more than that plus the band's share
+//! of the node's rise then, is stuck ([`SensorStatus::Stuck`]) and not
+//! fused until it moves: a test that does not lean on the estimate the
+//! sensor drags. A reading the gate
 //! refused twice in a row, colder than the estimate and the shadow, is held
 //! out of the gate's recovery while it keeps drifting colder than the
 //! shadow (the estimate raised to the shadow when nothing else is fused),

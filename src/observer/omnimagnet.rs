@@ -531,9 +531,12 @@ pub enum SensorStatus {
         for_ms: u32,
     },
     /// Stuck: the reading has not moved while the shadow model at its node
-    /// moved by more than the stuck threshold; not fused until it moves.
+    /// moved by more than the stuck threshold within the stuck window, or
+    /// by more than the threshold plus the band's share of the rise since
+    /// the reading last changed; not fused until it moves.
     Stuck {
-        /// How far the shadow moved since the reading last changed \[K\].
+        /// How far the shadow moved since the reading last changed or
+        /// within the window, the larger \[K\].
         model_moved_k: f32,
     },
 }

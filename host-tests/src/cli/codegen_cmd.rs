@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::codegen::{generate, generate_grid, generate_omnimagnet, CodegenRequest};
+use crate::codegen::{
+    generate, generate_grid, generate_omnimagnet_with, CodegenRequest, OmniCodegen,
+};
 
 /// A built-in device whose observer `codegen` writes without a model file.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -50,14 +52,57 @@ pub struct CodegenArgs {
     /// else the library's `target`).
     #[arg(long, value_name = "DIR")]
     target_dir: Option<PathBuf>,
+    /// With `--device omnimagnet`: the thermocouples fitted, by index 0-5
+    /// (default all six; `0,2,4` is one per solenoid, which needs
+    /// `--model-refresh-s`).
+    #[arg(long, value_name = "J,...", value_delimiter = ',')]
+    thermocouples: Vec<usize>,
+    /// With `--device omnimagnet`: the period \[s\] of the firmware's
+    /// model refresh (`OmniSettings::model_refresh_s`: a background task
+    /// re-linearising the model, watched by the observer), at most 30 s.
+    #[arg(long, value_name = "S")]
+    model_refresh_s: Option<f64>,
 }
 
 /// Runs `codegen`.
 pub fn run(a: CodegenArgs) -> Result<()> {
     let (text, source) = match (a.device, a.model) {
-        (Some(Device::Omnimagnet), _) => (generate_omnimagnet()?, "the Omnimagnet".to_string()),
-        (Some(Device::HppaGrid), _) => (generate_grid()?, "the HPPA grid".to_string()),
+        (Some(Device::Omnimagnet), _) => {
+            let mut choice = OmniCodegen {
+                model_refresh_s: a.model_refresh_s,
+                ..OmniCodegen::default()
+            };
+            if !a.thermocouples.is_empty() {
+                choice.thermocouples = [false; coil_thermal::omnimagnet::THERMOCOUPLES];
+                for j in &a.thermocouples {
+                    let Some(fitted) = choice.thermocouples.get_mut(*j) else {
+                        anyhow::bail!(
+                            "--thermocouples: the Omnimagnet has thermocouples 0 to {}, got {j}",
+                            coil_thermal::omnimagnet::THERMOCOUPLES - 1
+                        );
+                    };
+                    *fitted = true;
+                }
+            }
+            (
+                generate_omnimagnet_with(&choice)?,
+                "the Omnimagnet".to_string(),
+            )
+        }
+        (Some(Device::HppaGrid), _) => {
+            if !a.thermocouples.is_empty() || a.model_refresh_s.is_some() {
+                anyhow::bail!("--thermocouples and --model-refresh-s are for --device omnimagnet");
+            }
+            (generate_grid()?, "the HPPA grid".to_string())
+        }
         (None, Some(model)) => {
+            if !a.thermocouples.is_empty() || a.model_refresh_s.is_some() {
+                anyhow::bail!(
+                    "--thermocouples and --model-refresh-s are for --device omnimagnet; \
+                     a model file names its sensors in `[observer] sensors` (or --sensor NODE) \
+                     and its network observer needs no model refresh"
+                );
+            }
             let text = generate(&CodegenRequest {
                 model: model.clone(),
                 sensors: a.sensors,

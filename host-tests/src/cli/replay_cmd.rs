@@ -495,6 +495,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "node": info.nodes[s.node],
                 "fused": s.fused,
                 "rejected": s.rejected,
+                "stuck": s.stuck,
+                "colder_than_physics": s.colder_than_physics,
             })).collect::<Vec<_>>(),
         })
     });
@@ -570,8 +572,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     if let Some(o) = observer.as_ref().filter(|_| !measured.is_empty()) {
         for (s, m) in o.stats().iter().zip(&measured) {
             println!(
-                "fused {} -> {}: {} readings fused, {} rejected by the gate",
-                m.column, info.nodes[s.node], s.fused, s.rejected
+                "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
+                m.column, info.nodes[s.node], s.fused, s.rejected, s.stuck, s.colder_than_physics
             );
         }
     }
