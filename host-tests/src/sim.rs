@@ -487,6 +487,35 @@ pub struct Bindings {
     pub current_scale: Option<f64>,
 }
 
+impl Bindings {
+    /// Refuses a `--current` or `--boundary` that names no input or
+    /// boundary of `info`, listing the ones it has.
+    ///
+    /// # Errors
+    /// The first unknown name.
+    pub fn check_names(&self, info: &PlantInfo) -> Result<()> {
+        for (_, name) in &self.currents {
+            if !info.inputs.iter().any(|i| &i.name == name) {
+                bail!(
+                    "--current: model `{}` has no current input `{name}` (inputs: {})",
+                    info.name,
+                    names(&info.inputs)
+                );
+            }
+        }
+        for (_, name) in &self.boundaries {
+            if !info.boundaries.iter().any(|b| &b.name == name) {
+                bail!(
+                    "--boundary: model `{}` has no boundary `{name}` (boundaries: {})",
+                    info.name,
+                    names(&info.boundaries)
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Input series of a run, one value per row: `[channel][row]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drive {
@@ -549,24 +578,7 @@ impl Drive {
     /// Resolves every channel of `info` against a trace.
     pub fn from_trace(info: &PlantInfo, trace: &Trace, bind: &Bindings) -> Result<Self> {
         let file = trace.path().display().to_string();
-        for (_, name) in &bind.currents {
-            if !info.inputs.iter().any(|i| &i.name == name) {
-                bail!(
-                    "--current: model `{}` has no current input `{name}` (inputs: {})",
-                    info.name,
-                    names(&info.inputs)
-                );
-            }
-        }
-        for (_, name) in &bind.boundaries {
-            if !info.boundaries.iter().any(|b| &b.name == name) {
-                bail!(
-                    "--boundary: model `{}` has no boundary `{name}` (boundaries: {})",
-                    info.name,
-                    names(&info.boundaries)
-                );
-            }
-        }
+        bind.check_names(info)?;
         let column = |text: &str, what: &str| -> Result<Vec<f64>> {
             let expr = ColumnExpr::parse(text).with_context(|| format!("{file}: {what}"))?;
             let cols = expr.columns();

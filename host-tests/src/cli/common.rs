@@ -341,15 +341,7 @@ impl SensorFlags {
             .flat_map(|f| split_list(f))
             .map(|m| {
                 let sensor = (|| {
-                    let (col, node) = split_mapping(m, flag, "COL=NODE")?;
-                    let index = info.nodes.iter().position(|n| n == node).with_context(|| {
-                        format!(
-                            "{flag} `{m}`: model `{}` has no node `{node}` (nodes: {})",
-                            info.name,
-                            info.nodes.join(", ")
-                        )
-                    })?;
-                    let expr = ColumnExpr::parse(col).with_context(|| format!("{flag} `{m}`"))?;
+                    let (col, index, expr) = sensor_mapping(m, flag, info)?;
                     Ok(StreamSensor {
                         column: col.to_string(),
                         node: index,
@@ -413,6 +405,25 @@ pub fn split_list(text: &str) -> Vec<&str> {
     out
 }
 
+/// One `COL=NODE` item of `flag`: the column's text, the node's index in
+/// `info` and the column's expression.
+fn sensor_mapping<'m>(
+    m: &'m str,
+    flag: &str,
+    info: &PlantInfo,
+) -> Result<(&'m str, usize, ColumnExpr)> {
+    let (col, node) = split_mapping(m, flag, "COL=NODE")?;
+    let index = info.nodes.iter().position(|n| n == node).with_context(|| {
+        format!(
+            "{flag} `{m}`: model `{}` has no node `{node}` (nodes: {})",
+            info.name,
+            info.nodes.join(", ")
+        )
+    })?;
+    let expr = ColumnExpr::parse(col).with_context(|| format!("{flag} `{m}`"))?;
+    Ok((col, index, expr))
+}
+
 /// Resolves `COL=NODE` flags (each may hold a comma list) to sensors on
 /// `trace`: every cell must hold a finite number, or with `allow_missing`,
 /// empty and `NaN` cells are missing readings (`NaN` in `values_c`),
@@ -428,15 +439,7 @@ pub fn sensors_with(
         .iter()
         .flat_map(|f| split_list(f))
         .map(|m| {
-            let (col, node) = split_mapping(m, flag, "COL=NODE")?;
-            let index = info.nodes.iter().position(|n| n == node).with_context(|| {
-                format!(
-                    "{flag} `{m}`: model `{}` has no node `{node}` (nodes: {})",
-                    info.name,
-                    info.nodes.join(", ")
-                )
-            })?;
-            let expr = ColumnExpr::parse(col).with_context(|| format!("{flag} `{m}`"))?;
+            let (col, index, expr) = sensor_mapping(m, flag, info)?;
             let values_c = trace
                 .eval_with(&expr, allow_missing)
                 .map_err(|e| anyhow::anyhow!("{e} (for {flag} {m})"))?;

@@ -4,7 +4,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 
-use super::{names, Bindings, Drive, PlantInfo};
+use super::{Bindings, Drive, PlantInfo};
 use crate::model_file::InputHold;
 use crate::trace::{ColumnExpr, Evaluator, Located, Rows, TraceFile};
 
@@ -111,24 +111,7 @@ impl<'a> TraceDrive<'a> {
         bind: &Bindings,
         hold: InputHold,
     ) -> Result<Self> {
-        for (_, name) in &bind.currents {
-            if !info.inputs.iter().any(|i| &i.name == name) {
-                bail!(
-                    "--current: model `{}` has no current input `{name}` (inputs: {})",
-                    info.name,
-                    names(&info.inputs)
-                );
-            }
-        }
-        for (_, name) in &bind.boundaries {
-            if !info.boundaries.iter().any(|b| &b.name == name) {
-                bail!(
-                    "--boundary: model `{}` has no boundary `{name}` (boundaries: {})",
-                    info.name,
-                    names(&info.boundaries)
-                );
-            }
-        }
+        bind.check_names(info)?;
         let path = file.path().display().to_string();
         let mut ev = Evaluator::new(file);
         let mut column = |text: &str, what: String| -> Planned {
