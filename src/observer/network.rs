@@ -409,6 +409,7 @@ pub struct NetworkObserverBuilder<
     hardware_limit_a: [f64; M],
     rule: DeratingRule,
     settings: NetworkSettings,
+    bias_sources: [bool; M],
 }
 
 impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
@@ -425,6 +426,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             hardware_limit_a: [8.0; M],
             rule: DeratingRule::omnimagnet(),
             settings: NetworkSettings::DEFAULT,
+            bias_sources: [true; M],
         }
     }
 
@@ -461,6 +463,29 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     /// All other settings.
     pub fn settings(mut self, settings: NetworkSettings) -> Self {
         self.settings = settings;
+        self
+    }
+
+    /// Which currents carry a heat-input bias state (`bias_sources[m]`:
+    /// current `m`'s bias is estimated). Default: every one.
+    ///
+    /// A current left out keeps its bias at exactly zero: no process noise
+    /// (`bias_noise_w2_per_s`), no recovery widening
+    /// (`recovery_bias_sigma_w`) and no initial variance, so the steady
+    /// solution holds its variance and gain rows at zero and the heat-bias
+    /// alarm never sees it. Leave out a source whose bias no sensor can see
+    /// (an unobservable random walk has no steady gain:
+    /// [`BuildError::NotConverged`]) and padding sources that carry no
+    /// current (a network padded to a size class), while the others keep
+    /// their biases; `bias_noise_w2_per_s = 0` freezes all of them.
+    ///
+    /// Only the solved tables change: a left-out bias has an exactly zero
+    /// prior variance in [`GainTables`], which is how
+    /// [`NetworkObserver::from_parts`] (and a generated module) knows it
+    /// when `bias_noise_w2_per_s` is positive. Every source in gives the
+    /// observer of a builder without this call, to the bit.
+    pub fn bias_sources(mut self, bias_sources: [bool; M]) -> Self {
+        self.bias_sources = bias_sources;
         self
     }
 

@@ -517,3 +517,81 @@ fn a_sensor_that_stops_reporting_is_silent_after_two_periods() {
     // The last reading at 3000 ms; silent from the first tick past 4000 ms.
     assert_eq!(first_silent_ms, Some((4_001, 1_001)));
 }
+
+#[test]
+fn a_source_left_out_of_the_biases_keeps_its_bias_at_exactly_zero() {
+    // Three phases, one thermocouple on the housing: all three biases are
+    // refused (see above), phase 0's alone is observable. The readings run
+    // 3 K above the plant (phase 0's bias takes it up), then 25 K for ten
+    // corrections (the gate's recovery widens the covariance), through a
+    // time-varying warm-up first: phases 1 and 2 stay at 0.0 W every tick.
+    let net = three_phase();
+    let settings = NetworkSettings {
+        warmup_corrections: 4,
+        ..NetworkSettings::DEFAULT
+    };
+    let builder = NetworkObserverBuilder::new(&net, [3])
+        .settings(settings)
+        .bias_sources([true, false, false]);
+    let parts = builder.parts::<8>().unwrap();
+    let obs = NetworkObserver::from_parts(&parts).unwrap();
+    for row in &parts.gain.gain[6..] {
+        assert_eq!(row, &[0.0]);
+    }
+    let mut state = obs.state(&[20.0; 5], &[20.0]);
+    let mut plant = [20.0f64; 5];
+    let (mut moved_w, mut recovered) = (0.0f32, false);
+    for k in 0..(20 * 60_000u32) {
+        let now_us = k.wrapping_mul(1000);
+        let mut inp = inputs([6.0, 6.0, 6.0], [20.0], now_us);
+        if k % 500 == 0 {
+            let off_k = if (600_000..605_000).contains(&k) {
+                25.0
+            } else {
+                3.0
+            };
+            inp.readings = [reading((plant[3] + off_k) as f32, now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        rk4(&net, &mut plant, &[6.0; 3], &[20.0], 1e-3);
+        let bias_w = obs.heat_bias_w(&state);
+        assert_eq!((bias_w[1], bias_w[2]), (0.0, 0.0), "tick {k}");
+        moved_w = moved_w.max(bias_w[0].abs());
+        // A 25 K step fused within the ten corrections: the gate recovered.
+        recovered |= (600_000..605_000).contains(&k)
+            && matches!(state.outputs().sensors[0], SensorStatus::Fused { .. });
+    }
+    assert!(moved_w > 0.1, "phase 0's bias moved {moved_w} W");
+    assert!(recovered, "the gate never recovered");
+}
+
+#[test]
+fn every_source_biased_is_the_observer_of_today() {
+    // The default and an explicit all-in mask solve the same tables to the
+    // bit; leaving a source out changes the gain and so the fingerprint.
+    let net = device();
+    let default = NetworkObserverBuilder::new(&net, [1]).parts::<4>().unwrap();
+    let all_in = NetworkObserverBuilder::new(&net, [1])
+        .bias_sources([true])
+        .parts::<4>()
+        .unwrap();
+    assert_eq!(default, all_in);
+    let left_out = NetworkObserverBuilder::new(&net, [1])
+        .bias_sources([false])
+        .parts::<4>()
+        .unwrap();
+    assert_ne!(default.gain, left_out.gain);
+    let fp =
+        |p: &NetworkParts<3, 1, 1, 4, 1>| NetworkObserver::from_parts(p).unwrap().fingerprint();
+    assert_ne!(fp(&default), fp(&left_out));
+    // A bias-free build is the filter of zero bias noise but for the
+    // recovery widening, which it drops too.
+    let frozen = NetworkObserverBuilder::new(&net, [1])
+        .settings(NetworkSettings {
+            bias_noise_w2_per_s: 0.0,
+            ..NetworkSettings::DEFAULT
+        })
+        .parts::<4>()
+        .unwrap();
+    assert_eq!(frozen.gain, left_out.gain);
+}

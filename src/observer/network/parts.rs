@@ -283,7 +283,13 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         };
         let dt_s = timing.clock.step_s();
         let model = Model::build(network, dt_s, s.origin_c)?;
-        let gain = solve_gain(&model, &self.sensor_nodes, s, timing.correction_period)?;
+        let gain = solve_gain(
+            &model,
+            &self.sensor_nodes,
+            s,
+            &self.bias_sources,
+            timing.correction_period,
+        )?;
         let cycle_s = dt_s * f64::from(s.protect_period_steps);
         let predictor = solve_predictor(network, cycle_s)?;
         let block = Model::build(
@@ -330,11 +336,14 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
 
 /// `F = [[Ad, Bd_p], [0, I]]`, `H` from the sensor map, `Q`, `R` and the
 /// gate, in `f64` (the filter's configuration; its gain is solved apart).
+/// A bias left out of `bias_sources` gets neither process noise nor
+/// recovery widening.
 fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>(
     ad: &SMatrix<f64, N, N>,
     bd_power: &SMatrix<f64, N, M>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
+    bias_sources: &[bool; M],
     dt_s: f64,
 ) -> Result<KalmanConfig<f64, X, 1, P>, BuildError> {
     let mut f = SMatrix::<f64, X, X>::identity();
@@ -356,8 +365,10 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
     for i in 0..X {
         let (noise, widen) = if i < N {
             (s.node_noise_k2_per_s, s.recovery_sigma_k)
-        } else {
+        } else if bias_sources[i - N] {
             (s.bias_noise_w2_per_s, s.recovery_bias_sigma_w)
+        } else {
+            (0.0, 0.0)
         };
         q[(i, i)] = noise * dt_s;
         recovery[i] = widen * widen;
@@ -377,11 +388,42 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     model: &Model<N, B, M>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
+    bias_sources: &[bool; M],
     period: u32,
 ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
-    let kalman =
-        filter_config::<N, M, X, P>(&model.ad, &model.bd_power_f64, sensor_nodes, s, model.dt_s)?;
-    Ok(SteadyStateGain::solve(&kalman, period)?.cast())
+    let kalman = filter_config::<N, M, X, P>(
+        &model.ad,
+        &model.bd_power_f64,
+        sensor_nodes,
+        s,
+        bias_sources,
+        model.dt_s,
+    )?;
+    let mut gain = SteadyStateGain::solve(&kalman, period)?;
+    // A left-out bias is never driven, so its row and column of every
+    // table is zero in exact arithmetic; the doubling's inverse may leave
+    // rounding there, and an exact zero is what `from_parts` reads back.
+    for (m, _) in bias_sources.iter().enumerate().filter(|(_, b)| !**b) {
+        let i = N + m;
+        gain.gain.row_mut(i).fill(0.0);
+        gain.prior_ht.row_mut(i).fill(0.0);
+        for cov in [&mut gain.prior, &mut gain.posterior] {
+            cov.row_mut(i).fill(0.0);
+            cov.column_mut(i).fill(0.0);
+        }
+    }
+    Ok(gain.cast())
+}
+
+/// The currents whose bias the tables carry (see
+/// [`NetworkObserverBuilder::bias_sources`]): with positive bias noise, a
+/// bias of exactly zero steady prior variance was left out; with none, no
+/// bias is driven and the flag keeps only the recovery widening (as ever).
+fn biased_sources<const N: usize, const M: usize, const X: usize, const P: usize>(
+    s: &NetworkSettings,
+    gain: &GainTables<X, P>,
+) -> [bool; M] {
+    core::array::from_fn(|m| !(s.bias_noise_w2_per_s > 0.0 && gain.prior[N + m][N + m] == 0.0))
 }
 
 #[inline(never)]
@@ -502,6 +544,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &bd_power.cast(),
             &parts.sensor_nodes,
             s,
+            &biased_sources::<N, M, X, P>(s, g),
             timing.clock.step_s(),
         )?
         .cast::<f32>();
