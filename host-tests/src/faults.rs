@@ -467,6 +467,11 @@ pub struct FaultReport {
     pub onsets_s: Vec<f64>,
     /// The model refresh declared and run \[s\] (0: none).
     pub relinearize_s: f64,
+    /// The heat-bias noise the observer runs with \[W^2/s\] (a model
+    /// file's network observer: its `[observer]` table's or the default,
+    /// as the firmware's); absent for the Omnimagnet's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_noise_w2_per_s: Option<f64>,
     /// The clean run.
     pub clean: RunScore,
     /// Every case.
@@ -549,6 +554,11 @@ pub trait Subject {
     fn state(&self, ambient_c: f32) -> Self::State;
     /// One tick.
     fn tick(&self, state: &mut Self::State, inputs: &TickInputs<'_>) -> TickView;
+    /// The heat-bias noise of the observer's bias states \[W^2/s\], for
+    /// the report (default: not reported).
+    fn bias_noise_w2_per_s(&self) -> Option<f64> {
+        None
+    }
     /// The model refresh the observer declares, which the campaign runs
     /// \[s\] (default 0: none).
     fn refresh_s(&self) -> f64 {
@@ -1241,6 +1251,7 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
         sensors,
         onsets_s,
         relinearize_s: refresh_s,
+        bias_noise_w2_per_s: harness.subject.bias_noise_w2_per_s(),
         clean,
         cases,
         summary,

@@ -359,6 +359,10 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
     ]);
     assert_eq!(r["model"], "drive-3node");
     assert_eq!(r["sensors"], serde_json::json!([0]));
+    // The firmware's filter: the default heat-bias noise (as `codegen`
+    // builds it; the file's table sets none), not frozen biases.
+    assert_eq!(r["bias_noise_w2_per_s"], 0.001);
+    assert_eq!(r["clean"]["bias_alarm_ticks"], 0);
     let clean_s = r["clean"]["shutdown_s"].as_f64().expect("6 A shuts down");
     assert!((300.0..600.0).contains(&clean_s), "{clean_s}");
     assert_eq!(r["clean"]["healthy_flagged"], 0);

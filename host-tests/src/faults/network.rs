@@ -9,10 +9,12 @@
 //! `Network<C, 2, C>` for `C` in [`CLASSES`] (padding nodes decay to
 //! boundary 0 and touch no real node; padding sources carry no current),
 //! with [`SLOTS`] sensor slots, the unused ones on a padding node that never
-//! reads. The padding sources' heat biases are unobservable, so their noise
-//! is 0: the fusion corrects temperatures, and the consistency checks that
-//! do not need a bias (the physics band, the stuck watch against the
-//! model's prediction) carry the sensor faults.
+//! reads. The padding sources' heat biases are unobservable, so they are
+//! left out of the bias states
+//! ([`NetworkObserverBuilder::bias_sources`]); the model's own sources keep
+//! theirs, at the model file's bias noise (the `[observer]` table's, or the
+//! default, as `codegen` builds it): the campaign runs the firmware's
+//! filter, heat-bias alarm and all.
 
 use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
@@ -76,20 +78,32 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             sensor_sigma_k: spec.sensor_sigma_k.unwrap_or(defaults.sensor_sigma_k),
             correction_period_s: reading_period_s(cfg),
             max_current_a: spec.max_current_a.unwrap_or(defaults.max_current_a),
-            // Unobservable padding biases (see the module docs).
-            bias_noise_w2_per_s: 0.0,
+            bias_noise_w2_per_s: spec
+                .bias_noise_w2_per_s
+                .unwrap_or(defaults.bias_noise_w2_per_s),
             origin_c: cfg.ambient_c,
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
             ..defaults
         };
+        // The model's sources carry their biases, the padding's do not
+        // (see the module docs).
+        let sources = model.network.sources().len();
+        let bias_sources: [bool; C] = core::array::from_fn(|m| m < sources);
         let observer = NetworkObserverBuilder::new(&network, slots)
             .critical_c(critical)
             .hardware_limit_a([spec.hardware_limit_a.unwrap_or(8.0); C])
             .derating(derating)
             .settings(settings)
+            .bias_sources(bias_sources)
             .build::<X>()
-            .map_err(FaultError::Build)?;
+            .map_err(|e| match e {
+                coil_thermal::BuildError::NotConverged { .. } => FaultError::Invalid(format!(
+                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see every source's bias: set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
+                    model.name, settings.bias_noise_w2_per_s
+                )),
+                e => FaultError::Build(e),
+            })?;
         let plant = FilePlant::new(model.clone()).map_err(invalid)?;
         let mut alarm_nodes: Vec<usize> = (0..model.nodes.len())
             .filter(|n| model.critical_c[*n].is_some())
@@ -131,6 +145,9 @@ impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
     }
     fn plant(&self) -> Box<dyn Plant> {
         Box::new(self.plant.clone())
+    }
+    fn bias_noise_w2_per_s(&self) -> Option<f64> {
+        Some(self.settings.bias_noise_w2_per_s)
     }
     fn consistency(&self) -> Consistency {
         Consistency {
