@@ -488,6 +488,30 @@ pub struct Bindings {
 }
 
 impl Bindings {
+    /// The column expression current input `input` reads: its last
+    /// `--current` binding, else the input's own column.
+    pub fn current_column(&self, input: &Channel) -> String {
+        self.currents
+            .iter()
+            .rev()
+            .find(|(_, n)| *n == input.name)
+            .map_or(input.column.clone(), |(e, _)| e.to_string())
+    }
+
+    /// Where boundary `b`'s values come from: its last `--boundary`
+    /// expression, else the trace's column (`trace_has_column`), else a
+    /// `--const` of that column, else the boundary's own value (`Err`,
+    /// held on every row).
+    pub fn boundary_column(&self, b: &Channel, trace_has_column: bool) -> Result<String, f64> {
+        let bound = self.boundaries.iter().rev().find(|(_, n)| *n == b.name);
+        let constant = self.constants.iter().any(|(c, _)| *c == b.column);
+        match (bound, b.default_value) {
+            (Some((e, _)), _) => Ok(e.to_string()),
+            (None, Some(v)) if !trace_has_column && !constant => Err(v),
+            (None, _) => Ok(b.column.clone()),
+        }
+    }
+
     /// Refuses a `--current` or `--boundary` that names no input or
     /// boundary of `info`, listing the ones it has.
     ///
@@ -597,12 +621,7 @@ impl Drive {
         };
         let mut currents = Vec::new();
         for input in &info.inputs {
-            let text = bind
-                .currents
-                .iter()
-                .rev()
-                .find(|(_, n)| *n == input.name)
-                .map_or(input.column.clone(), |(e, _)| e.to_string());
+            let text = bind.current_column(input);
             let mut series = column(&text, &format!("current input `{}`", input.name))?;
             if let Some(k) = bind.current_scale {
                 series.iter_mut().for_each(|i| *i *= k);
@@ -611,16 +630,9 @@ impl Drive {
         }
         let mut boundaries = Vec::new();
         for b in &info.boundaries {
-            let bound = bind.boundaries.iter().rev().find(|(_, n)| *n == b.name);
-            // A bound expression, else the trace's column, else a --const
-            // of that column, else the boundary's own value_c.
-            let constant = bind.constants.iter().any(|(c, _)| *c == b.column);
-            let series = match (bound, b.default_value) {
-                (Some((e, _)), _) => column(&e.to_string(), &format!("boundary `{}`", b.name))?,
-                (None, Some(v)) if !trace.has_column(&b.column) && !constant => {
-                    vec![v; trace.len()]
-                }
-                (None, _) => column(&b.column, &format!("boundary `{}`", b.name))?,
+            let series = match bind.boundary_column(b, trace.has_column(&b.column)) {
+                Ok(text) => column(&text, &format!("boundary `{}`", b.name))?,
+                Err(value_c) => vec![value_c; trace.len()],
             };
             boundaries.push(series);
         }

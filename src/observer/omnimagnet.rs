@@ -292,7 +292,7 @@ pub const MODEL_STALE_PERIODS: u32 = 3;
 /// issue 17's 2 K.
 pub const MAX_MODEL_REFRESH_S: f64 = 30.0;
 /// [`MAX_MODEL_REFRESH_S`] \[us\], for the integer checks.
-const MAX_MODEL_REFRESH_US: u64 = 30_000_000;
+const MAX_MODEL_REFRESH_US: u64 = (MAX_MODEL_REFRESH_S * 1e6) as u64;
 /// A limit no Omnimagnet winding reaches \[degC\], for the predictor,
 /// which takes each winding's power at its node's limit (so it must be
 /// finite there; the other nodes without an alarm get `+inf` and cost no

@@ -135,31 +135,23 @@ impl<'a> TraceDrive<'a> {
             .inputs
             .iter()
             .map(|input| {
-                let text = bind
-                    .currents
-                    .iter()
-                    .rev()
-                    .find(|(_, n)| *n == input.name)
-                    .map_or(input.column.clone(), |(e, _)| e.to_string());
-                column(&text, format!("current input `{}`", input.name))
+                column(
+                    &bind.current_column(input),
+                    format!("current input `{}`", input.name),
+                )
             })
             .collect();
         let boundaries = info
             .boundaries
             .iter()
             .map(|b| {
-                let bound = bind.boundaries.iter().rev().find(|(_, n)| *n == b.name);
-                // A bound expression, else the trace's column, else a
-                // --const of that column, else the boundary's own value_c.
-                let constant = bind.constants.iter().any(|(c, _)| *c == b.column);
                 let what = format!("boundary `{}`", b.name);
-                match (bound, b.default_value) {
-                    (Some((e, _)), _) => column(&e.to_string(), what),
-                    (None, Some(v)) if !file.has_column(&b.column) && !constant => Planned {
+                match bind.boundary_column(b, file.has_column(&b.column)) {
+                    Ok(text) => column(&text, what),
+                    Err(value_c) => Planned {
                         what,
-                        source: Ok(Source::Value(v)),
+                        source: Ok(Source::Value(value_c)),
                     },
-                    (None, _) => column(&b.column, what),
                 }
             })
             .collect();
