@@ -328,6 +328,31 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     disturbance_tau_s: f64,
+    /// Filter: a boundary offset state [K] on this boundary (repeatable):
+    /// the links see the measured boundary plus an estimated offset, for a
+    /// boundary sensor that reads off the temperature the model's links
+    /// see (a sensor offset; a coolant outlet that is not the jacket's
+    /// effective temperature). Runs the Kalman filter, as --disturbance
+    /// does.
+    #[arg(long = "boundary-offset", value_name = "BOUNDARY")]
+    boundary_offset: Vec<String>,
+    /// Filter: stationary standard deviation of each boundary offset [K].
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
+    boundary_offset_std_k: f64,
+    /// Filter: correlation time of each boundary offset [s] (first-order
+    /// Gauss-Markov).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 7200.0,
+        allow_negative_numbers = true
+    )]
+    boundary_offset_tau_s: f64,
     /// Filter: chi-square gate (1 dof) on `nu^2 / S`; readings above it are
     /// rejected (default: 0.1 % false alarms).
     #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]

@@ -337,7 +337,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     let first_row = survey.first.as_ref().context("the trace has no row")?;
     let median_row_s = file.median_gap_s()?;
-    if a.disturbance.is_empty() {
+    // The row-rate Kalman filter runs with a disturbance or a boundary
+    // offset state; otherwise the library's observer.
+    let kalman_filter = !a.disturbance.is_empty() || !a.boundary_offset.is_empty();
+    if !kalman_filter {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
         if ticks > MAX_TICKS {
@@ -357,14 +360,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         settings.horizon_s,
     )?;
     // The library's observer at `--tick-us` ticks, fusing the `--measure`
-    // sensors as thermocouples; with `--disturbance` the library's
-    // time-varying Kalman filter at the trace's rows instead.
+    // sensors as thermocouples; with `--disturbance` or `--boundary-offset`
+    // the library's time-varying Kalman filter at the trace's rows instead.
     let mut observer = None;
     let mut kalman = None;
     let mut disturbance_std = None;
     // The library's observer holds one network; conductances that change
     // with speed run open loop on the library's explicit stepper instead.
-    let open_loop = measured.is_empty() && a.disturbance.is_empty();
+    let open_loop = measured.is_empty() && !kalman_filter;
     let mut stepped = if model.has_varying_conductances() && open_loop {
         Some(PlantEstimator(FilePlant::new(model.clone())?))
     } else {
@@ -372,7 +375,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     };
     let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
         s
-    } else if a.disturbance.is_empty() {
+    } else if !kalman_filter {
         let fusion = (!measured.is_empty()).then(|| Fusion {
             sensor_nodes: measured.iter().map(|m| m.node).collect(),
             sensor_sigma_k: a.measurement_noise_k,
@@ -386,7 +389,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         )?)
     } else {
         if measured.is_empty() {
-            bail!("--disturbance needs at least one --measure sensor");
+            bail!("--disturbance and --boundary-offset need at least one --measure sensor");
         }
         let disturbances = a
             .disturbance
@@ -410,7 +413,28 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             Some(w) => w,
             None => (0.1 * survey.peak_heating_w).max(0.01),
         };
-        disturbance_std = Some(disturbance_std_w);
+        disturbance_std = (!disturbances.is_empty()).then_some(disturbance_std_w);
+        let boundary_offsets = a
+            .boundary_offset
+            .iter()
+            .map(|b| {
+                let b = b.trim();
+                info.boundaries
+                    .iter()
+                    .position(|x| x.name == b)
+                    .with_context(|| {
+                        format!(
+                            "--boundary-offset: model `{}` has no boundary `{b}` (boundaries: {})",
+                            info.name,
+                            info.boundaries
+                                .iter()
+                                .map(|x| x.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )
+                    })
+            })
+            .collect::<Result<Vec<_>>>()?;
         let opts = KalmanOptions {
             process_noise_k2_per_s: a.process_noise_k2_per_s,
             measurement_noise_k: a.measurement_noise_k,
@@ -418,6 +442,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             disturbances,
             disturbance_std_w,
             disturbance_tau_s: a.disturbance_tau_s,
+            boundary_offsets,
+            boundary_offset_std_k: a.boundary_offset_std_k,
+            boundary_offset_tau_s: a.boundary_offset_tau_s,
             gate: a.gate,
         };
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
@@ -510,6 +537,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             })).collect::<Vec<_>>(),
             "recoveries": k.recoveries(),
             "final_disturbances_w": k.disturbances_w(),
+            "final_boundary_offsets_k": a.boundary_offset.iter().map(|b| b.trim()).zip(k.boundary_offsets_k())
+                .map(|(b, o)| json!({"boundary": b, "offset_k": o})).collect::<Vec<_>>(),
         })
     });
     if let (Some(path), Some(f)) = (&a.plot, figure) {
@@ -584,7 +613,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 m.column, info.nodes[s.node], s.fused, s.rejected
             );
         }
-        if a.disturbance_std_w.is_none() {
+        for (b, o) in a.boundary_offset.iter().zip(k.boundary_offsets_k()) {
+            println!("boundary offset {}: {o:.3} K at the end", b.trim());
+        }
+        if a.disturbance_std_w.is_none() && !a.disturbance.is_empty() {
             println!(
                 "disturbance std {:.3} W: 10 % of the trace's peak heating power (--disturbance-std-w W to choose)",
                 disturbance_std.unwrap_or(0.0)
