@@ -81,6 +81,11 @@ pub struct ObserverSpec {
     /// 1e-3; 0 when the sensors cannot tell the currents' heat apart).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bias_noise_w2_per_s: Option<f64>,
+    /// Largest heat the thermocouples may explain away, as a share of each
+    /// current's Joule power (default 0: a reading colder than the model
+    /// never takes heat away; see `NetworkSettings::max_cooling_bias_fraction`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_cooling_bias_fraction: Option<f64>,
 }
 
 /// What to generate.
@@ -315,6 +320,9 @@ impl Plan {
         }
         if let Some(v) = s.bias_noise_w2_per_s {
             fields.push(format!("bias_noise_w2_per_s: {v:?}"));
+        }
+        if let Some(v) = s.max_cooling_bias_fraction {
+            fields.push(format!("max_cooling_bias_fraction: {v:?}"));
         }
         if !fields.is_empty() {
             settings = format!(

@@ -63,6 +63,7 @@ fn the_generated_observer_is_the_builders() {
         .hardware_limit_a([6.0])
         .settings(NetworkSettings {
             correction_period_s: 1.0,
+            bias_noise_w2_per_s: 1e-4,
             ..NetworkSettings::DEFAULT
         })
         .parts::<{ model::STATES }>()
@@ -77,6 +78,7 @@ fn the_generated_observer_is_the_builders() {
             .hardware_limit_a([6.0])
             .settings(NetworkSettings {
                 correction_period_s: 1.0,
+                bias_noise_w2_per_s: 1e-4,
                 ..NetworkSettings::DEFAULT
             })
             .build::<{ model::STATES }>()

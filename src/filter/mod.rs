@@ -55,6 +55,13 @@
 //! so recovery repeats every `recover_after` corrections, widening further.
 //! A single bad sensor never triggers it: the others are fused.
 //!
+//! # A state with a floor
+//! [`project_onto_floor`] keeps one state at or above a bound after a
+//! correction by conditioning the estimate on the bound (every state moves
+//! by its regression on the bounded one), the observers' way of never
+//! letting a sensor explain the device as heating less than the model
+//! allows.
+//!
 //! # Steady-state mode
 //! For a time-invariant model the covariance converges, so the gain can be
 //! computed once ([`SteadyStateGain::solve`]) and the per-tick cost drops to
@@ -109,12 +116,14 @@
 //! Types holding nalgebra matrices do not implement `defmt::Format` (nalgebra's
 //! matrices do not); the report types do.
 
+mod constraint;
 mod gate;
 mod kalman;
 pub mod observability;
 mod riccati;
 pub mod virtual_sensor;
 
+pub use constraint::{condition_on, project_onto_floor};
 pub use gate::{GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999};
 pub(crate) use kalman::predict_cov;
 pub use kalman::{predict, predict_mean, update, InputStatus, KalmanConfig, KalmanState};

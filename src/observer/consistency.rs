@@ -342,6 +342,17 @@ impl<const P: usize> StuckWatch<P> {
         }
     }
 
+    /// Each sensor's last reading \[degC\] (NaN: none yet), compared to the
+    /// bit to tell when a reading changed.
+    pub(crate) fn last_c(&self) -> [f32; P] {
+        self.last_c
+    }
+
+    /// Which sensors are judged stuck (until their reading changes).
+    pub(crate) fn stuck(&self) -> [bool; P] {
+        self.stuck
+    }
+
     /// Takes every stuck sample out of the correction, marking it
     /// [`SensorStatus::Stuck`] (see the type's docs); `shadow_c[j]` is the
     /// shadow at sensor `j`'s node \[degC\], `ambient_c` the ambient

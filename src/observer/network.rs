@@ -160,6 +160,28 @@
 //! docs/protection.md). Its cost: a block step
 //! (`N^2 + N (M + B)` multiply-adds) once per correction period.
 //!
+//! Two rules keep a lying sensor from teaching the model's *heat*, which
+//! outlasts the lie: the heat biases explain a sensor's disagreement for
+//! as long as the model runs, so what one learns from a sensor that is
+//! dropped stays in the estimate.
+//! * **No heat taken away by default.** After each correction every bias is
+//!   projected onto its floor, `-max_cooling_bias_fraction * P_m` (default
+//!   0), with the temperatures by their regression on it
+//!   ([`project_onto_floor`](crate::filter::project_onto_floor)): a reading
+//!   colder than the model still corrects the temperatures, never the heat.
+//!   With one sensor a cold drift and a model that runs hot look the same,
+//!   and the safe reading of the two is the hot one. Measured in the fault
+//!   campaign (`drive-3node`, one housing thermocouple drifting -0.05 K/s at
+//!   6 A): the hot spot read 28.8 K cold with a free bias, 0.72 K off with
+//!   the floor. A model known to run hot declares the share by which it may
+//!   ([`NetworkSettings::max_cooling_bias_fraction`]).
+//! * **A stuck sensor gives back what it taught.** When the stuck test
+//!   sees a sensor, the biases go back to their values when its reading
+//!   last changed ([`condition_on`](crate::filter::condition_on)): on the
+//!   same trace with the housing sensor stuck at 1800 s while the drive
+//!   cooled, the hot spot read 6.3 K hot an hour on; now 0.9 K after the
+//!   verdict.
+//!
 //! # Readings, clock, snapshots
 //!
 //! As for [`OmniObserver`](super::OmniObserver): readings arrive as
@@ -300,6 +322,16 @@ pub struct NetworkSettings {
     /// Share of the shadow model's rise above the ambient in that band
     /// (dimensionless, `>= 0`): the model's uncertainty. Default 0.25.
     pub consistency_fraction: f64,
+    /// Largest heat the thermocouples may explain away, as a share of each
+    /// current's Joule power at the estimate (dimensionless, finite,
+    /// `>= 0`): the floor of each heat-input bias is `-fraction * P_m`.
+    /// Default 0: a reading colder than the model corrects the
+    /// temperatures, never the model's heat, so a sensor drifting or stuck
+    /// cold cannot drag the estimate below the model (one sensor cannot
+    /// tell that from a model that runs hot; see "Sensors against the
+    /// physics"). A model whose heat is over-predicted then reads hot:
+    /// give the share by which it may be, e.g. 0.1 for 10 %.
+    pub max_cooling_bias_fraction: f64,
     /// Consecutive ticks without elapsed time from which the model is taken
     /// as lost: the shutdown latches with a
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
@@ -335,6 +367,7 @@ impl NetworkSettings {
         max_current_a: 100.0,
         consistency_offset_k: 3.0,
         consistency_fraction: 0.25,
+        max_cooling_bias_fraction: 0.0,
         frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
         frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
     };
@@ -547,6 +580,8 @@ pub struct NetworkObserver<
     /// correction periods.
     silent_after_us: u32,
     warmup_corrections: u16,
+    /// `max_cooling_bias_fraction` (dimensionless).
+    cooling_bias_fraction: f32,
     clock: StepClock,
     limits: ScalarLimits<f32>,
     ambient_boundary: usize,
@@ -586,6 +621,9 @@ pub struct NetworkObserverState<
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
     stuck: StuckWatch<P>,
+    /// The heat-input biases \[W\] when each sensor's reading last changed:
+    /// where a stuck sensor's biases go back to.
+    bias_at_change_w: [[f32; M]; P],
     drift: DriftHold<P>,
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
@@ -714,6 +752,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             },
             warmup_left: self.warmup_corrections,
             stuck: StuckWatch::new(),
+            bias_at_change_w: [[0.0; M]; P],
             drift: DriftHold::new(),
             suspect: Suspicion::new(),
             silence: SilenceWatch::new(),
@@ -1036,6 +1075,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
         let present = samples.iter().any(Option::is_some);
+        let (last_before_c, stuck_before) = (state.stuck.last_c(), state.stuck.stuck());
         let mut common_mode = screen_readings(
             &self.shadow.band,
             &self.stuck_test,
@@ -1045,6 +1085,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &shadow_c,
             ambient_c,
         );
+        self.rewind_stuck_biases(state, &last_before_c, &stuck_before);
         let gate_view: [GateView; P] = core::array::from_fn(|j| GateView {
             estimate_c: self.origin_c
                 + state
@@ -1094,7 +1135,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.note_doubt(state, present);
             return (false, flags);
         }
-        let report = if state.warmup_left > 0 {
+        let warming = state.warmup_left > 0;
+        let report = if warming {
             state.warmup_left -= 1;
             let mut full = KalmanState {
                 x: state.estimate.x,
@@ -1114,6 +1156,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
+        self.keep_bias_floors(state, warming);
         if self.biases_beyond(state).contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
@@ -1137,10 +1180,84 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
+    /// Takes back what a sensor found stuck taught the heat-input biases:
+    /// each goes back to its value when that sensor's reading last
+    /// changed, and the temperatures by their regression on it
+    /// ([`condition_on`](crate::filter::condition_on), on the steady
+    /// posterior). Until the stuck test sees it, an unchanged reading
+    /// under a moving physics is fused like any other, and what it teaches
+    /// a bias stays after the sensor is dropped (a housing thermocouple
+    /// stuck while the drive cooled left a positive bias: the hot spot read
+    /// 6.3 K hot an hour on). Also notes the biases at every sensor whose
+    /// reading changed. `last_before_c` and `stuck_before` are the stuck
+    /// watch's before this correction's screen.
+    fn rewind_stuck_biases(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P>,
+        last_before_c: &[f32; P],
+        stuck_before: &[bool; P],
+    ) {
+        let (last_c, stuck) = (state.stuck.last_c(), state.stuck.stuck());
+        for (j, at_change) in state.bias_at_change_w.iter_mut().enumerate() {
+            let (Some(before), Some(now), Some(was), Some(is)) = (
+                last_before_c.get(j),
+                last_c.get(j),
+                stuck_before.get(j),
+                stuck.get(j),
+            ) else {
+                continue;
+            };
+            if before.to_bits() != now.to_bits() {
+                for (m, bias) in at_change.iter_mut().enumerate() {
+                    *bias = state.estimate.x.get(N + m).copied().unwrap_or(0.0);
+                }
+            } else if *is && !*was {
+                for (m, bias) in at_change.iter().enumerate() {
+                    crate::filter::condition_on(
+                        &mut state.estimate.x,
+                        self.gain.posterior(),
+                        N + m,
+                        *bias,
+                    );
+                }
+            }
+        }
+    }
+
+    /// Projects the estimate onto every heat-input bias's floor,
+    /// `-cooling_bias_fraction * P_m` (see
+    /// [`NetworkSettings::max_cooling_bias_fraction`]), with the covariance
+    /// the correction used (the warm-up's while it runs, else the steady
+    /// posterior): a bias below its floor goes to it and every temperature
+    /// back by its regression on that bias
+    /// ([`project_onto_floor`](crate::filter::project_onto_floor)). Exact
+    /// for one bias; several are projected in turn on the same covariance.
+    fn keep_bias_floors(&self, state: &mut NetworkObserverState<N, B, M, X, P>, warming: bool) {
+        let powers_w = self.joule_powers_w(state);
+        let cov = if warming {
+            &state.warmup_cov
+        } else {
+            self.gain.posterior()
+        };
+        for (m, power_w) in powers_w.iter().enumerate() {
+            let floor_w = -self.cooling_bias_fraction * power_w.abs();
+            crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, floor_w);
+        }
+    }
+
     /// Which heat-input biases are beyond the model's uncertainty (see
     /// "Sensors against the physics"), at the Joule powers of the held
     /// currents at the estimate.
     fn biases_beyond(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [bool; M] {
+        let powers_w = self.joule_powers_w(state);
+        self.shadow
+            .bias_bound
+            .beyond(state.estimate.x.iter().skip(N), &powers_w)
+    }
+
+    /// Each current's Joule power \[W\], the held current at the estimated
+    /// temperature of the node it heats.
+    fn joule_powers_w(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [f32; M] {
         let x = &state.estimate.x;
         let mut powers_w = [0.0f32; M];
         for (power, ((node, r), i)) in powers_w.iter_mut().zip(
@@ -1152,7 +1269,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
             *power = r.joule_power_w(t, *i);
         }
-        self.shadow.bias_bound.beyond(x.iter().skip(N), &powers_w)
+        powers_w
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched

@@ -595,3 +595,156 @@ fn every_source_biased_is_the_observer_of_today() {
         .unwrap();
     assert_eq!(frozen.gain, left_out.gain);
 }
+
+/// The module docs' device at 8 A, one thermocouple on the housing, a
+/// 0.1 s step and 2 Hz readings; `sensor_c(t_s, truth_c)` is what the
+/// thermocouple reads. Returns, per tick from `score_from_s`, the largest
+/// winding and housing errors \[K\] against an `f64` RK4 of the network,
+/// and calls `each(t_s, observer, state)` after every tick.
+fn housing_sensor_run(
+    settings: NetworkSettings,
+    seconds: u32,
+    current_a: impl Fn(f64) -> f32,
+    sensor_c: impl Fn(f64, f64) -> f32,
+    mut each: impl FnMut(f64, &NetworkObserver<3, 1, 1, 4, 1>, &NetworkObserverState<3, 1, 1, 4, 1>),
+) -> [f64; 2] {
+    let net = device();
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .settings(NetworkSettings {
+            step_us: 100_000,
+            max_steps_per_tick: 1,
+            protect_period_steps: 4,
+            ..settings
+        })
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut plant = [20.0f64; 3];
+    let mut worst = [0.0f64; 2];
+    for k in 0..(seconds * 10) {
+        let t_s = f64::from(k) * 0.1;
+        let now_us = k.wrapping_mul(100_000);
+        let i_a = current_a(t_s);
+        let mut inp = NetworkInputs {
+            elapsed_us: 100_000,
+            ..inputs([i_a], [20.0], now_us)
+        };
+        if k % 5 == 0 {
+            inp.readings = [reading(sensor_c(t_s, plant[1]), now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        for _ in 0..100 {
+            rk4(&net, &mut plant, &[f64::from(i_a)], &[20.0], 1e-3);
+        }
+        let est = state.outputs().temps_c;
+        for (w, n) in worst.iter_mut().zip([0, 1]) {
+            *w = w.max((f64::from(est[n]) - plant[n]).abs());
+        }
+        each(t_s, &obs, &state);
+    }
+    worst
+}
+
+#[test]
+fn a_cold_drifting_sensor_takes_no_heat_away_from_the_model() {
+    // The housing thermocouple drifts down 0.05 K/s from 60 s, inside the
+    // physics band for minutes: it may correct the temperatures, never
+    // take heat away (the bias's floor is 0 by default). The winding, which
+    // no sensor sees, must not follow it: before the floor it read 28.8 K
+    // cold in the fault campaign (drive-3node, docs/protection.md).
+    let drift = |t_s: f64, truth_c: f64| (truth_c - 0.05 * (t_s - 60.0).max(0.0)) as f32;
+    let mut lowest_w = f32::INFINITY;
+    let worst = housing_sensor_run(
+        NetworkSettings::DEFAULT,
+        600,
+        |_| 8.0,
+        drift,
+        |_, obs, state| lowest_w = lowest_w.min(obs.heat_bias_w(state)[0]),
+    );
+    std::println!(
+        "cold drift, floor 0: winding {:.2} K, housing {:.2} K off; lowest bias {lowest_w} W",
+        worst[0],
+        worst[1]
+    );
+    assert_eq!(lowest_w, 0.0, "a bias below its floor");
+    assert!(worst[0] < 2.0 && worst[1] < 2.0, "{worst:?}");
+    // A declared share lets the sensor take that much heat away, no more:
+    // the floor is -share x the Joule power at the estimate (8 A on
+    // 0.3 ohm at 20 degC is 19.2 W; more when hot).
+    let mut lowest_w = f32::INFINITY;
+    let mut floor_w = f32::INFINITY;
+    let share = NetworkSettings {
+        max_cooling_bias_fraction: 0.1,
+        ..NetworkSettings::DEFAULT
+    };
+    housing_sensor_run(
+        share,
+        600,
+        |_| 8.0,
+        drift,
+        |_, obs, state| {
+            let bias_w = obs.heat_bias_w(state)[0];
+            if bias_w < lowest_w {
+                lowest_w = bias_w;
+                let winding_c = state.outputs().temps_c[0];
+                floor_w = -0.1 * 64.0 * 0.3 * (1.0 + 0.00393 * (winding_c - 20.0));
+            }
+        },
+    );
+    std::println!("cold drift, share 0.1: lowest bias {lowest_w} W (floor there {floor_w} W)");
+    assert!(lowest_w < -1.0, "the share is used: {lowest_w} W");
+    assert!(
+        lowest_w >= floor_w - 0.05,
+        "{lowest_w} W below the floor {floor_w} W"
+    );
+}
+
+#[test]
+fn a_stuck_sensor_gives_back_the_heat_it_taught() {
+    // Heated at 8 A to 900 s, then cooling at 0 A; the housing
+    // thermocouple sticks at 900 s. Until the stuck test sees it (the
+    // physics has moved 1 K), the filter takes the unchanged reading as
+    // heat the model lacks; once it is stuck, the bias goes back to its
+    // value when the reading last changed, and the winding with it.
+    let stuck_c = core::cell::Cell::new(f32::NAN);
+    let sensor = |t_s: f64, truth_c: f64| {
+        if t_s < 900.0 {
+            stuck_c.set(truth_c as f32);
+        }
+        stuck_c.get()
+    };
+    let mut at_stick_w = f32::NAN;
+    let mut rewound_w = f32::NAN;
+    let mut verdict_s = None;
+    let mut worst_after = 0.0f64;
+    housing_sensor_run(
+        NetworkSettings::DEFAULT,
+        1500,
+        |t_s| if t_s < 900.0 { 8.0 } else { 0.0 },
+        sensor,
+        |t_s, obs, state| {
+            let bias_w = obs.heat_bias_w(state)[0];
+            if t_s < 900.0 {
+                at_stick_w = bias_w;
+            }
+            let stuck = matches!(state.outputs().sensors[0], SensorStatus::Stuck { .. });
+            if stuck && verdict_s.is_none() {
+                verdict_s = Some(t_s);
+                rewound_w = bias_w;
+            }
+            if verdict_s.is_some_and(|v| t_s > v + 60.0) {
+                worst_after = worst_after.max(f64::from(bias_w - at_stick_w).abs());
+            }
+        },
+    );
+    std::println!("stuck at 900 s: verdict at {verdict_s:?} s, bias {at_stick_w} W at the stick, {rewound_w} W after the verdict");
+    assert!(verdict_s.is_some_and(|v| v < 1000.0), "{verdict_s:?}");
+    assert!(
+        (rewound_w - at_stick_w).abs() < 1e-3,
+        "{rewound_w} W against {at_stick_w} W"
+    );
+    assert!(
+        worst_after < 1e-3,
+        "the bias moved again by {worst_after} W"
+    );
+}

@@ -107,6 +107,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             max_current_a: 100.0,
             consistency_offset_k: 3.0,
             consistency_fraction: 0.25,
+            max_cooling_bias_fraction: 0.0,
             frozen_flag_ticks: 100,
             frozen_loss_ticks: 1000,
         },

@@ -81,6 +81,9 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             bias_noise_w2_per_s: spec
                 .bias_noise_w2_per_s
                 .unwrap_or(defaults.bias_noise_w2_per_s),
+            max_cooling_bias_fraction: spec
+                .max_cooling_bias_fraction
+                .unwrap_or(defaults.max_cooling_bias_fraction),
             origin_c: cfg.ambient_c,
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,

@@ -219,6 +219,10 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     )?;
     check(nonneg(s.consistency_fraction), "consistency_fraction")?;
     check(
+        nonneg(s.max_cooling_bias_fraction),
+        "max_cooling_bias_fraction",
+    )?;
+    check(
         !s.stuck_threshold_k.is_nan() && s.stuck_threshold_k >= 0.0,
         "stuck_threshold_k",
     )?;
@@ -625,6 +629,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bound,
             shadow,
             warmup_corrections: s.warmup_corrections,
+            cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
             stuck_test: StuckTest {
                 threshold_k: s.stuck_threshold_k as f32,
                 window: stuck_window(s.correction_period_s),
@@ -879,6 +884,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             out,
             "        consistency_fraction: {:?},",
             s.consistency_fraction
+        )?;
+        writeln!(
+            out,
+            "        max_cooling_bias_fraction: {:?},",
+            s.max_cooling_bias_fraction
         )?;
         writeln!(out, "        frozen_flag_ticks: {},", s.frozen_flag_ticks)?;
         writeln!(out, "        frozen_loss_ticks: {},", s.frozen_loss_ticks)?;
