@@ -107,6 +107,7 @@ fn bad_filter_flags_are_refused() {
         ("--measurement-noise-k", "0", "--measurement-noise-k"),
         ("--process-noise-k2-per-s", "-1", "--process-noise-k2-per-s"),
         ("--disturbance", "coil,nope", "no node `nope`"),
+        ("--boundary-offset", "nope", "no boundary `nope`"),
     ] {
         cargo_bin_cmd!("coil-thermal")
             .args(["replay", "--model", &model_path(), "--trace"])
@@ -117,4 +118,47 @@ fn bad_filter_flags_are_refused() {
             .failure()
             .stderr(predicates::str::contains(msg));
     }
+}
+
+#[test]
+fn bad_boundary_offsets_are_refused() {
+    let tmp = TempDir::new().unwrap();
+    let rec = recording(tmp.path());
+    let out = tmp.path().join("e.csv");
+    let measure: &[&str] = &["--measure", "T_housing=housing"];
+    for (extra, msg) in [
+        (
+            &["--boundary-offset-std-k", "0"][..],
+            "--boundary-offset-std-k must be finite and > 0",
+        ),
+        (
+            &["--boundary-offset-tau-s", "-1"][..],
+            "--boundary-offset-tau-s must be finite and > 0",
+        ),
+        (
+            &["--boundary-offset", "ambient"][..],
+            "boundary `ambient` given twice",
+        ),
+    ] {
+        cargo_bin_cmd!("coil-thermal")
+            .args(["replay", "--model", &model_path(), "--trace"])
+            .arg(&rec)
+            .args(measure)
+            .args(["--boundary-offset", "ambient"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .assert()
+            .failure()
+            .stderr(predicates::str::contains(msg));
+    }
+    // The filter needs a sensor to fuse.
+    cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model", &model_path(), "--trace"])
+        .arg(&rec)
+        .args(["--boundary-offset", "ambient", "--out"])
+        .arg(&out)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("need at least one --measure"));
 }
