@@ -748,3 +748,66 @@ fn a_stuck_sensor_gives_back_the_heat_it_taught() {
         "the bias moved again by {worst_after} W"
     );
 }
+
+#[test]
+fn a_model_that_runs_hot_reads_hot_unless_it_declares_it() {
+    // The plant's winding resistance is 10 % below the model's: the model
+    // runs hot. With the default floor (no heat taken away) the housing
+    // thermocouple corrects the temperatures but not the heat, so the
+    // winding it does not see reads hot, never cold, and no healthy
+    // reading is refused; a declared share of 0.2 lets the bias take the
+    // surplus away and the estimate meets the plant (RK4 reference).
+    let net = device();
+    let plant_net: Network<3, 1, 1> = Network::new([60.0, 400.0, 900.0])
+        .and_then(|n| n.connect(0, 1, 2.0))
+        .and_then(|n| n.connect(1, 2, 3.0))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5))
+        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.27, 0.00393, 20.0)))
+        .unwrap();
+    let run = |share: f64| {
+        let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+            .settings(NetworkSettings {
+                max_cooling_bias_fraction: share,
+                ..NetworkSettings::DEFAULT
+            })
+            .build()
+            .unwrap();
+        let mut state = obs.state(&[20.0; 3], &[20.0]);
+        let mut plant = [20.0f64; 3];
+        let (mut refused, mut coldest_k, mut hottest_k) = (0u32, 0.0f64, 0.0f64);
+        for k in 0..(2 * 3_600_000u32) {
+            let now_us = k.wrapping_mul(1000);
+            let mut inp = inputs([8.0], [20.0], now_us);
+            if k % 500 == 0 {
+                inp.readings = [reading(plant[1] as f32, now_us)];
+            }
+            obs.tick(&mut state, &inp);
+            rk4(&plant_net, &mut plant, &[8.0], &[20.0], 1e-3);
+            if k % 500 == 0 && !matches!(state.outputs().sensors[0], SensorStatus::Fused { .. }) {
+                refused += 1;
+            }
+            let off_k = f64::from(state.outputs().temps_c[0]) - plant[0];
+            coldest_k = coldest_k.min(off_k);
+            hottest_k = hottest_k.max(off_k);
+        }
+        let final_k = f64::from(state.outputs().temps_c[0]) - plant[0];
+        std::println!(
+            "model 10 % hot, share {share}: winding {coldest_k:.3} to {hottest_k:.3} K off, {final_k:.3} K after 2 h; bias {:.2} W; {refused} readings not fused",
+            obs.heat_bias_w(&state)[0]
+        );
+        (refused, coldest_k, hottest_k, final_k)
+    };
+    let (refused, coldest_k, hottest_k, final_k) = run(0.0);
+    assert_eq!(refused, 0);
+    assert!(coldest_k > -0.1, "read cold by {coldest_k} K");
+    assert!(
+        (0.5..1.5).contains(&hottest_k) && final_k > 0.5,
+        "{hottest_k} / {final_k} K"
+    );
+    let (refused, coldest_k, _, final_k) = run(0.2);
+    assert_eq!(refused, 0);
+    assert!(
+        coldest_k > -0.5 && final_k.abs() < 0.05,
+        "{coldest_k} / {final_k} K"
+    );
+}
