@@ -7,7 +7,10 @@
 //! ([`OmnimagnetPlant`], RK4), heated at constant currents from the ambient.
 //! The thermocouples read the plant's solenoid nodes every
 //! `reading_every` model steps (2 Hz at the defaults), the loop of
-//! `tests/sensor_consistency.rs`. Each case injects one fault from its
+//! `tests/sensor_consistency.rs`, through a converter ([`SensorModel`]):
+//! by default rounded to the MAX31855's 0.25 K codes, as the product's
+//! converter reports them, optionally with seeded Gaussian noise (exact
+//! readings, the truth to the bit, with a quantum of 0). Each case injects one fault from its
 //! onset to the end of the run (or restarts the observer at its onset) and
 //! is scored against its *reference*: the clean run with the same current
 //! schedule (for the restart cases, the observer kept ticking through the
@@ -96,6 +99,12 @@ pub const HUGE_CURRENT_A: f32 = 1e20;
 /// sensor set that needs one (one thermocouple on a solenoid) \[s\]: the
 /// period docs/protection.md measured every goal at.
 pub const DEFAULT_REFRESH_S: f64 = 10.0;
+/// The step the thermocouples' readings are rounded to by default \[K\]:
+/// the MAX31855's (`coil_thermal::sensors::max31855::THERMOCOUPLE_LSB_C`),
+/// the converter the product targets.
+pub const DEFAULT_SENSOR_QUANTUM_K: f64 = 0.25;
+/// The seed of the readings' noise by default.
+pub const DEFAULT_NOISE_SEED: u64 = 17;
 
 /// A fault class.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -284,6 +293,80 @@ pub struct FaultConfig {
     /// ambient throughout), which a sensor set that needs one refuses at
     /// build.
     pub relinearize_s: Option<f64>,
+    /// How the thermocouples read (healthy or faulty): noise and the
+    /// converter's quantum.
+    pub sensor_model: SensorModel,
+}
+
+/// How a thermocouple's converter turns a temperature into a reading: the
+/// temperature plus Gaussian noise, rounded to a multiple of the quantum
+/// (0 for either: none). Every reading the campaign gives the observer
+/// passes through it, a faulty one too (a drift, a jump, a detached
+/// sensor reading the ambient are read through the converter; a stuck
+/// sensor repeats the converter's reading at its onset, to the bit).
+///
+/// The noise is a function of the seed, the sensor and the reading's
+/// number alone, so a run is reproducible and a healthy sensor reads the
+/// same in a fault case as in the clean run it is judged against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorModel {
+    /// Readings are multiples of this \[K\] (0: exact).
+    pub quantum_k: f64,
+    /// Standard deviation of the Gaussian noise added before the rounding
+    /// \[K\] (0: none).
+    pub noise_k: f64,
+    /// The noise's seed.
+    pub seed: u64,
+}
+
+impl SensorModel {
+    /// Readings as the plant's truth, to the bit.
+    pub const EXACT: Self = Self {
+        quantum_k: 0.0,
+        noise_k: 0.0,
+        seed: DEFAULT_NOISE_SEED,
+    };
+
+    /// What sensor `sensor`'s `reading`-th reading of `value_c` \[degC\]
+    /// says.
+    pub fn read(&self, value_c: f32, sensor: usize, reading: u64) -> f32 {
+        let mut v = f64::from(value_c);
+        if self.noise_k > 0.0 {
+            v += self.noise_k * gaussian(self.seed, sensor as u64, reading);
+        }
+        if self.quantum_k > 0.0 {
+            v = (v / self.quantum_k).round() * self.quantum_k;
+        }
+        v as f32
+    }
+}
+
+impl Default for SensorModel {
+    fn default() -> Self {
+        Self {
+            quantum_k: DEFAULT_SENSOR_QUANTUM_K,
+            ..Self::EXACT
+        }
+    }
+}
+
+/// SplitMix64's output function: a well-mixed 64-bit hash of `x`.
+fn mix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// A standard normal number determined by `(seed, sensor, reading)`
+/// (Box-Muller on two hashed uniforms).
+fn gaussian(seed: u64, sensor: u64, reading: u64) -> f64 {
+    let key = mix64(seed ^ mix64(sensor ^ mix64(reading)));
+    // Uniforms in (0, 1] and [0, 1) from 53 bits each.
+    let unit = |bits: u64| (bits >> 11) as f64 / (1u64 << 53) as f64;
+    let u1 = 1.0 - unit(mix64(key));
+    let u2 = unit(mix64(key ^ 0x5851_f42d_4c95_7f2d));
+    (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos()
 }
 
 impl Default for FaultConfig {
@@ -301,6 +384,7 @@ impl Default for FaultConfig {
             off_s: 600.0,
             max_snapshot_age_s: 3600,
             relinearize_s: None,
+            sensor_model: SensorModel::default(),
         }
     }
 }
@@ -321,6 +405,13 @@ pub struct RunScore {
     /// Ticks flagged [`InputFlags::HEAT_BIAS_BEYOND_MODEL`] (in the clean
     /// run: false bias alarms).
     pub bias_alarm_ticks: u32,
+    /// Largest `|reading - truth|` of a healthy sensor's reading \[K\]:
+    /// the converter's quantum and noise ([`SensorModel`]).
+    pub max_reading_error_k: f64,
+    /// Longest a healthy sensor's reading repeated its value to the bit,
+    /// from the first reading of the value to its last repetition \[s\]
+    /// (what the observer's stuck test must tell from a stuck sensor).
+    pub longest_repeat_s: f64,
 }
 
 /// A restart case's snapshot.
@@ -467,6 +558,12 @@ pub struct FaultReport {
     pub onsets_s: Vec<f64>,
     /// The model refresh declared and run \[s\] (0: none).
     pub relinearize_s: f64,
+    /// The readings' quantum \[K\] ([`SensorModel::quantum_k`]; 0: exact).
+    pub sensor_quantum_k: f64,
+    /// The readings' noise \[K\] ([`SensorModel::noise_k`]; 0: none).
+    pub sensor_noise_k: f64,
+    /// The noise's seed ([`SensorModel::seed`]).
+    pub sensor_noise_seed: u64,
     /// The heat-bias noise the observer runs with \[W^2/s\] (a model
     /// file's network observer: its `[observer]` table's or the default,
     /// as the firmware's); absent for the Omnimagnet's.
@@ -847,6 +944,7 @@ impl<'c, S: Subject> Harness<'c, S> {
         corrupt: bool,
         cool: bool,
         truth: &[f32],
+        reading: u64,
     ) -> (S::State, SnapshotOutcome) {
         let amb = self.cfg.ambient_c as f32;
         let now_s = saved_at_s + off_s.round() as u32;
@@ -860,10 +958,13 @@ impl<'c, S: Subject> Harness<'c, S> {
         let (state, error) = match restored {
             Ok(state) => (state, None),
             Err(e) => {
+                // What the sensors read at the restart.
+                let model = &self.cfg.sensor_model;
                 let readings: Vec<Option<f32>> = truth
                     .iter()
                     .zip(&self.cfg.sensors)
-                    .map(|(t, used)| used.then_some(*t))
+                    .enumerate()
+                    .map(|(j, (t, used))| used.then(|| model.read(*t, j, reading)))
                     .collect();
                 (self.subject.conservative_state(&readings, amb), Some(e))
             }
@@ -902,6 +1003,9 @@ impl<'c, S: Subject> Harness<'c, S> {
         let mut snapshot = None;
         let mut saved: Option<(Vec<u8>, u32)> = None;
         let mut held: Option<Vec<f32>> = None;
+        let model = &cfg.sensor_model;
+        // Per sensor: its last healthy reading and when it was first read.
+        let mut last_read: Vec<Option<(f32, f64)>> = vec![None; sensors];
         let mut faulty_readings = 0u64;
         let mut now_us = 0u32;
         for k in 0..ticks {
@@ -926,7 +1030,8 @@ impl<'c, S: Subject> Harness<'c, S> {
                     continue; // powered off: no tick
                 }
                 if let Some((bytes, at_s)) = saved.as_mut().filter(|_| snapshot.is_none()) {
-                    let (s, outcome) = self.restore(bytes, *at_s, off_s, corrupt, cool, &truth);
+                    let (s, outcome) =
+                        self.restore(bytes, *at_s, off_s, corrupt, cool, &truth, k / every);
                     state = s;
                     if outcome.refused {
                         flag_s = Some(0.0);
@@ -934,11 +1039,19 @@ impl<'c, S: Subject> Harness<'c, S> {
                     snapshot = Some(outcome);
                 }
             }
+            // The number of the reading due at or last before this tick.
+            let reading_no = k / every;
             let faulty = fault.filter(|f| t_s >= f.onset_s);
             if faulty.is_some() && held.is_none() {
-                held = Some(truth.clone());
+                // What each sensor reads at the onset, repeated from then.
+                held = Some(
+                    truth
+                        .iter()
+                        .enumerate()
+                        .map(|(j, t)| model.read(*t, j, reading_no))
+                        .collect(),
+                );
             }
-            let hold = held.as_ref().unwrap_or(&truth);
             let due = k % every == 0;
             if due && faulty.is_some() {
                 faulty_readings += 1;
@@ -948,25 +1061,40 @@ impl<'c, S: Subject> Harness<'c, S> {
                 if !cfg.sensors[j] || !due {
                     continue;
                 }
-                let mut result = Ok(truth[j]);
-                if let Some(f) = faulty.filter(|f| f.sensor.is_none_or(|s| s == j)) {
+                let read = |value_c: f32| model.read(value_c, j, reading_no);
+                let mut result = Ok(read(truth[j]));
+                let faulty_here = faulty.filter(|f| f.sensor.is_none_or(|s| s == j));
+                if let Some(f) = faulty_here {
                     let since_s = t_s - f.onset_s;
                     result = match f.class {
                         FaultClass::Open => Err(SensorFault::OpenCircuit),
                         FaultClass::ShortGnd => Err(SensorFault::ShortToGnd),
                         FaultClass::ShortVcc => Err(SensorFault::ShortToVcc),
-                        FaultClass::Stuck | FaultClass::AllStuck => Ok(hold[j]),
-                        FaultClass::Drift => Ok(truth[j] + (DRIFT_K_PER_S * since_s) as f32),
-                        FaultClass::JumpUp => Ok(truth[j] + JUMP_K as f32),
-                        FaultClass::JumpDown => Ok(truth[j] - JUMP_K as f32),
+                        FaultClass::Stuck | FaultClass::AllStuck => {
+                            Ok(held.as_ref().map_or(truth[j], |h| h[j]))
+                        }
+                        FaultClass::Drift => Ok(read(truth[j] + (DRIFT_K_PER_S * since_s) as f32)),
+                        FaultClass::JumpUp => Ok(read(truth[j] + JUMP_K as f32)),
+                        FaultClass::JumpDown => Ok(read(truth[j] - JUMP_K as f32)),
                         // The first faulty reading is a spike, then one in two.
                         FaultClass::Spikes if faulty_readings % 2 == 1 => {
-                            Ok(truth[j] + JUMP_K as f32)
+                            Ok(read(truth[j] + JUMP_K as f32))
                         }
                         FaultClass::Dropout => continue,
-                        FaultClass::AllDetached => Ok(amb as f32),
-                        _ => Ok(truth[j]),
+                        FaultClass::AllDetached => Ok(read(amb as f32)),
+                        _ => result,
                     };
+                } else if let Ok(value) = result {
+                    // A healthy reading: the converter's error, and how
+                    // long it has repeated its value.
+                    let e = f64::from((value - truth[j]).abs());
+                    score.max_reading_error_k = score.max_reading_error_k.max(e);
+                    match last_read[j] {
+                        Some((last, since)) if last.to_bits() == value.to_bits() => {
+                            score.longest_repeat_s = score.longest_repeat_s.max(t_s - since);
+                        }
+                        _ => last_read[j] = Some((value, t_s)),
+                    }
                 }
                 if let (Some(f), Ok(read), None) = (faulty, result, detectable_s) {
                     if f.sensor == Some(j) && self.detectable(f.class, read, truth[j]) {
@@ -1114,6 +1242,13 @@ fn check(cfg: &FaultConfig) -> Result<(), FaultError> {
     if !(cfg.off_s.is_finite() && cfg.off_s >= 0.0) {
         return bad("--off-s must be finite and >= 0");
     }
+    let m = &cfg.sensor_model;
+    if !(m.quantum_k.is_finite() && m.quantum_k >= 0.0) {
+        return bad("--sensor-quantum-k must be finite and >= 0");
+    }
+    if !(m.noise_k.is_finite() && m.noise_k >= 0.0) {
+        return bad("--sensor-noise-k must be finite and >= 0");
+    }
     Ok(())
 }
 
@@ -1251,6 +1386,9 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
         sensors,
         onsets_s,
         relinearize_s: refresh_s,
+        sensor_quantum_k: cfg.sensor_model.quantum_k,
+        sensor_noise_k: cfg.sensor_model.noise_k,
+        sensor_noise_seed: cfg.sensor_model.seed,
         bias_noise_w2_per_s: harness.subject.bias_noise_w2_per_s(),
         clean,
         cases,
@@ -1435,6 +1573,34 @@ mod tests {
     }
 
     #[test]
+    fn the_sensor_model_rounds_to_its_quantum_and_its_noise_is_seeded() {
+        let q = SensorModel {
+            quantum_k: 0.25,
+            ..SensorModel::EXACT
+        };
+        for (t, read) in [(22.0, 22.0), (22.124, 22.0), (22.126, 22.25), (-0.3, -0.25)] {
+            assert_eq!(q.read(t, 0, 0), read, "{t}");
+        }
+        assert_eq!(SensorModel::EXACT.read(22.123, 3, 9), 22.123);
+        let noisy = SensorModel { noise_k: 0.1, ..q };
+        let n = 20_000u64;
+        let draws: Vec<f64> = (0..n).map(|k| 0.1 * gaussian(noisy.seed, 1, k)).collect();
+        let mean = draws.iter().sum::<f64>() / n as f64;
+        let sd = (draws.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        assert!(
+            mean.abs() < 0.003 && (sd - 0.1).abs() < 0.003,
+            "{mean} {sd}"
+        );
+        // Reproducible, on the grid, and not the same for every sensor.
+        for k in 0..100 {
+            let r = noisy.read(40.1, 2, k);
+            assert_eq!(r, noisy.read(40.1, 2, k));
+            assert_eq!(r % 0.25, 0.0, "{r}");
+        }
+        assert!((0..100).any(|k| noisy.read(40.1, 0, k) != noisy.read(40.1, 1, k)));
+    }
+
+    #[test]
     fn bad_configurations_are_refused() {
         for cfg in [
             FaultConfig {
@@ -1451,6 +1617,20 @@ mod tests {
             },
             FaultConfig {
                 relinearize_s: Some(f64::NAN),
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                sensor_model: SensorModel {
+                    quantum_k: -0.25,
+                    ..SensorModel::default()
+                },
+                ..FaultConfig::default()
+            },
+            FaultConfig {
+                sensor_model: SensorModel {
+                    noise_k: f64::INFINITY,
+                    ..SensorModel::default()
+                },
                 ..FaultConfig::default()
             },
         ] {

@@ -150,7 +150,7 @@ fn text_report_names_the_goals() {
 
 #[test]
 fn argument_errors_are_clear() {
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 10] = [
         (
             &[
                 "--model",
@@ -204,6 +204,28 @@ fn argument_errors_are_clear() {
                 "-1",
             ],
             "--duration-s",
+        ),
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--sensor-quantum-k",
+                "-0.25",
+            ],
+            "--sensor-quantum-k must be finite and >= 0",
+        ),
+        (
+            &[
+                "--model",
+                "omnimagnet",
+                "--current-a",
+                "7",
+                "--sensor-noise-k",
+                "NaN",
+            ],
+            "--sensor-noise-k must be finite and >= 0",
         ),
     ];
     for (args, message) in cases {
@@ -561,4 +583,91 @@ fn one_per_solenoid_needs_the_model_refresh() {
     .assert()
     .failure()
     .stderr(contains("needs a model refresh"));
+}
+
+/// The clean run and the single-fault cases with the thermocouples as the
+/// MAX31855 reads them (0.25 K codes, the campaign's default): a healthy
+/// quantised reading repeats its code for seconds to minutes, which the
+/// stuck test (a reading unchanged to the bit while the physics moves)
+/// must not take for a stuck sensor, and a false verdict would also take
+/// back the heat the network observer learnt. No healthy reading is
+/// refused and every goal holds on the Omnimagnet with one thermocouple
+/// per solenoid at 3.1 A (the slowest heating) and on `drive-3node`'s
+/// recorded hour (stuck at 60 s near the ambient and at 1800 s while it
+/// cools). The readings really are quantised: off the truth by up to half
+/// a code (0 with `--sensor-quantum-k 0`, where the readings differ every
+/// time), and a code repeats.
+#[test]
+fn quantised_sensors_refuse_no_healthy_reading_and_keep_the_goals() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let model = format!("{dir}/models/drive-3node-fitted.toml");
+    let trace = format!("{dir}/traces/drive-3node.csv");
+    let omni = [
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "3.1",
+        "--sensors",
+        "0,2,4",
+        "--duration-s",
+        "600",
+        "--onset-s",
+        "60",
+        "--classes",
+        "stuck,drift,open",
+        "--json",
+    ];
+    let drive = [
+        "faults",
+        "--model",
+        &model,
+        "--trace",
+        &trace,
+        "--onset-s",
+        "60,1800",
+        "--classes",
+        "stuck,drift,spikes",
+        "--json",
+    ];
+    for (args, min_repeat_s) in [(&omni[..], 5.0), (&drive[..], 30.0)] {
+        let r = json_run(args);
+        // The default: the MAX31855's code, no noise.
+        assert_eq!(r["sensor_quantum_k"], 0.25, "{args:?}");
+        assert_eq!(r["sensor_noise_k"], 0.0, "{args:?}");
+        let clean = &r["clean"];
+        assert_eq!(clean["healthy_flagged"], 0, "{args:?}: {clean}");
+        assert_eq!(clean["bias_alarm_ticks"], 0, "{args:?}: {clean}");
+        let off = clean["max_reading_error_k"].as_f64().unwrap();
+        assert!((0.1..=0.125 + 1e-6).contains(&off), "{args:?}: {clean}");
+        let repeat = clean["longest_repeat_s"].as_f64().unwrap();
+        assert!(repeat >= min_repeat_s, "{args:?}: {clean}");
+        for c in r["cases"].as_array().unwrap() {
+            assert_eq!(c["healthy_flagged"], 0, "{c}");
+            assert!(
+                c["max_reading_error_k"].as_f64().unwrap() <= 0.125 + 1e-6,
+                "{c}"
+            );
+        }
+        for g in r["summary"]["goals"].as_array().unwrap() {
+            assert_eq!(g["met"], true, "{args:?}: {g}");
+        }
+    }
+    // Exact readings (the plant's truth to the bit) are what the campaign
+    // judged before: never off the truth, never repeated while it heats.
+    let mut exact = omni.to_vec();
+    exact.extend(["--sensor-quantum-k", "0"]);
+    let r = json_run(&exact);
+    assert_eq!(r["sensor_quantum_k"], 0.0);
+    assert_eq!(r["clean"]["max_reading_error_k"], 0.0);
+    assert_eq!(r["clean"]["longest_repeat_s"], 0.0);
+    // Noise is seeded: the same run twice reads the same; noise beyond
+    // half a code shows it is there.
+    let mut noisy = omni.to_vec();
+    noisy.extend(["--sensor-noise-k", "0.1"]);
+    let (a, b) = (json_run(&noisy), json_run(&noisy));
+    assert_eq!(a, b);
+    assert_eq!(a["sensor_noise_k"], 0.1);
+    assert_eq!(a["sensor_noise_seed"], 17);
+    assert!(a["clean"]["max_reading_error_k"].as_f64().unwrap() > 0.125);
 }

@@ -9,7 +9,7 @@ use super::common::{self, ModelSpec, NOT_YET};
 use super::TraceArgs;
 use crate::devices::OmnimagnetPlant;
 use crate::faults::{
-    self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultError, FaultReport,
+    self, CaseReport, CurrentTrace, FaultClass, FaultConfig, FaultError, FaultReport, SensorModel,
 };
 use crate::model_file::{Model, ModelFile};
 use crate::sim::{Drive, FilePlant, Plant};
@@ -99,6 +99,30 @@ pub struct FaultsArgs {
     /// build-time linearisation at the ambient).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     relinearize_s: Option<f64>,
+    /// The thermocouples' converter step [K]: every reading (healthy or
+    /// faulty) is rounded to a multiple of Q, as the converter reports it.
+    /// Default 0.25, the MAX31855's; 0: the plant's truth to the bit.
+    #[arg(
+        long,
+        value_name = "Q",
+        default_value_t = faults::DEFAULT_SENSOR_QUANTUM_K,
+        allow_negative_numbers = true
+    )]
+    sensor_quantum_k: f64,
+    /// Gaussian noise on every reading, before the rounding [K] (standard
+    /// deviation; default 0). Seeded (--sensor-noise-seed): a run is
+    /// reproducible, and a healthy sensor reads the same in a fault case as
+    /// in the clean run.
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    sensor_noise_k: f64,
+    /// The seed of --sensor-noise-k.
+    #[arg(long, value_name = "N", default_value_t = faults::DEFAULT_NOISE_SEED)]
+    sensor_noise_seed: u64,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -204,6 +228,11 @@ pub fn run(a: FaultsArgs) -> Result<()> {
         off_s: a.off_s,
         max_snapshot_age_s: a.max_snapshot_age_s,
         relinearize_s: a.relinearize_s,
+        sensor_model: SensorModel {
+            quantum_k: a.sensor_quantum_k,
+            noise_k: a.sensor_noise_k,
+            seed: a.sensor_noise_seed,
+        },
         ..cfg
     };
     let mut report = match &file_model {
@@ -288,17 +317,32 @@ fn print_text(r: &FaultReport) {
     } else {
         "no model refresh".into()
     };
+    let quantum = if r.sensor_quantum_k > 0.0 {
+        format!("rounded to {} K", r.sensor_quantum_k)
+    } else {
+        "not rounded".into()
+    };
+    let noise = if r.sensor_noise_k > 0.0 {
+        format!(
+            "noise {} K (seed {})",
+            r.sensor_noise_k, r.sensor_noise_seed
+        )
+    } else {
+        "no noise".into()
+    };
     println!(
-        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s, sensors {:?}, onsets {:?} s, {refresh}",
+        "fault campaign: {} at {drive} for {} s, step {} us, readings every {} s ({quantum}, {noise}), sensors {:?}, onsets {:?} s, {refresh}",
         r.model, r.duration_s, r.step_us, r.reading_period_s, r.sensors, r.onsets_s
     );
     println!(
-        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused, {} ticks with a heat bias beyond the model",
+        "clean run: shutdown {} s, max error {:.2} K on the thermocouple nodes, {:.2} K on the hot spot, {} healthy readings not fused, {} ticks with a heat bias beyond the model; readings off the truth by {:.3} K at most, one repeated for {:.1} s at most",
         opt(r.clean.shutdown_s, 1),
         r.clean.max_error_tc_k,
         r.clean.max_error_hot_spot_k,
         r.clean.healthy_flagged,
-        r.clean.bias_alarm_ticks
+        r.clean.bias_alarm_ticks,
+        r.clean.max_reading_error_k,
+        r.clean.longest_repeat_s
     );
     println!();
     println!(
