@@ -272,7 +272,8 @@ pub struct ReplayArgs {
     /// empty or `NaN` cell is a missing reading. Repeatable (at most 4 without
     /// `--disturbance`). The library's `NetworkObserver` ticks every
     /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
-    /// (steady-state gain for the trace's row spacing); with
+    /// (steady-state gain for the trace's row spacing; a heat-input bias per
+    /// model source, as the firmware: see --bias-noise-w2-per-s); with
     /// `--disturbance` the library's time-varying Kalman filter runs at the
     /// trace's rows instead.
     #[arg(long = "measure", value_name = "COL=NODE")]
