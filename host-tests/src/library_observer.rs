@@ -23,11 +23,36 @@
 //! trace's row spacing; unused slots sit on a padding node (the class then
 //! needs one node more than the model), decoupled from the real nodes.
 //!
-//! The heat-input biases stay at zero (their noise is 0): the padding
-//! sources have biases no sensor can see, and an unobservable random walk
-//! has no steady gain. The fusion therefore corrects temperatures, not heat
-//! inputs; a heat the model lacks is what `--disturbance` estimates, with
-//! the library's time-varying filter ([`crate::kalman`]).
+//! # Heat-input biases: the firmware's filter
+//! The fused observer is the firmware's: each of the model's sources
+//! carries a heat-input bias state, at the model file's `[observer]`
+//! `bias_noise_w2_per_s` and `max_cooling_bias_fraction` (the library's
+//! defaults, 1e-3 W^2/s and 0, when the file has no table or the table not
+//! the key), as `coil-thermal codegen` builds the firmware from the same
+//! file; `replay --bias-noise-w2-per-s` overrides the file's noise. The
+//! sensor noise and the correction period stay the replay's
+//! (`--measurement-noise-k`, the trace's row spacing): given the file's,
+//! the replay is the generated observer within `f32` rounding (test
+//! `replay_firmware_filter`: `drive-3node` over its bench hour, at most
+//! 8e-6 K apart). The padding sources carry no current and their biases no
+//! sensor can see (an unobservable random walk has no steady gain), so
+//! they are left out of the bias states
+//! ([`NetworkObserverBuilder::bias_sources`]: their bias is exactly 0), as
+//! the fault campaign does ([`crate::faults`]). A sensor therefore corrects
+//! the model's heat as well as its temperatures: a housing thermocouple
+//! warms an unmeasured coil whose plant runs 40 % hotter than the model
+//! (coil MSE 1.09 K^2, against 5.46 with the biases frozen and 31.9 open
+//! loop; test `kalman_replay`).
+//!
+//! When the sensors cannot see every source's bias (e.g. three sources and
+//! one sensor; the HUST models, copper and speed losses, with one sensor),
+//! the gain solve does not converge and the replay refuses, naming the
+//! fix: the firmware needs `[observer] bias_noise_w2_per_s = 0` too, and
+//! `replay --bias-noise-w2-per-s 0` replays with the biases frozen
+//! (temperatures corrected, no heat input estimated) without editing the
+//! file. A heat the model lacks is then what `--disturbance` estimates,
+//! with the library's time-varying filter ([`crate::kalman`]). Open loop
+//! (no sensor) there is nothing to fuse and no bias.
 //!
 //! # Currents above 100 A
 //! The observer holds a current beyond its plausibility limit (the
@@ -53,6 +78,7 @@ use coil_thermal::observer::network::{
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::Reading;
 
+use crate::codegen::ObserverSpec;
 use crate::dynamic_network::DynNetwork;
 use crate::kalman::FusionStats;
 use crate::limits::{class_of, on_big_stack, padded_with, Padding};
@@ -86,6 +112,67 @@ pub struct Fusion {
     /// Time between readings the steady gain is solved for \[s\] (the
     /// trace's row spacing).
     pub correction_period_s: f64,
+    /// The heat-input biases of the model's sources.
+    pub biases: BiasSettings,
+}
+
+/// Where a replay's bias noise comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BiasNoiseFrom {
+    /// `replay --bias-noise-w2-per-s`.
+    Flag,
+    /// The model file's `[observer] bias_noise_w2_per_s`.
+    ModelFile,
+    /// The library's default (`NetworkSettings::DEFAULT`), as `codegen`
+    /// builds a file without the key.
+    Default,
+}
+
+impl BiasNoiseFrom {
+    /// Stable name (`--json`'s `bias_noise_from`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Flag => "flag",
+            Self::ModelFile => "model-file",
+            Self::Default => "default",
+        }
+    }
+}
+
+/// The heat-input bias settings of the fused observer (see the module
+/// docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasSettings {
+    /// Growth rate of each model source's bias variance \[W^2/s\] (0
+    /// freezes every bias at zero).
+    pub bias_noise_w2_per_s: f64,
+    /// Largest heat the sensors may take away, as a share of each source's
+    /// Joule power (dimensionless).
+    pub max_cooling_bias_fraction: f64,
+    /// Where `bias_noise_w2_per_s` comes from.
+    pub from: BiasNoiseFrom,
+}
+
+impl BiasSettings {
+    /// The firmware's: the model file's `[observer]` table (`spec`), each
+    /// key missing at the library's default, as `codegen` builds them;
+    /// `bias_noise_w2_per_s` (the replay's flag) overrides the file's.
+    pub fn firmware(spec: Option<&ObserverSpec>, bias_noise_w2_per_s: Option<f64>) -> Self {
+        let defaults = NetworkSettings::DEFAULT;
+        let file = spec.and_then(|s| s.bias_noise_w2_per_s);
+        let (noise, from) = match (bias_noise_w2_per_s, file) {
+            (Some(v), _) => (v, BiasNoiseFrom::Flag),
+            (None, Some(v)) => (v, BiasNoiseFrom::ModelFile),
+            (None, None) => (defaults.bias_noise_w2_per_s, BiasNoiseFrom::Default),
+        };
+        Self {
+            bias_noise_w2_per_s: noise,
+            max_cooling_bias_fraction: spec
+                .and_then(|s| s.max_cooling_bias_fraction)
+                .unwrap_or(defaults.max_cooling_bias_fraction),
+            from,
+        }
+    }
 }
 
 /// The size-independent face of a padded observer with its state.
@@ -117,6 +204,7 @@ impl<const C: usize, const X: usize> Sized<C, X> {
         net: &DynNetwork,
         settings: NetworkSettings,
         sensor_nodes: &[usize],
+        name: &str,
     ) -> Result<Box<dyn PaddedObserver>> {
         let padding = Padding {
             link_to_boundary: true,
@@ -133,13 +221,27 @@ impl<const C: usize, const X: usize> Sized<C, X> {
         };
         let mut slots = [spare; SENSOR_SLOTS];
         slots[..sensor_nodes.len()].copy_from_slice(sensor_nodes);
+        // The model's sources carry their biases, the padding's do not
+        // (see the module docs).
+        let sources = net.sources().len();
+        let bias_sources: [bool; C] = core::array::from_fn(|m| m < sources);
         let observer = NetworkObserverBuilder::new(&network, slots)
             // No element limits the currents here: the replay's alarm
             // watches the estimate (see `observer::LibraryAlarm`).
             .incidence([[false; C]; C])
             .settings(settings)
+            .bias_sources(bias_sources)
             .build::<X>()
-            .map_err(|e| anyhow!("the library observer: {e}"))?;
+            .map_err(|e| match e {
+                coil_thermal::BuildError::NotConverged { .. }
+                    if settings.bias_noise_w2_per_s > 0.0 => anyhow!(
+                    "the library observer of model `{name}` with its heat-bias states ({} W^2/s) does not build: {e} \
+                     (the sensors cannot see every source's bias: its firmware needs `[observer] bias_noise_w2_per_s = 0` too; \
+                     replay with the biases frozen with --bias-noise-w2-per-s 0, or estimate the missing heat with --disturbance)",
+                    settings.bias_noise_w2_per_s
+                ),
+                e => anyhow!("the library observer: {e}"),
+            })?;
         let origin = settings.origin_c as f32;
         let state = observer.state(&[origin; C], &[origin; 2]);
         Ok(Box::new(Self {
@@ -241,6 +343,8 @@ pub struct ObserverEstimator {
     awaiting: bool,
     statuses: Vec<SensorStatus>,
     stats: Vec<FusionStats>,
+    /// The fused observer's bias settings (`None` open loop).
+    biases: Option<BiasSettings>,
 }
 
 impl ObserverEstimator {
@@ -300,7 +404,7 @@ impl ObserverEstimator {
             .unwrap_or(0);
         let mut settings = NetworkSettings {
             step_us: tick_us,
-            // Frozen biases (see the module docs).
+            // Open loop: no sensor, no bias (see the module docs).
             bias_noise_w2_per_s: 0.0,
             ambient_boundary: ambient,
             ..NetworkSettings::DEFAULT
@@ -322,6 +426,25 @@ impl ObserverEstimator {
             if !positive(f.correction_period_s) {
                 bail!("the trace's row spacing must be > 0 s to fuse readings");
             }
+            let b = &f.biases;
+            if !(b.bias_noise_w2_per_s.is_finite() && b.bias_noise_w2_per_s >= 0.0) {
+                bail!(
+                    "the bias noise must be finite and >= 0 W^2/s, got {} ({})",
+                    b.bias_noise_w2_per_s,
+                    match b.from {
+                        BiasNoiseFrom::Flag => "--bias-noise-w2-per-s",
+                        _ => "the model file's [observer] bias_noise_w2_per_s",
+                    }
+                );
+            }
+            if !(b.max_cooling_bias_fraction.is_finite() && b.max_cooling_bias_fraction >= 0.0) {
+                bail!(
+                    "the model file's [observer] max_cooling_bias_fraction must be finite and >= 0, got {}",
+                    b.max_cooling_bias_fraction
+                );
+            }
+            settings.bias_noise_w2_per_s = b.bias_noise_w2_per_s;
+            settings.max_cooling_bias_fraction = b.max_cooling_bias_fraction;
             settings.sensor_sigma_k = f.sensor_sigma_k;
             settings.node_noise_k2_per_s = f.node_noise_k2_per_s;
             settings.correction_period_s = f.correction_period_s.max(f64::from(tick_us) * 1e-6);
@@ -329,11 +452,12 @@ impl ObserverEstimator {
             settings.max_reading_age_us = u32::MAX;
         }
         let slots = sensors.clone();
+        let name = model.name.clone();
         let observer = on_big_stack("the library observer", move || match class {
-            8 => Sized::<8, 16>::build(&net, settings, &slots),
-            16 => Sized::<16, 32>::build(&net, settings, &slots),
-            32 => Sized::<32, 64>::build(&net, settings, &slots),
-            _ => Sized::<96, 192>::build(&net, settings, &slots),
+            8 => Sized::<8, 16>::build(&net, settings, &slots, &name),
+            16 => Sized::<16, 32>::build(&net, settings, &slots, &name),
+            32 => Sized::<32, 64>::build(&net, settings, &slots, &name),
+            _ => Sized::<96, 192>::build(&net, settings, &slots, &name),
         })?;
         let n = model.nodes.len();
         Ok(Self {
@@ -360,12 +484,19 @@ impl ObserverEstimator {
                 .collect(),
             sensors,
             awaiting: false,
+            biases: fusion.map(|f| f.biases),
         })
     }
 
     /// Per-sensor fusion counts so far.
     pub fn stats(&self) -> &[FusionStats] {
         &self.stats
+    }
+
+    /// The heat-input bias settings the fused observer runs (`None` open
+    /// loop: no sensor, no bias).
+    pub fn biases(&self) -> Option<BiasSettings> {
+        self.biases
     }
 
     /// The padded size the observer runs at.

@@ -1,6 +1,8 @@
 //! `replay --measure` on a synthetic recording whose plant has a heat the
-//! model does not know: fusing the housing sensor (with a disturbance state)
-//! recovers the unmeasured coil, where the open-loop model cannot.
+//! model does not know: fusing the housing sensor through the coil's heat
+//! bias (the firmware's filter) or a disturbance state (the time-varying
+//! filter) recovers the unmeasured coil, where the open-loop model and the
+//! temperatures-only fusion (frozen biases) cannot.
 
 use std::path::Path;
 
@@ -8,6 +10,7 @@ use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal_host::calibrate::access_param;
 use coil_thermal_host::model_file::{Model, ModelFile};
 use coil_thermal_host::sim::{simulate, Drive, FilePlant};
+use predicates::prelude::PredicateBooleanExt;
 use serde_json::Value;
 use tempfile::TempDir;
 
@@ -81,15 +84,13 @@ fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
     );
     assert!(f < 0.05 * o, "fused + disturbance {f} vs open loop {o} K^2");
     // Without `--disturbance` the library observer fuses the housing as a
-    // thermocouple (temperatures corrected, biases frozen): better than
-    // open loop, every reading fused, but no heat input estimated.
+    // thermocouple through the coil's heat bias (the firmware's filter):
+    // better than open loop, every reading fused; the time-varying filter's
+    // disturbance state, free to move faster, does better still.
     assert_eq!(plain["estimator"], "network-observer");
     assert!(p < 0.5 * o, "observer fused {p} vs open loop {o} K^2");
     assert!(plain["fusion"]["sensors"][0]["fused"].as_u64().unwrap() > 3900);
-    assert!(
-        f < p,
-        "the disturbance state is what corrects the coil: {f} vs {p} K^2"
-    );
+    assert!(f < p, "the disturbance state: {f} vs {p} K^2");
     let sensors = &fused["fusion"]["sensors"][0];
     assert_eq!(sensors["node"], "housing");
     assert!(sensors["fused"].as_u64().unwrap() > 3900);
@@ -161,4 +162,139 @@ fn bad_boundary_offsets_are_refused() {
         .assert()
         .failure()
         .stderr(predicates::str::contains("need at least one --measure"));
+}
+
+/// The firmware's filter (the library's default bias noise, 1e-3 W^2/s: the
+/// model file has no `[observer]` table) learns the coil's missing heat
+/// from the housing: the unmeasured coil is far better than with the
+/// biases frozen (`--bias-noise-w2-per-s 0`, the replay before: the
+/// temperatures corrected, the heat not).
+#[test]
+fn the_housing_sensor_corrects_the_unmeasured_coil_through_its_heat_bias() {
+    let tmp = TempDir::new().unwrap();
+    let rec = recording(tmp.path());
+    let out = tmp.path().join("e.csv");
+    let measure = ["--measure", "T_housing=housing"];
+    let firmware = coil_mse(&rec, &out, &measure);
+    let frozen = coil_mse(
+        &rec,
+        &out,
+        &[&measure[..], &["--bias-noise-w2-per-s", "0"]].concat(),
+    );
+    let open = coil_mse(&rec, &out, &[]);
+    assert_eq!(firmware["fusion"]["bias_noise_w2_per_s"], 1e-3);
+    assert_eq!(firmware["fusion"]["bias_noise_from"], "default");
+    assert_eq!(firmware["fusion"]["max_cooling_bias_fraction"], 0.0);
+    assert_eq!(frozen["fusion"]["bias_noise_w2_per_s"], 0.0);
+    assert_eq!(frozen["fusion"]["bias_noise_from"], "flag");
+    assert!(open["fusion"].is_null());
+    let mse = |j: &Value| j["truth"][0]["mse_k2"].as_f64().unwrap();
+    let (b, z, o) = (mse(&firmware), mse(&frozen), mse(&open));
+    eprintln!("coil MSE: open loop {o:.3}, frozen biases {z:.3}, the firmware's filter {b:.3} K^2");
+    assert!(b < 0.3 * z, "the heat bias: {b} vs frozen {z} K^2");
+    assert!(b < 0.05 * o, "the heat bias: {b} vs open loop {o} K^2");
+    // The text summary says which filter ran.
+    let text = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model", &model_path(), "--trace"])
+        .arg(&rec)
+        .args(measure)
+        .assert()
+        .success();
+    let text = String::from_utf8_lossy(&text.get_output().stdout).into_owned();
+    assert!(
+        text.contains(
+            "heat-input biases: the model's sources, noise 1e-3 W^2/s (the library's default)"
+        ),
+        "{text}"
+    );
+}
+
+/// Three sources, one sensor: the sensor cannot tell their heats apart, so
+/// the biased observer does not build (nor would the firmware's). The
+/// replay refuses, naming the fix, and runs with the flag's frozen biases.
+#[test]
+fn biases_no_sensor_can_see_are_refused_with_the_fix() {
+    let tmp = TempDir::new().unwrap();
+    let rec = recording(tmp.path());
+    let out = tmp.path().join("e.csv");
+    let mut text = std::fs::read_to_string(model_path()).unwrap();
+    let extra: String = ["coil", "housing"]
+        .iter()
+        .map(|node| {
+            format!("[[source]]\nname = \"{node}-extra\"\nnode = \"{node}\"\ninput = \"current\"\nr0_ohm = 1.0\n\n")
+        })
+        .collect();
+    text = text.replace("[initial]", &format!("{extra}[initial]"));
+    let model = tmp.path().join("three-sources.toml");
+    std::fs::write(&model, text).unwrap();
+    let run = |extra: &[&str]| {
+        let mut c = cargo_bin_cmd!("coil-thermal");
+        c.args(["replay", "--model"])
+            .arg(&model)
+            .arg("--trace")
+            .arg(&rec)
+            .args(["--measure", "T_housing=housing", "--json", "--out"])
+            .arg(&out)
+            .args(extra);
+        c
+    };
+    run(&[]).assert().failure().stderr(
+        predicates::str::contains("`[observer] bias_noise_w2_per_s = 0`")
+            .and(predicates::str::contains("--bias-noise-w2-per-s 0")),
+    );
+    let a = run(&["--bias-noise-w2-per-s", "0"]).assert().success();
+    let j: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    assert_eq!(j["fusion"]["bias_noise_w2_per_s"], 0.0);
+}
+
+#[test]
+fn bad_bias_noise_flags_are_refused() {
+    let tmp = TempDir::new().unwrap();
+    let rec = recording(tmp.path());
+    let out = tmp.path().join("e.csv");
+    for (extra, msg) in [
+        (
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--bias-noise-w2-per-s",
+                "-1",
+            ][..],
+            "--bias-noise-w2-per-s",
+        ),
+        (
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--bias-noise-w2-per-s",
+                "NaN",
+            ][..],
+            "finite and >= 0",
+        ),
+        (
+            &["--bias-noise-w2-per-s", "0"][..],
+            "needs a --measure sensor",
+        ),
+        (
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--disturbance",
+                "coil",
+                "--bias-noise-w2-per-s",
+                "0",
+            ][..],
+            "not with --disturbance",
+        ),
+    ] {
+        cargo_bin_cmd!("coil-thermal")
+            .args(["replay", "--model", &model_path(), "--trace"])
+            .arg(&rec)
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .assert()
+            .failure()
+            .stderr(predicates::str::contains(msg));
+    }
 }

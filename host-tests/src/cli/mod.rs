@@ -272,7 +272,8 @@ pub struct ReplayArgs {
     /// empty or `NaN` cell is a missing reading. Repeatable (at most 4 without
     /// `--disturbance`). The library's `NetworkObserver` ticks every
     /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
-    /// (steady-state gain for the trace's row spacing); with
+    /// (steady-state gain for the trace's row spacing; a heat-input bias per
+    /// model source, as the firmware: see --bias-noise-w2-per-s); with
     /// `--disturbance` the library's time-varying Kalman filter runs at the
     /// trace's rows instead.
     #[arg(long = "measure", value_name = "COL=NODE")]
@@ -281,6 +282,13 @@ pub struct ReplayArgs {
     /// ticks of this length, each timed.
     #[arg(long, value_name = "US", default_value_t = crate::library_observer::DEFAULT_TICK_US)]
     tick_us: u32,
+    /// The library observer's heat-input bias noise [W^2/s] with --measure
+    /// (not with --disturbance): overrides the model file's `[observer]
+    /// bias_noise_w2_per_s` (default: the file's, else 1e-3, as `codegen`
+    /// builds the firmware). 0 freezes the biases (temperatures corrected,
+    /// no heat estimated), for sensors that cannot see every source's bias.
+    #[arg(long, value_name = "W2_PER_S", allow_negative_numbers = true)]
+    bias_noise_w2_per_s: Option<f64>,
     /// Fusion: process noise of every temperature state [K^2/s] (white heat
     /// flow; per step `Q = q dt`).
     #[arg(

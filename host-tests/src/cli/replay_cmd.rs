@@ -8,7 +8,7 @@ use super::plot_cmd::ReplaySeries;
 use super::ReplayArgs;
 use crate::devices;
 use crate::kalman::{KalmanEstimator, KalmanOptions};
-use crate::library_observer::{Fusion, ObserverEstimator};
+use crate::library_observer::{BiasNoiseFrom, BiasSettings, Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::Measurement;
@@ -289,7 +289,8 @@ impl EventLog {
 
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
-    let model = Model::build(&common::model_file(&a.model)?)?;
+    let model_file = common::model_file(&a.model)?;
+    let model = Model::build(&model_file)?;
     let info = crate::sim::plant_info(&model);
     let file = common::scan_trace(&a.trace, &a.trace_args)?;
     let bind = common::bindings(&a.trace_args)?;
@@ -351,6 +352,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             );
         }
     }
+    if a.bias_noise_w2_per_s.is_some() {
+        if kalman_filter {
+            bail!("--bias-noise-w2-per-s is the library observer's: not with --disturbance or --boundary-offset");
+        }
+        if measured.is_empty() {
+            bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
+        }
+    }
     let settings = alarm_settings(&a, &info, &first_row.boundaries, median_row_s)?;
     let rule_product = settings.rule.product();
     let predictor = TimeToLimit::new(&model)?;
@@ -381,6 +390,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             sensor_sigma_k: a.measurement_noise_k,
             node_noise_k2_per_s: a.process_noise_k2_per_s,
             correction_period_s: median_row_s,
+            biases: BiasSettings::firmware(model_file.observer.as_ref(), a.bias_noise_w2_per_s),
         });
         observer.insert(ObserverEstimator::with_fusion(
             model.clone(),
@@ -516,7 +526,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let rows_inside = survey.inside;
     let kind = estimator.kind();
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
+        let biases = o.biases();
         json!({
+            "bias_noise_w2_per_s": biases.map(|b| b.bias_noise_w2_per_s),
+            "bias_noise_from": biases.map(|b| b.from.name()),
+            "max_cooling_bias_fraction": biases.map(|b| b.max_cooling_bias_fraction),
             "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
                 "column": m.column,
                 "node": info.nodes[s.node],
@@ -599,6 +613,21 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     }
     if let Some(o) = observer.as_ref().filter(|_| !measured.is_empty()) {
+        if let Some(b) = o.biases() {
+            let from = match b.from {
+                BiasNoiseFrom::Flag => "--bias-noise-w2-per-s",
+                BiasNoiseFrom::ModelFile => "the model file's [observer]",
+                BiasNoiseFrom::Default => "the library's default",
+            };
+            if b.bias_noise_w2_per_s > 0.0 {
+                println!(
+                    "heat-input biases: the model's sources, noise {:e} W^2/s ({from}), floor -{} x P (the firmware's filter)",
+                    b.bias_noise_w2_per_s, b.max_cooling_bias_fraction
+                );
+            } else {
+                println!("heat-input biases: frozen at zero, noise 0 W^2/s ({from}): temperatures corrected, no heat estimated");
+            }
+        }
         for (s, m) in o.stats().iter().zip(&measured) {
             println!(
                 "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
