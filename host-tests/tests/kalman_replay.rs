@@ -61,6 +61,20 @@ fn coil_mse(trace: &Path, out: &Path, extra: &[&str]) -> Value {
     serde_json::from_slice(&a.get_output().stdout).unwrap()
 }
 
+/// Runs `replay` on `rec` with `args` and checks it is refused with `msg`
+/// on stderr.
+fn refused(rec: &Path, out: &Path, args: &[&str], msg: &str) {
+    cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model", &model_path(), "--trace"])
+        .arg(rec)
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(msg));
+}
+
 #[test]
 fn one_fused_sensor_corrects_the_unmeasured_node_through_the_disturbance() {
     let tmp = TempDir::new().unwrap();
@@ -110,14 +124,12 @@ fn bad_filter_flags_are_refused() {
         ("--disturbance", "coil,nope", "no node `nope`"),
         ("--boundary-offset", "nope", "no boundary `nope`"),
     ] {
-        cargo_bin_cmd!("coil-thermal")
-            .args(["replay", "--model", &model_path(), "--trace"])
-            .arg(&rec)
-            .args(["--measure", "T_housing=housing", flag, value, "--out"])
-            .arg(&out)
-            .assert()
-            .failure()
-            .stderr(predicates::str::contains(msg));
+        refused(
+            &rec,
+            &out,
+            &["--measure", "T_housing=housing", flag, value],
+            msg,
+        );
     }
 }
 
@@ -126,7 +138,6 @@ fn bad_boundary_offsets_are_refused() {
     let tmp = TempDir::new().unwrap();
     let rec = recording(tmp.path());
     let out = tmp.path().join("e.csv");
-    let measure: &[&str] = &["--measure", "T_housing=housing"];
     for (extra, msg) in [
         (
             &["--boundary-offset-std-k", "0"][..],
@@ -141,27 +152,25 @@ fn bad_boundary_offsets_are_refused() {
             "boundary `ambient` given twice",
         ),
     ] {
-        cargo_bin_cmd!("coil-thermal")
-            .args(["replay", "--model", &model_path(), "--trace"])
-            .arg(&rec)
-            .args(measure)
-            .args(["--boundary-offset", "ambient"])
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .assert()
-            .failure()
-            .stderr(predicates::str::contains(msg));
+        let args = [
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--boundary-offset",
+                "ambient",
+            ][..],
+            extra,
+        ]
+        .concat();
+        refused(&rec, &out, &args, msg);
     }
     // The filter needs a sensor to fuse.
-    cargo_bin_cmd!("coil-thermal")
-        .args(["replay", "--model", &model_path(), "--trace"])
-        .arg(&rec)
-        .args(["--boundary-offset", "ambient", "--out"])
-        .arg(&out)
-        .assert()
-        .failure()
-        .stderr(predicates::str::contains("need at least one --measure"));
+    refused(
+        &rec,
+        &out,
+        &["--boundary-offset", "ambient"],
+        "need at least one --measure",
+    );
 }
 
 /// The firmware's filter (the library's default bias noise, 1e-3 W^2/s: the
@@ -287,14 +296,6 @@ fn bad_bias_noise_flags_are_refused() {
             "not with --disturbance",
         ),
     ] {
-        cargo_bin_cmd!("coil-thermal")
-            .args(["replay", "--model", &model_path(), "--trace"])
-            .arg(&rec)
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .assert()
-            .failure()
-            .stderr(predicates::str::contains(msg));
+        refused(&rec, &out, extra, msg);
     }
 }
