@@ -3927,6 +3927,7 @@ pub const PARTS: OmniParts = coil_thermal::observer::omnimagnet::OmniParts {
     bias_offset_w: [1.9677845, 2.6039946, 3.2983391],
     bias_fraction: 0.25,
     stuck_threshold_k: 1.0,
+    stuck_tolerance_k: 0.0,
     stuck_window: 240,
     silent_after_us: 1000000,
     fingerprint: 3711699130,

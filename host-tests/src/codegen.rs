@@ -86,6 +86,11 @@ pub struct ObserverSpec {
     /// never takes heat away; see `NetworkSettings::max_cooling_bias_fraction`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_cooling_bias_fraction: Option<f64>,
+    /// How far a reading may move and still count as unchanged for the
+    /// stuck test \[K\] (default 0: to the bit; see
+    /// `NetworkSettings::stuck_tolerance_k`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stuck_tolerance_k: Option<f64>,
 }
 
 /// What to generate.
@@ -323,6 +328,9 @@ impl Plan {
         }
         if let Some(v) = s.max_cooling_bias_fraction {
             fields.push(format!("max_cooling_bias_fraction: {v:?}"));
+        }
+        if let Some(v) = s.stuck_tolerance_k {
+            fields.push(format!("stuck_tolerance_k: {v:?}"));
         }
         if !fields.is_empty() {
             settings = format!(

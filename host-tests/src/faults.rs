@@ -296,6 +296,11 @@ pub struct FaultConfig {
     /// How the thermocouples read (healthy or faulty): noise and the
     /// converter's quantum.
     pub sensor_model: SensorModel,
+    /// The observer's stuck-test tolerance \[K\]
+    /// (`OmniSettings::stuck_tolerance_k`, `NetworkSettings::stuck_tolerance_k`).
+    /// `None`: a model file's `[observer] stuck_tolerance_k`, else the
+    /// library's default (0, to the bit).
+    pub stuck_tolerance_k: Option<f64>,
 }
 
 /// How a thermocouple's converter turns a temperature into a reading: the
@@ -385,6 +390,7 @@ impl Default for FaultConfig {
             max_snapshot_age_s: 3600,
             relinearize_s: None,
             sensor_model: SensorModel::default(),
+            stuck_tolerance_k: None,
         }
     }
 }
@@ -564,6 +570,9 @@ pub struct FaultReport {
     pub sensor_noise_k: f64,
     /// The noise's seed ([`SensorModel::seed`]).
     pub sensor_noise_seed: u64,
+    /// The observer's stuck-test tolerance \[K\] (0: an unchanged reading
+    /// is the same to the bit).
+    pub stuck_tolerance_k: f64,
     /// The heat-bias noise the observer runs with \[W^2/s\] (a model
     /// file's network observer: its `[observer]` table's or the default,
     /// as the firmware's); absent for the Omnimagnet's.
@@ -693,6 +702,8 @@ pub struct Consistency {
     pub fraction: f64,
     /// A reading this far off the truth is detectably stuck \[K\].
     pub stuck_threshold_k: f64,
+    /// The observer's stuck-test tolerance \[K\] (0: to the bit).
+    pub stuck_tolerance_k: f64,
 }
 
 /// One tick's inputs.
@@ -761,6 +772,7 @@ impl OmniSubject {
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
             model_refresh_s: (refresh_s > 0.0).then_some(refresh_s),
+            stuck_tolerance_k: cfg.stuck_tolerance_k.unwrap_or(defaults.stuck_tolerance_k),
             ..defaults
         };
         let observer = OmniObserver::new(
@@ -814,6 +826,7 @@ impl Subject for OmniSubject {
             offset_k: self.settings.consistency_offset_k,
             fraction: self.settings.consistency_fraction,
             stuck_threshold_k: self.settings.stuck_threshold_k,
+            stuck_tolerance_k: self.settings.stuck_tolerance_k,
         }
     }
     fn state(&self, ambient_c: f32) -> OmniObserverState {
@@ -1389,6 +1402,7 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
         sensor_quantum_k: cfg.sensor_model.quantum_k,
         sensor_noise_k: cfg.sensor_model.noise_k,
         sensor_noise_seed: cfg.sensor_model.seed,
+        stuck_tolerance_k: harness.subject.consistency().stuck_tolerance_k,
         bias_noise_w2_per_s: harness.subject.bias_noise_w2_per_s(),
         clean,
         cases,

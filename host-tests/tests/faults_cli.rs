@@ -671,3 +671,55 @@ fn quantised_sensors_refuse_no_healthy_reading_and_keep_the_goals() {
     assert_eq!(a["sensor_noise_seed"], 17);
     assert!(a["clean"]["max_reading_error_k"].as_f64().unwrap() > 0.125);
 }
+
+/// With 0.1 K of noise on the converter's codes, drive-3node's one housing
+/// thermocouple detached at 60 s reads the room as changing codes: the bit
+/// test never calls it stuck and the band holds it only after minutes,
+/// 3.4 K off; a stuck-test tolerance of 0.3 K (one code and twice the
+/// noise) calls it stuck once the physics moved 1 K, within 1 K of the
+/// truth, and refuses no healthy reading.
+#[test]
+fn a_stuck_tolerance_sees_a_noisy_detached_sensor() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let model = format!("{dir}/models/drive-3node-fitted.toml");
+    let trace = format!("{dir}/traces/drive-3node.csv");
+    let run = |tolerance: &str| {
+        json_run(&[
+            "faults",
+            "--model",
+            &model,
+            "--trace",
+            &trace,
+            "--classes",
+            "all-detached",
+            "--onset-s",
+            "60",
+            "--sensor-noise-k",
+            "0.1",
+            "--stuck-tolerance-k",
+            tolerance,
+            "--json",
+        ])
+    };
+    let error_k = |r: &Value| cases(r, "all-detached")[0]["max_error_tc_k"].as_f64().unwrap();
+    let bit = run("0");
+    assert_eq!(bit["stuck_tolerance_k"], 0.0);
+    assert!(error_k(&bit) > 3.0, "{}", bit["cases"]);
+    let tolerant = run("0.3");
+    assert_eq!(tolerant["stuck_tolerance_k"], 0.3);
+    assert_eq!(tolerant["clean"]["healthy_flagged"], 0);
+    assert!(error_k(&tolerant) < 1.0, "{}", tolerant["cases"]);
+    // A tolerance the observer cannot take is refused by name.
+    ct().args([
+        "faults",
+        "--model",
+        &model,
+        "--current-a",
+        "6",
+        "--stuck-tolerance-k",
+        "-1",
+    ])
+    .assert()
+    .failure()
+    .stderr(contains("stuck_tolerance_k"));
+}

@@ -312,7 +312,8 @@ pub(crate) const STUCK_WINDOW_S: f64 = 120.0;
 /// sensor; no history.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct StuckWatch<const P: usize> {
-    /// Each sensor's last reading \[degC\] (NaN: none yet).
+    /// Each sensor's reading when it last changed (by more than the
+    /// test's tolerance) \[degC\] (NaN: none yet).
     last_c: [f32; P],
     /// The shadow at the sensor's node when the reading last changed
     /// \[degC\].
@@ -342,8 +343,8 @@ impl<const P: usize> StuckWatch<P> {
         }
     }
 
-    /// Each sensor's last reading \[degC\] (NaN: none yet), compared to the
-    /// bit to tell when a reading changed.
+    /// Each sensor's reading when it last changed \[degC\] (NaN: none yet):
+    /// a new value here is a change.
     pub(crate) fn last_c(&self) -> [f32; P] {
         self.last_c
     }
@@ -390,7 +391,14 @@ impl<const P: usize> StuckWatch<P> {
             else {
                 continue;
             };
-            if t.to_bits() != last.to_bits() {
+            let moved = if test.tolerance_k > 0.0 {
+                // NaN (no reading yet): a new value.
+                let step_k = (t - *last).abs();
+                step_k.is_nan() || step_k > test.tolerance_k
+            } else {
+                t.to_bits() != last.to_bits()
+            };
+            if moved {
                 // A new value: both references restart.
                 *last = t;
                 *at_change = *shadow;
@@ -562,6 +570,11 @@ pub(crate) struct StuckTest {
     pub threshold_k: f32,
     /// Readings in [`STUCK_WINDOW_S`].
     pub window: u32,
+    /// How far a reading may move and still count as unchanged \[K\]
+    /// (0: to the bit). A detached thermocouple's converter jitters by a
+    /// code or two around the room's temperature: no two readings alike,
+    /// so the bit test never sees it.
+    pub tolerance_k: f32,
 }
 
 /// Holds this correction's samples against the physics: the band (colder
@@ -810,6 +823,7 @@ mod tests {
     /// The stuck test of the campaigns: 1 K, the band's 25 %, a 240-reading
     /// window (120 s at 2 Hz).
     const STUCK: StuckTest = StuckTest {
+        tolerance_k: 0.0,
         threshold_k: 1.0,
         window: 240,
     };
@@ -834,6 +848,7 @@ mod tests {
     fn stuck_verdict_holds_until_the_reading_moves() {
         let mut watch = StuckWatch::<1>::new();
         let test = StuckTest {
+            tolerance_k: 0.0,
             threshold_k: 1.0,
             window: 10,
         };
@@ -854,6 +869,48 @@ mod tests {
         assert!(verdicts[first..].iter().all(|v| *v), "{verdicts:?}");
         // The reading moves: fused again.
         assert!(!stuck(&mut watch, 52.0, shadow, &test));
+    }
+
+    /// A detached thermocouple reads the room through a converter that
+    /// jitters by a code (0.25 K) from reading to reading: to the bit it
+    /// never repeats, so the bit test never sees it while the physics
+    /// rises 3 K under it. With a tolerance of 0.3 K it is stuck once the
+    /// physics has moved the threshold (1 K) past where the reading last
+    /// moved; a live sensor with the same jitter that follows the physics
+    /// is never stuck.
+    #[test]
+    fn a_tolerance_sees_a_jittering_reading_that_does_not_follow_the_physics() {
+        let jitter = |k: u32| if k.is_multiple_of(2) { 0.0 } else { 0.25 };
+        let verdicts = |tolerance_k: f32, follows: bool| {
+            let test = StuckTest {
+                tolerance_k,
+                ..STUCK
+            };
+            let mut watch = StuckWatch::<1>::new();
+            (0..120u32)
+                .map(|k| {
+                    // The physics heats 0.025 K per reading (3 K in all).
+                    let shadow_c = 22.0 + 0.025 * k as f32;
+                    let truth_c = if follows { shadow_c } else { 22.0 };
+                    // On the converter's 0.25 K codes, plus a code of jitter.
+                    let reading_c = (truth_c / 0.25).floor() * 0.25 + jitter(k);
+                    stuck(&mut watch, reading_c, shadow_c, &test)
+                })
+                .collect::<Vec<_>>()
+        };
+        assert!(
+            verdicts(0.0, false).iter().all(|v| !v),
+            "the bit test sees it"
+        );
+        let detached = verdicts(0.3, false);
+        let first = detached.iter().position(|v| *v).expect("never stuck");
+        // 1 K of physics is 40 readings; the band's share adds a little.
+        assert!((40..=45).contains(&first), "stuck at reading {first}");
+        assert!(detached[first..].iter().all(|v| *v));
+        assert!(
+            verdicts(0.3, true).iter().all(|v| !v),
+            "a live sensor stuck"
+        );
     }
 
     /// Near the ambient the slow test flags a reading stuck once the
@@ -944,6 +1001,7 @@ mod tests {
     fn holds(readings: impl Iterator<Item = f32>) -> Vec<bool> {
         let mut hold = DriftHold::<1>::new();
         let stuck = StuckTest {
+            tolerance_k: 0.0,
             threshold_k: 1.0,
             window: 10,
         };

@@ -294,6 +294,10 @@ pub struct NetworkSettings {
     /// stuck \[K\] (see "Sensors against the physics"; `f64::INFINITY`
     /// turns the test off). Default 1.0.
     pub stuck_threshold_k: f64,
+    /// How far a reading may move and still count as unchanged for the
+    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0; see
+    /// [`OmniSettings::stuck_tolerance_k`](super::OmniSettings::stuck_tolerance_k).
+    pub stuck_tolerance_k: f64,
     /// Largest steady-state standard deviation \[K\] an element with a
     /// limit may have: a sensor set that leaves one less certain is refused
     /// at build ([`BuildError::Unobservable`]). Default 5
@@ -365,6 +369,7 @@ impl NetworkSettings {
         origin_c: 20.0,
         ambient_boundary: 0,
         stuck_threshold_k: 1.0,
+        stuck_tolerance_k: 0.0,
         max_element_sigma_k: 5.0,
         warmup_corrections: 0,
         max_current_a: 100.0,

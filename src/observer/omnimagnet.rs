@@ -376,6 +376,13 @@ pub struct OmniSettings {
     /// [`NetworkSettings::stuck_threshold_k`](super::NetworkSettings::stuck_threshold_k)).
     /// Default 1.0.
     pub stuck_threshold_k: f64,
+    /// How far a reading may move and still count as unchanged for the
+    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0. Set
+    /// it to about one converter code plus twice the reading noise (0.3 K
+    /// for a MAX31855 with 0.1 K of noise) so that a detached
+    /// thermocouple jittering around the room's temperature is told
+    /// stuck (see docs/protection.md, "Thermocouples as they read").
+    pub stuck_tolerance_k: f64,
     /// Largest steady-state standard deviation \[K\] a wire or cover
     /// insulation may have: a thermocouple subset that leaves one less
     /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
@@ -439,6 +446,7 @@ impl Default for OmniSettings {
             consistency_offset_k: 3.0,
             consistency_fraction: 0.25,
             stuck_threshold_k: 1.0,
+            stuck_tolerance_k: 0.0,
             max_element_sigma_k: 5.0,
             loop_period_us: 1000,
             predictor_slices_per_cycle: 1,
@@ -810,6 +818,11 @@ impl OmniObserver {
                 name: "stuck_threshold_k",
             });
         }
+        if !(settings.stuck_tolerance_k.is_finite() && settings.stuck_tolerance_k >= 0.0) {
+            return Err(BuildError::InvalidParameter {
+                name: "stuck_tolerance_k",
+            });
+        }
         if !(settings.consistency_fraction.is_finite() && settings.consistency_fraction >= 0.0) {
             return Err(BuildError::InvalidParameter {
                 name: "consistency_fraction",
@@ -841,6 +854,7 @@ impl OmniObserver {
             bias_bound,
             stuck_test: StuckTest {
                 threshold_k: settings.stuck_threshold_k as f32,
+                tolerance_k: settings.stuck_tolerance_k as f32,
                 window: super::network::parts_stuck_window(settings.filter.correction_period_s),
             },
             silent_after_us: shadow_block_steps

@@ -102,6 +102,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             origin_c: 20.0,
             ambient_boundary: 0,
             stuck_threshold_k: 1.0,
+            stuck_tolerance_k: 0.0,
             max_element_sigma_k: 5.0,
             warmup_corrections: 0,
             max_current_a: 100.0,

@@ -123,6 +123,13 @@ pub struct FaultsArgs {
     /// The seed of --sensor-noise-k.
     #[arg(long, value_name = "N", default_value_t = faults::DEFAULT_NOISE_SEED)]
     sensor_noise_seed: u64,
+    /// The observer's stuck-test tolerance [K]: a reading that moves less
+    /// than this counts as unchanged (`OmniSettings::stuck_tolerance_k`,
+    /// `NetworkSettings::stuck_tolerance_k`). Default: a model file's
+    /// `[observer] stuck_tolerance_k`, else 0 (to the bit). About one code
+    /// plus twice the noise: 0.3 for --sensor-noise-k 0.1.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    stuck_tolerance_k: Option<f64>,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -233,6 +240,7 @@ pub fn run(a: FaultsArgs) -> Result<()> {
             noise_k: a.sensor_noise_k,
             seed: a.sensor_noise_seed,
         },
+        stuck_tolerance_k: a.stuck_tolerance_k,
         ..cfg
     };
     let mut report = match &file_model {

@@ -84,6 +84,10 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             max_cooling_bias_fraction: spec
                 .max_cooling_bias_fraction
                 .unwrap_or(defaults.max_cooling_bias_fraction),
+            stuck_tolerance_k: cfg
+                .stuck_tolerance_k
+                .or(spec.stuck_tolerance_k)
+                .unwrap_or(defaults.stuck_tolerance_k),
             origin_c: cfg.ambient_c,
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
@@ -157,6 +161,7 @@ impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
             offset_k: self.settings.consistency_offset_k,
             fraction: self.settings.consistency_fraction,
             stuck_threshold_k: self.settings.stuck_threshold_k,
+            stuck_tolerance_k: self.settings.stuck_tolerance_k,
         }
     }
     fn state(&self, ambient_c: f32) -> Self::State {

@@ -226,6 +226,7 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
         !s.stuck_threshold_k.is_nan() && s.stuck_threshold_k >= 0.0,
         "stuck_threshold_k",
     )?;
+    check(nonneg(s.stuck_tolerance_k), "stuck_tolerance_k")?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -632,6 +633,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
             stuck_test: StuckTest {
                 threshold_k: s.stuck_threshold_k as f32,
+                tolerance_k: s.stuck_tolerance_k as f32,
                 window: stuck_window(s.correction_period_s),
             },
             silent_after_us: timing
@@ -868,6 +870,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
         writeln!(out, "        stuck_threshold_k: {:?},", s.stuck_threshold_k)?;
+        writeln!(out, "        stuck_tolerance_k: {:?},", s.stuck_tolerance_k)?;
         writeln!(
             out,
             "        max_element_sigma_k: {:?},",

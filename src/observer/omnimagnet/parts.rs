@@ -171,6 +171,8 @@ pub struct OmniParts {
     pub bias_fraction: f32,
     /// The stuck test's threshold \[K\].
     pub stuck_threshold_k: f32,
+    /// The stuck test's tolerance for an unchanged reading \[K\].
+    pub stuck_tolerance_k: f32,
     /// The stuck test's window (readings).
     pub stuck_window: u32,
     /// No reading for this long makes a thermocouple silent \[us\].
@@ -331,6 +333,7 @@ impl OmniObserver {
             bias_offset_w: self.bias_bound.offset_w,
             bias_fraction: self.bias_bound.fraction,
             stuck_threshold_k: self.stuck_test.threshold_k,
+            stuck_tolerance_k: self.stuck_test.tolerance_k,
             stuck_window: self.stuck_test.window,
             silent_after_us: self.silent_after_us,
             fingerprint: self.fingerprint,
@@ -401,6 +404,8 @@ impl OmniObserver {
         }
         if !(parts.bias_fraction.is_finite()
             && !parts.stuck_threshold_k.is_nan()
+            && parts.stuck_tolerance_k.is_finite()
+            && parts.stuck_tolerance_k >= 0.0
             && parts.max_current_a.is_finite()
             && parts.min_temp_c.is_finite()
             && parts.max_temp_c.is_finite())
@@ -530,6 +535,7 @@ impl OmniObserver {
             stuck_test: StuckTest {
                 threshold_k: parts.stuck_threshold_k,
                 window: parts.stuck_window,
+                tolerance_k: parts.stuck_tolerance_k,
             },
             silent_after_us: parts.silent_after_us,
             model_stale_after_steps: parts.model_stale_after_steps,
@@ -592,6 +598,7 @@ impl OmniParts {
             bias_offset_w,
             bias_fraction,
             stuck_threshold_k,
+            stuck_tolerance_k,
             stuck_window,
             silent_after_us,
             fingerprint,
@@ -617,6 +624,7 @@ impl OmniParts {
         w.field("bias_offset_w", bias_offset_w)?;
         w.field("bias_fraction", bias_fraction)?;
         w.field("stuck_threshold_k", stuck_threshold_k)?;
+        w.field("stuck_tolerance_k", stuck_tolerance_k)?;
         w.field("stuck_window", stuck_window)?;
         w.field("silent_after_us", silent_after_us)?;
         w.field("fingerprint", fingerprint)?;
