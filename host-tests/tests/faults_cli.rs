@@ -701,7 +701,11 @@ fn a_stuck_tolerance_sees_a_noisy_detached_sensor() {
             "--json",
         ])
     };
-    let error_k = |r: &Value| cases(r, "all-detached")[0]["max_error_tc_k"].as_f64().unwrap();
+    let error_k = |r: &Value| {
+        cases(r, "all-detached")[0]["max_error_tc_k"]
+            .as_f64()
+            .unwrap()
+    };
     let bit = run("0");
     assert_eq!(bit["stuck_tolerance_k"], 0.0);
     assert!(error_k(&bit) > 3.0, "{}", bit["cases"]);
