@@ -343,22 +343,12 @@ impl<const P: usize> StuckWatch<P> {
         }
     }
 
-    /// Each sensor's reading when it last changed \[degC\] (NaN: none yet):
-    /// a new value here is a change.
-    pub(crate) fn last_c(&self) -> [f32; P] {
-        self.last_c
-    }
-
-    /// Which sensors are judged stuck (until their reading changes).
-    pub(crate) fn stuck(&self) -> [bool; P] {
-        self.stuck
-    }
-
     /// Takes every stuck sample out of the correction, marking it
     /// [`SensorStatus::Stuck`] (see the type's docs); `shadow_c[j]` is the
     /// shadow at sensor `j`'s node \[degC\], `ambient_c` the ambient
     /// \[degC\], `fraction` the band's share of the rise. NaN gives no
-    /// verdict.
+    /// verdict. Returns which readings changed and which sensors were
+    /// judged stuck at this screen.
     pub(crate) fn screen(
         &mut self,
         samples: &mut [Option<f32>; P],
@@ -367,8 +357,22 @@ impl<const P: usize> StuckWatch<P> {
         ambient_c: f32,
         test: &StuckTest,
         fraction: f32,
-    ) {
-        for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
+    ) -> StuckEvents<P> {
+        let mut events = StuckEvents {
+            changed: [false; P],
+            became_stuck: [false; P],
+        };
+        for (j, ((sample, status), (changed, became_stuck))) in samples
+            .iter_mut()
+            .zip(statuses.iter_mut())
+            .zip(
+                events
+                    .changed
+                    .iter_mut()
+                    .zip(events.became_stuck.iter_mut()),
+            )
+            .enumerate()
+        {
             let (
                 Some(t),
                 Some(last),
@@ -406,6 +410,7 @@ impl<const P: usize> StuckWatch<P> {
                 *at_window = *shadow;
                 *since = 0;
                 *stuck = false;
+                *changed = true;
                 continue;
             }
             if *since >= test.window && !*stuck {
@@ -416,7 +421,9 @@ impl<const P: usize> StuckWatch<P> {
             *since = since.saturating_add(1);
             let in_window_k = (*shadow - *at_window).abs();
             let since_change_k = (*shadow - *at_change).abs();
+            let was_stuck = *stuck;
             *stuck |= in_window_k > test.threshold_k || since_change_k > *allowance;
+            *became_stuck = *stuck && !was_stuck;
             if *stuck {
                 *sample = None;
                 *status = SensorStatus::Stuck {
@@ -424,7 +431,18 @@ impl<const P: usize> StuckWatch<P> {
                 };
             }
         }
+        events
     }
+}
+
+/// What one screen of the [`StuckWatch`] saw, per sensor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StuckEvents<const P: usize> {
+    /// The reading changed (by more than the test's tolerance): the
+    /// references restarted.
+    pub changed: [bool; P],
+    /// Judged stuck at this screen, not before.
+    pub became_stuck: [bool; P],
 }
 
 /// Readings the gate refused as colder than the estimate, held out of the
@@ -579,7 +597,8 @@ pub(crate) struct StuckTest {
 
 /// Holds this correction's samples against the physics: the band (colder
 /// than physics), then the stuck test. Returns `true` for a common-mode
-/// fault: some reading arrived and every one was refused.
+/// fault (some reading arrived and every one was refused) and the stuck
+/// test's events.
 pub(crate) fn screen_readings<const P: usize>(
     band: &Band,
     stuck: &StuckTest,
@@ -588,11 +607,11 @@ pub(crate) fn screen_readings<const P: usize>(
     statuses: &mut [SensorStatus; P],
     shadow_c: &[f32; P],
     ambient_c: f32,
-) -> bool {
+) -> (bool, StuckEvents<P>) {
     let present = samples.iter().any(Option::is_some);
     band.screen(samples, statuses, shadow_c, ambient_c);
-    watch.screen(samples, statuses, shadow_c, ambient_c, stuck, band.fraction);
-    present && samples.iter().all(Option::is_none)
+    let events = watch.screen(samples, statuses, shadow_c, ambient_c, stuck, band.fraction);
+    (present && samples.iter().all(Option::is_none), events)
 }
 
 /// Silent sensors: no reading, not even a fault, for longer than the

@@ -195,7 +195,7 @@ use nalgebra::{SMatrix, SVector};
 use super::clock::{ClockState, StepClock};
 use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
-    SilenceWatch, StuckTest, StuckWatch, Suspicion,
+    SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
@@ -1083,8 +1083,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
         let present = samples.iter().any(Option::is_some);
-        let (last_before_c, stuck_before) = (state.stuck.last_c(), state.stuck.stuck());
-        let mut common_mode = screen_readings(
+        let (mut common_mode, stuck_events) = screen_readings(
             &self.shadow.band,
             &self.stuck_test,
             &mut state.stuck,
@@ -1093,7 +1092,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &shadow_c,
             ambient_c,
         );
-        self.rewind_stuck_biases(state, &last_before_c, &stuck_before);
+        self.rewind_stuck_biases(state, &stuck_events);
         let gate_view: [GateView; P] = core::array::from_fn(|j| GateView {
             estimate_c: self.origin_c
                 + state
@@ -1197,29 +1196,23 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// a bias stays after the sensor is dropped (a housing thermocouple
     /// stuck while the drive cooled left a positive bias: the hot spot read
     /// 6.3 K hot an hour on). Also notes the biases at every sensor whose
-    /// reading changed. `last_before_c` and `stuck_before` are the stuck
-    /// watch's before this correction's screen.
+    /// reading changed (`events`: this correction's stuck screen).
     fn rewind_stuck_biases(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P>,
-        last_before_c: &[f32; P],
-        stuck_before: &[bool; P],
+        events: &StuckEvents<P>,
     ) {
-        let (last_c, stuck) = (state.stuck.last_c(), state.stuck.stuck());
-        for (j, at_change) in state.bias_at_change_w.iter_mut().enumerate() {
-            let (Some(before), Some(now), Some(was), Some(is)) = (
-                last_before_c.get(j),
-                last_c.get(j),
-                stuck_before.get(j),
-                stuck.get(j),
-            ) else {
-                continue;
-            };
-            if before.to_bits() != now.to_bits() {
+        for ((at_change, changed), became_stuck) in state
+            .bias_at_change_w
+            .iter_mut()
+            .zip(&events.changed)
+            .zip(&events.became_stuck)
+        {
+            if *changed {
                 for (m, bias) in at_change.iter_mut().enumerate() {
                     *bias = state.estimate.x.get(N + m).copied().unwrap_or(0.0);
                 }
-            } else if *is && !*was {
+            } else if *became_stuck {
                 for (m, bias) in at_change.iter().enumerate() {
                     crate::filter::condition_on(
                         &mut state.estimate.x,

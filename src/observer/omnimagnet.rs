@@ -1562,7 +1562,7 @@ impl OmniObserver {
         }
         let shadow_origin = self.shadow.origin_c();
         let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
-        let common_mode = screen_readings(
+        let (common_mode, _) = screen_readings(
             &self.band,
             &self.stuck_test,
             &mut state.stuck,
