@@ -756,15 +756,21 @@ pub fn write_csv(path: &Path, names: &[String], time_s: &[f64], series: &[Vec<f6
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn trace(text: &str) -> (tempfile::TempDir, Trace) {
+    /// `text` in a file `t.csv` of a fresh temporary folder (kept while
+    /// the folder lives).
+    pub(crate) fn write(text: &str) -> (tempfile::TempDir, PathBuf) {
         let dir = tempfile::TempDir::new().unwrap();
         let path = dir.path().join("t.csv");
         std::fs::write(&path, text).unwrap();
-        let t = Trace::read(&path, None).unwrap();
-        (dir, t)
+        (dir, path)
+    }
+
+    fn trace(text: &str) -> (tempfile::TempDir, Trace) {
+        let (dir, path) = write(text);
+        (dir, Trace::read(&path, None).unwrap())
     }
 
     #[test]

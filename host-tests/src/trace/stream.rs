@@ -677,12 +677,7 @@ mod tests {
     use super::*;
     use crate::trace::Trace;
 
-    fn write(text: &str) -> (tempfile::TempDir, PathBuf) {
-        let dir = tempfile::TempDir::new().unwrap();
-        let path = dir.path().join("t.csv");
-        std::fs::write(&path, text).unwrap();
-        (dir, path)
-    }
+    use crate::trace::tests::write;
 
     /// The median spacing from the counts, and by radix selection when
     /// the spacings are too many to count, equals the sorted one.
