@@ -177,8 +177,9 @@ const SEVEN_ARGS: [&str; 14] = [
 /// `endwind_1` fused into the seven-node model: the disturbance over the
 /// copper, its noise fixed (50 W) rather than the replay default, which
 /// scales with each trace's peak power; every node starts at a measured
-/// reading, so its start is known to 0.5 K (`reproduce.sh`'s `FUSE7`).
-const FUSE_SEVEN: [&str; 8] = [
+/// reading, so its start is known to 0.5 K; the sensor's noise learned
+/// from its readings, 0.2 K the floor (`reproduce.sh`'s `FUSE7`).
+const FUSE_SEVEN: [&str; 10] = [
     "--measure",
     "endwind_1=end_winding",
     "--disturbance",
@@ -187,6 +188,8 @@ const FUSE_SEVEN: [&str; 8] = [
     "50",
     "--initial-std-k",
     "0.5",
+    "--noise-half-window-rows",
+    "10",
 ];
 
 /// Issue 18's first goal: open loop, the calibrated seven-node model beats
@@ -221,12 +224,14 @@ fn seven_node_model_beats_the_full_published_network_open_loop_on_every_profile(
     }
 }
 
-/// Issue 18's second goal on profiles 1-13: with endwind_1 fused
-/// (disturbance over the three copper nodes, the same noise on every
-/// profile), both active-winding sensors, which the filter is never given,
-/// are held within 1 K^2 and 3 K. Profile 0 (inverted standstill, its readings
-/// noisier than the filter's 0.2 K) is not met and not asserted
-/// (docs/hust.md).
+/// Issue 18's second goal: with endwind_1 fused (disturbance over the
+/// three copper nodes, the same settings on every profile), both
+/// active-winding sensors, which the filter is never given, are held within
+/// 1 K^2 and 3 K on profiles 1-13. On profile 0 (inverted standstill) both
+/// are within 1 K^2 and `activewind_2` within 3 K; `activewind_1`'s max
+/// error, 3.28 K, misses the goal and is not asserted (docs/hust.md: the
+/// thermocouples of that run scatter by +-2.3 K about their own 61 s
+/// mean).
 #[test]
 fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
     let Some(dir) = data_dir() else { return };
@@ -246,6 +251,11 @@ fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
             );
         }
     }
+    let path = trace_path(&dir, 0, &tmp);
+    let fused = scores(&path, "models/hust_motor_slot_fitted.toml", &args, &tmp);
+    eprintln!("profile 0: fused {fused:?}");
+    assert!(fused[0].0 <= 1.0 && fused[1].0 <= 1.0, "{fused:?}");
+    assert!(fused[1].1 <= 3.0, "{fused:?}");
 }
 
 /// The six-node model of the earlier table against the full published

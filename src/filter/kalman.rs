@@ -234,6 +234,28 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
         &self.r
     }
 
+    /// Replaces sensor `sensor`'s noise variance (units of the reading
+    /// squared, finite and > 0) between corrections: for a sensor whose
+    /// noise is learned at run time (a converter that turns out noisier
+    /// than its data sheet). Refused, and nothing changed, for a sensor
+    /// index out of range or a variance that is not finite and positive.
+    /// The recovery variance set at build stays as it is.
+    pub fn set_measurement_variance(
+        &mut self,
+        sensor: usize,
+        variance: T,
+    ) -> Result<(), BuildError> {
+        if !(variance.is_finite() && variance > T::zero()) {
+            return Err(BuildError::InvalidParameter { name: "variance" });
+        }
+        let slot = self
+            .r
+            .get_mut(sensor)
+            .ok_or(BuildError::InvalidParameter { name: "sensor" })?;
+        *slot = variance;
+        Ok(())
+    }
+
     /// Gate and recovery settings.
     pub fn gate(&self) -> &GatePolicy<T> {
         &self.gate
@@ -610,6 +632,32 @@ mod tests {
             assert!((st.cov - p_batch).abs().max() < 1e-10 * p0.abs().max());
             assert!((st.x - x_batch).abs().max() < 1e-10 * (1.0 + x_batch.abs().max()));
         }
+    }
+
+    /// A variance set at run time is the one the next correction uses (the
+    /// batch formula with the new `R`); bad values change nothing.
+    #[test]
+    fn a_measurement_variance_set_at_run_time_is_the_one_fused() {
+        let mut rng = Rng::new(5);
+        let (cfg, sys, _) = random_cfg(&mut rng);
+        let mut cfg = cfg.with_gate(f64::INFINITY).unwrap();
+        let before = *cfg.r();
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(cfg.set_measurement_variance(0, bad).is_err());
+        }
+        assert!(cfg.set_measurement_variance(2, 1.0).is_err());
+        assert_eq!(*cfg.r(), before);
+        let r_new = 9.0 * before[1];
+        cfg.set_measurement_variance(1, r_new).unwrap();
+        let p0 = SMatrix::<f64, 4, 4>::identity();
+        let x0 = SVector::<f64, 4>::zeros();
+        let z = SVector::<f64, 2>::new(0.0, 1.0);
+        let mut st = KalmanState::new(x0, p0);
+        update(&cfg, &mut st, &[None, Some(z[1])]);
+        let h = sys.h.row(1);
+        let s = (h * p0 * h.transpose())[(0, 0)] + r_new;
+        let x_batch = p0 * h.transpose() * (z[1] / s);
+        assert!((st.x - x_batch).abs().max() < 1e-12);
     }
 
     #[test]

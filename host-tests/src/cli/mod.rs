@@ -365,6 +365,17 @@ pub struct ReplayArgs {
     /// rejected (default: 0.1 % false alarms).
     #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]
     gate: f64,
+    /// Filter: learn each fused sensor's noise from its own readings, the
+    /// scatter of a reading about the mean of the N rows either side of it
+    /// (N = this value; 0: off, the noise is --measurement-noise-k), averaged
+    /// over --noise-memory-rows rows; --measurement-noise-k is the floor.
+    /// Runs the Kalman filter, as --disturbance does.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    noise_half_window_rows: usize,
+    /// Filter: the rows the learned noise is averaged over (exponential
+    /// memory; with --noise-half-window-rows).
+    #[arg(long, value_name = "ROWS", default_value_t = 600)]
+    noise_memory_rows: usize,
     /// A held-out sensor, only scored: `COL=NODE` [degC], or a comma list;
     /// rows with an empty or `NaN` cell are not scored. A column also
     /// fused by --measure is refused (its score would not be held out).

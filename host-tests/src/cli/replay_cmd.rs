@@ -7,7 +7,7 @@ use super::common;
 use super::plot_cmd::ReplaySeries;
 use super::ReplayArgs;
 use crate::devices;
-use crate::kalman::{KalmanEstimator, KalmanOptions};
+use crate::kalman::{KalmanEstimator, KalmanOptions, NoiseFromReadings};
 use crate::library_observer::{BiasNoiseFrom, BiasSettings, Fusion, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
@@ -340,7 +340,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let median_row_s = file.median_gap_s()?;
     // The row-rate Kalman filter runs with a disturbance or a boundary
     // offset state; otherwise the library's observer.
-    let kalman_filter = !a.disturbance.is_empty() || !a.boundary_offset.is_empty();
+    let kalman_filter =
+        !a.disturbance.is_empty() || !a.boundary_offset.is_empty() || a.noise_half_window_rows > 0;
     if !kalman_filter {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
@@ -456,6 +457,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             boundary_offset_std_k: a.boundary_offset_std_k,
             boundary_offset_tau_s: a.boundary_offset_tau_s,
             gate: a.gate,
+            noise_from_readings: (a.noise_half_window_rows > 0).then_some(NoiseFromReadings {
+                half_window: a.noise_half_window_rows,
+                memory: a.noise_memory_rows,
+            }),
         };
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
         kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
@@ -543,11 +548,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     });
     let fusion = kalman.as_ref().map(|k| {
         json!({
-            "sensors": k.stats().iter().zip(&measured).map(|(s, m)| json!({
+            "sensors": k.stats().iter().zip(&measured).zip(k.noise_k()).map(|((s, m), noise)| json!({
                 "column": m.column,
                 "node": info.nodes[s.node],
                 "fused": s.fused,
                 "rejected": s.rejected,
+                "noise_k": noise,
             })).collect::<Vec<_>>(),
             "recoveries": k.recoveries(),
             "final_disturbances_w": k.disturbances_w(),
@@ -636,10 +642,18 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     }
     if let Some(k) = &kalman {
-        for (s, m) in k.stats().iter().zip(&measured) {
+        for ((s, m), noise) in k.stats().iter().zip(&measured).zip(k.noise_k()) {
             println!(
-                "fused {} -> {}: {} readings fused, {} rejected by the gate",
-                m.column, info.nodes[s.node], s.fused, s.rejected
+                "fused {} -> {}: {} readings fused, {} rejected by the gate, noise {noise:.3} K{}",
+                m.column,
+                info.nodes[s.node],
+                s.fused,
+                s.rejected,
+                if a.noise_half_window_rows > 0 {
+                    " (learned from its readings)"
+                } else {
+                    ""
+                }
             );
         }
         for (b, o) in a.boundary_offset.iter().zip(k.boundary_offsets_k()) {
