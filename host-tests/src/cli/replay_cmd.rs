@@ -553,6 +553,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "node": info.nodes[s.node],
                 "fused": s.fused,
                 "rejected": s.rejected,
+                "stuck": s.stuck,
+                "colder_than_physics": s.colder_than_physics,
                 "noise_k": noise,
             })).collect::<Vec<_>>(),
             "recoveries": k.recoveries(),
