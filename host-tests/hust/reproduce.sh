@@ -87,9 +87,12 @@ fmt() { awk -v v="$1" 'BEGIN { printf "%.2f", v }'; }
 # learns the sensor's noise from its readings (the scatter of each reading
 # about the mean of the 10 rows either side, over 600 rows), with the
 # declared 0.2 K as the floor: profile 0's thermocouples scatter by
-# 0.4-0.6 K, the others' by 0.02-0.3 K.
+# 0.4-0.6 K, the others' by 0.02-0.3 K. The copper disturbance never
+# takes heat away (--disturbance-floor-share 0, the firmware's default for
+# its heat biases): a model that runs hot is corrected by the temperatures,
+# not by a negative copper loss that would cool the unmeasured copper too.
 FUSE=(--disturbance-std-w 50)
-FUSE7=("${FUSE[@]}" --initial-std-k 0.5 --noise-half-window-rows 10)
+FUSE7=("${FUSE[@]}" --initial-std-k 0.5 --noise-half-window-rows 10 --disturbance-floor-share 0)
 
 row() {
   local n=$1 tag=$2 t

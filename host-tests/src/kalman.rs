@@ -111,6 +111,9 @@ trait PaddedFilter: Send {
     fn estimate(&self, out: &mut [f64]);
     /// Sensor `j`'s noise variance \[K^2\] from the next correction on.
     fn set_measurement_variance(&mut self, j: usize, variance_k2: f64);
+    /// Moves the estimate onto `x[k] >= floor` with the posterior
+    /// covariance (the library's `project_onto_floor`).
+    fn project_onto_floor(&mut self, k: usize, floor: f64) -> bool;
 }
 
 struct Filter<const C: usize> {
@@ -202,6 +205,10 @@ impl<const C: usize> PaddedFilter for Filter<C> {
         out.copy_from_slice(&self.state.x.as_slice()[..out.len()]);
     }
 
+    fn project_onto_floor(&mut self, k: usize, floor: f64) -> bool {
+        coil_thermal::filter::project_onto_floor(&mut self.state.x, &self.state.cov, k, floor)
+    }
+
     fn set_measurement_variance(&mut self, j: usize, variance_k2: f64) {
         if let Some(config) = &mut self.config {
             // A variance the library refuses (not finite and positive)
@@ -285,6 +292,12 @@ pub struct KalmanOptions {
     /// Learn each sensor's noise from its own readings (see
     /// [`NoiseFromReadings`]); `measurement_noise_k` is then the floor.
     pub noise_from_readings: Option<NoiseFromReadings>,
+    /// Keep each disturbance at or above `-share` times the Joule power
+    /// of the sources on its nodes (after every correction, with the
+    /// temperatures by their regression on it, as the firmware's heat
+    /// biases: `NetworkSettings::max_cooling_bias_fraction`); `None`: no
+    /// floor.
+    pub disturbance_floor_share: Option<f64>,
 }
 
 /// Each fused sensor's noise learned from its readings: the standard
@@ -313,6 +326,7 @@ impl Default for KalmanOptions {
             boundary_offset_tau_s: 7200.0,
             gate: CHI2_1DOF_999,
             noise_from_readings: None,
+            disturbance_floor_share: None,
         }
     }
 }
@@ -339,6 +353,11 @@ impl KalmanOptions {
         pos(self.boundary_offset_std_k, "--boundary-offset-std-k")?;
         pos(self.boundary_offset_tau_s, "--boundary-offset-tau-s")?;
         pos(self.gate, "--gate")?;
+        if let Some(share) = self.disturbance_floor_share {
+            if !(share.is_finite() && share >= 0.0) {
+                bail!("--disturbance-floor-share must be finite and >= 0, got {share}");
+            }
+        }
         if let Some(n) = self.noise_from_readings {
             if n.half_window == 0 || n.memory == 0 {
                 bail!(
@@ -395,6 +414,9 @@ pub struct KalmanEstimator {
     recoveries: usize,
     /// Per sensor, with `noise_from_readings`.
     noise: Vec<NoiseWatch>,
+    /// Per disturbance, the Joule power of the sources on its nodes at
+    /// the last predict \[W\].
+    disturbance_joule_w: Vec<f64>,
 }
 
 impl KalmanEstimator {
@@ -509,6 +531,7 @@ impl KalmanEstimator {
             stats,
             recoveries: 0,
             noise,
+            disturbance_joule_w: vec![0.0; nd],
         })
     }
 
@@ -654,6 +677,15 @@ impl Estimator for KalmanEstimator {
             let r = src.resistance.to_scalar::<f64>();
             u[s] = r.joule_power_w(self.temps[src.node], *i);
         }
+        for (k, nodes) in self.opts.disturbances.iter().enumerate() {
+            self.disturbance_joule_w[k] = net
+                .sources()
+                .iter()
+                .zip(&u)
+                .filter(|(src, _)| nodes.contains(&src.node))
+                .map(|(_, p)| p)
+                .sum();
+        }
         let m = net.sources().len();
         for (k, t) in boundary_c.iter().enumerate() {
             u[m + k] = *t;
@@ -704,6 +736,12 @@ impl Estimator for KalmanEstimator {
             }
         }
         self.recoveries += usize::from(report.recovered);
+        if let Some(share) = self.opts.disturbance_floor_share {
+            let n = self.temps.len();
+            for (k, joule_w) in self.disturbance_joule_w.iter().enumerate() {
+                self.filter.project_onto_floor(n + k, -share * joule_w);
+            }
+        }
         self.sync_temps();
     }
 
@@ -916,6 +954,53 @@ policy = "boundary"
         let (declared, learned) = (run(false), run(true));
         eprintln!("coil RMS error [K]: declared noise {declared:.3}, learned {learned:.3}");
         assert!(learned < 0.7 * declared, "{learned} vs {declared}");
+    }
+
+    /// A model that runs 25 % hot (the plant's coil has 80 % of the
+    /// model's heat): free, the disturbance goes negative and takes the
+    /// heat away; with the floor (`share` 0, the firmware's default for its
+    /// heat biases) it never goes below zero, and the unmeasured coil reads
+    /// hot against the plant (the independent reference), never cold.
+    #[test]
+    fn a_disturbance_floor_keeps_heat_from_being_taken_away() {
+        let model = Model::build(&ModelFile::parse(MODEL, "jacket.toml").unwrap()).unwrap();
+        let run = |floor: Option<f64>| {
+            let opts = KalmanOptions {
+                disturbances: vec![vec![0]],
+                disturbance_std_w: 2.0,
+                disturbance_floor_share: floor,
+                ..KalmanOptions::default()
+            };
+            let mut plant = FilePlant::new(model.clone()).unwrap();
+            let mut filter = KalmanEstimator::new(model.clone(), &[1], opts).unwrap();
+            let start = [36.0, 33.0];
+            plant.reset(&start);
+            filter.reset(&start);
+            let (mut lowest_w, mut coldest_k, mut hottest_k) = (f64::INFINITY, 0.0_f64, 0.0_f64);
+            for k in 0..6000 {
+                let current = if (k / 1000) % 2 == 0 { 1.5 } else { 0.5 };
+                plant.step(1.0, &[current * 0.8_f64.sqrt()], &[30.0], &[]);
+                filter.predict(1.0, &[current], &[30.0], &[]);
+                filter.update(&[Measurement {
+                    node: 1,
+                    value_c: plant.temps_c()[1],
+                }]);
+                lowest_w = lowest_w.min(filter.disturbances_w()[0]);
+                let error = filter.estimate_c()[0] - plant.temps_c()[0];
+                coldest_k = coldest_k.min(error);
+                hottest_k = hottest_k.max(error);
+            }
+            (lowest_w, coldest_k, hottest_k)
+        };
+        let (free_w, free_cold, _) = run(None);
+        let (floor_w, floor_cold, floor_hot) = run(Some(0.0));
+        eprintln!(
+            "lowest disturbance {free_w:.3} / {floor_w:.3} W, coldest coil error {free_cold:.3} / {floor_cold:.3} K (free / floor 0), hottest with the floor {floor_hot:.3} K"
+        );
+        assert!(free_w < -1.0, "{free_w}");
+        assert!(floor_w > -1e-9, "{floor_w}");
+        assert!(floor_cold > -0.05, "{floor_cold}");
+        assert!(floor_hot > 0.5, "the model's extra heat shows: {floor_hot}");
     }
 
     #[test]

@@ -123,6 +123,11 @@ fn bad_filter_flags_are_refused() {
         ("--process-noise-k2-per-s", "-1", "--process-noise-k2-per-s"),
         ("--disturbance", "coil,nope", "no node `nope`"),
         ("--boundary-offset", "nope", "no boundary `nope`"),
+        (
+            "--disturbance-floor-share",
+            "0",
+            "--disturbance-floor-share bounds the --disturbance states",
+        ),
     ] {
         refused(
             &rec,
@@ -143,6 +148,19 @@ fn bad_filter_flags_are_refused() {
             "0",
         ],
         "--noise-memory-rows must be >= 1",
+    );
+    refused(
+        &rec,
+        &out,
+        &[
+            "--measure",
+            "T_housing=housing",
+            "--disturbance",
+            "coil",
+            "--disturbance-floor-share",
+            "-0.1",
+        ],
+        "--disturbance-floor-share must be finite and >= 0",
     );
 }
 

@@ -46,7 +46,7 @@ enum Command {
     Simulate(SimulateArgs),
     /// Run the observer (model, filter, protection) over a recorded trace and
     /// score it against held-out sensors.
-    Replay(ReplayArgs),
+    Replay(Box<ReplayArgs>),
     /// Time to limit of each element, maximum safe currents (for a horizon and
     /// for ever) and runaway currents; `--study` for the Omnimagnet's table.
     Limits(LimitsArgs),
@@ -376,6 +376,11 @@ pub struct ReplayArgs {
     /// memory; with --noise-half-window-rows).
     #[arg(long, value_name = "ROWS", default_value_t = 600)]
     noise_memory_rows: usize,
+    /// Filter: keep each --disturbance at or above -SHARE times the Joule
+    /// power of the sources on its nodes (0: no heat taken away, the
+    /// firmware's default for its heat biases); without it no floor.
+    #[arg(long, value_name = "SHARE", allow_negative_numbers = true)]
+    disturbance_floor_share: Option<f64>,
     /// A held-out sensor, only scored: `COL=NODE` [degC], or a comma list;
     /// rows with an empty or `NaN` cell are not scored. A column also
     /// fused by --measure is refused (its score would not be held out).
@@ -739,7 +744,7 @@ pub fn main_entry() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),
-        Command::Replay(a) => replay_cmd::run(a),
+        Command::Replay(a) => replay_cmd::run(*a),
         Command::Limits(a) => limits_cmd::limits(a),
         Command::AlarmLimit(a) => limits_cmd::alarm_limit(a),
         Command::Calibrate(a) => calibrate_cmd::run(a),

@@ -318,6 +318,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     truth.check(&drive)?;
     init_only.check(&drive)?;
     let (measured, truth) = (measured.sensors(), truth.sensors());
+    if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
+        bail!(
+            "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
+        );
+    }
     if let Some(t) = truth
         .iter()
         .find(|t| measured.iter().any(|m| m.column == t.column))
@@ -461,6 +466,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 half_window: a.noise_half_window_rows,
                 memory: a.noise_memory_rows,
             }),
+            disturbance_floor_share: a.disturbance_floor_share,
         };
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
         kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
