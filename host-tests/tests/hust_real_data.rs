@@ -3,8 +3,9 @@
 //! Without it every test prints why and passes, so the default test command
 //! works on a clean machine. The data is read at run time, never copied.
 //!
-//! Split (README "Real data: the HUST motor"): fitted on profiles 1 3 5 9 11,
-//! scored on 2 4 8 10 12 13; profile 0 (EMA-smoothed) is neither.
+//! Split (README "The real motor", docs/hust.md): the six-node model is
+//! fitted on profiles 1 3 5 9 11, the seven-node one on 0 (its EMA
+//! smoothing inverted) 1 3 5 9 11; both are scored on 2 4 8 10 12 13 too.
 
 use std::path::{Path, PathBuf};
 
