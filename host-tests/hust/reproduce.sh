@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the HUST results of docs/hust.md: calibrates the two models
+# Reproduces the HUST results of README ("The real motor") and docs/hust.md: calibrates the two models
 # (host-tests/models/hust_motor.toml, six nodes, and hust_motor_slot.toml,
 # seven nodes with the slot centre, one copper-loss density and the AC
 # copper loss in the slots only), then scores on every profile the
