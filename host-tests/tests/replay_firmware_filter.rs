@@ -144,3 +144,48 @@ fn the_fused_replay_is_the_generated_firmware_observer() {
     eprintln!("frozen biases: winding up to {apart:.3} K from the firmware's");
     assert!(apart > 0.05, "frozen {apart} K");
 }
+
+/// `replay` of the bench trace on `model`, fusing the housing thermocouple
+/// with no noise flag; the estimate CSV's text and the JSON summary.
+fn replay_without_noise_flag(dir: &Path, model: &Path) -> (String, Value) {
+    let out = dir.join("plain.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(model)
+        .arg("--trace")
+        .arg(root().join("host-tests/traces/drive-3node.csv"))
+        .args(["--measure", "housing_tc=housing", "--json", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let json = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    (std::fs::read_to_string(&out).unwrap(), json)
+}
+
+/// Without `--measurement-noise-k` the replay fuses with the model file's
+/// `[observer] sensor_sigma_k`, the noise `codegen` builds the firmware
+/// with: the same estimates as the flag with that value; a file without
+/// the key falls back to 0.2 K and says so.
+#[test]
+fn the_model_files_sensor_noise_is_the_replays_default() {
+    let tmp = TempDir::new().unwrap();
+    let fitted = root().join("host-tests/models/drive-3node-fitted.toml");
+    let text = std::fs::read_to_string(&fitted).unwrap();
+    let with_key = tmp.path().join("with-sigma.toml");
+    std::fs::write(
+        &with_key,
+        text.replacen("[observer]\n", "[observer]\nsensor_sigma_k = 0.25\n", 1),
+    )
+    .unwrap();
+    let (from_file, json) = replay_without_noise_flag(tmp.path(), &with_key);
+    assert_eq!(json["fusion"]["sensor_sigma_k"], 0.25);
+    assert_eq!(json["fusion"]["sensor_sigma_from"], "model-file");
+    let (_, flagged) = replay(tmp.path(), &[]);
+    assert_eq!(flagged["fusion"]["sensor_sigma_from"], "flag");
+    let from_flag = std::fs::read_to_string(tmp.path().join("est.csv")).unwrap();
+    assert_eq!(from_file, from_flag);
+    let (default, json) = replay_without_noise_flag(tmp.path(), &fitted);
+    assert_eq!(json["fusion"]["sensor_sigma_k"], 0.2);
+    assert_eq!(json["fusion"]["sensor_sigma_from"], "default");
+    assert_ne!(default, from_flag);
+}

@@ -298,14 +298,11 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     process_noise_k2_per_s: f64,
-    /// Fusion: standard deviation of every fused sensor [K].
-    #[arg(
-        long,
-        value_name = "K",
-        default_value_t = 0.2,
-        allow_negative_numbers = true
-    )]
-    measurement_noise_k: f64,
+    /// Fusion: standard deviation of every fused sensor [K]. Default: the
+    /// model file's `[observer] sensor_sigma_k` (the noise `codegen` builds
+    /// the firmware with), else 0.2.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    measurement_noise_k: Option<f64>,
     /// Filter: standard deviation of the initial temperatures [K].
     #[arg(
         long,

@@ -318,6 +318,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     truth.check(&drive)?;
     init_only.check(&drive)?;
     let (measured, truth) = (measured.sensors(), truth.sensors());
+    // The fused sensors' noise: the flag, else the file's `[observer]`
+    // value (what the generated firmware runs with), else 0.2 K.
+    let file_sensor_sigma_k = model_file.observer.as_ref().and_then(|o| o.sensor_sigma_k);
+    let (measurement_noise_k, sensor_sigma_from) =
+        match (a.measurement_noise_k, file_sensor_sigma_k) {
+            (Some(v), _) => (v, "flag"),
+            (None, Some(v)) => (v, "model-file"),
+            (None, None) => (0.2, "default"),
+        };
     if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
         bail!(
             "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
@@ -393,7 +402,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     } else if !kalman_filter {
         let fusion = (!measured.is_empty()).then(|| Fusion {
             sensor_nodes: measured.iter().map(|m| m.node).collect(),
-            sensor_sigma_k: a.measurement_noise_k,
+            sensor_sigma_k: measurement_noise_k,
             node_noise_k2_per_s: a.process_noise_k2_per_s,
             correction_period_s: median_row_s,
             biases: BiasSettings::firmware(model_file.observer.as_ref(), a.bias_noise_w2_per_s),
@@ -453,7 +462,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             .collect::<Result<Vec<_>>>()?;
         let opts = KalmanOptions {
             process_noise_k2_per_s: a.process_noise_k2_per_s,
-            measurement_noise_k: a.measurement_noise_k,
+            measurement_noise_k,
             initial_std_k: a.initial_std_k,
             disturbances,
             disturbance_std_w,
@@ -542,6 +551,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "bias_noise_w2_per_s": biases.map(|b| b.bias_noise_w2_per_s),
             "bias_noise_from": biases.map(|b| b.from.name()),
             "max_cooling_bias_fraction": biases.map(|b| b.max_cooling_bias_fraction),
+            "sensor_sigma_k": measurement_noise_k,
+            "sensor_sigma_from": sensor_sigma_from,
             "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
                 "column": m.column,
                 "node": info.nodes[s.node],
@@ -563,6 +574,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "colder_than_physics": s.colder_than_physics,
                 "noise_k": noise,
             })).collect::<Vec<_>>(),
+            "sensor_sigma_k": measurement_noise_k,
+            "sensor_sigma_from": sensor_sigma_from,
             "recoveries": k.recoveries(),
             "final_disturbances_w": k.disturbances_w(),
             "final_boundary_offsets_k": a.boundary_offset.iter().map(|b| b.trim()).zip(k.boundary_offsets_k())
