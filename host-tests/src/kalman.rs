@@ -246,8 +246,12 @@ impl NoiseWatch {
     }
 
     /// Takes a reading \[degC\]; the noise variance \[K^2\] once one
-    /// reading has been judged.
+    /// reading has been judged. A non-finite reading (which the filter
+    /// treats as missing) is not taken: it would poison the mean.
     fn push(&mut self, reading_c: f64) -> Option<f64> {
+        if !reading_c.is_finite() {
+            return (self.judged > 0).then_some(self.variance_k2);
+        }
         let width = 2 * self.half_window + 1;
         if self.recent.len() == width {
             self.recent.pop_front();
@@ -908,6 +912,23 @@ policy = "boundary"
             let found = found.unwrap().sqrt();
             assert!((found - sigma).abs() < 0.1 * sigma, "{sigma}: {found}");
         }
+        // Non-finite readings are skipped, not averaged in.
+        let mut watch = NoiseWatch::new(10, 600);
+        let mut found = None;
+        for k in 0..3000 {
+            let reading = match k % 97 {
+                0 => f64::INFINITY,
+                1 => f64::NAN,
+                2 => f64::NEG_INFINITY,
+                _ => 30.0 + 0.3 * rng.normal(),
+            };
+            found = watch.push(reading);
+        }
+        let found = found.unwrap().sqrt();
+        assert!(
+            (found - 0.3).abs() < 0.03,
+            "with non-finite readings: {found}"
+        );
         let mut watch = NoiseWatch::new(10, 600);
         let mut found = None;
         for k in 0..3000 {
