@@ -250,7 +250,7 @@ impl NoiseWatch {
     /// treats as missing) is not taken: it would poison the mean.
     fn push(&mut self, reading_c: f64) -> Option<f64> {
         if !reading_c.is_finite() {
-            return (self.judged > 0).then_some(self.variance_k2);
+            return self.variance_k2();
         }
         let width = 2 * self.half_window + 1;
         if self.recent.len() == width {
@@ -264,6 +264,12 @@ impl NoiseWatch {
             let weight = 1.0 / self.judged.min(self.memory) as f64;
             self.variance_k2 += weight * (deviation * deviation - self.variance_k2);
         }
+        self.variance_k2()
+    }
+
+    /// The noise variance \[K^2\] learned so far (none before a reading
+    /// has been judged).
+    fn variance_k2(&self) -> Option<f64> {
         (self.judged > 0).then_some(self.variance_k2)
     }
 }
@@ -622,8 +628,8 @@ impl KalmanEstimator {
             .map(|j| {
                 self.noise
                     .get(j)
-                    .filter(|w| w.judged > 0)
-                    .map_or(floor, |w| w.variance_k2.sqrt().max(floor))
+                    .and_then(NoiseWatch::variance_k2)
+                    .map_or(floor, |v| v.sqrt().max(floor))
             })
             .collect()
     }
@@ -681,14 +687,17 @@ impl Estimator for KalmanEstimator {
             let r = src.resistance.to_scalar::<f64>();
             u[s] = r.joule_power_w(self.temps[src.node], *i);
         }
-        for (k, nodes) in self.opts.disturbances.iter().enumerate() {
-            self.disturbance_joule_w[k] = net
-                .sources()
-                .iter()
-                .zip(&u)
-                .filter(|(src, _)| nodes.contains(&src.node))
-                .map(|(_, p)| p)
-                .sum();
+        // The disturbances' Joule powers: only the floor reads them.
+        if self.opts.disturbance_floor_share.is_some() {
+            for (k, nodes) in self.opts.disturbances.iter().enumerate() {
+                self.disturbance_joule_w[k] = net
+                    .sources()
+                    .iter()
+                    .zip(&u)
+                    .filter(|(src, _)| nodes.contains(&src.node))
+                    .map(|(_, p)| p)
+                    .sum();
+            }
         }
         let m = net.sources().len();
         for (k, t) in boundary_c.iter().enumerate() {
@@ -1022,6 +1031,7 @@ policy = "boundary"
             "lowest disturbance {free_w:.3} / {floor_w:.3} W, coldest coil error {free_cold:.3} / {floor_cold:.3} K (free / floor 0), hottest with the floor {floor_hot:.3} K"
         );
         assert!(free_w < -1.0, "{free_w}");
+        assert!(free_cold < -0.2, "free, the coil reads cold: {free_cold}");
         assert!(floor_w > -1e-9, "{floor_w}");
         assert!(floor_cold > -0.05, "{floor_cold}");
         assert!(floor_hot > 0.5, "the model's extra heat shows: {floor_hot}");
