@@ -302,10 +302,34 @@ fn access_one(file: &mut ModelFile, name: &str, set: Option<f64>) -> Result<f64>
             }
             Ok(old)
         }
+        "conductor" => {
+            let (key, field) = rest
+                .split_once('.')
+                .with_context(|| format!("parameter `{name}`: expected conductor.NAME.scale"))?;
+            if field != "scale" {
+                bail!("parameter `{name}`: unknown conductor field `{field}` (scale)");
+            }
+            let keys: Vec<String> = file.conductors.iter().map(|c| c.name.clone()).collect();
+            let c = file
+                .conductors
+                .iter_mut()
+                .find(|c| c.name == key)
+                .with_context(|| {
+                    format!(
+                        "parameter `{name}`: no conductor `{key}` (conductors: {})",
+                        keys.join(", ")
+                    )
+                })?;
+            let old = c.scale;
+            if let Some(v) = set {
+                c.scale = v;
+            }
+            Ok(old)
+        }
         "grid" => crate::devices::access_grid_param(file, rest, set)
             .with_context(|| format!("parameter `{name}`")),
         k => bail!(
-            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, fixed_power, speed_loss, loss, grid)"
+            "parameter `{name}`: unknown kind `{k}` (capacity, conductance, source, conductor, fixed_power, speed_loss, loss, grid)"
         ),
     }
 }
@@ -318,6 +342,7 @@ pub fn default_bounds(name: &str, value: f64) -> (f64, f64) {
     let positive = name.starts_with("capacity.")
         || name.starts_with("conductance.")
         || name.starts_with("grid.")
+        || name.starts_with("conductor.")
         || matches!(field, "r0_ohm" | "r_at_0c_ohm" | "scale" | "scale_per_kj");
     if positive && value > 0.0 {
         (value / 10.0, value * 10.0)

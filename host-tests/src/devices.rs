@@ -234,6 +234,7 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
         boundaries: vec![boundary("coolant"), boundary("ambient")],
         conductances,
         sources,
+        conductors: Vec::new(),
         fixed_powers: Vec::new(),
         speed_losses: Vec::new(),
         losses: Vec::new(),

@@ -43,6 +43,10 @@ pub struct ModelFile {
     /// Joule sources (`[[source]]`).
     #[serde(rename = "source", default)]
     pub sources: Vec<SourceSpec>,
+    /// Conductors split over several nodes (`[[conductor]]`): one total
+    /// loss scale shared by their sources in proportion to capacity.
+    #[serde(rename = "conductor", default, skip_serializing_if = "Vec::is_empty")]
+    pub conductors: Vec<ConductorSpec>,
     /// Constant powers (`[[fixed_power]]`).
     #[serde(rename = "fixed_power", default, skip_serializing_if = "Vec::is_empty")]
     pub fixed_powers: Vec<FixedPowerSpec>,
@@ -306,6 +310,23 @@ pub struct SpeedSpec {
     pub a2: f64,
 }
 
+/// One conductor lumped into several nodes (a winding's slot copper and
+/// overhangs): its sources together dissipate `scale R |i|^2`, each node
+/// the share `C_node / sum C` of it, so every part heats at one loss
+/// density and the total is the electrical one (`scale = 1.5` for
+/// amplitude-invariant d/q currents) whatever capacities a fit gives the
+/// nodes. Its sources give neither `scale` nor `scale_per_kj`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConductorSpec {
+    /// Name for calibration (`conductor.<name>.scale`).
+    pub name: String,
+    /// The sources (their names) that make up the conductor.
+    pub sources: Vec<String>,
+    /// Power scale of the whole conductor (dimensionless, >= 0).
+    pub scale: f64,
+}
+
 /// A loss that depends on a speed signal only (iron, magnet, friction):
 /// `P = max(0, p1_w f + p2_w f^2)` with `f = column / reference`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -518,6 +539,7 @@ impl ModelFile {
             boundaries,
             conductances,
             sources,
+            conductors: Vec::new(),
             fixed_powers,
             speed_losses: Vec::new(),
             losses: Vec::new(),
@@ -881,6 +903,7 @@ impl Model {
                 }
             }
         }
+        let conductor_scales = conductor_scales(file)?;
         let mut inputs: Vec<InputSpec> = Vec::new();
         let mut drives = Vec::new();
         let mut source_keys = BTreeMap::new();
@@ -916,10 +939,17 @@ impl Model {
                     inputs.len() - 1
                 }
             };
-            let scale = match (s.scale, s.scale_per_kj) {
-                (Some(_), Some(_)) => bail!("{}: give scale or scale_per_kj, not both", ctx()),
-                (_, Some(d)) => d * file.nodes[node].capacity_j_per_k / 1000.0,
-                (k, None) => k.unwrap_or(1.0),
+            let scale = match (s.scale, s.scale_per_kj, conductor_scales[k]) {
+                (None, None, Some((k, _))) => k,
+                (_, _, Some((_, conductor))) => bail!(
+                    "{}: its [[conductor]] `{conductor}` sets its scale; give neither scale nor scale_per_kj",
+                    ctx()
+                ),
+                (Some(_), Some(_), None) => {
+                    bail!("{}: give scale or scale_per_kj, not both", ctx())
+                }
+                (_, Some(d), None) => d * file.nodes[node].capacity_j_per_k / 1000.0,
+                (k, None, None) => k.unwrap_or(1.0),
             };
             if !(scale.is_finite() && scale >= 0.0) {
                 bail!("{}: scale must be finite and >= 0", ctx());
@@ -1155,6 +1185,55 @@ impl Model {
         }
         Ok(())
     }
+}
+
+/// The scale of each source (in file order) that a `[[conductor]]` sets:
+/// the conductor's `scale` times its node's share of the conductor's
+/// capacity, with the conductor's name; `None` for a source in no conductor.
+fn conductor_scales(file: &ModelFile) -> Result<Vec<Option<(f64, &str)>>> {
+    let mut scales = vec![None; file.sources.len()];
+    let mut names = BTreeMap::new();
+    for (k, c) in file.conductors.iter().enumerate() {
+        let ctx = || format!("[[conductor]] #{} `{}`", k + 1, c.name);
+        if names.insert(c.name.as_str(), k).is_some() {
+            bail!("{}: duplicate conductor name", ctx());
+        }
+        if !(c.scale.is_finite() && c.scale >= 0.0) {
+            bail!("{}: scale must be finite and >= 0", ctx());
+        }
+        if c.sources.is_empty() {
+            bail!("{}: give its sources", ctx());
+        }
+        let mut members = Vec::with_capacity(c.sources.len());
+        for name in &c.sources {
+            let Some(i) = file.sources.iter().position(|s| s.key() == name) else {
+                bail!("{}: no source `{name}`", ctx());
+            };
+            if scales[i].is_some() || members.contains(&i) {
+                bail!("{}: source `{name}` is already in a conductor", ctx());
+            }
+            members.push(i);
+        }
+        let capacity = |i: usize| -> Result<f64> {
+            let node = &file.sources[i].node;
+            file.nodes
+                .iter()
+                .find(|n| &n.name == node)
+                .map(|n| n.capacity_j_per_k)
+                .with_context(|| format!("{}: unknown node `{node}`", ctx()))
+        };
+        let total = members.iter().map(|&i| capacity(i)).sum::<Result<f64>>()?;
+        if !(total.is_finite() && total > 0.0) {
+            bail!(
+                "{}: its nodes' capacities must sum to a finite value > 0",
+                ctx()
+            );
+        }
+        for &i in &members {
+            scales[i] = Some((c.scale * capacity(i)? / total, c.name.as_str()));
+        }
+    }
+    Ok(scales)
 }
 
 /// Index of `column` in `signals`, appended when new.

@@ -518,6 +518,11 @@ fn seven_node_calibration_reproduces_the_committed_fitted_model() {
         start.elapsed().as_secs_f64()
     );
     let mut fitted = ModelFile::load(&out).unwrap();
+    // The copper loss is the electrical one, not a fitted number.
+    assert_eq!(
+        access_param(&mut fitted, "conductor.winding.scale", None).unwrap(),
+        1.5
+    );
     let mut committed =
         ModelFile::load(Path::new(&here("models/hust_motor_slot_fitted.toml"))).unwrap();
     for p in &params {

@@ -343,6 +343,129 @@ scale_per_kj = 0.5
     assert!(err.contains("scale or scale_per_kj"), "{err}");
 }
 
+/// `[[conductor]]`: one winding lumped into two nodes dissipates the
+/// electrical `scale R I^2` in all, whatever capacities a fit gives its
+/// nodes, and both parts heat at one loss density. Checked by energy: with
+/// the nodes insulated, `sum C dT` over a run equals `scale R I^2 t`.
+#[test]
+fn a_conductor_dissipates_its_electrical_loss_shared_by_capacity() {
+    let src = r#"
+[[node]]
+name = "slot"
+capacity_j_per_k = 2000.0
+[[node]]
+name = "overhang"
+capacity_j_per_k = 1000.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["slot", "coolant"]
+g_w_per_k = 1e-9
+[[conductance]]
+between = ["overhang", "coolant"]
+g_w_per_k = 1e-9
+[[source]]
+name = "slot"
+node = "slot"
+input = "current"
+r0_ohm = 0.01
+[[source]]
+name = "overhang"
+node = "overhang"
+input = "current"
+r0_ohm = 0.01
+[[conductor]]
+name = "winding"
+sources = ["slot", "overhang"]
+scale = 1.5
+"#;
+    let current_a = 20.0;
+    let seconds = 600;
+    let run = |file: &ModelFile| -> Vec<f64> {
+        let mut plant = FilePlant::new(Model::build(file).unwrap()).unwrap();
+        let rows = seconds + 1;
+        let drive = Drive {
+            time_s: (0..rows).map(|k| k as f64).collect(),
+            currents: vec![vec![current_a; rows]],
+            boundaries: vec![vec![20.0; rows]],
+            signals: vec![],
+        };
+        simulate(&mut plant, &drive, &[20.0, 20.0])
+            .last()
+            .unwrap()
+            .clone()
+    };
+    let joule_j = 1.5 * 0.01 * current_a * current_a * seconds as f64;
+    let mut file = ModelFile::parse(src, "conductor.toml").unwrap();
+    for capacities in [[2000.0, 1000.0], [5000.0, 300.0]] {
+        access_param(&mut file, "capacity.slot", Some(capacities[0])).unwrap();
+        access_param(&mut file, "capacity.overhang", Some(capacities[1])).unwrap();
+        let model = Model::build(&file).unwrap();
+        let total = capacities[0] + capacities[1];
+        assert!((model.drives[0].scale - 1.5 * capacities[0] / total).abs() < 1e-12);
+        assert!((model.drives[1].scale - 1.5 * capacities[1] / total).abs() < 1e-12);
+        let end = run(&file);
+        let stored_j: f64 = capacities
+            .iter()
+            .zip(&end)
+            .map(|(c, t)| c * (t - 20.0))
+            .sum();
+        assert!(
+            (stored_j / joule_j - 1.0).abs() < 1e-6,
+            "{stored_j} J against {joule_j} J"
+        );
+        // One loss density: both parts rise alike.
+        assert!((end[0] - end[1]).abs() < 1e-9, "{end:?}");
+    }
+    // The conductor's scale is a calibration name.
+    assert_eq!(
+        access_param(&mut file, "conductor.winding.scale", Some(1.2)).unwrap(),
+        1.5
+    );
+    assert_eq!(file.conductors[0].scale, 1.2);
+    let round = ModelFile::parse(&file.to_toml().unwrap(), "round.toml").unwrap();
+    assert_eq!(round, file);
+    // Ill-formed conductors are refused with the conductor named.
+    for (bad, says) in [
+        (
+            src.replace(
+                "r0_ohm = 0.01\n[[source]]",
+                "r0_ohm = 0.01\nscale = 1.0\n[[source]]",
+            ),
+            "give neither scale nor scale_per_kj",
+        ),
+        (
+            src.replace(
+                "[\"slot\", \"overhang\"]\nscale",
+                "[\"slot\", \"rotor\"]\nscale",
+            ),
+            "no source `rotor`",
+        ),
+        (
+            src.replace(
+                "[\"slot\", \"overhang\"]\nscale",
+                "[\"slot\", \"slot\"]\nscale",
+            ),
+            "already in a conductor",
+        ),
+        (
+            src.replace("scale = 1.5", "scale = -1.5"),
+            "finite and >= 0",
+        ),
+        (
+            src.replace("[\"slot\", \"overhang\"]\nscale", "[]\nscale"),
+            "give its sources",
+        ),
+    ] {
+        let err = ModelFile::parse(&bad, "bad.toml").unwrap_err().to_string();
+        assert!(
+            err.contains(says) && err.contains("winding"),
+            "{says}: {err}"
+        );
+    }
+}
+
 /// The observers that hold one fixed network refuse a model whose
 /// conductances change with speed, saying why and what runs it.
 #[test]
