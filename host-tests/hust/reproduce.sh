@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # Reproduces the HUST results of README ("The real motor") and docs/hust.md: calibrates the two models
 # (host-tests/models/hust_motor.toml, six nodes, and hust_motor_slot.toml,
-# seven nodes with the slot centre, one copper-loss density and the AC
-# copper loss in the slots only), then scores on every profile the
-# authors' full published network (hust-published.toml) and each
-# calibrated model open loop and with endwind_1 fused by the Kalman filter.
+# seven nodes with the slot centre, the winding one conductor with the
+# electrical copper loss shared by capacity, and the AC copper loss in the
+# slots only), then scores on every profile the authors' full published
+# network (hust-published.toml) and each calibrated model open loop and
+# with endwind_1 fused by the Kalman filter; last, the gate's rejection
+# bursts and the fused scores against the readings with the thermocouple
+# channel's shifts taken out (gate_bursts.sh, channel_corrected.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -132,3 +135,15 @@ echo "|---|---|---|---|---|---|---|---|"
 row 0 "fit (7-node; inverted EMA)"
 for n in 1 3 5 9 11; do row "$n" fit; done
 for n in $SCORE_PROFILES; do row "$n" scored; done
+
+# Where the gate refuses endwind_1 and what the other thermocouples do
+# there, and the fused estimates against the readings with the channel's
+# shifts taken out (docs/hust.md, "The thermocouple channel's shifts").
+echo
+echo "The gate's rejection bursts (seven-node fused)"
+echo
+host-tests/hust/gate_bursts.sh
+echo
+echo "Seven-node fused against the readings with the channel's shift taken out"
+echo
+host-tests/hust/channel_corrected.sh

@@ -396,7 +396,15 @@ pub struct FusionStats {
     /// Readings refused as colder than the physics (the library
     /// observer's band; always 0 for the row-rate Kalman filter).
     pub colder_than_physics: usize,
+    /// When the gate rejected a reading: seconds after the trace's first
+    /// row, the first [`MAX_REJECTED_TIMES`] (the row-rate Kalman filter;
+    /// empty for the library observer).
+    pub rejected_at_s: Vec<f64>,
 }
+
+/// How many rejection times [`FusionStats::rejected_at_s`] keeps (the count
+/// in [`FusionStats::rejected`] goes on).
+pub const MAX_REJECTED_TIMES: usize = 10_000;
 
 /// A Kalman filter on a model file (see the module docs).
 pub struct KalmanEstimator {
@@ -422,6 +430,9 @@ pub struct KalmanEstimator {
     effective: Vec<f64>,
     stats: Vec<FusionStats>,
     recoveries: usize,
+    /// Time since the trace's first row \[s\]: the sum of the predicted
+    /// intervals.
+    elapsed_s: f64,
     /// Per sensor, with `noise_from_readings`.
     noise: Vec<NoiseWatch>,
     /// Per disturbance, the Joule power of the sources on its nodes at
@@ -509,6 +520,7 @@ impl KalmanEstimator {
                 rejected: 0,
                 stuck: 0,
                 colder_than_physics: 0,
+                rejected_at_s: Vec::new(),
             })
             .collect();
         let size = states.max(b.ncols()).max(sensor_nodes.len());
@@ -540,6 +552,7 @@ impl KalmanEstimator {
             effective: Vec::new(),
             stats,
             recoveries: 0,
+            elapsed_s: 0.0,
             noise,
             disturbance_joule_w: vec![0.0; nd],
         })
@@ -677,6 +690,9 @@ impl Estimator for KalmanEstimator {
     }
 
     fn predict(&mut self, dt_s: f64, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
+        if dt_s.is_finite() && dt_s > 0.0 {
+            self.elapsed_s += dt_s;
+        }
         let mut effective = std::mem::take(&mut self.effective);
         self.model
             .effective_currents(currents_a, signals, &mut effective);
@@ -744,7 +760,12 @@ impl Estimator for KalmanEstimator {
         for (s, v) in self.stats.iter_mut().zip(&report.verdicts) {
             match v {
                 SensorVerdict::Fused { .. } => s.fused += 1,
-                SensorVerdict::Rejected { .. } => s.rejected += 1,
+                SensorVerdict::Rejected { .. } => {
+                    s.rejected += 1;
+                    if s.rejected_at_s.len() < MAX_REJECTED_TIMES {
+                        s.rejected_at_s.push(self.elapsed_s);
+                    }
+                }
                 SensorVerdict::Missing => {}
             }
         }

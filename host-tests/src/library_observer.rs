@@ -480,6 +480,7 @@ impl ObserverEstimator {
                     rejected: 0,
                     stuck: 0,
                     colder_than_physics: 0,
+                    rejected_at_s: Vec::new(),
                 })
                 .collect(),
             sensors,

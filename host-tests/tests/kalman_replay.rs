@@ -377,3 +377,43 @@ fn a_sensors_noise_is_learned_from_its_readings_and_reported() {
     assert!((noise(&learned) - 0.8).abs() < 0.12, "{}", noise(&learned));
     assert!(mse(&learned) < 0.7 * mse(&declared));
 }
+
+/// The gate's refusals are reported with their times: a housing reading
+/// 10 K off for two rows at 2000 s and 2001 s is rejected there and only
+/// there, and `rejected_at_s` lists those times (seconds after the first
+/// row), as many as `rejected` counts.
+#[test]
+fn rejected_readings_are_reported_with_their_times() {
+    let tmp = TempDir::new().unwrap();
+    let rec = recording(tmp.path());
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let mut spiked = String::new();
+    for (k, line) in text.lines().enumerate() {
+        // Row k (after the header) is at k - 1 s.
+        if k == 2001 || k == 2002 {
+            let (head, housing) = line.rsplit_once(',').unwrap();
+            let off = housing.parse::<f64>().unwrap() + 10.0;
+            spiked.push_str(&format!("{head},{off:.2}\n"));
+        } else {
+            spiked.push_str(line);
+            spiked.push('\n');
+        }
+    }
+    let p = tmp.path().join("spiked.csv");
+    std::fs::write(&p, spiked).unwrap();
+    let out = tmp.path().join("e.csv");
+    let fused = coil_mse(
+        &p,
+        &out,
+        &["--measure", "T_housing=housing", "--disturbance", "coil"],
+    );
+    let sensor = &fused["fusion"]["sensors"][0];
+    let times: Vec<f64> = sensor["rejected_at_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    assert_eq!(times, [2000.0, 2001.0], "{sensor}");
+    assert_eq!(sensor["rejected"].as_u64().unwrap(), 2);
+}

@@ -573,6 +573,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "stuck": s.stuck,
                 "colder_than_physics": s.colder_than_physics,
                 "noise_k": noise,
+                "rejected_at_s": s.rejected_at_s,
             })).collect::<Vec<_>>(),
             "sensor_sigma_k": measurement_noise_k,
             "sensor_sigma_from": sensor_sigma_from,
