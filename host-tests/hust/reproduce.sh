@@ -7,7 +7,7 @@
 # network (hust-published.toml) and each calibrated model open loop and
 # with endwind_1 fused by the Kalman filter; last, the gate's rejection
 # bursts and the fused scores against the readings with the thermocouple
-# channel's shifts taken out (gate_bursts.sh, channel_corrected.sh).
+# channel's shifts taken out (channel_shifts.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -140,10 +140,4 @@ for n in $SCORE_PROFILES; do row "$n" scored; done
 # there, and the fused estimates against the readings with the channel's
 # shifts taken out (docs/hust.md, "The thermocouple channel's shifts").
 echo
-echo "The gate's rejection bursts (seven-node fused)"
-echo
-host-tests/hust/gate_bursts.sh
-echo
-echo "Seven-node fused against the readings with the channel's shift taken out"
-echo
-host-tests/hust/channel_corrected.sh
+host-tests/hust/channel_shifts.sh

@@ -295,11 +295,9 @@ p1_w = 1.0
     }
 }
 
-/// `scale_per_kj`: a source's power scale follows its node's capacity, and
-/// a tied calibration name moves every source of one conductor at once.
-#[test]
-fn copper_loss_density_scales_with_capacity_and_ties_in_calibration() {
-    let src = r#"
+/// One winding lumped into a slot and an overhang node, insulated (1e-9
+/// W/K to the coolant), both sources on one current with no scale yet.
+const SLOT_AND_OVERHANG: &str = r#"
 [[node]]
 name = "slot"
 capacity_j_per_k = 2000.0
@@ -311,24 +309,28 @@ name = "coolant"
 value_c = 20.0
 [[conductance]]
 between = ["slot", "coolant"]
-g_w_per_k = 10.0
+g_w_per_k = 1e-9
 [[conductance]]
 between = ["overhang", "coolant"]
-g_w_per_k = 10.0
+g_w_per_k = 1e-9
 [[source]]
 name = "slot"
 node = "slot"
 input = "current"
 r0_ohm = 0.01
-scale_per_kj = 0.5
 [[source]]
 name = "overhang"
 node = "overhang"
 input = "current"
 r0_ohm = 0.01
-scale_per_kj = 0.5
 "#;
-    let mut file = ModelFile::parse(src, "density.toml").unwrap();
+
+/// `scale_per_kj`: a source's power scale follows its node's capacity, and
+/// a tied calibration name moves every source of one conductor at once.
+#[test]
+fn copper_loss_density_scales_with_capacity_and_ties_in_calibration() {
+    let src = SLOT_AND_OVERHANG.replace("r0_ohm = 0.01\n", "r0_ohm = 0.01\nscale_per_kj = 0.5\n");
+    let mut file = ModelFile::parse(&src, "density.toml").unwrap();
     let model = Model::build(&file).unwrap();
     // k = 0.5 per kJ/K: 1.0 on 2 kJ/K, 0.5 on 1 kJ/K.
     assert_eq!(model.drives[0].scale, 1.0);
@@ -349,37 +351,9 @@ scale_per_kj = 0.5
 /// the nodes insulated, `sum C dT` over a run equals `scale R I^2 t`.
 #[test]
 fn a_conductor_dissipates_its_electrical_loss_shared_by_capacity() {
-    let src = r#"
-[[node]]
-name = "slot"
-capacity_j_per_k = 2000.0
-[[node]]
-name = "overhang"
-capacity_j_per_k = 1000.0
-[[boundary]]
-name = "coolant"
-value_c = 20.0
-[[conductance]]
-between = ["slot", "coolant"]
-g_w_per_k = 1e-9
-[[conductance]]
-between = ["overhang", "coolant"]
-g_w_per_k = 1e-9
-[[source]]
-name = "slot"
-node = "slot"
-input = "current"
-r0_ohm = 0.01
-[[source]]
-name = "overhang"
-node = "overhang"
-input = "current"
-r0_ohm = 0.01
-[[conductor]]
-name = "winding"
-sources = ["slot", "overhang"]
-scale = 1.5
-"#;
+    let src = format!(
+        "{SLOT_AND_OVERHANG}[[conductor]]\nname = \"winding\"\nsources = [\"slot\", \"overhang\"]\nscale = 1.5\n"
+    );
     let current_a = 20.0;
     let seconds = 600;
     let run = |file: &ModelFile| -> Vec<f64> {
@@ -397,7 +371,7 @@ scale = 1.5
             .clone()
     };
     let joule_j = 1.5 * 0.01 * current_a * current_a * seconds as f64;
-    let mut file = ModelFile::parse(src, "conductor.toml").unwrap();
+    let mut file = ModelFile::parse(&src, "conductor.toml").unwrap();
     for capacities in [[2000.0, 1000.0], [5000.0, 300.0]] {
         access_param(&mut file, "capacity.slot", Some(capacities[0])).unwrap();
         access_param(&mut file, "capacity.overhang", Some(capacities[1])).unwrap();
