@@ -182,3 +182,83 @@ fn the_firmware_crates_carry_what_codegen_makes_of_their_models() {
         );
     }
 }
+
+/// A `[[conductor]]` reaches the firmware as the scales it stands for:
+/// codegen of a winding split into slot (2 kJ/K) and overhang (1 kJ/K)
+/// with one conductor of scale 1.5 writes the same module as the same
+/// file with each source's scale written out (1.0 and 0.5).
+#[test]
+fn a_conductor_generates_the_firmware_of_its_explicit_scales() {
+    let base = r#"
+name = "split-winding"
+[[node]]
+name = "slot"
+capacity_j_per_k = 2000.0
+critical_c = 155.0
+[[node]]
+name = "overhang"
+capacity_j_per_k = 1000.0
+critical_c = 155.0
+[[node]]
+name = "housing"
+capacity_j_per_k = 900.0
+[[boundary]]
+name = "ambient"
+value_c = 20.0
+[[conductance]]
+between = ["slot", "overhang"]
+g_w_per_k = 8.0
+[[conductance]]
+between = ["slot", "housing"]
+g_w_per_k = 20.0
+[[conductance]]
+between = ["housing", "ambient"]
+g_w_per_k = 1.0
+[[source]]
+name = "slot"
+node = "slot"
+input = "current"
+r0_ohm = 0.01
+alpha_per_k = 0.0039
+SLOT_SCALE[[source]]
+name = "overhang"
+node = "overhang"
+input = "current"
+r0_ohm = 0.01
+alpha_per_k = 0.0039
+OVERHANG_SCALE"#;
+    let tmp = tempfile::TempDir::new().unwrap();
+    let generate = |name: &str, text: String| -> String {
+        let path = tmp.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let out = cargo_bin_cmd!("coil-thermal")
+            .arg("codegen")
+            .arg("--model")
+            .arg(&path)
+            .args(["--sensor", "housing", "--out", "-"])
+            .assert()
+            .success();
+        String::from_utf8(out.get_output().stdout.clone()).unwrap()
+    };
+    let conductor = generate(
+        "conductor.toml",
+        base.replace("SLOT_SCALE", "").replace(
+            "OVERHANG_SCALE",
+            "[[conductor]]\nname = \"winding\"\nsources = [\"slot\", \"overhang\"]\nscale = 1.5\n",
+        ),
+    );
+    let explicit = generate(
+        "explicit.toml",
+        base.replace("SLOT_SCALE", "scale = 1.0\n")
+            .replace("OVERHANG_SCALE", "scale = 0.5\n"),
+    );
+    // The files differ only in their names in the header comment.
+    let body = |t: &str| -> String {
+        t.lines()
+            .filter(|l| !l.contains("conductor.toml") && !l.contains("explicit.toml"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(body(&conductor), body(&explicit));
+    assert!(conductor.contains("from_parts"), "{conductor}");
+}
