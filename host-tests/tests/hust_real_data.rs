@@ -245,7 +245,7 @@ fn channel_corrected_scores(trace: &Path, estimate: &Path) -> Vec<(f64, f64)> {
         v[k] - v[a..b].iter().sum::<f64>() / (b - a) as f64
     };
     let shift: Vec<f64> = (0..rows)
-        .map(|k| (departure(&t[2], k) + departure(&t[3], k)) / 2.0)
+        .map(|k| (departure(t[2], k) + departure(t[3], k)) / 2.0)
         .collect();
     (0..2)
         .map(|s| {
