@@ -940,7 +940,7 @@ impl Model {
                 }
             };
             let scale = match (s.scale, s.scale_per_kj, conductor_scales[k]) {
-                (None, None, Some((k, _))) => k,
+                (None, None, Some((share, _))) => share,
                 (_, _, Some((_, conductor))) => bail!(
                     "{}: its [[conductor]] `{conductor}` sets its scale; give neither scale nor scale_per_kj",
                     ctx()
