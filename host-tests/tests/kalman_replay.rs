@@ -123,6 +123,7 @@ fn bad_filter_flags_are_refused() {
         ("--process-noise-k2-per-s", "-1", "--process-noise-k2-per-s"),
         ("--disturbance", "coil,nope", "no node `nope`"),
         ("--boundary-offset", "nope", "no boundary `nope`"),
+        ("--sensor-lag-s", "0", "--sensor-lag-s"),
         (
             "--disturbance-floor-share",
             "0",

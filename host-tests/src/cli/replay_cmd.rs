@@ -354,8 +354,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let median_row_s = file.median_gap_s()?;
     // The row-rate Kalman filter runs with a disturbance or a boundary
     // offset state; otherwise the library's observer.
-    let kalman_filter =
-        !a.disturbance.is_empty() || !a.boundary_offset.is_empty() || a.noise_half_window_rows > 0;
+    let kalman_filter = !a.disturbance.is_empty()
+        || !a.boundary_offset.is_empty()
+        || a.noise_half_window_rows > 0
+        || a.sensor_lag_s.is_some();
     if !kalman_filter {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
@@ -475,6 +477,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 half_window: a.noise_half_window_rows,
                 memory: a.noise_memory_rows,
             }),
+            sensor_lag_s: a.sensor_lag_s,
             disturbance_floor_share: a.disturbance_floor_share,
         };
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
