@@ -580,6 +580,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             })).collect::<Vec<_>>(),
             "sensor_sigma_k": measurement_noise_k,
             "sensor_sigma_from": sensor_sigma_from,
+            "sensor_lag_s": a.sensor_lag_s,
             "recoveries": k.recoveries(),
             "final_disturbances_w": k.disturbances_w(),
             "final_boundary_offsets_k": a.boundary_offset.iter().map(|b| b.trim()).zip(k.boundary_offsets_k())
