@@ -607,8 +607,7 @@ impl KalmanEstimator {
                 q[(k, k)] = self.opts.disturbance_std_w.powi(2) * (1.0 - decay);
             }
             let decay = (-2.0 * dt_s / self.opts.boundary_offset_tau_s).exp();
-            let offsets = n + self.disturbances..n + self.disturbances + self.offsets;
-            for k in offsets {
+            for k in self.offset_states() {
                 q[(k, k)] = self.opts.boundary_offset_std_k.powi(2) * (1.0 - decay);
             }
             let mut h = DMatrix::<f64>::zeros(self.sensors.len(), self.states);
@@ -685,15 +684,21 @@ impl KalmanEstimator {
     /// Current boundary offset estimates \[K\], in the order of
     /// [`KalmanOptions::boundary_offsets`].
     pub fn boundary_offsets_k(&self) -> Vec<f64> {
+        self.x[self.offset_states()].to_vec()
+    }
+
+    /// The boundary offset states' indices (after the temperatures and
+    /// the disturbances; the sensor lag states follow them).
+    fn offset_states(&self) -> std::ops::Range<usize> {
         let first = self.temps.len() + self.disturbances;
-        self.x[first..first + self.offsets].to_vec()
+        first..first + self.offsets
     }
 
     /// The state sensor `j` reads: its lag state with
     /// [`KalmanOptions::sensor_lag_s`], else its node.
     fn sensed_state(&self, j: usize) -> usize {
         if self.opts.sensor_lag_s.is_some() {
-            self.temps.len() + self.disturbances + self.offsets + j
+            self.offset_states().end + j
         } else {
             self.sensors[j]
         }
@@ -704,9 +709,9 @@ impl KalmanEstimator {
     /// `boundary_offset_std_k^2` per boundary offset.
     fn prior_variances(&self) -> DVector<f64> {
         let n = self.temps.len();
-        let offsets = n + self.disturbances..n + self.disturbances + self.offsets;
+        let offsets = self.offset_states();
         DVector::from_fn(self.states, |i, _| {
-            if i >= n && i < n + self.disturbances {
+            if i >= n && i < offsets.start {
                 self.opts.disturbance_std_w.powi(2)
             } else if offsets.contains(&i) {
                 self.opts.boundary_offset_std_k.powi(2)

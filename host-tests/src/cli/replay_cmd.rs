@@ -353,7 +353,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let first_row = survey.first.as_ref().context("the trace has no row")?;
     let median_row_s = file.median_gap_s()?;
     // The row-rate Kalman filter runs with a disturbance or a boundary
-    // offset state; otherwise the library's observer.
+    // offset state, a learned sensor noise or a sensor lag; otherwise the
+    // library's observer.
     let kalman_filter = !a.disturbance.is_empty()
         || !a.boundary_offset.is_empty()
         || a.noise_half_window_rows > 0
