@@ -45,15 +45,6 @@
 //! (`do/dt = -o / tau_o + w`, stationary standard deviation `sigma_o`).
 //! It starts at 0 with variance `sigma_o^2`.
 //!
-//! # Sensor lag (`--sensor-lag-s`)
-//! A thermocouple tied into a winding reads its spot through insulation
-//! and varnish: it follows the copper with a lag of seconds, and at a load
-//! step the copper's node runs ahead of the reading. With `--sensor-lag-s
-//! TAU` each fused sensor reads its own state `s` \[degC\],
-//! `ds/dt = (T_node - s) / TAU`, instead of its node directly, so the filter
-//! predicts the lagging reading and the gate is not surprised by it. It
-//! starts at its node's temperature and has no process noise of its own.
-//!
 //! # Noise
 //! * Temperatures: white heat-flow noise, `Q_T = q dt I` with `q` in K^2/s
 //!   (`--process-noise-k2-per-s`).
@@ -311,9 +302,6 @@ pub struct KalmanOptions {
     /// Learn each sensor's noise from its own readings (see
     /// [`NoiseFromReadings`]); `measurement_noise_k` is then the floor.
     pub noise_from_readings: Option<NoiseFromReadings>,
-    /// First-order lag \[s\] of every fused sensor behind its node (see
-    /// the module docs); `None`: each sensor reads its node.
-    pub sensor_lag_s: Option<f64>,
     /// Keep each disturbance at or above `-share` times the Joule power
     /// of the sources on its nodes (after every correction, with the
     /// temperatures by their regression on it, as the firmware's heat
@@ -348,7 +336,6 @@ impl Default for KalmanOptions {
             boundary_offset_tau_s: 7200.0,
             gate: CHI2_1DOF_999,
             noise_from_readings: None,
-            sensor_lag_s: None,
             disturbance_floor_share: None,
         }
     }
@@ -376,9 +363,6 @@ impl KalmanOptions {
         pos(self.boundary_offset_std_k, "--boundary-offset-std-k")?;
         pos(self.boundary_offset_tau_s, "--boundary-offset-tau-s")?;
         pos(self.gate, "--gate")?;
-        if let Some(tau) = self.sensor_lag_s {
-            pos(tau, "--sensor-lag-s")?;
-        }
         if let Some(share) = self.disturbance_floor_share {
             if !(share.is_finite() && share >= 0.0) {
                 bail!("--disturbance-floor-share must be finite and >= 0, got {share}");
@@ -428,10 +412,8 @@ pub struct KalmanEstimator {
     info: PlantInfo,
     opts: KalmanOptions,
     /// Temperature states, then disturbance states, then boundary
-    /// offset states, then (with a sensor lag) one state per sensor.
+    /// offset states.
     states: usize,
-    /// Boundary offset states.
-    offsets: usize,
     /// Disturbance states.
     disturbances: usize,
     /// Continuous `A` and input matrix `[B | G_b | d]`.
@@ -472,12 +454,7 @@ impl KalmanEstimator {
         let n = net.nodes();
         let nd = opts.disturbances.len();
         let no = opts.boundary_offsets.len();
-        let ns = if opts.sensor_lag_s.is_some() {
-            sensor_nodes.len()
-        } else {
-            0
-        };
-        let states = n + nd + no + ns;
+        let states = n + nd + no;
         let caps = net.capacities_j_per_k();
         let mut a = DMatrix::<f64>::zeros(states, states);
         for p in net.pairs() {
@@ -531,13 +508,6 @@ impl KalmanEstimator {
             }
             a[(o, o)] = -1.0 / opts.boundary_offset_tau_s;
         }
-        if let Some(tau) = opts.sensor_lag_s {
-            for (j, &node) in sensor_nodes.iter().enumerate() {
-                let lag = n + nd + no + j;
-                a[(lag, node)] = 1.0 / tau;
-                a[(lag, lag)] = -1.0 / tau;
-            }
-        }
         let noise = opts
             .noise_from_readings
             .map(|n| vec![NoiseWatch::new(n.half_window, n.memory); sensor_nodes.len()])
@@ -572,7 +542,6 @@ impl KalmanEstimator {
             opts,
             states,
             disturbances: nd,
-            offsets: no,
             a,
             b,
             filter,
@@ -607,12 +576,12 @@ impl KalmanEstimator {
                 q[(k, k)] = self.opts.disturbance_std_w.powi(2) * (1.0 - decay);
             }
             let decay = (-2.0 * dt_s / self.opts.boundary_offset_tau_s).exp();
-            for k in self.offset_states() {
+            for k in n + self.disturbances..self.states {
                 q[(k, k)] = self.opts.boundary_offset_std_k.powi(2) * (1.0 - decay);
             }
             let mut h = DMatrix::<f64>::zeros(self.sensors.len(), self.states);
-            for j in 0..self.sensors.len() {
-                h[(j, self.sensed_state(j))] = 1.0;
+            for (j, node) in self.sensors.iter().enumerate() {
+                h[(j, *node)] = 1.0;
             }
             let r = vec![self.opts.measurement_noise_k.powi(2); self.sensors.len()];
             // Recovery returns the sensed nodes to the prior's uncertainty: the library's
@@ -627,11 +596,8 @@ impl KalmanEstimator {
             // whose noise then swings the unmeasured nodes by several K; the
             // disturbances keep learning at their own process noise.
             let mut recovery = self.prior_variances();
-            let sensed: Vec<usize> = (0..self.sensors.len())
-                .flat_map(|j| [self.sensors[j], self.sensed_state(j)])
-                .collect();
             for (i, v) in recovery.iter_mut().enumerate() {
-                if !sensed.contains(&i) {
+                if !self.sensors.contains(&i) {
                     *v = 0.0;
                 }
             }
@@ -684,39 +650,21 @@ impl KalmanEstimator {
     /// Current boundary offset estimates \[K\], in the order of
     /// [`KalmanOptions::boundary_offsets`].
     pub fn boundary_offsets_k(&self) -> Vec<f64> {
-        self.x[self.offset_states()].to_vec()
+        self.x[self.temps.len() + self.disturbances..].to_vec()
     }
 
-    /// The boundary offset states' indices (after the temperatures and
-    /// the disturbances; the sensor lag states follow them).
-    fn offset_states(&self) -> std::ops::Range<usize> {
-        let first = self.temps.len() + self.disturbances;
-        first..first + self.offsets
-    }
-
-    /// The state sensor `j` reads: its lag state with
-    /// [`KalmanOptions::sensor_lag_s`], else its node.
-    fn sensed_state(&self, j: usize) -> usize {
-        if self.opts.sensor_lag_s.is_some() {
-            self.offset_states().end + j
-        } else {
-            self.sensors[j]
-        }
-    }
-
-    /// Initial variances: `initial_std_k^2` per temperature and sensor
-    /// lag state, `disturbance_std_w^2` per disturbance,
-    /// `boundary_offset_std_k^2` per boundary offset.
+    /// Initial variances: `initial_std_k^2` per temperature,
+    /// `disturbance_std_w^2` per disturbance, `boundary_offset_std_k^2` per
+    /// boundary offset.
     fn prior_variances(&self) -> DVector<f64> {
         let n = self.temps.len();
-        let offsets = self.offset_states();
         DVector::from_fn(self.states, |i, _| {
-            if i >= n && i < offsets.start {
-                self.opts.disturbance_std_w.powi(2)
-            } else if offsets.contains(&i) {
-                self.opts.boundary_offset_std_k.powi(2)
-            } else {
+            if i < n {
                 self.opts.initial_std_k.powi(2)
+            } else if i < n + self.disturbances {
+                self.opts.disturbance_std_w.powi(2)
+            } else {
+                self.opts.boundary_offset_std_k.powi(2)
             }
         })
     }
@@ -737,13 +685,6 @@ impl Estimator for KalmanEstimator {
         let n = self.temps.len();
         let mut x = vec![0.0; self.states];
         x[..n].copy_from_slice(temps_c);
-        // A lagging sensor starts where its node starts.
-        for j in 0..self.sensors.len() {
-            let state = self.sensed_state(j);
-            if state >= n {
-                x[state] = temps_c[self.sensors[j]];
-            }
-        }
         self.filter.reset(&x, self.prior_variances().as_slice());
         self.sync_temps();
     }
@@ -1115,76 +1056,6 @@ policy = "boundary"
         assert!(floor_w > -1e-9, "{floor_w}");
         assert!(floor_cold > -0.05, "{floor_cold}");
         assert!(floor_hot > 0.5, "the model's extra heat shows: {floor_hot}");
-    }
-
-    /// A coil thermocouple that follows its coil 20 s late, on a plant
-    /// with 20 % more coil heat than the model, under 0.5 A / 3 A steps:
-    /// the filter that knows the lag (`sensor_lag_s` 20) rejects fewer
-    /// readings at the steps and keeps the coil and the unmeasured housing
-    /// closer to the plant (the independent reference) than the filter
-    /// that takes the reading for the coil itself.
-    #[test]
-    fn a_sensor_lag_state_follows_a_late_thermocouple_through_load_steps() {
-        const LAG_S: f64 = 20.0;
-        let run = |lag: Option<f64>| {
-            let model = Model::build(&ModelFile::parse(MODEL, "jacket.toml").unwrap()).unwrap();
-            let mut plant = FilePlant::new(model.clone()).unwrap();
-            let opts = KalmanOptions {
-                disturbances: vec![vec![0]],
-                disturbance_std_w: 2.0,
-                sensor_lag_s: lag,
-                ..KalmanOptions::default()
-            };
-            let mut filter = KalmanEstimator::new(model, &[0], opts).unwrap();
-            let start = [36.0, 33.0];
-            plant.reset(&start);
-            filter.reset(&start);
-            let mut rng = crate::synth::Rng::new(5);
-            let mut reading_c = start[0];
-            let (mut coil, mut housing, mut rows) = (0.0, 0.0, 0.0);
-            for k in 0..6000 {
-                let current = if (k / 500) % 2 == 0 { 3.0 } else { 0.5 };
-                plant.step(1.0, &[current * 1.2_f64.sqrt()], &[30.0], &[]);
-                reading_c += (plant.temps_c()[0] - reading_c) * (1.0 - (-1.0 / LAG_S).exp());
-                filter.predict(1.0, &[current], &[30.0], &[]);
-                filter.update(&[Measurement {
-                    node: 0,
-                    value_c: reading_c + 0.1 * rng.normal(),
-                }]);
-                if k >= 600 {
-                    coil += (filter.estimate_c()[0] - plant.temps_c()[0]).powi(2);
-                    housing += (filter.estimate_c()[1] - plant.temps_c()[1]).powi(2);
-                    rows += 1.0;
-                }
-            }
-            let rejected = filter.stats()[0].rejected;
-            ((coil / rows).sqrt(), (housing / rows).sqrt(), rejected)
-        };
-        let (coil_plain, housing_plain, rejected_plain) = run(None);
-        let (coil_lag, housing_lag, rejected_lag) = run(Some(LAG_S));
-        eprintln!(
-            "RMS error [K] coil {coil_plain:.3} -> {coil_lag:.3}, housing {housing_plain:.3} -> {housing_lag:.3}; rejected {rejected_plain} -> {rejected_lag}"
-        );
-        assert!(coil_lag < 0.5 * coil_plain, "{coil_lag} vs {coil_plain}");
-        assert!(
-            housing_lag < housing_plain,
-            "{housing_lag} vs {housing_plain}"
-        );
-        assert!(
-            rejected_lag < rejected_plain,
-            "{rejected_lag} vs {rejected_plain}"
-        );
-        let model = Model::build(&ModelFile::parse(MODEL, "jacket.toml").unwrap()).unwrap();
-        for bad in [0.0, -1.0, f64::NAN] {
-            let opts = KalmanOptions {
-                sensor_lag_s: Some(bad),
-                ..KalmanOptions::default()
-            };
-            assert!(
-                KalmanEstimator::new(model.clone(), &[0], opts).is_err(),
-                "{bad}"
-            );
-        }
     }
 
     #[test]

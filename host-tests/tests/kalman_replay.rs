@@ -123,7 +123,6 @@ fn bad_filter_flags_are_refused() {
         ("--process-noise-k2-per-s", "-1", "--process-noise-k2-per-s"),
         ("--disturbance", "coil,nope", "no node `nope`"),
         ("--boundary-offset", "nope", "no boundary `nope`"),
-        ("--sensor-lag-s", "0", "--sensor-lag-s"),
         (
             "--disturbance-floor-share",
             "0",
@@ -417,19 +416,4 @@ fn rejected_readings_are_reported_with_their_times() {
         .collect();
     assert_eq!(times, [2000.0, 2001.0], "{sensor}");
     assert_eq!(sensor["rejected"].as_u64().unwrap(), 2);
-    assert!(fused["fusion"]["sensor_lag_s"].is_null());
-    // The lag the filter ran is reported.
-    let lagged = coil_mse(
-        &p,
-        &out,
-        &[
-            "--measure",
-            "T_housing=housing",
-            "--disturbance",
-            "coil",
-            "--sensor-lag-s",
-            "5",
-        ],
-    );
-    assert_eq!(lagged["fusion"]["sensor_lag_s"], 5.0);
 }

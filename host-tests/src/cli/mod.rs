@@ -373,13 +373,6 @@ pub struct ReplayArgs {
     /// memory; with --noise-half-window-rows).
     #[arg(long, value_name = "ROWS", default_value_t = 600)]
     noise_memory_rows: usize,
-    /// Filter: each fused sensor reads its node through a first-order lag
-    /// of S seconds (a thermocouple tied into a winding follows the copper
-    /// by seconds; at a load step the node runs ahead of the reading).
-    /// Runs the Kalman filter, as --disturbance does; without it each
-    /// sensor reads its node.
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
-    sensor_lag_s: Option<f64>,
     /// Filter: keep each --disturbance at or above -SHARE times the Joule
     /// power of the sources on its nodes (0: no heat taken away, the
     /// firmware's default for its heat biases); without it no floor.

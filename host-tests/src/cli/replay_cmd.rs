@@ -353,12 +353,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let first_row = survey.first.as_ref().context("the trace has no row")?;
     let median_row_s = file.median_gap_s()?;
     // The row-rate Kalman filter runs with a disturbance or a boundary
-    // offset state, a learned sensor noise or a sensor lag; otherwise the
-    // library's observer.
-    let kalman_filter = !a.disturbance.is_empty()
-        || !a.boundary_offset.is_empty()
-        || a.noise_half_window_rows > 0
-        || a.sensor_lag_s.is_some();
+    // offset state or a learned sensor noise; otherwise the library's
+    // observer.
+    let kalman_filter =
+        !a.disturbance.is_empty() || !a.boundary_offset.is_empty() || a.noise_half_window_rows > 0;
     if !kalman_filter {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
@@ -478,7 +476,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 half_window: a.noise_half_window_rows,
                 memory: a.noise_memory_rows,
             }),
-            sensor_lag_s: a.sensor_lag_s,
             disturbance_floor_share: a.disturbance_floor_share,
         };
         let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
@@ -581,7 +578,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             })).collect::<Vec<_>>(),
             "sensor_sigma_k": measurement_noise_k,
             "sensor_sigma_from": sensor_sigma_from,
-            "sensor_lag_s": a.sensor_lag_s,
             "recoveries": k.recoveries(),
             "final_disturbances_w": k.disturbances_w(),
             "final_boundary_offsets_k": a.boundary_offset.iter().map(|b| b.trim()).zip(k.boundary_offsets_k())
