@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The HUST thermocouple channel's shifts (docs/hust.md, "The thermocouple
-# channel's shifts"), two tables from the replays `reproduce.sh` wrote
+# channel's shifts"), three tables from the replays `reproduce.sh` wrote
 # (target/hust/seven_fused_N.json and .csv; reproduce.sh runs this last).
 #
 # 1. Where the seven-node fused filter's gate refuses `endwind_1` readings
@@ -128,3 +128,34 @@ for n in $PROFILES; do
       }
     }' "$(trace "$n")" "$est"
 done
+echo
+echo "Profile 0 against its file as published (smoothed)"
+echo
+# 3. Profile 0's file holds every temperature through an exponential moving
+#    average (alpha 0.05 per row; ../shared/data/hust-ipmsm/README.md).
+#    The tables score against the readings with it inverted. Here the fused
+#    estimate goes through the same average and is scored against the
+#    columns as published: like with like, with the thermocouples' scatter
+#    (0.5 K on this run) averaged out of both.
+est="$OUT/seven_fused_0.csv"
+need "$est"
+echo "| sensor | inverted readings: MSE [K^2] / max [K] | published (smoothed) readings, estimate smoothed alike: MSE [K^2] / max [K] |"
+echo "|---|---|---|"
+awk -F, '
+  FNR == 1 { for (i = 1; i <= NF; i++) col[FILENAME, $i] = i; next }
+  FILENAME == ARGV[1] { k = FNR - 2; y1[k] = $col[FILENAME, "activewind_1"]; y2[k] = $col[FILENAME, "activewind_2"]; next }
+  FILENAME == ARGV[2] { k = FNR - 2; r1[k] = $col[FILENAME, "activewind_1"]; r2[k] = $col[FILENAME, "activewind_2"]; next }
+  { k = FNR - 2; rows = k + 1; e1[k] = $col[FILENAME, "active_winding"]; e2[k] = $col[FILENAME, "slot_centre"] }
+  END {
+    for (s = 1; s <= 2; s++) {
+      m = 0; x = 0; ms = 0; xs = 0
+      sm = (s == 1) ? e1[0] : e2[0]
+      for (k = 1; k < rows; k++) {
+        e = (s == 1) ? e1[k] : e2[k]; sm = 0.95 * sm + 0.05 * e
+        d = e - ((s == 1) ? r1[k] : r2[k]); ds = sm - ((s == 1) ? y1[k] : y2[k])
+        m += d * d; ms += ds * ds
+        if (d * d > x * x) x = d; if (ds * ds > xs * xs) xs = ds
+      }
+      printf "| activewind_%d | %.2f / %.2f | %.2f / %.2f |\n", s, m / (rows - 1), (x < 0 ? -x : x), ms / (rows - 1), (xs < 0 ? -xs : xs)
+    }
+  }' "$DIR/id_0.csv" "$(trace 0)" "$est"
