@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The HUST thermocouple channel's shifts (docs/hust.md, "The thermocouple
-# channel's shifts"), three tables from the replays `reproduce.sh` wrote
+# channel's shifts"), four tables from the replays `reproduce.sh` wrote
 # (target/hust/seven_fused_N.json and .csv; reproduce.sh runs this last).
 #
 # 1. Where the seven-node fused filter's gate refuses `endwind_1` readings
@@ -159,3 +159,32 @@ awk -F, '
       printf "| activewind_%d | %.2f / %.2f | %.2f / %.2f |\n", s, m / (rows - 1), (x < 0 ? -x : x), ms / (rows - 1), (xs < 0 ? -xs : xs)
     }
   }' "$DIR/id_0.csv" "$(trace 0)" "$est"
+echo
+echo "The channel at rotor starts and stops"
+echo
+# 4. Every start (speed from below 50 rpm to above 500 rpm within 10 s) and
+#    stop (the reverse) of the rotor: the jump of the yoke, end cap and
+#    water outlet readings (mean of rows k+3..k+8 minus mean of k-8..k-3,
+#    [K]). The stator thermocouples move together, the water outlet does
+#    not: the channel's reading depends on what the drive is doing.
+echo "| profile | row | rotor | outer_yoke [K] | endcap [K] | water_outlet [K] |"
+echo "|---|---|---|---|---|---|"
+for n in $PROFILES; do
+  awk -F, -v n="$n" '
+    NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+    {
+      k = NR - 2; rows = k + 1
+      s = $col["speed"]; sp[k] = (s < 0) ? -s : s
+      yk[k] = $col["outer_yoke"]; ec[k] = $col["endcap"]; wo[k] = $col["water_outlet"]
+    }
+    function mean(x, a, b,   j, t) { t = 0; for (j = a; j <= b; j++) t += x[j]; return t / (b - a + 1) }
+    function jump(x, k) { return mean(x, k + 3, k + 8) - mean(x, k - 8, k - 3) }
+    END {
+      for (k = 20; k < rows - 20; k++) {
+        if (sp[k - 1] < 50 && sp[k] >= 50 && mean(sp, k + 5, k + 10) > 500) what = "start"
+        else if (sp[k - 1] >= 50 && sp[k] < 50 && mean(sp, k - 10, k - 5) > 500) what = "stop"
+        else continue
+        printf "| %s | %d | %s | %+.2f | %+.2f | %+.2f |\n", n, k, what, jump(yk, k), jump(ec, k), jump(wo, k)
+      }
+    }' "$(trace "$n")"
+done
