@@ -7,7 +7,8 @@
 # network (hust-published.toml) and each calibrated model open loop and
 # with endwind_1 fused by the Kalman filter; last, the gate's rejection
 # bursts and the fused scores against the readings with the thermocouple
-# channel's shifts taken out (channel_shifts.sh).
+# channel's shifts taken out (channel_shifts.sh), and the end winding
+# calibrated three ways (end_winding_variants.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -141,3 +142,8 @@ for n in $SCORE_PROFILES; do row "$n" scored; done
 # shifts taken out (docs/hust.md, "The thermocouple channel's shifts").
 echo
 host-tests/hust/channel_shifts.sh
+
+# The end winding three ways, against every goal of issue 18 (docs/hust.md,
+# "The end winding, three ways").
+echo
+host-tests/hust/end_winding_variants.sh
