@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The HUST thermocouple channel's shifts (docs/hust.md, "The thermocouple
-# channel's shifts"), four tables from the replays `reproduce.sh` wrote
+# channel's shifts"), five tables from the replays `reproduce.sh` wrote
 # (target/hust/seven_fused_N.json and .csv; reproduce.sh runs this last).
 #
 # 1. Where the seven-node fused filter's gate refuses `endwind_1` readings
@@ -188,3 +188,57 @@ for n in $PROFILES; do
       }
     }' "$(trace "$n")"
 done
+echo
+echo "The instruments at rest"
+echo
+# 5. Rest: rows under 20 A and 100 rpm at least 1500 rows after the last
+#    row over 30 A or 200 rpm. There the yoke carries no loss and is bound
+#    to the water by about 134 W/K (the fit), so its difference from the
+#    water outlet is mostly the instruments' (some is the rotor's stored
+#    heat). Open loop: the seven-node model's mean error (estimate minus
+#    reading) over the rows under 50 A, yoke and the two active-winding
+#    sensors (rows after the first).
+echo "| profile | rest rows | at rest: outer_yoke - water_outlet [K] | at rest: activewind_1 / activewind_2 - outer_yoke [K] | open loop under 50 A, mean error: outer_yoke / activewind_1 / activewind_2 [K] |"
+echo "|---|---|---|---|---|"
+for n in $PROFILES; do
+  est="$OUT/seven_open_$n.csv"
+  need "$est"
+  awk -F, -v n="$n" '
+    FNR == 1 { for (i = 1; i <= NF; i++) col[FILENAME, $i] = i; next }
+    FILENAME == ARGV[1] {
+      k = FNR - 2; rows = k + 1
+      s = $col[FILENAME, "speed"]; sp[k] = (s < 0) ? -s : s
+      cur[k] = sqrt($col[FILENAME, "IdFbk"]^2 + $col[FILENAME, "IqFbk"]^2)
+      wo[k] = $col[FILENAME, "water_outlet"]; yk[k] = $col[FILENAME, "outer_yoke"]
+      a1[k] = $col[FILENAME, "activewind_1"]; a2[k] = $col[FILENAME, "activewind_2"]
+      next
+    }
+    { k = FNR - 2; ey[k] = $col[FILENAME, "stator_yoke"]; e1[k] = $col[FILENAME, "active_winding"]; e2[k] = $col[FILENAME, "slot_centre"] }
+    END {
+      last = -1e9
+      for (k = 0; k < rows; k++) {
+        if (cur[k] > 30 || sp[k] > 200) last = k
+        if (k - last > 1500 && cur[k] < 20 && sp[k] < 100) { r++; dw += yk[k] - wo[k]; d1 += a1[k] - yk[k]; d2 += a2[k] - yk[k] }
+        if (k > 0 && cur[k] < 50) { q++; oy += ey[k] - yk[k]; o1 += e1[k] - a1[k]; o2 += e2[k] - a2[k] }
+      }
+      rest = r ? sprintf("%+.2f | %+.2f / %+.2f", dw / r, d1 / r, d2 / r) : "- | -"
+      open = q ? sprintf("%+.2f / %+.2f / %+.2f", oy / q, o1 / q, o2 / q) : "-"
+      printf "| %s | %d | %s | %s |\n", n, r, rest, open
+    }' "$(trace "$n")" "$est"
+done
+# Profile 0 after 4000 s (rest but for a few amperes): the yoke against the
+# water outlet, both through a 61-row centred mean (the chiller cycles the
+# water by about 1 K over minutes): slope and correlation at no lag.
+awk -F, '
+  NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+  NR - 2 >= 4000 { m++; w[m] = $col["water_outlet"]; y[m] = $col["outer_yoke"] }
+  END {
+    for (k = 1; k <= m; k++) {
+      a = (k - 30 < 1) ? 1 : k - 30; b = (k + 30 > m) ? m : k + 30; sw = 0; sy = 0
+      for (j = a; j <= b; j++) { sw += w[j]; sy += y[j] }
+      W[k] = sw / (b - a + 1); Y[k] = sy / (b - a + 1); mw += W[k]; my += Y[k]
+    }
+    mw /= m; my /= m
+    for (k = 1; k <= m; k++) { cwy += (W[k] - mw) * (Y[k] - my); cww += (W[k] - mw)^2; cyy += (Y[k] - my)^2 }
+    printf "\nProfile 0 from 4000 s: outer_yoke follows water_outlet with slope %.2f (correlation %.2f), %.2f K above it on average\n", cwy / cww, cwy / sqrt(cww * cyy), my - mw
+  }' "$(trace 0)"
