@@ -12,11 +12,11 @@
 #              a third of the winding (the model file's 1.7 kJ/K), links
 #              fitted within the committed bounds.
 #
-# Each is calibrated as reproduce.sh calibrates the committed one, then
-# replayed open loop and with endwind_1 fused on every profile. Run
-# reproduce.sh first (it writes the published network's scores and the
-# inverted profile 0 this script reads). Writes only under
-# target/hust/variants/.
+# The committed one is read from what reproduce.sh wrote; the other two
+# are calibrated as reproduce.sh calibrates it, then replayed open loop and
+# with endwind_1 fused on every profile. Run reproduce.sh first (it also
+# writes the published network's scores and the inverted profile 0 this
+# script reads). Writes only under target/hust/variants/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
@@ -46,17 +46,16 @@ sed -e 's/^capacity.end_winding=.*/capacity.end_winding=30:6000/' \
   -e 's/^conductance.slot_centre-end_winding=.*/conductance.slot_centre-end_winding=0.1:60/' \
   "$PARAMS" > "$VAR/params_freed.txt"
 grep -v '^capacity.end_winding=' "$PARAMS" > "$VAR/params_third.txt"
-cp "$PARAMS" "$VAR/params_committed.txt"
 
 # MSE and max error of truth sensor number $2 (0-based) in JSON $1.
 field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f2; }
+join() { local IFS=';'; echo "${*:-none}" | sed 's/;/; /g'; }
 
-echo "| end winding | fitted parameters at a bound | open loop not better than published | fused over 1 K^2 or 3 K | held-out fused MSE sum, activewind_1 / activewind_2 [K^2] | calibration [s] |"
-echo "|---|---|---|---|---|---|"
-for v in committed freed third; do
-  traces=()
+# Calibrates variant $1 as reproduce.sh calibrates the committed model and
+# replays it open loop and fused on every profile, into $VAR/$1*.
+calibrate_and_replay() {
+  local v=$1 traces=() n t
   for n in $FIT_PROFILES; do traces+=(--trace "$(trace "$n")"); done
-  start=$(date +%s.%N)
   "$CT" calibrate --model "$MODEL" "${traces[@]}" --sample-period-s 1 \
     --measure activewind_1=active_winding --measure endwind_1=end_winding \
     --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
@@ -64,24 +63,31 @@ for v in committed freed third; do
     --params "$(grep -v '^#' "$VAR/params_$v.txt" | paste -sd, -)" \
     --stride 10 --max-iterations 120 --weighting traces --no-progress \
     --out "$VAR/$v.toml" > "$VAR/$v.txt"
-  end=$(date +%s.%N)
-  bounds=$(grep -o '^[a-z_.|0-9-]* .*AT \(LOWER\|UPPER\) BOUND' "$VAR/$v.txt" | awk '{print $1}' | sed 's/^conductance\.//; s/^capacity\./C /' | paste -sd';' - | sed 's/;/; /g')
-  nb=$(grep -c 'AT \(LOWER\|UPPER\) BOUND' "$VAR/$v.txt" || true)
-  open_lost=(); fused_over=(); sum1=0; sum2=0
   for n in $FIT_PROFILES $HELD_OUT; do
     t=$(trace "$n")
-    need "$OUT/published_$n.json"
     "$CT" replay --model "$VAR/$v.toml" --trace "$t" --sample-period-s 1 \
       --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
       --json > "$VAR/${v}_open_$n.json"
     "$CT" replay --model "$VAR/$v.toml" --trace "$t" --sample-period-s 1 \
       --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
       "${FUSE7[@]}" --json > "$VAR/${v}_fused_$n.json"
+  done
+}
+
+# One row of the table: variant $1, its calibration log $2, and its replays
+# $3_open_N.json and $3_fused_N.json.
+row() {
+  local v=$1 log=$2 runs=$3 n s bounds nb open_lost=() fused_over=() sum1=0 sum2=0
+  bounds=$(grep -o '^[a-z_.|0-9-]* .*AT \(LOWER\|UPPER\) BOUND' "$log" | awk '{print $1}' | sed 's/^conductance\.//; s/^capacity\./C /' | paste -sd';' - | sed 's/;/; /g')
+  nb=$(grep -c 'AT \(LOWER\|UPPER\) BOUND' "$log" || true)
+  for n in $FIT_PROFILES $HELD_OUT; do
+    need "$OUT/published_$n.json"
     for s in 0 1; do
+      local pub open mse max name
       pub=$(field "$OUT/published_$n.json" mse_k2 "$s")
-      open=$(field "$VAR/${v}_open_$n.json" mse_k2 "$s")
-      mse=$(field "$VAR/${v}_fused_$n.json" mse_k2 "$s")
-      max=$(field "$VAR/${v}_fused_$n.json" max_abs_error_k "$s")
+      open=$(field "${runs}_open_$n.json" mse_k2 "$s")
+      mse=$(field "${runs}_fused_$n.json" mse_k2 "$s")
+      max=$(field "${runs}_fused_$n.json" max_abs_error_k "$s")
       name="$n aw$((s + 1))"
       if awk -v a="$open" -v b="$pub" 'BEGIN { exit !(a >= b) }'; then
         open_lost+=("$name $(awk -v a="$open" -v b="$pub" 'BEGIN { printf "%.2f vs %.2f", a, b }')")
@@ -95,8 +101,18 @@ for v in committed freed third; do
       esac
     done
   done
-  join() { local IFS=';'; echo "${*:-none}" | sed 's/;/; /g'; }
-  printf "| %s | %s: %s | %s | %s | %.2f / %.2f | %.1f |\n" "$v" "$nb" "$bounds" \
+  # The calibration's own time, from the first line of its log.
+  printf "| %s | %s: %s | %s | %s | %.2f / %.2f | %s |\n" "$v" "$nb" "$bounds" \
     "$(join "${open_lost[@]}")" "$(join "${fused_over[@]}")" "$sum1" "$sum2" \
-    "$(awk -v a="$start" -v b="$end" 'BEGIN { print b - a }')"
+    "$(head -1 "$log" | grep -o '[0-9.]* s (' | cut -d' ' -f1)"
+}
+
+echo "| end winding | fitted parameters at a bound | open loop not better than published | fused over 1 K^2 or 3 K | held-out fused MSE sum, activewind_1 / activewind_2 [K^2] | calibration [s] |"
+echo "|---|---|---|---|---|---|"
+# The committed model as reproduce.sh calibrated and replayed it.
+need "$OUT/hust_motor_slot_fitted.txt"
+row committed "$OUT/hust_motor_slot_fitted.txt" "$OUT/seven"
+for v in freed third; do
+  calibrate_and_replay "$v"
+  row "$v" "$VAR/$v.txt" "$VAR/$v"
 done
