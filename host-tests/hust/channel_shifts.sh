@@ -12,11 +12,11 @@
 #     than 80 A within rows a-10..a+5;
 #   jump of a column: mean of rows a+3..a+5 minus mean of rows a-6..a-4 [K];
 #   channel: outer_yoke and endcap jump by more than 0.25 and 0.2 K, both the
-#     way endwind_1 jumps. The yoke (1.6 kJ/K fitted) and the end cap
-#     (9 kJ/K) cannot move that far in 6-9 s on their own heat (0.25 K of
-#     yoke alone is 60 W net for 6 s, 0.2 K of end cap 300 W) and the water
-#     outlet, read by another instrument, does not move: the thermocouple
-#     channel shifted, not the motor.
+#     way endwind_1 jumps. The end caps (3.4 kJ/K) cannot move that far in
+#     6-9 s on their own heat (0.2 K in 6 s is 110 W net, 14 K across their
+#     8 W/K of links), the yoke with them, and the water outlet, read by
+#     another instrument, does not move: the thermocouple channel shifted,
+#     not the motor.
 # The last column is the control: the share of all rows (every 5th, 10 s
 # from either end) that meet the channel test, bursts or not.
 #
@@ -26,9 +26,9 @@
 #
 # The shift at row k is the mean, over `outer_yoke` and `endcap`, of each
 # reading's departure from its own 61-row centred mean (30 rows either
-# side, fewer at the ends). Those two thermocouples sit on 1.6 and 9 kJ/K
-# of iron and aluminium that move by tenths of a kelvin a minute on their
-# own heat, so their departures from a one-minute mean are the channel's
+# side, fewer at the ends). Those two thermocouples sit on 1-1.6 and 3.4
+# kJ/K of iron and aluminium that move by tenths of a kelvin a minute on
+# their own heat, so their departures from a one-minute mean are the channel's
 # (the water outlet, another instrument, does not share them). The
 # corrected reference of an active-winding sensor is its reading minus
 # that shift. This is a reading of the instrument, not of the motor: the

@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Reproduces the HUST results of README ("The real motor") and docs/hust.md: calibrates the two models
 # (host-tests/models/hust_motor.toml, six nodes, and hust_motor_slot.toml,
-# seven nodes with the slot centre, the winding one conductor with the
-# electrical copper loss shared by capacity, and the AC copper loss in the
-# slots only), then scores on every profile the authors' full published
+# seven nodes with the slot centre and the end winding's sensed spot, the
+# winding one conductor with the electrical copper loss shared by capacity,
+# the AC copper loss in the slots only, and the end caps' capacity set
+# from their materials), then scores on every profile the authors' full published
 # network (hust-published.toml) and each calibrated model open loop and
 # with endwind_1 fused by the Kalman filter; last, the gate's rejection
 # bursts and the fused scores against the readings with the thermocouple
-# channel's shifts taken out (channel_shifts.sh), and the end winding
-# calibrated three ways (end_winding_variants.sh).
+# channel's shifts taken out (channel_shifts.sh), and the committed
+# seven-node model against its alternatives (variants.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -143,7 +144,8 @@ for n in $SCORE_PROFILES; do row "$n" scored; done
 echo
 host-tests/hust/channel_shifts.sh
 
-# The end winding three ways, against every goal of issue 18 (docs/hust.md,
-# "The end winding, three ways").
+# The committed seven-node model against its alternatives, each against
+# every goal of issue 18 (docs/hust.md, "The committed model against its
+# alternatives").
 echo
-host-tests/hust/end_winding_variants.sh
+host-tests/hust/variants.sh

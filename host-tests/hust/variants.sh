@@ -1,22 +1,25 @@
 #!/usr/bin/env bash
-# The seven-node model's end winding three ways, scored against every goal
-# of issue 18 side by side (docs/hust.md, "The end winding, three ways"):
+# The seven-node model against its alternatives, each scored against every
+# goal of issue 18 side by side (docs/hust.md, "The committed model against
+# its alternatives"):
 #
-#   committed: host-tests/hust/params_slot.txt as it is (the end winding a
-#              copper node, capacity 0.3-6 kJ/K, axial copper links 2-60
-#              and 1-60 W/K);
-#   freed:     the same with the end winding's bounds opened to what a
-#              sensed spot of the overhang could be (30 J/K, links from
-#              0.1 W/K);
-#   a third:   the end winding's capacity not fitted but set from geometry,
-#              a third of the winding (the model file's 1.7 kJ/K), links
-#              fitted within the committed bounds.
+#   committed:        host-tests/hust/params_slot.txt and the model file as
+#                     they are: the end winding the sensed spot (30 J/K to
+#                     6 kJ/K, one link from 0.1 W/K to both slot nodes), the
+#                     end caps' capacity set from their materials (3.4 kJ/K);
+#   end cap 2.2 kJ/K, the ends of that materials range;
+#   end cap 5.2 kJ/K:
+#   end cap fitted:   the end caps' capacity fitted instead, within the
+#                     earlier 0.9-9 kJ/K (1-10 kg of aluminium);
+#   before:           the model as committed before the spot: the end winding
+#                     a copper node (0.3-6 kJ/K, axial links from 2 and
+#                     1 W/K, each fitted) and the end cap fitted (0.9-9 kJ/K).
 #
-# The committed one is read from what reproduce.sh wrote; the other two
-# are calibrated as reproduce.sh calibrates it, then replayed open loop and
-# with endwind_1 fused on every profile. Run reproduce.sh first (it also
-# writes the published network's scores and the inverted profile 0 this
-# script reads). Writes only under target/hust/variants/.
+# The committed one is read from what reproduce.sh wrote; the others are
+# calibrated as reproduce.sh calibrates it, then replayed open loop and with
+# endwind_1 fused on every profile. Run reproduce.sh first (it also writes
+# the published network's scores and the inverted profile 0 this script
+# reads). Writes only under target/hust/variants/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
@@ -41,34 +44,48 @@ FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,
   --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
   --disturbance-floor-share 0)
 
-sed -e 's/^capacity.end_winding=.*/capacity.end_winding=30:6000/' \
-  -e 's/^conductance.active_winding-end_winding=.*/conductance.active_winding-end_winding=0.1:60/' \
-  -e 's/^conductance.slot_centre-end_winding=.*/conductance.slot_centre-end_winding=0.1:60/' \
-  "$PARAMS" > "$VAR/params_freed.txt"
-grep -v '^capacity.end_winding=' "$PARAMS" > "$VAR/params_third.txt"
+# The model file with node $1's capacity set to $2 J/K (stdin to stdout).
+set_capacity() { sed "/^name = \"$1\"/,/^capacity_j_per_k/ s/^capacity_j_per_k = .*/capacity_j_per_k = $2/"; }
+# The model file with the conductance between $1 and $2 set to $3 W/K.
+set_link() { sed "/^between = \[\"$1\", \"$2\"\]/{n;s/^g_w_per_k = .*/g_w_per_k = $3/;}"; }
+
+set_capacity endcap 2200.0 < "$MODEL" > "$VAR/endcap_2.2.toml"
+set_capacity endcap 5200.0 < "$MODEL" > "$VAR/endcap_5.2.toml"
+cp "$PARAMS" "$VAR/params_endcap_2.2.txt"
+cp "$PARAMS" "$VAR/params_endcap_5.2.txt"
+cp "$MODEL" "$VAR/endcap_fitted.toml"
+{ cat "$PARAMS"; echo "capacity.endcap=900:9000"; } > "$VAR/params_endcap_fitted.txt"
+# Before: the first guesses and bounds of the copper-node end winding.
+set_capacity end_winding 1700.0 < "$MODEL" | set_capacity endcap 3000.0 |
+  set_link active_winding end_winding 12.0 | set_link slot_centre end_winding 5.0 > "$VAR/before.toml"
+sed -e 's/^capacity.end_winding=.*/capacity.end_winding=300:6000/' \
+  -e 's/^conductance.active_winding-end_winding|.*/conductance.active_winding-end_winding=2:60\
+conductance.slot_centre-end_winding=1:60/' "$PARAMS" > "$VAR/params_before.txt"
+echo "capacity.endcap=900:9000" >> "$VAR/params_before.txt"
 
 # MSE and max error of truth sensor number $2 (0-based) in JSON $1.
 field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f2; }
 join() { local IFS=';'; echo "${*:-none}" | sed 's/;/; /g'; }
 
-# Calibrates variant $1 as reproduce.sh calibrates the committed model and
-# replays it open loop and fused on every profile, into $VAR/$1*.
+# Calibrates variant $1 (model $VAR/$1.toml, bounds $VAR/params_$1.txt) as
+# reproduce.sh calibrates the committed model and replays it open loop and
+# fused on every profile, into $VAR/$1*.
 calibrate_and_replay() {
   local v=$1 traces=() n t
   for n in $FIT_PROFILES; do traces+=(--trace "$(trace "$n")"); done
-  "$CT" calibrate --model "$MODEL" "${traces[@]}" --sample-period-s 1 \
+  "$CT" calibrate --model "$VAR/$v.toml" "${traces[@]}" --sample-period-s 1 \
     --measure activewind_1=active_winding --measure endwind_1=end_winding \
     --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
     --measure activewind_2=slot_centre --init 'mean(slotbottom,outer_yoke)=stator_teeth' \
     --params "$(grep -v '^#' "$VAR/params_$v.txt" | paste -sd, -)" \
     --stride 10 --max-iterations 120 --weighting traces --no-progress \
-    --out "$VAR/$v.toml" > "$VAR/$v.txt"
+    --out "$VAR/${v}_fitted.toml" > "$VAR/$v.txt"
   for n in $FIT_PROFILES $HELD_OUT; do
     t=$(trace "$n")
-    "$CT" replay --model "$VAR/$v.toml" --trace "$t" --sample-period-s 1 \
+    "$CT" replay --model "$VAR/${v}_fitted.toml" --trace "$t" --sample-period-s 1 \
       --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
       --json > "$VAR/${v}_open_$n.json"
-    "$CT" replay --model "$VAR/$v.toml" --trace "$t" --sample-period-s 1 \
+    "$CT" replay --model "$VAR/${v}_fitted.toml" --trace "$t" --sample-period-s 1 \
       --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
       "${FUSE7[@]}" --json > "$VAR/${v}_fused_$n.json"
   done
@@ -77,9 +94,11 @@ calibrate_and_replay() {
 # One row of the table: variant $1, its calibration log $2, and its replays
 # $3_open_N.json and $3_fused_N.json.
 row() {
-  local v=$1 log=$2 runs=$3 n s bounds nb open_lost=() fused_over=() sum1=0 sum2=0
+  local v=$1 log=$2 runs=$3 n s bounds nb open_lost=() fused_over=() sum1=0 sum2=0 rmse
   bounds=$(grep -o '^[a-z_.|0-9-]* .*AT \(LOWER\|UPPER\) BOUND' "$log" | awk '{print $1}' | sed 's/^conductance\.//; s/^capacity\./C /' | paste -sd';' - | sed 's/;/; /g')
   nb=$(grep -c 'AT \(LOWER\|UPPER\) BOUND' "$log" || true)
+  # The fit's cost: the fit profiles' squared RMSEs (each weighs the same).
+  rmse=$(awk '/^[^ ].*\.csv  / { s += $(NF - 1) ^ 2 } END { printf "%.2f", s }' "$log")
   for n in $FIT_PROFILES $HELD_OUT; do
     need "$OUT/published_$n.json"
     for s in 0 1; do
@@ -102,17 +121,17 @@ row() {
     done
   done
   # The calibration's own time, from the first line of its log.
-  printf "| %s | %s: %s | %s | %s | %.2f / %.2f | %s |\n" "$v" "$nb" "$bounds" \
+  printf "| %s | %s: %s | %s | %s | %s | %.2f / %.2f | %s |\n" "$v" "$nb" "$bounds" "$rmse" \
     "$(join "${open_lost[@]}")" "$(join "${fused_over[@]}")" "$sum1" "$sum2" \
     "$(head -1 "$log" | grep -o '[0-9.]* s (' | cut -d' ' -f1)"
 }
 
-echo "| end winding | fitted parameters at a bound | open loop not better than published | fused over 1 K^2 or 3 K | held-out fused MSE sum, activewind_1 / activewind_2 [K^2] | calibration [s] |"
-echo "|---|---|---|---|---|---|"
+echo "| variant | fitted parameters at a bound | fit cost, sum of squared RMSEs [K^2] | open loop not better than published | fused over 1 K^2 or 3 K | held-out fused MSE sum, activewind_1 / activewind_2 [K^2] | calibration [s] |"
+echo "|---|---|---|---|---|---|---|"
 # The committed model as reproduce.sh calibrated and replayed it.
 need "$OUT/hust_motor_slot_fitted.txt"
 row committed "$OUT/hust_motor_slot_fitted.txt" "$OUT/seven"
-for v in freed third; do
+for v in endcap_2.2 endcap_5.2 endcap_fitted before; do
   calibrate_and_replay "$v"
   row "$v" "$VAR/$v.txt" "$VAR/$v"
 done
