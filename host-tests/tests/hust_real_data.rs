@@ -523,7 +523,8 @@ fn published_model_file_replays_the_transcription() {
 
 /// The committed seven-node fitted model is what `reproduce.sh` gives
 /// (profiles 0 inverted, 1 3 5 9 11; bounds from `hust/params_slot.txt`),
-/// in under a minute.
+/// in under a minute, and every parameter the refit leaves on a bound has
+/// a physical reason written beside it in the committed file.
 #[test]
 fn seven_node_calibration_reproduces_the_committed_fitted_model() {
     let Some(dir) = data_dir() else { return };
@@ -564,15 +565,37 @@ fn seven_node_calibration_reproduces_the_committed_fitted_model() {
         access_param(&mut fitted, "conductor.winding.scale", None).unwrap(),
         1.5
     );
-    let mut committed =
-        ModelFile::load(Path::new(&here("models/hust_motor_slot_fitted.toml"))).unwrap();
+    let committed_path = here("models/hust_motor_slot_fitted.toml");
+    let mut committed = ModelFile::load(Path::new(&committed_path)).unwrap();
+    let mut at_bound = Vec::new();
     for p in &params {
-        let name = p.rsplit_once('=').unwrap().0;
+        let (name, range) = p.rsplit_once('=').unwrap();
         let a = access_param(&mut fitted, name, None).unwrap();
         let b = access_param(&mut committed, name, None).unwrap();
         assert!(
             (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
             "{name}: refitted {a} vs committed {b}"
         );
+        let (lo, hi) = range.split_once(':').unwrap();
+        let on = |bound: &str| {
+            let bound: f64 = bound.parse().unwrap();
+            (a - bound).abs() <= 1e-9 * bound.abs().max(1e-6)
+        };
+        if on(lo) || on(hi) {
+            at_bound.push(name);
+        }
     }
+    // Issue 18's third goal: every fitted parameter that ends on a bound has
+    // its physical reason written beside it in the committed file, and none
+    // is marked as compensating for something the network lacks.
+    let text = std::fs::read_to_string(&committed_path).unwrap();
+    let reasons = text.matches("BOUND, physical:").count();
+    eprintln!("seven-node parameters on a bound: {at_bound:?}");
+    assert_eq!(
+        reasons,
+        at_bound.len(),
+        "{} parameters on a bound ({at_bound:?}), {reasons} physical reasons written",
+        at_bound.len()
+    );
+    assert!(!text.contains("COMPENSATING"));
 }
