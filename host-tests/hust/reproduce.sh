@@ -8,8 +8,9 @@
 # network (hust-published.toml) and each calibrated model open loop and
 # with endwind_1 fused by the Kalman filter; last, the gate's rejection
 # bursts and the fused scores against the readings with the thermocouple
-# channel's shifts taken out (channel_shifts.sh), and the committed
-# seven-node model against its alternatives (variants.sh).
+# channel's shifts taken out (channel_shifts.sh), the committed
+# seven-node model against its alternatives (variants.sh), and each fit
+# profile left out of the fit in turn (cross_validation.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -149,3 +150,8 @@ host-tests/hust/channel_shifts.sh
 # alternatives").
 echo
 host-tests/hust/variants.sh
+
+# Each fit profile left out of the fit in turn and scored like a held-out
+# one (docs/hust.md, "Leave one out").
+echo
+host-tests/hust/cross_validation.sh

@@ -95,7 +95,7 @@ calibrate_and_replay() {
 # $3_open_N.json and $3_fused_N.json.
 row() {
   local v=$1 log=$2 runs=$3 n s bounds nb open_lost=() fused_over=() sum1=0 sum2=0 rmse
-  bounds=$(grep -o '^[a-z_.|0-9-]* .*AT \(LOWER\|UPPER\) BOUND' "$log" | awk '{print $1}' | sed 's/^conductance\.//; s/^capacity\./C /' | paste -sd';' - | sed 's/;/; /g')
+  bounds=$(grep -o '^[a-z_.|0-9-]* .*AT \(LOWER\|UPPER\) BOUND' "$log" | awk '{print $1}' | sed 's/^conductance\.//; s/^capacity\./C /; s/|conductance\./ and /g' | paste -sd';' - | sed 's/;/; /g')
   nb=$(grep -c 'AT \(LOWER\|UPPER\) BOUND' "$log" || true)
   # The fit's cost: the fit profiles' squared RMSEs (each weighs the same).
   rmse=$(awk '/^[^ ].*\.csv  / { s += $(NF - 1) ^ 2 } END { printf "%.2f", s }' "$log")
