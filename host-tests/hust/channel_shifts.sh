@@ -35,12 +35,8 @@
 # goals in docs/hust.md are scored against the readings as recorded.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
-OUT=target/hust
-PROFILES="0 1 3 5 9 11 2 4 8 10 12 13"
-# The trace of profile $1 (profile 0 EMA-inverted by reproduce.sh).
-trace() { if [ "$1" = 0 ]; then echo "$OUT/id_0_raw.csv"; else echo "$DIR/id_$1.csv"; fi; }
-need() { [ -f "$1" ] || { echo "no $1: run host-tests/hust/reproduce.sh first" >&2; exit 1; }; }
+source host-tests/hust/common.sh
+PROFILES="$FIT_PROFILES $HELD_OUT"
 
 echo "The gate's rejection bursts (seven-node fused)"
 echo

@@ -16,10 +16,7 @@
 # (relative to the repository root); writes only under target/hust/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
-OUT=target/hust
-CT=target/release/coil-thermal
-SCORE_PROFILES="2 4 8 10 12 13"
+source host-tests/hust/common.sh
 
 if [ ! -f "$DIR/id_1.csv" ]; then
   echo "no HUST data in $DIR: set COIL_THERMAL_HUST_DIR" >&2
@@ -30,13 +27,8 @@ cargo build --release -q -p coil-thermal-host
 
 # Profile 0's temperatures are EMA-smoothed (data README): invert it once.
 awk -F, -f host-tests/hust/invert_ema.awk "$DIR/id_0.csv" > "$OUT/id_0_raw.csv"
-trace() { if [ "$1" = 0 ]; then echo "$OUT/id_0_raw.csv"; else echo "$DIR/id_$1.csv"; fi; }
-
-# Nodes without a fitted sensor start at a measured value too: the teeth at
-# the authors' stator reading (mean of slot bottom and outer yoke).
-INIT6=(--init endwind_1=end_winding --init 'mean(slotbottom,outer_yoke)=stator_teeth'
-  --init outer_yoke=stator_yoke --init rotor=rotor --init endcap=endcap)
-INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
+# Every node without a fitted sensor starts at a measured value too
+# (INIT6, INIT7 in common.sh).
 
 calibrate() { # model params-file out profiles... (extra measures in MEASURE, fit options in FIT)
   local model=$1 params=$2 out=$3; shift 3
@@ -81,24 +73,12 @@ for m in hust_motor_fitted hust_motor_slot_fitted; do
   fi
 done
 
-# MSE and max error of truth sensor number $2 (0-based) in JSON $1.
-field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f2; }
 fmt() { awk -v v="$1" 'BEGIN { printf "%.2f", v }'; }
 
-# The filter's noise, the same on every profile (not the replay default,
-# which scales the disturbance with each trace's peak power). The
-# seven-node runs start every node at a measured reading, so the start is
-# known to about 0.5 K (the teeth, started at the mean of slot bottom and
-# yoke, less well than the others), not the default 2 K; and the filter
-# learns the sensor's noise from its readings (the scatter of each reading
-# about the mean of the 10 rows either side, over 600 rows), with the
-# declared 0.2 K as the floor: profile 0's thermocouples scatter by
-# 0.4-0.6 K, the others' by 0.02-0.3 K. The copper disturbance never
-# takes heat away (--disturbance-floor-share 0, the firmware's default for
-# its heat biases): a model that runs hot is corrected by the temperatures,
-# not by a negative copper loss that would cool the unmeasured copper too.
+# The six-node filter: the same disturbance noise on every profile as the
+# seven-node one (FUSE7 in common.sh, which says why), the replay's other
+# defaults.
 FUSE=(--disturbance-std-w 50)
-FUSE7=("${FUSE[@]}" --initial-std-k 0.5 --noise-half-window-rows 10 --disturbance-floor-share 0)
 
 row() {
   local n=$1 tag=$2 t
@@ -119,8 +99,7 @@ row() {
     --out "$OUT/seven_open_$n.csv" --json > "$OUT/seven_open_$n.json"
   "$CT" replay --model "$OUT/hust_motor_slot_fitted.toml" --trace "$t" --sample-period-s 1 \
     --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    --measure endwind_1=end_winding --disturbance active_winding,slot_centre,end_winding "${FUSE7[@]}" \
-    --out "$OUT/seven_fused_$n.csv" --json > "$OUT/seven_fused_$n.json"
+    "${FUSE7[@]}" --out "$OUT/seven_fused_$n.csv" --json > "$OUT/seven_fused_$n.json"
   for s in 0 1; do
     local line="| $n | $tag | activewind_$((s + 1))"
     for e in published six_open six_fused seven_open seven_fused; do
@@ -137,7 +116,7 @@ echo "| profile | role | sensor | published (full, open loop) | 6-node open loop
 echo "|---|---|---|---|---|---|---|---|"
 row 0 "fit (7-node; inverted EMA)"
 for n in 1 3 5 9 11; do row "$n" fit; done
-for n in $SCORE_PROFILES; do row "$n" scored; done
+for n in $HELD_OUT; do row "$n" scored; done
 
 # Where the gate refuses endwind_1 and what the other thermocouples do
 # there, and the fused estimates against the readings with the channel's

@@ -22,27 +22,12 @@
 # reads). Writes only under target/hust/variants/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
-OUT=target/hust
+source host-tests/hust/common.sh
 VAR=$OUT/variants
-CT=target/release/coil-thermal
-FIT_PROFILES="0 1 3 5 9 11"
-HELD_OUT="2 4 8 10 12 13"
 MODEL=host-tests/models/hust_motor_slot.toml
 PARAMS=host-tests/hust/params_slot.txt
-
-need() { [ -f "$1" ] || { echo "no $1: run host-tests/hust/reproduce.sh first" >&2; exit 1; }; }
 need "$OUT/id_0_raw.csv"
 mkdir -p "$VAR"
-trace() { if [ "$1" = 0 ]; then echo "$OUT/id_0_raw.csv"; else echo "$DIR/id_$1.csv"; fi; }
-
-# As reproduce.sh: the same start states, measures, fit and filter options.
-INIT7=(--init endwind_1=end_winding --init 'mean(slotbottom,outer_yoke)=stator_teeth'
-  --init outer_yoke=stator_yoke --init rotor=rotor --init endcap=endcap
-  --init activewind_2=slot_centre)
-FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,end_winding
-  --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
-  --disturbance-floor-share 0)
 
 # The model file with node $1's capacity set to $2 J/K (stdin to stdout).
 set_capacity() { sed "/^name = \"$1\"/,/^capacity_j_per_k/ s/^capacity_j_per_k = .*/capacity_j_per_k = $2/"; }
@@ -63,31 +48,17 @@ sed -e 's/^capacity.end_winding=.*/capacity.end_winding=300:6000/' \
 conductance.slot_centre-end_winding=1:60/' "$PARAMS" > "$VAR/params_before.txt"
 echo "capacity.endcap=900:9000" >> "$VAR/params_before.txt"
 
-# MSE and max error of truth sensor number $2 (0-based) in JSON $1.
-field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f2; }
 join() { local IFS=';'; echo "${*:-none}" | sed 's/;/; /g'; }
 
 # Calibrates variant $1 (model $VAR/$1.toml, bounds $VAR/params_$1.txt) as
 # reproduce.sh calibrates the committed model and replays it open loop and
 # fused on every profile, into $VAR/$1*.
 calibrate_and_replay() {
-  local v=$1 traces=() n t
-  for n in $FIT_PROFILES; do traces+=(--trace "$(trace "$n")"); done
-  "$CT" calibrate --model "$VAR/$v.toml" "${traces[@]}" --sample-period-s 1 \
-    --measure activewind_1=active_winding --measure endwind_1=end_winding \
-    --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
-    --measure activewind_2=slot_centre --init 'mean(slotbottom,outer_yoke)=stator_teeth' \
-    --params "$(grep -v '^#' "$VAR/params_$v.txt" | paste -sd, -)" \
-    --stride 10 --max-iterations 120 --weighting traces --no-progress \
-    --out "$VAR/${v}_fitted.toml" > "$VAR/$v.txt"
+  local v=$1 n
+  # shellcheck disable=SC2086 # the profile lists split into words
+  calibrate_seven "$VAR/$v.toml" "$VAR/params_$v.txt" "$VAR/${v}_fitted.toml" $FIT_PROFILES
   for n in $FIT_PROFILES $HELD_OUT; do
-    t=$(trace "$n")
-    "$CT" replay --model "$VAR/${v}_fitted.toml" --trace "$t" --sample-period-s 1 \
-      --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-      --json > "$VAR/${v}_open_$n.json"
-    "$CT" replay --model "$VAR/${v}_fitted.toml" --trace "$t" --sample-period-s 1 \
-      --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-      "${FUSE7[@]}" --json > "$VAR/${v}_fused_$n.json"
+    replay_seven "$VAR/${v}_fitted.toml" "$n" "$VAR/${v}_open_$n.json" "$VAR/${v}_fused_$n.json"
   done
 }
 
@@ -133,5 +104,5 @@ need "$OUT/hust_motor_slot_fitted.txt"
 row committed "$OUT/hust_motor_slot_fitted.txt" "$OUT/seven"
 for v in endcap_2.2 endcap_5.2 endcap_fitted before; do
   calibrate_and_replay "$v"
-  row "$v" "$VAR/$v.txt" "$VAR/$v"
+  row "$v" "$VAR/${v}_fitted.txt" "$VAR/$v"
 done

@@ -1,0 +1,67 @@
+# Sourced by the HUST scripts (reproduce.sh and the analyses it runs): where
+# the data and outputs are, and the seven-node model's start states, fit
+# and filter options, so that every script calibrates and replays it alike.
+# Run from the repository root.
+DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
+OUT=target/hust
+CT=target/release/coil-thermal
+FIT_PROFILES="0 1 3 5 9 11"
+HELD_OUT="2 4 8 10 12 13"
+
+# The trace of profile $1 (profile 0 EMA-inverted by reproduce.sh).
+trace() { if [ "$1" = 0 ]; then echo "$OUT/id_0_raw.csv"; else echo "$DIR/id_$1.csv"; fi; }
+need() { [ -f "$1" ] || { echo "no $1: run host-tests/hust/reproduce.sh first" >&2; exit 1; }; }
+# MSE and max error of truth sensor number $3 (0-based) in JSON $1 ($2 the field).
+field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f2; }
+
+# Nodes without a fitted sensor start at a measured value too: the teeth at
+# the authors' stator reading (mean of slot bottom and outer yoke).
+INIT6=(--init endwind_1=end_winding --init 'mean(slotbottom,outer_yoke)=stator_teeth'
+  --init outer_yoke=stator_yoke --init rotor=rotor --init endcap=endcap)
+INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
+# The seven-node filter: endwind_1 fused, a disturbance over the copper.
+# Its noise is the same on every profile (not the replay default, which
+# scales the disturbance with each trace's peak power). Every node starts
+# at a measured reading, so the start is known to about 0.5 K (the teeth,
+# started at the mean of slot bottom and yoke, less well than the others),
+# not the default 2 K; and the filter learns the sensor's noise from its
+# readings (the scatter of each reading about the mean of the 10 rows
+# either side, over 600 rows), with the declared 0.2 K as the floor:
+# profile 0's thermocouples scatter by 0.4-0.6 K, the others' by 0.02-0.3
+# K. The copper disturbance never takes heat away
+# (--disturbance-floor-share 0, the firmware's default for its heat
+# biases): a model that runs hot is corrected by the temperatures, not by
+# a negative copper loss that would cool the unmeasured copper too.
+FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,end_winding
+  --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
+  --disturbance-floor-share 0)
+
+# Calibrates seven-node model file $1 within the bounds of params file $2
+# into fitted file $3 (its log beside it, .txt) on profiles $4...: the
+# six sensors, the teeth started at the stator reading, every profile
+# weighing the same, run to convergence.
+calibrate_seven() {
+  local model=$1 params=$2 out=$3 traces=() n
+  shift 3
+  for n in "$@"; do traces+=(--trace "$(trace "$n")"); done
+  "$CT" calibrate --model "$model" "${traces[@]}" --sample-period-s 1 \
+    --measure activewind_1=active_winding --measure endwind_1=end_winding \
+    --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
+    --measure activewind_2=slot_centre --init 'mean(slotbottom,outer_yoke)=stator_teeth' \
+    --params "$(grep -v '^#' "$params" | paste -sd, -)" \
+    --stride 10 --max-iterations 120 --weighting traces --no-progress \
+    --out "$out" > "${out%.toml}.txt"
+}
+
+# Replays seven-node model $1 on profile $2, open loop (its --json into
+# $3) and with endwind_1 fused (into $4).
+replay_seven() {
+  local t
+  t=$(trace "$2")
+  "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
+    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
+    --json > "$3"
+  "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
+    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
+    "${FUSE7[@]}" --json > "$4"
+}
