@@ -19,8 +19,12 @@ field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f
 INIT6=(--init endwind_1=end_winding --init 'mean(slotbottom,outer_yoke)=stator_teeth'
   --init outer_yoke=stator_yoke --init rotor=rotor --init endcap=endcap)
 INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
-# The seven-node filter: endwind_1 fused, a disturbance over the copper.
-# Its noise is the same on every profile (not the replay default, which
+# The seven-node filter: endwind_1 fused, one disturbance per loss
+# mechanism the model may have wrong: over the copper (at one density, as
+# the copper loss), and over the stator iron (teeth and yoke; the model's
+# iron losses follow the speed only, while a loaded machine's grow with
+# the current too, as the authors' 1151 i f W term of rest losses does).
+# Their noise is the same on every profile (not the replay default, which
 # scales the disturbance with each trace's peak power). Every node starts
 # at a measured reading, so the start is known to about 0.5 K (the teeth,
 # started at the mean of slot bottom and yoke, less well than the others),
@@ -28,12 +32,12 @@ INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
 # readings (the scatter of each reading about the mean of the 10 rows
 # either side, over 600 rows), with the declared 0.2 K as the floor:
 # profile 0's thermocouples scatter by 0.4-0.6 K, the others' by 0.02-0.3
-# K. The copper disturbance never takes heat away
+# K. The disturbances never take heat away
 # (--disturbance-floor-share 0, the firmware's default for its heat
 # biases): a model that runs hot is corrected by the temperatures, not by
 # a negative copper loss that would cool the unmeasured copper too.
 FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,end_winding
-  --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
+  --disturbance stator_teeth,stator_yoke --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
   --disturbance-floor-share 0)
 
 # Calibrates seven-node model file $1 within the bounds of params file $2
