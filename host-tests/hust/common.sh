@@ -57,15 +57,17 @@ calibrate_seven() {
     --out "$out" > "${out%.toml}.txt"
 }
 
-# Replays seven-node model $1 on profile $2, open loop (its --json into
-# $3) and with endwind_1 fused (into $4).
+# Replays seven-node model $1 on profile $2, open loop into $3.json and
+# with endwind_1 fused into $4.json; with a fifth argument `csv`, the
+# estimates too, into $3.csv and $4.csv.
 replay_seven() {
-  local t
+  local t open=() fused=()
   t=$(trace "$2")
+  if [ "${5:-}" = csv ]; then open=(--out "$3.csv"); fused=(--out "$4.csv"); fi
   "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
     --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    --json > "$3"
+    "${open[@]}" --json > "$3.json"
   "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
     --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    "${FUSE7[@]}" --json > "$4"
+    "${FUSE7[@]}" "${fused[@]}" --json > "$4.json"
 }

@@ -27,8 +27,8 @@ for out in $FIT_PROFILES; do
   for n in $FIT_PROFILES; do [ "$n" = "$out" ] || rest+=("$n"); done
   calibrate_seven host-tests/models/hust_motor_slot.toml host-tests/hust/params_slot.txt \
     "$LOO/without_$out.toml" "${rest[@]}"
-  replay_seven "$LOO/without_$out.toml" "$out" "$LOO/without_${out}_open.json" \
-    "$LOO/without_${out}_fused.json"
+  replay_seven "$LOO/without_$out.toml" "$out" "$LOO/without_${out}_open" \
+    "$LOO/without_${out}_fused"
   need "$OUT/published_$out.json"
   # The parameters on a bound, less those the committed model has on the
   # same bound with a physical reason (the eddy and yoke hysteresis terms

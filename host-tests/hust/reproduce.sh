@@ -30,33 +30,39 @@ awk -F, -f host-tests/hust/invert_ema.awk "$DIR/id_0.csv" > "$OUT/id_0_raw.csv"
 # Every node without a fitted sensor starts at a measured value too
 # (INIT6, INIT7 in common.sh).
 
-calibrate() { # model params-file out profiles... (extra measures in MEASURE, fit options in FIT)
-  local model=$1 params=$2 out=$3; shift 3
-  local traces=()
-  for n in "$@"; do traces+=(--trace "$(trace "$n")"); done
-  local start end
+# Runs calibration command $2... and prints the first line of its log $1
+# and the wall-clock time it took.
+timed() {
+  local log=$1 start end
+  shift
   start=$(date +%s.%N)
+  "$@"
+  end=$(date +%s.%N)
+  head -1 "$log"
+  echo "wall-clock: $(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }') s (log: $log)"
+}
+
+# The six-node model as before: fit 1 3 5 9 11, no --init (reproduces the
+# committed file), the default weighting, 60 iterations. The seven-node one
+# (calibrate_seven in common.sh) fits 0 1 3 5 9 11, standstill and low
+# speed included, every profile weighing the same (the short low-speed
+# profile 1 is not drowned by the long high-speed ones), run to
+# convergence.
+calibrate_six() { # model params-file out profiles...
+  local model=$1 params=$2 out=$3 traces=() n
+  shift 3
+  for n in "$@"; do traces+=(--trace "$(trace "$n")"); done
   "$CT" calibrate --model "$model" "${traces[@]}" --sample-period-s 1 \
     --measure activewind_1=active_winding --measure endwind_1=end_winding \
     --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
-    "${MEASURE[@]}" --params "$(grep -v '^#' "$params" | paste -sd, -)" \
-    --stride 10 "${FIT[@]}" --no-progress --out "$out" > "${out%.toml}.txt"
-  end=$(date +%s.%N)
-  head -1 "${out%.toml}.txt"
-  echo "wall-clock: $(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }') s (log: ${out%.toml}.txt)"
+    --params "$(grep -v '^#' "$params" | paste -sd, -)" \
+    --stride 10 --max-iterations 60 --no-progress --out "$out" > "${out%.toml}.txt"
 }
-
-# The six-node model as before (fit 1 3 5 9 11, no --init: reproduces the
-# committed file), and the seven-node one (fit 0 1 3 5 9 11, standstill
-# and low speed included; every profile weighs the same, so the short
-# low-speed profile 1 is not drowned by the long high-speed ones; run to
-# convergence).
-MEASURE=()
-FIT=(--max-iterations 60)
-calibrate host-tests/models/hust_motor.toml host-tests/hust/params.txt "$OUT/hust_motor_fitted.toml" 1 3 5 9 11
-MEASURE=(--measure activewind_2=slot_centre --init 'mean(slotbottom,outer_yoke)=stator_teeth')
-FIT=(--max-iterations 120 --weighting traces)
-calibrate host-tests/models/hust_motor_slot.toml host-tests/hust/params_slot.txt "$OUT/hust_motor_slot_fitted.toml" 0 1 3 5 9 11
+timed "$OUT/hust_motor_fitted.txt" calibrate_six host-tests/models/hust_motor.toml \
+  host-tests/hust/params.txt "$OUT/hust_motor_fitted.toml" 1 3 5 9 11
+# shellcheck disable=SC2086 # the profile list splits into words
+timed "$OUT/hust_motor_slot_fitted.txt" calibrate_seven host-tests/models/hust_motor_slot.toml \
+  host-tests/hust/params_slot.txt "$OUT/hust_motor_slot_fitted.toml" $FIT_PROFILES
 # The numbers of a model file, in order (comments and layout aside).
 numbers() { sed 's/#.*//' "$1" | grep -oE '[-+]?[0-9]+(\.[0-9]+)?([eE][-+]?[0-9]+)?'; }
 for m in hust_motor_fitted hust_motor_slot_fitted; do
@@ -94,12 +100,7 @@ row() {
     --truth activewind_1=active_winding --truth activewind_2=active_winding "${INIT6[@]}" \
     --measure endwind_1=end_winding --disturbance active_winding,end_winding "${FUSE[@]}" \
     --out "$OUT/six_fused_$n.csv" --json > "$OUT/six_fused_$n.json"
-  "$CT" replay --model "$OUT/hust_motor_slot_fitted.toml" --trace "$t" --sample-period-s 1 \
-    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    --out "$OUT/seven_open_$n.csv" --json > "$OUT/seven_open_$n.json"
-  "$CT" replay --model "$OUT/hust_motor_slot_fitted.toml" --trace "$t" --sample-period-s 1 \
-    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    "${FUSE7[@]}" --out "$OUT/seven_fused_$n.csv" --json > "$OUT/seven_fused_$n.json"
+  replay_seven "$OUT/hust_motor_slot_fitted.toml" "$n" "$OUT/seven_open_$n" "$OUT/seven_fused_$n" csv
   for s in 0 1; do
     local line="| $n | $tag | activewind_$((s + 1))"
     for e in published six_open six_fused seven_open seven_fused; do

@@ -58,7 +58,7 @@ calibrate_and_replay() {
   # shellcheck disable=SC2086 # the profile lists split into words
   calibrate_seven "$VAR/$v.toml" "$VAR/params_$v.txt" "$VAR/${v}_fitted.toml" $FIT_PROFILES
   for n in $FIT_PROFILES $HELD_OUT; do
-    replay_seven "$VAR/${v}_fitted.toml" "$n" "$VAR/${v}_open_$n.json" "$VAR/${v}_fused_$n.json"
+    replay_seven "$VAR/${v}_fitted.toml" "$n" "$VAR/${v}_open_$n" "$VAR/${v}_fused_$n"
   done
 }
 

@@ -258,9 +258,9 @@ fn channel_corrected_scores(trace: &Path, estimate: &Path) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Issue 18's second goal: with endwind_1 fused (disturbance over the
-/// three copper nodes, never below zero, the same settings on every
-/// profile), both active-winding sensors, which the filter is never given,
+/// Issue 18's second goal: with endwind_1 fused (one disturbance over the
+/// three copper nodes and one over the stator iron, never below zero, the
+/// same settings on every profile), both active-winding sensors, which the filter is never given,
 /// are held within 1 K^2 and 3 K on profiles 1-13, and fusion never makes
 /// either worse than open loop (MSE) on any profile. On profile 0
 /// (inverted standstill) both are within 1 K^2 and `activewind_2` within
