@@ -40,21 +40,28 @@ FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,
   --disturbance stator_teeth,stator_yoke --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
   --disturbance-floor-share 0)
 
-# Calibrates seven-node model file $1 within the bounds of params file $2
-# into fitted file $3 (its log beside it, .txt) on profiles $4...: the
-# six sensors, the teeth started at the stator reading, every profile
-# weighing the same, run to convergence.
-calibrate_seven() {
+# Calibrates model file $1 within the bounds of params file $2 into fitted
+# file $3 (its log beside it, .txt) on the profiles listed in $4, against
+# the sensors every HUST model has, with options $5... added.
+calibrate_hust() {
   local model=$1 params=$2 out=$3 traces=() n
-  shift 3
-  for n in "$@"; do traces+=(--trace "$(trace "$n")"); done
+  for n in $4; do traces+=(--trace "$(trace "$n")"); done
+  shift 4
   "$CT" calibrate --model "$model" "${traces[@]}" --sample-period-s 1 \
     --measure activewind_1=active_winding --measure endwind_1=end_winding \
     --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
-    --measure activewind_2=slot_centre --init 'mean(slotbottom,outer_yoke)=stator_teeth' \
-    --params "$(grep -v '^#' "$params" | paste -sd, -)" \
-    --stride 10 --max-iterations 120 --weighting traces --no-progress \
-    --out "$out" > "${out%.toml}.txt"
+    --params "$(grep -v '^#' "$params" | paste -sd, -)" --stride 10 --no-progress \
+    "$@" --out "$out" > "${out%.toml}.txt"
+}
+
+# The seven-node fit: calibrate_hust on profiles $4..., with the slot
+# centre's sensor, the teeth started at the stator reading, every profile
+# weighing the same, run to convergence.
+calibrate_seven() {
+  local model=$1 params=$2 out=$3
+  shift 3
+  calibrate_hust "$model" "$params" "$out" "$*" --measure activewind_2=slot_centre \
+    --init 'mean(slotbottom,outer_yoke)=stator_teeth' --max-iterations 120 --weighting traces
 }
 
 # Replays seven-node model $1 on profile $2, open loop into $3.json and

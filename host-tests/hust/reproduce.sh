@@ -42,24 +42,14 @@ timed() {
   echo "wall-clock: $(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }') s (log: $log)"
 }
 
-# The six-node model as before: fit 1 3 5 9 11, no --init (reproduces the
-# committed file), the default weighting, 60 iterations. The seven-node one
-# (calibrate_seven in common.sh) fits 0 1 3 5 9 11, standstill and low
-# speed included, every profile weighing the same (the short low-speed
-# profile 1 is not drowned by the long high-speed ones), run to
-# convergence.
-calibrate_six() { # model params-file out profiles...
-  local model=$1 params=$2 out=$3 traces=() n
-  shift 3
-  for n in "$@"; do traces+=(--trace "$(trace "$n")"); done
-  "$CT" calibrate --model "$model" "${traces[@]}" --sample-period-s 1 \
-    --measure activewind_1=active_winding --measure endwind_1=end_winding \
-    --measure outer_yoke=stator_yoke --measure rotor=rotor --measure endcap=endcap \
-    --params "$(grep -v '^#' "$params" | paste -sd, -)" \
-    --stride 10 --max-iterations 60 --no-progress --out "$out" > "${out%.toml}.txt"
-}
-timed "$OUT/hust_motor_fitted.txt" calibrate_six host-tests/models/hust_motor.toml \
-  host-tests/hust/params.txt "$OUT/hust_motor_fitted.toml" 1 3 5 9 11
+# The six-node model as before (calibrate_hust in common.sh): fit 1 3 5 9
+# 11, no --init (reproduces the committed file), the default weighting, 60
+# iterations. The seven-node one (calibrate_seven) fits 0 1 3 5 9 11,
+# standstill and low speed included, every profile weighing the same (the
+# short low-speed profile 1 is not drowned by the long high-speed ones),
+# run to convergence.
+timed "$OUT/hust_motor_fitted.txt" calibrate_hust host-tests/models/hust_motor.toml \
+  host-tests/hust/params.txt "$OUT/hust_motor_fitted.toml" "1 3 5 9 11" --max-iterations 60
 # shellcheck disable=SC2086 # the profile list splits into words
 timed "$OUT/hust_motor_slot_fitted.txt" calibrate_seven host-tests/models/hust_motor_slot.toml \
   host-tests/hust/params_slot.txt "$OUT/hust_motor_slot_fitted.toml" $FIT_PROFILES
