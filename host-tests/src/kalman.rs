@@ -20,6 +20,11 @@
 //! evaluated at the current estimate each step and enter as inputs, so `A`
 //! stays constant and is discretised once per sample period (exact ZOH:
 //! `F = exp(A dt)`, `G = Phi [B | G_b | d]`, `Phi = int_0^dt exp(A s) ds`).
+//! A model whose conductances change with speed (`[conductance.speed]`)
+//! has each row's network held over its interval, as the open-loop replay
+//! does: `A` is rebuilt and rediscretised whenever a row's conductances
+//! differ from the last ones (the covariance and the learned sensor noise
+//! carry over).
 //!
 //! # Disturbance states (why one sensor corrects the others)
 //! With temperatures alone as states, a sensor pulls its own node and, through
@@ -63,6 +68,7 @@ use coil_thermal::filter::{
 };
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
+use crate::dynamic_network::DynNetwork;
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement};
 use crate::sim::{plant_info, PlantInfo};
@@ -406,6 +412,55 @@ pub struct FusionStats {
 /// in [`FusionStats::rejected`] goes on).
 pub const MAX_REJECTED_TIMES: usize = 10_000;
 
+/// The continuous system of `net` with the disturbance and boundary
+/// offset states of `opts` (indices already checked): `A` over
+/// temperatures, disturbances and offsets, and the input matrix
+/// `[B | G_b | d]` (sources, boundaries, the constant).
+fn continuous_system(net: &DynNetwork, opts: &KalmanOptions) -> (DMatrix<f64>, DMatrix<f64>) {
+    let n = net.nodes();
+    let nd = opts.disturbances.len();
+    let states = n + nd + opts.boundary_offsets.len();
+    let caps = net.capacities_j_per_k();
+    let mut a = DMatrix::<f64>::zeros(states, states);
+    for p in net.pairs() {
+        a[(p.a, p.b)] += p.g_w_per_k / caps[p.a];
+        a[(p.b, p.a)] += p.g_w_per_k / caps[p.b];
+        a[(p.a, p.a)] -= p.g_w_per_k / caps[p.a];
+        a[(p.b, p.b)] -= p.g_w_per_k / caps[p.b];
+    }
+    let sources = net.sources().len();
+    let bounds = net.boundaries();
+    let mut b = DMatrix::<f64>::zeros(states, sources + bounds + 1);
+    for l in net.links() {
+        a[(l.node, l.node)] -= l.g_w_per_k / caps[l.node];
+        b[(l.node, sources + l.boundary)] += l.g_w_per_k / caps[l.node];
+    }
+    for (s, src) in net.sources().iter().enumerate() {
+        b[(src.node, s)] = 1.0 / caps[src.node];
+    }
+    for (i, p) in net.fixed_powers_w().iter().enumerate() {
+        b[(i, sources + bounds)] = p / caps[i];
+    }
+    for (k, nodes) in opts.disturbances.iter().enumerate() {
+        let total: f64 = nodes.iter().map(|i| caps[*i]).sum();
+        for i in nodes {
+            // Share caps[i] / total of d at node i: dT_i/dt += d / total.
+            a[(*i, n + k)] += 1.0 / total;
+        }
+        a[(n + k, n + k)] = -1.0 / opts.disturbance_tau_s;
+    }
+    for (k, &boundary) in opts.boundary_offsets.iter().enumerate() {
+        let o = n + nd + k;
+        // T_b,eff = T_b + o: the offset enters as the boundary does,
+        // through the boundary's input column.
+        for i in 0..n {
+            a[(i, o)] = b[(i, sources + boundary)];
+        }
+        a[(o, o)] = -1.0 / opts.boundary_offset_tau_s;
+    }
+    (a, b)
+}
+
 /// A Kalman filter on a model file (see the module docs).
 pub struct KalmanEstimator {
     model: Model,
@@ -419,6 +474,12 @@ pub struct KalmanEstimator {
     /// Continuous `A` and input matrix `[B | G_b | d]`.
     a: DMatrix<f64>,
     b: DMatrix<f64>,
+    /// The network `a` and `b` were built from: the model's, or with
+    /// speed-dependent conductances the last row's.
+    network: DynNetwork,
+    /// Each sensor's learned noise variance \[K^2\], if any yet: a
+    /// rediscretised filter starts from it, not from the floor.
+    learned_variance_k2: Vec<Option<f64>>,
     /// The library filter, padded; the sample period it was discretised
     /// for.
     filter: Box<dyn PaddedFilter>,
@@ -448,50 +509,21 @@ impl KalmanEstimator {
         if sensor_nodes.is_empty() {
             bail!("the Kalman filter needs at least one --measure sensor");
         }
-        model.require_fixed_network("the Kalman filter")?;
         let info = plant_info(&model);
-        let net = &model.network;
-        let n = net.nodes();
+        let n = model.network.nodes();
         let nd = opts.disturbances.len();
         let no = opts.boundary_offsets.len();
         let states = n + nd + no;
-        let caps = net.capacities_j_per_k();
-        let mut a = DMatrix::<f64>::zeros(states, states);
-        for p in net.pairs() {
-            a[(p.a, p.b)] += p.g_w_per_k / caps[p.a];
-            a[(p.b, p.a)] += p.g_w_per_k / caps[p.b];
-            a[(p.a, p.a)] -= p.g_w_per_k / caps[p.a];
-            a[(p.b, p.b)] -= p.g_w_per_k / caps[p.b];
-        }
-        let sources = net.sources().len();
-        let bounds = net.boundaries();
-        let mut b = DMatrix::<f64>::zeros(states, sources + bounds + 1);
-        for l in net.links() {
-            a[(l.node, l.node)] -= l.g_w_per_k / caps[l.node];
-            b[(l.node, sources + l.boundary)] += l.g_w_per_k / caps[l.node];
-        }
-        for (s, src) in net.sources().iter().enumerate() {
-            b[(src.node, s)] = 1.0 / caps[src.node];
-        }
-        for (i, p) in net.fixed_powers_w().iter().enumerate() {
-            b[(i, sources + bounds)] = p / caps[i];
-        }
-        for (k, nodes) in opts.disturbances.iter().enumerate() {
+        for nodes in &opts.disturbances {
             if nodes.is_empty() {
                 bail!("--disturbance: an empty node list");
             }
             if let Some(i) = nodes.iter().find(|i| **i >= n) {
                 bail!("--disturbance: node index {i} out of range");
             }
-            let total: f64 = nodes.iter().map(|i| caps[*i]).sum();
-            for i in nodes {
-                // Share caps[i] / total of d at node i: dT_i/dt += d / total.
-                a[(*i, n + k)] += 1.0 / total;
-            }
-            a[(n + k, n + k)] = -1.0 / opts.disturbance_tau_s;
         }
         for (k, &boundary) in opts.boundary_offsets.iter().enumerate() {
-            if boundary >= bounds {
+            if boundary >= model.network.boundaries() {
                 bail!("--boundary-offset: boundary index {boundary} out of range");
             }
             if opts.boundary_offsets[..k].contains(&boundary) {
@@ -500,14 +532,8 @@ impl KalmanEstimator {
                     info.boundaries[boundary].name
                 );
             }
-            let o = n + nd + k;
-            // T_b,eff = T_b + o: the offset enters as the boundary does,
-            // through the boundary's input column.
-            for i in 0..n {
-                a[(i, o)] = b[(i, sources + boundary)];
-            }
-            a[(o, o)] = -1.0 / opts.boundary_offset_tau_s;
         }
+        let (a, b) = continuous_system(&model.network, &opts);
         let noise = opts
             .noise_from_readings
             .map(|n| vec![NoiseWatch::new(n.half_window, n.memory); sensor_nodes.len()])
@@ -537,6 +563,8 @@ impl KalmanEstimator {
             ),
         };
         Ok(Self {
+            network: model.network.clone(),
+            learned_variance_k2: vec![None; sensor_nodes.len()],
             model,
             info,
             opts,
@@ -611,6 +639,11 @@ impl KalmanEstimator {
                 self.opts.gate,
                 recovery.as_slice(),
             )?;
+            for (j, v) in self.learned_variance_k2.iter().enumerate() {
+                if let Some(v) = v {
+                    self.filter.set_measurement_variance(j, *v);
+                }
+            }
             self.period_s = Some(dt_s);
         }
         Ok(())
@@ -721,6 +754,16 @@ impl Estimator for KalmanEstimator {
         }
         u[m + boundary_c.len()] = 1.0;
         self.effective = effective;
+        if self.model.has_varying_conductances() {
+            // This row's conductances, held over the interval like every
+            // other input; rediscretised only when they change.
+            let net = self.model.network_at(signals);
+            if net != self.network {
+                (self.a, self.b) = continuous_system(&net, &self.opts);
+                self.network = net;
+                self.period_s = None;
+            }
+        }
         // A sample period the model cannot be discretised for (non-finite or
         // not positive) leaves the estimate where it is.
         if self.ensure_filter(dt_s).is_err() {
@@ -752,8 +795,9 @@ impl Estimator for KalmanEstimator {
         let floor_k2 = self.opts.measurement_noise_k.powi(2);
         for (j, (watch, reading)) in self.noise.iter_mut().zip(&z).enumerate() {
             if let Some(variance_k2) = reading.and_then(|v| watch.push(v)) {
-                self.filter
-                    .set_measurement_variance(j, variance_k2.max(floor_k2));
+                let variance_k2 = variance_k2.max(floor_k2);
+                self.filter.set_measurement_variance(j, variance_k2);
+                self.learned_variance_k2[j] = Some(variance_k2);
             }
         }
         let report = self.filter.update(&z);
@@ -1056,6 +1100,59 @@ policy = "boundary"
         assert!(floor_w > -1e-9, "{floor_w}");
         assert!(floor_cold > -0.05, "{floor_cold}");
         assert!(floor_hot > 0.5, "the model's extra heat shows: {floor_hot}");
+    }
+
+    /// A block cooled through a path whose conductance grows with speed
+    /// (`G = 10 (1 + f)` W/K, `f` = speed / 1000 rpm), unsensed: the filter's
+    /// prediction is the exact solution of each interval's network, so
+    /// across a speed step it follows the two exponentials of the
+    /// analytic solution, not the first network's.
+    #[test]
+    fn the_filter_follows_a_network_whose_conductance_changes_with_speed() {
+        const BLOCK: &str = r#"
+name = "block"
+[[node]]
+name = "block"
+capacity_j_per_k = 1000.0
+[[node]]
+name = "probe"
+capacity_j_per_k = 1.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["block", "coolant"]
+g_w_per_k = 10.0
+[conductance.speed]
+column = "speed"
+reference = 1000.0
+a1 = 1.0
+[[conductance]]
+between = ["probe", "coolant"]
+g_w_per_k = 1.0
+"#;
+        let model = Model::build(&ModelFile::parse(BLOCK, "block.toml").unwrap()).unwrap();
+        assert_eq!(model.signals, ["speed"]);
+        let mut filter = KalmanEstimator::new(model, &[1], KalmanOptions::default()).unwrap();
+        filter.reset(&[60.0, 20.0]);
+        let no_reading = [Measurement {
+            node: 1,
+            value_c: f64::NAN,
+        }];
+        let mut worst_k: f64 = 0.0;
+        for k in 1..=200 {
+            let speed_rpm = if k <= 100 { 0.0 } else { 3000.0 };
+            filter.predict(1.0, &[], &[20.0], &[speed_rpm]);
+            filter.update(&no_reading);
+            let t = f64::from(k);
+            let exact_c = if k <= 100 {
+                20.0 + 40.0 * (-10.0 * t / 1000.0).exp()
+            } else {
+                20.0 + 40.0 * (-1.0f64).exp() * (-40.0 * (t - 100.0) / 1000.0).exp()
+            };
+            worst_k = worst_k.max((filter.estimate_c()[0] - exact_c).abs());
+        }
+        assert!(worst_k < 1e-9, "worst error {worst_k} K");
     }
 
     #[test]

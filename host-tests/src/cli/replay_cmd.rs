@@ -391,7 +391,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut kalman = None;
     let mut disturbance_std = None;
     // The library's observer holds one network; conductances that change
-    // with speed run open loop on the library's explicit stepper instead.
+    // with speed run open loop on the library's explicit stepper instead,
+    // or fused on the Kalman filter, which rediscretises when they change.
     let open_loop = measured.is_empty() && !kalman_filter;
     let mut stepped = if model.has_varying_conductances() && open_loop {
         Some(PlantEstimator(FilePlant::new(model.clone())?))
