@@ -64,17 +64,33 @@ calibrate_seven() {
     --init 'mean(slotbottom,outer_yoke)=stator_teeth' --max-iterations 120 --weighting traces
 }
 
+# Replays seven-node model $1 on profile $2 into $3.json, with replay
+# options $4... (the fusion, if any, and --out).
+replay_seven_with() {
+  local model=$1 t out=$3
+  t=$(trace "$2")
+  shift 3
+  "$CT" replay --model "$model" --trace "$t" --sample-period-s 1 \
+    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
+    "$@" --json > "$out.json"
+}
+
 # Replays seven-node model $1 on profile $2, open loop into $3.json and
 # with endwind_1 fused into $4.json; with a fifth argument `csv`, the
 # estimates too, into $3.csv and $4.csv.
 replay_seven() {
-  local t open=() fused=()
-  t=$(trace "$2")
+  local open=() fused=()
   if [ "${5:-}" = csv ]; then open=(--out "$3.csv"); fused=(--out "$4.csv"); fi
-  "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
-    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    "${open[@]}" --json > "$3.json"
-  "$CT" replay --model "$1" --trace "$t" --sample-period-s 1 \
-    --truth activewind_1=active_winding --truth activewind_2=slot_centre "${INIT7[@]}" \
-    "${FUSE7[@]}" "${fused[@]}" --json > "$4.json"
+  replay_seven_with "$1" "$2" "$3" "${open[@]}"
+  replay_seven_with "$1" "$2" "$4" "${FUSE7[@]}" "${fused[@]}"
+}
+
+# FUSE7 with option $1's value set to $2, into the array FUSE.
+fuse7_with() {
+  local i
+  FUSE=("${FUSE7[@]}")
+  for i in "${!FUSE[@]}"; do
+    if [ "${FUSE[$i]}" = "$1" ]; then FUSE[i + 1]=$2; return; fi
+  done
+  FUSE+=("$1" "$2")
 }

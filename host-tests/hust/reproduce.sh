@@ -9,8 +9,9 @@
 # with endwind_1 fused by the Kalman filter; last, the gate's rejection
 # bursts and the fused scores against the readings with the thermocouple
 # channel's shifts taken out (channel_shifts.sh), the committed
-# seven-node model against its alternatives (variants.sh), and each fit
-# profile left out of the fit in turn (cross_validation.sh).
+# seven-node model against its alternatives (variants.sh), each fit
+# profile left out of the fit in turn (cross_validation.sh), and the fused
+# results with each filter setting moved down and up (filter_sensitivity.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -125,3 +126,8 @@ host-tests/hust/variants.sh
 # one (docs/hust.md, "Leave one out").
 echo
 host-tests/hust/cross_validation.sh
+
+# How much the fused results hang on the filter's settings, each moved
+# down and up (docs/hust.md, "Filter settings").
+echo
+host-tests/hust/filter_sensitivity.sh
