@@ -54,7 +54,7 @@ use crate::model_file::{Model, ModelFile};
 #[serde(deny_unknown_fields)]
 pub struct ObserverSpec {
     /// The node each thermocouple measures, by name, in sensor order.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sensors: Vec<String>,
     /// Every current's hardware limit \[A\] (default 8).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -91,6 +91,13 @@ pub struct ObserverSpec {
     /// `NetworkSettings::stuck_tolerance_k`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stuck_tolerance_k: Option<f64>,
+    /// The `[[source]]`s (by name) whose heat-input bias the observer
+    /// estimates; the others', and every speed and `[[loss]]` source's,
+    /// stay exactly 0 (`NetworkObserverBuilder::bias_sources`). Default:
+    /// every source. For more sources than the sensors can tell apart:
+    /// one sensor sees one heat.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_sources: Option<Vec<String>>,
 }
 
 /// What to generate.
@@ -343,8 +350,13 @@ impl Plan {
             None => "DeratingRule::omnimagnet()".to_string(),
         };
         let hardware = s.hardware_limit_a.unwrap_or(8.0);
+        // Only the solved tables carry it (a left-out bias has a zero
+        // prior), so `from_parts` needs nothing more.
+        let bias_sources = self.model.bias_sources.as_ref().map_or(String::new(), |b| {
+            format!("\n        .bias_sources({})", list(b))
+        });
         format!(
-            "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn main() -> Result<(), coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings({settings})\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    print!(\"{{text}}\");\n    Ok(())\n}}\n",
+            "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn main() -> Result<(), coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings({settings}){bias_sources}\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    print!(\"{{text}}\");\n    Ok(())\n}}\n",
             sensors = list(&self.sensor_nodes),
             critical = list(&self.model.critical_c),
         )

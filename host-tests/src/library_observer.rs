@@ -47,12 +47,15 @@
 //! When the sensors cannot see every source's bias (e.g. three sources and
 //! one sensor; the HUST models, copper and speed losses, with one sensor),
 //! the gain solve does not converge and the replay refuses, naming the
-//! fix: the firmware needs `[observer] bias_noise_w2_per_s = 0` too, and
-//! `replay --bias-noise-w2-per-s 0` replays with the biases frozen
-//! (temperatures corrected, no heat input estimated) without editing the
-//! file. A heat the model lacks is then what `--disturbance` estimates,
-//! with the library's time-varying filter ([`crate::kalman`]). Open loop
-//! (no sensor) there is nothing to fuse and no bias.
+//! fixes. `[observer] bias_sources` names the sources whose bias is
+//! estimated (the others' stay exactly 0, as the padding's), as the
+//! firmware generated from the file does: one sensor, one heat. Or the
+//! firmware freezes every bias (`[observer] bias_noise_w2_per_s = 0`;
+//! `replay --bias-noise-w2-per-s 0` replays so without editing the file:
+//! temperatures corrected, no heat input estimated). A heat the model
+//! lacks is also what `--disturbance` estimates, with the library's
+//! time-varying filter ([`crate::kalman`]). Open loop (no sensor) there is
+//! nothing to fuse and no bias.
 //!
 //! # Currents above 100 A
 //! The observer holds a current beyond its plausibility limit (the
@@ -204,6 +207,7 @@ impl<const C: usize, const X: usize> Sized<C, X> {
         net: &DynNetwork,
         settings: NetworkSettings,
         sensor_nodes: &[usize],
+        biased: &[bool],
         name: &str,
     ) -> Result<Box<dyn PaddedObserver>> {
         let padding = Padding {
@@ -221,10 +225,8 @@ impl<const C: usize, const X: usize> Sized<C, X> {
         };
         let mut slots = [spare; SENSOR_SLOTS];
         slots[..sensor_nodes.len()].copy_from_slice(sensor_nodes);
-        // The model's sources carry their biases, the padding's do not
-        // (see the module docs).
-        let sources = net.sources().len();
-        let bias_sources: [bool; C] = core::array::from_fn(|m| m < sources);
+        let bias_sources: [bool; C] =
+            core::array::from_fn(|m| biased.get(m).copied().unwrap_or(false));
         let observer = NetworkObserverBuilder::new(&network, slots)
             // No element limits the currents here: the replay's alarm
             // watches the estimate (see `observer::LibraryAlarm`).
@@ -236,8 +238,8 @@ impl<const C: usize, const X: usize> Sized<C, X> {
                 coil_thermal::BuildError::NotConverged { .. }
                     if settings.bias_noise_w2_per_s > 0.0 => anyhow!(
                     "the library observer of model `{name}` with its heat-bias states ({} W^2/s) does not build: {e} \
-                     (the sensors cannot see every source's bias: its firmware needs `[observer] bias_noise_w2_per_s = 0` too; \
-                     replay with the biases frozen with --bias-noise-w2-per-s 0, or estimate the missing heat with --disturbance)",
+                     (the sensors cannot see every source's bias: name the sources whose heat they can see in `[observer] bias_sources`, \
+                     or freeze the biases with `[observer] bias_noise_w2_per_s = 0` (replay: --bias-noise-w2-per-s 0), or estimate the missing heat with --disturbance)",
                     settings.bias_noise_w2_per_s
                 ),
                 e => anyhow!("the library observer: {e}"),
@@ -453,11 +455,15 @@ impl ObserverEstimator {
         }
         let slots = sensors.clone();
         let name = model.name.clone();
+        // The model's sources carry their biases (those `[observer]
+        // bias_sources` names, when given), the padding's do not (see the
+        // module docs).
+        let biased: Vec<bool> = (0..class).map(|m| model.carries_bias(m)).collect();
         let observer = on_big_stack("the library observer", move || match class {
-            8 => Sized::<8, 16>::build(&net, settings, &slots, &name),
-            16 => Sized::<16, 32>::build(&net, settings, &slots, &name),
-            32 => Sized::<32, 64>::build(&net, settings, &slots, &name),
-            _ => Sized::<96, 192>::build(&net, settings, &slots, &name),
+            8 => Sized::<8, 16>::build(&net, settings, &slots, &biased, &name),
+            16 => Sized::<16, 32>::build(&net, settings, &slots, &biased, &name),
+            32 => Sized::<32, 64>::build(&net, settings, &slots, &biased, &name),
+            _ => Sized::<96, 192>::build(&net, settings, &slots, &biased, &name),
         })?;
         let n = model.nodes.len();
         Ok(Self {

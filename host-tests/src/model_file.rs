@@ -784,6 +784,10 @@ pub struct Model {
     pub losses: Vec<LossDrive>,
     /// Speed-dependent conductances (see [`Model::network_at`]).
     pub varying: Vec<VaryingConductance>,
+    /// Which network sources carry a heat-input bias in the firmware
+    /// observer (`[observer] bias_sources`, resolved; one flag per
+    /// network source); `None`: every source.
+    pub bias_sources: Option<Vec<bool>>,
     /// The network without the speed-dependent conductances.
     fixed_network: DynNetwork,
     /// The network, speed-dependent conductances at zero speed.
@@ -1090,6 +1094,28 @@ impl Model {
         {
             bail!("[initial] policy = \"uniform\" needs a finite uniform_c");
         }
+        let bias_sources = match file.observer.as_ref().and_then(|o| o.bias_sources.as_ref()) {
+            None => None,
+            Some(names) => {
+                let mut flags = vec![false; network.sources().len()];
+                for name in names {
+                    let Some(&k) = source_keys.get(name.as_str()) else {
+                        bail!(
+                            "[observer] bias_sources: no [[source]] `{name}` (sources: {})",
+                            file.sources
+                                .iter()
+                                .map(|s| s.key())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        );
+                    };
+                    if std::mem::replace(&mut flags[k], true) {
+                        bail!("[observer] bias_sources: `{name}` given twice");
+                    }
+                }
+                Some(flags)
+            }
+        };
         let fixed_network = network.clone();
         for v in &varying {
             connect(&mut network, v.ends, v.law.at(v.g0_w_per_k, 0.0))?;
@@ -1105,12 +1131,24 @@ impl Model {
             speed_losses,
             losses,
             varying,
+            bias_sources,
             fixed_network,
             network,
             max_step_ratio,
             input_hold: file.input_hold.unwrap_or_default(),
             initial: file.initial.clone(),
         })
+    }
+
+    /// Whether network source `m` carries a heat-input bias in the
+    /// firmware observer: named in `[observer] bias_sources`, or any of
+    /// the model's sources when the key is absent (a padding source's
+    /// index, `m` beyond the model's, never does).
+    pub fn carries_bias(&self, m: usize) -> bool {
+        match &self.bias_sources {
+            Some(flags) => flags.get(m).copied().unwrap_or(false),
+            None => m < self.network.sources().len(),
+        }
     }
 
     /// Index of node `name`.

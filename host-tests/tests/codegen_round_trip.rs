@@ -183,13 +183,10 @@ fn the_firmware_crates_carry_what_codegen_makes_of_their_models() {
     }
 }
 
-/// A `[[conductor]]` reaches the firmware as the scales it stands for:
-/// codegen of a winding split into slot (2 kJ/K) and overhang (1 kJ/K)
-/// with one conductor of scale 1.5 writes the same module as the same
-/// file with each source's scale written out (1.0 and 0.5).
-#[test]
-fn a_conductor_generates_the_firmware_of_its_explicit_scales() {
-    let base = r#"
+/// A winding split into slot (2 kJ/K) and overhang (1 kJ/K), a housing
+/// thermocouple; `SLOT_SCALE` and `OVERHANG_SCALE` stand for what each
+/// test puts after the sources.
+const SPLIT_WINDING: &str = r#"
 name = "split-winding"
 [[node]]
 name = "slot"
@@ -227,38 +224,74 @@ input = "current"
 r0_ohm = 0.01
 alpha_per_k = 0.0039
 OVERHANG_SCALE"#;
+
+/// `codegen` of model `text` (written as `name`) with the housing sensor:
+/// the module's text, less the header lines that name the file.
+fn generate(dir: &Path, name: &str, text: String) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    let out = cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(&path)
+        .args(["--sensor", "housing", "--out", "-"])
+        .assert()
+        .success();
+    String::from_utf8(out.get_output().stdout.clone())
+        .unwrap()
+        .lines()
+        .filter(|l| !l.contains(name))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// A `[[conductor]]` reaches the firmware as the scales it stands for:
+/// codegen of a winding split into slot (2 kJ/K) and overhang (1 kJ/K)
+/// with one conductor of scale 1.5 writes the same module as the same
+/// file with each source's scale written out (1.0 and 0.5).
+#[test]
+fn a_conductor_generates_the_firmware_of_its_explicit_scales() {
     let tmp = tempfile::TempDir::new().unwrap();
-    let generate = |name: &str, text: String| -> String {
-        let path = tmp.path().join(name);
-        std::fs::write(&path, text).unwrap();
-        let out = cargo_bin_cmd!("coil-thermal")
-            .arg("codegen")
-            .arg("--model")
-            .arg(&path)
-            .args(["--sensor", "housing", "--out", "-"])
-            .assert()
-            .success();
-        String::from_utf8(out.get_output().stdout.clone()).unwrap()
-    };
     let conductor = generate(
+        tmp.path(),
         "conductor.toml",
-        base.replace("SLOT_SCALE", "").replace(
+        SPLIT_WINDING.replace("SLOT_SCALE", "").replace(
             "OVERHANG_SCALE",
             "[[conductor]]\nname = \"winding\"\nsources = [\"slot\", \"overhang\"]\nscale = 1.5\n",
         ),
     );
     let explicit = generate(
+        tmp.path(),
         "explicit.toml",
-        base.replace("SLOT_SCALE", "scale = 1.0\n")
+        SPLIT_WINDING
+            .replace("SLOT_SCALE", "scale = 1.0\n")
             .replace("OVERHANG_SCALE", "scale = 0.5\n"),
     );
-    // The files differ only in their names in the header comment.
-    let body = |t: &str| -> String {
-        t.lines()
-            .filter(|l| !l.contains("conductor.toml") && !l.contains("explicit.toml"))
-            .collect::<Vec<_>>()
-            .join("\n")
-    };
-    assert_eq!(body(&conductor), body(&explicit));
+    assert_eq!(conductor, explicit);
     assert!(conductor.contains("from_parts"), "{conductor}");
+}
+
+/// `[observer] bias_sources` reaches the firmware's tables: naming every
+/// source writes the module of the default (every source biased), naming
+/// the slot alone a different one.
+#[test]
+fn bias_sources_reach_the_generated_tables() {
+    let tmp = tempfile::TempDir::new().unwrap();
+    let with = |name: &str, observer: &str| {
+        generate(
+            tmp.path(),
+            name,
+            SPLIT_WINDING
+                .replace("SLOT_SCALE", "")
+                .replace("OVERHANG_SCALE", observer),
+        )
+    };
+    let default = with("default.toml", "");
+    let both = with(
+        "both.toml",
+        "[observer]\nbias_sources = [\"slot\", \"overhang\"]\n",
+    );
+    let slot = with("slot.toml", "[observer]\nbias_sources = [\"slot\"]\n");
+    assert_eq!(both, default);
+    assert_ne!(slot, default);
 }

@@ -436,6 +436,76 @@ fn a_model_file_runs_the_matrix_on_its_network_observer() {
         .stderr(contains("[observer] sensors"));
 }
 
+/// A second source on the housing, the node its one thermocouple is on:
+/// the campaign's observer with a bias on each does not build (its steady
+/// gain does not converge) and says which key fixes it; `[observer]
+/// bias_sources` naming the winding's source builds it, and with the second
+/// source carrying a negligible heat (1 nano-ohm) the campaign is the
+/// one-source model's.
+#[test]
+fn bias_sources_let_the_campaign_run_what_one_sensor_can_see() {
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/models/drive-3node-fitted.toml"
+    );
+    let text = std::fs::read_to_string(model).unwrap();
+    let extra = "[[source]]\nname = \"extra\"\nnode = \"housing\"\ninput = \"current\"\nr0_ohm = 1e-9\n\n[observer]";
+    let two = text.replace("[observer]", extra);
+    let tmp = tempfile::TempDir::new().unwrap();
+    let path = tmp.path().join("two.toml");
+    let args = |m: &str| {
+        [
+            "faults",
+            "--model",
+            m,
+            "--current-a",
+            "6",
+            "--duration-s",
+            "600",
+            "--onset-s",
+            "60",
+            "--classes",
+            "stuck,drift",
+            "--json",
+        ]
+        .map(String::from)
+    };
+    std::fs::write(&path, &two).unwrap();
+    let p = path.to_str().unwrap();
+    ct().args(args(p))
+        .assert()
+        .failure()
+        .stderr(contains("`[observer] bias_sources`"));
+    std::fs::write(
+        &path,
+        two.replace("[observer]", "[observer]\nbias_sources = [\"winding\"]"),
+    )
+    .unwrap();
+    let named = json_run(&args(p).each_ref().map(String::as_str));
+    let one = json_run(&args(model).each_ref().map(String::as_str));
+    let shutdown = |r: &Value| r["clean"]["shutdown_s"].as_f64().expect("6 A shuts down");
+    assert!(
+        (shutdown(&named) - shutdown(&one)).abs() <= 0.01,
+        "{} vs {}",
+        shutdown(&named),
+        shutdown(&one)
+    );
+    for (a, b) in named["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(one["cases"].as_array().unwrap())
+    {
+        for key in ["flag_s", "max_error_tc_k", "max_error_hot_spot_k"] {
+            let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
+            assert!(
+                (x - y).abs() <= 1e-3 * y.abs().max(1.0),
+                "{key}: {x} vs {y}"
+            );
+        }
+    }
+}
+
 /// On its recorded trace the drive's housing warms 1 K in 273 s but never
 /// 1 K within the stuck test's 120 s window before about 300 s: a sensor
 /// stuck at the 60 s onset is flagged within 10 s of the truth leaving its

@@ -251,7 +251,10 @@ fn the_housing_sensor_corrects_the_unmeasured_coil_through_its_heat_bias() {
 
 /// Three sources, one sensor: the sensor cannot tell their heats apart, so
 /// the biased observer does not build (nor would the firmware's). The
-/// replay refuses, naming the fix, and runs with the flag's frozen biases.
+/// replay refuses, naming the fixes, and runs with the flag's frozen
+/// biases; with `[observer] bias_sources` naming the coil, the one heat
+/// the sensor can see, it builds and recovers the coil's unmodelled heat
+/// as the one-source model does.
 #[test]
 fn biases_no_sensor_can_see_are_refused_with_the_fix() {
     let tmp = TempDir::new().unwrap();
@@ -261,30 +264,82 @@ fn biases_no_sensor_can_see_are_refused_with_the_fix() {
     let extra: String = ["coil", "housing"]
         .iter()
         .map(|node| {
-            format!("[[source]]\nname = \"{node}-extra\"\nnode = \"{node}\"\ninput = \"current\"\nr0_ohm = 1.0\n\n")
+            format!("[[source]]\nname = \"{node}-extra\"\nnode = \"{node}\"\ninput = \"aux\"\nr0_ohm = 1.0\n\n")
         })
         .collect();
     text = text.replace("[initial]", &format!("{extra}[initial]"));
     let model = tmp.path().join("three-sources.toml");
-    std::fs::write(&model, text).unwrap();
+    std::fs::write(&model, &text).unwrap();
     let run = |extra: &[&str]| {
         let mut c = cargo_bin_cmd!("coil-thermal");
         c.args(["replay", "--model"])
             .arg(&model)
             .arg("--trace")
             .arg(&rec)
-            .args(["--measure", "T_housing=housing", "--json", "--out"])
+            .args([
+                "--measure",
+                "T_housing=housing",
+                "--const",
+                "aux=0",
+                "--json",
+                "--out",
+            ])
             .arg(&out)
             .args(extra);
         c
     };
     run(&[]).assert().failure().stderr(
         predicates::str::contains("`[observer] bias_noise_w2_per_s = 0`")
-            .and(predicates::str::contains("--bias-noise-w2-per-s 0")),
+            .and(predicates::str::contains("--bias-noise-w2-per-s 0"))
+            .and(predicates::str::contains("`[observer] bias_sources`")),
     );
+    let mse = |a: assert_cmd::assert::Assert| -> f64 {
+        let j: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+        j["truth"][0]["mse_k2"].as_f64().unwrap()
+    };
     let a = run(&["--bias-noise-w2-per-s", "0"]).assert().success();
     let j: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
     assert_eq!(j["fusion"]["bias_noise_w2_per_s"], 0.0);
+    let frozen = mse(
+        run(&["--bias-noise-w2-per-s", "0", "--truth", "T_coil=coil"])
+            .assert()
+            .success(),
+    );
+    // The extra sources carry no current in the recording (`aux` is 0):
+    // naming the coil alone gives the one-source observer's coil estimate.
+    std::fs::write(
+        &model,
+        format!("{text}\n[observer]\nbias_sources = [\"coil\"]\n"),
+    )
+    .unwrap();
+    let named = mse(run(&["--truth", "T_coil=coil"]).assert().success());
+    let single = coil_mse(&rec, &out, &["--measure", "T_housing=housing"])["truth"][0]["mse_k2"]
+        .as_f64()
+        .unwrap();
+    eprintln!("coil MSE: frozen {frozen:.3}, coil's bias alone {named:.3}, one-source model {single:.3} K^2");
+    assert!(named < 0.3 * frozen, "{named} vs frozen {frozen} K^2");
+    assert!(
+        (named - single).abs() < 1e-3 * single.max(1e-3),
+        "{named} vs {single} K^2"
+    );
+    // A name that is no source, or one given twice, is refused.
+    for (list, says) in [
+        (
+            "[\"coil\", \"rotor\"]",
+            "no [[source]] `rotor` (sources: coil, coil-extra, housing-extra)",
+        ),
+        ("[\"coil\", \"coil\"]", "`coil` given twice"),
+    ] {
+        std::fs::write(
+            &model,
+            format!("{text}\n[observer]\nbias_sources = {list}\n"),
+        )
+        .unwrap();
+        run(&[])
+            .assert()
+            .failure()
+            .stderr(predicates::str::contains(says));
+    }
 }
 
 #[test]

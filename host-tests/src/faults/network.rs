@@ -93,10 +93,10 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             frozen_loss_ticks: loss,
             ..defaults
         };
-        // The model's sources carry their biases, the padding's do not
-        // (see the module docs).
-        let sources = model.network.sources().len();
-        let bias_sources: [bool; C] = core::array::from_fn(|m| m < sources);
+        // The model's sources carry their biases (those `[observer]
+        // bias_sources` names, when given), the padding's do not (see the
+        // module docs).
+        let bias_sources: [bool; C] = core::array::from_fn(|m| model.carries_bias(m));
         let observer = NetworkObserverBuilder::new(&network, slots)
             .critical_c(critical)
             .hardware_limit_a([spec.hardware_limit_a.unwrap_or(8.0); C])
@@ -106,7 +106,7 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             .build::<X>()
             .map_err(|e| match e {
                 coil_thermal::BuildError::NotConverged { .. } => FaultError::Invalid(format!(
-                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see every source's bias: set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
+                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see every source's bias: name the sources whose heat they can see in `[observer] bias_sources`, or set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
                     model.name, settings.bias_noise_w2_per_s
                 )),
                 e => FaultError::Build(e),
