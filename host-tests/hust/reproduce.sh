@@ -10,8 +10,9 @@
 # bursts and the fused scores against the readings with the thermocouple
 # channel's shifts taken out (channel_shifts.sh), the committed
 # seven-node model against its alternatives (variants.sh), each fit
-# profile left out of the fit in turn (cross_validation.sh), and the fused
-# results with each filter setting moved down and up (filter_sensitivity.sh).
+# profile left out of the fit in turn (cross_validation.sh), the fused
+# results with each filter setting moved down and up (filter_sensitivity.sh),
+# and the firmware's observer fusing the same sensor (firmware_observer.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -131,3 +132,9 @@ host-tests/hust/cross_validation.sh
 # down and up (docs/hust.md, "Filter settings").
 echo
 host-tests/hust/filter_sensitivity.sh
+
+# The firmware's observer (the library's NetworkObserver, as codegen
+# builds it) with endwind_1 fused (docs/hust.md, "The firmware's
+# observer").
+echo
+host-tests/hust/firmware_observer.sh
