@@ -309,6 +309,43 @@ fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
     }
 }
 
+/// The firmware's observer (the library's `NetworkObserver` at 1 ms,
+/// steady gain, `f32`) fusing endwind_1 with the copper's heat bias on the
+/// active winding (the model file's `[observer] bias_sources`), at the
+/// library's default bias noise: better than open loop on both
+/// active-winding sensors on every profile, at the declared 0.2 K sensor
+/// noise and at profile 0's 0.5 K (docs/hust.md, "The firmware's
+/// observer"; it is within issue 18's goals on 10 and 11 of the 12
+/// profiles, which this test does not claim).
+#[test]
+fn the_firmware_observer_fusing_endwind_1_beats_open_loop_on_every_profile() {
+    let Some(dir) = data_dir() else { return };
+    let tmp = TempDir::new().unwrap();
+    let model = "models/hust_motor_slot_fitted.toml";
+    for n in ALL {
+        let path = trace_path(&dir, n, &tmp);
+        let open = scores(&path, model, &SEVEN_ARGS, &tmp);
+        for noise in ["0.2", "0.5"] {
+            let mut args = SEVEN_ARGS.to_vec();
+            args.extend([
+                "--measure",
+                "endwind_1=end_winding",
+                "--measurement-noise-k",
+                noise,
+            ]);
+            let fused = scores(&path, model, &args, &tmp);
+            eprintln!("profile {n}, {noise} K: firmware observer {fused:?}, open loop {open:?}");
+            for (k, ((mse, _), (open_mse, _))) in fused.iter().zip(&open).enumerate() {
+                assert!(
+                    mse < open_mse,
+                    "profile {n}, {noise} K: activewind_{} fused {mse} against open loop {open_mse} K^2",
+                    k + 1
+                );
+            }
+        }
+    }
+}
+
 /// The six-node model of the earlier table against the full published
 /// network on activewind_1, open loop, every node with a sensor started at
 /// its reading.
