@@ -23,8 +23,8 @@
 //! A model whose conductances change with speed (`[conductance.speed]`)
 //! has each row's network held over its interval, as the open-loop replay
 //! does: `A` is rebuilt and rediscretised whenever a row's conductances
-//! differ from the last ones (the covariance and the learned sensor noise
-//! carry over).
+//! differ from the last ones (the covariance carries over; a learned
+//! sensor noise is set again before every correction, as always).
 //!
 //! # Disturbance states (why one sensor corrects the others)
 //! With temperatures alone as states, a sensor pulls its own node and, through
@@ -477,9 +477,6 @@ pub struct KalmanEstimator {
     /// The network `a` and `b` were built from: the model's, or with
     /// speed-dependent conductances the last row's.
     network: DynNetwork,
-    /// Each sensor's learned noise variance \[K^2\], if any yet: a
-    /// rediscretised filter starts from it, not from the floor.
-    learned_variance_k2: Vec<Option<f64>>,
     /// The library filter, padded; the sample period it was discretised
     /// for.
     filter: Box<dyn PaddedFilter>,
@@ -564,7 +561,6 @@ impl KalmanEstimator {
         };
         Ok(Self {
             network: model.network.clone(),
-            learned_variance_k2: vec![None; sensor_nodes.len()],
             model,
             info,
             opts,
@@ -639,11 +635,6 @@ impl KalmanEstimator {
                 self.opts.gate,
                 recovery.as_slice(),
             )?;
-            for (j, v) in self.learned_variance_k2.iter().enumerate() {
-                if let Some(v) = v {
-                    self.filter.set_measurement_variance(j, *v);
-                }
-            }
             self.period_s = Some(dt_s);
         }
         Ok(())
@@ -795,9 +786,8 @@ impl Estimator for KalmanEstimator {
         let floor_k2 = self.opts.measurement_noise_k.powi(2);
         for (j, (watch, reading)) in self.noise.iter_mut().zip(&z).enumerate() {
             if let Some(variance_k2) = reading.and_then(|v| watch.push(v)) {
-                let variance_k2 = variance_k2.max(floor_k2);
-                self.filter.set_measurement_variance(j, variance_k2);
-                self.learned_variance_k2[j] = Some(variance_k2);
+                self.filter
+                    .set_measurement_variance(j, variance_k2.max(floor_k2));
             }
         }
         let report = self.filter.update(&z);
