@@ -745,15 +745,12 @@ impl Estimator for KalmanEstimator {
         }
         u[m + boundary_c.len()] = 1.0;
         self.effective = effective;
-        if self.model.has_varying_conductances() {
-            // This row's conductances, held over the interval like every
-            // other input; rediscretised only when they change.
-            let net = self.model.network_at(signals);
-            if net != self.network {
-                (self.a, self.b) = continuous_system(&net, &self.opts);
-                self.network = net;
-                self.period_s = None;
-            }
+        // This row's conductances, held over the interval like every other
+        // input; rediscretised only when they change.
+        if let Some(net) = self.model.changed_network(signals, &self.network) {
+            (self.a, self.b) = continuous_system(&net, &self.opts);
+            self.network = net;
+            self.period_s = None;
         }
         // A sample period the model cannot be discretised for (non-finite or
         // not positive) leaves the estimate where it is.

@@ -1212,6 +1212,19 @@ impl Model {
         net
     }
 
+    /// The network of a row with `signals` when it differs from `current`
+    /// (the one in force); `None` when it does not, and always for a model
+    /// without speed-dependent conductances. The replays hold a row's
+    /// network over its interval and rebuild what they derive from it only
+    /// on a change.
+    pub fn changed_network(&self, signals: &[f64], current: &DynNetwork) -> Option<DynNetwork> {
+        if !self.has_varying_conductances() {
+            return None;
+        }
+        let net = self.network_at(signals);
+        (net != *current).then_some(net)
+    }
+
     /// Refuses a model whose conductances depend on a signal, for a path
     /// (`what`) that works on one fixed network.
     pub fn require_fixed_network(&self, what: &str) -> Result<()> {

@@ -305,11 +305,10 @@ impl Plant for FilePlant {
         }
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
-        if self.model.has_varying_conductances() {
-            // The conductances of this row, held over the interval like
-            // every other input; the stepper is rebuilt only on a change.
-            let net = self.model.network_at(signals);
-            if net != self.network && self.stepper.set_network(&net).is_ok() {
+        // The conductances of this row, held over the interval like every
+        // other input; the stepper is rebuilt only on a change.
+        if let Some(net) = self.model.changed_network(signals, &self.network) {
+            if self.stepper.set_network(&net).is_ok() {
                 self.network = net;
             }
         }
