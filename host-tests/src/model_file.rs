@@ -171,7 +171,7 @@ impl ConductanceSpeedSpec {
     /// The conductance \[W/K\] at speed signal `value` for a base
     /// conductance `g0_w_per_k` (already multiplied by `factor`).
     pub fn at(&self, g0_w_per_k: f64, value: f64) -> f64 {
-        let f = value / self.reference;
+        let f = per_unit(value, self.reference);
         let poly = (1.0 + self.a1 * f + self.a2 * f * f).max(0.0);
         if g0_w_per_k <= 0.0 || poly == 0.0 {
             return 0.0;
@@ -183,8 +183,8 @@ impl ConductanceSpeedSpec {
 
 /// A loss polynomial in a current and a speed (iron, magnet, friction,
 /// stray and AC losses of a machine):
-/// `P = max(0, sum_k c_k i^(i_k) f^(f_k))` \[W\] with `i = current / current.reference`
-/// and `f = speed / speed.reference`. On one node, or split between two:
+/// `P = max(0, sum_k c_k i^(i_k) f^(f_k))` \[W\] with `i = |current| / current.reference`
+/// and `f = |speed| / speed.reference`. On one node, or split between two:
 /// `nodes[0]` takes `a P` and `nodes[1]` `(1 - a) P`, with
 /// `a = clip(sum_k c_k i^(i_k) f^(f_k), 0, 1)` over the `split` terms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -208,7 +208,7 @@ pub struct LossSpec {
     pub split: Vec<LossTerm>,
 }
 
-/// A trace signal divided by a reference: `column / reference`.
+/// A trace signal divided by a reference: `|column| / reference` ([`per_unit`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScaledSignal {
@@ -241,6 +241,14 @@ fn is_zero(v: &u32) -> bool {
 pub const MAX_LOSS_EXPONENT: u32 = 4;
 
 /// Evaluates `sum c i^i f^f`.
+/// A signal per unit of its reference, by magnitude: a machine turning
+/// backwards (a negative speed) or a current of either sign loses and
+/// convects as it does forwards, so a negative signal never takes a loss
+/// away (which would read cold).
+pub fn per_unit(value: f64, reference: f64) -> f64 {
+    value.abs() / reference
+}
+
 fn polynomial(terms: &[LossTerm], i: f64, f: f64) -> f64 {
     terms
         .iter()
@@ -294,7 +302,7 @@ pub struct SourceSpec {
     pub speed: Option<SpeedSpec>,
 }
 
-/// Speed factor `1 + a1 f + a2 f^2` with `f = column / reference`.
+/// Speed factor `1 + a1 f + a2 f^2` with `f = |column| / reference`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpeedSpec {
@@ -328,7 +336,7 @@ pub struct ConductorSpec {
 }
 
 /// A loss that depends on a speed signal only (iron, magnet, friction):
-/// `P = max(0, p1_w f + p2_w f^2)` with `f = column / reference`.
+/// `P = max(0, p1_w f + p2_w f^2)` with `f = |column| / reference`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpeedLossSpec {
@@ -725,7 +733,7 @@ pub struct LossDrive {
 impl LossDrive {
     /// The power of each of its nodes \[W\] (one or two).
     pub fn powers_w(&self, signals: &[f64]) -> (f64, Option<f64>) {
-        let scaled = |s: Option<(usize, f64)>| s.map_or(0.0, |(k, r)| signals[k] / r);
+        let scaled = |s: Option<(usize, f64)>| s.map_or(0.0, |(k, r)| per_unit(signals[k], r));
         let (i, f) = (scaled(self.current), scaled(self.speed));
         let p = polynomial(&self.power, i, f).max(0.0);
         if self.split.is_empty() {
@@ -1170,7 +1178,7 @@ impl Model {
         out.extend(self.drives.iter().map(|d| {
             let mut factor = d.scale;
             if let Some((s, reference, a1, a2)) = d.speed {
-                let f = signals[s] / reference;
+                let f = per_unit(signals[s], reference);
                 factor *= (1.0 + a1 * f + a2 * f * f).max(0.0);
             }
             let i = currents_a[d.input];
@@ -1181,7 +1189,7 @@ impl Model {
             }
         }));
         out.extend(self.speed_losses.iter().map(|l| {
-            let f = signals[l.signal] / l.reference;
+            let f = per_unit(signals[l.signal], l.reference);
             (l.p1_w * f + l.p2_w * f * f).max(0.0).sqrt()
         }));
         for l in &self.losses {

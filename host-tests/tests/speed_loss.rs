@@ -53,6 +53,9 @@ fn steady_state_is_boundary_plus_loss_over_conductance() {
     let mut neg = file.clone();
     access_param(&mut neg, "speed_loss.stator.p1_w", Some(-100.0)).unwrap();
     assert!((steady_c(&neg, 2000.0) - 20.0).abs() < 1e-12);
+    // Turning backwards loses as much: f = |speed| / reference (a signed f
+    // would make the linear term negative and read 1.5 K cold here).
+    assert!((steady_c(&file, -2000.0) - 22.75).abs() < 1e-9);
 }
 
 #[test]
@@ -188,8 +191,12 @@ fn loss_polynomial_split_and_speed_dependent_conductance_reach_their_analytic_st
         (50.0, 1000.0),
         (100.0, 4000.0),
         (180.0, 3000.0),
+        // A negative current or speed (a d/q component, turning backwards)
+        // by its magnitude: the losses and the rotor's convection as forwards.
+        (-180.0, -3000.0),
+        (50.0, -1000.0),
     ] {
-        let (i, f) = (current / 100.0, speed / 4000.0);
+        let (i, f) = (current.abs() / 100.0, speed.abs() / 4000.0);
         let p = 20.0 * f + 100.0 * i * f + 5.0 * i * i;
         let a = (0.9 - 0.2 * f - 0.1 * i * f).clamp(0.0, 1.0);
         let g_rotor = (1.0 + 0.5 * f) / (0.05 + 0.2 * (-1.5 * f).exp());
