@@ -153,15 +153,44 @@ fn codegen_refuses_what_the_firmware_observer_cannot_take() {
         .assert()
         .failure()
         .stderr(predicates::str::contains("lid"));
-    // Speed-dependent losses are not inputs of the firmware observer.
+    // A conductance that changes with the speed changes the network the
+    // tables are solved for (speed losses and factors are inputs: see
+    // the real motor's module below).
     cargo_bin_cmd!("coil-thermal")
         .arg("codegen")
         .arg("--model")
-        .arg(models.join("hust_motor.toml"))
-        .args(["--sensor", "stator_yoke", "--out", "-"])
+        .arg(models.join("hust-published.toml"))
+        .args(["--sensor", "stator", "--out", "-"])
         .assert()
         .failure()
-        .stderr(predicates::str::contains("speed"));
+        .stderr(predicates::str::contains("[conductance.speed]"));
+}
+
+/// The real motor's model (`[observer]` in the file: the end-winding
+/// thermocouple, the copper's heat bias, 400 A) generates the committed
+/// `examples/generated/hust_motor.rs`, speed factors and speed losses
+/// made into the observer's currents by its `source_currents_a`
+/// (`replay_firmware_filter`: it is `replay`'s observer).
+#[test]
+fn codegen_reproduces_the_real_motors_module() {
+    let out = cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(root().join("host-tests/models/hust_motor_slot_fitted.toml"))
+        .args(["--out", "-"])
+        .assert()
+        .success();
+    let text = String::from_utf8_lossy(&out.get_output().stdout).into_owned();
+    assert_eq!(
+        text,
+        read(&root().join("examples/generated/hust_motor.rs")),
+        "codegen no longer reproduces examples/generated/hust_motor.rs: cargo run --release -p coil-thermal-host --bin coil-thermal -- codegen --model host-tests/models/hust_motor_slot_fitted.toml --out examples/generated/hust_motor.rs"
+    );
+    assert!(text.contains("pub const SIGNAL_NAMES: [&str; SIGNALS] = [\"speed\"];"));
+    assert!(
+        text.contains("ambient_boundary: 1,"),
+        "the ambient is the second boundary"
+    );
 }
 
 #[test]

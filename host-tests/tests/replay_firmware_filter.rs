@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
+use coil_thermal::observer::network::{NetworkInputs, NetworkObserver, NetworkObserverState};
 use coil_thermal::observer::TimedReading;
 use coil_thermal::Reading;
 use serde_json::Value;
@@ -16,6 +17,9 @@ use tempfile::TempDir;
 
 #[path = "../../examples/generated/drive_3node.rs"]
 mod model;
+
+#[path = "../../examples/generated/hust_motor.rs"]
+mod hust_motor;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -33,29 +37,41 @@ fn trace_rows() -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The generated (firmware) observer ticked at 1 ms as the replay hands
-/// the trace over: each row's current and ambient held for its second, the
-/// row's housing reading given to the second's first tick. Returns the node
-/// temperatures at every row (the start, then after each second).
-fn firmware_estimates(rows: &[[f32; 4]]) -> Vec<[f32; 3]> {
-    let observer = model::observer().expect("the generated parts assemble");
-    let mut state = model::initial_state(&observer, rows[0][1]);
+/// A generated (firmware) observer ticked at 1 ms as the replay hands a
+/// trace over: each row's currents and boundaries held for its second,
+/// the row's readings given to the second's first tick. Returns the node
+/// temperatures at every row (the start, then after each second) and the
+/// heat-input biases at the end \[W\].
+#[allow(clippy::type_complexity)]
+fn tick_each_second<
+    const N: usize,
+    const B: usize,
+    const M: usize,
+    const X: usize,
+    const P: usize,
+>(
+    observer: &NetworkObserver<N, B, M, X, P>,
+    mut state: NetworkObserverState<N, B, M, X, P>,
+    rows: &[([f32; M], [f32; B], [Option<f32>; P])],
+) -> (Vec<[f32; N]>, [f32; M]) {
     let mut out = vec![state.outputs().temps_c];
     let mut now_us: u32 = 0;
-    for [current_a, ambient_c, _, housing_tc] in &rows[..rows.len() - 1] {
+    for (currents_a, boundary_c, readings_c) in &rows[..rows.len() - 1] {
         for k in 0..1000 {
             now_us += 1000;
-            let reading = (k == 0).then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: *housing_tc,
-                    cold_junction_c: 25.0,
-                }),
-                sampled_at_us: now_us,
+            let readings = readings_c.map(|r| {
+                r.filter(|_| k == 0).map(|temp_c| TimedReading {
+                    result: Ok(Reading {
+                        temp_c,
+                        cold_junction_c: 25.0,
+                    }),
+                    sampled_at_us: now_us,
+                })
             });
-            let inputs = model::Inputs {
-                currents_a: model::source_currents_a(&[*current_a]),
-                boundary_c: [*ambient_c],
-                readings: [reading],
+            let inputs = NetworkInputs {
+                currents_a: *currents_a,
+                boundary_c: *boundary_c,
+                readings,
                 now_us,
                 elapsed_us: 1000,
             };
@@ -63,7 +79,25 @@ fn firmware_estimates(rows: &[[f32; 4]]) -> Vec<[f32; 3]> {
         }
         out.push(state.outputs().temps_c);
     }
-    out
+    (out, observer.heat_bias_w(&state))
+}
+
+/// The generated `drive-3node` observer over its bench trace (the housing
+/// thermocouple fused).
+fn firmware_estimates(rows: &[[f32; 4]]) -> Vec<[f32; 3]> {
+    let observer = model::observer().expect("the generated parts assemble");
+    let state = model::initial_state(&observer, rows[0][1]);
+    let rows: Vec<_> = rows
+        .iter()
+        .map(|[current_a, ambient_c, _, housing_tc]| {
+            (
+                model::source_currents_a(&[*current_a], &[]),
+                [*ambient_c],
+                [Some(*housing_tc)],
+            )
+        })
+        .collect();
+    tick_each_second(&observer, state, &rows).0
 }
 
 /// `replay` of the bench trace on the fitted model, fusing the housing
@@ -188,4 +222,135 @@ fn the_model_files_sensor_noise_is_the_replays_default() {
     assert_eq!(json["fusion"]["sensor_sigma_k"], 0.2);
     assert_eq!(json["fusion"]["sensor_sigma_from"], "default");
     assert_ne!(default, from_flag);
+}
+
+/// The real motor's seven-node model (`hust_motor_slot_fitted.toml`: copper
+/// with an AC speed factor, speed-dependent iron and magnet losses) through
+/// `codegen` (`examples/generated/hust_motor.rs`), its currents made by the
+/// generated `source_currents_a` from |i_s| and the speed, equals
+/// `replay`'s library observer, which folds the same terms into effective
+/// currents on the host, on a drive of load and speed steps. The end
+/// winding reads 0.1 K/min above the open-loop model (a heat the model
+/// lacks): the fused estimate follows it and the copper's heat bias takes
+/// it up.
+#[test]
+fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
+    const ROWS: usize = 900;
+    let ambient_c = 25.0_f32;
+    // |i_s| [A] and speed [rpm] by minute: standstill, loaded at 3000 rpm,
+    // a low-speed climb, a high-speed run.
+    let drive = |t: usize| match t / 60 {
+        0 => (0.0_f32, 0.0_f32),
+        1..=4 => (300.0, 3000.0),
+        5..=8 => (150.0, 500.0),
+        9..=11 => (80.0, 4000.0),
+        _ => (250.0, 1500.0),
+    };
+    let observer = hust_motor::observer().expect("the generated parts assemble");
+    let state = || hust_motor::initial_state(&observer, ambient_c);
+    let rows = |readings: &dyn Fn(usize) -> Option<f32>| -> Vec<_> {
+        (0..ROWS)
+            .map(|t| {
+                let (current_a, speed_rpm) = drive(t);
+                (
+                    hust_motor::source_currents_a(&[current_a], &[speed_rpm]),
+                    [ambient_c; hust_motor::BOUNDARIES],
+                    [readings(t)],
+                )
+            })
+            .collect()
+    };
+    let end = hust_motor::NODE_NAMES
+        .iter()
+        .position(|n| *n == "end_winding")
+        .unwrap();
+    let (open, _) = tick_each_second(&observer, state(), &rows(&|_| None));
+    let ramp_k_per_s = 0.1 / 60.0;
+    let reading = |t: usize| open[t][end] + ramp_k_per_s * t as f32;
+    let (fused, bias_w) = tick_each_second(&observer, state(), &rows(&|t| Some(reading(t))));
+
+    // The same drive as a trace for `replay`.
+    let tmp = TempDir::new().unwrap();
+    let trace = tmp.path().join("motor.csv");
+    let mut csv = String::from("time_s,IdFbk,IqFbk,speed,water_outlet,ambient,endwind_1\n");
+    for t in 0..ROWS {
+        let (current_a, speed_rpm) = drive(t);
+        // |i_s| split 3:4 between d and q: hypot gives it back.
+        let (id, iq) = (-0.6 * current_a, 0.8 * current_a);
+        csv.push_str(&format!(
+            "{t},{id},{iq},{speed_rpm},{ambient_c},{ambient_c},{}\n",
+            reading(t)
+        ));
+    }
+    std::fs::write(&trace, csv).unwrap();
+    let out = tmp.path().join("est.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(root().join("host-tests/models/hust_motor_slot_fitted.toml"))
+        .arg("--trace")
+        .arg(&trace)
+        .args(["--measure", "endwind_1=end_winding"])
+        .args(["--measurement-noise-k", "0.25", "--json", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let json: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    assert_eq!(json["fusion"]["sensors"][0]["rejected"], 0, "{json}");
+    let replayed: Vec<Vec<f64>> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(replayed.len(), ROWS);
+    let mut worst = 0.0f64;
+    for (t, (r, f)) in replayed.iter().zip(&fused).enumerate() {
+        for (node, (r, f)) in r.iter().zip(f).enumerate() {
+            let d = (r - f64::from(*f)).abs();
+            assert!(
+                d <= 2e-5,
+                "row {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
+                hust_motor::NODE_NAMES[node]
+            );
+            worst = worst.max(d);
+        }
+    }
+    // The fusion at work: the end winding on its reading, 1.5 K above open
+    // loop after 15 min, and the missing heat in the copper's bias.
+    let last = ROWS - 1;
+    let (est, open_end, want) = (fused[last][end], open[last][end], reading(last));
+    eprintln!(
+        "replay vs the generated motor observer: worst {worst:.2e} K over {ROWS} rows; end winding {est:.2} (open loop {open_end:.2}, reading {want:.2}) degC, copper bias {:.1} W",
+        bias_w[0]
+    );
+    assert!((est - want).abs() < 0.3, "{est} vs {want}");
+    assert!(bias_w[0] > 1.0, "{bias_w:?}");
+}
+
+/// The generated currents of the real motor: the speed by magnitude (a
+/// motor turning backwards loses as forwards), the copper's AC factor and
+/// the iron losses at their model-file values, and a NaN speed kept NaN on
+/// every current it drives (the observer then holds their last value,
+/// flagged) rather than read as standstill.
+#[test]
+fn the_real_motors_generated_currents_follow_the_model_file() {
+    let forward = hust_motor::source_currents_a(&[200.0], &[3000.0]);
+    assert_eq!(forward, hust_motor::source_currents_a(&[200.0], &[-3000.0]));
+    // The file's slot copper: 1 + 0.02174 f + a2 f^2 at f = 0.75 (a2 the fit's).
+    let f = 0.75_f32;
+    let a2 = 0.163_817_15_f32;
+    let factor = 1.0 + 0.02174 * f + a2 * f * f;
+    assert!(
+        (forward[0] - 200.0 * factor.sqrt()).abs() < 1e-3,
+        "{forward:?}"
+    );
+    assert_eq!(forward[2], 200.0, "the end winding has no speed factor");
+    // The teeth's iron: 390.55 W at 4000 rpm, linear in the speed.
+    let teeth_w = forward[3] * forward[3];
+    assert!((teeth_w - 390.553_9 * f).abs() < 1e-2, "{teeth_w} W");
+    let lost = hust_motor::source_currents_a(&[200.0], &[f32::NAN]);
+    for (k, name) in hust_motor::CURRENT_NAMES.iter().enumerate() {
+        let driven_by_speed = name.contains("speed");
+        assert_eq!(lost[k].is_nan(), driven_by_speed, "{name}: {}", lost[k]);
+    }
 }

@@ -25,8 +25,11 @@ use coil_thermal::{BuildError, Network, Resistance};
 
 /// State nodes.
 pub const NODES: usize = 3;
-/// Boundaries (given temperatures; boundary 0 is the ambient).
+/// Boundaries (given temperatures).
 pub const BOUNDARIES: usize = 1;
+/// The boundary that is the ambient (the derating's and the margin's
+/// reference): the one named `ambient`, else the first.
+pub const AMBIENT_BOUNDARY: usize = 0;
 /// Currents: one per Joule source.
 pub const CURRENTS: usize = 1;
 /// Filter states: the nodes, then a heat-input bias per current.
@@ -41,10 +44,18 @@ pub const NODE_NAMES: [&str; NODES] = ["winding", "housing", "heatsink"];
 pub const BOUNDARY_NAMES: [&str; BOUNDARIES] = ["ambient"];
 /// Input names.
 pub const INPUT_NAMES: [&str; INPUTS] = ["current"];
+/// Each input's trace column (or expression) in the model file.
+pub const INPUT_COLUMNS: [&str; INPUTS] = ["current"];
 /// The node each thermocouple measures, by name.
 pub const SENSOR_NAMES: [&str; SENSORS] = ["housing"];
-/// The input that drives each current.
-pub const SOURCE_INPUT: [usize; CURRENTS] = [0];
+/// Signals the model's speed and loss terms read (e.g. a speed in the
+/// unit of its reference).
+pub const SIGNALS: usize = 0;
+/// Signal names (trace columns or expressions).
+pub const SIGNAL_NAMES: [&str; SIGNALS] = [];
+/// What each current of the observer is (a source and its input, or a
+/// loss carried as `sqrt(P)` through 1 ohm).
+pub const CURRENT_NAMES: [&str; CURRENTS] = ["winding: current"];
 
 /// The configuration.
 pub type Observer = NetworkObserver<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;
@@ -55,10 +66,16 @@ pub type Inputs = NetworkInputs<BOUNDARIES, CURRENTS, SENSORS>;
 /// One tick's outputs.
 pub type Outputs = NetworkOutputs<NODES, CURRENTS, SENSORS>;
 
-/// Each current from the model file's inputs \[A\] (a current per
-/// source: sources in series take the same one).
-pub fn source_currents_a(input_a: &[f32; INPUTS]) -> [f32; CURRENTS] {
-    core::array::from_fn(|m| input_a.get(SOURCE_INPUT[m]).copied().unwrap_or(f32::NAN))
+/// Each current of the observer \[A\] from the model file's current
+/// inputs \[A\] and signals (in [`INPUT_NAMES`] and [`SIGNAL_NAMES`]
+/// order): a source's input current, times `sqrt(max(0, 1 + a1 f + a2
+/// f^2))` when it has a speed factor; a speed or `[[loss]]` loss as a
+/// 1 ohm source carrying `sqrt(P)`. Signals count by magnitude, per unit
+/// of their reference. A NaN input or signal makes the currents it drives
+/// NaN, which the observer holds at their last valid value, flagged.
+pub fn source_currents_a(input_a: &[f32; INPUTS], signal: &[f32; SIGNALS]) -> [f32; CURRENTS] {
+    let _ = signal;
+    [input_a[0]]
 }
 
 /// The network the tables were solved from (for host checks; the

@@ -22,13 +22,15 @@
 //! The `[observer]` table of the model file (see `host-tests/MODEL_FORMAT.md`)
 //! names the sensors (`sensors = ["housing"]`: the node each thermocouple
 //! measures) and optionally the hardware current limit and a few settings.
-//! Critical temperatures come from the nodes' `critical_c`. Speed-dependent
-//! terms (`speed` on a source, `[[speed_loss]]`) have no place in the
-//! firmware observer's inputs yet and are refused; a source's `scale` is
-//! folded into its resistance (`k R(T) I^2`). Each Joule source is one
-//! current of the observer, in source order; sources sharing an input
-//! (series layers) are fed the same current by the generated
-//! `source_currents_a`.
+//! Critical temperatures come from the nodes' `critical_c`; a source's
+//! `scale` is folded into its resistance (`k R(T) I^2`). Each network
+//! source is one current of the observer, in source order: the
+//! `[[source]]`s (sources sharing an input, series layers, get the same
+//! current), then the speed and `[[loss]]` losses as 1 ohm sources. The
+//! generated `source_currents_a(input_a, signal)` makes them from the
+//! model's current inputs and signals (the speed), as the host does
+//! ([`currents`]). Only a conductance that depends on a signal is refused:
+//! it changes the network, and the tables are solved for one.
 //!
 //! # A built-in device: `--device omnimagnet`
 //!
@@ -47,6 +49,10 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use crate::model_file::{Model, ModelFile};
+
+mod currents;
+
+use currents::{currents_of, source_currents_fn, CurrentOf};
 
 /// The `[observer]` table of a model file: what the firmware observer needs
 /// beyond the network.
@@ -132,8 +138,10 @@ struct Plan {
     source: String,
     spec: ObserverSpec,
     sensor_nodes: Vec<usize>,
-    /// Per source: (node, `k R(0 degC)` \[ohm\], `k dR/dT` \[ohm/K\], input).
-    sources: Vec<(usize, f64, f64, usize)>,
+    /// Per source: (node, `k R(0 degC)` \[ohm\], `k dR/dT` \[ohm/K\]).
+    sources: Vec<(usize, f64, f64)>,
+    /// What each source's current is made of.
+    currents: Vec<CurrentOf>,
 }
 
 fn plan(req: &CodegenRequest) -> Result<Plan> {
@@ -149,13 +157,9 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
             req.model.display()
         );
     }
-    if !model.speed_losses.is_empty()
-        || !model.losses.is_empty()
-        || model.has_varying_conductances()
-        || model.drives.iter().any(|d| d.speed.is_some())
-    {
+    if model.has_varying_conductances() {
         bail!(
-            "{}: speed-dependent terms (`speed` on a source or a conductance, [[speed_loss]], [[loss]]) are not inputs of the firmware observer yet; generate from a model without them",
+            "{}: a conductance that depends on a signal (`[conductance.speed]`) changes the network with every row, and the firmware observer's tables are solved for one network; generate from a model without it",
             req.model.display()
         );
     }
@@ -176,17 +180,20 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         .iter()
         .map(|s| model.node_index(s))
         .collect::<Result<Vec<_>>>()?;
+    let currents = currents_of(&model);
     let sources = model
         .network
         .sources()
         .iter()
-        .zip(&model.drives)
-        .map(|(s, d)| {
+        .enumerate()
+        .map(|(k, s)| {
+            // A `[[source]]`'s power scale folded into its resistance (they
+            // come first; speed and `[[loss]]` sources are 1 ohm, scale 1).
+            let scale = model.drives.get(k).map_or(1.0, |d| d.scale);
             (
                 s.node,
-                d.scale * s.resistance.r_at_0c_ohm,
-                d.scale * s.resistance.slope_ohm_per_k,
-                d.input,
+                scale * s.resistance.r_at_0c_ohm,
+                scale * s.resistance.slope_ohm_per_k,
             )
         })
         .collect();
@@ -202,10 +209,39 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         spec,
         sensor_nodes,
         sources,
+        currents,
     })
 }
 
 impl Plan {
+    /// Current `k`'s entry of `CURRENT_NAMES`: its node and what drives it.
+    fn current_name(&self, k: usize, c: CurrentOf) -> String {
+        let node = &self.model.nodes[self.sources[k].0];
+        match c {
+            CurrentOf::Input { input, speed } => format!(
+                "{node}: {}{}",
+                self.model.inputs[input].name,
+                if speed.is_some() {
+                    " x speed factor"
+                } else {
+                    ""
+                }
+            ),
+            CurrentOf::SpeedLoss(_) => format!("{node}: speed loss"),
+            CurrentOf::Loss { k, .. } => format!("{node}: loss {k}"),
+        }
+    }
+
+    /// The derating's and the margin's reference: the boundary named
+    /// `ambient` (as `replay` has it), else the first.
+    fn ambient_boundary(&self) -> usize {
+        self.model
+            .boundaries
+            .iter()
+            .position(|b| b.name == "ambient")
+            .unwrap_or(0)
+    }
+
     fn sizes(&self) -> (usize, usize, usize, usize) {
         let n = self.model.nodes.len();
         let b = self.model.network.boundaries();
@@ -240,7 +276,11 @@ impl Plan {
         );
         o.push_str("use coil_thermal::observer::network::{\n    NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,\n};\nuse coil_thermal::{BuildError, Network, Resistance};\n\n");
         let _ = writeln!(o, "/// State nodes.\npub const NODES: usize = {n};");
-        let _ = writeln!(o, "/// Boundaries (given temperatures; boundary 0 is the ambient).\npub const BOUNDARIES: usize = {b};");
+        let _ = writeln!(
+            o,
+            "/// Boundaries (given temperatures).\npub const BOUNDARIES: usize = {b};"
+        );
+        let _ = writeln!(o, "/// The boundary that is the ambient (the derating's and the margin's\n/// reference): the one named `ambient`, else the first.\npub const AMBIENT_BOUNDARY: usize = {};", self.ambient_boundary());
         let _ = writeln!(
             o,
             "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};"
@@ -273,16 +313,44 @@ impl Plan {
             "/// Boundary names.\npub const BOUNDARY_NAMES: [&str; BOUNDARIES] = {};",
             names(&bounds)
         );
+        let columns: Vec<&str> = self
+            .model
+            .inputs
+            .iter()
+            .map(|i| i.column.as_str())
+            .collect();
         let _ = writeln!(
             o,
-            "/// Input names.\npub const INPUT_NAMES: [&str; INPUTS] = {};",
-            names(&inputs)
+            "/// Input names.\npub const INPUT_NAMES: [&str; INPUTS] = {};\n/// Each input's trace column (or expression) in the model file.\npub const INPUT_COLUMNS: [&str; INPUTS] = {};",
+            names(&inputs),
+            names(&columns)
         );
         let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
-        let input_of: Vec<usize> = self.sources.iter().map(|s| s.3).collect();
-        let _ = writeln!(o, "/// The input that drives each current.\npub const SOURCE_INPUT: [usize; CURRENTS] = {};", list(&input_of));
+        let _ = writeln!(
+            o,
+            "/// Signals the model's speed and loss terms read (e.g. a speed in the\n/// unit of its reference).\npub const SIGNALS: usize = {};",
+            self.model.signals.len()
+        );
+        let signals: Vec<&str> = self.model.signals.iter().map(String::as_str).collect();
+        let _ = writeln!(
+            o,
+            "/// Signal names (trace columns or expressions).\npub const SIGNAL_NAMES: [&str; SIGNALS] = {};",
+            names(&signals)
+        );
+        let current_names: Vec<String> = self
+            .currents
+            .iter()
+            .enumerate()
+            .map(|(k, c)| self.current_name(k, *c))
+            .collect();
+        let current_names: Vec<&str> = current_names.iter().map(String::as_str).collect();
+        let _ = writeln!(
+            o,
+            "/// What each current of the observer is (a source and its input, or a\n/// loss carried as `sqrt(P)` through 1 ohm).\npub const CURRENT_NAMES: [&str; CURRENTS] = {};",
+            names(&current_names)
+        );
         o.push_str("\n/// The configuration.\npub type Observer = NetworkObserver<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// The per-device state.\npub type State = NetworkObserverState<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// One tick's inputs.\npub type Inputs = NetworkInputs<BOUNDARIES, CURRENTS, SENSORS>;\n/// One tick's outputs.\npub type Outputs = NetworkOutputs<NODES, CURRENTS, SENSORS>;\n\n");
-        o.push_str("/// Each current from the model file's inputs \\[A\\] (a current per\n/// source: sources in series take the same one).\npub fn source_currents_a(input_a: &[f32; INPUTS]) -> [f32; CURRENTS] {\n    core::array::from_fn(|m| input_a.get(SOURCE_INPUT[m]).copied().unwrap_or(f32::NAN))\n}\n\n");
+        o.push_str(&source_currents_fn(&self.model, &self.currents));
         o.push_str("/// The network the tables were solved from (for host checks; the\n/// firmware needs only [`PARTS`]).\n///\n/// # Errors\n/// None for a generated file; the type is the builder's.\npub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {\n");
         // A chain of builder calls, each but the last with `?`.
         let mut calls = vec![format!("Network::new({})", list(net.capacities_j_per_k()))];
@@ -298,7 +366,7 @@ impl Plan {
                 link.node, link.boundary, link.g_w_per_k
             ));
         }
-        for (k, (node, r0, slope, _)) in self.sources.iter().enumerate() {
+        for (k, (node, r0, slope)) in self.sources.iter().enumerate() {
             calls.push(format!(
                 ".joule_source({node}, {k}, Resistance::linear_fit({slope:?}, {r0:?}))"
             ));
@@ -338,6 +406,10 @@ impl Plan {
         }
         if let Some(v) = s.stuck_tolerance_k {
             fields.push(format!("stuck_tolerance_k: {v:?}"));
+        }
+        let ambient = self.ambient_boundary();
+        if ambient != 0 {
+            fields.push(format!("ambient_boundary: {ambient}"));
         }
         if !fields.is_empty() {
             settings = format!(

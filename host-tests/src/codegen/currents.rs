@@ -1,0 +1,181 @@
+//! The generated module's `source_currents_a`: every current of the
+//! firmware observer from the model file's current inputs and signals, as
+//! `f32` Rust, the same arithmetic as the host's
+//! [`Model::effective_currents`](crate::model_file::Model::effective_currents).
+//!
+//! The observer's network has one Joule source per current (see the
+//! model file's equations in `host-tests/MODEL_FORMAT.md`):
+//! * a `[[source]]` carries its input's current, times
+//!   `sqrt(max(0, 1 + a1 f + a2 f^2))` when it has a speed factor (its
+//!   power scale is folded into its resistance);
+//! * a `[[speed_loss]]` is a 1 ohm source carrying `sqrt(P(f))`;
+//! * a `[[loss]]` is one 1 ohm source per node carrying `sqrt` of its
+//!   node's share of `P(i, f)`.
+//!
+//! Signals enter by magnitude per unit of their reference (`|s| / ref`).
+//! Unlike the host, which reads finite traces, a NaN signal is kept: the
+//! currents it drives are NaN, and the observer holds a NaN current at its
+//! last valid value, flagged (`NetworkInputs::currents_a`), rather than
+//! reading a missing speed as standstill.
+
+use std::fmt::Write as _;
+
+use crate::model_file::{LossTerm, Model};
+
+/// What one current of the observer is made of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum CurrentOf {
+    /// `[[source]]`: model input `input`, with its speed factor
+    /// (signal, reference, a1, a2) when it has one.
+    Input {
+        input: usize,
+        speed: Option<(usize, f64, f64, f64)>,
+    },
+    /// `[[speed_loss]]` number `k`.
+    SpeedLoss(usize),
+    /// `[[loss]]` number `k`, on its first node or its second.
+    Loss { k: usize, second: bool },
+}
+
+/// Every current of `model`'s network, in source order.
+pub(super) fn currents_of(model: &Model) -> Vec<CurrentOf> {
+    let mut out: Vec<CurrentOf> = model
+        .drives
+        .iter()
+        .map(|d| CurrentOf::Input {
+            input: d.input,
+            speed: d.speed,
+        })
+        .collect();
+    out.extend((0..model.speed_losses.len()).map(CurrentOf::SpeedLoss));
+    for (k, l) in model.losses.iter().enumerate() {
+        out.push(CurrentOf::Loss { k, second: false });
+        if !l.split.is_empty() {
+            out.push(CurrentOf::Loss { k, second: true });
+        }
+    }
+    out
+}
+
+/// A literal `f32` that reads back as `v` rounded to `f32`.
+fn lit(v: f64) -> String {
+    // `{:?}` of the rounded f32 is the shortest text that reads back to it.
+    #[allow(clippy::cast_possible_truncation)]
+    let f = v as f32;
+    format!("{f:?}_f32")
+}
+
+/// The per-unit signals the body names, as `u0, u1, ...`.
+#[derive(Default)]
+struct PerUnit {
+    pairs: Vec<(usize, f64)>,
+}
+
+impl PerUnit {
+    fn name(&mut self, signal: usize, reference: f64) -> String {
+        let k = match self
+            .pairs
+            .iter()
+            .position(|&(s, r)| s == signal && r.to_bits() == reference.to_bits())
+        {
+            Some(k) => k,
+            None => {
+                self.pairs.push((signal, reference));
+                self.pairs.len() - 1
+            }
+        };
+        format!("u{k}")
+    }
+}
+
+/// `sum_k c_k i^(i_k) f^(f_k)` as Rust over the per-unit variables.
+fn polynomial(terms: &[LossTerm], i: Option<&str>, f: Option<&str>) -> String {
+    let mut parts = Vec::new();
+    for t in terms {
+        let mut factors = vec![lit(t.c)];
+        for (var, power) in [(i, t.i), (f, t.f)] {
+            // The model file refuses a power of a signal the loss lacks.
+            if let Some(var) = var {
+                factors.extend((0..power).map(|_| var.to_string()));
+            }
+        }
+        parts.push(factors.join(" * "));
+    }
+    if parts.is_empty() {
+        "0.0_f32".into()
+    } else {
+        parts.join(" + ")
+    }
+}
+
+/// The helpers and `source_currents_a` of the generated module.
+pub(super) fn source_currents_fn(model: &Model, currents: &[CurrentOf]) -> String {
+    let mut units = PerUnit::default();
+    let mut lets = String::new();
+    let mut exprs = Vec::new();
+    for (k, l) in model.losses.iter().enumerate() {
+        let i = l.current.map(|(s, r)| units.name(s, r));
+        let f = l.speed.map(|(s, r)| units.name(s, r));
+        let _ = writeln!(
+            lets,
+            "    let loss{k} = non_negative({});",
+            polynomial(&l.power, i.as_deref(), f.as_deref())
+        );
+        if !l.split.is_empty() {
+            let _ = writeln!(
+                lets,
+                "    let split{k} = unit_interval({});",
+                polynomial(&l.split, i.as_deref(), f.as_deref())
+            );
+        }
+    }
+    for c in currents {
+        exprs.push(match *c {
+            CurrentOf::Input { input, speed: None } => format!("input_a[{input}]"),
+            CurrentOf::Input {
+                input,
+                speed: Some((s, reference, a1, a2)),
+            } => {
+                let u = units.name(s, reference);
+                format!(
+                    "input_a[{input}] * root(1.0_f32 + {} * {u} + {} * {u} * {u})",
+                    lit(a1),
+                    lit(a2)
+                )
+            }
+            CurrentOf::SpeedLoss(k) => {
+                let l = &model.speed_losses[k];
+                let u = units.name(l.signal, l.reference);
+                format!("root({} * {u} + {} * {u} * {u})", lit(l.p1_w), lit(l.p2_w))
+            }
+            CurrentOf::Loss { k, second } => match (model.losses[k].split.is_empty(), second) {
+                (true, _) => format!("root(loss{k})"),
+                (false, false) => format!("root(split{k} * loss{k})"),
+                (false, true) => format!("root((1.0_f32 - split{k}) * loss{k})"),
+            },
+        });
+    }
+    let mut o = String::new();
+    o.push_str(
+        "/// Each current of the observer \\[A\\] from the model file's current\n/// inputs \\[A\\] and signals (in [`INPUT_NAMES`] and [`SIGNAL_NAMES`]\n/// order): a source's input current, times `sqrt(max(0, 1 + a1 f + a2\n/// f^2))` when it has a speed factor; a speed or `[[loss]]` loss as a\n/// 1 ohm source carrying `sqrt(P)`. Signals count by magnitude, per unit\n/// of their reference. A NaN input or signal makes the currents it drives\n/// NaN, which the observer holds at their last valid value, flagged.\n",
+    );
+    o.push_str("pub fn source_currents_a(input_a: &[f32; INPUTS], signal: &[f32; SIGNALS]) -> [f32; CURRENTS] {\n");
+    if units.pairs.is_empty() {
+        o.push_str("    let _ = signal;\n");
+    }
+    for (k, (s, r)) in units.pairs.iter().enumerate() {
+        let _ = writeln!(o, "    let u{k} = per_unit(signal[{s}], {});", lit(*r));
+    }
+    o.push_str(&lets);
+    let _ = writeln!(o, "    [{}]\n}}\n", exprs.join(", "));
+    if !units.pairs.is_empty() {
+        o.push_str("/// `|value| / reference`, NaN kept.\nfn per_unit(value: f32, reference: f32) -> f32 {\n    <f32 as coil_thermal::Scalar>::abs(value) / reference\n}\n\n/// `sqrt(max(0, x))`, NaN kept.\nfn root(x: f32) -> f32 {\n    if x.is_nan() {\n        x\n    } else {\n        <f32 as coil_thermal::Scalar>::sqrt(x)\n    }\n}\n\n");
+    }
+    if !model.losses.is_empty() {
+        o.push_str("/// `max(0, x)`, NaN kept.\nfn non_negative(x: f32) -> f32 {\n    if x < 0.0 {\n        0.0\n    } else {\n        x\n    }\n}\n\n");
+        if model.losses.iter().any(|l| !l.split.is_empty()) {
+            o.push_str("/// `x` clipped to `[0, 1]`, NaN kept.\nfn unit_interval(x: f32) -> f32 {\n    if x < 0.0 {\n        0.0\n    } else if x > 1.0 {\n        1.0\n    } else {\n        x\n    }\n}\n\n");
+        }
+    }
+    o
+}
