@@ -29,7 +29,7 @@
 //! current), then the speed and `[[loss]]` losses as 1 ohm sources. The
 //! generated `source_currents_a(input_a, signal)` makes them from the
 //! model's current inputs and signals (the speed), as the host does
-//! ([`currents`]). Only a conductance that depends on a signal is refused:
+//! (the `currents` submodule). Only a conductance that depends on a signal is refused:
 //! it changes the network, and the tables are solved for one.
 //!
 //! # A built-in device: `--device omnimagnet`
