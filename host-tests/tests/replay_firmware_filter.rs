@@ -21,6 +21,9 @@ mod model;
 #[path = "../../examples/generated/hust_motor.rs"]
 mod hust_motor;
 
+#[path = "../../examples/support/motor_drive.rs"]
+mod motor_drive;
+
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
@@ -226,60 +229,46 @@ fn the_model_files_sensor_noise_is_the_replays_default() {
 
 /// The real motor's seven-node model (`hust_motor_slot_fitted.toml`: copper
 /// with an AC speed factor, speed-dependent iron and magnet losses) through
-/// `codegen` (`examples/generated/hust_motor.rs`), its currents made by the
-/// generated `source_currents_a` from |i_s| and the speed, equals
-/// `replay`'s library observer, which folds the same terms into effective
-/// currents on the host, on a drive of load and speed steps. The end
-/// winding reads 0.1 K/min above the open-loop model (a heat the model
-/// lacks): the fused estimate follows it and the copper's heat bias takes
-/// it up.
+/// `codegen` (`examples/generated/hust_motor.rs`), on the drive of load and
+/// speed steps of `examples/support/motor_drive.rs`:
+/// * the host prints what the firmware printed in QEMU
+///   (`examples/motor_qemu.expected`, checksum of every tick included);
+/// * the fused estimate, its currents made by the generated
+///   `source_currents_a` from |i_s| and the speed, is `replay`'s library
+///   observer, which folds the same terms into effective currents on the
+///   host, at every second;
+/// * the thermocouple, 2.5 K above open loop after five minutes (a heat
+///   the model lacks), pulls the end winding to within 0.6 K and the
+///   copper's heat bias takes the heat up.
 #[test]
 fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
-    const ROWS: usize = 900;
-    let ambient_c = 25.0_f32;
-    // |i_s| [A] and speed [rpm] by minute: standstill, loaded at 3000 rpm,
-    // a low-speed climb, a high-speed run.
-    let drive = |t: usize| match t / 60 {
-        0 => (0.0_f32, 0.0_f32),
-        1..=4 => (300.0, 3000.0),
-        5..=8 => (150.0, 500.0),
-        9..=11 => (80.0, 4000.0),
-        _ => (250.0, 1500.0),
-    };
+    use motor_drive::{drive, AMBIENT_C, SECONDS};
     let observer = hust_motor::observer().expect("the generated parts assemble");
-    let state = || hust_motor::initial_state(&observer, ambient_c);
-    let rows = |readings: &dyn Fn(usize) -> Option<f32>| -> Vec<_> {
-        (0..ROWS)
-            .map(|t| {
-                let (current_a, speed_rpm) = drive(t);
-                (
-                    hust_motor::source_currents_a(&[current_a], &[speed_rpm]),
-                    [ambient_c; hust_motor::BOUNDARIES],
-                    [readings(t)],
-                )
-            })
-            .collect()
-    };
-    let end = hust_motor::NODE_NAMES
-        .iter()
-        .position(|n| *n == "end_winding")
-        .unwrap();
-    let (open, _) = tick_each_second(&observer, state(), &rows(&|_| None));
-    let ramp_k_per_s = 0.1 / 60.0;
-    let reading = |t: usize| open[t][end] + ramp_k_per_s * t as f32;
-    let (fused, bias_w) = tick_each_second(&observer, state(), &rows(&|t| Some(reading(t))));
+    let mut seconds = Vec::new();
+    let mut text = String::new();
+    let summary = motor_drive::replay(
+        &observer,
+        &mut text,
+        |tick| tick(),
+        |s| seconds.push((*s.fused_c, s.reading_c)),
+    )
+    .expect("replays");
+    assert_eq!(
+        text,
+        std::fs::read_to_string(root().join("examples/motor_qemu.expected")).unwrap(),
+        "the host run differs from the firmware's golden output"
+    );
 
     // The same drive as a trace for `replay`.
     let tmp = TempDir::new().unwrap();
     let trace = tmp.path().join("motor.csv");
     let mut csv = String::from("time_s,IdFbk,IqFbk,speed,water_outlet,ambient,endwind_1\n");
-    for t in 0..ROWS {
-        let (current_a, speed_rpm) = drive(t);
+    for (t, (_, reading_c)) in seconds.iter().enumerate() {
+        let (current_a, speed_rpm) = drive(t as u32);
         // |i_s| split 3:4 between d and q: hypot gives it back.
         let (id, iq) = (-0.6 * current_a, 0.8 * current_a);
         csv.push_str(&format!(
-            "{t},{id},{iq},{speed_rpm},{ambient_c},{ambient_c},{}\n",
-            reading(t)
+            "{t},{id},{iq},{speed_rpm},{AMBIENT_C},{AMBIENT_C},{reading_c}\n"
         ));
     }
     std::fs::write(&trace, csv).unwrap();
@@ -302,29 +291,26 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
         .skip(1)
         .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
         .collect();
-    assert_eq!(replayed.len(), ROWS);
+    assert_eq!(replayed.len(), SECONDS as usize + 1);
     let mut worst = 0.0f64;
-    for (t, (r, f)) in replayed.iter().zip(&fused).enumerate() {
+    for (t, (r, (f, _))) in replayed.iter().zip(&seconds).enumerate() {
         for (node, (r, f)) in r.iter().zip(f).enumerate() {
             let d = (r - f64::from(*f)).abs();
             assert!(
                 d <= 2e-5,
-                "row {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
+                "second {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
                 hust_motor::NODE_NAMES[node]
             );
             worst = worst.max(d);
         }
     }
-    // The fusion at work: the end winding on its reading, 1.5 K above open
-    // loop after 15 min, and the missing heat in the copper's bias.
-    let last = ROWS - 1;
-    let (est, open_end, want) = (fused[last][end], open[last][end], reading(last));
     eprintln!(
-        "replay vs the generated motor observer: worst {worst:.2e} K over {ROWS} rows; end winding {est:.2} (open loop {open_end:.2}, reading {want:.2}) degC, copper bias {:.1} W",
-        bias_w[0]
+        "replay vs the generated motor observer: worst {worst:.2e} K over {} s; end winding {:.3} K from its thermocouple (open loop {:.3} K), copper bias {:.2} W",
+        SECONDS, summary.end_error_k, summary.open_error_k, summary.copper_bias_w
     );
-    assert!((est - want).abs() < 0.3, "{est} vs {want}");
-    assert!(bias_w[0] > 1.0, "{bias_w:?}");
+    assert!((summary.open_error_k - 2.5).abs() < 1e-3);
+    assert!(summary.end_error_k < 0.6, "{summary:?}");
+    assert!(summary.copper_bias_w > 5.0, "{summary:?}");
 }
 
 /// The generated currents of the real motor: the speed by magnitude (a
