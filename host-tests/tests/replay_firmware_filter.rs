@@ -340,3 +340,45 @@ fn the_real_motors_generated_currents_follow_the_model_file() {
         assert_eq!(lost[k].is_nan(), driven_by_speed, "{name}: {}", lost[k]);
     }
 }
+
+proptest::proptest! {
+    /// Any current and speed, NaN, infinities and extremes included: the
+    /// generated currents never panic, are NaN wherever a NaN drives them
+    /// (not read as zero), never negative for a loss, and finite for any
+    /// plausible current and speed (an absurd speed's factor overflows to an
+    /// infinite or NaN current); the observer ticked with them keeps finite
+    /// temperatures and flags every current it clamps or holds.
+    #[test]
+    fn the_real_motors_generated_currents_take_any_input(
+        current_a in proptest::num::f32::ANY,
+        speed_rpm in proptest::num::f32::ANY,
+    ) {
+        let c = hust_motor::source_currents_a(&[current_a], &[speed_rpm]);
+        for (k, name) in hust_motor::CURRENT_NAMES.iter().enumerate() {
+            let by_current = !name.contains("speed loss");
+            let by_speed = name.contains("speed");
+            let nan_in = (by_current && current_a.is_nan()) || (by_speed && speed_rpm.is_nan());
+            if nan_in {
+                proptest::prop_assert!(c[k].is_nan(), "{}: {}", name, c[k]);
+            }
+            proptest::prop_assert!(by_current || c[k].is_nan() || c[k] >= 0.0, "{}: {}", name, c[k]);
+        }
+        // Plausible inputs give plausible currents.
+        if current_a.abs() <= 1e3 && speed_rpm.abs() <= 1e5 {
+            proptest::prop_assert!(c.iter().all(|i| i.is_finite()), "{:?}", c);
+        }
+        let observer = hust_motor::observer().unwrap();
+        let mut state = hust_motor::initial_state(&observer, 25.0);
+        let inputs = hust_motor::Inputs {
+            currents_a: c,
+            boundary_c: [25.0; hust_motor::BOUNDARIES],
+            readings: [None],
+            now_us: 1000,
+            elapsed_us: 1000,
+        };
+        let out = *observer.tick(&mut state, &inputs);
+        proptest::prop_assert!(out.temps_c.iter().all(|t| t.is_finite()), "{:?}", out.temps_c);
+        let bad = c.iter().any(|i| !i.is_finite() || i.abs() > 500.0);
+        proptest::prop_assert!(!bad || !out.flags.is_clean(), "{:?} unflagged: {:?}", c, out.flags);
+    }
+}
