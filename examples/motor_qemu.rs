@@ -27,6 +27,10 @@ use exit::fail;
 #[path = "support/cost.rs"]
 mod cost;
 
+#[path = "support/host_out.rs"]
+mod host_out;
+use host_out::Host;
+
 #[path = "generated/hust_motor.rs"]
 mod hust_motor;
 
@@ -35,16 +39,6 @@ mod motor_drive;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-
-/// `core::fmt` to semihosting, a line at a time.
-struct Host;
-
-impl core::fmt::Write for Host {
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        cortex_m_semihosting::hprint!("{}", s);
-        Ok(())
-    }
-}
 
 #[entry]
 fn main() -> ! {

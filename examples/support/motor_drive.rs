@@ -22,6 +22,9 @@ use coil_thermal::Reading;
 
 use crate::hust_motor as model;
 
+#[path = "checksum.rs"]
+mod checksum;
+
 /// Seconds of the drive.
 pub const SECONDS: u32 = 300;
 /// Coolant and ambient \[degC\].
@@ -74,14 +77,6 @@ pub struct Summary {
     pub corrections: u32,
 }
 
-fn fnv(mut hash: u32, bits: u32) -> u32 {
-    for byte in bits.to_le_bytes() {
-        hash ^= u32::from(byte);
-        hash = hash.wrapping_mul(0x0100_0193);
-    }
-    hash
-}
-
 /// Runs the drive: the fused observer's ticks through `tick` (the firmware
 /// counts their instructions there), every second's start to
 /// `each_second` (the host keeps them), a line a minute to `out`.
@@ -97,7 +92,7 @@ pub fn replay<W: Write>(
     let mut open = model::initial_state(observer, AMBIENT_C);
     let mut fused = model::initial_state(observer, AMBIENT_C);
     let mut summary = Summary {
-        checksum: 0x811c_9dc5,
+        checksum: checksum::START,
         ..Summary::default()
     };
     let mut now_us: u32 = 0;
@@ -151,12 +146,7 @@ pub fn replay<W: Write>(
             tick(&mut || published = Some(*observer.tick(&mut fused, &inputs)));
             if let Some(o) = published {
                 summary.corrections += u32::from(o.corrected);
-                for v in o.temps_c.iter().chain(&o.upper_c) {
-                    summary.checksum = fnv(summary.checksum, v.to_bits());
-                }
-                for l in &o.limits {
-                    summary.checksum = fnv(summary.checksum, l.current_a.to_bits());
-                }
+                summary.checksum = checksum::fold(summary.checksum, &o);
             }
             now_us = now_us.wrapping_add(1000);
         }

@@ -19,6 +19,9 @@ use coil_thermal::Reading;
 
 use crate::model;
 
+#[path = "checksum.rs"]
+mod checksum;
+
 /// The recorded trace.
 pub const TRACE_CSV: &str = include_str!("../../host-tests/traces/drive-3node.csv");
 /// Seconds of the trace replayed.
@@ -51,14 +54,6 @@ fn alarm_word(a: &coil_thermal::protect::alarm::AlarmStatus) -> &'static str {
     }
 }
 
-fn fnv(mut hash: u32, bits: u32) -> u32 {
-    for byte in bits.to_le_bytes() {
-        hash ^= u32::from(byte);
-        hash = hash.wrapping_mul(0x0100_0193);
-    }
-    hash
-}
-
 /// One trace row: (current \[A\], ambient \[degC\], winding_tc, housing_tc
 /// \[degC\]).
 fn row(line: &str) -> Option<(f32, f32, f32, f32)> {
@@ -86,7 +81,7 @@ pub fn replay<W: Write>(
 ) -> Result<Summary, &'static str> {
     let mut state = model::initial_state(observer, 22.0);
     let mut summary = Summary {
-        checksum: 0x811c_9dc5,
+        checksum: checksum::START,
         ..Summary::default()
     };
     let mut now_us: u32 = 0;
@@ -111,12 +106,7 @@ pub fn replay<W: Write>(
             tick(&mut || out_copy = Some(*observer.tick(&mut state, &inputs)));
             let o = out_copy.ok_or("tick")?;
             summary.corrections += u32::from(o.corrected);
-            for v in o.temps_c.iter().chain(&o.upper_c) {
-                summary.checksum = fnv(summary.checksum, v.to_bits());
-            }
-            for l in &o.limits {
-                summary.checksum = fnv(summary.checksum, l.current_a.to_bits());
-            }
+            summary.checksum = checksum::fold(summary.checksum, &o);
             now_us = now_us.wrapping_add(1000);
         }
         let t_s = second as u32 + 1;
