@@ -74,7 +74,7 @@ fn main() -> ! {
         flash,
         ram
     );
-    // The thermocouple pulls the estimate: within 30 % of the 2.5 K that
-    // open loop misses.
-    exit::exit(summary.end_error_k < 0.3 * summary.open_error_k)
+    // The thermocouple pulls the estimate: it closes more than half of the
+    // 2.5 K that open loop misses.
+    exit::exit(summary.end_error_k < 0.5 * summary.open_error_k)
 }

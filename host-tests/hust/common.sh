@@ -30,13 +30,14 @@ INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
 # started at the mean of slot bottom and yoke, less well than the others),
 # not the default 2 K; and the filter learns the sensor's noise from its
 # readings (the scatter of each reading about the mean of the 10 rows
-# either side, over 600 rows), with the declared 0.2 K as the floor:
+# either side, over 600 rows), with the declared 0.2 K as the floor (the
+# model file's 0.5 K is the firmware's fixed noise, not this floor):
 # profile 0's thermocouples scatter by 0.4-0.6 K, the others' by 0.02-0.3
 # K. The disturbances never take heat away
 # (--disturbance-floor-share 0, the firmware's default for its heat
 # biases): a model that runs hot is corrected by the temperatures, not by
 # a negative copper loss that would cool the unmeasured copper too.
-FUSE7=(--measure endwind_1=end_winding --disturbance active_winding,slot_centre,end_winding
+FUSE7=(--measure endwind_1=end_winding --measurement-noise-k 0.2 --disturbance active_winding,slot_centre,end_winding
   --disturbance stator_teeth,stator_yoke --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
   --disturbance-floor-share 0)
 

@@ -5,10 +5,11 @@
 # (steady gain, f32, 1 ms ticks, one heat bias: the model file's
 # `[observer] bias_sources`, the copper's on the active winding, at the
 # library's default bias noise), not the row-rate Kalman filter of the
-# table. Scored like the table, with the sensor noise the
-# replay's default (0.2 K, the declared one) and profile 0's (0.5 K, what
-# the row-rate filter learns there): the firmware's observer has one
-# fixed noise and does not learn it.
+# table. Scored like the table, with the sensor noise the table's filter
+# declares (0.2 K, the floor of the noise it learns) and the model file's
+# `[observer] sensor_sigma_k` (0.5 K, about profile 0's scatter, what the
+# row-rate filter learns there, and what `codegen` flashes): the
+# firmware's observer has one fixed noise and does not learn it.
 #
 # Run reproduce.sh first (it writes the inverted profile 0). Writes only
 # under target/hust/firmware/.

@@ -181,9 +181,11 @@ const SEVEN_ARGS: [&str; 14] = [
 /// peak power; every node starts at a measured reading, so its start is
 /// known to 0.5 K; the sensor's noise learned from its readings, 0.2 K the
 /// floor; the disturbances never below zero (`hust/common.sh`'s `FUSE7`).
-const FUSE_SEVEN: [&str; 14] = [
+const FUSE_SEVEN: [&str; 16] = [
     "--measure",
     "endwind_1=end_winding",
+    "--measurement-noise-k",
+    "0.2",
     "--disturbance",
     "active_winding,slot_centre,end_winding",
     "--disturbance",
