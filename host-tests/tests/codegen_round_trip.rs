@@ -21,12 +21,16 @@ use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal::observer::network::{NetworkObserverBuilder, NetworkSettings};
+use coil_thermal_host::model_file::{Model, ModelFile};
 
 #[path = "../../examples/generated/drive_3node.rs"]
 mod model;
 
 #[path = "../../examples/support/roundtrip.rs"]
 mod roundtrip;
+
+#[path = "generated/all_input_terms.rs"]
+mod all_input_terms;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -166,31 +170,88 @@ fn codegen_refuses_what_the_firmware_observer_cannot_take() {
         .stderr(predicates::str::contains("[conductance.speed]"));
 }
 
-/// The real motor's model (`[observer]` in the file: the end-winding
-/// thermocouple, the copper's heat bias, 400 A) generates the committed
-/// `examples/generated/hust_motor.rs`, speed factors and speed losses
-/// made into the observer's currents by its `source_currents_a`
-/// (`replay_firmware_filter`: it is `replay`'s observer).
+/// The committed modules with speed and loss terms, each what `codegen`
+/// makes of its model file today: the real motor's
+/// (`examples/generated/hust_motor.rs`: the end-winding thermocouple, the
+/// copper's heat bias, 400 A; `replay_firmware_filter` holds it against
+/// `replay`) and the test model with every kind of heat input
+/// (`host-tests/tests/generated/all_input_terms.rs`, below).
 #[test]
-fn codegen_reproduces_the_real_motors_module() {
-    let out = cargo_bin_cmd!("coil-thermal")
-        .arg("codegen")
-        .arg("--model")
-        .arg(root().join("host-tests/models/hust_motor_slot_fitted.toml"))
-        .args(["--out", "-"])
-        .assert()
-        .success();
-    let text = String::from_utf8_lossy(&out.get_output().stdout).into_owned();
-    assert_eq!(
-        text,
-        read(&root().join("examples/generated/hust_motor.rs")),
-        "codegen no longer reproduces examples/generated/hust_motor.rs: cargo run --release -p coil-thermal-host --bin coil-thermal -- codegen --model host-tests/models/hust_motor_slot_fitted.toml --out examples/generated/hust_motor.rs"
-    );
-    assert!(text.contains("pub const SIGNAL_NAMES: [&str; SIGNALS] = [\"speed\"];"));
+fn codegen_reproduces_the_committed_speed_term_modules() {
+    for (model, module) in [
+        (
+            "host-tests/models/hust_motor_slot_fitted.toml",
+            "examples/generated/hust_motor.rs",
+        ),
+        (
+            "host-tests/models/all-input-terms.toml",
+            "host-tests/tests/generated/all_input_terms.rs",
+        ),
+    ] {
+        let out = cargo_bin_cmd!("coil-thermal")
+            .arg("codegen")
+            .arg("--model")
+            .arg(root().join(model))
+            .args(["--out", "-"])
+            .assert()
+            .success();
+        let text = String::from_utf8_lossy(&out.get_output().stdout).into_owned();
+        assert_eq!(
+            text,
+            read(&root().join(module)),
+            "codegen no longer reproduces {module}: cargo run --release -p coil-thermal-host --bin coil-thermal -- codegen --model {model} --out {module}"
+        );
+    }
+    let motor = read(&root().join("examples/generated/hust_motor.rs"));
+    assert!(motor.contains("pub const SIGNAL_NAMES: [&str; SIGNALS] = [\"speed\"];"));
     assert!(
-        text.contains("ambient_boundary: 1,"),
+        motor.contains("ambient_boundary: 1,"),
         "the ambient is the second boundary"
     );
+}
+
+/// The generated currents of the test model with every kind of heat input
+/// (a speed factor on a scaled winding, a second winding, a speed loss, a
+/// split current-and-speed loss, a constant loss) carry the power the
+/// host's `Model::effective_currents` gives each source, at currents and
+/// speeds of either sign, zero and past the split's clip: the same
+/// arithmetic in `f32` (each drive's power scale is in the generated
+/// resistance, so the host's effective current squared is the scale times
+/// the generated one squared).
+#[test]
+fn the_generated_currents_carry_the_hosts_powers_for_every_input_term() {
+    let file = ModelFile::load(&root().join("host-tests/models/all-input-terms.toml")).unwrap();
+    let model = Model::build(&file).unwrap();
+    assert_eq!(model.signals, all_input_terms::SIGNAL_NAMES);
+    assert_eq!(model.network.sources().len(), all_input_terms::CURRENTS);
+    let mut host = Vec::new();
+    let mut checked = 0;
+    for current_a in [0.0_f64, 35.0, -80.0, 150.0] {
+        for aux_a in [0.0_f64, -12.0, 20.0] {
+            for speed_rpm in [0.0_f64, 900.0, -2500.0, 3000.0, 6000.0] {
+                model.effective_currents(
+                    &[current_a, aux_a],
+                    &[speed_rpm, current_a.abs()],
+                    &mut host,
+                );
+                let generated = all_input_terms::source_currents_a(
+                    &[current_a as f32, aux_a as f32],
+                    &[speed_rpm as f32, current_a.abs() as f32],
+                );
+                for (k, (h, g)) in host.iter().zip(&generated).enumerate() {
+                    let scale = model.drives.get(k).map_or(1.0, |d| d.scale);
+                    let (want_w, got_w) = (h * h, scale * f64::from(*g).powi(2));
+                    assert!(
+                        (want_w - got_w).abs() <= 1e-5 * want_w.max(1.0),
+                        "{} at {current_a} A, {aux_a} A, {speed_rpm} rpm: host {want_w} vs generated {got_w} (per unit of R)",
+                        all_input_terms::CURRENT_NAMES[k]
+                    );
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 4 * 3 * 5 * all_input_terms::CURRENTS);
 }
 
 #[test]

@@ -24,6 +24,9 @@ mod hust_motor;
 #[path = "../../examples/support/motor_drive.rs"]
 mod motor_drive;
 
+#[path = "generated/all_input_terms.rs"]
+mod all_input_terms;
+
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
@@ -387,4 +390,108 @@ proptest::proptest! {
         let bad = c.iter().any(|i| !i.is_finite() || i.abs() > 500.0);
         proptest::prop_assert!(!bad || !out.flags.is_clean(), "{:?} unflagged: {:?}", c, out.flags);
     }
+}
+
+/// The generated observer of the test model with every kind of heat input
+/// (`host-tests/models/all-input-terms.toml`: sources on other nodes than
+/// their index, a split loss, a constant loss, two current inputs, the
+/// ambient the second boundary) is `replay`'s library observer over ten
+/// minutes of current, speed and boundary steps, the stator thermocouple
+/// fused: every source heats the node and carries the power the file
+/// gives it.
+#[test]
+fn a_generated_observer_with_every_input_term_is_replays() {
+    const ROWS: usize = 600;
+    // |i| [A], aux [A], speed [rpm], coolant and ambient [degC] by minute.
+    let drive = |t: usize| -> (f32, f32, f32, f32, f32) {
+        match t / 120 {
+            0 => (0.0, 0.0, 0.0, 30.0, 22.0),
+            1 => (120.0, 10.0, 3000.0, 30.0, 22.0),
+            2 => (60.0, -15.0, -1500.0, 32.0, 25.0),
+            3 => (150.0, 0.0, 6000.0, 32.0, 25.0),
+            _ => (20.0, 20.0, 500.0, 28.0, 20.0),
+        }
+    };
+    let observer = all_input_terms::observer().expect("the generated parts assemble");
+    let start = || observer.state(&[30.0; all_input_terms::NODES], &[30.0, 22.0]);
+    let rows = |readings: &dyn Fn(usize) -> Option<f32>| -> Vec<_> {
+        (0..ROWS)
+            .map(|t| {
+                let (current_a, aux_a, speed_rpm, coolant_c, ambient_c) = drive(t);
+                (
+                    all_input_terms::source_currents_a(
+                        &[current_a, aux_a],
+                        &[speed_rpm, current_a],
+                    ),
+                    [coolant_c, ambient_c],
+                    [readings(t)],
+                )
+            })
+            .collect()
+    };
+    let (open, _) = tick_each_second(&observer, start(), &rows(&|_| None));
+    // The stator's thermocouple reads 1 K above open loop: an offset the
+    // fusion takes up.
+    let reading = |t: usize| open[t][1] + 1.0;
+    let (fused, _) = tick_each_second(&observer, start(), &rows(&|t| Some(reading(t))));
+
+    let tmp = TempDir::new().unwrap();
+    let trace = tmp.path().join("terms.csv");
+    let mut csv = String::from("time_s,id,iq,aux,speed,coolant,ambient,stator_tc\n");
+    for t in 0..ROWS {
+        let (current_a, aux_a, speed_rpm, coolant_c, ambient_c) = drive(t);
+        let (id, iq) = (-0.6 * current_a, 0.8 * current_a);
+        csv.push_str(&format!(
+            "{t},{id},{iq},{aux_a},{speed_rpm},{coolant_c},{ambient_c},{}\n",
+            reading(t)
+        ));
+    }
+    std::fs::write(&trace, csv).unwrap();
+    let out = tmp.path().join("est.csv");
+    cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(root().join("host-tests/models/all-input-terms.toml"))
+        .arg("--trace")
+        .arg(&trace)
+        .args([
+            "--measure",
+            "stator_tc=stator",
+            "--measurement-noise-k",
+            "0.25",
+        ])
+        .args([
+            "--init",
+            "coolant=winding",
+            "--init",
+            "coolant=stator",
+            "--init",
+            "coolant=rotor",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let replayed: Vec<Vec<f64>> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(replayed.len(), ROWS);
+    let mut worst = 0.0f64;
+    for (t, (r, f)) in replayed.iter().zip(&fused).enumerate() {
+        for (node, (r, f)) in r.iter().zip(f).enumerate() {
+            let d = (r - f64::from(*f)).abs();
+            assert!(
+                d <= 2e-5,
+                "second {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
+                all_input_terms::NODE_NAMES[node]
+            );
+            worst = worst.max(d);
+        }
+    }
+    // The drive heats: the winding well above where it started.
+    let hottest = fused.iter().map(|f| f[0]).fold(f32::MIN, f32::max);
+    eprintln!("replay vs the generated every-term observer: worst {worst:.2e} K over {ROWS} s; winding up to {hottest:.1} degC");
+    assert!(hottest > 40.0, "{hottest}");
 }

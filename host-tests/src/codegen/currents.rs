@@ -169,12 +169,18 @@ pub(super) fn source_currents_fn(model: &Model, currents: &[CurrentOf]) -> Strin
     o.push_str(&lets);
     let _ = writeln!(o, "    [{}]\n}}\n", exprs.join(", "));
     if !units.pairs.is_empty() {
-        o.push_str("/// `|value| / reference`, NaN kept.\nfn per_unit(value: f32, reference: f32) -> f32 {\n    <f32 as coil_thermal::Scalar>::abs(value) / reference\n}\n\n/// `sqrt(max(0, x))`, NaN kept.\nfn root(x: f32) -> f32 {\n    if x.is_nan() {\n        x\n    } else {\n        <f32 as coil_thermal::Scalar>::sqrt(x)\n    }\n}\n\n");
+        o.push_str("/// `|value| / reference`, NaN kept.\nfn per_unit(value: f32, reference: f32) -> f32 {\n    <f32 as coil_thermal::Scalar>::abs(value) / reference\n}\n\n");
+    }
+    let roots = currents
+        .iter()
+        .any(|c| !matches!(c, CurrentOf::Input { speed: None, .. }));
+    if roots {
+        o.push_str("/// `sqrt(max(0, x))`, NaN kept.\nfn root(x: f32) -> f32 {\n    if x.is_nan() {\n        x\n    } else {\n        <f32 as coil_thermal::Scalar>::sqrt(x)\n    }\n}\n\n");
     }
     if !model.losses.is_empty() {
         o.push_str("/// `max(0, x)`, NaN kept.\nfn non_negative(x: f32) -> f32 {\n    if x < 0.0 {\n        0.0\n    } else {\n        x\n    }\n}\n\n");
         if model.losses.iter().any(|l| !l.split.is_empty()) {
-            o.push_str("/// `x` clipped to `[0, 1]`, NaN kept.\nfn unit_interval(x: f32) -> f32 {\n    if x < 0.0 {\n        0.0\n    } else if x > 1.0 {\n        1.0\n    } else {\n        x\n    }\n}\n\n");
+            o.push_str("/// `x` clipped to `[0, 1]`, NaN kept.\nfn unit_interval(x: f32) -> f32 {\n    x.clamp(0.0, 1.0)\n}\n\n");
         }
     }
     o

@@ -368,7 +368,7 @@ impl Plan {
         }
         for (k, (node, r0, slope)) in self.sources.iter().enumerate() {
             calls.push(format!(
-                ".joule_source({node}, {k}, Resistance::linear_fit({slope:?}, {r0:?}))"
+                ".joule_source({k}, {node}, Resistance::linear_fit({slope:?}, {r0:?}))"
             ));
         }
         for (node, p) in net.fixed_powers_w().iter().enumerate() {
