@@ -168,6 +168,24 @@ fn codegen_refuses_what_the_firmware_observer_cannot_take() {
         .assert()
         .failure()
         .stderr(predicates::str::contains("[conductance.speed]"));
+    // A coefficient the firmware's f32 arithmetic cannot hold.
+    let dir = tempfile::tempdir().unwrap();
+    let huge = dir.path().join("huge.toml");
+    std::fs::write(
+        &huge,
+        read(&models.join("all-input-terms.toml")).replace("p1_w = 80.0", "p1_w = 1e40"),
+    )
+    .unwrap();
+    cargo_bin_cmd!("coil-thermal")
+        .arg("codegen")
+        .arg("--model")
+        .arg(&huge)
+        .args(["--out", "-"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(
+            "[[speed_loss]]: 1e40 is beyond the f32 range",
+        ));
 }
 
 /// The committed modules with speed and loss terms, each what `codegen`

@@ -57,6 +57,44 @@ pub(super) fn currents_of(model: &Model) -> Vec<CurrentOf> {
     out
 }
 
+/// Refuses a speed or loss coefficient (or reference) beyond `f32`'s
+/// range: the generated arithmetic is `f32`, and an infinite literal is
+/// not Rust.
+pub(super) fn check_f32_range(model: &Model) -> anyhow::Result<()> {
+    let mut values = Vec::new();
+    for d in &model.drives {
+        if let Some((_, r, a1, a2)) = d.speed {
+            values.extend([
+                ("[source.speed]", r),
+                ("[source.speed]", a1),
+                ("[source.speed]", a2),
+            ]);
+        }
+    }
+    for l in &model.speed_losses {
+        values.extend([
+            ("[[speed_loss]]", l.reference),
+            ("[[speed_loss]]", l.p1_w),
+            ("[[speed_loss]]", l.p2_w),
+        ]);
+    }
+    for l in &model.losses {
+        values.extend(
+            l.current
+                .iter()
+                .chain(&l.speed)
+                .map(|(_, r)| ("[[loss]]", *r)),
+        );
+        values.extend(l.power.iter().chain(&l.split).map(|t| ("[[loss]]", t.c)));
+    }
+    match values.iter().find(|(_, v)| v.abs() > f64::from(f32::MAX)) {
+        Some((table, v)) => {
+            anyhow::bail!("{table}: {v:e} is beyond the f32 range of the firmware's arithmetic")
+        }
+        None => Ok(()),
+    }
+}
+
 /// A literal `f32` that reads back as `v` rounded to `f32`.
 fn lit(v: f64) -> String {
     // `{:?}` of the rounded f32 is the shortest text that reads back to it.

@@ -51,7 +51,7 @@ use crate::model_file::{Model, ModelFile};
 mod currents;
 mod devices;
 
-use currents::{currents_of, source_currents_fn, CurrentOf};
+use currents::{check_f32_range, currents_of, source_currents_fn, CurrentOf};
 pub use devices::*;
 
 /// The `[observer]` table of a model file: what the firmware observer needs
@@ -180,6 +180,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         .iter()
         .map(|s| model.node_index(s))
         .collect::<Result<Vec<_>>>()?;
+    check_f32_range(&model).with_context(|| req.model.display().to_string())?;
     let currents = currents_of(&model);
     let sources = model
         .network
