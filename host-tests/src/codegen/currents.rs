@@ -57,42 +57,42 @@ pub(super) fn currents_of(model: &Model) -> Vec<CurrentOf> {
     out
 }
 
-/// Refuses a speed or loss coefficient (or reference) beyond `f32`'s
-/// range: the generated arithmetic is `f32`, and an infinite literal is
-/// not Rust.
+/// Refuses a speed or loss coefficient or reference beyond `f32`'s range,
+/// or a reference below its smallest normal number (it divides): the
+/// generated arithmetic is `f32`, and an infinite literal is not Rust.
 pub(super) fn check_f32_range(model: &Model) -> anyhow::Result<()> {
+    // (table, value, is a reference)
     let mut values = Vec::new();
     for d in &model.drives {
         if let Some((_, r, a1, a2)) = d.speed {
-            values.extend([
-                ("[source.speed]", r),
-                ("[source.speed]", a1),
-                ("[source.speed]", a2),
-            ]);
+            let t = "[source.speed]";
+            values.extend([(t, r, true), (t, a1, false), (t, a2, false)]);
         }
     }
     for l in &model.speed_losses {
+        let t = "[[speed_loss]]";
         values.extend([
-            ("[[speed_loss]]", l.reference),
-            ("[[speed_loss]]", l.p1_w),
-            ("[[speed_loss]]", l.p2_w),
+            (t, l.reference, true),
+            (t, l.p1_w, false),
+            (t, l.p2_w, false),
         ]);
     }
     for l in &model.losses {
+        let t = "[[loss]]";
+        values.extend(l.current.iter().chain(&l.speed).map(|(_, r)| (t, *r, true)));
         values.extend(
-            l.current
+            l.power
                 .iter()
-                .chain(&l.speed)
-                .map(|(_, r)| ("[[loss]]", *r)),
+                .chain(&l.split)
+                .map(|term| (t, term.c, false)),
         );
-        values.extend(l.power.iter().chain(&l.split).map(|t| ("[[loss]]", t.c)));
     }
-    match values.iter().find(|(_, v)| v.abs() > f64::from(f32::MAX)) {
-        Some((table, v)) => {
-            anyhow::bail!("{table}: {v:e} is beyond the f32 range of the firmware's arithmetic")
+    for (table, v, reference) in values {
+        if v.abs() > f64::from(f32::MAX) || (reference && v < f64::from(f32::MIN_POSITIVE)) {
+            anyhow::bail!("{table}: {v:e} is beyond the f32 range of the firmware's arithmetic");
         }
-        None => Ok(()),
     }
+    Ok(())
 }
 
 /// A literal `f32` that reads back as `v` rounded to `f32`.
