@@ -131,13 +131,42 @@ fn replay(dir: &Path, extra: &[&str]) -> (Vec<Vec<f64>>, Value) {
         .assert()
         .success();
     let json = serde_json::from_slice(&a.get_output().stdout).unwrap();
-    let text = std::fs::read_to_string(&out).unwrap();
-    let rows = text
+    (estimate_rows(&out), json)
+}
+
+/// The node estimates of every row of a `replay --out` CSV \[degC\].
+fn estimate_rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
         .lines()
         .skip(1)
         .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (rows, json)
+        .collect()
+}
+
+/// The largest gap \[K\] between `replay`'s estimates and a generated
+/// observer's, row by row, asserting each within 2e-5 K: the CSV has 6
+/// decimals, and the replay's padded observer is solved at another size,
+/// so its tables may differ from the generated ones in an `f32`'s last bit.
+fn worst_apart<const N: usize>(
+    replayed: &[Vec<f64>],
+    generated: &[[f32; N]],
+    names: &[&str; N],
+) -> f64 {
+    assert_eq!(replayed.len(), generated.len());
+    let mut worst = 0.0f64;
+    for (t, (r, g)) in replayed.iter().zip(generated).enumerate() {
+        for (node, (r, g)) in r.iter().zip(g).enumerate() {
+            let d = (r - f64::from(*g)).abs();
+            assert!(
+                d <= 2e-5,
+                "row {t}, node {}: replay {r} vs generated {g} (off by {d} K)",
+                names[node]
+            );
+            worst = worst.max(d);
+        }
+    }
+    worst
 }
 
 #[test]
@@ -151,21 +180,7 @@ fn the_fused_replay_is_the_generated_firmware_observer() {
     assert_eq!(fusion["bias_noise_w2_per_s"], 1e-4);
     assert_eq!(fusion["bias_noise_from"], "model-file");
     assert_eq!(fusion["max_cooling_bias_fraction"], 0.0);
-    assert_eq!(replayed.len(), firmware.len());
-    // The CSV has 6 decimals; the padded observer's tables are solved at
-    // another size, so they may differ from the generated ones in the last
-    // bit of an `f32`.
-    let mut worst = 0.0f64;
-    for (k, (r, f)) in replayed.iter().zip(&firmware).enumerate() {
-        for (node, (r, f)) in r.iter().zip(f).enumerate() {
-            let d = (r - f64::from(*f)).abs();
-            assert!(
-                d <= 2e-5,
-                "row {k}, node {node}: replay {r} vs firmware {f} (off by {d} K)"
-            );
-            worst = worst.max(d);
-        }
-    }
+    let worst = worst_apart(&replayed, &firmware, &model::NODE_NAMES);
     eprintln!(
         "replay vs the generated observer: worst {worst:.2e} K over {} rows",
         rows.len()
@@ -293,25 +308,8 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
     assert_eq!(json["fusion"]["sensor_sigma_k"], 0.5);
     assert_eq!(json["fusion"]["sensor_sigma_from"], "model-file");
     assert_eq!(json["fusion"]["sensors"][0]["rejected"], 0, "{json}");
-    let replayed: Vec<Vec<f64>> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
-        .collect();
-    assert_eq!(replayed.len(), SECONDS as usize + 1);
-    let mut worst = 0.0f64;
-    for (t, (r, (f, _))) in replayed.iter().zip(&seconds).enumerate() {
-        for (node, (r, f)) in r.iter().zip(f).enumerate() {
-            let d = (r - f64::from(*f)).abs();
-            assert!(
-                d <= 2e-5,
-                "second {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
-                hust_motor::NODE_NAMES[node]
-            );
-            worst = worst.max(d);
-        }
-    }
+    let fused: Vec<_> = seconds.iter().map(|(f, _)| *f).collect();
+    let worst = worst_apart(&estimate_rows(&out), &fused, &hust_motor::NODE_NAMES);
     eprintln!(
         "replay vs the generated motor observer: worst {worst:.2e} K over {} s; end winding {:.3} K from its thermocouple (open loop {:.3} K), copper bias {:.2} W",
         SECONDS, summary.end_error_k, summary.open_error_k, summary.copper_bias_w
@@ -474,25 +472,7 @@ fn a_generated_observer_with_every_input_term_is_replays() {
         .arg(&out)
         .assert()
         .success();
-    let replayed: Vec<Vec<f64>> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
-        .collect();
-    assert_eq!(replayed.len(), ROWS);
-    let mut worst = 0.0f64;
-    for (t, (r, f)) in replayed.iter().zip(&fused).enumerate() {
-        for (node, (r, f)) in r.iter().zip(f).enumerate() {
-            let d = (r - f64::from(*f)).abs();
-            assert!(
-                d <= 2e-5,
-                "second {t}, node {}: replay {r} vs generated {f} (off by {d} K)",
-                all_input_terms::NODE_NAMES[node]
-            );
-            worst = worst.max(d);
-        }
-    }
+    let worst = worst_apart(&estimate_rows(&out), &fused, &all_input_terms::NODE_NAMES);
     // The open loop against an independent integration of the model file:
     // the host's plant (`simulate`: its own network, explicit Euler
     // sub-steps, the file's effective currents in f64, R(T) per sub-step).
