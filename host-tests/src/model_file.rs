@@ -240,7 +240,6 @@ fn is_zero(v: &u32) -> bool {
 /// every loss law in use; more would only amplify noise in the signal).
 pub const MAX_LOSS_EXPONENT: u32 = 4;
 
-/// Evaluates `sum c i^i f^f`.
 /// A signal per unit of its reference, by magnitude: a machine turning
 /// backwards (a negative speed) or a current of either sign loses and
 /// convects as it does forwards, so a negative signal never takes a loss
@@ -249,6 +248,7 @@ pub fn per_unit(value: f64, reference: f64) -> f64 {
     value.abs() / reference
 }
 
+/// Evaluates `sum c i^i f^f`.
 fn polynomial(terms: &[LossTerm], i: f64, f: f64) -> f64 {
     terms
         .iter()
