@@ -25,6 +25,7 @@
 use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,
 };
+use coil_thermal::protect::limiter::CoilLimit;
 use coil_thermal::{BuildError, Network, Resistance};
 
 /// State nodes.
@@ -116,6 +117,23 @@ fn root(x: f32) -> f32 {
     } else {
         <f32 as coil_thermal::Scalar>::sqrt(x)
     }
+}
+
+/// The largest current of each model input \[A\] the limiter allows
+/// now (in [`INPUT_NAMES`] order), from the published limits
+/// (`Outputs::limits`): the smallest among the currents the input
+/// drives. Those share the input's hardware limit, so this is that limit
+/// times the smallest taper (`sqrt` of the headroom) of any element they
+/// heat. A speed factor scales a current and its heat together and
+/// leaves the taper as it is: hold the input's own current (`|i_s|` of
+/// a motor, not its effective current) to this. Loss currents (speed and
+/// `[[loss]]` terms) are no input's and limit none. A latched shutdown
+/// gives zero.
+pub fn input_limits_a(limits: &[CoilLimit<f32>; CURRENTS]) -> [f32; INPUTS] {
+    [limits[0]
+        .current_a
+        .min(limits[1].current_a)
+        .min(limits[2].current_a)]
 }
 
 /// The network the tables were solved from (for host checks; the

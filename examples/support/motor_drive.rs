@@ -13,7 +13,8 @@
 //! `source_currents_a` (the copper's AC factor, the iron and magnet
 //! losses): one open loop, and one fusing an end-winding thermocouple that
 //! reads the open-loop end winding plus 0.5 K a minute (a heat the model
-//! lacks), once a second.
+//! lacks), once a second. The limit printed is the drive's, on `|i_s|`
+//! (the generated `input_limits_a`).
 
 use core::fmt::Write;
 
@@ -115,7 +116,7 @@ pub fn replay<W: Write>(
                 open_c[END_WINDING],
                 fused_c[ACTIVE_WINDING],
                 fused_c[1],
-                o.limits[0].current_a,
+                model::input_limits_a(&o.limits)[0],
                 observer.heat_bias_w(&fused)[0],
             )?;
         }

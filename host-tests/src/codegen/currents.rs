@@ -146,6 +146,45 @@ fn polynomial(terms: &[LossTerm], i: Option<&str>, f: Option<&str>) -> String {
     }
 }
 
+/// The generated module's `input_limits_a`: each model input's limit
+/// from the observer's published limits, the smallest among the currents
+/// the input drives (every current has the `[observer]` hardware limit,
+/// so that is the input's hardware limit times the smallest taper).
+pub(super) fn input_limits_fn(inputs: usize, currents: &[CurrentOf]) -> String {
+    let limits: Vec<String> = (0..inputs)
+        .map(|k| {
+            let driven: Vec<String> = currents
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| matches!(c, CurrentOf::Input { input, .. } if *input == k))
+                .map(|(m, _)| format!("limits[{m}].current_a"))
+                .collect();
+            // `Model::build` gives every input a source.
+            let (first, rest) = driven
+                .split_first()
+                .map_or(("0.0_f32", &[][..]), |(f, r)| (f.as_str(), r));
+            rest.iter()
+                .fold(first.to_string(), |acc, l| format!("{acc}.min({l})"))
+        })
+        .collect();
+    let mut o = String::new();
+    o.push_str(concat!(
+        "/// The largest current of each model input \\[A\\] the limiter allows\n",
+        "/// now (in [`INPUT_NAMES`] order), from the published limits\n",
+        "/// (`Outputs::limits`): the smallest among the currents the input\n",
+        "/// drives. Those share the input's hardware limit, so this is that limit\n",
+        "/// times the smallest taper (`sqrt` of the headroom) of any element they\n",
+        "/// heat. A speed factor scales a current and its heat together and\n",
+        "/// leaves the taper as it is: hold the input's own current (`|i_s|` of\n",
+        "/// a motor, not its effective current) to this. Loss currents (speed and\n",
+        "/// `[[loss]]` terms) are no input's and limit none. A latched shutdown\n",
+        "/// gives zero.\n",
+        "pub fn input_limits_a(limits: &[CoilLimit<f32>; CURRENTS]) -> [f32; INPUTS] {\n",
+    ));
+    let _ = writeln!(o, "    [{}]\n}}\n", limits.join(", "));
+    o
+}
+
 /// The helpers and `source_currents_a` of the generated module.
 pub(super) fn source_currents_fn(model: &Model, currents: &[CurrentOf]) -> String {
     let mut units = PerUnit::default();
