@@ -767,6 +767,23 @@ pub struct VaryingConductance {
     pub law: ConductanceSpeedSpec,
 }
 
+/// What one network source carries (see [`Model::source_kinds`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SourceKind {
+    /// `[[source]]` number `k`: its input's current ([`Model::drives`]).
+    Drive(usize),
+    /// `[[speed_loss]]` number `k` ([`Model::speed_losses`]).
+    SpeedLoss(usize),
+    /// `[[loss]]` number `k` ([`Model::losses`]), on its first node or,
+    /// when it splits, its second.
+    Loss {
+        /// The loss.
+        k: usize,
+        /// Its second node's share.
+        second: bool,
+    },
+}
+
 /// A validated, index-resolved model.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -917,6 +934,8 @@ impl Model {
         }
         let conductor_scales = conductor_scales(file)?;
         let mut inputs: Vec<InputSpec> = Vec::new();
+        // The network's sources go in the order `Model::source_kinds`
+        // gives: the `[[source]]`s, the `[[speed_loss]]`es, the `[[loss]]`es.
         let mut drives = Vec::new();
         let mut source_keys = BTreeMap::new();
         for (k, s) in file.sources.iter().enumerate() {
@@ -1170,35 +1189,51 @@ impl Model {
         })
     }
 
+    /// What each network source carries, in the network's order: the one
+    /// place that order is written down (`Model::build` adds the sources
+    /// in it; the test `source_kinds_follow_the_network_sources` holds the
+    /// two together, and `codegen` generates the firmware's currents from
+    /// it).
+    pub fn source_kinds(&self) -> impl Iterator<Item = SourceKind> + '_ {
+        let drives = (0..self.drives.len()).map(SourceKind::Drive);
+        let speed_losses = (0..self.speed_losses.len()).map(SourceKind::SpeedLoss);
+        let losses = self.losses.iter().enumerate().flat_map(|(k, l)| {
+            let second = (!l.split.is_empty()).then_some(SourceKind::Loss { k, second: true });
+            std::iter::once(SourceKind::Loss { k, second: false }).chain(second)
+        });
+        drives.chain(speed_losses).chain(losses)
+    }
+
     /// Effective current of every network source \[A\]: `sqrt(k (1 + a1 f +
     /// a2 f^2)) |I|`, so that the library's `R(T) I^2` gives the source's
     /// power. `currents_a` per input, `signals` per signal.
     pub fn effective_currents(&self, currents_a: &[f64], signals: &[f64], out: &mut Vec<f64>) {
         out.clear();
-        out.extend(self.drives.iter().map(|d| {
-            let mut factor = d.scale;
-            if let Some((s, reference, a1, a2)) = d.speed {
-                let f = per_unit(signals[s], reference);
-                factor *= (1.0 + a1 * f + a2 * f * f).max(0.0);
+        out.extend(self.source_kinds().map(|kind| match kind {
+            SourceKind::Drive(k) => {
+                let d = &self.drives[k];
+                let mut factor = d.scale;
+                if let Some((s, reference, a1, a2)) = d.speed {
+                    let f = per_unit(signals[s], reference);
+                    factor *= (1.0 + a1 * f + a2 * f * f).max(0.0);
+                }
+                let i = currents_a[d.input];
+                if factor == 1.0 {
+                    i
+                } else {
+                    factor.sqrt() * i.abs()
+                }
             }
-            let i = currents_a[d.input];
-            if factor == 1.0 {
-                i
-            } else {
-                factor.sqrt() * i.abs()
+            SourceKind::SpeedLoss(k) => {
+                let l = &self.speed_losses[k];
+                let f = per_unit(signals[l.signal], l.reference);
+                (l.p1_w * f + l.p2_w * f * f).max(0.0).sqrt()
+            }
+            SourceKind::Loss { k, second } => {
+                let (first, split) = self.losses[k].powers_w(signals);
+                if second { split.unwrap_or(0.0) } else { first }.sqrt()
             }
         }));
-        out.extend(self.speed_losses.iter().map(|l| {
-            let f = per_unit(signals[l.signal], l.reference);
-            (l.p1_w * f + l.p2_w * f * f).max(0.0).sqrt()
-        }));
-        for l in &self.losses {
-            let (first, second) = l.powers_w(signals);
-            out.push(first.sqrt());
-            if let Some(p) = second {
-                out.push(p.sqrt());
-            }
-        }
     }
 
     /// `true` when a conductance depends on a signal: the network then

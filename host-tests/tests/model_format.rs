@@ -30,3 +30,41 @@ fn every_shipped_model_loads() {
     }
     assert!(n >= 2);
 }
+
+/// `Model::source_kinds` is the network's source order, which the replays'
+/// effective currents and `codegen`'s generated currents both follow: on
+/// every shipped model, each kind names the node its network source heats
+/// (a `[[source]]`'s and a `[[speed_loss]]`'s `node`, a `[[loss]]`'s first
+/// or second of `nodes`), and there is one kind per source.
+#[test]
+fn source_kinds_follow_the_network_sources() {
+    use coil_thermal_host::model_file::{Model, SourceKind};
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
+    let mut kinds_seen = [false; 3];
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let file = ModelFile::load(&path).unwrap();
+        let model = Model::build(&file).unwrap();
+        let sources = model.network.sources();
+        let kinds: Vec<SourceKind> = model.source_kinds().collect();
+        assert_eq!(kinds.len(), sources.len(), "{}", path.display());
+        for (kind, source) in kinds.iter().zip(sources) {
+            let (expected, seen) = match *kind {
+                SourceKind::Drive(k) => (&file.sources[k].node, 0),
+                SourceKind::SpeedLoss(k) => (&file.speed_losses[k].node, 1),
+                SourceKind::Loss { k, second } => (&file.losses[k].nodes[usize::from(second)], 2),
+            };
+            kinds_seen[seen] = true;
+            assert_eq!(
+                &model.nodes[source.node],
+                expected,
+                "{}: {kind:?}",
+                path.display()
+            );
+        }
+    }
+    assert_eq!(kinds_seen, [true; 3], "a shipped model of every kind");
+}

@@ -20,7 +20,7 @@
 
 use std::fmt::Write as _;
 
-use crate::model_file::{LossTerm, Model};
+use crate::model_file::{LossTerm, Model, SourceKind};
 
 /// What one current of the observer is made of.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,24 +37,20 @@ pub(super) enum CurrentOf {
     Loss { k: usize, second: bool },
 }
 
-/// Every current of `model`'s network, in source order.
+/// Every current of `model`'s network, in its source order
+/// ([`Model::source_kinds`]).
 pub(super) fn currents_of(model: &Model) -> Vec<CurrentOf> {
-    let mut out: Vec<CurrentOf> = model
-        .drives
-        .iter()
-        .map(|d| CurrentOf::Input {
-            input: d.input,
-            speed: d.speed,
+    model
+        .source_kinds()
+        .map(|kind| match kind {
+            SourceKind::Drive(k) => CurrentOf::Input {
+                input: model.drives[k].input,
+                speed: model.drives[k].speed,
+            },
+            SourceKind::SpeedLoss(k) => CurrentOf::SpeedLoss(k),
+            SourceKind::Loss { k, second } => CurrentOf::Loss { k, second },
         })
-        .collect();
-    out.extend((0..model.speed_losses.len()).map(CurrentOf::SpeedLoss));
-    for (k, l) in model.losses.iter().enumerate() {
-        out.push(CurrentOf::Loss { k, second: false });
-        if !l.split.is_empty() {
-            out.push(CurrentOf::Loss { k, second: true });
-        }
-    }
-    out
+        .collect()
 }
 
 /// Refuses a speed or loss coefficient or reference beyond `f32`'s range,
