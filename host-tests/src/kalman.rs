@@ -303,6 +303,13 @@ pub struct KalmanOptions {
     pub boundary_offset_std_k: f64,
     /// Correlation time of each boundary offset \[s\].
     pub boundary_offset_tau_s: f64,
+    /// Keep each boundary offset at or above this \[K\] (after every
+    /// correction, with the temperatures by their regression on it, as
+    /// the disturbance floor); `Some(0.0)`: the links never see a boundary
+    /// colder than its reading, so the offset may explain a sensor that
+    /// reads hot against the boundary but never cools the model. `None`:
+    /// no floor.
+    pub boundary_offset_floor_k: Option<f64>,
     /// Gate threshold on `nu^2 / S` (chi-square, 1 dof).
     pub gate: f64,
     /// Learn each sensor's noise from its own readings (see
@@ -340,6 +347,7 @@ impl Default for KalmanOptions {
             boundary_offsets: Vec::new(),
             boundary_offset_std_k: 2.0,
             boundary_offset_tau_s: 7200.0,
+            boundary_offset_floor_k: None,
             gate: CHI2_1DOF_999,
             noise_from_readings: None,
             disturbance_floor_share: None,
@@ -369,6 +377,11 @@ impl KalmanOptions {
         pos(self.boundary_offset_std_k, "--boundary-offset-std-k")?;
         pos(self.boundary_offset_tau_s, "--boundary-offset-tau-s")?;
         pos(self.gate, "--gate")?;
+        if let Some(floor) = self.boundary_offset_floor_k {
+            if !floor.is_finite() {
+                bail!("--boundary-offset-floor-k must be finite, got {floor}");
+            }
+        }
         if let Some(share) = self.disturbance_floor_share {
             if !(share.is_finite() && share >= 0.0) {
                 bail!("--disturbance-floor-share must be finite and >= 0, got {share}");
@@ -807,6 +820,11 @@ impl Estimator for KalmanEstimator {
                 self.filter.project_onto_floor(n + k, -share * joule_w);
             }
         }
+        if let Some(floor_k) = self.opts.boundary_offset_floor_k {
+            for k in self.temps.len() + self.disturbances..self.states {
+                self.filter.project_onto_floor(k, floor_k);
+            }
+        }
         self.sync_temps();
     }
 
@@ -869,12 +887,13 @@ policy = "boundary"
 
     /// The coil estimate's errors against the plant run with the true
     /// coolant, over the last quarter of a 6000 s run, when the filter is
-    /// given a coolant reading `offset_k` below the truth: (mean, max) of
-    /// `|estimate - truth|` \[K\], and the filter's final offset states.
-    fn coil_errors(offset_k: f64, opts: KalmanOptions) -> (f64, f64, Vec<f64>) {
+    /// given a coolant reading `offset_k` below the truth (above it when
+    /// negative): (mean, max) of `|estimate - truth|` \[K\], the coldest
+    /// `estimate - truth` \[K\], and the filter's final offset states.
+    fn coil_errors(offset_k: f64, opts: KalmanOptions) -> (f64, f64, f64, Vec<f64>) {
         let (mut plant, mut filter) = jacket(opts);
         let rows = 6000;
-        let (mut sum, mut max, mut count) = (0.0, 0.0_f64, 0);
+        let (mut sum, mut max, mut coldest, mut count) = (0.0, 0.0_f64, f64::MAX, 0);
         for k in 0..rows {
             let t = k as f64;
             let current = match (k / 800) % 3 {
@@ -891,13 +910,19 @@ policy = "boundary"
                 value_c: plant.temps_c()[1],
             }]);
             if k >= 3 * rows / 4 {
-                let e = (filter.estimate_c()[0] - plant.temps_c()[0]).abs();
-                sum += e;
-                max = max.max(e);
+                let e = filter.estimate_c()[0] - plant.temps_c()[0];
+                sum += e.abs();
+                max = max.max(e.abs());
+                coldest = coldest.min(e);
                 count += 1;
             }
         }
-        (sum / f64::from(count), max, filter.boundary_offsets_k())
+        (
+            sum / f64::from(count),
+            max,
+            coldest,
+            filter.boundary_offsets_k(),
+        )
     }
 
     /// The independent reference is the plant run with the true coolant;
@@ -920,14 +945,14 @@ policy = "boundary"
         };
         // With an exact coolant reading the filter (temperatures only) is
         // exact, and an offset state stays at zero.
-        let (exact, _, _) = coil_errors(0.0, KalmanOptions::default());
-        let (exact_offset, _, zero) = coil_errors(0.0, offset.clone());
+        let (exact, _, _, _) = coil_errors(0.0, KalmanOptions::default());
+        let (exact_offset, _, _, zero) = coil_errors(0.0, offset.clone());
         // 3 K low: temperatures only, a heat disturbance on the coil, an
         // offset state, both.
-        let (plain, _, _) = coil_errors(3.0, KalmanOptions::default());
-        let (heat_mean, _, _) = coil_errors(3.0, heat);
-        let (mean, max, found) = coil_errors(3.0, offset);
-        let (both_mean, _, both_found) = coil_errors(3.0, both);
+        let (plain, _, _, _) = coil_errors(3.0, KalmanOptions::default());
+        let (heat_mean, _, _, _) = coil_errors(3.0, heat);
+        let (mean, max, _, found) = coil_errors(3.0, offset);
+        let (both_mean, _, _, both_found) = coil_errors(3.0, both);
         eprintln!(
             "coil |error| mean [K] over the last quarter: exact coolant {exact:.4} ({exact_offset:.4} with the offset state); \
              coolant 3 K low: temperatures only {plain:.4}, heat disturbance {heat_mean:.3}, \
@@ -955,6 +980,46 @@ policy = "boundary"
         // (exactly so for constant states, weakly with the decays), and the
         // coil is off along it.
         assert!(both_mean > 1.0, "{both_mean} {both_found:?}");
+    }
+
+    /// The floor at zero lets the offset warm the links, never cool them:
+    /// behind a coolant reading 3 K low it is not in the way (the offset
+    /// found, the coil exact); behind one 3 K high, which a free offset
+    /// follows down to -3 K, it holds the offset at 0, and the coil reads
+    /// no colder and no further off than with no offset state at all. The
+    /// reference is the plant run with the true coolant.
+    #[test]
+    fn a_boundary_offset_floor_at_zero_never_cools_the_model() {
+        let free = KalmanOptions {
+            boundary_offsets: vec![0],
+            boundary_offset_std_k: 3.0,
+            boundary_offset_tau_s: 7200.0,
+            ..KalmanOptions::default()
+        };
+        let floored = KalmanOptions {
+            boundary_offset_floor_k: Some(0.0),
+            ..free.clone()
+        };
+        let (_, low_max, _, low_found) = coil_errors(3.0, floored.clone());
+        let (_, free_max, _, free_found) = coil_errors(-3.0, free);
+        let (high_mean, _, high_coldest, high_found) = coil_errors(-3.0, floored);
+        let (none_mean, _, none_coldest, _) = coil_errors(-3.0, KalmanOptions::default());
+        eprintln!(
+            "coolant 3 K low, floored: offset {:.3} K, coil max |error| {low_max:.4} K; \
+             3 K high: free offset {:.3} K (max {free_max:.4} K), floored offset {:.4} K \
+             (mean {high_mean:.4}, coldest {high_coldest:.4} K; without the state {none_mean:.4}, {none_coldest:.4} K)",
+            low_found[0], free_found[0], high_found[0]
+        );
+        assert!((low_found[0] - 3.0).abs() < 0.05 && low_max < 0.05);
+        assert!((free_found[0] + 3.0).abs() < 0.05 && free_max < 0.05);
+        assert!(
+            high_found[0] >= 0.0 && high_found[0] < 1e-6,
+            "{high_found:?}"
+        );
+        assert!(
+            high_coldest >= none_coldest - 1e-3 && high_mean <= none_mean + 1e-3,
+            "floored {high_mean} / {high_coldest}, without the state {none_mean} / {none_coldest}"
+        );
     }
 
     /// The learned noise is the sensor's: white noise of a known standard

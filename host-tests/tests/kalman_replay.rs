@@ -182,6 +182,10 @@ fn bad_boundary_offsets_are_refused() {
             &["--boundary-offset", "ambient"][..],
             "boundary `ambient` given twice",
         ),
+        (
+            &["--boundary-offset-floor-k", "NaN"][..],
+            "--boundary-offset-floor-k must be finite",
+        ),
     ] {
         let args = [
             &[
@@ -201,6 +205,18 @@ fn bad_boundary_offsets_are_refused() {
         &out,
         &["--boundary-offset", "ambient"],
         "need at least one --measure",
+    );
+    // A floor with no offset to bound.
+    refused(
+        &rec,
+        &out,
+        &[
+            "--measure",
+            "T_housing=housing",
+            "--boundary-offset-floor-k",
+            "0",
+        ],
+        "--boundary-offset-floor-k bounds the --boundary-offset states",
     );
 }
 

@@ -358,6 +358,12 @@ pub struct ReplayArgs {
         allow_negative_numbers = true
     )]
     boundary_offset_tau_s: f64,
+    /// Filter: keep each boundary offset at or above K [K] (0: the links
+    /// never see a boundary colder than its reading; the offset explains a
+    /// sensor reading hot against the boundary but never cools the model);
+    /// without it no floor.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    boundary_offset_floor_k: Option<f64>,
     /// Filter: chi-square gate (1 dof) on `nu^2 / S`; readings above it are
     /// rejected (default: 0.1 % false alarms).
     #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]

@@ -327,6 +327,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             (None, Some(v)) => (v, "model-file"),
             (None, None) => (0.2, "default"),
         };
+    if a.boundary_offset_floor_k.is_some() && a.boundary_offset.is_empty() {
+        bail!(
+            "--boundary-offset-floor-k bounds the --boundary-offset states: give --boundary-offset BOUNDARY"
+        );
+    }
     if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
         bail!(
             "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
@@ -472,6 +477,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             boundary_offsets,
             boundary_offset_std_k: a.boundary_offset_std_k,
             boundary_offset_tau_s: a.boundary_offset_tau_s,
+            boundary_offset_floor_k: a.boundary_offset_floor_k,
             gate: a.gate,
             noise_from_readings: (a.noise_half_window_rows > 0).then_some(NoiseFromReadings {
                 half_window: a.noise_half_window_rows,
