@@ -54,7 +54,9 @@ for change in "--disturbance-std-w 25" "--disturbance-std-w 100" \
   "--noise-half-window-rows 5" "--noise-half-window-rows 20" \
   "--process-noise-k2-per-s 1e-5" "--process-noise-k2-per-s 1e-3" \
   "--initial-std-k 0.25" "--initial-std-k 1" \
-  "--gate 6.63" "--gate 15.13"; do
+  "--gate 6.63" "--gate 15.13" \
+  "--boundary-offset-std-k 1" "--boundary-offset-std-k 4" \
+  "--boundary-offset-tau-s 3600" "--boundary-offset-tau-s 14400"; do
   # shellcheck disable=SC2086 # the option and its value, two words
   fuse7_with $change
   row "$change"

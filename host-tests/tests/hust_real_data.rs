@@ -180,8 +180,9 @@ const SEVEN_ARGS: [&str; 14] = [
 /// (50 W) rather than the replay default, which scales with each trace's
 /// peak power; every node starts at a measured reading, so its start is
 /// known to 0.5 K; the sensor's noise learned from its readings, 0.2 K the
-/// floor; the disturbances never below zero (`hust/common.sh`'s `FUSE7`).
-const FUSE_SEVEN: [&str; 16] = [
+/// floor; the disturbances never below zero; an offset on the coolant the
+/// links see, 2 K and 7200 s, never below zero (`hust/common.sh`'s `FUSE7`).
+const FUSE_SEVEN: [&str; 24] = [
     "--measure",
     "endwind_1=end_winding",
     "--measurement-noise-k",
@@ -197,6 +198,14 @@ const FUSE_SEVEN: [&str; 16] = [
     "--noise-half-window-rows",
     "10",
     "--disturbance-floor-share",
+    "0",
+    "--boundary-offset",
+    "coolant",
+    "--boundary-offset-std-k",
+    "2",
+    "--boundary-offset-tau-s",
+    "7200",
+    "--boundary-offset-floor-k",
     "0",
 ];
 
@@ -261,17 +270,16 @@ fn channel_corrected_scores(trace: &Path, estimate: &Path) -> Vec<(f64, f64)> {
 }
 
 /// Issue 18's second goal: with endwind_1 fused (one disturbance over the
-/// three copper nodes and one over the stator iron, never below zero, the
-/// same settings on every profile), both active-winding sensors, which the filter is never given,
-/// are held within 1 K^2 and 3 K on profiles 1-13, and fusion never makes
-/// either worse than open loop (MSE) on any profile. On profile 0
-/// (inverted standstill) both are within 1 K^2 and `activewind_2` within
-/// 3 K; `activewind_1`'s max error, 3.17 K, misses the goal and is not
-/// asserted as recorded: it falls where that reading jumps 1.5 K in 7 s
-/// with the yoke and end cap thermocouples, a shift of the thermocouple
-/// channel. Against the readings with that shift taken out every figure
-/// of every profile is within 1 K^2 and 3 K, which README says and this
-/// test asserts.
+/// three copper nodes and one over the stator iron, and a coolant offset,
+/// all never below zero, the same settings on every profile), both
+/// active-winding sensors, which the filter is never given, are held
+/// within 1 K^2 and 3 K on every profile, and fusion never makes either
+/// worse than open loop (MSE) on any profile. The margin is thin on
+/// profile 0 (inverted standstill): `activewind_1`'s max error is 2.997
+/// K, where that reading jumps 1.5 K in 7 s with the yoke and end cap
+/// thermocouples, a shift of the thermocouple channel. Against the
+/// readings with that shift taken out every figure of every profile is
+/// within 1 K^2 and 3 K too.
 #[test]
 fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
     let Some(dir) = data_dir() else { return };
@@ -300,9 +308,8 @@ fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
                 "profile {n}: activewind_{} fused {mse} against open loop {open_mse} K^2",
                 k + 1
             );
-            let max_holds = *max <= 3.0 || (n == 0 && k == 0);
             assert!(
-                *mse <= 1.0 && max_holds,
+                *mse <= 1.0 && *max <= 3.0,
                 "profile {n}: activewind_{} {:?}",
                 k + 1,
                 fused[k]
