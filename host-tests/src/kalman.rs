@@ -48,7 +48,11 @@
 //! (`dT_i/dt += G_ib o / C_i`, the boundary's input column of `B` copied
 //! into `A`), a first-order Gauss-Markov process like the disturbances
 //! (`do/dt = -o / tau_o + w`, stationary standard deviation `sigma_o`).
-//! It starts at 0 with variance `sigma_o^2`.
+//! It starts at 0 with variance `sigma_o^2`. With
+//! `--boundary-offset-floor-k K` every correction ends with the offset
+//! projected onto `o >= K` (the temperatures moved by their regression on
+//! it, as the disturbance floor): at 0 the offset may warm the links,
+//! never cool them below the boundary's reading.
 //!
 //! # Noise
 //! * Temperatures: white heat-flow noise, `Q_T = q dt I` with `q` in K^2/s
