@@ -889,12 +889,23 @@ policy = "boundary"
         (plant, filter)
     }
 
-    /// The coil estimate's errors against the plant run with the true
-    /// coolant, over the last quarter of a 6000 s run, when the filter is
-    /// given a coolant reading `offset_k` below the truth (above it when
-    /// negative): (mean, max) of `|estimate - truth|` \[K\], the coldest
-    /// `estimate - truth` \[K\], and the filter's final offset states.
-    fn coil_errors(offset_k: f64, opts: KalmanOptions) -> (f64, f64, f64, Vec<f64>) {
+    /// The coil estimate against the plant run with the true coolant, over
+    /// the last quarter of a run (see [`coil_errors`]).
+    struct CoilErrors {
+        /// Mean of `|estimate - truth|` \[K\].
+        mean_k: f64,
+        /// Largest `|estimate - truth|` \[K\].
+        max_k: f64,
+        /// Smallest `estimate - truth` \[K\] (negative: cold).
+        coldest_k: f64,
+        /// The filter's final boundary offsets \[K\].
+        offsets_k: Vec<f64>,
+    }
+
+    /// The coil's errors over the last quarter of a 6000 s run when the
+    /// filter is given a coolant reading `offset_k` below the truth (above
+    /// it when negative).
+    fn coil_errors(offset_k: f64, opts: KalmanOptions) -> CoilErrors {
         let (mut plant, mut filter) = jacket(opts);
         let rows = 6000;
         let (mut sum, mut max, mut coldest, mut count) = (0.0, 0.0_f64, f64::MAX, 0);
@@ -921,12 +932,12 @@ policy = "boundary"
                 count += 1;
             }
         }
-        (
-            sum / f64::from(count),
-            max,
-            coldest,
-            filter.boundary_offsets_k(),
-        )
+        CoilErrors {
+            mean_k: sum / f64::from(count),
+            max_k: max,
+            coldest_k: coldest,
+            offsets_k: filter.boundary_offsets_k(),
+        }
     }
 
     /// The independent reference is the plant run with the true coolant;
@@ -949,14 +960,21 @@ policy = "boundary"
         };
         // With an exact coolant reading the filter (temperatures only) is
         // exact, and an offset state stays at zero.
-        let (exact, _, _, _) = coil_errors(0.0, KalmanOptions::default());
-        let (exact_offset, _, _, zero) = coil_errors(0.0, offset.clone());
+        let exact = coil_errors(0.0, KalmanOptions::default()).mean_k;
+        let with_offset = coil_errors(0.0, offset.clone());
+        let (exact_offset, zero) = (with_offset.mean_k, with_offset.offsets_k);
         // 3 K low: temperatures only, a heat disturbance on the coil, an
         // offset state, both.
-        let (plain, _, _, _) = coil_errors(3.0, KalmanOptions::default());
-        let (heat_mean, _, _, _) = coil_errors(3.0, heat);
-        let (mean, max, _, found) = coil_errors(3.0, offset);
-        let (both_mean, _, _, both_found) = coil_errors(3.0, both);
+        let plain = coil_errors(3.0, KalmanOptions::default()).mean_k;
+        let heat_mean = coil_errors(3.0, heat).mean_k;
+        let CoilErrors {
+            mean_k: mean,
+            max_k: max,
+            offsets_k: found,
+            ..
+        } = coil_errors(3.0, offset);
+        let both = coil_errors(3.0, both);
+        let (both_mean, both_found) = (both.mean_k, both.offsets_k);
         eprintln!(
             "coil |error| mean [K] over the last quarter: exact coolant {exact:.4} ({exact_offset:.4} with the offset state); \
              coolant 3 K low: temperatures only {plain:.4}, heat disturbance {heat_mean:.3}, \
@@ -1004,25 +1022,38 @@ policy = "boundary"
             boundary_offset_floor_k: Some(0.0),
             ..free.clone()
         };
-        let (_, low_max, _, low_found) = coil_errors(3.0, floored.clone());
-        let (_, free_max, _, free_found) = coil_errors(-3.0, free);
-        let (high_mean, _, high_coldest, high_found) = coil_errors(-3.0, floored);
-        let (none_mean, _, none_coldest, _) = coil_errors(-3.0, KalmanOptions::default());
+        let low = coil_errors(3.0, floored.clone());
+        let free = coil_errors(-3.0, free);
+        let high = coil_errors(-3.0, floored);
+        let none = coil_errors(-3.0, KalmanOptions::default());
         eprintln!(
-            "coolant 3 K low, floored: offset {:.3} K, coil max |error| {low_max:.4} K; \
-             3 K high: free offset {:.3} K (max {free_max:.4} K), floored offset {:.4} K \
-             (mean {high_mean:.4}, coldest {high_coldest:.4} K; without the state {none_mean:.4}, {none_coldest:.4} K)",
-            low_found[0], free_found[0], high_found[0]
+            "coolant 3 K low, floored: offset {:.3} K, coil max |error| {:.4} K; \
+             3 K high: free offset {:.3} K (max {:.4} K), floored offset {:.4} K \
+             (mean {:.4}, coldest {:.4} K; without the state {:.4}, {:.4} K)",
+            low.offsets_k[0],
+            low.max_k,
+            free.offsets_k[0],
+            free.max_k,
+            high.offsets_k[0],
+            high.mean_k,
+            high.coldest_k,
+            none.mean_k,
+            none.coldest_k
         );
-        assert!((low_found[0] - 3.0).abs() < 0.05 && low_max < 0.05);
-        assert!((free_found[0] + 3.0).abs() < 0.05 && free_max < 0.05);
+        assert!((low.offsets_k[0] - 3.0).abs() < 0.05 && low.max_k < 0.05);
+        assert!((free.offsets_k[0] + 3.0).abs() < 0.05 && free.max_k < 0.05);
         assert!(
-            high_found[0] >= 0.0 && high_found[0] < 1e-6,
-            "{high_found:?}"
+            high.offsets_k[0] >= 0.0 && high.offsets_k[0] < 1e-6,
+            "{:?}",
+            high.offsets_k
         );
         assert!(
-            high_coldest >= none_coldest - 1e-3 && high_mean <= none_mean + 1e-3,
-            "floored {high_mean} / {high_coldest}, without the state {none_mean} / {none_coldest}"
+            high.coldest_k >= none.coldest_k - 1e-3 && high.mean_k <= none.mean_k + 1e-3,
+            "floored {} / {}, without the state {} / {}",
+            high.mean_k,
+            high.coldest_k,
+            none.mean_k,
+            none.coldest_k
         );
     }
 
