@@ -83,7 +83,6 @@ fn run(held: bool) -> Run {
     let start_c = [f64::from(COOLANT_C); model::NODES];
     plant.reset(&start_c);
     let mut state = observer.state(&[COOLANT_C; model::NODES], &boundary_c);
-    let signals = [SPEED_RPM, DEMAND_A[0]];
     let mut current_a = DEMAND_A;
     let mut run = Run {
         max_winding_c: f64::MIN,
@@ -100,7 +99,7 @@ fn run(held: bool) -> Run {
             }
         }
         // The loss terms read the winding's current as a signal.
-        let signals = [signals[0], current_a[0]];
+        let signals = [SPEED_RPM, current_a[0]];
         let currents = model::source_currents_a(&current_a, &signals);
         for k in 0..PLANT_STEP_MS {
             let read = k == 0 && step % (1000 / PLANT_STEP_MS) == 0;
