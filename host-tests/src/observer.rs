@@ -60,6 +60,18 @@ pub trait Estimator {
     fn take_tick_times_ns(&mut self) -> Option<TimeHistogram> {
         None
     }
+    /// For an estimator that runs the firmware's observer: its
+    /// protection's outputs after the last tick into `out`, and its alarm
+    /// events since the last call into `events`; returns `false` (and
+    /// writes nothing) for one that has no protection of its own (the
+    /// replay's [`Protection`] then watches the estimate).
+    fn firmware(
+        &mut self,
+        _out: &mut crate::library_observer::Protected,
+        _events: &mut Vec<crate::library_observer::EventKindAt>,
+    ) -> bool {
+        false
+    }
 }
 
 /// One event of the library's alarm, with its time.
@@ -497,7 +509,7 @@ impl Protection for LibraryAlarm {
 }
 
 /// (level, kind) names of a library event.
-fn describe(kind: EventKind) -> (&'static str, &'static str) {
+pub fn describe(kind: EventKind) -> (&'static str, &'static str) {
     match kind {
         EventKind::WarningRaised => ("warning", "raised"),
         EventKind::WarningCleared => ("warning", "cleared"),
@@ -704,8 +716,12 @@ pub struct ReplayRow<'a> {
     pub row: &'a InputRow,
     /// The estimate at the row, after its readings \[degC\].
     pub estimate_c: &'a [f64],
-    /// The alarm events of the row, in order.
+    /// The alarm events of the row, in order: the firmware observer's
+    /// since the previous row, or the replay's [`Protection`]'s.
     pub events: &'a [AlarmEvent],
+    /// What the firmware observer's protection acts on at the row (`None`
+    /// for an estimator without one).
+    pub protected: Option<&'a crate::library_observer::Protected>,
 }
 
 /// Runs `estimator` and `protection` over the rows of `source`, from
@@ -726,6 +742,9 @@ pub fn replay(
     estimator.reset(init);
     let mut samples = TimeHistogram::default();
     let mut events = Vec::new();
+    let mut firmware_events = Vec::new();
+    let mut protected = crate::library_observer::Protected::default();
+    let mut start_s = None;
     let mut meas = Vec::with_capacity(fused.len());
     let mut current = source.next_row()?;
     while let Some(row) = current {
@@ -739,18 +758,39 @@ pub fn replay(
         estimator.update(&meas);
         let mut elapsed = start.elapsed();
         events.clear();
-        protection.check(
-            row.time_s,
-            estimator.estimate_c(),
-            &row.currents,
-            &row.boundaries,
-            &row.signals,
-            &mut events,
-        );
+        firmware_events.clear();
+        let firmware = estimator.firmware(&mut protected, &mut firmware_events);
+        if firmware {
+            // The firmware's own alarm, on its upper bounds, at the ticks
+            // since the previous row.
+            let t0 = *start_s.get_or_insert(row.time_s);
+            let names = &estimator.info().nodes;
+            events.extend(firmware_events.iter().map(|e| {
+                let (level, kind) = describe(e.kind);
+                AlarmEvent {
+                    time_s: t0 + e.since_start_s,
+                    node: e.node.and_then(|i| names.get(i).cloned()),
+                    level,
+                    kind,
+                    temp_c: e.upper_c,
+                    limit_c: e.limit_c,
+                }
+            }));
+        } else {
+            protection.check(
+                row.time_s,
+                estimator.estimate_c(),
+                &row.currents,
+                &row.boundaries,
+                &row.signals,
+                &mut events,
+            );
+        }
         sink(&ReplayRow {
             row: &row,
             estimate_c: estimator.estimate_c(),
             events: &events,
+            protected: firmware.then_some(&protected),
         })?;
         let next = source.next_row()?;
         if let Some(next) = &next {

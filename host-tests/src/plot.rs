@@ -70,6 +70,9 @@ pub struct PlotData {
     pub title: String,
     /// Estimated temperatures \[degC\].
     pub estimated: Vec<Series>,
+    /// Protective upper bounds \[degC\] (what the alarm and the limiter act
+    /// on): a thin dotted line in their node's colour, above its estimate.
+    pub upper: Vec<Series>,
     /// Truth and measured temperatures \[degC\], not fused.
     pub measured: Vec<Series>,
     /// Sensor readings the observer fused \[degC\].
@@ -181,6 +184,7 @@ impl PlotData {
         let out = PlotData {
             title: self.title.clone(),
             estimated: clip(&self.estimated),
+            upper: clip(&self.upper),
             measured: clip(&self.measured),
             fused: clip(&self.fused),
             residuals: clip(&self.residuals),
@@ -578,7 +582,12 @@ where
     };
     let (top, rest) = root.split_vertically((h - residual_h - current_h) as u32);
     let (residual_area, current_area) = rest.split_vertically(residual_h as u32);
-    let temps: Vec<&Series> = data.estimated.iter().chain(&data.measured).collect();
+    let temps: Vec<&Series> = data
+        .estimated
+        .iter()
+        .chain(&data.measured)
+        .chain(&data.upper)
+        .collect();
     let Some((_, _, d0, d1)) = range(&temps, &[]) else {
         bail!("plot: nothing to draw (no temperature series)");
     };
@@ -631,6 +640,19 @@ where
                 PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
             });
         }
+    }
+    for s in &data.upper {
+        let c = color(s.color);
+        chart
+            .draw_series(DashedLineSeries::new(
+                points(s, MAX_POINTS),
+                2,
+                3,
+                c.stroke_width(1),
+            ))
+            .map_err(e)?
+            .label(&s.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(1)));
     }
     // Truth on top of the estimates, so that a good estimate cannot hide it.
     for s in &data.measured {

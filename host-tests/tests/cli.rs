@@ -251,13 +251,22 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     assert!(truth["mse_k2"].as_f64().unwrap() < 1e-5, "{truth}");
     assert!(truth["max_abs_error_k"].as_f64().unwrap() < 0.01, "{truth}");
     assert!(truth["rmse_k"].as_f64().is_some() && truth["max_abs_error_k"].as_f64().is_some());
-    // 4 A heats the coil past its 155 degC critical temperature (a model
-    // file has no derating by default): warning first, then the shutdown.
+    // 4 A heats the coil past its derated limit (the firmware's default
+    // derating product 0.648 of its 155 degC critical temperature at the
+    // 20 degC ambient: 107.48 degC): warning first, then the shutdown.
     let (warnings, shutdowns) = (events_of(&j, "warning"), events_of(&j, "shutdown"));
     assert_eq!(warnings[0]["kind"], "raised");
     assert_eq!(warnings[0]["node"], "coil");
-    assert_eq!(warnings[0]["limit_c"], 150.0);
-    assert_eq!(shutdowns[0]["limit_c"], 155.0);
+    let limit_c = 20.0 + (155.0 - 20.0) * 0.648;
+    assert!(
+        (warnings[0]["limit_c"].as_f64().unwrap() - (limit_c - 5.0)).abs() < 1e-3,
+        "{j}"
+    );
+    assert!(
+        (shutdowns[0]["limit_c"].as_f64().unwrap() - limit_c).abs() < 1e-3,
+        "{j}"
+    );
+    assert!((j["alarm"]["derating_product"].as_f64().unwrap() - 0.648).abs() < 1e-12);
     let predictive_s = events_of(&j, "predictive")[0]["time_s"].as_f64().unwrap();
     assert!(
         predictive_s < warnings[0]["time_s"].as_f64().unwrap(),
@@ -284,7 +293,11 @@ fn replay_scores_truth_sensors_reports_alarms_and_step_times() {
     .success()
     .stdout(
         contains("MSE [K^2]")
-            .and(contains("time to limit: shortest"))
+            .and(contains(
+                "time to limit (the firmware's, on its upper bounds): shortest",
+            ))
+            .and(contains("observer: the firmware's NetworkObserver"))
+            .and(contains("cold misses T_coil -> coil"))
             .and(contains("first predictive raised at t ="))
             .and(contains("warning raised at t ="))
             .and(contains("shutdown latched at t ="))
@@ -327,30 +340,10 @@ fn pixels_of(path: &Path, rgb: [u8; 3]) -> usize {
 /// The orange of the plot's warning markers.
 const WARNING_ORANGE: [u8; 3] = [255, 140, 0];
 
-/// The first row from which `debounce` rows in a row are above `level_c`:
-/// when the alarm's up/down counter, starting at zero on a rising
-/// temperature, reaches `debounce`.
-fn debounced_crossing(temp_c: &[f64], level_c: f64, debounce: usize) -> Option<usize> {
-    let first = temp_c.iter().position(|t| *t > level_c)?;
-    assert!(
-        temp_c[first..first + debounce].iter().all(|t| *t > level_c),
-        "the crossing is clean"
-    );
-    Some(first + debounce - 1)
-}
-
-/// Replays the two-node coil under the HPPA derating rule, debounced over
-/// 3 rows, with a 60 s predictive horizon; returns the JSON summary, the
-/// coil estimate and the times.
-fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>) {
-    replay_derated_with_horizon(dir, current_a, 60.0)
-}
-
-fn replay_derated_with_horizon(
-    dir: &TempDir,
-    current_a: f64,
-    horizon_s: f64,
-) -> (Value, Vec<f64>, Vec<f64>) {
+/// Replays the two-node coil through its firmware observer under the HPPA
+/// derating rule (`--factors`, an override of the file's 0.648); returns
+/// the JSON summary, the coil's estimate and upper bound, and the times.
+fn replay_derated(dir: &TempDir, current_a: f64) -> (Value, Vec<f64>, Vec<f64>, Vec<f64>) {
     // On for 400 s, then 1200 s of cooling, 1 s rows.
     let mut text = String::from("time_s,current\n");
     for k in 0..=1600 {
@@ -368,8 +361,7 @@ fn replay_derated_with_horizon(
             "--trace",
             s(&trace),
         ])
-        .args(["--factors", "0.875,0.9,0.9,0.8", "--debounce-rows", "3"])
-        .args(["--horizon-s", &horizon_s.to_string()])
+        .args(["--factors", "0.875,0.9,0.9,0.8"])
         .args(["--out", s(&est), "--plot", s(&png), "--json"])
         .assert()
         .success();
@@ -383,11 +375,17 @@ fn replay_derated_with_horizon(
         .filter(|e| e["level"] == "warning" && e["kind"] == "raised")
         .count();
     assert_eq!(orange > 0, warnings > 0, "{orange} orange pixels, {j}");
-    (j, csv_column(&est, "coil"), csv_column(&est, "time_s"))
+    (
+        j,
+        csv_column(&est, "coil"),
+        csv_column(&est, "upper_c.coil"),
+        csv_column(&est, "time_s"),
+    )
 }
 
 // The rule by hand: 155 degC critical, 20 degC ambient (the model's
-// boundary), product 0.875 * 0.9 * 0.9 * 0.8 = 0.567.
+// boundary), product 0.875 * 0.9 * 0.9 * 0.8 = 0.567; the firmware warns
+// 5 K below it.
 const DERATED_LIMIT_C: f64 = 20.0 + (155.0 - 20.0) * 0.567;
 const WARNING_C: f64 = DERATED_LIMIT_C - 5.0;
 
@@ -401,13 +399,23 @@ fn events_of<'a>(j: &'a Value, level: &str) -> Vec<&'a Value> {
         .collect()
 }
 
+/// The event at `event_s` \[s\] came from a crossing of `level_c` by the
+/// upper bound `upper_c` (sampled at `time_s`, one row a second): rising
+/// (`up`) or falling through it in the second before the event (the
+/// firmware debounces 10 ticks of 1 ms).
+fn crossed_at(upper_c: &[f64], time_s: &[f64], event_s: f64, level_c: f64, up: bool) -> bool {
+    let k = time_s.iter().position(|t| *t >= event_s).unwrap();
+    let above = |i: usize| upper_c[i] > level_c;
+    k >= 2 && above(k) == up && (above(k - 1) != up || above(k - 2) != up)
+}
+
 #[test]
 fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
     let dir = TempDir::new().unwrap();
     // 4 A for 400 s, then off: the coil passes 96.5 degC, then cools.
-    let (j, coil_c, time_s) = replay_derated(&dir, 4.0);
-    let warn_row = debounced_crossing(&coil_c, WARNING_C, 3).unwrap();
-    let shut_row = debounced_crossing(&coil_c, DERATED_LIMIT_C, 3).unwrap();
+    let (j, coil_c, upper_c, time_s) = replay_derated(&dir, 4.0);
+    // The protection acts on a bound above the estimate.
+    assert!(upper_c.iter().zip(&coil_c).all(|(u, t)| u >= t), "{j}");
     let warnings = events_of(&j, "warning");
     let shutdowns = events_of(&j, "shutdown");
     let (w, sd) = (warnings[0], shutdowns[0]);
@@ -416,98 +424,77 @@ fn replay_crossing_the_derated_limit_warns_then_latches_the_shutdown() {
         (&"raised".into(), &"coil".into()),
         "{j}"
     );
-    assert_eq!(w["time_s"].as_f64().unwrap(), time_s[warn_row], "{j}");
+    let at = |e: &Value| e["time_s"].as_f64().unwrap();
+    assert!(crossed_at(&upper_c, &time_s, at(w), WARNING_C, true), "{w}");
+    // The firmware's limits are f32.
     assert!(
-        (w["limit_c"].as_f64().unwrap() - WARNING_C).abs() < 1e-9,
+        (w["limit_c"].as_f64().unwrap() - WARNING_C).abs() < 1e-3,
         "{w}"
     );
     assert_eq!(sd["kind"], "latched", "{j}");
-    assert_eq!(sd["time_s"].as_f64().unwrap(), time_s[shut_row], "{j}");
     assert!(
-        (sd["limit_c"].as_f64().unwrap() - DERATED_LIMIT_C).abs() < 1e-9,
+        crossed_at(&upper_c, &time_s, at(sd), DERATED_LIMIT_C, true),
+        "{sd}"
+    );
+    assert!(
+        (sd["limit_c"].as_f64().unwrap() - DERATED_LIMIT_C).abs() < 1e-3,
         "{sd}"
     );
     assert!(sd["temp_c"].as_f64().unwrap() > DERATED_LIMIT_C);
-    // Cooling after 400 s clears the warning (2 K hysteresis, 3 rows) but
-    // never the latched shutdown.
-    let clear_row = coil_c
-        .iter()
-        .enumerate()
-        .skip(shut_row)
-        .filter(|(_, t)| **t < WARNING_C - 2.0)
-        .nth(2)
-        .map(|(k, _)| k)
-        .unwrap();
+    assert!(at(w) < at(sd));
+    // Cooling after 400 s clears the warning (2 K hysteresis) but never
+    // the latched shutdown.
     assert_eq!((warnings.len(), shutdowns.len()), (2, 1), "{j}");
     assert_eq!(warnings[1]["kind"], "cleared");
-    assert_eq!(warnings[1]["time_s"].as_f64().unwrap(), time_s[clear_row]);
+    assert!(
+        crossed_at(&upper_c, &time_s, at(warnings[1]), WARNING_C - 2.0, false),
+        "{}",
+        warnings[1]
+    );
     assert_eq!(j["alarm"]["shutdown_latched"], true);
+    assert_eq!(j["alarm"]["by"], "firmware");
     assert!((j["alarm"]["derating_product"].as_f64().unwrap() - 0.567).abs() < 1e-12);
+    // The override is named: this is not what the file flashes.
+    assert_eq!(
+        j["firmware_observer"]["overrides"][0]["flag"], "--factors",
+        "{j}"
+    );
 }
 
 #[test]
-fn replay_predictive_alarm_leads_the_limit_by_the_horizon() {
+fn replay_predictive_alarm_leads_the_shutdown() {
     let dir = TempDir::new().unwrap();
-    // The current is held from the start, as the prediction assumes, so the
-    // predictive alarm must lead the crossing by the horizon (less one row
-    // of the debounced alarm's sampling) and not by absurdly more.
-    for horizon_s in [60.0, 120.0] {
-        let (j, coil_c, time_s) = replay_derated_with_horizon(&dir, 4.0, horizon_s);
-        let predictive = events_of(&j, "predictive");
-        assert_eq!(predictive.len(), 2, "raised once, cleared once: {j}");
-        let (raised, cleared) = (predictive[0], predictive[1]);
-        assert_eq!(
-            (&raised["kind"], &raised["node"]),
-            (&"raised".into(), &"coil".into())
-        );
-        // Debounced like the shutdown: 3 rows after the first row below the
-        // horizon.
-        let ttl = &j["alarm"]["time_to_limit"];
-        assert_eq!(ttl["horizon_s"], horizon_s);
-        let first_below = ttl["first_below_horizon_time_s"].as_f64().unwrap();
-        assert_eq!(raised["time_s"].as_f64().unwrap(), first_below + 2.0, "{j}");
-        let shutdown_s = events_of(&j, "shutdown")[0]["time_s"].as_f64().unwrap();
-        let lead_s = shutdown_s - raised["time_s"].as_f64().unwrap();
-        // The undebounced view gives the same lead: first row past the limit
-        // against the first row predicted within the horizon.
-        let crossing_s = time_s[coil_c.iter().position(|t| *t > DERATED_LIMIT_C).unwrap()];
-        assert_eq!(crossing_s - first_below, lead_s, "{j}");
-        assert!(
-            lead_s >= horizon_s - 1.0 && lead_s < 1.5 * horizon_s,
-            "horizon {horizon_s} s: lead {lead_s} s"
-        );
-        assert_eq!(ttl["min_s"], 0.0, "the coil passes its limit: {ttl}");
-        // Off at 400 s: "at or past the limit" (0 s) until the coil is below
-        // it again, then "never", which clears the alarm.
-        assert_eq!(cleared["kind"], "cleared");
-        let below_again_s = time_s[400
-            + coil_c[400..]
-                .iter()
-                .position(|t| *t < DERATED_LIMIT_C)
-                .unwrap()];
-        assert_eq!(
-            cleared["time_s"].as_f64().unwrap(),
-            below_again_s + 2.0,
-            "{j}"
-        );
-    }
+    // The current is held from the start, as the prediction assumes: the
+    // firmware's predictive alarm (60 s horizon, on the upper bound) must
+    // lead the shutdown by about the horizon.
+    let (j, _, upper_c, time_s) = replay_derated(&dir, 4.0);
+    let predictive = events_of(&j, "predictive");
+    assert_eq!(predictive[0]["kind"], "raised", "{j}");
+    assert_eq!(predictive[0]["node"], "coil");
+    let shutdown_s = events_of(&j, "shutdown")[0]["time_s"].as_f64().unwrap();
+    let lead_s = shutdown_s - predictive[0]["time_s"].as_f64().unwrap();
+    assert!((50.0..=75.0).contains(&lead_s), "lead {lead_s} s: {j}");
+    // Off at 400 s: the alarm clears once the bound is below the limit.
+    let cleared = predictive.iter().find(|e| e["kind"] == "cleared").unwrap();
+    let cleared_s = cleared["time_s"].as_f64().unwrap();
+    assert!(cleared_s > 400.0, "{j}");
+    let k = time_s.iter().position(|t| *t >= cleared_s).unwrap();
+    assert!(upper_c[k] < DERATED_LIMIT_C + 1.0, "{j}");
 }
 
 #[test]
 fn replay_below_the_derated_limit_raises_nothing() {
     let dir = TempDir::new().unwrap();
-    // 3.3 A for 400 s: the coil heats well above ambient but stays below
-    // the warning level of the same rule, and its steady state at 3.3 A
-    // would too, so the predictive alarm stays quiet as well.
-    let (j, coil_c, _) = replay_derated(&dir, 3.3);
-    let peak_c = coil_c.iter().copied().fold(f64::MIN, f64::max);
-    assert!(peak_c < WARNING_C && peak_c > 50.0, "peak {peak_c} degC");
+    // 3.3 A for 400 s: the coil heats well above ambient but its upper
+    // bound stays below the warning level of the same rule, and its steady
+    // state at 3.3 A would too, so the predictive alarm stays quiet as well.
+    let (j, coil_c, upper_c, _) = replay_derated(&dir, 3.3);
+    let peak_c = upper_c.iter().copied().fold(f64::MIN, f64::max);
+    assert!(peak_c < WARNING_C, "peak upper bound {peak_c} degC");
+    assert!(coil_c.iter().copied().fold(f64::MIN, f64::max) > 50.0);
     assert_eq!(j["alarms"].as_array().unwrap().len(), 0, "{j}");
     assert_eq!(j["alarm"]["shutdown_latched"], false);
     assert_eq!(j["alarm"]["watched_nodes"], 1);
-    let ttl = &j["alarm"]["time_to_limit"];
-    assert!(ttl["first_below_horizon_time_s"].is_null(), "{ttl}");
-    assert!(ttl["min_s"].as_f64().unwrap() > 60.0, "{ttl}");
 }
 
 #[test]
@@ -895,10 +882,10 @@ fn bad_models_and_arguments_are_refused() {
     // Replay: the predictive horizon and the current scale.
     let trace = coil_trace(&dir, 1.0);
     for (flag, value, msg) in [
-        ("--horizon-s", "0", "--horizon-s must be finite and > 0 s"),
-        ("--horizon-s", "-60", "--horizon-s must be finite and > 0 s"),
-        ("--horizon-s", "nan", "--horizon-s must be finite and > 0 s"),
-        ("--horizon-s", "inf", "--horizon-s must be finite and > 0 s"),
+        // The host alarm's flags do not apply to the firmware's observer.
+        ("--horizon-s", "60", "drop --horizon-s"),
+        ("--debounce-rows", "3", "drop --debounce-rows"),
+        ("--gate", "nan", "drop --gate"),
         (
             "--current-scale",
             "-1",

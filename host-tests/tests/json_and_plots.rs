@@ -168,13 +168,17 @@ fn replay_figure_draws_each_node_limit_truth_fused_and_residuals() {
     .assert()
     .success();
     let text = fs::read_to_string(&svg).unwrap();
-    // Both watched nodes' own limits: winding 155 degC, housing 80 degC
-    // (derating product 1 for a model file); off scale ones are named.
-    for label in [
-        "winding alarm limit 155.0 degC",
-        "housing alarm limit 80.0 degC",
-    ] {
-        assert!(text.contains(label), "{label}");
+    // Both watched nodes' own limits, derated as the firmware derates them
+    // (the file's default product 0.648 at the trace's 22 degC ambient):
+    // winding 155 degC, housing 80 degC critical.
+    for (node, critical_c) in [("winding", 155.0), ("housing", 80.0)] {
+        let limit_c = 22.0 + (critical_c - 22.0) * 0.648;
+        let label = format!("{node} alarm limit {limit_c:.1} degC");
+        assert!(text.contains(&label), "{label}");
+    }
+    // The bound the protection acts on is drawn for each limited node.
+    for legend in ["winding (upper bound)", "housing (upper bound)"] {
+        assert!(text.contains(legend), "{legend} in the figure");
     }
     for legend in [
         "winding_tc (truth -&gt; winding)",

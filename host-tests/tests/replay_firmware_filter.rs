@@ -241,10 +241,21 @@ fn the_model_files_sensor_noise_is_the_replays_default() {
     assert_eq!(flagged["fusion"]["sensor_sigma_from"], "flag");
     let from_flag = std::fs::read_to_string(tmp.path().join("est.csv")).unwrap();
     assert_eq!(from_file, from_flag);
+    // Without the key, codegen's default (the library's 0.25 K): the
+    // replay is then the same as with the key at 0.25 K.
     let (default, json) = replay_without_noise_flag(tmp.path(), &fitted);
-    assert_eq!(json["fusion"]["sensor_sigma_k"], 0.2);
+    assert_eq!(json["fusion"]["sensor_sigma_k"], 0.25);
     assert_eq!(json["fusion"]["sensor_sigma_from"], "default");
-    assert_ne!(default, from_flag);
+    assert_eq!(default, from_flag);
+    // And another noise is another replay.
+    let other = tmp.path().join("other-sigma.toml");
+    std::fs::write(
+        &other,
+        text.replacen("[observer]\n", "[observer]\nsensor_sigma_k = 0.4\n", 1),
+    )
+    .unwrap();
+    let (from_other, _) = replay_without_noise_flag(tmp.path(), &other);
+    assert_ne!(from_other, default);
 }
 
 /// The real motor's seven-node model (`hust_motor_slot_fitted.toml`: copper

@@ -278,10 +278,12 @@ pub struct ReplayArgs {
     /// trace's rows instead.
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
-    /// The library observer's tick [us]: the trace's rows are replayed in
-    /// ticks of this length, each timed.
-    #[arg(long, value_name = "US", default_value_t = crate::library_observer::DEFAULT_TICK_US)]
-    tick_us: u32,
+    /// The firmware observer's tick and model step [us]: the trace's rows
+    /// are replayed in ticks of this length, each timed. Default: the model
+    /// file's `[observer] step_us` (1000); another value is an override,
+    /// named in the output.
+    #[arg(long, value_name = "US")]
+    tick_us: Option<u32>,
     /// The library observer's heat-input bias noise [W^2/s] with --measure
     /// (not with --disturbance): overrides the model file's `[observer]
     /// bias_noise_w2_per_s` (default: the file's, else 1e-3, as `codegen`
@@ -290,27 +292,19 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "W2_PER_S", allow_negative_numbers = true)]
     bias_noise_w2_per_s: Option<f64>,
     /// Fusion: process noise of every temperature state [K^2/s] (white heat
-    /// flow; per step `Q = q dt`).
-    #[arg(
-        long,
-        value_name = "K2_PER_S",
-        default_value_t = 1e-4,
-        allow_negative_numbers = true
-    )]
-    process_noise_k2_per_s: f64,
+    /// flow; per step `Q = q dt`). Default: the library's 1e-4, which the
+    /// firmware runs; another value is an override, named in the output.
+    #[arg(long, value_name = "K2_PER_S", allow_negative_numbers = true)]
+    process_noise_k2_per_s: Option<f64>,
     /// Fusion: standard deviation of every fused sensor [K]. Default: the
     /// model file's `[observer] sensor_sigma_k` (the noise `codegen` builds
-    /// the firmware with), else 0.2.
+    /// the firmware with), else codegen's 0.25 (the row-rate filter's: 0.2).
     #[arg(long, value_name = "K", allow_negative_numbers = true)]
     measurement_noise_k: Option<f64>,
-    /// Filter: standard deviation of the initial temperatures [K].
-    #[arg(
-        long,
-        value_name = "K",
-        default_value_t = 2.0,
-        allow_negative_numbers = true
-    )]
-    initial_std_k: f64,
+    /// Filter (row-rate filter only): standard deviation of the initial
+    /// temperatures [K] (default 2).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    initial_std_k: Option<f64>,
     /// Filter: a disturbance state, an unmodelled heat [W] shared by these
     /// nodes in proportion to their capacities (comma separated); repeatable.
     /// It lets one sensor correct the heat input of unmeasured nodes.
@@ -325,14 +319,9 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "W", allow_negative_numbers = true)]
     disturbance_std_w: Option<f64>,
     /// Filter: correlation time of each disturbance [s] (first-order
-    /// Gauss-Markov).
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 1800.0,
-        allow_negative_numbers = true
-    )]
-    disturbance_tau_s: f64,
+    /// Gauss-Markov; default 1800).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    disturbance_tau_s: Option<f64>,
     /// Filter: a boundary offset state [K] on this boundary (repeatable):
     /// the links see the measured boundary plus an estimated offset, for a
     /// boundary sensor that reads off the temperature the model's links
@@ -341,33 +330,25 @@ pub struct ReplayArgs {
     /// does.
     #[arg(long = "boundary-offset", value_name = "BOUNDARY")]
     boundary_offset: Vec<String>,
-    /// Filter: stationary standard deviation of each boundary offset [K].
-    #[arg(
-        long,
-        value_name = "K",
-        default_value_t = 2.0,
-        allow_negative_numbers = true
-    )]
-    boundary_offset_std_k: f64,
+    /// Filter: stationary standard deviation of each boundary offset [K]
+    /// (default 2).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    boundary_offset_std_k: Option<f64>,
     /// Filter: correlation time of each boundary offset [s] (first-order
-    /// Gauss-Markov).
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 7200.0,
-        allow_negative_numbers = true
-    )]
-    boundary_offset_tau_s: f64,
+    /// Gauss-Markov; default 7200).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    boundary_offset_tau_s: Option<f64>,
     /// Filter: keep each boundary offset at or above K [K] (0: the links
     /// never see a boundary colder than its reading; the offset explains a
     /// sensor reading hot against the boundary but never cools the model);
     /// without it no floor.
     #[arg(long, value_name = "K", allow_negative_numbers = true)]
     boundary_offset_floor_k: Option<f64>,
-    /// Filter: chi-square gate (1 dof) on `nu^2 / S`; readings above it are
-    /// rejected (default: 0.1 % false alarms).
-    #[arg(long, value_name = "CHI2", default_value_t = coil_thermal::filter::CHI2_1DOF_999, allow_negative_numbers = true)]
-    gate: f64,
+    /// Filter (row-rate filter only; the firmware's gate is the library's):
+    /// chi-square gate (1 dof) on `nu^2 / S`, finite and > 0; readings above
+    /// it are rejected (default: 0.1 % false alarms).
+    #[arg(long, value_name = "CHI2", allow_negative_numbers = true)]
+    gate: Option<f64>,
     /// Filter: learn each fused sensor's noise from its own readings, the
     /// scatter of a reading about the mean of the N rows either side of it
     /// (N = this value; 0: off, the noise is --measurement-noise-k), averaged
@@ -376,9 +357,9 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     noise_half_window_rows: usize,
     /// Filter: the rows the learned noise is averaged over (exponential
-    /// memory; with --noise-half-window-rows).
-    #[arg(long, value_name = "ROWS", default_value_t = 600)]
-    noise_memory_rows: usize,
+    /// memory; with --noise-half-window-rows; default 600).
+    #[arg(long, value_name = "ROWS")]
+    noise_memory_rows: Option<usize>,
     /// Filter: keep each --disturbance at or above -SHARE times the Joule
     /// power of the sources on its nodes (0: no heat taken away, the
     /// firmware's default for its heat biases); without it no floor.
@@ -396,8 +377,10 @@ pub struct ReplayArgs {
     init: Vec<String>,
     /// Alarm: derating factors, each in (0, 1] (dimensionless): alarm limit
     /// = ambient + (critical - ambient) * product, the shutdown level.
-    /// Default: the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the Omnimagnet
-    /// rule (0.9,0.9,0.8) for omnimagnet, none for other models.
+    /// Default: the firmware's, the model file's `[observer] derating` (else
+    /// codegen's 0.648); the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the
+    /// Omnimagnet rule (0.9,0.9,0.8) for omnimagnet. Given, it is an
+    /// override of the firmware's, named in the output.
     #[arg(
         long,
         value_name = "a,b,...",
@@ -411,50 +394,36 @@ pub struct ReplayArgs {
     /// omnimagnet). Nodes without one are not watched.
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     critical_c: Option<f64>,
-    /// Alarm: the warning rises this far below the alarm limit [K].
-    #[arg(
-        long,
-        value_name = "K",
-        default_value_t = 5.0,
-        allow_negative_numbers = true
-    )]
-    warning_margin_k: f64,
-    /// Alarm: hysteresis below the warning level that clears a warning (and
-    /// below the alarm limit that allows a reset) [K].
-    #[arg(
-        long,
-        value_name = "K",
-        default_value_t = 2.0,
-        allow_negative_numbers = true
-    )]
-    hysteresis_k: f64,
-    /// Alarm: evidence (net, up/down counter) to raise or clear an alarm,
+    /// Host alarm (row-rate filter and explicit stepper only; refused with
+    /// the firmware's observer, whose own alarm runs): the warning rises
+    /// this far below the alarm limit [K] (default 5).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    warning_margin_k: Option<f64>,
+    /// Host alarm only: hysteresis below the warning level that clears a
+    /// warning (and below the alarm limit that allows a reset) [K] (default 2).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    hysteresis_k: Option<f64>,
+    /// Host alarm only (default 3 s): evidence (net, up/down counter) to raise or clear an alarm,
     /// in seconds of trace [s]: the rows it spans at the trace's median row
     /// spacing, at least 1 (a sparse trace alarms on its first row beyond
     /// the level).
     #[arg(
         long,
         value_name = "S",
-        default_value_t = 3.0,
         allow_negative_numbers = true,
         conflicts_with = "debounce_rows"
     )]
-    debounce_s: f64,
-    /// Alarm: the debounce in trace rows instead of --debounce-s; 1 raises
+    debounce_s: Option<f64>,
+    /// Host alarm only: the debounce in trace rows instead of --debounce-s; 1 raises
     /// on the first row beyond the level.
     #[arg(long, value_name = "ROWS")]
     debounce_rows: Option<u16>,
-    /// Alarm: the predictive alarm rises when a watched node's predicted
+    /// Host alarm only (default 60 s): the predictive alarm rises when a watched node's predicted
     /// time to its alarm limit, with the row's currents and boundaries held,
     /// falls below this horizon [s] (and clears 10 s above it).
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 60.0,
-        allow_negative_numbers = true
-    )]
-    horizon_s: f64,
-    /// Alarm: the boundary whose temperature is the measured ambient of the
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    horizon_s: Option<f64>,
+    /// Host alarm only: the boundary whose temperature is the measured ambient of the
     /// derating rule. Default: the boundary named `ambient`, else the first.
     #[arg(long, value_name = "BOUNDARY")]
     ambient_boundary: Option<String>,

@@ -277,6 +277,9 @@ pub fn fit_report(
 pub struct ReplaySeries {
     /// Per node, the estimate \[degC\].
     estimate: Vec<Decimated>,
+    /// Per node, the firmware observer's upper bound \[degC\] (empty for
+    /// an estimator without one).
+    upper: Vec<Decimated>,
     /// Per `--truth` sensor: its readings and the estimate minus them
     /// \[degC\], \[K\].
     truth: Vec<(StreamSensor, Decimated, Decimated)>,
@@ -291,6 +294,7 @@ impl ReplaySeries {
     pub fn new(info: &PlantInfo, truth: &[StreamSensor], fused: &[StreamSensor]) -> Self {
         Self {
             estimate: vec![Decimated::default(); info.nodes.len()],
+            upper: Vec::new(),
             truth: truth
                 .iter()
                 .map(|s| (s.clone(), Decimated::default(), Decimated::default()))
@@ -309,6 +313,14 @@ impl ReplaySeries {
         let t = r.row.time_s;
         for (d, v) in self.estimate.iter_mut().zip(r.estimate_c) {
             d.push(t, *v);
+        }
+        if let Some(p) = r.protected {
+            if self.upper.is_empty() {
+                self.upper = vec![Decimated::default(); p.upper_c.len()];
+            }
+            for (d, v) in self.upper.iter_mut().zip(&p.upper_c) {
+                d.push(t, *v);
+            }
         }
         for (s, readings, residual) in &mut self.truth {
             let m = r.row.extra[s.slot];
@@ -361,6 +373,16 @@ impl ReplaySeries {
             estimated: nodes
                 .iter()
                 .map(|i| self.estimate[*i].series(format!("{} (estimate)", info.nodes[*i]), *i))
+                .collect(),
+            // The bound the protection acts on, for each drawn node with a
+            // limit (the others' bound protects nothing).
+            upper: nodes
+                .iter()
+                .filter(|i| settings.critical_c.get(**i).copied().flatten().is_some())
+                .filter_map(|i| {
+                    let u = self.upper.get(*i)?;
+                    Some(u.series(format!("{} (upper bound)", info.nodes[*i]), *i))
+                })
                 .collect(),
             measured: self
                 .truth

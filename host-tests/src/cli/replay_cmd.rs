@@ -7,8 +7,9 @@ use super::common;
 use super::plot_cmd::ReplaySeries;
 use super::ReplayArgs;
 use crate::devices;
+use crate::firmware::{FirmwareConfig, Override};
 use crate::kalman::{KalmanEstimator, KalmanOptions, NoiseFromReadings};
-use crate::library_observer::{BiasNoiseFrom, BiasSettings, Fusion, ObserverEstimator};
+use crate::library_observer::ObserverEstimator;
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::Measurement;
@@ -83,10 +84,16 @@ fn alarm_settings(
             Some(c) => vec![Some(c); info.nodes.len()],
             None => info.critical_c.clone(),
         },
-        warning_margin_k: non_negative(a.warning_margin_k, "--warning-margin-k")?,
-        hysteresis_k: non_negative(a.hysteresis_k, "--hysteresis-k")?,
+        warning_margin_k: non_negative(
+            a.warning_margin_k.unwrap_or(HOST_WARNING_MARGIN_K),
+            "--warning-margin-k",
+        )?,
+        hysteresis_k: non_negative(
+            a.hysteresis_k.unwrap_or(HOST_HYSTERESIS_K),
+            "--hysteresis-k",
+        )?,
         debounce_rows: debounce_rows(a, median_row_s)?,
-        horizon_s: positive(a.horizon_s, "--horizon-s")?,
+        horizon_s: positive(a.horizon_s.unwrap_or(HOST_HORIZON_S), "--horizon-s")?,
         ambient_boundary,
         nominal_ambient_c,
     })
@@ -101,7 +108,7 @@ fn debounce_rows(a: &ReplayArgs, row_s: f64) -> Result<u16> {
         }
         return Ok(rows);
     }
-    let s = a.debounce_s;
+    let s = a.debounce_s.unwrap_or(HOST_DEBOUNCE_S);
     if !(s.is_finite() && s >= 0.0) {
         bail!("--debounce-s must be finite and >= 0 s, got {s}");
     }
@@ -112,6 +119,32 @@ fn debounce_rows(a: &ReplayArgs, row_s: f64) -> Result<u16> {
     };
     Ok(rows.clamp(1.0, f64::from(u16::MAX)) as u16)
 }
+
+/// The row-rate filter's defaults: the initial temperatures' standard
+/// deviation \[K\], the disturbances' correlation time \[s\], the boundary
+/// offsets' standard deviation \[K\] and correlation time \[s\], and the
+/// rows a learned noise is averaged over.
+const ROW_RATE_INITIAL_STD_K: f64 = 2.0;
+/// The row-rate filter's sensor noise when neither the flag nor the model
+/// file gives one \[K\].
+const ROW_RATE_SENSOR_SIGMA_K: f64 = 0.2;
+const ROW_RATE_DISTURBANCE_TAU_S: f64 = 1800.0;
+const ROW_RATE_BOUNDARY_OFFSET_STD_K: f64 = 2.0;
+const ROW_RATE_BOUNDARY_OFFSET_TAU_S: f64 = 7200.0;
+const ROW_RATE_NOISE_MEMORY_ROWS: usize = 600;
+
+/// The plausible-current limit of a model file without an `[observer]`
+/// table \[A\] (see [`firmware_config`]).
+pub const NO_TABLE_MAX_CURRENT_A: f64 = 1600.0;
+
+/// The host alarm's defaults (the row-rate filter and the explicit
+/// stepper; the firmware observer has its own alarm): the warning's margin
+/// below the alarm limit \[K\], its hysteresis \[K\], the debounce \[s\]
+/// and the predictive horizon \[s\].
+const HOST_WARNING_MARGIN_K: f64 = 5.0;
+const HOST_HYSTERESIS_K: f64 = 2.0;
+const HOST_DEBOUNCE_S: f64 = 3.0;
+const HOST_HORIZON_S: f64 = 60.0;
 
 /// The most library ticks one replay runs (about 14 h of trace at 1 ms).
 const MAX_TICKS: f64 = 5e7;
@@ -287,6 +320,265 @@ impl EventLog {
     }
 }
 
+/// Which estimator a replay runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Path {
+    /// The firmware's `NetworkObserver` of the model file.
+    Firmware,
+    /// The host's row-rate Kalman filter (`--disturbance`,
+    /// `--boundary-offset`, `--noise-half-window-rows`): a research tool,
+    /// not what any firmware runs.
+    RowRate,
+    /// Open loop on the library's explicit stepper (a network that changes
+    /// with a signal).
+    Stepper,
+}
+
+/// Refuses every flag given that does not apply to the estimator `path`
+/// runs, naming the flag and why (a flag is never ignored).
+fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
+    let row_rate_only: [(&str, bool); 9] = [
+        ("--gate", a.gate.is_some()),
+        ("--initial-std-k", a.initial_std_k.is_some()),
+        ("--disturbance-std-w", a.disturbance_std_w.is_some()),
+        ("--disturbance-tau-s", a.disturbance_tau_s.is_some()),
+        (
+            "--disturbance-floor-share",
+            a.disturbance_floor_share.is_some(),
+        ),
+        ("--boundary-offset-std-k", a.boundary_offset_std_k.is_some()),
+        ("--boundary-offset-tau-s", a.boundary_offset_tau_s.is_some()),
+        (
+            "--boundary-offset-floor-k",
+            a.boundary_offset_floor_k.is_some(),
+        ),
+        ("--noise-memory-rows", a.noise_memory_rows.is_some()),
+    ];
+    let host_alarm_only: [(&str, bool); 6] = [
+        ("--warning-margin-k", a.warning_margin_k.is_some()),
+        ("--hysteresis-k", a.hysteresis_k.is_some()),
+        ("--debounce-s", a.debounce_s.is_some()),
+        ("--debounce-rows", a.debounce_rows.is_some()),
+        ("--horizon-s", a.horizon_s.is_some()),
+        ("--ambient-boundary", a.ambient_boundary.is_some()),
+    ];
+    let firmware_only: [(&str, bool); 2] = [
+        ("--tick-us", a.tick_us.is_some()),
+        ("--bias-noise-w2-per-s", a.bias_noise_w2_per_s.is_some()),
+    ];
+    if path != Path::RowRate {
+        if let Some((flag, _)) = row_rate_only.iter().find(|(_, given)| *given) {
+            bail!(
+                "{flag} sets the host's row-rate Kalman filter, which runs only with --disturbance, --boundary-offset or --noise-half-window-rows; \
+                 this replay runs {}: drop {flag}",
+                match path {
+                    Path::Firmware => "the firmware's NetworkObserver",
+                    _ => "the model open loop on the explicit stepper",
+                }
+            );
+        }
+    }
+    if path == Path::Firmware {
+        if let Some((flag, _)) = host_alarm_only.iter().find(|(_, given)| *given) {
+            bail!(
+                "{flag} sets the host's alarm on an estimate; this replay runs the firmware's NetworkObserver, whose own alarm (on its upper bounds, \
+                 with the derating of the model file's [observer] table) is what the MCU raises: drop {flag}"
+            );
+        }
+    } else if let Some((flag, _)) = firmware_only.iter().find(|(_, given)| *given) {
+        bail!(
+            "{flag} sets the firmware's NetworkObserver; this replay runs {}: drop {flag}",
+            match path {
+                Path::RowRate => "the host's row-rate Kalman filter (--disturbance, --boundary-offset or --noise-half-window-rows)",
+                _ => "the model open loop on the explicit stepper (its network changes with a signal)",
+            }
+        );
+    }
+    if let Some(g) = a.gate {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("--gate must be a finite chi-square threshold > 0, got {g}");
+        }
+    }
+    Ok(())
+}
+
+/// The firmware observer a replay runs: the model file's `[observer]`
+/// table over `codegen`'s defaults (the built-in devices: their own
+/// derating rule), then each flag that changes it, listed as an override.
+fn firmware_config(
+    a: &ReplayArgs,
+    spec: &common::ModelSpec,
+    model_file: &crate::model_file::ModelFile,
+    model: &Model,
+    fused_nodes: &[usize],
+) -> Result<(FirmwareConfig, Vec<Override>)> {
+    let mut config = FirmwareConfig::of(model, model_file.observer.as_ref())?;
+    // A built-in device has no `[observer]` table: its own derating rule.
+    if matches!(
+        spec,
+        common::ModelSpec::Hppa | common::ModelSpec::Omnimagnet
+    ) {
+        config.derating = common::default_rule(spec).product();
+    }
+    if !config.from_table {
+        // No firmware is generated from a file without a table (codegen
+        // needs its sensors); an analysis model's currents (a motor's
+        // 400 A) are not clamped at the default 100 A.
+        config.settings.max_current_a = NO_TABLE_MAX_CURRENT_A;
+    }
+    let mut overrides = Vec::new();
+    if !a.factors.is_empty() {
+        let rule = common::derating_rule(&a.factors, common::default_rule(spec))?;
+        overrides.push(Override {
+            flag: "--factors",
+            what: format!(
+                "derating product {:.4} instead of {:.4}",
+                rule.product(),
+                config.derating
+            ),
+        });
+        config.derating = rule.product();
+    }
+    if let Some(c) = a.critical_c {
+        if !c.is_finite() {
+            bail!("--critical-c must be finite, got {c}");
+        }
+        overrides.push(Override {
+            flag: "--critical-c",
+            what: format!("every node's critical temperature {c} degC"),
+        });
+        config.critical_c = vec![Some(c); model.nodes.len()];
+    }
+    let settings = &mut config.settings;
+    if let Some(v) = a.measurement_noise_k {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("--measurement-noise-k must be finite and > 0, got {v}");
+        }
+        if v != settings.sensor_sigma_k {
+            overrides.push(Override {
+                flag: "--measurement-noise-k",
+                what: format!(
+                    "sensor noise {v} K instead of {} K",
+                    settings.sensor_sigma_k
+                ),
+            });
+        }
+        settings.sensor_sigma_k = v;
+    }
+    if let Some(v) = a.process_noise_k2_per_s {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("--process-noise-k2-per-s must be finite and >= 0, got {v}");
+        }
+        if v != settings.node_noise_k2_per_s {
+            overrides.push(Override {
+                flag: "--process-noise-k2-per-s",
+                what: format!(
+                    "node noise {v} K^2/s instead of {} K^2/s",
+                    settings.node_noise_k2_per_s
+                ),
+            });
+        }
+        settings.node_noise_k2_per_s = v;
+    }
+    if let Some(v) = a.bias_noise_w2_per_s {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("--bias-noise-w2-per-s must be finite and >= 0, got {v}");
+        }
+        if v != settings.bias_noise_w2_per_s {
+            overrides.push(Override {
+                flag: "--bias-noise-w2-per-s",
+                what: format!(
+                    "bias noise {v} W^2/s instead of {} W^2/s",
+                    settings.bias_noise_w2_per_s
+                ),
+            });
+        }
+        settings.bias_noise_w2_per_s = v;
+    }
+    if let Some(t) = a.tick_us {
+        if t == 0 {
+            bail!("--tick-us must be at least 1");
+        }
+        if t != settings.step_us {
+            overrides.push(Override {
+                flag: "--tick-us",
+                what: format!(
+                    "ticks and model steps of {t} us instead of {} us",
+                    settings.step_us
+                ),
+            });
+            settings.step_us = t;
+        }
+    }
+    if config.from_table && !fused_nodes.is_empty() && fused_nodes != config.sensor_nodes.as_slice()
+    {
+        let names = |nodes: &[usize]| {
+            nodes
+                .iter()
+                .map(|n| model.nodes[*n].as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        overrides.push(Override {
+            flag: "--measure",
+            what: format!(
+                "sensors on [{}] instead of the firmware's [{}]",
+                names(fused_nodes),
+                names(&config.sensor_nodes)
+            ),
+        });
+    }
+    Ok((config, overrides))
+}
+
+/// The first of each truth sensor's rows where the truth was above the
+/// upper bound of its node ("cold misses": the protection acted on a bound
+/// below the truth).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+struct ColdMisses {
+    column: String,
+    node: String,
+    /// Rows where the truth was above the upper bound.
+    rows: usize,
+    /// The largest excess \[K\] and its time \[s\].
+    worst_k: Option<f64>,
+    worst_at_s: Option<f64>,
+    /// The first such row's time \[s\].
+    first_at_s: Option<f64>,
+}
+
+impl ColdMisses {
+    fn push(&mut self, time_s: f64, truth_c: f64, upper_c: f64) {
+        if truth_c.is_nan() || truth_c <= upper_c {
+            return;
+        }
+        let excess = truth_c - upper_c;
+        self.rows += 1;
+        self.first_at_s.get_or_insert(time_s);
+        if self.worst_k.is_none_or(|w| excess > w) {
+            self.worst_k = Some(excess);
+            self.worst_at_s = Some(time_s);
+        }
+    }
+}
+
+/// The sources each model input drives (the generated module's
+/// `input_limits_a`: an input's limit is the smallest of theirs).
+fn input_sources(model: &Model) -> Vec<Vec<usize>> {
+    (0..model.inputs.len())
+        .map(|k| {
+            model
+                .source_kinds()
+                .enumerate()
+                .filter(|(_, kind)| {
+                    matches!(kind, crate::model_file::SourceKind::Drive(d) if model.drives[*d].input == k)
+                })
+                .map(|(m, _)| m)
+                .collect()
+        })
+        .collect()
+}
+
 /// Runs `replay`.
 pub fn run(a: ReplayArgs) -> Result<()> {
     let model_file = common::model_file(&a.model)?;
@@ -318,25 +610,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     truth.check(&drive)?;
     init_only.check(&drive)?;
     let (measured, truth) = (measured.sensors(), truth.sensors());
-    // The fused sensors' noise: the flag, else the file's `[observer]`
-    // value (what the generated firmware runs with), else 0.2 K.
-    let file_sensor_sigma_k = model_file.observer.as_ref().and_then(|o| o.sensor_sigma_k);
-    let (measurement_noise_k, sensor_sigma_from) =
-        match (a.measurement_noise_k, file_sensor_sigma_k) {
-            (Some(v), _) => (v, "flag"),
-            (None, Some(v)) => (v, "model-file"),
-            (None, None) => (0.2, "default"),
-        };
-    if a.boundary_offset_floor_k.is_some() && a.boundary_offset.is_empty() {
-        bail!(
-            "--boundary-offset-floor-k bounds the --boundary-offset states: give --boundary-offset BOUNDARY"
-        );
-    }
-    if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
-        bail!(
-            "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
-        );
-    }
     if let Some(t) = truth
         .iter()
         .find(|t| measured.iter().any(|m| m.column == t.column))
@@ -358,30 +631,65 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let first_row = survey.first.as_ref().context("the trace has no row")?;
     let median_row_s = file.median_gap_s()?;
     // The row-rate Kalman filter runs with a disturbance or a boundary
-    // offset state or a learned sensor noise; otherwise the library's
-    // observer.
+    // offset state or a learned sensor noise; a network that changes with
+    // a signal runs open loop on the explicit stepper; otherwise the
+    // firmware's observer.
     let kalman_filter =
         !a.disturbance.is_empty() || !a.boundary_offset.is_empty() || a.noise_half_window_rows > 0;
-    if !kalman_filter {
+    let path = if kalman_filter {
+        Path::RowRate
+    } else if model.has_varying_conductances() && measured.is_empty() {
+        Path::Stepper
+    } else {
+        Path::Firmware
+    };
+    if a.bias_noise_w2_per_s.is_some() && path == Path::RowRate {
+        bail!("--bias-noise-w2-per-s is the firmware observer's: not with --disturbance or --boundary-offset (the row-rate filter has no heat-input bias)");
+    }
+    if a.boundary_offset_floor_k.is_some() && a.boundary_offset.is_empty() {
+        bail!(
+            "--boundary-offset-floor-k bounds the --boundary-offset states: give --boundary-offset BOUNDARY"
+        );
+    }
+    if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
+        bail!(
+            "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
+        );
+    }
+    if a.bias_noise_w2_per_s.is_some() && measured.is_empty() {
+        bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
+    }
+    refuse_inapplicable(&a, path)?;
+    let spec = common::ModelSpec::parse(&a.model.model)?;
+    let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
+    let (config, overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
+    let tick_us = config.settings.step_us;
+    if path == Path::Firmware {
         let span_s = file.last_time_s() - file.first_time_s();
-        let ticks = span_s * 1e6 / f64::from(a.tick_us.max(1));
+        let ticks = span_s * 1e6 / f64::from(tick_us.max(1));
         if ticks > MAX_TICKS {
             bail!(
-                "replay: the trace spans {span_s:.3e} s, {ticks:.3e} library ticks of {} us; at most {MAX_TICKS:.0e}: \
-                 raise --tick-us, or run the row-rate Kalman filter with --disturbance",
-                a.tick_us
+                "replay: the trace spans {span_s:.3e} s, {ticks:.3e} firmware ticks of {tick_us} us; at most {MAX_TICKS:.0e}: \
+                 raise --tick-us, or run the row-rate Kalman filter with --disturbance"
             );
         }
     }
-    if a.bias_noise_w2_per_s.is_some() {
-        if kalman_filter {
-            bail!("--bias-noise-w2-per-s is the library observer's: not with --disturbance or --boundary-offset");
-        }
-        if measured.is_empty() {
-            bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
-        }
-    }
+    // The row-rate filter's sensor noise: the flag, else the file's, else
+    // its own default (the firmware's is in `config`).
+    let measurement_noise_k = a
+        .measurement_noise_k
+        .or(model_file.observer.as_ref().and_then(|o| o.sensor_sigma_k))
+        .unwrap_or(ROW_RATE_SENSOR_SIGMA_K);
     let settings = alarm_settings(&a, &info, &first_row.boundaries, median_row_s)?;
+    let settings = AlarmSettings {
+        rule: if path == Path::Firmware {
+            config.rule()
+        } else {
+            settings.rule
+        },
+        critical_c: config.critical_c.clone(),
+        ..settings
+    };
     let rule_product = settings.rule.product();
     let predictor = TimeToLimit::new(&model)?;
     let mut protection = LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
@@ -389,35 +697,20 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         predictor,
         settings.horizon_s,
     )?;
-    // The library's observer at `--tick-us` ticks, fusing the `--measure`
-    // sensors as thermocouples; with `--disturbance` or `--boundary-offset`
-    // the library's time-varying Kalman filter at the trace's rows instead.
     let mut observer = None;
     let mut kalman = None;
     let mut disturbance_std = None;
-    // The library's observer holds one network; conductances that change
-    // with speed run open loop on the library's explicit stepper instead,
-    // or fused on the Kalman filter, which rediscretises when they change.
-    let open_loop = measured.is_empty() && !kalman_filter;
-    let mut stepped = if model.has_varying_conductances() && open_loop {
-        Some(PlantEstimator(FilePlant::new(model.clone())?))
-    } else {
-        None
-    };
+    let mut stepped = (path == Path::Stepper)
+        .then(|| FilePlant::new(model.clone()).map(PlantEstimator))
+        .transpose()?;
     let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
         s
-    } else if !kalman_filter {
-        let fusion = (!measured.is_empty()).then(|| Fusion {
-            sensor_nodes: measured.iter().map(|m| m.node).collect(),
-            sensor_sigma_k: measurement_noise_k,
-            node_noise_k2_per_s: a.process_noise_k2_per_s,
-            correction_period_s: median_row_s,
-            biases: BiasSettings::firmware(model_file.observer.as_ref(), a.bias_noise_w2_per_s),
-        });
-        observer.insert(ObserverEstimator::with_fusion(
+    } else if path == Path::Firmware {
+        observer.insert(ObserverEstimator::firmware(
             model.clone(),
-            a.tick_us,
-            fusion,
+            tick_us,
+            &config,
+            &fused_nodes,
         )?)
     } else {
         if measured.is_empty() {
@@ -468,25 +761,28 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             })
             .collect::<Result<Vec<_>>>()?;
         let opts = KalmanOptions {
-            process_noise_k2_per_s: a.process_noise_k2_per_s,
+            process_noise_k2_per_s: config.settings.node_noise_k2_per_s,
             measurement_noise_k,
-            initial_std_k: a.initial_std_k,
+            initial_std_k: a.initial_std_k.unwrap_or(ROW_RATE_INITIAL_STD_K),
             disturbances,
             disturbance_std_w,
-            disturbance_tau_s: a.disturbance_tau_s,
+            disturbance_tau_s: a.disturbance_tau_s.unwrap_or(ROW_RATE_DISTURBANCE_TAU_S),
             boundary_offsets,
-            boundary_offset_std_k: a.boundary_offset_std_k,
-            boundary_offset_tau_s: a.boundary_offset_tau_s,
+            boundary_offset_std_k: a
+                .boundary_offset_std_k
+                .unwrap_or(ROW_RATE_BOUNDARY_OFFSET_STD_K),
+            boundary_offset_tau_s: a
+                .boundary_offset_tau_s
+                .unwrap_or(ROW_RATE_BOUNDARY_OFFSET_TAU_S),
             boundary_offset_floor_k: a.boundary_offset_floor_k,
-            gate: a.gate,
+            gate: a.gate.unwrap_or(coil_thermal::filter::CHI2_1DOF_999),
             noise_from_readings: (a.noise_half_window_rows > 0).then_some(NoiseFromReadings {
                 half_window: a.noise_half_window_rows,
-                memory: a.noise_memory_rows,
+                memory: a.noise_memory_rows.unwrap_or(ROW_RATE_NOISE_MEMORY_ROWS),
             }),
             disturbance_floor_share: a.disturbance_floor_share,
         };
-        let nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
-        kalman.insert(KalmanEstimator::new(model, &nodes, opts)?)
+        kalman.insert(KalmanEstimator::new(model.clone(), &fused_nodes, opts)?)
     };
     common::check_window(
         &a.window,
@@ -503,10 +799,40 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // The model runs from the first row; the rows written, the scores, the
     // hot spot, the listed alarm events and the plot are the window's.
     let inside = |t: f64| (window.0..=window.1).contains(&t);
+    // The firmware's protection columns: each limited node's upper bound
+    // and derated limit, each input's current limit, the alarm flags.
+    let limited: Vec<usize> = (0..info.nodes.len())
+        .filter(|i| config.critical_c.get(*i).copied().flatten().is_some())
+        .collect();
+    let input_sources = input_sources(&model);
+    let mut columns = info.nodes.clone();
+    if path == Path::Firmware {
+        for &i in &limited {
+            columns.push(format!("upper_c.{}", info.nodes[i]));
+            columns.push(format!("alarm_limit_c.{}", info.nodes[i]));
+        }
+        for input in &info.inputs {
+            columns.push(format!("limit_a.{}", input.name));
+        }
+        columns.extend(["warning", "predictive", "shutdown"].map(String::from));
+    }
     let mut out = match &a.out {
-        Some(path) => Some(CsvOut::create(path, &info.nodes)?),
+        Some(path) => Some(CsvOut::create(path, &columns)?),
         None => None,
     };
+    let mut cold_misses: Vec<ColdMisses> = truth
+        .iter()
+        .map(|t| ColdMisses {
+            column: t.column.clone(),
+            node: info.nodes[t.node].clone(),
+            ..ColdMisses::default()
+        })
+        .collect();
+    let mut highest_upper: Vec<Option<(f64, f64)>> = vec![None; info.nodes.len()];
+    let mut lowest_limit_a: Vec<Option<(f64, f64)>> = vec![None; info.inputs.len()];
+    let mut final_protection = None;
+    // The firmware's shortest time to limit: (s, node, at s).
+    let mut shortest_ttl: Option<(f64, usize, f64)> = None;
     let mut scores = vec![ScoreSum::default(); truth.len()];
     let mut hot = common::HotSpot::new(info.nodes.len());
     let mut events = EventLog::default();
@@ -529,8 +855,49 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             if !inside(t) {
                 return Ok(());
             }
+            let input_limits: Vec<f64> = r.protected.map_or_else(Vec::new, |p| {
+                input_sources
+                    .iter()
+                    .map(|ms| {
+                        ms.iter()
+                            .map(|m| p.source_limit_a[*m])
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .collect()
+            });
+            if let Some(p) = r.protected {
+                for (c, s) in cold_misses.iter_mut().zip(&truth) {
+                    c.push(t, r.row.extra[s.slot], p.upper_c[s.node]);
+                }
+                for &i in &limited {
+                    if highest_upper[i].is_none_or(|(u, _)| p.upper_c[i] > u) {
+                        highest_upper[i] = Some((p.upper_c[i], t));
+                    }
+                    if let Some(ttl) = p.time_to_limit_s[i] {
+                        if shortest_ttl.is_none_or(|(s, _, _)| ttl < s) {
+                            shortest_ttl = Some((ttl, i, t));
+                        }
+                    }
+                }
+                for (low, l) in lowest_limit_a.iter_mut().zip(&input_limits) {
+                    if low.is_none_or(|(v, _)| *l < v) {
+                        *low = Some((*l, t));
+                    }
+                }
+                final_protection = Some((p.clone(), input_limits.clone()));
+            }
             if let Some(out) = out.as_mut() {
-                out.row(t, r.estimate_c.iter().copied())?;
+                let protection = r.protected.map_or_else(Vec::new, |p| {
+                    let mut v = Vec::new();
+                    for &i in &limited {
+                        v.push(p.upper_c[i]);
+                        v.push(p.alarm_limit_c[i].unwrap_or(f64::NAN));
+                    }
+                    v.extend(&input_limits);
+                    v.extend([p.warning, p.predictive, p.shutdown].map(|f| f64::from(u8::from(f))));
+                    v
+                });
+                out.row(t, r.estimate_c.iter().copied().chain(protection))?;
             }
             for (sum, s) in scores.iter_mut().zip(&truth) {
                 sum.push(t, r.estimate_c[s.node], r.row.extra[s.slot]);
@@ -553,14 +920,32 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         .collect();
     let rows_inside = survey.inside;
     let kind = estimator.kind();
+    let table = model_file.observer.as_ref();
+    let from = |flag: bool, key: bool| {
+        if flag {
+            "flag"
+        } else if key {
+            "model-file"
+        } else {
+            "default"
+        }
+    };
+    let sensor_sigma_from = from(
+        a.measurement_noise_k.is_some(),
+        table.is_some_and(|t| t.sensor_sigma_k.is_some()),
+    );
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
-        let biases = o.biases();
+        let s = &o.config().settings;
         json!({
-            "bias_noise_w2_per_s": biases.map(|b| b.bias_noise_w2_per_s),
-            "bias_noise_from": biases.map(|b| b.from.name()),
-            "max_cooling_bias_fraction": biases.map(|b| b.max_cooling_bias_fraction),
-            "sensor_sigma_k": measurement_noise_k,
+            "bias_noise_w2_per_s": s.bias_noise_w2_per_s,
+            "bias_noise_from": from(
+                a.bias_noise_w2_per_s.is_some(),
+                table.is_some_and(|t| t.bias_noise_w2_per_s.is_some()),
+            ),
+            "max_cooling_bias_fraction": s.max_cooling_bias_fraction,
+            "sensor_sigma_k": s.sensor_sigma_k,
             "sensor_sigma_from": sensor_sigma_from,
+            "correction_period_s": s.correction_period_s,
             "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
                 "column": m.column,
                 "node": info.nodes[s.node],
@@ -569,6 +954,45 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "stuck": s.stuck,
                 "colder_than_physics": s.colder_than_physics,
             })).collect::<Vec<_>>(),
+        })
+    });
+    let firmware_json = observer.as_ref().map(|o| {
+        let c = o.config();
+        json!({
+            "settings_from": if c.from_table { "model-file [observer]" } else { "defaults (no [observer] table)" },
+            "derating_product": c.derating,
+            "sensor_sigma_k": c.settings.sensor_sigma_k,
+            "correction_period_s": c.settings.correction_period_s,
+            "node_noise_k2_per_s": c.settings.node_noise_k2_per_s,
+            "bias_noise_w2_per_s": c.settings.bias_noise_w2_per_s,
+            "hardware_limit_a": c.hardware_limit_a,
+            "max_current_a": c.settings.max_current_a,
+            "step_us": c.settings.step_us,
+            "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
+        })
+    });
+    let protection_json = final_protection.as_ref().map(|(p, input_limits)| {
+        json!({
+            "nodes": limited.iter().map(|&i| json!({
+                "node": info.nodes[i],
+                "upper_c": p.upper_c[i],
+                "alarm_limit_c": p.alarm_limit_c[i],
+                "highest_upper_c": highest_upper[i].map(|h| h.0),
+                "highest_upper_at_s": highest_upper[i].map(|h| h.1),
+                "time_to_limit_s": p.time_to_limit_s[i],
+            })).collect::<Vec<_>>(),
+            "shortest_time_to_limit": shortest_ttl.map(|(s, i, at)| json!({
+                "s": s, "node": info.nodes[i], "at_s": at,
+            })),
+            "inputs": info.inputs.iter().zip(input_limits).zip(&lowest_limit_a).map(|((input, l), low)| json!({
+                "input": input.name,
+                "limit_a": l,
+                "lowest_limit_a": low.map(|v| v.0),
+                "lowest_limit_at_s": low.map(|v| v.1),
+            })).collect::<Vec<_>>(),
+            "warning": p.warning,
+            "predictive": p.predictive,
+            "shutdown": p.shutdown,
         })
     });
     let fusion = kalman.as_ref().map(|k| {
@@ -596,7 +1020,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         render(&data, path, 1200, 800)?;
     }
     let hot = hot.hottest();
-    let ttl = protection.time_to_limit();
+    // The host's time-to-limit sweep watches the estimate: only for the
+    // estimators without a protection of their own.
+    let ttl = (path != Path::Firmware)
+        .then(|| protection.time_to_limit())
+        .flatten();
+    let shutdown_latched = match &final_protection {
+        Some((p, _)) => p.shutdown,
+        None => protection.shutdown_latched(),
+    };
     let summary = json!({
         "command": "replay",
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
@@ -606,10 +1038,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "trace": a.trace.display().to_string(),
         "rows": rows_inside,
         "truth": scores,
+        "firmware_observer": firmware_json,
+        "protection": protection_json,
+        "cold_misses": (path == Path::Firmware).then_some(&cold_misses),
         "alarm": {
-            "watched_nodes": protection.watched().len(),
+            "by": if path == Path::Firmware { "firmware" } else { "host" },
+            "watched_nodes": limited.len(),
             "derating_product": rule_product,
-            "shutdown_latched": protection.shutdown_latched(),
+            "shutdown_latched": shutdown_latched,
             "time_to_limit": ttl,
         },
         "alarms": events.kept,
@@ -632,6 +1068,37 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             .as_ref()
             .map_or(String::new(), |p| format!(" -> {}", p.display()))
     );
+    if let Some(o) = observer.as_ref() {
+        let c = o.config();
+        println!(
+            "observer: the firmware's NetworkObserver from {} (what codegen flashes): derating product {:.4}, sensor noise {} K, correction period {} s, hardware limit {} A, plausible up to {} A",
+            if c.from_table { "the model file's [observer] table" } else { "codegen's defaults (the file has no [observer] table, so no firmware is generated from it; currents plausible up to 1600 A, not 100 A)" },
+            c.derating,
+            c.settings.sensor_sigma_k,
+            c.settings.correction_period_s,
+            c.hardware_limit_a,
+            c.settings.max_current_a
+        );
+        if matches!(
+            spec,
+            common::ModelSpec::Hppa | common::ModelSpec::Omnimagnet
+        ) {
+            println!(
+                "note: `--model {}` is flashed as its own device observer (codegen --device); this replay runs the NetworkObserver over the same network, with the device's derating",
+                a.model.model
+            );
+        }
+        for o in &overrides {
+            println!(
+                "override {}: {} (not what the MCU runs from this file)",
+                o.flag, o.what
+            );
+        }
+    } else {
+        println!(
+            "estimator: {kind}, a host-only estimator (not what any firmware runs); the alarm below is the host's, on its estimate"
+        );
+    }
     println!(
         "hot spot: {} at {:.3} degC (t = {:.1} s)",
         info.nodes[hot.0], hot.1, hot.2
@@ -648,20 +1115,35 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             );
         }
     }
-    if let Some(o) = observer.as_ref().filter(|_| !measured.is_empty()) {
-        if let Some(b) = o.biases() {
-            let from = match b.from {
-                BiasNoiseFrom::Flag => "--bias-noise-w2-per-s",
-                BiasNoiseFrom::ModelFile => "the model file's [observer]",
-                BiasNoiseFrom::Default => "the library's default",
-            };
-            if b.bias_noise_w2_per_s > 0.0 {
+    if let Some(o) = observer.as_ref() {
+        let c = o.config();
+        let s = &c.settings;
+        let bias_from = match from(
+            a.bias_noise_w2_per_s.is_some(),
+            table.is_some_and(|t| t.bias_noise_w2_per_s.is_some()),
+        ) {
+            "flag" => "--bias-noise-w2-per-s",
+            "model-file" => "the model file's [observer]",
+            _ => "the library's default",
+        };
+        if measured.is_empty() {
+            println!("observer: open loop (no --measure): the firmware's model step and protection, no sensor");
+        } else if s.bias_noise_w2_per_s > 0.0 {
+            println!(
+                "heat-input biases: the model's sources, noise {:e} W^2/s ({bias_from}), floor -{} x P (the firmware's filter)",
+                s.bias_noise_w2_per_s, s.max_cooling_bias_fraction
+            );
+        } else {
+            println!("heat-input biases: frozen at zero, noise 0 W^2/s ({bias_from}): temperatures corrected, no heat estimated");
+        }
+        if !measured.is_empty() {
+            let rows_s = survey.window_gaps.median().unwrap_or(median_row_s);
+            if (rows_s - s.correction_period_s).abs() > 0.1 * s.correction_period_s {
                 println!(
-                    "heat-input biases: the model's sources, noise {:e} W^2/s ({from}), floor -{} x P (the firmware's filter)",
-                    b.bias_noise_w2_per_s, b.max_cooling_bias_fraction
+                    "note: readings arrive every {rows_s:.3} s; the firmware's gain is solved for {:.3} s ([observer] correction_period_s{}), as on the MCU",
+                    s.correction_period_s,
+                    if table.is_some_and(|t| t.correction_period_s.is_some()) { "" } else { ", codegen's default" }
                 );
-            } else {
-                println!("heat-input biases: frozen at zero, noise 0 W^2/s ({from}): temperatures corrected, no heat estimated");
             }
         }
         for (s, m) in o.stats().iter().zip(&measured) {
@@ -669,6 +1151,40 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
                 m.column, info.nodes[s.node], s.fused, s.rejected, s.stuck, s.colder_than_physics
             );
+        }
+        if let Some((p, input_limits)) = &final_protection {
+            for &i in &limited {
+                if let Some((u, at)) = highest_upper[i] {
+                    println!(
+                        "protection {}: upper bound at most {u:.2} degC (t = {at:.1} s), derated alarm limit {} at the end",
+                        info.nodes[i],
+                        p.alarm_limit_c[i].map_or("none".into(), |l| format!("{l:.2} degC")),
+                    );
+                }
+            }
+            for ((input, l), low) in info.inputs.iter().zip(input_limits).zip(&lowest_limit_a) {
+                if let Some((v, at)) = low {
+                    println!(
+                        "current limit {}: lowest {v:.2} A (t = {at:.1} s), {l:.2} A at the end",
+                        input.name
+                    );
+                }
+            }
+        }
+        for c in &cold_misses {
+            match (c.worst_k, c.worst_at_s) {
+                (Some(w), Some(at)) => println!(
+                    "cold misses {} -> {}: the truth above the upper bound on {} rows, worst {w:.3} K at t = {at:.1} s (first at t = {:.1} s)",
+                    c.column,
+                    c.node,
+                    c.rows,
+                    c.first_at_s.unwrap_or(at)
+                ),
+                _ => println!(
+                    "cold misses {} -> {}: none (the truth never above the upper bound)",
+                    c.column, c.node
+                ),
+            }
         }
     }
     if let Some(k) = &kalman {
@@ -700,15 +1216,29 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     }
     println!(
-        "alarm: {} watched nodes, derating product {:.4}, shutdown {}",
-        protection.watched().len(),
+        "alarm{}: {} watched nodes, derating product {:.4}, shutdown {}",
+        if path == Path::Firmware {
+            " (the firmware's, on its upper bounds)"
+        } else {
+            " (the host's, on the estimate)"
+        },
+        limited.len(),
         rule_product,
-        if protection.shutdown_latched() {
+        if shutdown_latched {
             "latched"
         } else {
             "not latched"
         }
     );
+    if path == Path::Firmware {
+        match shortest_ttl {
+            Some((s, i, at)) => println!(
+                "time to limit (the firmware's, on its upper bounds): shortest {s:.1} s ({} at t = {at:.1} s)",
+                info.nodes[i]
+            ),
+            None => println!("time to limit (the firmware's, on its upper bounds): never reached on any row"),
+        }
+    }
     if let Some(t) = &ttl {
         let shortest = match (t.min_s, &t.min_node, t.min_at_time_s) {
             (Some(m), Some(n), Some(at)) => format!("shortest {m:.1} s ({n} at t = {at:.1} s)"),

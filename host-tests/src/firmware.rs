@@ -1,0 +1,125 @@
+//! The firmware observer of a model file: what `coil-thermal codegen`
+//! flashes, resolved once from the file's `[observer]` table and the
+//! library's defaults, for every host command that runs it.
+//!
+//! `codegen` writes these settings into the generator it compiles;
+//! `replay` builds its [`ObserverEstimator`](crate::library_observer) from
+//! the same [`FirmwareConfig`], so the derating, the sensor noise, the
+//! correction period, the limits and the bias states the host replays are
+//! the ones the MCU runs. A key missing from the table takes the value
+//! `codegen` gives it (the library's [`NetworkSettings::DEFAULT`], the
+//! derating product 0.648 of [`DeratingRule::omnimagnet`], an 8 A hardware
+//! limit); a model file without a table runs with all of them.
+
+use coil_thermal::observer::network::NetworkSettings;
+use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
+
+use crate::codegen::ObserverSpec;
+use crate::model_file::Model;
+
+/// Every current's hardware limit when the table has none \[A\] (as
+/// `codegen`).
+pub const DEFAULT_HARDWARE_LIMIT_A: f64 = 8.0;
+
+/// The firmware observer's settings of one model file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FirmwareConfig {
+    /// The file has an `[observer]` table (without one, every value is
+    /// `codegen`'s default and `codegen` refuses the file: no sensor).
+    pub from_table: bool,
+    /// The node of each `[observer] sensors` entry, in sensor order.
+    pub sensor_nodes: Vec<usize>,
+    /// Critical temperature of each node \[degC\] (`[[node]] critical_c`).
+    pub critical_c: Vec<Option<f64>>,
+    /// Every current's hardware limit \[A\].
+    pub hardware_limit_a: f64,
+    /// The product of the alarm's derating factors (dimensionless, in
+    /// (0, 1]).
+    pub derating: f64,
+    /// The library settings, the table's keys over the defaults.
+    pub settings: NetworkSettings,
+    /// Which of the network's sources carry a heat-input bias.
+    pub bias_sources: Vec<bool>,
+}
+
+impl FirmwareConfig {
+    /// The firmware observer `codegen` would build from `model` and its
+    /// `[observer]` table `spec` (sensor nodes by name resolved; the
+    /// ambient is the boundary named `ambient`, else boundary 0).
+    ///
+    /// # Errors
+    /// A sensor naming no node of the model; a derating outside (0, 1].
+    pub fn of(model: &Model, spec: Option<&ObserverSpec>) -> anyhow::Result<Self> {
+        let table = spec.cloned().unwrap_or_default();
+        let mut settings = NetworkSettings::DEFAULT;
+        if let Some(v) = table.step_us {
+            settings.step_us = v;
+        }
+        if let Some(v) = table.sensor_sigma_k {
+            settings.sensor_sigma_k = v;
+        }
+        if let Some(v) = table.correction_period_s {
+            settings.correction_period_s = v;
+        }
+        if let Some(v) = table.max_current_a {
+            settings.max_current_a = v;
+        }
+        if let Some(v) = table.bias_noise_w2_per_s {
+            settings.bias_noise_w2_per_s = v;
+        }
+        if let Some(v) = table.max_cooling_bias_fraction {
+            settings.max_cooling_bias_fraction = v;
+        }
+        if let Some(v) = table.stuck_tolerance_k {
+            settings.stuck_tolerance_k = v;
+        }
+        settings.ambient_boundary = model
+            .boundaries
+            .iter()
+            .position(|b| b.name == "ambient")
+            .unwrap_or(0);
+        let derating = table
+            .derating
+            .unwrap_or_else(|| DeratingRule::omnimagnet().product());
+        if !(derating > 0.0 && derating <= 1.0) {
+            anyhow::bail!("[observer] derating must be in (0, 1], got {derating}");
+        }
+        let sensor_nodes = table
+            .sensors
+            .iter()
+            .map(|s| model.node_index(s))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let sources = model.network.sources().len();
+        Ok(Self {
+            from_table: spec.is_some(),
+            sensor_nodes,
+            critical_c: model.critical_c.clone(),
+            hardware_limit_a: table.hardware_limit_a.unwrap_or(DEFAULT_HARDWARE_LIMIT_A),
+            derating,
+            settings,
+            bias_sources: (0..sources).map(|m| model.carries_bias(m)).collect(),
+        })
+    }
+
+    /// The derating rule the alarm applies: the table's product as one
+    /// factor, or the library's default rule itself (the same product).
+    pub fn rule(&self) -> DeratingRule {
+        if self.derating == DeratingRule::omnimagnet().product() {
+            DeratingRule::omnimagnet()
+        } else {
+            DeratingRule::new(&[DeratingFactor::new("derating", self.derating)])
+                .expect("a product in (0, 1] is one valid factor")
+        }
+    }
+}
+
+/// A replay flag that changes the firmware's observer: named in the
+/// output, since the run is then not what the MCU computes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Override {
+    /// The flag (`--factors`).
+    pub flag: &'static str,
+    /// What it set, against the firmware's value (`derating 1 instead of
+    /// 0.648`).
+    pub what: String,
+}

@@ -1,0 +1,281 @@
+//! What `replay` prints for a model file is what the MCU computes from it:
+//! the protection the generated module acts on (each limited node's upper
+//! bound and derated alarm limit, the current limit of each input, the
+//! alarm's events) and the derating product, compared row by row with the
+//! module `coil-thermal codegen` generated from the same file
+//! (`examples/generated/drive_3node.rs`, from `drive-3node-fitted.toml`),
+//! ticked directly at 1 ms on the host over the bench recording with its
+//! currents raised by 60 %, so that the winding crosses its limit and the
+//! alarm and the limiter act.
+//!
+//! The replay's observer is the library's, padded to a size class and
+//! solved at that size: its tables may differ from the generated ones in an
+//! `f32`'s last bit, so temperatures and alarm limits are compared within
+//! four `f32` steps and the CSV's 6 decimals, the limits within 1e-4 A, and the events by
+//! level, kind and node, each within one tick (1 ms) of the generated one.
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use coil_thermal::observer::network::NetworkInputs;
+use coil_thermal::observer::TimedReading;
+use coil_thermal::protect::events::EventKind;
+use coil_thermal::Reading;
+use serde_json::Value;
+use tempfile::TempDir;
+
+#[path = "../../examples/generated/drive_3node.rs"]
+mod model;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The factor on every current of the trace (`replay --current-scale`).
+const CURRENT_SCALE: f32 = 1.6;
+
+/// One row of the generated observer's outputs: the estimates and upper
+/// bounds of the nodes \[degC\], the derated alarm limits of the limited
+/// nodes \[degC\], the input's limit \[A\] and the alarm flags.
+#[derive(Debug, Clone, PartialEq)]
+struct Row {
+    temps_c: [f32; 3],
+    upper_c: [f32; 3],
+    alarm_limit_c: [Option<f32>; 3],
+    limit_a: f32,
+    flags: [bool; 3],
+}
+
+/// An alarm event: its time \[s\], level, kind and node.
+type Event = (f64, String, String, Option<usize>);
+
+/// The generated observer over the bench trace at 1 ms ticks, as `replay`
+/// hands it over (each row's inputs held for its second, its reading given
+/// to the second's first tick): every row's outputs, and every event with
+/// its time \[s\] as (level, kind, node).
+fn generated() -> (Vec<Row>, Vec<Event>) {
+    let text = std::fs::read_to_string(root().join("host-tests/traces/drive-3node.csv")).unwrap();
+    let rows: Vec<[f32; 4]> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f32> = l.split(',').skip(1).map(|f| f.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect();
+    let observer = model::observer().expect("the generated parts assemble");
+    let mut state = model::initial_state(&observer, rows[0][1]);
+    let row = |state: &model::State, ambient_c: f32| {
+        let o = state.outputs();
+        Row {
+            temps_c: o.temps_c,
+            upper_c: o.upper_c,
+            alarm_limit_c: core::array::from_fn(|i| observer.alarm().alarm_limit_c(i, ambient_c)),
+            limit_a: model::input_limits_a(&o.limits)[0],
+            flags: [o.alarm.warning, o.alarm.predictive, o.alarm.shutdown],
+        }
+    };
+    let mut out = vec![row(&state, rows[0][1])];
+    let mut events = Vec::new();
+    let mut now_us: u32 = 0;
+    for [current_a, ambient_c, _, housing_tc] in &rows[..rows.len() - 1] {
+        let currents_a = model::source_currents_a(&[*current_a * CURRENT_SCALE], &[]);
+        for k in 0..1000 {
+            now_us += 1000;
+            let readings = [(k == 0).then_some(TimedReading {
+                result: Ok(Reading {
+                    temp_c: *housing_tc,
+                    cold_junction_c: 25.0,
+                }),
+                sampled_at_us: now_us,
+            })];
+            let inputs = NetworkInputs {
+                currents_a,
+                boundary_c: [*ambient_c],
+                readings,
+                now_us,
+                elapsed_us: 1000,
+            };
+            observer.tick(&mut state, &inputs);
+            while let Some(e) = state.events.pop() {
+                let (level, kind) = match e.kind {
+                    EventKind::WarningRaised => ("warning", "raised"),
+                    EventKind::WarningCleared => ("warning", "cleared"),
+                    EventKind::ShutdownLatched => ("shutdown", "latched"),
+                    EventKind::PredictiveRaised => ("predictive", "raised"),
+                    EventKind::PredictiveCleared => ("predictive", "cleared"),
+                    other => panic!("an event this trace cannot raise: {other:?}"),
+                };
+                events.push((
+                    f64::from(now_us) * 1e-6,
+                    level.to_string(),
+                    kind.to_string(),
+                    e.element,
+                ));
+            }
+        }
+        out.push(row(&state, *ambient_c));
+    }
+    (out, events)
+}
+
+/// `replay` of the same trace and file, fusing the housing thermocouple,
+/// with no flag that changes the firmware's observer: the estimate CSV's
+/// header and rows, and the JSON summary.
+fn replayed(dir: &Path) -> (Vec<String>, Vec<Vec<f64>>, Value) {
+    let out = dir.join("est.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(root().join("host-tests/models/drive-3node-fitted.toml"))
+        .arg("--trace")
+        .arg(root().join("host-tests/traces/drive-3node.csv"))
+        .args(["--measure", "housing_tc=housing"])
+        .args(["--current-scale", &CURRENT_SCALE.to_string()])
+        .args(["--json", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let json: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows, json)
+}
+
+/// How far apart a replayed and a generated temperature near `e_c`
+/// \[degC\] may be \[K\]: four `f32` steps at that magnitude (the tables
+/// solved at another size may differ in their last bit) and the CSV's
+/// rounding to 6 decimals.
+fn within_k(e_c: f64) -> f64 {
+    4.0 * f64::from(f32::EPSILON) * e_c.abs() + 1e-6
+}
+
+/// The columns compared, by their CSV header (index into a row), with
+/// the generated row's value.
+fn compared(header: &[String], g: &Row, with_upper: bool) -> Vec<(usize, f64)> {
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut v: Vec<(usize, f64)> = ["winding", "housing", "heatsink"]
+        .iter()
+        .zip(g.temps_c)
+        .map(|(n, t)| (col(n), f64::from(t)))
+        .collect();
+    for (i, n) in ["winding", "housing"].iter().enumerate() {
+        v.push((
+            col(&format!("alarm_limit_c.{n}")),
+            f64::from(g.alarm_limit_c[i].unwrap()),
+        ));
+        if with_upper {
+            v.push((col(&format!("upper_c.{n}")), f64::from(g.upper_c[i])));
+        }
+    }
+    v
+}
+
+#[test]
+fn replay_prints_the_generated_modules_estimates_limits_and_events() {
+    let tmp = TempDir::new().unwrap();
+    let (header, replay_rows, json) = replayed(tmp.path());
+    let (firmware_rows, firmware_events) = generated();
+    assert_eq!(
+        header,
+        [
+            "time_s",
+            "winding",
+            "housing",
+            "heatsink",
+            "upper_c.winding",
+            "alarm_limit_c.winding",
+            "upper_c.housing",
+            "alarm_limit_c.housing",
+            "limit_a.current",
+            "warning",
+            "predictive",
+            "shutdown",
+        ]
+    );
+    // The derating the replay ran is the generated module's.
+    assert_eq!(
+        json["firmware_observer"]["derating_product"].as_f64(),
+        Some(model::PARTS.derating_product),
+        "{json}"
+    );
+    assert_eq!(json["firmware_observer"]["overrides"], Value::Array(vec![]));
+    assert_eq!(replay_rows.len(), firmware_rows.len());
+    let (mut worst_k, mut worst_a) = (0.0f64, 0.0f64);
+    for (t, (r, g)) in replay_rows.iter().zip(&firmware_rows).enumerate() {
+        for (k, e) in compared(&header, g, false) {
+            let d = (r[k] - e).abs();
+            assert!(
+                d <= within_k(e),
+                "row {t}, {}: replay {}, generated {e}",
+                header[k],
+                r[k]
+            );
+            worst_k = worst_k.max(d);
+        }
+        let d = (r[8] - f64::from(g.limit_a)).abs();
+        assert!(
+            d <= 1e-4,
+            "row {t}: limit replay {} A, generated {} A",
+            r[8],
+            g.limit_a
+        );
+        worst_a = worst_a.max(d);
+    }
+    eprintln!("worst apart: {worst_k:.2e} K, {worst_a:.2e} A");
+    // The raised currents make the protection act: a limit below the
+    // hardware's 6 A, a warning and a shutdown, which the test compares.
+    assert!(firmware_rows.iter().any(|g| g.limit_a < 5.0));
+    let replay_events: Vec<(f64, String, String, Option<String>)> = json["alarms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["time_s"].as_f64().unwrap(),
+                e["level"].as_str().unwrap().to_string(),
+                e["kind"].as_str().unwrap().to_string(),
+                e["node"].as_str().map(String::from),
+            )
+        })
+        .collect();
+    assert!(
+        firmware_events.iter().any(|e| e.1 == "shutdown"),
+        "{firmware_events:?}"
+    );
+    eprintln!("{} events", firmware_events.len());
+    assert_eq!(replay_events.len(), firmware_events.len(), "{json}");
+    for (r, g) in replay_events.iter().zip(&firmware_events) {
+        assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
+        assert_eq!(r.3.as_deref(), g.3.map(|i| model::NODE_NAMES[i]));
+        assert!((r.0 - g.0).abs() <= 1e-3 + 1e-9, "{r:?} vs {g:?}");
+    }
+}
+
+/// The upper bounds the replay prints are the generated module's. Known to
+/// fail: the replay's padded observer is solved at another size and its
+/// upper bound parts from the generated module's by up to 2.1 K on this
+/// trace (the housing's from its 20th second on), although the estimates
+/// agree within 3.1e-5 K; the replay at the model's exact size (one observer
+/// core for the host and the MCU) is what closes it.
+#[test]
+#[ignore = "open defect: the padded replay's upper bound is not the generated module's (up to 2.1 K apart)"]
+fn replay_prints_the_generated_modules_upper_bounds() {
+    let tmp = TempDir::new().unwrap();
+    let (header, replay_rows, _) = replayed(tmp.path());
+    let (firmware_rows, _) = generated();
+    for (t, (r, g)) in replay_rows.iter().zip(&firmware_rows).enumerate() {
+        for (k, e) in compared(&header, g, true) {
+            let d = (r[k] - e).abs();
+            assert!(
+                d <= within_k(e),
+                "row {t}, {}: replay {}, generated {e}",
+                header[k],
+                r[k]
+            );
+        }
+    }
+}
