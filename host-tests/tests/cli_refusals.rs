@@ -2,10 +2,53 @@
 //! that names what is wrong; and help texts that speak to the user, not
 //! to the project's issue tracker.
 
+use std::fs;
+use std::path::{Path, PathBuf};
+
 use assert_cmd::cargo::cargo_bin_cmd;
+use predicates::str::contains;
+use tempfile::TempDir;
 
 fn ct() -> assert_cmd::Command {
     cargo_bin_cmd!("coil-thermal")
+}
+
+fn models() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The two-node coil (`models/two-node-coil.toml`) with each `from`
+/// replaced by its `to` (each must be there).
+fn two_node_with(dir: &TempDir, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = fs::read_to_string(models().join("two-node-coil.toml")).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "`{from}` is not in two-node-coil.toml");
+        text = text.replace(from, to);
+    }
+    let p = dir.path().join(name);
+    fs::write(&p, text).unwrap();
+    p
+}
+
+/// `simulate` of `model` at 1 A for 10 s.
+fn simulate(model: &Path, dir: &TempDir) -> assert_cmd::assert::Assert {
+    ct().args(["simulate", "--model", s(model), "--current-a", "1"])
+        .args(["--duration-s", "10", "--out"])
+        .arg(dir.path().join("out.csv"))
+        .assert()
+}
+
+/// The command fails with each of `needles` in its error, nothing on
+/// stdout.
+fn refused(a: assert_cmd::assert::Assert, needles: &[&str]) {
+    let mut a = a.failure().stdout("");
+    for n in needles {
+        a = a.stderr(contains(*n));
+    }
 }
 
 fn stdout_of(args: &[&str]) -> String {
@@ -75,4 +118,119 @@ fn no_help_text_names_an_issue_number() {
         }
     }
     assert!(found.is_empty(), "help texts name issues: {found:#?}");
+}
+
+/// A resistance that reaches 0 ohm inside the model's temperature range
+/// (-55 degC to the highest `critical_c` plus 50 K, at least 250 degC) is
+/// refused at load, in either form, naming the source, the temperature and
+/// the range; it used to run as a coil that makes no heat, or cools itself,
+/// below that temperature.
+#[test]
+fn a_resistance_reaching_zero_in_the_range_is_refused() {
+    let dir = TempDir::new().unwrap();
+    // Form 1: 5.69 (1 + 0.02 (T - 20)) is 0 at -30 degC.
+    let alpha = two_node_with(
+        &dir,
+        "alpha.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = 0.02")],
+    );
+    refused(
+        simulate(&alpha, &dir),
+        &[
+            "alpha.toml:30:1: [[source]] #1 `coil`",
+            "reaches 0 ohm at -30.0 degC",
+            "-55 to 250 degC",
+            "alpha_per_k",
+        ],
+    );
+    // Form 2: 1 + 0.05 T is 0 at -20 degC.
+    let slope = two_node_with(
+        &dir,
+        "slope.toml",
+        &[(
+            "r0_ohm = 5.69\nalpha_per_k = 0.0039\nt_ref_c = 20.0",
+            "r_at_0c_ohm = 1.0\nslope_ohm_per_k = 0.05",
+        )],
+    );
+    refused(
+        simulate(&slope, &dir),
+        &[
+            "[[source]] #1 `coil`",
+            "R(T) = 1 + 0.05 T ohm reaches 0 ohm at -20.0 degC",
+            "slope_ohm_per_k",
+        ],
+    );
+    // The range's top follows the highest critical_c (plus 50 K).
+    let hot = two_node_with(
+        &dir,
+        "hot.toml",
+        &[
+            ("alpha_per_k = 0.0039", "alpha_per_k = 0.02"),
+            ("critical_c = 155.0", "critical_c = 260.0"),
+        ],
+    );
+    refused(simulate(&hot, &dir), &["-55 to 310 degC"]);
+}
+
+/// The range's bottom: -55 degC, or a colder boundary. 0.0125 1/K puts
+/// R = 0 at -60 degC: outside the range of a model at 20 degC (accepted),
+/// inside that of one with its ambient at -70 degC (refused).
+#[test]
+fn the_range_checked_reaches_down_to_the_coldest_boundary() {
+    let dir = TempDir::new().unwrap();
+    let steep = two_node_with(
+        &dir,
+        "steep.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = 0.0125")],
+    );
+    simulate(&steep, &dir).success();
+    let arctic = two_node_with(
+        &dir,
+        "arctic.toml",
+        &[
+            ("alpha_per_k = 0.0039", "alpha_per_k = 0.0125"),
+            ("value_c = 20.0", "value_c = -70.0"),
+        ],
+    );
+    refused(
+        simulate(&arctic, &dir),
+        &["reaches 0 ohm at -60.0 degC", "-70 to 250 degC"],
+    );
+}
+
+/// A resistance that falls with temperature (a negative `alpha_per_k` or
+/// `slope_ohm_per_k`) is refused even where it stays above 0 ohm: a
+/// winding's rises, and MODEL_FORMAT.md gives a falling one no meaning.
+#[test]
+fn a_resistance_falling_with_temperature_is_refused() {
+    let dir = TempDir::new().unwrap();
+    // 5.69 (1 - 0.001 (T - 20)) is above 0 from -55 to 250 degC.
+    let alpha = two_node_with(
+        &dir,
+        "alpha.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = -0.001")],
+    );
+    refused(
+        simulate(&alpha, &dir),
+        &[
+            "[[source]] #1 `coil`",
+            "alpha_per_k = -0.001 1/K makes the resistance fall",
+            "give alpha_per_k >= 0",
+        ],
+    );
+    let slope = two_node_with(
+        &dir,
+        "slope.toml",
+        &[(
+            "r0_ohm = 5.69\nalpha_per_k = 0.0039\nt_ref_c = 20.0",
+            "r_at_0c_ohm = 5.69\nslope_ohm_per_k = -0.002",
+        )],
+    );
+    refused(
+        simulate(&slope, &dir),
+        &[
+            "slope_ohm_per_k = -0.002 ohm/K",
+            "give slope_ohm_per_k >= 0",
+        ],
+    );
 }
