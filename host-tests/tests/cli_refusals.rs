@@ -234,3 +234,56 @@ fn a_resistance_falling_with_temperature_is_refused() {
         ],
     );
 }
+
+/// The two-node coil without its `[[source]]`, heated by a fixed 5 W.
+fn no_current_input(dir: &TempDir) -> PathBuf {
+    let text = fs::read_to_string(models().join("two-node-coil.toml")).unwrap();
+    let (head, rest) = text.split_once("[[source]]").unwrap();
+    let (_, tail) = rest.split_once("[initial]").unwrap();
+    let p = dir.path().join("no-input.toml");
+    fs::write(
+        &p,
+        format!("{head}[[fixed_power]]\nnode = \"coil\"\npower_w = 5.0\n\n[initial]{tail}"),
+    )
+    .unwrap();
+    p
+}
+
+/// `--current-a` for a model with no current input is refused (it was
+/// dropped without a word); without it, the model runs on its fixed power.
+#[test]
+fn current_a_for_a_model_without_current_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let model = no_current_input(&dir);
+    let out = dir.path().join("out.csv");
+    let needle = "--current-a: model `two-node-coil` has no current input (no [[source]])";
+    refused(
+        ct().args(["simulate", "--model", s(&model), "--current-a", "3"])
+            .args(["--duration-s", "10", "--out", s(&out)])
+            .assert(),
+        &[needle, "leave --current-a out"],
+    );
+    assert!(!out.exists(), "no result is written");
+    refused(
+        ct().args(["limits", "--model", s(&model), "--current-a", "3"])
+            .assert(),
+        &[needle],
+    );
+    ct().args(["simulate", "--model", s(&model), "--duration-s", "10"])
+        .args(["--out", s(&out)])
+        .assert()
+        .success();
+    ct().args(["limits", "--model", s(&model)])
+        .assert()
+        .success()
+        .stdout(contains("coil"));
+    // More values than inputs were refused already (one value for every
+    // input is the documented broadcast).
+    let coil = models().join("two-node-coil.toml");
+    refused(
+        ct().args(["simulate", "--model", s(&coil), "--current-a", "1,2"])
+            .args(["--duration-s", "10", "--out", s(&out)])
+            .assert(),
+        &["--current-a has 2 values but model `two-node-coil` has 1 current inputs"],
+    );
+}
