@@ -654,6 +654,53 @@ impl ConductanceSpec {
     }
 }
 
+/// Lowest temperature at which every `[[source]]`'s `R(T)` must be above
+/// 0 ohm \[degC\]: the lowest rated temperature of military-grade parts
+/// (-55 to 125 degC), and so the coldest a device is started from (a
+/// winding switched on in a cold store). A boundary `value_c` or an `[initial]
+/// uniform_c` below it extends the range.
+pub const RESISTANCE_CHECK_LOW_C: f64 = -55.0;
+
+/// Lowest top of the range over which `R(T)` must be above 0 ohm \[degC\]:
+/// above the 220 degC of insulation class R, the hottest common one for
+/// windings, so even a model without `critical_c` is checked over every
+/// temperature a working winding reaches.
+pub const RESISTANCE_CHECK_HIGH_C: f64 = 250.0;
+
+/// How far above the highest `critical_c` `R(T)` must still be above
+/// 0 ohm \[K\]: a simulation, a replay and the time-to-limit predictor run
+/// past the critical temperature (the shutdown latches above it and the
+/// stored heat carries the winding on, a runaway or a fault drives it
+/// further), and the model must still make heat there.
+pub const RESISTANCE_CHECK_MARGIN_K: f64 = 50.0;
+
+/// The temperatures over which every `[[source]]`'s resistance must stay
+/// above 0 ohm \[degC\]: from [`RESISTANCE_CHECK_LOW_C`] (or the lowest
+/// boundary `value_c` or `[initial] uniform_c`, if colder) to the highest
+/// `critical_c` plus [`RESISTANCE_CHECK_MARGIN_K`], at least
+/// [`RESISTANCE_CHECK_HIGH_C`] (or the highest `value_c` or `uniform_c`, if
+/// hotter). `R(T)` is a line, so it is above 0 over the range when it is
+/// at both ends.
+pub fn resistance_check_range_c(file: &ModelFile) -> (f64, f64) {
+    let given: Vec<f64> = file
+        .boundaries
+        .iter()
+        .filter_map(|b| b.value_c)
+        .chain(file.initial.uniform_c)
+        .filter(|t| t.is_finite())
+        .collect();
+    let low = given.iter().fold(RESISTANCE_CHECK_LOW_C, |a, t| a.min(*t));
+    let high = file
+        .nodes
+        .iter()
+        .filter_map(|n| n.critical_c)
+        .filter(|t| t.is_finite())
+        .map(|t| t + RESISTANCE_CHECK_MARGIN_K)
+        .chain(given.iter().copied())
+        .fold(RESISTANCE_CHECK_HIGH_C, f64::max);
+    (low, high)
+}
+
 impl SourceSpec {
     /// Its calibration name: `name`, or the node.
     pub fn key(&self) -> &str {
@@ -692,6 +739,69 @@ impl SourceSpec {
         let t_ref = self.t_ref_c.unwrap_or(20.0);
         if !r.is_valid_at(t_ref) {
             bail!("resistance must be finite and > 0 ohm at {t_ref} degC");
+        }
+        Ok(r)
+    }
+
+    /// The resistance line, refused if it falls with temperature or
+    /// reaches 0 ohm anywhere in `range_c` (see
+    /// [`resistance_check_range_c`]): a resistance at or below 0 would make
+    /// no heat, or take heat out of its node (a coil that cools itself).
+    pub fn resistance_over(&self, range_c: (f64, f64)) -> Result<Resistance> {
+        let r = self.resistance()?;
+        let (low, high) = range_c;
+        let form1 = self.r_at_0c_ohm.is_none() && self.slope_ohm_per_k.is_none();
+        let (key, value, unit) = if form1 {
+            ("alpha_per_k", self.alpha_per_k.unwrap_or(0.0), "1/K")
+        } else {
+            (
+                "slope_ohm_per_k",
+                self.slope_ohm_per_k.unwrap_or(0.0),
+                "ohm/K",
+            )
+        };
+        if r.slope_ohm_per_k < 0.0 {
+            bail!(
+                "{key} = {value} {unit} makes the resistance fall as the source heats up; \
+                 a winding's resistance rises with temperature (copper and aluminium: alpha_per_k \
+                 about +0.0039 1/K), and one that falls would take a hot winding for one making \
+                 less heat than it does: give {key} >= 0 (a sign error?)"
+            );
+        }
+        for t in [low, high] {
+            if !r.is_valid_at(t) {
+                // Only a sloped line reaches 0 (a flat one is > 0 at t_ref).
+                let zero_c = -r.r_at_0c_ohm / r.slope_ohm_per_k;
+                let n = |v: Option<f64>, default: f64| crate::trace::num(v.unwrap_or(default));
+                let (line, fix) = if form1 {
+                    (
+                        format!(
+                            "{} (1 + {} (T - {}))",
+                            n(self.r0_ohm, f64::NAN),
+                            n(self.alpha_per_k, 0.0),
+                            n(self.t_ref_c, 20.0)
+                        ),
+                        "r0_ohm [ohm], alpha_per_k [1/K] (copper: 0.00393) and t_ref_c [degC]",
+                    )
+                } else {
+                    (
+                        format!(
+                            "{} + {} T",
+                            n(self.r_at_0c_ohm, f64::NAN),
+                            n(self.slope_ohm_per_k, 0.0)
+                        ),
+                        "r_at_0c_ohm [ohm] and slope_ohm_per_k [ohm/K] (the resistance at 0 degC and its rise per kelvin)",
+                    )
+                };
+                bail!(
+                    "the resistance R(T) = {line} ohm reaches 0 ohm at {zero_c:.1} degC, \
+                     inside the range checked, {low} to {high} degC ({RESISTANCE_CHECK_LOW_C} degC, \
+                     or the coldest boundary value_c, up to the highest critical_c plus \
+                     {RESISTANCE_CHECK_MARGIN_K} K, at least {RESISTANCE_CHECK_HIGH_C} degC): at \
+                     and below it the source would make no heat, or take heat out of its node; \
+                     check {fix}"
+                );
+            }
         }
         Ok(r)
     }
@@ -933,6 +1043,7 @@ impl Model {
             }
         }
         let conductor_scales = conductor_scales(file)?;
+        let resistance_range = resistance_check_range_c(file);
         let mut inputs: Vec<InputSpec> = Vec::new();
         // The network's sources go in the order `Model::source_kinds`
         // gives: the `[[source]]`s, the `[[speed_loss]]`es, the `[[loss]]`es.
@@ -956,7 +1067,7 @@ impl Model {
             if source_keys.insert(s.key().to_string(), k).is_some() {
                 bail!("{}: duplicate source name (set `name`)", ctx());
             }
-            let resistance = s.resistance().with_context(ctx)?;
+            let resistance = s.resistance_over(resistance_range).with_context(ctx)?;
             network.joule_source(node, resistance)?;
             let input_name = s.input_name().to_string();
             let column = s.column.clone().unwrap_or_else(|| input_name.clone());

@@ -157,15 +157,18 @@ fn a_run_that_goes_non_finite_or_absurd_exits_non_zero_naming_node_time_and_caus
             "runaway current",
         ],
     );
-    // alpha_per_k = 0.5: thermal runaway (it printed 61486402 degC, exit 0).
+    // A steep alpha_per_k: thermal runaway (alpha 0.5 at 3 A printed
+    // 61486402 degC, exit 0). 0.013 1/K keeps R above 0 down to -55 degC,
+    // which a model file must (0.5 is refused at load: R = 0 at 18 degC),
+    // and 30 A runs away within the replay's 100 s.
     let alpha = model_with(
         &dir,
         "alpha.toml",
         "alpha_per_k = 0.0039",
-        "alpha_per_k = 0.5",
+        "alpha_per_k = 0.013",
     );
     refused(
-        ct().args(["simulate", "--model", s(&alpha), "--current-a", "3"])
+        ct().args(["simulate", "--model", s(&alpha), "--current-a", "30"])
             .args(["--duration-s", "3600", "--out", s(&out)]),
         &[
             "ran away: node `coil`",
@@ -174,7 +177,7 @@ fn a_run_that_goes_non_finite_or_absurd_exits_non_zero_naming_node_time_and_caus
         ],
     );
     assert!(!out.exists(), "no result is written");
-    let trace = steady_trace(&dir, 6.0);
+    let trace = steady_trace(&dir, 30.0);
     refused(
         ct().args(["replay", "--model", s(&alpha), "--trace", s(&trace)]),
         &["replay: model `two-node-coil` ran away: node `coil`"],

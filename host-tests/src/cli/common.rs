@@ -273,6 +273,21 @@ pub fn constant(value: &str, flag_text: &str) -> Result<ColumnExpr> {
     }
 }
 
+/// Refuses `--current-a` values for a model with no current input (no
+/// `[[source]]`): there is nothing for them to set, and they used to be
+/// dropped without a word. With inputs, one value for every input or one
+/// per input is the caller's (and the drive's) to check.
+pub fn check_current_a_has_inputs(current_a: &[f64], model: &str, inputs: usize) -> Result<()> {
+    if inputs == 0 && !current_a.is_empty() {
+        bail!(
+            "--current-a: model `{model}` has no current input (no [[source]]), so there is no \
+             current to set: leave --current-a out (a [[loss]]'s current is a signal: give it \
+             with --const COL=VALUE)"
+        );
+    }
+    Ok(())
+}
+
 /// Reads a trace with the time flags (`--time-column`,
 /// `--sample-period-s`); warns on stderr of non-numeric cells in columns
 /// (refused only if a flag uses them).

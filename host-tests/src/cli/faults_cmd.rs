@@ -1,4 +1,4 @@
-//! `coil-thermal faults`: issue 17's fault campaign (see [`crate::faults`]).
+//! `coil-thermal faults`: the fault campaign (see [`crate::faults`]).
 
 use std::path::PathBuf;
 

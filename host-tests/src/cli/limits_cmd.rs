@@ -129,6 +129,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     }
     // Currents per input.
     let inputs = &model.inputs;
+    common::check_current_a_has_inputs(&a.current_a, &model.name, inputs.len())?;
     let per_input: Vec<f64> = if let Some(pattern) = a.pattern {
         let (rows, cols) = common::grid_dims(&a.model);
         let amps = match a.current_a.as_slice() {
@@ -147,6 +148,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             .collect()
     } else {
         match (a.current_a.len(), inputs.len()) {
+            (0, 0) => Vec::new(),
             (0, _) => bail!("give --current-a A[,A...] (or --pattern for --model hppa)"),
             (1, m) => vec![a.current_a[0]; m],
             (n, m) if n == m => a.current_a.clone(),

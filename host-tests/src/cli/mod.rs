@@ -64,9 +64,9 @@ enum Command {
     /// solved on this host, as `const` data (the MCU computes no exponential
     /// and no Riccati solution).
     Codegen(codegen_cmd::CodegenArgs),
-    /// Issue 17's fault campaign: every fault class x every sensor x
-    /// several onsets against the clean run (time to flag, estimate error,
-    /// shutdown delay, false trips) and the issue's goals.
+    /// The fault campaign: every fault class x every sensor x several
+    /// onsets against the clean run (time to flag, estimate error, shutdown
+    /// delay, false trips), each figure against its goal.
     Faults(faults_cmd::FaultsArgs),
 }
 

@@ -31,6 +31,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     }
     let mut plant = common::plant(&a.model)?;
     let info = plant.info().clone();
+    common::check_current_a_has_inputs(&a.current_a, &info.name, info.inputs.len())?;
     let bind = common::bindings(&a.trace_args)?;
     if let Some(t) = a.ambient_c.filter(|t| !t.is_finite()) {
         bail!("--ambient-c must be finite, got {t}");
@@ -106,7 +107,9 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         let Some(duration) = a.duration_s else {
             bail!("give --duration-s S with --current-a, or --trace IN.csv");
         };
-        if a.current_a.is_empty() {
+        // A model without a current input runs on its other heat (fixed
+        // powers, losses of `--const` signals) without one.
+        if a.current_a.is_empty() && !info.inputs.is_empty() {
             bail!("give --current-a A[,A...] (or --trace IN.csv, --pattern, --preset)");
         }
         if let Some(bad) = a.current_a.iter().find(|v| !v.is_finite()) {

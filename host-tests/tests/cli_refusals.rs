@@ -1,0 +1,289 @@
+//! Inputs the tool used to take without a word, now refused with a message
+//! that names what is wrong; and help texts that speak to the user, not
+//! to the project's issue tracker.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use predicates::str::contains;
+use tempfile::TempDir;
+
+fn ct() -> assert_cmd::Command {
+    cargo_bin_cmd!("coil-thermal")
+}
+
+fn models() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The two-node coil (`models/two-node-coil.toml`) with each `from`
+/// replaced by its `to` (each must be there).
+fn two_node_with(dir: &TempDir, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = fs::read_to_string(models().join("two-node-coil.toml")).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "`{from}` is not in two-node-coil.toml");
+        text = text.replace(from, to);
+    }
+    let p = dir.path().join(name);
+    fs::write(&p, text).unwrap();
+    p
+}
+
+/// `simulate` of `model` at 1 A for 10 s.
+fn simulate(model: &Path, dir: &TempDir) -> assert_cmd::assert::Assert {
+    ct().args(["simulate", "--model", s(model), "--current-a", "1"])
+        .args(["--duration-s", "10", "--out"])
+        .arg(dir.path().join("out.csv"))
+        .assert()
+}
+
+/// The command fails with each of `needles` in its error, nothing on
+/// stdout.
+fn refused(a: assert_cmd::assert::Assert, needles: &[&str]) {
+    let mut a = a.failure().stdout("");
+    for n in needles {
+        a = a.stderr(contains(*n));
+    }
+}
+
+fn stdout_of(args: &[&str]) -> String {
+    let out = ct().args(args).output().unwrap();
+    assert!(out.status.success(), "coil-thermal {args:?} failed");
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Where `text` names an issue by number (`issue 17`, `Issue 20`).
+fn issue_numbers(text: &str) -> Vec<String> {
+    let lower = text.to_lowercase();
+    lower
+        .match_indices("issue ")
+        .filter(|(k, m)| {
+            lower[k + m.len()..]
+                .chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_digit())
+        })
+        .map(|(k, _)| lower[k..].chars().take(40).collect())
+        .collect()
+}
+
+#[test]
+fn issue_numbers_are_found_by_the_help_check() {
+    // The check itself: it must see what it is meant to refuse.
+    assert_eq!(issue_numbers("Issue 17's fault campaign").len(), 1);
+    assert_eq!(issue_numbers("see issue 3").len(), 1);
+    assert!(issue_numbers("the issue's goals, issues galore").is_empty());
+}
+
+/// `--help` of the tool and of every subcommand it lists names no issue
+/// number: a user has no access to the project's tracker.
+#[test]
+fn no_help_text_names_an_issue_number() {
+    let top = stdout_of(&["--help"]);
+    let mut found = issue_numbers(&top);
+    let commands: Vec<&str> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter(|l| l.starts_with("  ") && !l[2..].starts_with(' '))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .collect();
+    for expected in [
+        "simulate",
+        "replay",
+        "limits",
+        "calibrate",
+        "codegen",
+        "faults",
+    ] {
+        assert!(
+            commands.contains(&expected),
+            "`{expected}` is not among the commands --help lists: {commands:?}"
+        );
+    }
+    for c in &commands {
+        for text in [stdout_of(&[c, "--help"]), stdout_of(&[c, "-h"])] {
+            found.extend(
+                issue_numbers(&text)
+                    .into_iter()
+                    .map(|m| format!("{c}: {m}")),
+            );
+        }
+    }
+    assert!(found.is_empty(), "help texts name issues: {found:#?}");
+}
+
+/// A resistance that reaches 0 ohm inside the model's temperature range
+/// (-55 degC to the highest `critical_c` plus 50 K, at least 250 degC) is
+/// refused at load, in either form, naming the source, the temperature and
+/// the range; it used to run as a coil that makes no heat, or cools itself,
+/// below that temperature.
+#[test]
+fn a_resistance_reaching_zero_in_the_range_is_refused() {
+    let dir = TempDir::new().unwrap();
+    // Form 1: 5.69 (1 + 0.02 (T - 20)) is 0 at -30 degC.
+    let alpha = two_node_with(
+        &dir,
+        "alpha.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = 0.02")],
+    );
+    refused(
+        simulate(&alpha, &dir),
+        &[
+            "alpha.toml:30:1: [[source]] #1 `coil`",
+            "reaches 0 ohm at -30.0 degC",
+            "-55 to 250 degC",
+            "alpha_per_k",
+        ],
+    );
+    // Form 2: 1 + 0.05 T is 0 at -20 degC.
+    let slope = two_node_with(
+        &dir,
+        "slope.toml",
+        &[(
+            "r0_ohm = 5.69\nalpha_per_k = 0.0039\nt_ref_c = 20.0",
+            "r_at_0c_ohm = 1.0\nslope_ohm_per_k = 0.05",
+        )],
+    );
+    refused(
+        simulate(&slope, &dir),
+        &[
+            "[[source]] #1 `coil`",
+            "R(T) = 1 + 0.05 T ohm reaches 0 ohm at -20.0 degC",
+            "slope_ohm_per_k",
+        ],
+    );
+    // The range's top follows the highest critical_c (plus 50 K).
+    let hot = two_node_with(
+        &dir,
+        "hot.toml",
+        &[
+            ("alpha_per_k = 0.0039", "alpha_per_k = 0.02"),
+            ("critical_c = 155.0", "critical_c = 260.0"),
+        ],
+    );
+    refused(simulate(&hot, &dir), &["-55 to 310 degC"]);
+}
+
+/// The range's bottom: -55 degC, or a colder boundary. 0.0125 1/K puts
+/// R = 0 at -60 degC: outside the range of a model at 20 degC (accepted),
+/// inside that of one with its ambient at -70 degC (refused).
+#[test]
+fn the_range_checked_reaches_down_to_the_coldest_boundary() {
+    let dir = TempDir::new().unwrap();
+    let steep = two_node_with(
+        &dir,
+        "steep.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = 0.0125")],
+    );
+    simulate(&steep, &dir).success();
+    let arctic = two_node_with(
+        &dir,
+        "arctic.toml",
+        &[
+            ("alpha_per_k = 0.0039", "alpha_per_k = 0.0125"),
+            ("value_c = 20.0", "value_c = -70.0"),
+        ],
+    );
+    refused(
+        simulate(&arctic, &dir),
+        &["reaches 0 ohm at -60.0 degC", "-70 to 250 degC"],
+    );
+}
+
+/// A resistance that falls with temperature (a negative `alpha_per_k` or
+/// `slope_ohm_per_k`) is refused even where it stays above 0 ohm: a
+/// winding's rises, and MODEL_FORMAT.md gives a falling one no meaning.
+#[test]
+fn a_resistance_falling_with_temperature_is_refused() {
+    let dir = TempDir::new().unwrap();
+    // 5.69 (1 - 0.001 (T - 20)) is above 0 from -55 to 250 degC.
+    let alpha = two_node_with(
+        &dir,
+        "alpha.toml",
+        &[("alpha_per_k = 0.0039", "alpha_per_k = -0.001")],
+    );
+    refused(
+        simulate(&alpha, &dir),
+        &[
+            "[[source]] #1 `coil`",
+            "alpha_per_k = -0.001 1/K makes the resistance fall",
+            "give alpha_per_k >= 0",
+        ],
+    );
+    let slope = two_node_with(
+        &dir,
+        "slope.toml",
+        &[(
+            "r0_ohm = 5.69\nalpha_per_k = 0.0039\nt_ref_c = 20.0",
+            "r_at_0c_ohm = 5.69\nslope_ohm_per_k = -0.002",
+        )],
+    );
+    refused(
+        simulate(&slope, &dir),
+        &[
+            "slope_ohm_per_k = -0.002 ohm/K",
+            "give slope_ohm_per_k >= 0",
+        ],
+    );
+}
+
+/// The two-node coil without its `[[source]]`, heated by a fixed 5 W.
+fn no_current_input(dir: &TempDir) -> PathBuf {
+    let text = fs::read_to_string(models().join("two-node-coil.toml")).unwrap();
+    let (head, rest) = text.split_once("[[source]]").unwrap();
+    let (_, tail) = rest.split_once("[initial]").unwrap();
+    let p = dir.path().join("no-input.toml");
+    fs::write(
+        &p,
+        format!("{head}[[fixed_power]]\nnode = \"coil\"\npower_w = 5.0\n\n[initial]{tail}"),
+    )
+    .unwrap();
+    p
+}
+
+/// `--current-a` for a model with no current input is refused (it was
+/// dropped without a word); without it, the model runs on its fixed power.
+#[test]
+fn current_a_for_a_model_without_current_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let model = no_current_input(&dir);
+    let out = dir.path().join("out.csv");
+    let needle = "--current-a: model `two-node-coil` has no current input (no [[source]])";
+    refused(
+        ct().args(["simulate", "--model", s(&model), "--current-a", "3"])
+            .args(["--duration-s", "10", "--out", s(&out)])
+            .assert(),
+        &[needle, "leave --current-a out"],
+    );
+    assert!(!out.exists(), "no result is written");
+    refused(
+        ct().args(["limits", "--model", s(&model), "--current-a", "3"])
+            .assert(),
+        &[needle],
+    );
+    ct().args(["simulate", "--model", s(&model), "--duration-s", "10"])
+        .args(["--out", s(&out)])
+        .assert()
+        .success();
+    ct().args(["limits", "--model", s(&model)])
+        .assert()
+        .success()
+        .stdout(contains("coil"));
+    // More values than inputs were refused already (one value for every
+    // input is the documented broadcast).
+    let coil = models().join("two-node-coil.toml");
+    refused(
+        ct().args(["simulate", "--model", s(&coil), "--current-a", "1,2"])
+            .args(["--duration-s", "10", "--out", s(&out)])
+            .assert(),
+        &["--current-a has 2 values but model `two-node-coil` has 1 current inputs"],
+    );
+}
