@@ -193,6 +193,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
+use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
+
 use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
     SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
@@ -451,6 +453,7 @@ pub struct NetworkObserverBuilder<
     rule: DeratingRule,
     settings: NetworkSettings,
     bias_sources: [bool; M],
+    bias_mode: BiasMode<M>,
 }
 
 impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
@@ -468,6 +471,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             rule: DeratingRule::omnimagnet(),
             settings: NetworkSettings::DEFAULT,
             bias_sources: [true; M],
+            bias_mode: BiasMode::Auto,
         }
     }
 
@@ -530,6 +534,29 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         self
     }
 
+    /// Whether the biased sources' heat biases are estimated each on its
+    /// own or shared (see "One sensor sees one heat: the shared bias" in
+    /// the module docs). Default [`BiasMode::Auto`]: per source wherever
+    /// the per-source steady gain converges (every table as before this
+    /// setting existed, to the bit), else one heat bias shared by every
+    /// biased source in proportion to its Joule power.
+    ///
+    /// [`Self::bias_sources`] wins: a source left out of it has no bias in
+    /// any mode, shared or not. Without bias noise
+    /// (`bias_noise_w2_per_s = 0`) every mode is per source.
+    pub fn bias_mode(mut self, mode: BiasMode<M>) -> Self {
+        self.bias_mode = mode;
+        self
+    }
+
+    /// [`Self::bias_mode`]`(`[`BiasMode::Shared`]`(shared))`: the sources
+    /// `m` with `shared[m]` (and in [`Self::bias_sources`]) share one heat
+    /// bias in proportion to their Joule power, the other biased sources
+    /// keep their own.
+    pub fn shared_bias(self, shared: [bool; M]) -> Self {
+        self.bias_mode(BiasMode::Shared(shared))
+    }
+
     /// [`Self::parts`] then [`NetworkObserver::from_parts`]: validates
     /// everything, discretises the network, solves the steady
     /// gain (in `f64`: `O((N + M)^3)` per doubling, tens of KiB of stack
@@ -590,6 +617,11 @@ pub struct NetworkObserver<
     warmup_corrections: u16,
     /// `max_cooling_bias_fraction` (dimensionless).
     cooling_bias_fraction: f32,
+    /// The sources sharing one heat bias (see "One sensor sees one heat").
+    shared_bias: [bool; M],
+    /// Each shared source's nominal Joule power \[W\] (0 for the others):
+    /// its share of the shared bias with no current.
+    nominal_power_w: [f32; M],
     clock: StepClock,
     limits: ScalarLimits<f32>,
     ambient_boundary: usize,
@@ -1202,6 +1234,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &mut NetworkObserverState<N, B, M, X, P>,
         events: &StuckEvents<P>,
     ) {
+        let shared = &self.shared_bias;
+        let any_shared = shared.contains(&true);
+        let shares = if any_shared && events.became_stuck.contains(&true) {
+            present_shares(shared, &self.joule_powers_w(state), &self.nominal_power_w)
+        } else {
+            [0.0; M]
+        };
         for ((at_change, changed), became_stuck) in state
             .bias_at_change_w
             .iter_mut()
@@ -1214,11 +1253,26 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 }
             } else if *became_stuck {
                 for (m, bias) in at_change.iter().enumerate() {
+                    if shared[m] {
+                        continue;
+                    }
                     crate::filter::condition_on(
                         &mut state.estimate.x,
                         self.gain.posterior(),
                         N + m,
                         *bias,
+                    );
+                }
+                if any_shared {
+                    // The shared heat goes back to its sum then, in the
+                    // present shares.
+                    let sum_w: f32 = (0..M).filter(|m| shared[*m]).map(|m| at_change[m]).sum();
+                    condition_shared_sum::<N, M, X>(
+                        &mut state.estimate.x,
+                        self.gain.posterior(),
+                        shared,
+                        &shares,
+                        sum_w,
                     );
                 }
             }
@@ -1241,9 +1295,38 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.gain.posterior()
         };
         for (m, power_w) in powers_w.iter().enumerate() {
+            if self.shared_bias[m] {
+                continue;
+            }
             let floor_w = -self.cooling_bias_fraction * power_w.abs();
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, floor_w);
         }
+        if !self.shared_bias.contains(&true) {
+            return;
+        }
+        // The shared heat: its floor is the sum of the sources' floors
+        // (with the biases in proportion to the present powers, each
+        // source's floor holds exactly when their sum does), and it goes
+        // back to the sources in proportion to their present power.
+        let shared = &self.shared_bias;
+        let shares = present_shares(shared, &powers_w, &self.nominal_power_w);
+        let floor_w: f32 = -self.cooling_bias_fraction
+            * (0..M)
+                .filter(|m| shared[*m])
+                .map(|m| powers_w[m].abs())
+                .sum::<f32>();
+        let sum_w = shared_sum_w::<N, M, X>(&state.estimate.x, shared);
+        if sum_w < floor_w {
+            condition_shared_sum::<N, M, X>(&mut state.estimate.x, cov, shared, &shares, floor_w);
+        } else {
+            set_shared::<N, M, X>(&mut state.estimate.x, shared, &shares, sum_w);
+        }
+    }
+
+    /// The sources sharing one heat bias (see "One sensor sees one heat:
+    /// the shared bias" in the module docs; none: a bias per source).
+    pub fn shared_bias_sources(&self) -> [bool; M] {
+        self.shared_bias
     }
 
     /// Which heat-input biases are beyond the model's uncertainty (see
@@ -1461,7 +1544,9 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
     }
 }
 
+mod bias;
 mod parts;
+pub use bias::BiasMode;
 pub(crate) use parts::stuck_window as parts_stuck_window;
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 

@@ -433,23 +433,6 @@ fn the_thermocouple_pulls_a_wrong_start_in() {
     assert!(error_k < 0.02, "{error_k} K");
 }
 
-#[test]
-fn biases_the_sensors_cannot_tell_apart_are_refused() {
-    // Three identical phases and one thermocouple on the housing: the three
-    // bias random walks are not observable, no steady gain exists, and the
-    // build says so (the module docs' advice: bias noise 0).
-    let net = three_phase();
-    let refused = NetworkObserverBuilder::new(&net, [3])
-        .build::<8>()
-        .map(|_| ());
-    assert_eq!(
-        refused,
-        Err(BuildError::NotConverged {
-            name: "steady_state_gain"
-        })
-    );
-}
-
 /// The wrong-start run of `the_thermocouple_pulls_a_wrong_start_in` for
 /// `minutes`, with `warmup` time-varying corrections first: the largest
 /// node error against the f64 plant at the end \[K\].
@@ -810,4 +793,24 @@ fn a_model_that_runs_hot_reads_hot_unless_it_declares_it() {
         coldest_k > -0.5 && final_k.abs() < 0.05,
         "{coldest_k} / {final_k} K"
     );
+}
+
+#[test]
+fn three_phases_and_one_thermocouple_share_one_heat_bias_by_default() {
+    let net = three_phase();
+    let per_source = NetworkObserverBuilder::new(&net, [3])
+        .bias_mode(BiasMode::PerSource)
+        .build::<8>()
+        .map(|_| ());
+    assert_eq!(
+        per_source,
+        Err(BuildError::NotConverged {
+            name: "steady_state_gain"
+        })
+    );
+    let parts = NetworkObserverBuilder::new(&net, [3]).parts::<8>().unwrap();
+    assert_eq!(parts.shared_bias_sources(), [true; 3]);
+    let obs = NetworkObserver::from_parts(&parts).unwrap();
+    assert_eq!(obs.shared_bias_sources(), [true; 3]);
+    std::println!("prior bias block {:?}", &parts.gain.prior[5..]);
 }
