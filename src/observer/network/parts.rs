@@ -337,6 +337,16 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
 impl<const N: usize, const B: usize, const M: usize, const P: usize>
     NetworkObserverBuilder<'_, N, B, M, P>
 {
+    /// Whether `gain` leaves every limited element within
+    /// `max_element_sigma_k` (the check of
+    /// [`NetworkObserver::from_parts`], which refuses it otherwise).
+    fn observes_limited<const X: usize>(&self, gain: &SteadyStateGain<f32, X, P>) -> bool {
+        self.critical_c.iter().enumerate().all(|(node, critical)| {
+            let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
+            critical.is_none() || f64::from(sigma_k) <= self.settings.max_element_sigma_k
+        })
+    }
+
     /// The steady gain in the layout [`Self::bias_mode`] asks for: per
     /// source, shared, or per source with the shared bias as the fallback
     /// when the per-source solve does not converge ([`BiasMode::Auto`]).
@@ -383,6 +393,17 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
                 Err(refused @ BuildError::NotConverged { .. }) => match shared([true; M]) {
                     Some(layout) => solve(&layout).map_err(|_| refused),
                     None => Err(refused),
+                },
+                // Converged, but to biases so uncertain that a limited
+                // element is left unobservable (`from_parts` would refuse
+                // it): the sensors cannot tell the biases apart either, to
+                // rounding. The shared bias if it does better.
+                Ok(gain) if !self.observes_limited(&gain) => match shared([true; M]) {
+                    Some(layout) => match solve(&layout) {
+                        Ok(shared) if self.observes_limited(&shared) => Ok(shared),
+                        _ => Ok(gain),
+                    },
+                    None => Ok(gain),
                 },
                 solved => solved,
             },
