@@ -8,7 +8,9 @@
 //!   not drift from the exact `f64` solution over hours (see "f32 without
 //!   drift" below);
 //! * filter: a heat-input bias state per current input (like the
-//!   Omnimagnet's), the Joule power `R(T) I^2` at the *estimated* winding
+//!   Omnimagnet's; shared in proportion to the Joule power when the
+//!   sensors cannot tell the currents' heat apart, see "One sensor sees
+//!   one heat"), the Joule power `R(T) I^2` at the *estimated* winding
 //!   temperature every step, and the steady-state Kalman gain for the
 //!   sensors you name (`sensor_nodes[j]` = the node thermocouple `j`
 //!   measures), solved in `f64` and cast; optionally a time-varying warm-up
@@ -182,6 +184,60 @@
 //!   cooled, the hot spot read 6.3 K hot an hour on; now 0.9 K after the
 //!   verdict.
 //!
+//! # One sensor sees one heat: the shared bias
+//!
+//! A heat-input bias per current needs sensors that can tell the
+//! currents' heat apart: three phases of a winding under one housing
+//! thermocouple cannot (the most common device there is), the three bias
+//! random walks are not observable apart and no steady gain exists
+//! ([`BuildError::NotConverged`]). So by default ([`BiasMode::Auto`]) the
+//! builder solves the per-source gain first and, when it does not
+//! converge, gives the biased sources **one heat bias shared in proportion
+//! to their Joule power** instead: the state keeps one bias entry per
+//! source (`X = N + M`, the tables' shapes unchanged), the process noise of
+//! the bias block is the rank one `q w w^T`, `w_m` each source's share of
+//! the nominal Joule power (its hardware limit squared times `R` at the
+//! origin temperature), so the solved biases stay proportional to `w` (the
+//! gain is solved in reduced coordinates, the shared bias in one slot). The
+//! prior's bias block is written as the exact outer product of its
+//! diagonal's square roots, which is how [`NetworkObserver::from_parts`]
+//! and a generated module know the layout without another table.
+//!
+//! On the tick, after each correction, the sum of the shared biases is
+//! redistributed among the shared sources in proportion to their present
+//! Joule power (`I^2 R(T)` at the estimate, plus `1e-4` of the nominal
+//! power so that with no current, or current-sensor noise at standstill,
+//! the shares stay at `w`): heat a model misses with a resistance or a
+//! loss that scales with the power goes where the power is, so a held
+//! rotor's phase at twice the current of the other two gets four times the
+//! missing heat and its estimate is not read cold (measured, three phases
+//! under a housing thermocouple, every phase resistance 20 % high, a held
+//! rotor at 14, 7, 7 A: the hottest phase within 0.11 K once settled and
+//! its upper bound never below the plant, against 2.0 K cold with the
+//! shares frozen at `w` and 18 K open loop; `host-tests/tests/shared_bias.rs`).
+//! The floors hold per source (the shared sum is projected onto the sum of
+//! the sources' floors, which with the biases in proportion to the present
+//! powers is each source's floor), a stuck sensor gives back the shared
+//! sum it taught, and the heat-bias alarm judges each source's share.
+//!
+//! Its limits: the sensors see one heat, so how it divides between the
+//! sources is an assumption (in proportion to the power), not a
+//! measurement. Heat that is not proportional to the Joule power (a
+//! bearing, iron losses, a neighbour) is put on the phases carrying the
+//! current, and while the currents change the filter's fixed gain was
+//! solved for the nominal shares, not the present ones. When one source's
+//! heat is what the model misses (a winding in a device whose other
+//! sources are well known), name it alone in
+//! [`NetworkObserverBuilder::bias_sources`]: that is the better choice,
+//! and on a real motor's recording a shared copper bias was once measured
+//! worse than the winding's bias alone. The shared bias is the default
+//! whose job is to build and to err hot. Per-source biases stay the
+//! default wherever they converge (every such table is what it was, to
+//! the bit); [`BiasMode::PerSource`] refuses instead of sharing and
+//! [`BiasMode::Shared`] (or [`NetworkObserverBuilder::shared_bias`]) asks
+//! for a shared bias on chosen sources; `bias_sources` wins over both (a
+//! source left out has no bias, shared or not).
+//!
 //! # Readings, clock, snapshots
 //!
 //! As for [`OmniObserver`](super::OmniObserver): readings arrive as
@@ -193,6 +249,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepClock};
+use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
+
 use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
     SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
@@ -237,10 +295,11 @@ pub struct NetworkSettings {
     /// Growth rate of each node's temperature variance \[K^2/s\] (model
     /// error in its heat balance). Default 1e-4.
     pub node_noise_k2_per_s: f64,
-    /// Growth rate of each heat-input bias variance \[W^2/s\]. Default
-    /// 1e-3. 0 freezes the biases at zero (needed when the sensors cannot
-    /// tell the currents' heat apart, e.g. three identical phases and one
-    /// thermocouple: an unobservable random walk has no steady gain).
+    /// Growth rate of each heat-input bias variance \[W^2/s\] (of the
+    /// shared bias's, the sum of the shared sources', when the sensors
+    /// cannot tell the currents' heat apart: see "One sensor sees one
+    /// heat" in the module docs). Default 1e-3. 0 freezes the biases at
+    /// zero.
     pub bias_noise_w2_per_s: f64,
     /// Standard deviation the gate's recovery widens each temperature by
     /// \[K\]. Default 10.
@@ -451,6 +510,7 @@ pub struct NetworkObserverBuilder<
     rule: DeratingRule,
     settings: NetworkSettings,
     bias_sources: [bool; M],
+    bias_mode: BiasMode<M>,
 }
 
 impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
@@ -468,6 +528,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             rule: DeratingRule::omnimagnet(),
             settings: NetworkSettings::DEFAULT,
             bias_sources: [true; M],
+            bias_mode: BiasMode::Auto,
         }
     }
 
@@ -518,7 +579,12 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     /// (an unobservable random walk has no steady gain:
     /// [`BuildError::NotConverged`]) and padding sources that carry no
     /// current (a network padded to a size class), while the others keep
-    /// their biases; `bias_noise_w2_per_s = 0` freezes all of them.
+    /// their biases; `bias_noise_w2_per_s = 0` freezes all of them. Sources
+    /// the sensors see but cannot tell apart need no naming: by default
+    /// they share one bias ([`Self::bias_mode`]); naming the one whose heat
+    /// the model misses is the better choice when it is known (see "One
+    /// sensor sees one heat" in the module docs). This wins over
+    /// [`Self::bias_mode`]: a source left out has no bias, shared or not.
     ///
     /// Only the solved tables change: a left-out bias has an exactly zero
     /// prior variance in [`GainTables`], which is how
@@ -528,6 +594,29 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     pub fn bias_sources(mut self, bias_sources: [bool; M]) -> Self {
         self.bias_sources = bias_sources;
         self
+    }
+
+    /// Whether the biased sources' heat biases are estimated each on its
+    /// own or shared (see "One sensor sees one heat: the shared bias" in
+    /// the module docs). Default [`BiasMode::Auto`]: per source wherever
+    /// the per-source steady gain converges (every table as before this
+    /// setting existed, to the bit), else one heat bias shared by every
+    /// biased source in proportion to its Joule power.
+    ///
+    /// [`Self::bias_sources`] wins: a source left out of it has no bias in
+    /// any mode, shared or not. Without bias noise
+    /// (`bias_noise_w2_per_s = 0`) every mode is per source.
+    pub fn bias_mode(mut self, mode: BiasMode<M>) -> Self {
+        self.bias_mode = mode;
+        self
+    }
+
+    /// [`Self::bias_mode`]`(`[`BiasMode::Shared`]`(shared))`: the sources
+    /// `m` with `shared[m]` (and in [`Self::bias_sources`]) share one heat
+    /// bias in proportion to their Joule power, the other biased sources
+    /// keep their own.
+    pub fn shared_bias(self, shared: [bool; M]) -> Self {
+        self.bias_mode(BiasMode::Shared(shared))
     }
 
     /// [`Self::parts`] then [`NetworkObserver::from_parts`]: validates
@@ -543,7 +632,9 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     /// ([`BuildError::MissingSource`], [`BuildError::Singular`] when a node
     /// has no path to a boundary), of the discretisation and of the gain
     /// solver ([`BuildError::NotConverged`] when the sensors cannot see a
-    /// bias: set `bias_noise_w2_per_s` to 0).
+    /// bias, shared or not, or cannot tell them apart under
+    /// [`BiasMode::PerSource`]: name the biases they can see in
+    /// [`Self::bias_sources`], or set `bias_noise_w2_per_s` to 0).
     pub fn build<const X: usize>(&self) -> Result<NetworkObserver<N, B, M, X, P>, BuildError> {
         NetworkObserver::new(self)
     }
@@ -590,6 +681,11 @@ pub struct NetworkObserver<
     warmup_corrections: u16,
     /// `max_cooling_bias_fraction` (dimensionless).
     cooling_bias_fraction: f32,
+    /// The sources sharing one heat bias (see "One sensor sees one heat").
+    shared_bias: [bool; M],
+    /// Each shared source's nominal Joule power \[W\] (0 for the others):
+    /// its share of the shared bias with no current.
+    nominal_power_w: [f32; M],
     clock: StepClock,
     limits: ScalarLimits<f32>,
     ambient_boundary: usize,
@@ -1202,6 +1298,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &mut NetworkObserverState<N, B, M, X, P>,
         events: &StuckEvents<P>,
     ) {
+        let shared = &self.shared_bias;
+        let any_shared = shared.contains(&true);
+        let shares = if any_shared && events.became_stuck.contains(&true) {
+            present_shares(shared, &self.joule_powers_w(state), &self.nominal_power_w)
+        } else {
+            [0.0; M]
+        };
         for ((at_change, changed), became_stuck) in state
             .bias_at_change_w
             .iter_mut()
@@ -1214,11 +1317,26 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 }
             } else if *became_stuck {
                 for (m, bias) in at_change.iter().enumerate() {
+                    if shared[m] {
+                        continue;
+                    }
                     crate::filter::condition_on(
                         &mut state.estimate.x,
                         self.gain.posterior(),
                         N + m,
                         *bias,
+                    );
+                }
+                if any_shared {
+                    // The shared heat goes back to its sum then, in the
+                    // present shares.
+                    let sum_w: f32 = (0..M).filter(|m| shared[*m]).map(|m| at_change[m]).sum();
+                    condition_shared_sum::<N, M, X>(
+                        &mut state.estimate.x,
+                        self.gain.posterior(),
+                        shared,
+                        &shares,
+                        sum_w,
                     );
                 }
             }
@@ -1241,9 +1359,38 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.gain.posterior()
         };
         for (m, power_w) in powers_w.iter().enumerate() {
+            if self.shared_bias[m] {
+                continue;
+            }
             let floor_w = -self.cooling_bias_fraction * power_w.abs();
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, floor_w);
         }
+        if !self.shared_bias.contains(&true) {
+            return;
+        }
+        // The shared heat: its floor is the sum of the sources' floors
+        // (with the biases in proportion to the present powers, each
+        // source's floor holds exactly when their sum does), and it goes
+        // back to the sources in proportion to their present power.
+        let shared = &self.shared_bias;
+        let shares = present_shares(shared, &powers_w, &self.nominal_power_w);
+        let floor_w: f32 = -self.cooling_bias_fraction
+            * (0..M)
+                .filter(|m| shared[*m])
+                .map(|m| powers_w[m].abs())
+                .sum::<f32>();
+        let sum_w = shared_sum_w::<N, M, X>(&state.estimate.x, shared);
+        if sum_w < floor_w {
+            condition_shared_sum::<N, M, X>(&mut state.estimate.x, cov, shared, &shares, floor_w);
+        } else {
+            set_shared::<N, M, X>(&mut state.estimate.x, shared, &shares, sum_w);
+        }
+    }
+
+    /// The sources sharing one heat bias (see "One sensor sees one heat:
+    /// the shared bias" in the module docs; none: a bias per source).
+    pub fn shared_bias_sources(&self) -> [bool; M] {
+        self.shared_bias
     }
 
     /// Which heat-input biases are beyond the model's uncertainty (see
@@ -1461,7 +1608,9 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
     }
 }
 
+mod bias;
 mod parts;
+pub use bias::BiasMode;
 pub(crate) use parts::stuck_window as parts_stuck_window;
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 

@@ -21,12 +21,17 @@ fn device() -> Network<3, 1, 1> {
 /// Three phase windings (0, 1, 2) in a housing (3) on a heatsink (4): the
 /// issue's device.
 fn three_phase() -> Network<5, 1, 3> {
+    three_phase_r(0.5)
+}
+
+/// [`three_phase`] with each phase's resistance `r_ohm` at 20 degC.
+fn three_phase_r(r_ohm: f64) -> Network<5, 1, 3> {
     let mut n = Network::new([30.0, 30.0, 30.0, 500.0, 1000.0]).unwrap();
     for p in 0..3 {
         n = n
             .connect(p, 3, 1.0)
             .and_then(|n| n.connect(p, (p + 1) % 3, 0.2))
-            .and_then(|n| n.joule_source(p, p, Resistance::with_alpha(0.5, 0.00393, 20.0)))
+            .and_then(|n| n.joule_source(p, p, Resistance::with_alpha(r_ohm, 0.00393, 20.0)))
             .unwrap();
     }
     n.connect(3, 4, 3.0)
@@ -433,23 +438,6 @@ fn the_thermocouple_pulls_a_wrong_start_in() {
     assert!(error_k < 0.02, "{error_k} K");
 }
 
-#[test]
-fn biases_the_sensors_cannot_tell_apart_are_refused() {
-    // Three identical phases and one thermocouple on the housing: the three
-    // bias random walks are not observable, no steady gain exists, and the
-    // build says so (the module docs' advice: bias noise 0).
-    let net = three_phase();
-    let refused = NetworkObserverBuilder::new(&net, [3])
-        .build::<8>()
-        .map(|_| ());
-    assert_eq!(
-        refused,
-        Err(BuildError::NotConverged {
-            name: "steady_state_gain"
-        })
-    );
-}
-
 /// The wrong-start run of `the_thermocouple_pulls_a_wrong_start_in` for
 /// `minutes`, with `warmup` time-varying corrections first: the largest
 /// node error against the f64 plant at the end \[K\].
@@ -810,4 +798,313 @@ fn a_model_that_runs_hot_reads_hot_unless_it_declares_it() {
         coldest_k > -0.5 && final_k.abs() < 0.05,
         "{coldest_k} / {final_k} K"
     );
+}
+
+#[test]
+fn three_phases_and_one_thermocouple_share_one_heat_bias_by_default() {
+    // Three identical phases and one thermocouple on the housing: the three
+    // bias random walks are not observable apart, so no per-source steady
+    // gain exists and `PerSource` says so; the default shares one heat
+    // bias, and the tables say which (a generated module reads it back).
+    let net = three_phase();
+    let per_source = NetworkObserverBuilder::new(&net, [3])
+        .bias_mode(BiasMode::PerSource)
+        .build::<8>()
+        .map(|_| ());
+    assert_eq!(
+        per_source,
+        Err(BuildError::NotConverged {
+            name: "steady_state_gain"
+        })
+    );
+    let parts = NetworkObserverBuilder::new(&net, [3]).parts::<8>().unwrap();
+    assert_eq!(parts.shared_bias_sources(), [true; 3]);
+    let obs = NetworkObserver::from_parts(&parts).unwrap();
+    assert_eq!(obs.shared_bias_sources(), [true; 3]);
+    // The bias block is rank one along the nominal shares (a third each,
+    // equal phases and hardware limits) and its gain rows are too.
+    let block = |a: usize, b: usize| parts.gain.prior[5 + a][5 + b];
+    for a in 0..3 {
+        for b in 0..3 {
+            assert_eq!(block(a, b), block(0, 0), "{a} {b}");
+        }
+        assert_eq!(parts.gain.gain[5 + a], parts.gain.gain[5]);
+    }
+    assert!(block(0, 0) > 0.0 && parts.gain.gain[5][0] > 0.0);
+    // The same with the mask named explicitly.
+    let explicit = NetworkObserverBuilder::new(&net, [3])
+        .shared_bias([true; 3])
+        .parts::<8>()
+        .unwrap();
+    assert_eq!(explicit, parts);
+}
+
+/// Winding (0, its own source) and housing (1, a second source) on a
+/// heatsink (2), a thermocouple on each of the winding and the housing: two
+/// biases two sensors can tell apart.
+fn two_sources() -> Network<3, 1, 2> {
+    Network::new([60.0, 400.0, 900.0])
+        .and_then(|n| n.connect(0, 1, 2.0))
+        .and_then(|n| n.connect(1, 2, 3.0))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5))
+        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.3, 0.00393, 20.0)))
+        .and_then(|n| n.joule_source(1, 1, Resistance::constant(0.2)))
+        .unwrap()
+}
+
+#[test]
+fn a_bias_per_source_stays_the_default_wherever_it_converges() {
+    // Auto is per source, to the bit, wherever the per-source gain
+    // converges: one source; three phases with one bias named; frozen
+    // biases; two sources two sensors tell apart.
+    let net = device();
+    let auto = NetworkObserverBuilder::new(&net, [1]).parts::<4>().unwrap();
+    let per = NetworkObserverBuilder::new(&net, [1])
+        .bias_mode(BiasMode::PerSource)
+        .parts::<4>()
+        .unwrap();
+    assert_eq!(auto, per);
+    let three = three_phase();
+    let one_named = |mode| {
+        NetworkObserverBuilder::new(&three, [3])
+            .bias_sources([true, false, false])
+            .bias_mode(mode)
+            .parts::<8>()
+            .unwrap()
+    };
+    assert_eq!(one_named(BiasMode::Auto), one_named(BiasMode::PerSource));
+    // `bias_sources` wins: sharing phases 0 and 1 when only 0 has a bias
+    // leaves one bias, per source.
+    assert_eq!(
+        one_named(BiasMode::Shared([true, true, false])),
+        one_named(BiasMode::PerSource)
+    );
+    let frozen = |mode| {
+        NetworkObserverBuilder::new(&three, [3])
+            .settings(NetworkSettings {
+                bias_noise_w2_per_s: 0.0,
+                ..NetworkSettings::DEFAULT
+            })
+            .bias_mode(mode)
+            .parts::<8>()
+            .unwrap()
+    };
+    assert_eq!(frozen(BiasMode::Auto), frozen(BiasMode::PerSource));
+    assert_eq!(
+        frozen(BiasMode::Shared([true; 3])),
+        frozen(BiasMode::PerSource)
+    );
+    let two = two_sources();
+    let both = |mode| {
+        NetworkObserverBuilder::new(&two, [0, 1])
+            .bias_mode(mode)
+            .parts::<5>()
+            .unwrap()
+    };
+    let (auto, per, shared) = (
+        both(BiasMode::Auto),
+        both(BiasMode::PerSource),
+        both(BiasMode::Shared([true; 2])),
+    );
+    assert_eq!(auto, per);
+    assert_eq!(auto.shared_bias_sources(), [false; 2]);
+    // Asked for, a shared bias where separate ones would converge.
+    assert_eq!(shared.shared_bias_sources(), [true; 2]);
+    let obs = NetworkObserver::from_parts(&shared).unwrap();
+    assert_eq!(obs.shared_bias_sources(), [true; 2]);
+    assert_ne!(
+        obs.fingerprint(),
+        NetworkObserver::from_parts(&per).unwrap().fingerprint()
+    );
+}
+
+/// The three phases with a shared bias, one thermocouple on the
+/// housing reading `sensor_c(t_s, truth_c)`, a 0.1 s step, the plant an
+/// `f64` RK4 with every phase resistance `plant_r_ohm` at 20 degC (the
+/// model's: 0.5) at the currents `currents_a(t_s)`; calls `each(t_s,
+/// observer, state, plant)` after every tick.
+fn three_phase_housing_run(
+    settings: NetworkSettings,
+    plant_r_ohm: f64,
+    seconds: u32,
+    currents_a: impl Fn(f64) -> [f32; 3],
+    sensor_c: impl Fn(f64, f64) -> f32,
+    mut each: impl FnMut(
+        f64,
+        &NetworkObserver<5, 1, 3, 8, 1>,
+        &NetworkObserverState<5, 1, 3, 8, 1>,
+        &[f64; 5],
+    ),
+) {
+    let net = three_phase();
+    let plant_net = three_phase_r(plant_r_ohm);
+    let obs: NetworkObserver<5, 1, 3, 8, 1> = NetworkObserverBuilder::new(&net, [3])
+        .settings(NetworkSettings {
+            step_us: 100_000,
+            max_steps_per_tick: 1,
+            protect_period_steps: 4,
+            ..settings
+        })
+        .build()
+        .unwrap();
+    assert_eq!(obs.shared_bias_sources(), [true; 3]);
+    let mut state = obs.state(&[20.0; 5], &[20.0]);
+    let mut plant = [20.0f64; 5];
+    for k in 0..(seconds * 10) {
+        let t_s = f64::from(k) * 0.1;
+        let now_us = k.wrapping_mul(100_000);
+        let i_a = currents_a(t_s);
+        let mut inp = NetworkInputs {
+            elapsed_us: 100_000,
+            ..inputs(i_a, [20.0], now_us)
+        };
+        if k % 5 == 0 {
+            inp.readings = [reading(sensor_c(t_s, plant[3]), now_us)];
+        }
+        obs.tick(&mut state, &inp);
+        for _ in 0..10 {
+            rk4(&plant_net, &mut plant, &i_a.map(f64::from), &[20.0], 1e-2);
+        }
+        each(t_s, &obs, &state, &plant);
+    }
+}
+
+#[test]
+fn the_shared_bias_keeps_each_sources_floor() {
+    // The model runs hot (the plant's phases 20 % below its resistance):
+    // the housing reads colder than the model. By default no heat is taken
+    // away from any phase (every bias >= 0 at every tick); declaring
+    // `max_cooling_bias_fraction = 0.1` lets each bias go down to a tenth
+    // of its phase's present power and no further (the model is 25 % hot:
+    // the floor holds), in proportion to the present power (phase 0 at
+    // twice the current: four times the heat taken away), and the estimate
+    // errs hot.
+    let currents = |_: f64| [8.0, 4.0, 4.0];
+    let mut lowest = [f32::INFINITY; 3];
+    three_phase_housing_run(
+        NetworkSettings::DEFAULT,
+        0.4,
+        3600,
+        currents,
+        |_, truth| truth as f32,
+        |_, obs, state, _| {
+            for (low, b) in lowest.iter_mut().zip(obs.heat_bias_w(state)) {
+                *low = low.min(b);
+            }
+        },
+    );
+    assert!(lowest.iter().all(|b| *b >= 0.0), "{lowest:?}");
+    let fraction = 0.1f32;
+    let (mut below_floor_w, mut bias_w, mut floor_w) =
+        (f32::NEG_INFINITY, [0.0f32; 3], [0.0f32; 3]);
+    let mut cold_k = f64::NEG_INFINITY;
+    three_phase_housing_run(
+        NetworkSettings {
+            max_cooling_bias_fraction: f64::from(fraction),
+            ..NetworkSettings::DEFAULT
+        },
+        0.4,
+        3600,
+        currents,
+        |_, truth| truth as f32,
+        |t_s, obs, state, plant| {
+            let temps = obs.temps_c(state);
+            bias_w = obs.heat_bias_w(state);
+            for m in 0..3 {
+                let r = 0.5 * (1.0 + 0.00393 * (temps[m] - 20.0));
+                floor_w[m] = -fraction * r * currents(t_s)[m] * currents(t_s)[m];
+                below_floor_w = below_floor_w.max(floor_w[m] - bias_w[m]);
+            }
+            if t_s > 600.0 {
+                cold_k = cold_k.max(plant[0] - f64::from(temps[0]));
+            }
+        },
+    );
+    std::println!(
+        "shared bias, model 25 % hot: lowest biases at floor 0 {lowest:?} W; at a 0.1 floor {bias_w:?} W (floors {floor_w:?} W, below one by at most {below_floor_w:e} W), the hottest phase never more than {cold_k:.3} K cold"
+    );
+    assert!(below_floor_w < 1e-3, "{below_floor_w} W below a floor");
+    for m in 0..3 {
+        assert!(
+            (bias_w[m] - floor_w[m]).abs() < 1e-2,
+            "the floor holds: {bias_w:?} against {floor_w:?}"
+        );
+    }
+    let ratio = bias_w[0] / bias_w[1];
+    assert!((3.5..4.7).contains(&ratio), "{ratio}");
+    assert!(cold_k < 0.05, "{cold_k} K cold");
+}
+
+#[test]
+fn the_shared_bias_gives_back_what_a_stuck_sensor_taught() {
+    // Heated for 20 min at [8, 4, 4] A, the model right; then the housing
+    // thermocouple sticks at its reading while the current stops and the
+    // plant cools. Until the stuck test sees it, the filter explains the
+    // warm reading as heat; the verdict takes the shared heat back to its
+    // sum when the reading last changed.
+    let stick_s = 1200.0;
+    let stuck_c = core::cell::Cell::new(f32::NAN);
+    let (mut at_stick_w, mut taught_w, mut after_w) = (0.0f32, 0.0f32, f32::NAN);
+    let mut verdict_s = None;
+    three_phase_housing_run(
+        NetworkSettings::DEFAULT,
+        0.5,
+        2400,
+        |t_s| {
+            if t_s < stick_s {
+                [8.0, 4.0, 4.0]
+            } else {
+                [0.0; 3]
+            }
+        },
+        |t_s, truth| {
+            if t_s < stick_s {
+                stuck_c.set(truth as f32);
+            }
+            stuck_c.get()
+        },
+        |t_s, obs, state, _| {
+            let sum: f32 = obs.heat_bias_w(state).iter().sum();
+            if (stick_s - 0.1..stick_s).contains(&t_s) {
+                at_stick_w = sum;
+            }
+            if verdict_s.is_none() {
+                taught_w = taught_w.max(sum - at_stick_w);
+                if matches!(state.outputs().sensors[0], SensorStatus::Stuck { .. }) {
+                    verdict_s = Some(t_s);
+                }
+            }
+            after_w = sum;
+        },
+    );
+    std::println!(
+        "shared bias, housing stuck at {stick_s} s: sum {at_stick_w:.3} W then, taught {taught_w:.3} W more before the verdict at {verdict_s:?} s, {after_w:.3} W at the end"
+    );
+    assert!(verdict_s.is_some(), "never stuck");
+    assert!(taught_w > 0.2, "the stuck reading taught {taught_w} W");
+    assert!(
+        (after_w - at_stick_w).abs() < 0.05,
+        "{after_w} vs {at_stick_w} W"
+    );
+}
+
+#[test]
+fn the_heat_bias_alarm_sees_a_shared_bias_beyond_the_model() {
+    // The plant's phases at three times the model's resistance: the shared
+    // heat is beyond the model's uncertainty, per source, and flagged.
+    let mut flagged = false;
+    three_phase_housing_run(
+        NetworkSettings::DEFAULT,
+        1.5,
+        1800,
+        |_| [8.0, 4.0, 4.0],
+        |_, truth| truth as f32,
+        |_, _, state, _| {
+            flagged |= state
+                .outputs()
+                .flags
+                .contains(InputFlags::HEAT_BIAS_BEYOND_MODEL);
+        },
+    );
+    assert!(flagged, "never flagged");
 }

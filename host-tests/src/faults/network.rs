@@ -13,8 +13,12 @@
 //! left out of the bias states
 //! ([`NetworkObserverBuilder::bias_sources`]); the model's own sources keep
 //! theirs, at the model file's bias noise (the `[observer]` table's, or the
-//! default, as `codegen` builds it): the campaign runs the firmware's
-//! filter, heat-bias alarm and all.
+//! default, as `codegen` builds it), each its own where the sensors can
+//! tell them apart and one shared in proportion to their Joule power where
+//! they cannot (the builder's default
+//! [`BiasMode::Auto`](coil_thermal::observer::network::BiasMode): three
+//! phases under one housing thermocouple need no `bias_sources` line): the
+//! campaign runs the firmware's filter, heat-bias alarm and all.
 
 use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
@@ -106,7 +110,7 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             .build::<X>()
             .map_err(|e| match e {
                 coil_thermal::BuildError::NotConverged { .. } => FaultError::Invalid(format!(
-                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see every source's bias: name the sources whose heat they can see in `[observer] bias_sources`, or set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
+                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see the sources' heat, each or shared: name the sources whose heat they can see in `[observer] bias_sources`, or set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
                     model.name, settings.bias_noise_w2_per_s
                 )),
                 e => FaultError::Build(e),

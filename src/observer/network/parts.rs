@@ -27,6 +27,7 @@ use core::fmt::{self, Write};
 
 use nalgebra::{SMatrix, SVector};
 
+use super::bias::{nominal_powers_w, shared_in_tables, tie_block, BiasLayout, BiasMode};
 use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
@@ -288,13 +289,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         };
         let dt_s = timing.clock.step_s();
         let model = Model::build(network, dt_s, s.origin_c)?;
-        let gain = solve_gain(
-            &model,
-            &self.sensor_nodes,
-            s,
-            &self.bias_sources,
-            timing.correction_period,
-        )?;
+        let gain = self.solve_biased_gain(&model, timing.correction_period)?;
         let cycle_s = dt_s * f64::from(s.protect_period_steps);
         let predictor = solve_predictor(network, cycle_s)?;
         let block = Model::build(
@@ -339,18 +334,106 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     }
 }
 
+impl<const N: usize, const B: usize, const M: usize, const P: usize>
+    NetworkObserverBuilder<'_, N, B, M, P>
+{
+    /// Whether `gain` leaves every limited element within
+    /// `max_element_sigma_k` (the check of
+    /// [`NetworkObserver::from_parts`], which refuses it otherwise).
+    fn observes_limited<const X: usize>(&self, gain: &SteadyStateGain<f32, X, P>) -> bool {
+        self.critical_c.iter().enumerate().all(|(node, critical)| {
+            let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
+            critical.is_none() || f64::from(sigma_k) <= self.settings.max_element_sigma_k
+        })
+    }
+
+    /// The steady gain in the layout [`Self::bias_mode`] asks for: per
+    /// source, shared, or per source with the shared bias as the fallback
+    /// when the per-source solve does not converge ([`BiasMode::Auto`]).
+    /// Without bias noise every mode is per source (nothing is driven,
+    /// nothing to share).
+    fn solve_biased_gain<const X: usize>(
+        &self,
+        model: &Model<N, B, M>,
+        period: u32,
+    ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+        let s = &self.settings;
+        let per_source = BiasLayout::per_source(self.bias_sources);
+        let shared = |mask: [bool; M]| {
+            if s.bias_noise_w2_per_s <= 0.0 {
+                return None;
+            }
+            let nominal_w = nominal_powers_w(&self.hardware_limit_a, &model.resistance, s.origin_c);
+            BiasLayout::shared(self.bias_sources, mask, &nominal_w)
+        };
+        let solve = |layout: &BiasLayout<M>| -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+            let gain = solve_gain(model, &self.sensor_nodes, s, layout, period)?;
+            // The tables must say which biases are shared (`from_parts`
+            // reads it back from the prior alone): a tie the rounding broke,
+            // or a per-source solution correlated to the bit, is refused
+            // rather than assembled into another observer.
+            let prior = rows(&gain.prior);
+            let read = if s.bias_noise_w2_per_s > 0.0 {
+                shared_in_tables::<N, M, X>(&prior)
+            } else {
+                [false; M]
+            };
+            if read == layout.shared_mask() {
+                Ok(gain)
+            } else {
+                Err(BuildError::NotConverged {
+                    name: "steady_state_gain",
+                })
+            }
+        };
+        match self.bias_mode {
+            BiasMode::PerSource => solve(&per_source),
+            BiasMode::Shared(mask) => solve(&shared(mask).unwrap_or(per_source)),
+            BiasMode::Auto => match solve(&per_source) {
+                Err(refused @ BuildError::NotConverged { .. }) => match shared([true; M]) {
+                    Some(layout) => solve(&layout).map_err(|_| refused),
+                    None => Err(refused),
+                },
+                // Converged, but to biases so uncertain that a limited
+                // element is left unobservable (`from_parts` would refuse
+                // it): the sensors cannot tell the biases apart either, to
+                // rounding. The shared bias if it does better.
+                Ok(gain) if !self.observes_limited(&gain) => match shared([true; M]) {
+                    Some(layout) => match solve(&layout) {
+                        Ok(shared) if self.observes_limited(&shared) => Ok(shared),
+                        _ => Ok(gain),
+                    },
+                    None => Ok(gain),
+                },
+                solved => solved,
+            },
+        }
+    }
+}
+
 /// `F = [[Ad, Bd_p], [0, I]]`, `H` from the sensor map, `Q`, `R` and the
 /// gate, in `f64` (the filter's configuration; its gain is solved apart).
 /// A bias left out of `bias_sources` gets neither process noise nor
 /// recovery widening.
+///
+/// The shared bias (see [`BiasLayout`]) enters in one of two coordinates:
+/// `reduced`, the gain solve's, where the lead shared source's slot holds
+/// the shared bias `S` (its column of `F` is `Bd w`, its noise `q`) and the
+/// other shared slots are idle (no column, no noise), so the random walks
+/// the sensors cannot tell apart are never driven; or the state's, where
+/// every shared source's bias is `w_m S`: the rank-one noise `q w w^T` and
+/// a recovery widening of `w_m^2` times the bias's (the configuration the
+/// tick's warm-up runs). Without a shared source both are today's.
 fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>(
     ad: &SMatrix<f64, N, N>,
     bd_power: &SMatrix<f64, N, M>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
-    bias_sources: &[bool; M],
+    layout: &BiasLayout<M>,
+    reduced: bool,
     dt_s: f64,
 ) -> Result<KalmanConfig<f64, X, 1, P>, BuildError> {
+    let lead = layout.lead();
     let mut f = SMatrix::<f64, X, X>::identity();
     for i in 0..N {
         for j in 0..N {
@@ -358,7 +441,15 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
         }
         for m in 0..M {
             // The bias adds to the Joule power, so it enters like it.
-            f[(i, N + m)] = bd_power[(i, m)];
+            f[(i, N + m)] = if reduced && layout.is_shared(m) {
+                if Some(m) == lead {
+                    (0..M).map(|k| bd_power[(i, k)] * layout.share[k]).sum()
+                } else {
+                    0.0
+                }
+            } else {
+                bd_power[(i, m)]
+            };
         }
     }
     let mut h = SMatrix::<f64, P, X>::zeros();
@@ -370,13 +461,31 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
     for i in 0..X {
         let (noise, widen) = if i < N {
             (s.node_noise_k2_per_s, s.recovery_sigma_k)
-        } else if bias_sources[i - N] {
+        } else if layout.is_shared(i - N) {
+            // Set below.
+            (0.0, 0.0)
+        } else if layout.biased[i - N] {
             (s.bias_noise_w2_per_s, s.recovery_bias_sigma_w)
         } else {
             (0.0, 0.0)
         };
         q[(i, i)] = noise * dt_s;
         recovery[i] = widen * widen;
+    }
+    if let Some(lead) = lead {
+        let q_shared = s.bias_noise_w2_per_s * dt_s;
+        let widen_w2 = s.recovery_bias_sigma_w * s.recovery_bias_sigma_w;
+        if reduced {
+            q[(N + lead, N + lead)] = q_shared;
+            recovery[N + lead] = widen_w2;
+        } else {
+            for a in (0..M).filter(|a| layout.is_shared(*a)) {
+                for b in (0..M).filter(|b| layout.is_shared(*b)) {
+                    q[(N + a, N + b)] = q_shared * (layout.share[a] * layout.share[b]);
+                }
+                recovery[N + a] = widen_w2 * layout.share[a] * layout.share[a];
+            }
+        }
     }
     let r = SVector::<f64, P>::repeat(s.sensor_sigma_k * s.sensor_sigma_k);
     // The input enters the mean predict only (see `Model`): the filter's
@@ -393,7 +502,7 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     model: &Model<N, B, M>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
-    bias_sources: &[bool; M],
+    layout: &BiasLayout<M>,
     period: u32,
 ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
     let kalman = filter_config::<N, M, X, P>(
@@ -401,14 +510,17 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
         &model.bd_power_f64,
         sensor_nodes,
         s,
-        bias_sources,
+        layout,
+        true,
         model.dt_s,
     )?;
     let mut gain = SteadyStateGain::solve(&kalman, period)?;
-    // A left-out bias is never driven, so its row and column of every
-    // table is zero in exact arithmetic; the doubling's inverse may leave
-    // rounding there, and an exact zero is what `from_parts` reads back.
-    for (m, _) in bias_sources.iter().enumerate().filter(|(_, b)| !**b) {
+    // A left-out bias (and an idle shared slot) is never driven, so its
+    // row and column of every table is zero in exact arithmetic; the
+    // doubling's inverse may leave rounding there, and an exact zero is
+    // what `from_parts` reads back.
+    let lead = layout.lead();
+    for m in (0..M).filter(|m| !layout.biased[*m] || (layout.is_shared(*m) && Some(*m) != lead)) {
         let i = N + m;
         gain.gain.row_mut(i).fill(0.0);
         gain.prior_ht.row_mut(i).fill(0.0);
@@ -417,18 +529,49 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
             cov.column_mut(i).fill(0.0);
         }
     }
-    Ok(gain.cast())
+    let Some(lead) = lead else {
+        return Ok(gain.cast());
+    };
+    // Back to the state's coordinates: bias `m` is `w_m S` with `S` in the
+    // lead's slot, `x = T y` (`T` the identity but for the shared columns).
+    let mut t = SMatrix::<f64, X, X>::identity();
+    for m in (0..M).filter(|m| layout.is_shared(*m)) {
+        t[(N + m, N + m)] = 0.0;
+        t[(N + m, N + lead)] = layout.share[m];
+    }
+    let spread = |cov: &SMatrix<f64, X, X>| (t * cov * t.transpose()).symmetric_part();
+    gain.gain = t * gain.gain;
+    gain.prior_ht = t * gain.prior_ht;
+    gain.prior = spread(&gain.prior);
+    gain.posterior = spread(&gain.posterior);
+    let diag =
+        |cov: &SMatrix<f64, X, X>| -> [f64; M] { core::array::from_fn(|m| cov[(N + m, N + m)]) };
+    let (prior_w2, posterior_w2) = (diag(&gain.prior), diag(&gain.posterior));
+    let mut cast: SteadyStateGain<f32, X, P> = gain.cast();
+    let shared = layout.shared_mask();
+    tie_block::<N, M, X>(&mut cast.prior, &prior_w2, &shared);
+    tie_block::<N, M, X>(&mut cast.posterior, &posterior_w2, &shared);
+    Ok(cast)
 }
 
-/// The currents whose bias the tables carry (see
-/// [`NetworkObserverBuilder::bias_sources`]): with positive bias noise, a
-/// bias of exactly zero steady prior variance was left out; with none, no
-/// bias is driven and the flag keeps only the recovery widening (as ever).
-fn biased_sources<const N: usize, const M: usize, const X: usize, const P: usize>(
+/// The bias layout the tables carry (see
+/// [`NetworkObserverBuilder::bias_sources`] and [`BiasMode`]): with
+/// positive bias noise, a bias of exactly zero steady prior variance was
+/// left out, and the biases the prior ties ([`shared_in_tables`]) share
+/// one bias, in the nominal shares of `nominal_w` \[W\]; with none, no bias
+/// is driven and the flag keeps only the recovery widening (as ever).
+fn layout_of<const N: usize, const M: usize, const X: usize, const P: usize>(
     s: &NetworkSettings,
     gain: &GainTables<X, P>,
-) -> [bool; M] {
-    core::array::from_fn(|m| !(s.bias_noise_w2_per_s > 0.0 && gain.prior[N + m][N + m] == 0.0))
+    nominal_w: &[f64; M],
+) -> BiasLayout<M> {
+    let biased =
+        core::array::from_fn(|m| !(s.bias_noise_w2_per_s > 0.0 && gain.prior[N + m][N + m] == 0.0));
+    if s.bias_noise_w2_per_s <= 0.0 {
+        return BiasLayout::per_source(biased);
+    }
+    let tied = shared_in_tables::<N, M, X>(&gain.prior);
+    BiasLayout::shared(biased, tied, nominal_w).unwrap_or(BiasLayout::per_source(biased))
 }
 
 #[inline(never)]
@@ -544,12 +687,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // in `f64`, so its `f32` image is the solved one to the bit).
         let ad = matrix(&m.ad).cast::<f64>();
         let bd_power = matrix(&m.bd_power);
+        let nominal_w = nominal_powers_w(&parts.hardware_limit_a, &m.resistance, s.origin_c);
+        let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
         let kalman = filter_config::<N, M, X, P>(
             &ad,
             &bd_power.cast(),
             &parts.sensor_nodes,
             s,
-            &biased_sources::<N, M, X, P>(s, g),
+            &layout,
+            false,
             timing.clock.step_s(),
         )?
         .cast::<f32>();
@@ -631,6 +777,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             shadow,
             warmup_corrections: s.warmup_corrections,
             cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
+            shared_bias: layout.shared_mask(),
+            nominal_power_w: core::array::from_fn(|k| {
+                if layout.is_shared(k) {
+                    nominal_w[k] as f32
+                } else {
+                    0.0
+                }
+            }),
             stuck_test: StuckTest {
                 threshold_k: s.stuck_threshold_k as f32,
                 tolerance_k: s.stuck_tolerance_k as f32,
@@ -810,6 +964,18 @@ fn table<T: fmt::Debug, const C: usize>(
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
     NetworkParts<N, B, M, X, P>
 {
+    /// The sources whose heat-input biases these tables share (see
+    /// [`BiasMode`]; all `false`: a bias per source), as
+    /// [`NetworkObserver::from_parts`] reads them.
+    pub fn shared_bias_sources(&self) -> [bool; M] {
+        let nominal_w = nominal_powers_w(
+            &self.hardware_limit_a,
+            &self.model.resistance,
+            self.settings.origin_c,
+        );
+        layout_of::<N, M, X, P>(&self.settings, &self.gain, &nominal_w).shared_mask()
+    }
+
     /// Writes these parts as a Rust expression of type `NetworkParts<N, B,
     /// M, X, P>` that names every type by its full path (`coil_thermal::`),
     /// for a `const` in a generated module. Reading it back gives these

@@ -1,0 +1,272 @@
+//! How the heat-input biases are laid out: which sources carry one, and
+//! which *share* one heat bias in proportion to their Joule power (see
+//! "One sensor sees one heat: the shared bias" in [`super`]).
+//!
+//! The state keeps one bias entry per source (`X = N + M`) whatever the
+//! layout, so the solved tables keep their shapes. A shared bias is the
+//! rank-one process noise `q w w^T` on the shared sources' block, with
+//! `w_m` each source's share of the nominal Joule power: the steady
+//! solution then holds the shared biases exactly proportional to `w`, and
+//! its bias block is the outer product `s s^T` of its diagonal's square
+//! roots, which [`shared_in_tables`] reads back from the tables alone (a
+//! generated module needs no extra field to know its layout).
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::network::ScalarResistance;
+
+/// Which sources' heat-input biases are estimated separately and which
+/// share one (see [`NetworkObserverBuilder::bias_mode`](super::NetworkObserverBuilder::bias_mode)).
+/// A source left out of
+/// [`bias_sources`](super::NetworkObserverBuilder::bias_sources) has no
+/// bias in any mode: `bias_sources` wins.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BiasMode<const M: usize> {
+    /// A bias per source wherever the sensors can tell them apart (the
+    /// per-source steady gain converges); otherwise one heat bias shared by
+    /// every biased source in proportion to its Joule power. The default.
+    #[default]
+    Auto,
+    /// A bias per source, or [`BuildError::NotConverged`](crate::BuildError::NotConverged)
+    /// when the sensors cannot tell them apart (the behaviour before the
+    /// shared bias existed).
+    PerSource,
+    /// The sources `m` with `shared[m]` (and in `bias_sources`) share one
+    /// heat bias in proportion to their Joule power; the other biased
+    /// sources keep their own. Fewer than two such sources (with a positive
+    /// nominal power) is [`BiasMode::PerSource`].
+    Shared([bool; M]),
+}
+
+/// The weight of a source's nominal share in the present shares: the
+/// shares are `(P_m + SHARE_NOMINAL_WEIGHT P_nom,m) / sum`, so at currents
+/// below about 1 % of the hardware limits (`P < 1e-4 P_nom`: standstill,
+/// current-sensor noise) the shared heat stays at the nominal shares
+/// instead of hopping between phases with the noise, and above them it
+/// follows the present power within a fraction of a percent.
+pub(crate) const SHARE_NOMINAL_WEIGHT: f32 = 1e-4;
+
+/// The layout of the heat-input biases (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BiasLayout<const M: usize> {
+    /// Source `m` carries a bias (its own or a share of the shared one).
+    pub(crate) biased: [bool; M],
+    /// Source `m`'s nominal share of the shared bias (dimensionless; the
+    /// shared sources' sum to 1, 0 for every other source).
+    pub(crate) share: [f64; M],
+}
+
+impl<const M: usize> BiasLayout<M> {
+    /// A bias per source in `biased`, none shared.
+    pub(crate) fn per_source(biased: [bool; M]) -> Self {
+        Self {
+            biased,
+            share: [0.0; M],
+        }
+    }
+
+    /// The sources in `biased` and `mask` share one bias, in proportion to
+    /// their nominal powers `nominal_w` \[W\]; a source of the mask with no
+    /// nominal power carries no heat and gets no bias. `None` when fewer
+    /// than two sources would share it (nothing to share: per source).
+    pub(crate) fn shared(biased: [bool; M], mask: [bool; M], nominal_w: &[f64; M]) -> Option<Self> {
+        let member = |m: usize| biased[m] && mask[m];
+        let sharing = (0..M).filter(|m| member(*m) && nominal_w[*m] > 0.0).count();
+        if sharing < 2 {
+            return None;
+        }
+        let total: f64 = (0..M)
+            .filter(|m| member(*m) && nominal_w[*m] > 0.0)
+            .map(|m| nominal_w[m])
+            .sum();
+        if !(total.is_finite() && total > 0.0) {
+            return None;
+        }
+        let mut layout = Self::per_source(biased);
+        for m in 0..M {
+            if member(m) {
+                if nominal_w[m] > 0.0 {
+                    layout.share[m] = nominal_w[m] / total;
+                } else {
+                    layout.biased[m] = false;
+                }
+            }
+        }
+        Some(layout)
+    }
+
+    /// Whether source `m` is in the shared bias.
+    pub(crate) fn is_shared(&self, m: usize) -> bool {
+        self.share.get(m).is_some_and(|s| *s > 0.0)
+    }
+
+    /// The shared sources.
+    pub(crate) fn shared_mask(&self) -> [bool; M] {
+        core::array::from_fn(|m| self.is_shared(m))
+    }
+
+    /// The first shared source: the slot that carries the shared bias in
+    /// the reduced coordinates of the gain solve (`None`: none shared).
+    pub(crate) fn lead(&self) -> Option<usize> {
+        (0..M).find(|m| self.is_shared(*m))
+    }
+}
+
+/// Each source's nominal Joule power \[W\]: at its hardware limit `limit_a`
+/// \[A\] and its resistance at `origin_c` \[degC\] (floored at zero), in
+/// `f64` from the tables' `f32` resistance so that the build and
+/// [`NetworkObserver::from_parts`](super::NetworkObserver::from_parts)
+/// find the same shares to the bit.
+pub(crate) fn nominal_powers_w<const M: usize>(
+    limit_a: &[f64; M],
+    resistance: &[ScalarResistance<f32>; M],
+    origin_c: f64,
+) -> [f64; M] {
+    core::array::from_fn(|m| {
+        let r = resistance[m];
+        let ohm = f64::from(r.r_at_0c_ohm) + f64::from(r.slope_ohm_per_k) * origin_c;
+        let p = ohm.max(0.0) * limit_a[m] * limit_a[m];
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    })
+}
+
+/// Writes the shared sources' block of a steady covariance (`f32`, biases
+/// at `N + m`) as the exact outer product `s_a s_b` of `s_m`, the `f32`
+/// square root of its `f64` diagonal `diag_w2[m]` \[W^2\]: the mark that
+/// [`shared_in_tables`] reads (`sqrtf(fl(s s)) == s` for a correctly
+/// rounded square root in binary floating point).
+pub(crate) fn tie_block<const N: usize, const M: usize, const X: usize>(
+    cov: &mut SMatrix<f32, X, X>,
+    diag_w2: &[f64; M],
+    shared: &[bool; M],
+) {
+    let s: [f32; M] = core::array::from_fn(|m| libm::sqrt(diag_w2[m].max(0.0)) as f32);
+    for a in (0..M).filter(|a| shared[*a]) {
+        for b in (0..M).filter(|b| shared[*b]) {
+            cov[(N + a, N + b)] = s[a] * s[b];
+        }
+    }
+}
+
+/// The sources whose biases the steady prior `prior` (biases at `N + m`,
+/// row by row) ties into one shared bias: a positive variance whose
+/// covariance with another source's is exactly the product of their
+/// standard deviations (see [`tie_block`]). A per-source solution is never
+/// tied to the bit unless its biases are correlated to within `f32`
+/// rounding, i.e. already one bias.
+pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
+    prior: &[[f32; X]; X],
+) -> [bool; M] {
+    let sd = |m: usize| {
+        let v = prior[N + m][N + m];
+        (v > 0.0 && v.is_finite()).then(|| libm::sqrtf(v))
+    };
+    core::array::from_fn(|a| {
+        let Some(sa) = sd(a) else { return false };
+        (0..M).any(|b| {
+            b != a
+                && sd(b).is_some_and(|sb| {
+                    prior[N + a][N + b] == sa * sb && prior[N + b][N + a] == sb * sa
+                })
+        })
+    })
+}
+
+/// Moves `x` to the most probable state whose shared biases (`shared`, at
+/// `N + m`) sum to `value_w` \[W\] under `N(x, cov)`: every state by its
+/// regression on the sum (`x -= Cov(x, S) (S - value) / Var(S)`), then the
+/// shared biases set to `value_w` in the proportions `shares` (summing to
+/// 1). [`condition_on`](crate::filter::condition_on) on the sum of the
+/// shared biases, which the sensors see as one heat. A non-finite value or
+/// sum leaves `x` as it is. Cost: `X M + M^2` multiply-adds.
+pub(crate) fn condition_shared_sum<const N: usize, const M: usize, const X: usize>(
+    x: &mut SVector<f32, X>,
+    cov: &SMatrix<f32, X, X>,
+    shared: &[bool; M],
+    shares: &[f32; M],
+    value_w: f32,
+) {
+    let sum_w = shared_sum_w::<N, M, X>(x, shared);
+    if !(sum_w.is_finite() && value_w.is_finite()) {
+        return;
+    }
+    let mut var_w2 = 0.0f32;
+    for a in (0..M).filter(|a| shared[*a]) {
+        for b in (0..M).filter(|b| shared[*b]) {
+            var_w2 += cov.get((N + a, N + b)).copied().unwrap_or(0.0);
+        }
+    }
+    if var_w2 > 0.0 && sum_w != value_w {
+        let shift = (sum_w - value_w) / var_w2;
+        for (i, xi) in x.iter_mut().enumerate() {
+            let mut c = 0.0f32;
+            for m in (0..M).filter(|m| shared[*m]) {
+                c += cov.get((i, N + m)).copied().unwrap_or(0.0);
+            }
+            *xi -= c * shift;
+        }
+    }
+    set_shared::<N, M, X>(x, shared, shares, value_w);
+}
+
+/// The sum of the shared biases \[W\].
+pub(crate) fn shared_sum_w<const N: usize, const M: usize, const X: usize>(
+    x: &SVector<f32, X>,
+    shared: &[bool; M],
+) -> f32 {
+    (0..M)
+        .filter(|m| shared[*m])
+        .map(|m| x.get(N + m).copied().unwrap_or(0.0))
+        .sum()
+}
+
+/// Sets the shared biases (at `N + m`) to `sum_w` \[W\] in the proportions
+/// `shares`.
+pub(crate) fn set_shared<const N: usize, const M: usize, const X: usize>(
+    x: &mut SVector<f32, X>,
+    shared: &[bool; M],
+    shares: &[f32; M],
+    sum_w: f32,
+) {
+    for m in (0..M).filter(|m| shared[*m]) {
+        if let Some(b) = x.get_mut(N + m) {
+            *b = sum_w * shares[m];
+        }
+    }
+}
+
+/// The present shares of the shared heat (dimensionless, summing to 1 over
+/// `shared`): each source's Joule power `powers_w` \[W\] at the estimate,
+/// plus [`SHARE_NOMINAL_WEIGHT`] of its nominal power `nominal_w` \[W\]
+/// (which alone decides with no current); the nominal shares when the sum
+/// is not a positive finite number.
+pub(crate) fn present_shares<const M: usize>(
+    shared: &[bool; M],
+    powers_w: &[f32; M],
+    nominal_w: &[f32; M],
+) -> [f32; M] {
+    let weight = |m: usize, floor: f32| {
+        if shared[m] {
+            powers_w[m].abs() + floor * nominal_w[m]
+        } else {
+            0.0
+        }
+    };
+    let total: f32 = (0..M).map(|m| weight(m, SHARE_NOMINAL_WEIGHT)).sum();
+    if total.is_finite() && total > 0.0 {
+        return core::array::from_fn(|m| weight(m, SHARE_NOMINAL_WEIGHT) / total);
+    }
+    let nominal: f32 = (0..M).filter(|m| shared[*m]).map(|m| nominal_w[m]).sum();
+    core::array::from_fn(|m| {
+        if shared[m] && nominal > 0.0 {
+            nominal_w[m] / nominal
+        } else {
+            0.0
+        }
+    })
+}
