@@ -179,6 +179,10 @@ struct Sized<const C: usize, const X: usize> {
     pending: [Option<f32>; SENSOR_SLOTS],
     /// The boundary the alarm takes as the ambient.
     ambient_boundary: usize,
+    /// The fused sensors (the first slots); the others sit on `spare`.
+    real_sensors: usize,
+    /// The padding node of the unused slots.
+    spare: usize,
 }
 
 /// What a padded observer is built from (sizes at run time).
@@ -264,6 +268,8 @@ impl<const C: usize, const X: usize> Sized<C, X> {
             },
             pending: [None; SENSOR_SLOTS],
             ambient_boundary: settings.ambient_boundary.min(1),
+            real_sensors: sensor_nodes.len(),
+            spare,
         }))
     }
 }
@@ -318,6 +324,28 @@ impl<const C: usize, const X: usize> PaddedObserver for Sized<C, X> {
                 }),
                 sampled_at_us: now_us,
             });
+        }
+        // The unused slots read their padding node's own estimate whenever
+        // a real reading arrives: a zero innovation on a node no real node
+        // is coupled to, so the real nodes' correction is the firmware's,
+        // and no slot falls silent. (A silent sensor is one in doubt, and
+        // a sensor in doubt raises the published upper bounds to the
+        // uncorrected shadow model's: the firmware's real sensors never
+        // are.)
+        if self.inputs.readings[..self.real_sensors]
+            .iter()
+            .any(Option::is_some)
+        {
+            let spare_c = self.observer.temps_c(&self.state)[self.spare];
+            for slot in &mut self.inputs.readings[self.real_sensors..] {
+                *slot = Some(TimedReading {
+                    result: Ok(Reading {
+                        temp_c: spare_c,
+                        cold_junction_c: 25.0,
+                    }),
+                    sampled_at_us: now_us,
+                });
+            }
         }
         let start = Instant::now();
         std::hint::black_box(self.observer.tick(&mut self.state, &self.inputs));
