@@ -510,3 +510,26 @@ fn codegen_names_the_builders_refusal_with_its_fix() {
             .stdout(contains("pub const PARTS"));
     }
 }
+
+/// The one text of what to change for a builder's refusal: the bias
+/// advice only when there are bias states to blame.
+#[test]
+fn the_build_hint_names_the_fix_for_its_error_only() {
+    use coil_thermal::BuildError;
+    use coil_thermal_host::codegen::build_hint::observer_build_hint;
+    let gain = BuildError::NotConverged {
+        name: "steady_state_gain",
+    };
+    let hint = observer_build_hint(&gain, 1e-3).expect("a hint for the gain");
+    assert!(hint.contains("[observer] bias_sources"), "{hint}");
+    assert!(hint.contains("bias_noise_w2_per_s = 0"), "{hint}");
+    assert_eq!(observer_build_hint(&gain, 0.0), None);
+    let unseen = BuildError::Unobservable {
+        node: 1,
+        sigma_k: 30.0,
+    };
+    assert!(observer_build_hint(&unseen, 0.0)
+        .expect("a hint for an unobservable node")
+        .contains("[observer] sensors"));
+    assert_eq!(observer_build_hint(&BuildError::Singular, 1e-3), None);
+}
