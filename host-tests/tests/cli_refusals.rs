@@ -287,3 +287,249 @@ fn current_a_for_a_model_without_current_input_is_refused() {
         &["--current-a has 2 values but model `two-node-coil` has 1 current inputs"],
     );
 }
+
+/// `codegen --help` says what a model file's codegen needs on the host
+/// (cargo, the library's source), how long the first run takes and where
+/// the generator is built.
+#[test]
+fn codegen_help_says_what_it_needs_and_where_it_builds() {
+    // Words, not lines: the help is wrapped to the terminal.
+    let help = stdout_of(&["codegen", "--help"])
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    for needle in [
+        "it needs cargo (on PATH, or $CARGO)",
+        "the coil-thermal library's source on this host",
+        "The first run compiles the library",
+        "$CARGO_TARGET_DIR/coil-thermal-codegen",
+        "$XDG_CACHE_HOME/coil-thermal/codegen",
+        "never the library's own `target`",
+    ] {
+        assert!(
+            help.contains(needle),
+            "codegen --help lacks `{needle}`:\n{help}"
+        );
+    }
+}
+
+/// Where the generator is built: `--target-dir`, then `$CARGO_TARGET_DIR`,
+/// then the per-user cache, then the temp directory; never the library's
+/// own `target/`.
+#[test]
+fn the_generator_is_built_in_a_per_user_cache_by_default() {
+    use coil_thermal_host::codegen::work_dir;
+    use std::ffi::OsString;
+    let env = |vars: &'static [(&'static str, &'static str)]| {
+        move |name: &str| {
+            vars.iter()
+                .find(|(k, _)| *k == name)
+                .map(|(_, v)| OsString::from(v))
+        }
+    };
+    let all: &[(&str, &str)] = &[
+        ("CARGO_TARGET_DIR", "/ct"),
+        ("XDG_CACHE_HOME", "/xdg"),
+        ("HOME", "/home/u"),
+    ];
+    assert_eq!(
+        work_dir(Some(Path::new("/given")), env(all)),
+        Path::new("/given/coil-thermal-codegen")
+    );
+    assert_eq!(
+        work_dir(None, env(all)),
+        Path::new("/ct/coil-thermal-codegen")
+    );
+    assert_eq!(
+        work_dir(
+            None,
+            env(&[("XDG_CACHE_HOME", "/xdg"), ("HOME", "/home/u")])
+        ),
+        Path::new("/xdg/coil-thermal/codegen")
+    );
+    // A relative XDG_CACHE_HOME is ignored (the XDG rule), as is an empty
+    // variable.
+    assert_eq!(
+        work_dir(
+            None,
+            env(&[
+                ("CARGO_TARGET_DIR", ""),
+                ("XDG_CACHE_HOME", "rel"),
+                ("HOME", "/home/u")
+            ])
+        ),
+        Path::new("/home/u/.cache/coil-thermal/codegen")
+    );
+    assert_eq!(
+        work_dir(None, env(&[])),
+        std::env::temp_dir().join("coil-thermal-codegen")
+    );
+}
+
+fn codegen(model: &Path) -> assert_cmd::Command {
+    let mut c = ct();
+    c.args(["codegen", "--model", s(model), "--out", "-"]);
+    c
+}
+
+/// No cargo: said so, with how to fix it (it was "cannot run cargo for the
+/// generator").
+#[test]
+fn codegen_without_cargo_says_so() {
+    let dir = TempDir::new().unwrap();
+    refused(
+        codegen(&models().join("drive-3node-fitted.toml"))
+            .env_remove("CARGO")
+            .env("PATH", dir.path())
+            .assert(),
+        &[
+            "cargo not found on PATH (and CARGO is not set)",
+            "https://rustup.rs",
+            "set CARGO=/path/to/cargo",
+        ],
+    );
+}
+
+/// No coil-thermal source at `--library`: the path and what is expected.
+#[test]
+fn codegen_names_a_library_path_without_the_source() {
+    let dir = TempDir::new().unwrap();
+    let model = models().join("drive-3node-fitted.toml");
+    let nowhere = dir.path().join("nowhere");
+    refused(
+        codegen(&model).args(["--library", s(&nowhere)]).assert(),
+        &[
+            &format!("--library {}: no such directory", nowhere.display()),
+            "expected a directory holding coil-thermal's Cargo.toml",
+        ],
+    );
+    let other = dir.path().join("other");
+    fs::create_dir_all(&other).unwrap();
+    fs::write(
+        other.join("Cargo.toml"),
+        "[package]\nname = \"other\"\nversion = \"0.1.0\"\n",
+    )
+    .unwrap();
+    refused(
+        codegen(&model).args(["--library", s(&other)]).assert(),
+        &[
+            "its Cargo.toml is package `other`",
+            "expected a directory holding coil-thermal's Cargo.toml",
+        ],
+    );
+}
+
+/// A generator that does not compile (here against a coil-thermal with
+/// nothing in it) is told as such, with the crate's directory: by default
+/// in the per-user cache, not in the library's `target/`.
+#[test]
+fn codegen_tells_a_compile_failure_and_builds_outside_the_library() {
+    let dir = TempDir::new().unwrap();
+    let fake = dir.path().join("fake");
+    fs::create_dir_all(fake.join("src")).unwrap();
+    fs::write(
+        fake.join("Cargo.toml"),
+        "[package]\nname = \"coil-thermal\"\nversion = \"0.1.0\"\nedition = \"2021\"\n\n[workspace]\n",
+    )
+    .unwrap();
+    fs::write(fake.join("src/lib.rs"), "").unwrap();
+    let cache = dir.path().join("cache");
+    let out = codegen(&models().join("drive-3node-fitted.toml"))
+        .args(["--library", s(&fake)])
+        .env_remove("CARGO_TARGET_DIR")
+        .env("XDG_CACHE_HOME", &cache)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    let crates = cache.join("coil-thermal").join("codegen");
+    for needle in [
+        format!("compiling the generator (in {}", crates.display()),
+        format!(
+            "against the coil-thermal library at {}",
+            fake.canonicalize().unwrap().display()
+        ),
+        "cargo said:".to_string(),
+    ] {
+        assert!(stderr.contains(&needle), "no `{needle}` in:\n{stderr}");
+    }
+    assert!(!stderr.contains("refuses the model"), "{stderr}");
+    assert!(
+        crates.join("target").is_dir(),
+        "built in {}",
+        crates.display()
+    );
+    assert!(
+        !fake.join("target").exists(),
+        "built in the library's target/"
+    );
+}
+
+/// The library's builder refusing the model is told apart from a compile
+/// failure, with its error and what to change in the model file; each
+/// change it names is then accepted.
+#[test]
+fn codegen_names_the_builders_refusal_with_its_fix() {
+    let dir = TempDir::new().unwrap();
+    // Two phases under one housing thermocouple: it sees one heat, and
+    // cannot tell the two sources' heat biases apart.
+    let phases = "name = \"two-phases\"\n\
+        [[node]]\nname = \"phase_a\"\ncapacity_j_per_k = 100.0\ncritical_c = 155.0\n\
+        [[node]]\nname = \"phase_b\"\ncapacity_j_per_k = 100.0\ncritical_c = 155.0\n\
+        [[node]]\nname = \"housing\"\ncapacity_j_per_k = 900.0\n\
+        [[boundary]]\nname = \"ambient\"\nvalue_c = 20.0\n\
+        [[conductance]]\nbetween = [\"phase_a\", \"housing\"]\ng_w_per_k = 1.0\n\
+        [[conductance]]\nbetween = [\"phase_b\", \"housing\"]\ng_w_per_k = 1.0\n\
+        [[conductance]]\nbetween = [\"housing\", \"ambient\"]\ng_w_per_k = 0.5\n\
+        [[source]]\nname = \"a\"\nnode = \"phase_a\"\nr0_ohm = 2.0\nalpha_per_k = 0.0039\n\
+        [[source]]\nname = \"b\"\nnode = \"phase_b\"\nr0_ohm = 2.0\nalpha_per_k = 0.0039\n\
+        [observer]\nsensors = [\"housing\"]\n";
+    let model = dir.path().join("phases.toml");
+    fs::write(&model, phases).unwrap();
+    let out = codegen(&model).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    for needle in [
+        "phases.toml: the coil-thermal library's observer builder refuses the model: \
+         `steady_state_gain` did not converge",
+        "in `[observer] bias_sources`",
+        "`[observer] bias_noise_w2_per_s = 0`",
+    ] {
+        assert!(stderr.contains(needle), "no `{needle}` in:\n{stderr}");
+    }
+    assert!(!stderr.contains("compiling the generator"), "{stderr}");
+    for (name, fix) in [
+        ("frozen.toml", "bias_noise_w2_per_s = 0.0\n"),
+        ("one-bias.toml", "bias_sources = [\"a\"]\n"),
+    ] {
+        let fixed = dir.path().join(name);
+        fs::write(&fixed, format!("{phases}{fix}")).unwrap();
+        codegen(&fixed)
+            .assert()
+            .success()
+            .stdout(contains("pub const PARTS"));
+    }
+}
+
+/// The one text of what to change for a builder's refusal: the bias
+/// advice only when there are bias states to blame.
+#[test]
+fn the_build_hint_names_the_fix_for_its_error_only() {
+    use coil_thermal::BuildError;
+    use coil_thermal_host::codegen::build_hint::observer_build_hint;
+    let gain = BuildError::NotConverged {
+        name: "steady_state_gain",
+    };
+    let hint = observer_build_hint(&gain, 1e-3).expect("a hint for the gain");
+    assert!(hint.contains("[observer] bias_sources"), "{hint}");
+    assert!(hint.contains("bias_noise_w2_per_s = 0"), "{hint}");
+    assert_eq!(observer_build_hint(&gain, 0.0), None);
+    let unseen = BuildError::Unobservable {
+        node: 1,
+        sigma_k: 30.0,
+    };
+    assert!(observer_build_hint(&unseen, 0.0)
+        .expect("a hint for an unobservable node")
+        .contains("[observer] sensors"));
+    assert_eq!(observer_build_hint(&BuildError::Singular, 1e-3), None);
+}

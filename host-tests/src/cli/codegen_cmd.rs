@@ -22,7 +22,9 @@ pub enum Device {
     HppaGrid,
 }
 
-/// `codegen` arguments.
+/// `codegen` arguments: a model file (solved by a generator compiled
+/// against the coil-thermal library's source with cargo, see
+/// [`crate::codegen::generate`]) or a built-in device.
 #[derive(Debug, Args)]
 pub struct CodegenArgs {
     /// The model file (TOML, with an `[observer]` table naming the sensors;
@@ -44,12 +46,16 @@ pub struct CodegenArgs {
     /// `[observer] sensors`.
     #[arg(long = "sensor", value_name = "NODE")]
     sensors: Vec<String>,
-    /// The coil-thermal library to solve with (default: the one this tool
-    /// was built from).
+    /// The coil-thermal library's source to solve with: a directory holding
+    /// coil-thermal's Cargo.toml (default: the source tree this tool was
+    /// built from).
     #[arg(long, value_name = "DIR")]
     library: Option<PathBuf>,
-    /// Cargo target directory for the generator (default: $CARGO_TARGET_DIR,
-    /// else the library's `target`).
+    /// Where the generator is built, in DIR/coil-thermal-codegen (default:
+    /// $CARGO_TARGET_DIR/coil-thermal-codegen, else
+    /// $XDG_CACHE_HOME/coil-thermal/codegen, else
+    /// $HOME/.cache/coil-thermal/codegen, else the system's temp
+    /// directory; never the library's own `target`).
     #[arg(long, value_name = "DIR")]
     target_dir: Option<PathBuf>,
     /// With `--device omnimagnet`: the thermocouples fitted, by index 0-5

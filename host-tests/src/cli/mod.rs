@@ -63,6 +63,19 @@ enum Command {
     /// Write a `no_std` Rust module holding a model's firmware observer,
     /// solved on this host, as `const` data (the MCU computes no exponential
     /// and no Riccati solution).
+    ///
+    /// For a model file, the tables are solved by the coil-thermal library
+    /// itself at the model's own sizes: codegen writes a small generator
+    /// program, compiles it against the library with cargo and runs it. So
+    /// it needs cargo (on PATH, or $CARGO) and the coil-thermal library's
+    /// source on this host (by default the tree this tool was built from;
+    /// --library DIR for another). The first run compiles the library and
+    /// its dependencies (measured: about 20 s to a minute on a 2-core host
+    /// with the dependencies downloaded; more if cargo must download them),
+    /// kept for later runs (about 2 s) in $CARGO_TARGET_DIR/coil-thermal-codegen,
+    /// else $XDG_CACHE_HOME/coil-thermal/codegen, else
+    /// ~/.cache/coil-thermal/codegen (--target-dir DIR: DIR/coil-thermal-codegen).
+    /// `--device` needs neither: its sizes are built into this tool.
     Codegen(codegen_cmd::CodegenArgs),
     /// The fault campaign: every fault class x every sensor x several
     /// onsets against the clean run (time to flag, estimate error, shutdown

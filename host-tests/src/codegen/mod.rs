@@ -8,8 +8,8 @@
 //! instantiate sizes it was not compiled for. So the generator writes the
 //! model's network as Rust (the module's `network()`), compiles a small
 //! program with the model's exact sizes against this library (cargo, in
-//! `<target>/coil-thermal-codegen`, the dependencies built once and
-//! reused), and runs it: it calls
+//! [`work_dir`], the dependencies built once and reused), and runs it: it
+//! calls
 //! [`NetworkObserverBuilder::parts`](coil_thermal::observer::network::NetworkObserverBuilder::parts),
 //! the same solve as `build()` on the MCU, and prints the tables with
 //! [`NetworkParts::write_rust`](coil_thermal::observer::network::NetworkParts::write_rust).
@@ -39,6 +39,7 @@
 //! process and written with a `static OBSERVER` the compiler assembles
 //! (the `devices` submodule: [`generate_omnimagnet`], [`generate_grid`]).
 
+use std::ffi::OsString;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -48,6 +49,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::model_file::{Model, ModelFile};
 
+pub mod build_hint;
 mod currents;
 mod devices;
 
@@ -116,8 +118,9 @@ pub struct CodegenRequest {
     /// The `coil-thermal` library the generator compiles against (default:
     /// the one this tool was built from).
     pub library: Option<PathBuf>,
-    /// Cargo's target directory for the generator (default
-    /// `<library>/target`).
+    /// The directory under which the generator crates and their cargo
+    /// target directory go, in `<DIR>/coil-thermal-codegen` (default: see
+    /// [`work_dir`]).
     pub target_dir: Option<PathBuf>,
 }
 
@@ -430,67 +433,202 @@ impl Plan {
             format!("\n        .bias_sources({})", list(b))
         });
         format!(
-            "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn main() -> Result<(), coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings({settings}){bias_sources}\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    print!(\"{{text}}\");\n    Ok(())\n}}\n",
+            "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n#[allow(dead_code)]\n#[path = \"build_hint.rs\"]\nmod build_hint;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn parts(settings: NetworkSettings) -> Result<String, coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings(settings){bias_sources}\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    Ok(text)\n}}\n\nfn main() {{\n    let settings = {settings};\n    match parts(settings) {{\n        Ok(text) => print!(\"{{text}}\"),\n        Err(e) => {{\n            eprintln!(\"{error_marker}{{e}}\");\n            if let Some(hint) = build_hint::observer_build_hint(&e, settings.bias_noise_w2_per_s) {{\n                eprintln!(\"{hint_marker}{{hint}}\");\n            }}\n            std::process::exit({exit});\n        }}\n    }}\n}}\n",
             sensors = list(&self.sensor_nodes),
             critical = list(&self.model.critical_c),
+            error_marker = REFUSED_MARKER,
+            hint_marker = HINT_MARKER,
+            exit = REFUSED_EXIT,
         )
     }
 }
+
+/// The generator's exit code when the library's builder refuses the model
+/// (a compile failure is cargo's, a crash the runtime's).
+const REFUSED_EXIT: i32 = 3;
+/// The generator's stderr line with the builder's error.
+const REFUSED_MARKER: &str = "coil-thermal-codegen refused: ";
+/// The generator's stderr line with what to change.
+const HINT_MARKER: &str = "coil-thermal-codegen hint: ";
 
 /// The library this tool was built from.
 fn default_library() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// Writes the generator crate and runs it; returns the parts' Rust text.
-fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
-    // One crate per model (several may be generated at once, e.g. by
-    // parallel tests), all sharing one target directory for the library
-    // and its dependencies.
+/// Where `codegen` keeps its generator crates and their cargo target
+/// directory (the library and its dependencies, built once and reused):
+/// `<DIR>/coil-thermal-codegen` with `--target-dir DIR`; else
+/// `$CARGO_TARGET_DIR/coil-thermal-codegen`; else a per-user cache,
+/// `$XDG_CACHE_HOME/coil-thermal/codegen` (an absolute path), else
+/// `$HOME/.cache/coil-thermal/codegen`; else
+/// `<system temp dir>/coil-thermal-codegen`. Never the library's own
+/// `target/`, which may be read-only or another build's. `env` looks up an
+/// environment variable (`std::env::var_os` in the tool).
+pub fn work_dir(target_dir: Option<&Path>, env: impl Fn(&str) -> Option<OsString>) -> PathBuf {
+    let set = |name: &str| env(name).filter(|v| !v.is_empty()).map(PathBuf::from);
+    if let Some(dir) = target_dir {
+        return dir.join("coil-thermal-codegen");
+    }
+    if let Some(dir) = set("CARGO_TARGET_DIR") {
+        return dir.join("coil-thermal-codegen");
+    }
+    if let Some(dir) = set("XDG_CACHE_HOME").filter(|d| d.is_absolute()) {
+        return dir.join("coil-thermal").join("codegen");
+    }
+    if let Some(home) = set("HOME") {
+        return home.join(".cache").join("coil-thermal").join("codegen");
+    }
+    std::env::temp_dir().join("coil-thermal-codegen")
+}
+
+/// The library's source directory, checked: a directory holding
+/// coil-thermal's `Cargo.toml`.
+fn library_source(library: &Path, given: bool) -> Result<PathBuf> {
+    let whose = if given {
+        format!("--library {}", library.display())
+    } else {
+        format!(
+            "{} (the coil-thermal source this tool was built from; pass --library DIR for another)",
+            library.display()
+        )
+    };
+    let expected = "codegen compiles its generator against the coil-thermal library's source: \
+                    expected a directory holding coil-thermal's Cargo.toml ([package] name = \
+                    \"coil-thermal\"), such as a checkout of its repository";
+    let Ok(dir) = library.canonicalize() else {
+        bail!("{whose}: no such directory; {expected}");
+    };
+    let manifest = dir.join("Cargo.toml");
+    let Ok(text) = std::fs::read_to_string(&manifest) else {
+        bail!("{whose}: no Cargo.toml there; {expected}");
+    };
+    let name = text
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|t| t.get("package")?.get("name")?.as_str().map(String::from));
+    match name.as_deref() {
+        Some("coil-thermal") => Ok(dir),
+        Some(other) => bail!("{whose}: its Cargo.toml is package `{other}`; {expected}"),
+        None => bail!("{whose}: its Cargo.toml names no package; {expected}"),
+    }
+}
+
+/// The cargo to build the generator with: `$CARGO`, else `cargo` on the
+/// `PATH`, checked to run.
+fn cargo_program() -> Result<OsString> {
+    let (cargo, from_env) = match std::env::var_os("CARGO").filter(|c| !c.is_empty()) {
+        Some(c) => (c, true),
+        None => ("cargo".into(), false),
+    };
+    match Command::new(&cargo).arg("--version").output() {
+        Ok(out) if out.status.success() => Ok(cargo),
+        Ok(out) => bail!(
+            "`{} --version` failed: {}",
+            cargo.to_string_lossy(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ),
+        Err(e) if from_env => bail!(
+            "CARGO={}: cannot run it ({e}); codegen builds its generator with cargo: set CARGO \
+             to cargo's path, or unset it to use the cargo on PATH",
+            cargo.to_string_lossy()
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!(
+            "cargo not found on PATH (and CARGO is not set): codegen compiles a small generator \
+             program against the coil-thermal library with cargo; install Rust with cargo \
+             (https://rustup.rs) or put cargo on PATH, or set CARGO=/path/to/cargo"
+        ),
+        Err(e) => bail!("cannot run cargo ({e}); codegen builds its generator with cargo"),
+    }
+}
+
+/// Writes the generator crate, builds it and runs it; returns the parts'
+/// Rust text.
+fn solve(plan: &Plan, library: &Path, root: &Path, model: &Path) -> Result<String> {
+    let cargo = cargo_program()?;
+    // One crate per model and library (several may be generated at once,
+    // e.g. by parallel tests, or from several checkouts into one cache),
+    // all sharing one target directory for the library and its
+    // dependencies.
     let head = plan.head();
     let main = plan.generator_main();
     let name = {
         use std::hash::{Hash, Hasher};
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        (&head, &main).hash(&mut hasher);
+        (&head, &main, library).hash(&mut hasher);
         format!("coil-thermal-codegen-{:016x}", hasher.finish())
     };
-    let root = target_dir.join("coil-thermal-codegen");
     let dir = root.join(&name);
     std::fs::create_dir_all(dir.join("src"))
         .with_context(|| format!("{}: cannot create the generator crate", dir.display()))?;
-    let library = library.canonicalize().with_context(|| {
-        format!(
-            "{}: no coil-thermal library here (--library)",
-            library.display()
-        )
-    })?;
     let manifest = format!(
         "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?} }}\n\n[workspace]\n",
         library.display().to_string()
     );
-    std::fs::write(dir.join("Cargo.toml"), manifest)?;
+    let write = |file: &str, text: &str| {
+        std::fs::write(dir.join(file), text)
+            .with_context(|| format!("{}: cannot write", dir.join(file).display()))
+    };
+    write("Cargo.toml", &manifest)?;
     // The library's lock pins the generator's dependencies to the versions
     // the library is tested with (and needs no registry when they are cached).
     let lock = library.join("Cargo.lock");
     if lock.exists() && !dir.join("Cargo.lock").exists() {
         std::fs::copy(&lock, dir.join("Cargo.lock"))?;
     }
-    std::fs::write(dir.join("src/head.rs"), head)?;
-    std::fs::write(dir.join("src/main.rs"), main)?;
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let output = Command::new(cargo)
-        .args(["run", "--release", "--quiet", "--manifest-path"])
+    write("src/head.rs", &head)?;
+    write("src/build_hint.rs", include_str!("build_hint.rs"))?;
+    write("src/main.rs", &main)?;
+    let target = root.join("target");
+    let built = Command::new(&cargo)
+        .args(["build", "--release", "--quiet", "--manifest-path"])
         .arg(dir.join("Cargo.toml"))
-        .env("CARGO_TARGET_DIR", root.join("target"))
+        .env("CARGO_TARGET_DIR", &target)
         .env_remove("RUSTFLAGS")
         .output()
         .context("cannot run cargo for the generator")?;
+    if !built.status.success() {
+        bail!(
+            "compiling the generator (in {}) against the coil-thermal library at {} failed; is \
+             that library the version this tool was built from (or pass --library DIR)? \
+             cargo said:\n{}",
+            dir.display(),
+            library.display(),
+            String::from_utf8_lossy(&built.stderr).trim_end()
+        );
+    }
+    let program = target
+        .join("release")
+        .join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    let output = Command::new(&program)
+        .output()
+        .with_context(|| format!("{}: cannot run the generator", program.display()))?;
+    if output.status.code() == Some(REFUSED_EXIT) {
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        let line = |marker: &str| {
+            stderr
+                .lines()
+                .find_map(|l| l.strip_prefix(marker))
+                .map(str::to_string)
+        };
+        let error = line(REFUSED_MARKER).unwrap_or_else(|| stderr.trim().to_string());
+        match line(HINT_MARKER) {
+            Some(hint) => bail!(
+                "{}: the coil-thermal library's observer builder refuses the model: {error}; {hint}",
+                model.display()
+            ),
+            None => bail!(
+                "{}: the coil-thermal library's observer builder refuses the model: {error}",
+                model.display()
+            ),
+        }
+    }
     if !output.status.success() {
         bail!(
-            "the generator failed (the library's builder refused the model?):\n{}{}",
-            String::from_utf8_lossy(&output.stdout),
-            String::from_utf8_lossy(&output.stderr)
+            "the generator {} failed ({}):\n{}",
+            program.display(),
+            output.status,
+            String::from_utf8_lossy(&output.stderr).trim_end()
         );
     }
     String::from_utf8(output.stdout).context("the generator printed non-UTF-8")
@@ -500,17 +638,16 @@ fn solve(plan: &Plan, library: &Path, target_dir: &Path) -> Result<String> {
 ///
 /// # Errors
 /// A model the firmware observer cannot take (no sensor, speed terms, a
-/// refusal of the library's builder, named), or a failed generator build.
+/// refusal of the library's builder, named with what to change); no cargo;
+/// no coil-thermal source at the library path; or a failed generator build.
 pub fn generate(req: &CodegenRequest) -> Result<String> {
     let plan = plan(req)?;
-    let library = req.library.clone().unwrap_or_else(default_library);
-    let target_dir = match &req.target_dir {
-        Some(t) => t.clone(),
-        None => std::env::var_os("CARGO_TARGET_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| library.join("target")),
+    let library = match &req.library {
+        Some(dir) => library_source(dir, true)?,
+        None => library_source(&default_library(), false)?,
     };
-    let parts = solve(&plan, &library, &target_dir)?;
+    let root = work_dir(req.target_dir.as_deref(), |name| std::env::var_os(name));
+    let parts = solve(&plan, &library, &root, &req.model)?;
     let mut o = plan.head();
     o.push_str("\n/// Every table of the observer, solved on the host in `f64` and rounded\n/// once to `f32`.\npub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> = ");
     o.push_str(parts.trim_end());
