@@ -10,7 +10,6 @@ use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal_host::calibrate::access_param;
 use coil_thermal_host::model_file::{Model, ModelFile};
 use coil_thermal_host::sim::{simulate, Drive, FilePlant};
-use predicates::prelude::PredicateBooleanExt;
 use serde_json::Value;
 use tempfile::TempDir;
 
