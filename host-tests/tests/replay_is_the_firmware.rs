@@ -253,3 +253,43 @@ fn replay_prints_the_generated_modules_protection() {
         assert!((r.0 - g.0).abs() <= 1e-3 + 1e-9, "{r:?} vs {g:?}");
     }
 }
+
+#[path = "../../examples/generated/hust_motor.rs"]
+mod hust_motor;
+
+#[path = "generated/all_input_terms.rs"]
+mod all_input_terms;
+
+/// The settings `replay` resolves from a model file (`FirmwareConfig`) are
+/// the ones `codegen` solved its generated module with, for every shipped
+/// model file with a generated module: the library settings, the sensor
+/// nodes, the critical temperatures, the derating product and the hardware
+/// limit.
+#[test]
+fn replays_settings_are_the_generated_modules() {
+    use coil_thermal_host::codegen::ObserverSpec;
+    use coil_thermal_host::firmware::FirmwareConfig;
+    use coil_thermal_host::model_file::{Model, ModelFile};
+
+    fn check<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+        file: &str,
+        parts: &coil_thermal::observer::network::NetworkParts<N, B, M, X, P>,
+    ) {
+        let path = root().join("host-tests").join(file);
+        let model_file = ModelFile::load(&path).unwrap();
+        let model = Model::build(&model_file).unwrap();
+        let spec: Option<&ObserverSpec> = model_file.observer.as_ref();
+        let config = FirmwareConfig::of(&model, spec).unwrap();
+        assert!(config.from_table, "{file}");
+        assert_eq!(config.settings, parts.settings, "{file}");
+        assert_eq!(config.sensor_nodes, parts.sensor_nodes, "{file}");
+        assert_eq!(config.critical_c, parts.critical_c, "{file}");
+        assert_eq!(config.derating, parts.derating_product, "{file}");
+        for h in parts.hardware_limit_a {
+            assert_eq!(config.hardware_limit_a, h, "{file}");
+        }
+    }
+    check("models/drive-3node-fitted.toml", &model::PARTS);
+    check("models/hust_motor_slot_fitted.toml", &hust_motor::PARTS);
+    check("models/all-input-terms.toml", &all_input_terms::PARTS);
+}
