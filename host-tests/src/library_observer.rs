@@ -235,15 +235,20 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             .settings(scaled)
             .bias_sources(bias_sources)
             .build::<X>()
-            .map_err(|e| match e {
-                coil_thermal::BuildError::NotConverged { .. }
-                    if settings.bias_noise_w2_per_s > 0.0 => anyhow!(
-                    "the library observer of model `{name}` with its heat-bias states ({} W^2/s) does not build: {e} \
-                     (the sensors cannot see every source's bias: name the sources whose heat they can see in `[observer] bias_sources`, \
-                     or freeze the biases with `[observer] bias_noise_w2_per_s = 0` (replay: --bias-noise-w2-per-s 0), or estimate the missing heat with --disturbance)",
-                    settings.bias_noise_w2_per_s
-                ),
-                e => anyhow!("the library observer: {e}"),
+            .map_err(|e| {
+                // The same words as `codegen` and `faults` (one fix for one
+                // refusal).
+                match crate::codegen::build_hint::observer_build_hint(
+                    &e,
+                    settings.bias_noise_w2_per_s,
+                ) {
+                    Some(hint) => anyhow!(
+                        "the observer of model `{name}` does not build: {e}; {hint} \
+                         (replay: --bias-noise-w2-per-s 0 freezes the biases without editing the file, \
+                         --disturbance estimates the missing heat with the host's row-rate filter)"
+                    ),
+                    None => anyhow!("the observer of model `{name}` does not build: {e}"),
+                }
             })?;
         let origin = settings.origin_c as f32;
         let state = observer.state(&[origin; C], &[origin; 2]);

@@ -471,21 +471,23 @@ fn codegen_tells_a_compile_failure_and_builds_outside_the_library() {
 #[test]
 fn codegen_names_the_builders_refusal_with_its_fix() {
     let dir = TempDir::new().unwrap();
-    // Two phases under one housing thermocouple: it sees one heat, and
-    // cannot tell the two sources' heat biases apart.
+    // Two phases, one housing thermocouple, phase b cooled by the ambient
+    // alone: a heat bias named on b (`bias_sources`) is one the sensor
+    // cannot see at all. (Two phases both under the housing build: they
+    // share one heat bias by default.)
     let phases = "name = \"two-phases\"\n\
         [[node]]\nname = \"phase_a\"\ncapacity_j_per_k = 100.0\ncritical_c = 155.0\n\
         [[node]]\nname = \"phase_b\"\ncapacity_j_per_k = 100.0\ncritical_c = 155.0\n\
         [[node]]\nname = \"housing\"\ncapacity_j_per_k = 900.0\n\
         [[boundary]]\nname = \"ambient\"\nvalue_c = 20.0\n\
         [[conductance]]\nbetween = [\"phase_a\", \"housing\"]\ng_w_per_k = 1.0\n\
-        [[conductance]]\nbetween = [\"phase_b\", \"housing\"]\ng_w_per_k = 1.0\n\
+        [[conductance]]\nbetween = [\"phase_b\", \"ambient\"]\ng_w_per_k = 1.0\n\
         [[conductance]]\nbetween = [\"housing\", \"ambient\"]\ng_w_per_k = 0.5\n\
         [[source]]\nname = \"a\"\nnode = \"phase_a\"\nr0_ohm = 2.0\nalpha_per_k = 0.0039\n\
         [[source]]\nname = \"b\"\nnode = \"phase_b\"\nr0_ohm = 2.0\nalpha_per_k = 0.0039\n\
         [observer]\nsensors = [\"housing\"]\n";
     let model = dir.path().join("phases.toml");
-    fs::write(&model, phases).unwrap();
+    fs::write(&model, format!("{phases}bias_sources = [\"b\"]\n")).unwrap();
     let out = codegen(&model).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
@@ -499,7 +501,10 @@ fn codegen_names_the_builders_refusal_with_its_fix() {
     }
     assert!(!stderr.contains("compiling the generator"), "{stderr}");
     for (name, fix) in [
-        ("frozen.toml", "bias_noise_w2_per_s = 0.0\n"),
+        (
+            "frozen.toml",
+            "bias_sources = [\"b\"]\nbias_noise_w2_per_s = 0.0\n",
+        ),
         ("one-bias.toml", "bias_sources = [\"a\"]\n"),
     ] {
         let fixed = dir.path().join(name);

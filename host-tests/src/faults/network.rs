@@ -8,8 +8,9 @@
 //! in [`crate::library_observer`], the network is padded to
 //! `Network<C, 2, C>` for `C` in [`CLASSES`] (padding nodes decay to
 //! boundary 0 and touch no real node; padding sources carry no current),
-//! with [`SLOTS`] sensor slots, the unused ones on a padding node that never
-//! reads. The padding sources' heat biases are unobservable, so they are
+//! with one sensor slot per `[observer]` sensor (at most [`SLOTS`]: a padded
+//! slot would never read, fall silent and put the observer in doubt, which
+//! raises its upper bounds to the shadow model's as no firmware does). The padding sources' heat biases are unobservable, so they are
 //! left out of the bias states
 //! ([`NetworkObserverBuilder::bias_sources`]); the model's own sources keep
 //! theirs, at the model file's bias noise (the `[observer]` table's, or the
@@ -39,14 +40,14 @@ use crate::sim::{FilePlant, Plant};
 /// sensor slot, and sources).
 pub const CLASSES: [usize; 2] = [8, 16];
 
-/// Thermocouple slots of the padded observer.
+/// The most thermocouples the campaign's observer takes.
 pub const SLOTS: usize = 4;
 
 /// A model file's observer padded to `C` nodes and sources, `X = 2C`
 /// states, with its plant.
-struct NetSubject<const C: usize, const X: usize> {
+struct NetSubject<const C: usize, const X: usize, const P: usize> {
     name: String,
-    observer: NetworkObserver<C, 2, C, X, SLOTS>,
+    observer: NetworkObserver<C, 2, C, X, P>,
     settings: NetworkSettings,
     plant: FilePlant,
     nodes: usize,
@@ -57,7 +58,7 @@ struct NetSubject<const C: usize, const X: usize> {
     drives: Vec<(usize, f32)>,
 }
 
-impl<const C: usize, const X: usize> NetSubject<C, X> {
+impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
     fn build(
         model: &Model,
         spec: &ObserverSpec,
@@ -66,7 +67,7 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
     ) -> Result<Self, FaultError> {
         let invalid = |e: anyhow::Error| FaultError::Invalid(format!("{e:#}"));
         let network = padded_with::<C>(&model.network, Padding::DECAYING).map_err(invalid)?;
-        let mut slots = [model.nodes.len(); SLOTS];
+        let mut slots = [0; P];
         slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
         let mut critical = [None; C];
         critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
@@ -108,12 +109,18 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
             .settings(settings)
             .bias_sources(bias_sources)
             .build::<X>()
-            .map_err(|e| match e {
-                coil_thermal::BuildError::NotConverged { .. } => FaultError::Invalid(format!(
-                    "the observer of model `{}` with its heat-bias states ({} W^2/s) does not build: {e} (the sensors cannot see the sources' heat, each or shared: name the sources whose heat they can see in `[observer] bias_sources`, or set `[observer] bias_noise_w2_per_s = 0`, as its firmware needs too)",
-                    model.name, settings.bias_noise_w2_per_s
-                )),
-                e => FaultError::Build(e),
+            .map_err(|e| {
+                // The same words as `codegen` and `replay`.
+                match crate::codegen::build_hint::observer_build_hint(
+                    &e,
+                    settings.bias_noise_w2_per_s,
+                ) {
+                    Some(hint) => FaultError::Invalid(format!(
+                        "the observer of model `{}` does not build: {e}; {hint}",
+                        model.name
+                    )),
+                    None => FaultError::Build(e),
+                }
             })?;
         let plant = FilePlant::new(model.clone()).map_err(invalid)?;
         let mut alarm_nodes: Vec<usize> = (0..model.nodes.len())
@@ -139,8 +146,8 @@ impl<const C: usize, const X: usize> NetSubject<C, X> {
     }
 }
 
-impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
-    type State = NetworkObserverState<C, 2, C, X, SLOTS>;
+impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X, P> {
+    type State = NetworkObserverState<C, 2, C, X, P>;
 
     fn name(&self) -> String {
         self.name.clone()
@@ -176,7 +183,7 @@ impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
         for (c, (input, k)) in currents_a.iter_mut().zip(&self.drives) {
             *c = i.currents_a.get(*input).copied().unwrap_or(0.0) * k;
         }
-        let mut readings = [None; SLOTS];
+        let mut readings = [None; P];
         for (r, z) in readings.iter_mut().zip(i.readings) {
             *r = *z;
         }
@@ -213,7 +220,7 @@ impl<const C: usize, const X: usize> Subject for NetSubject<C, X> {
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
-        let mut readings = [None; SLOTS];
+        let mut readings = [None; P];
         for (r, z) in readings.iter_mut().zip(readings_c) {
             *r = *z;
         }
@@ -269,11 +276,24 @@ pub fn run_model(
     };
     let (model, spec, cfg) = (model.clone(), spec.clone(), cfg.clone());
     let job = move || -> anyhow::Result<Result<FaultReport, FaultError>> {
-        Ok(match class {
-            8 => NetSubject::<8, 16>::build(&model, &spec, sensor_nodes, &cfg)
-                .and_then(|s| run_on(&cfg, s)),
-            _ => NetSubject::<16, 32>::build(&model, &spec, sensor_nodes, &cfg)
-                .and_then(|s| run_on(&cfg, s)),
+        // As many slots as sensors: a slot that never reads falls silent,
+        // and a silent sensor is one in doubt, which raises the published
+        // upper bounds to the shadow model's; the firmware has no such slot.
+        macro_rules! run {
+            ($c:literal, $x:literal, $p:literal) => {
+                NetSubject::<$c, $x, $p>::build(&model, &spec, sensor_nodes, &cfg)
+                    .and_then(|s| run_on(&cfg, s))
+            };
+        }
+        Ok(match (class, spec.sensors.len()) {
+            (8, 1) => run!(8, 16, 1),
+            (8, 2) => run!(8, 16, 2),
+            (8, 3) => run!(8, 16, 3),
+            (8, _) => run!(8, 16, 4),
+            (_, 1) => run!(16, 32, 1),
+            (_, 2) => run!(16, 32, 2),
+            (_, 3) => run!(16, 32, 3),
+            (_, _) => run!(16, 32, 4),
         })
     };
     on_big_stack("faults", job).map_err(|e| invalid(format!("{e:#}")))?
