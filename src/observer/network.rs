@@ -1370,8 +1370,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         // The shared heat: its floor is the sum of the sources' floors
         // (with the biases in proportion to the present powers, each
-        // source's floor holds exactly when their sum does), and it goes
-        // back to the sources in proportion to their present power.
+        // source's floor holds when their sum does, to the shares' blend
+        // with the nominal powers: 1e-4 of them), and it goes back to the
+        // sources in proportion to their present power.
         let shared = &self.shared_bias;
         let shares = present_shares(shared, &powers_w, &self.nominal_power_w);
         let floor_w: f32 = -self.cooling_bias_fraction
