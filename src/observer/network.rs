@@ -192,8 +192,10 @@
 //! random walks are not observable apart and no steady gain exists
 //! ([`BuildError::NotConverged`]). So by default ([`BiasMode::Auto`]) the
 //! builder solves the per-source gain first and, when it does not
-//! converge, gives the biased sources **one heat bias shared in proportion
-//! to their Joule power** instead: the state keeps one bias entry per
+//! converge (or converges only to rounding, to biases so uncertain that a
+//! limited element would be refused as unobservable, as a network padded
+//! to a size class can), gives the biased sources **one heat bias shared
+//! in proportion to their Joule power** instead: the state keeps one bias entry per
 //! source (`X = N + M`, the tables' shapes unchanged), the process noise of
 //! the bias block is the rank one `q w w^T`, `w_m` each source's share of
 //! the nominal Joule power (its hardware limit squared times `R` at the
