@@ -192,8 +192,10 @@
 //! random walks are not observable apart and no steady gain exists
 //! ([`BuildError::NotConverged`]). So by default ([`BiasMode::Auto`]) the
 //! builder solves the per-source gain first and, when it does not
-//! converge, gives the biased sources **one heat bias shared in proportion
-//! to their Joule power** instead: the state keeps one bias entry per
+//! converge (or converges only to rounding, to biases so uncertain that a
+//! limited element would be refused as unobservable, as a network padded
+//! to a size class can), gives the biased sources **one heat bias shared
+//! in proportion to their Joule power** instead: the state keeps one bias entry per
 //! source (`X = N + M`, the tables' shapes unchanged), the process noise of
 //! the bias block is the rank one `q w w^T`, `w_m` each source's share of
 //! the nominal Joule power (its hardware limit squared times `R` at the
@@ -1370,8 +1372,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         // The shared heat: its floor is the sum of the sources' floors
         // (with the biases in proportion to the present powers, each
-        // source's floor holds exactly when their sum does), and it goes
-        // back to the sources in proportion to their present power.
+        // source's floor holds when their sum does, to the shares' blend
+        // with the nominal powers: 1e-4 of them), and it goes back to the
+        // sources in proportion to their present power.
         let shared = &self.shared_bias;
         let shares = present_shares(shared, &powers_w, &self.nominal_power_w);
         let floor_w: f32 = -self.cooling_bias_fraction

@@ -24,7 +24,8 @@ use crate::network::ScalarResistance;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum BiasMode<const M: usize> {
     /// A bias per source wherever the sensors can tell them apart (the
-    /// per-source steady gain converges); otherwise one heat bias shared by
+    /// per-source steady gain converges and leaves every limited element
+    /// within `max_element_sigma_k`); otherwise one heat bias shared by
     /// every biased source in proportion to its Joule power. The default.
     #[default]
     Auto,
