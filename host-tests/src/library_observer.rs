@@ -54,10 +54,14 @@
 //!
 //! When the sensors cannot see every source's bias (e.g. three sources and
 //! one sensor; the HUST models, copper and speed losses, with one sensor),
-//! the gain solve does not converge and the replay refuses, naming the
-//! fixes. `[observer] bias_sources` names the sources whose bias is
-//! estimated (the others' stay exactly 0, as the padding's), as the
-//! firmware generated from the file does: one sensor, one heat. Or the
+//! a bias per source has no steady gain, and the builder's default
+//! ([`BiasMode::Auto`](coil_thermal::observer::network::BiasMode)) gives
+//! the sources one heat bias shared in proportion to their Joule power, as
+//! the firmware generated from the file does: one sensor, one heat. Only
+//! where even that does not converge does the replay refuse, with the
+//! words `codegen` and `faults` use. `[observer] bias_sources` names the
+//! sources whose bias is estimated (the others' stay exactly 0, as the
+//! padding's). Or the
 //! firmware freezes every bias (`[observer] bias_noise_w2_per_s = 0`;
 //! `replay --bias-noise-w2-per-s 0` replays so without editing the file:
 //! temperatures corrected, no heat input estimated). A heat the model
