@@ -450,50 +450,63 @@ fn firmware_config(
         config.critical_c = vec![Some(c); model.nodes.len()];
     }
     let settings = &mut config.settings;
-    if let Some(v) = a.measurement_noise_k {
-        if !(v.is_finite() && v > 0.0) {
-            bail!("--measurement-noise-k must be finite and > 0, got {v}");
-        }
-        if v != settings.sensor_sigma_k {
-            overrides.push(Override {
-                flag: "--measurement-noise-k",
-                what: format!(
-                    "sensor noise {v} K instead of {} K",
-                    settings.sensor_sigma_k
-                ),
-            });
-        }
-        settings.sensor_sigma_k = v;
+    /// A noise flag: its value, its name and unit, whether 0 is allowed,
+    /// and the setting it overrides.
+    struct Noise<'s> {
+        flag: &'static str,
+        value: Option<f64>,
+        name: &'static str,
+        unit: &'static str,
+        zero_allowed: bool,
+        setting: &'s mut f64,
     }
-    if let Some(v) = a.process_noise_k2_per_s {
-        if !(v.is_finite() && v >= 0.0) {
-            bail!("--process-noise-k2-per-s must be finite and >= 0, got {v}");
+    let noises = [
+        Noise {
+            flag: "--measurement-noise-k",
+            value: a.measurement_noise_k,
+            name: "sensor noise",
+            unit: "K",
+            zero_allowed: false,
+            setting: &mut settings.sensor_sigma_k,
+        },
+        Noise {
+            flag: "--process-noise-k2-per-s",
+            value: a.process_noise_k2_per_s,
+            name: "node noise",
+            unit: "K^2/s",
+            zero_allowed: true,
+            setting: &mut settings.node_noise_k2_per_s,
+        },
+        Noise {
+            flag: "--bias-noise-w2-per-s",
+            value: a.bias_noise_w2_per_s,
+            name: "bias noise",
+            unit: "W^2/s",
+            zero_allowed: true,
+            setting: &mut settings.bias_noise_w2_per_s,
+        },
+    ];
+    for Noise {
+        flag,
+        value,
+        name,
+        unit,
+        zero_allowed,
+        setting,
+    } in noises
+    {
+        let Some(v) = value else { continue };
+        if !(v.is_finite() && (v > 0.0 || (zero_allowed && v == 0.0))) {
+            let bound = if zero_allowed { ">= 0" } else { "> 0" };
+            bail!("{flag} must be finite and {bound}, got {v}");
         }
-        if v != settings.node_noise_k2_per_s {
+        if v != *setting {
             overrides.push(Override {
-                flag: "--process-noise-k2-per-s",
-                what: format!(
-                    "node noise {v} K^2/s instead of {} K^2/s",
-                    settings.node_noise_k2_per_s
-                ),
+                flag,
+                what: format!("{name} {v} {unit} instead of {} {unit}", *setting),
             });
         }
-        settings.node_noise_k2_per_s = v;
-    }
-    if let Some(v) = a.bias_noise_w2_per_s {
-        if !(v.is_finite() && v >= 0.0) {
-            bail!("--bias-noise-w2-per-s must be finite and >= 0, got {v}");
-        }
-        if v != settings.bias_noise_w2_per_s {
-            overrides.push(Override {
-                flag: "--bias-noise-w2-per-s",
-                what: format!(
-                    "bias noise {v} W^2/s instead of {} W^2/s",
-                    settings.bias_noise_w2_per_s
-                ),
-            });
-        }
-        settings.bias_noise_w2_per_s = v;
+        *setting = v;
     }
     if let Some(t) = a.tick_us {
         if t == 0 {
