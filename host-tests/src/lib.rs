@@ -39,6 +39,7 @@ pub mod devices;
 pub mod dynamic_network;
 pub mod faults;
 pub mod firmware;
+pub mod grid_firmware;
 pub mod grid_reference;
 pub mod kalman;
 pub mod library_observer;

@@ -1,5 +1,5 @@
 //! README's main job, as README writes it: the HPPA grid replayed over the
-//! validation trace through the library's `NetworkObserver` at 1 ms ticks.
+//! validation trace through the grid observer the firmware flashes, at 1 ms ticks.
 //! The distribution of the library tick's time is printed (run with
 //! `--nocapture` to see it) and never asserted: CI machines are shared.
 
@@ -32,7 +32,7 @@ fn readme_main_job() -> Vec<String> {
 }
 
 #[test]
-fn readme_main_job_replays_through_the_library_observer_and_times_each_tick() {
+fn readme_main_job_replays_through_the_flashed_grid_observer_and_times_each_tick() {
     let tmp = TempDir::new().unwrap();
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
     let mut args = readme_main_job();
@@ -49,7 +49,9 @@ fn readme_main_job_replays_through_the_library_observer_and_times_each_tick() {
         .assert()
         .success();
     let j: Value = serde_json::from_slice(&out.get_output().stdout).unwrap();
-    assert_eq!(j["estimator"], "network-observer");
+    // The grid observer the firmware flashes (`observer_m4`), not a
+    // network observer over the grid.
+    assert_eq!(j["estimator"], "grid-observer");
     assert_eq!(j["model"], "hppa-7x12");
     let t = &j["step_time"];
     assert_eq!(t["step"], "library tick");

@@ -293,3 +293,111 @@ fn replays_settings_are_the_generated_modules() {
     check("models/hust_motor_slot_fitted.toml", &hust_motor::PARTS);
     check("models/all-input-terms.toml", &all_input_terms::PARTS);
 }
+
+#[path = "../../examples/generated/hppa_grid.rs"]
+mod hppa_grid;
+
+/// `replay --model hppa` (README's main job) runs the grid observer the
+/// firmware flashes (`examples/generated/hppa_grid.rs`, `observer_m4`),
+/// not a network observer over the grid: every coil's estimate, upper
+/// bound, alarm limit and current limit, and every event, are the
+/// generated module's ticked directly at 1 ms over the validation trace.
+#[test]
+fn replay_of_hppa_is_the_flashed_grid_observer() {
+    use coil_thermal::observer::grid::GridInputs;
+    const ROWS: usize = 7;
+    const COLS: usize = 12;
+    let trace = root().join("host-tests/traces/validation.csv");
+    let tmp = TempDir::new().unwrap();
+    let out = tmp.path().join("grid.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model", "hppa", "--trace"])
+        .arg(&trace)
+        .args(["--json", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let json: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    assert_eq!(json["estimator"], "grid-observer", "{json}");
+    assert_eq!(json["firmware_observer"]["kind"], "grid-observer");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let replayed: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let col = |name: String| header.iter().position(|h| *h == name).unwrap();
+    // The trace: time, then every coil's current row by row.
+    let rows: Vec<Vec<f32>> = std::fs::read_to_string(&trace)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), replayed.len());
+    let observer = &hppa_grid::OBSERVER;
+    let mut state = observer.state(20.0);
+    let mut currents = [[0.0f32; COLS]; ROWS];
+    let mut events = Vec::new();
+    let mut now_ms = 0u32;
+    let mut worst_k = 0.0f64;
+    for (k, (row, r)) in rows.iter().zip(&replayed).enumerate() {
+        let o = state.outputs();
+        let ambient_c = state.alarm.ambient_c();
+        for i in 0..ROWS * COLS {
+            let name = format!("coil_r{}_c{}", i / COLS, i % COLS);
+            let (t, u) = (o.temps_c[i / COLS][i % COLS], o.upper_c[i / COLS][i % COLS]);
+            let limit_c = observer.alarm().alarm_limit_c(i, ambient_c).unwrap();
+            for (column, e) in [
+                (name.clone(), t),
+                (format!("upper_c.{name}"), u),
+                (format!("alarm_limit_c.{name}"), limit_c),
+            ] {
+                let d = (r[col(column.clone())] - f64::from(e)).abs();
+                assert!(
+                    d <= within_k(f64::from(e)),
+                    "row {k}, {column}: {d} K apart"
+                );
+                worst_k = worst_k.max(d);
+            }
+            let l = r[col(format!("limit_a.{name}"))];
+            assert!(
+                (l - f64::from(o.limits[i].current_a)).abs() <= 1e-6,
+                "row {k}, {name}"
+            );
+        }
+        if k + 1 == rows.len() {
+            break;
+        }
+        for (i, a) in row.iter().enumerate() {
+            currents[i / COLS][i % COLS] = *a;
+        }
+        for _ in 0..100 {
+            let inputs = GridInputs {
+                currents_a: &currents,
+                coolant_c: 20.0,
+                ambient_c: 20.0,
+                elapsed_us: 1000,
+            };
+            observer.tick(&mut state, &inputs);
+            now_ms += 1;
+            while let Some(e) = state.events.pop() {
+                events.push((f64::from(now_ms) * 1e-3, e.element));
+            }
+        }
+    }
+    eprintln!("grid: worst apart {worst_k:.2e} K, {} events", events.len());
+    let replayed_events = json["alarms"].as_array().unwrap();
+    assert_eq!(json["alarms_total"], events.len(), "{}", events.len());
+    for (r, (t, element)) in replayed_events.iter().zip(&events) {
+        assert!(
+            (r["time_s"].as_f64().unwrap() - t).abs() < 1e-6,
+            "{r} vs {t}"
+        );
+        assert_eq!(
+            r["node"].as_str().map(String::from),
+            element.map(|i| format!("coil_r{}_c{}", i / COLS, i % COLS))
+        );
+    }
+}

@@ -8,6 +8,7 @@ use super::plot_cmd::ReplaySeries;
 use super::ReplayArgs;
 use crate::devices;
 use crate::firmware::{FirmwareConfig, Override};
+use crate::grid_firmware::{self, GridFirmwareEstimator};
 use crate::kalman::{KalmanEstimator, KalmanOptions, NoiseFromReadings};
 use crate::library_observer::ObserverEstimator;
 use crate::limits::TimeToLimit;
@@ -716,8 +717,31 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut stepped = (path == Path::Stepper)
         .then(|| FilePlant::new(model.clone()).map(PlantEstimator))
         .transpose()?;
+    // `--model hppa` as flashed (the report's 7 x 12 grid, its FDM fit, no
+    // thermocouple): the device's own grid observer.
+    let flashed_grid = path == Path::Firmware
+        && spec == common::ModelSpec::Hppa
+        && common::grid_dims(&a.model) == (grid_firmware::ROWS, grid_firmware::COLS)
+        && a.model
+            .grid_params
+            .as_deref()
+            .is_none_or(|p| p == "fdm-fitted")
+        && measured.is_empty();
+    if flashed_grid && a.tick_us.is_some_and(|t| t != grid_firmware::TICK_US) {
+        bail!(
+            "--tick-us: the flashed HPPA grid observer ticks every {} us (its steps are the grid's own): drop --tick-us",
+            grid_firmware::TICK_US
+        );
+    }
+    let mut grid = None;
     let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
         s
+    } else if flashed_grid {
+        let rule = common::derating_rule(&a.factors, common::default_rule(&spec))?;
+        let critical_c = a
+            .critical_c
+            .unwrap_or(coil_thermal::protect::derating::HPPA_CRITICAL_C);
+        grid.insert(GridFirmwareEstimator::new(info.clone(), &rule, critical_c)?)
     } else if path == Path::Firmware {
         observer.insert(ObserverEstimator::firmware(
             model.clone(),
@@ -969,6 +993,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             })).collect::<Vec<_>>(),
         })
     });
+    let grid_json = grid.as_ref().map(|_| {
+        json!({
+            "kind": "grid-observer",
+            "settings_from": "the device (codegen --device hppa-grid, examples/observer_m4)",
+            "derating_product": rule_product,
+            "hardware_limit_a": crate::codegen::GRID_HARDWARE_LIMIT_A,
+            "step_us": grid_firmware::TICK_US,
+            "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
+        })
+    });
     let firmware_json = observer.as_ref().map(|o| {
         let c = o.config();
         json!({
@@ -1051,7 +1085,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "trace": a.trace.display().to_string(),
         "rows": rows_inside,
         "truth": scores,
-        "firmware_observer": firmware_json,
+        "firmware_observer": firmware_json.or(grid_json),
         "protection": protection_json,
         "cold_misses": (path == Path::Firmware).then_some(&cold_misses),
         "alarm": {
@@ -1081,7 +1115,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             .as_ref()
             .map_or(String::new(), |p| format!(" -> {}", p.display()))
     );
-    if let Some(o) = observer.as_ref() {
+    if grid.is_some() {
+        println!(
+            "observer: the firmware's HPPA GridObserver (what `codegen --device hppa-grid` flashes and examples/observer_m4 runs): derating product {rule_product:.4}, grid updates every 20 ms, hardware limit {} A, no thermocouple",
+            crate::codegen::GRID_HARDWARE_LIMIT_A
+        );
+        for o in &overrides {
+            println!("override {}: {} (not what the MCU runs)", o.flag, o.what);
+        }
+    } else if let Some(o) = observer.as_ref() {
         let c = o.config();
         println!(
             "observer: the firmware's NetworkObserver from {} (what codegen flashes): derating product {:.4}, sensor noise {} K, correction period {} s, hardware limit {} A, plausible up to {} A",
@@ -1273,6 +1315,18 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     print_events(&events);
     let t = &times;
+    if grid.is_some() {
+        println!(
+            "grid observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            t.steps,
+            t.min_ns * 1e-3,
+            t.p50_ns * 1e-3,
+            t.p99_ns * 1e-3,
+            t.max_ns * 1e-3,
+            t.p99_over_budget
+        );
+        return Ok(());
+    }
     match &observer {
         Some(o) => println!(
             "library tick time [us] over {} ticks of {} ms (NetworkObserver padded to {} nodes): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",

@@ -291,14 +291,26 @@ pub const GRID_PLAN: coil_thermal::observer::ProtectionPlan =
 /// # Errors
 /// A refusal of the library's builders.
 pub fn grid_observer() -> Result<HppaGridObserver> {
-    use coil_thermal::protect::alarm::AlarmBuilder;
     use coil_thermal::protect::derating::{DeratingRule, HPPA_CRITICAL_C};
+    grid_observer_with(&DeratingRule::hppa(), HPPA_CRITICAL_C)
+}
+
+/// [`grid_observer`] with the alarm of `rule` on every coil's critical
+/// temperature `critical_c` \[degC\] (`replay --factors`, `--critical-c`).
+///
+/// # Errors
+/// A refusal of the library's builders.
+pub fn grid_observer_with(
+    rule: &coil_thermal::protect::derating::DeratingRule,
+    critical_c: f64,
+) -> Result<HppaGridObserver> {
+    use coil_thermal::protect::alarm::AlarmBuilder;
     use coil_thermal::protect::limiter::LimiterConfig;
     let config = coil_thermal::GridConfig {
         ticks_per_update: GRID_TICKS_PER_UPDATE,
         ..coil_thermal::GridConfig::default()
     };
-    let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 84])
+    let alarm = AlarmBuilder::new(rule, [critical_c; 84])
         .build::<f32>()
         .map_err(|e| anyhow::anyhow!("the grid's alarm: {e}"))?;
     let limiter = LimiterConfig::new([GRID_HARDWARE_LIMIT_A; 84], 10.0, 0.0)
