@@ -25,13 +25,13 @@ use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
 };
 use coil_thermal::observer::snapshot::snapshot_len;
-use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
 
 use super::{
     frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
     Subject, TickInputs, TickView,
 };
 use crate::codegen::ObserverSpec;
+use crate::firmware::FirmwareConfig;
 use crate::limits::{on_big_stack, padded_with, Padding};
 use crate::model_file::Model;
 use crate::sim::{FilePlant, Plant};
@@ -71,32 +71,22 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
         let mut critical = [None; C];
         critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
-        let derating = match spec.derating {
-            Some(d) => DeratingRule::new(&[DeratingFactor::new("derating", d)])
-                .map_err(FaultError::Build)?,
-            None => DeratingRule::omnimagnet(),
-        };
+        // The firmware's settings (the `[observer]` table over codegen's
+        // defaults, as `replay` and `codegen` resolve them), with the
+        // campaign's step, reading period, stuck tolerance and origin.
+        let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
+        let derating = firmware.rule();
         let (flag, loss) = frozen_ticks(cfg.step_us);
-        let defaults = NetworkSettings::DEFAULT;
         let settings = NetworkSettings {
             step_us: cfg.step_us,
-            sensor_sigma_k: spec.sensor_sigma_k.unwrap_or(defaults.sensor_sigma_k),
             correction_period_s: reading_period_s(cfg),
-            max_current_a: spec.max_current_a.unwrap_or(defaults.max_current_a),
-            bias_noise_w2_per_s: spec
-                .bias_noise_w2_per_s
-                .unwrap_or(defaults.bias_noise_w2_per_s),
-            max_cooling_bias_fraction: spec
-                .max_cooling_bias_fraction
-                .unwrap_or(defaults.max_cooling_bias_fraction),
             stuck_tolerance_k: cfg
                 .stuck_tolerance_k
-                .or(spec.stuck_tolerance_k)
-                .unwrap_or(defaults.stuck_tolerance_k),
+                .unwrap_or(firmware.settings.stuck_tolerance_k),
             origin_c: cfg.ambient_c,
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
-            ..defaults
+            ..firmware.settings
         };
         // The model's sources carry their biases (those `[observer]
         // bias_sources` names, when given), the padding's do not (see the
@@ -104,7 +94,7 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         let bias_sources: [bool; C] = core::array::from_fn(|m| model.carries_bias(m));
         let observer = NetworkObserverBuilder::new(&network, slots)
             .critical_c(critical)
-            .hardware_limit_a([spec.hardware_limit_a.unwrap_or(8.0); C])
+            .hardware_limit_a([firmware.hardware_limit_a; C])
             .derating(derating)
             .settings(settings)
             .bias_sources(bias_sources)
