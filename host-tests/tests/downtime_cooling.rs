@@ -1,6 +1,7 @@
-//! Issue 17, downtime cooling: `restore_after` given the power-off time
-//! decays the saved state to within 0.5 K of the exact cooled state and never
-//! below it, for every observer, against independent references (an `f64`
+//! Downtime cooling: `restore_after` given the power-off time decays the
+//! saved state to the exact cooled state, never below it and at most what
+//! README promises above it (the grid 2e-3 K, a network 1e-2 K, the
+//! Omnimagnet 0.32 K), for every observer, against independent references (an `f64`
 //! RK4 integration of the zero-current network or of the nonlinear plant,
 //! fine steps; the closed form for one node).
 
@@ -26,6 +27,14 @@ const DENSE_OFF_TIMES_S: [f64; 25] = [
     1800.0, 2700.0, 3600.0, 5400.0, 7200.0, 10_800.0, 14_400.0, 21_600.0, 28_800.0, 36_000.0,
 ];
 
+/// How far above the exact cooled state each observer may restore \[K\]:
+/// what README promises, per observer (measured: grid 1.01e-3, network
+/// 4.2e-3, Omnimagnet model 0.317 and observer 0.237 K; the Omnimagnet's
+/// nonlinear plant cools faster than its linearised model).
+const GRID_MAX_ABOVE_K: f64 = 2e-3;
+const NETWORK_MAX_ABOVE_K: f64 = 1e-2;
+const OMNI_MAX_ABOVE_K: f64 = 0.32;
+
 /// Largest excess over the reference and whether any node fell below it.
 #[derive(Debug, Default, Clone, Copy)]
 struct Excess {
@@ -38,9 +47,16 @@ impl Excess {
         self.above_k = self.above_k.max(got - want);
         self.below_k = self.below_k.max(want - got);
     }
-    fn check(&self, what: &str) {
+    /// Never below; at most `max_above_k` above (each observer's bound:
+    /// what it achieves with a small margin, not one loose bound for all).
+    fn check(&self, what: &str, max_above_k: f64) {
+        eprintln!("{what}: {:.2e} K above", self.above_k);
         assert!(self.below_k <= 0.0, "{what}: {:.2e} K below", self.below_k);
-        assert!(self.above_k <= 0.5, "{what}: {:.3} K above", self.above_k);
+        assert!(
+            self.above_k <= max_above_k,
+            "{what}: {:.3e} K above (at most {max_above_k:e})",
+            self.above_k
+        );
     }
 }
 
@@ -116,7 +132,7 @@ fn grid_heated_snapshot(grid: &Grid, heat_s: u32, latched: bool) -> Vec<u8> {
 }
 
 #[test]
-fn grid_downtime_cooling_is_within_half_a_kelvin_above_the_exact_and_never_below() {
+fn grid_downtime_cooling_is_within_2_mk_above_the_exact_and_never_below() {
     let grid = grid();
     let network = grid.grid().to_network::<84>().unwrap();
     let ss = network.state_space(&[20.0; 84]);
@@ -156,7 +172,10 @@ fn grid_downtime_cooling_is_within_half_a_kelvin_above_the_exact_and_never_below
                     "off time 0: the saved state to the bit"
                 );
             } else {
-                excess.check(&format!("grid, heated {heat_s} s, off {off_s} s"));
+                excess.check(
+                    &format!("grid, heated {heat_s} s, off {off_s} s"),
+                    GRID_MAX_ABOVE_K,
+                );
             }
             table.push((
                 heat_s,
@@ -229,7 +248,7 @@ fn small_network() -> Network<3, 1, 1> {
 }
 
 #[test]
-fn network_downtime_cooling_is_within_half_a_kelvin_above_the_exact_and_never_below() {
+fn network_downtime_cooling_is_within_10_mk_above_the_exact_and_never_below() {
     let network = small_network();
     let observer: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&network, [1])
         .critical_c([Some(155.0), Some(80.0), None])
@@ -274,7 +293,10 @@ fn network_downtime_cooling_is_within_half_a_kelvin_above_the_exact_and_never_be
             for i in 0..3 {
                 excess.add(got[i] as f64, ambient as f64 + x[i]);
             }
-            excess.check(&format!("network {saved_c:?} at {ambient}, off {off_s} s"));
+            excess.check(
+                &format!("network {saved_c:?} at {ambient}, off {off_s} s"),
+                NETWORK_MAX_ABOVE_K,
+            );
             worst = worst.max(excess.above_k);
             println!(
                 "network {saved_c:?} amb {ambient} off {off_s:>7} s: +{:.4} K",
@@ -379,7 +401,7 @@ mod omni {
 }
 
 #[test]
-fn omnimagnet_model_cooling_is_within_half_a_kelvin_above_the_plant_and_never_below() {
+fn omnimagnet_model_cooling_is_within_0_32_k_above_the_plant_and_never_below() {
     use coil_thermal::omnimagnet::Omnimagnet;
     let model = Omnimagnet::PAPER;
     let mut worst = Excess::default();
@@ -442,11 +464,11 @@ fn omnimagnet_model_cooling_is_within_half_a_kelvin_above_the_plant_and_never_be
         }
     }
     println!("omni one linearisation at the ambient: {baseline:?}");
-    worst.check("omnimagnet model");
+    worst.check("omnimagnet model", OMNI_MAX_ABOVE_K);
 }
 
 #[test]
-fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_never_below() {
+fn omni_observer_restore_after_cools_within_0_32_k_above_the_plant_and_never_below() {
     use coil_thermal::observer::{OmniObserver, OmniSettings, SnapshotError};
     use coil_thermal::omnimagnet::{Omnimagnet, NODES};
     let model = Omnimagnet::PAPER;
@@ -479,7 +501,10 @@ fn omni_observer_restore_after_cools_within_half_a_kelvin_above_the_plant_and_ne
             for i in 0..NODES {
                 e.add(got[i] as f64, want[i]);
             }
-            e.check(&format!("omni observer {name}, off {off} s"));
+            e.check(
+                &format!("omni observer {name}, off {off} s"),
+                OMNI_MAX_ABOVE_K,
+            );
             worst = worst.max(e.above_k);
             println!(
                 "omni observer {name:<20} off {off:>7} s: +{:.4} K",

@@ -84,8 +84,9 @@ fn reading(temp_c: f32, now_us: u32) -> Option<TimedReading> {
 
 #[test]
 fn f32_does_not_drift() {
-    // Issue 16: open loop, 2 h at 8 A on a 3-node model. The observer must
-    // stay within 0.01 K of the f64 solution; the plain f32 predict on
+    // Open loop, 2 h at 8 A on a 3-node model. The observer stays within
+    // 1e-5 K of the f64 solution, as README says (5.9e-6 K measured:
+    // deviations from the origin, the rounding carried); the plain f32 predict on
     // absolute temperatures (the form of `filter::predict_mean`) is run
     // beside it to show what the carry removes.
     let net = device();
@@ -113,11 +114,14 @@ fn f32_does_not_drift() {
     }
     let plain_error = (f64::from(plain[0]) - exact[0]).abs();
     std::println!(
-        "2 h at 8 A: winding {:.4} degC (f64), observer worst {worst:.5} K, plain f32 {plain_error:.3} K",
+        "2 h at 8 A: winding {:.4} degC (f64), observer worst {worst:.3e} K, plain f32 {plain_error:.3} K",
         exact[0]
     );
     assert!(exact[0] > 45.0, "the winding must heat: {}", exact[0]);
-    assert!(worst < 0.01, "observer drift {worst} K");
+    assert!(
+        worst < 1e-5,
+        "observer drift {worst} K (README: within 1e-5 K)"
+    );
     assert!(
         plain_error > 0.05,
         "the plain f32 predict drifts ({plain_error} K)"
