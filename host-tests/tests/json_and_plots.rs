@@ -302,18 +302,64 @@ fn readme_host_tool_commands_run_as_written() {
         .map(|l| l.split_whitespace().skip(1).map(str::to_string).collect())
         .collect();
     assert_eq!(commands.len(), 5, "{block}");
+    let mut summaries = std::collections::HashMap::new();
     for mut args in commands.into_iter().filter(|a| a[0] != "codegen") {
         for k in 0..args.len() {
             if args[k] == "--out" || args[k] == "--plot" {
                 args[k + 1] = s(&tmp.path().join(&args[k + 1])).to_string();
             }
         }
-        ct().current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        let out = ct()
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .args(&args)
+            .arg("--json")
             .assert()
             .success();
+        let j: Value = serde_json::from_slice(&out.get_output().stdout).unwrap();
+        summaries.insert(args[0].clone(), j);
     }
     for file in ["sim.png", "fit.png", "est.png", "fitted.toml"] {
         assert!(tmp.path().join(file).is_file(), "{file} written");
     }
+    // The figures README prints beside the commands are what they give,
+    // at the precision README writes them.
+    let figure = |after: &str, before: &str| -> f64 {
+        let rest = &section[section
+            .find(after)
+            .unwrap_or_else(|| panic!("`{after}` in README"))
+            + after.len()..];
+        rest[..rest.find(before).unwrap()].trim().parse().unwrap()
+    };
+    let f = |j: &Value, path: &[&str]| -> f64 {
+        path.iter()
+            .fold(j, |v, k| &v[*k])
+            .as_f64()
+            .unwrap_or_else(|| panic!("{path:?} in {j}"))
+    };
+    let readme_winding_c = figure("a plot (winding ", " degC)");
+    let winding_c = f(&summaries["simulate"], &["final_c", "winding"]);
+    assert_eq!(
+        format!("{winding_c:.1}"),
+        format!("{readme_winding_c:.1}"),
+        "README: 2 h at 4 A"
+    );
+    let readme_ttl_s = figure("at 8 A (winding ", " s)");
+    let ttl_s = f(&summaries["limits"], &["time_to_limit_s", "winding"]);
+    assert_eq!(ttl_s.round(), readme_ttl_s, "README: time to limit at 8 A");
+    let readme_safe_a = figure("for 10 min (", " A)");
+    let safe_a = summaries["limits"]["max_currents_horizon_a"][0]
+        .as_f64()
+        .unwrap();
+    assert_eq!(
+        format!("{safe_a:.1}"),
+        format!("{readme_safe_a:.1}"),
+        "README: safe current"
+    );
+    let readme_rmse_k = figure("never sees, at ", " K RMSE");
+    let rmse_k = summaries["replay"]["truth"][0]["rmse_k"].as_f64().unwrap();
+    assert_eq!(
+        format!("{rmse_k:.2}"),
+        format!("{readme_rmse_k:.2}"),
+        "README: replay RMSE"
+    );
 }

@@ -116,10 +116,17 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     if a.pattern.is_some() && spec != ModelSpec::Hppa {
         bail!("--pattern applies to --model hppa only");
     }
-    let rule = common::derating_rule(&a.factors, common::default_rule(&spec))?;
     let op_c = a.ambient_c.unwrap_or(devices::OMNIMAGNET_DEFAULT_AMBIENT_C);
     let file = common::model_file_at(&a.model, op_c)?;
     let model = Model::build(&file)?;
+    // A model file's element limits are derated as its firmware derates
+    // them (the `[observer]` table's product, else codegen's 0.648); the
+    // built-in devices by their own rules.
+    let default_rule = match spec {
+        ModelSpec::Hppa | ModelSpec::Omnimagnet => common::default_rule(&spec),
+        _ => crate::firmware::FirmwareConfig::of(&model, file.observer.as_ref())?.rule(),
+    };
+    let rule = common::derating_rule(&a.factors, default_rule)?;
     if !model.signals.is_empty() {
         bail!(
             "limits: model `{}` needs signal columns ({}); constant-signal limits are not supported",

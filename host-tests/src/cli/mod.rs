@@ -487,7 +487,8 @@ pub struct LimitsArgs {
     /// Derating factors for the element limits, each in (0, 1]
     /// (dimensionless): limit = ambient + (critical - ambient) * product.
     /// Default: the HPPA rule (0.875,0.9,0.9,0.8) for hppa, the Omnimagnet
-    /// rule (0.9,0.9,0.8) for omnimagnet, none for other models.
+    /// rule (0.9,0.9,0.8) for omnimagnet, the firmware's for a model file
+    /// (its `[observer] derating`, else codegen's 0.648).
     #[arg(
         long,
         value_name = "a,b,...",
