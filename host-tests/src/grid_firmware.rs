@@ -84,13 +84,7 @@ impl GridFirmwareEstimator {
             asked_s: 0.0,
             temps: vec![0.0; n],
             tick_ns: TimeHistogram::default(),
-            protected: Protected {
-                upper_c: vec![0.0; n],
-                alarm_limit_c: vec![None; n],
-                source_limit_a: vec![0.0; n],
-                time_to_limit_s: vec![None; n],
-                ..Protected::default()
-            },
+            protected: Protected::for_sizes(n, n),
             events: Vec::new(),
             info,
         })
@@ -159,23 +153,13 @@ impl Estimator for GridFirmwareEstimator {
             let ambient_c = self.state.alarm.ambient_c();
             let alarm = self.observer.alarm();
             while let Some(e) = self.state.events.pop() {
-                use coil_thermal::protect::events::EventKind;
-                let below_k = match e.kind {
-                    EventKind::WarningRaised | EventKind::WarningCleared => {
-                        alarm.warning_margin_k()
-                    }
-                    _ => 0.0,
-                };
-                self.events.push(EventKindAt {
-                    node: e.element,
-                    kind: e.kind,
-                    since_start_s: self.done_us as f64 * 1e-6,
-                    upper_c: e.element.map(|i| f64::from(upper[i / COLS][i % COLS])),
-                    limit_c: e
-                        .element
-                        .and_then(|i| alarm.alarm_limit_c(i, ambient_c))
-                        .map(|l| f64::from(l - below_k)),
-                });
+                self.events.push(EventKindAt::of(
+                    &e,
+                    self.done_us as f64 * 1e-6,
+                    e.element.map(|i| upper[i / COLS][i % COLS]),
+                    e.element.and_then(|i| alarm.alarm_limit_c(i, ambient_c)),
+                    alarm.warning_margin_k(),
+                ));
             }
         }
         self.publish();

@@ -109,9 +109,6 @@ pub const OBSERVER_CLASSES: [usize; 4] = [8, 16, 32, 96];
 /// its square (see the module docs).
 pub const CURRENT_SCALE: f64 = 16.0;
 
-/// The default tick \[us\] (the controller's 1 ms loop).
-pub const DEFAULT_TICK_US: u32 = 1000;
-
 /// Thermocouple slots of the padded observer: at most this many fused
 /// sensors (unused slots sit on a padding node and never read).
 pub const SENSOR_SLOTS: usize = 4;
@@ -154,6 +151,33 @@ pub struct EventKindAt {
     pub limit_c: Option<f64>,
 }
 
+impl EventKindAt {
+    /// A library event at `since_start_s` \[s\], with its node's upper bound
+    /// `upper_c` and derated alarm limit `alarm_limit_c` \[degC\] (`None`
+    /// without a node); a warning is reported against the warning level,
+    /// `warning_margin_k` \[K\] below the limit.
+    pub fn of(
+        event: &coil_thermal::protect::events::AlarmEvent,
+        since_start_s: f64,
+        upper_c: Option<f32>,
+        alarm_limit_c: Option<f32>,
+        warning_margin_k: f32,
+    ) -> Self {
+        use coil_thermal::protect::events::EventKind;
+        let below_k = match event.kind {
+            EventKind::WarningRaised | EventKind::WarningCleared => warning_margin_k,
+            _ => 0.0,
+        };
+        Self {
+            node: event.element,
+            kind: event.kind,
+            since_start_s,
+            upper_c: upper_c.map(f64::from),
+            limit_c: alarm_limit_c.map(|l| f64::from(l - below_k)),
+        }
+    }
+}
+
 /// What the firmware's protection acts on, after a tick: per node of the
 /// model and per source of its network.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -175,6 +199,19 @@ pub struct Protected {
     pub shutdown: bool,
     /// Some predictive alarm is raised.
     pub predictive: bool,
+}
+
+impl Protected {
+    /// Nothing published yet, for `nodes` nodes and `sources` sources.
+    pub fn for_sizes(nodes: usize, sources: usize) -> Self {
+        Self {
+            upper_c: vec![0.0; nodes],
+            alarm_limit_c: vec![None; nodes],
+            source_limit_a: vec![0.0; sources],
+            time_to_limit_s: vec![None; nodes],
+            ..Self::default()
+        }
+    }
 }
 
 struct Sized<const C: usize, const X: usize, const P: usize> {
@@ -362,23 +399,13 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         let upper = self.state.outputs().upper_c;
         let alarm = self.observer.alarm();
         while let Some(e) = self.state.events.pop() {
-            use coil_thermal::protect::events::EventKind;
-            // A warning is compared with the warning level, the rest with
-            // the derated alarm limit.
-            let below_k = match e.kind {
-                EventKind::WarningRaised | EventKind::WarningCleared => alarm.warning_margin_k(),
-                _ => 0.0,
-            };
-            out.push(EventKindAt {
-                node: e.element,
-                kind: e.kind,
-                since_start_s: 0.0,
-                upper_c: e.element.map(|i| f64::from(upper[i])),
-                limit_c: e
-                    .element
-                    .and_then(|i| alarm.alarm_limit_c(i, ambient_c))
-                    .map(|l| f64::from(l - below_k)),
-            });
+            out.push(EventKindAt::of(
+                &e,
+                0.0,
+                e.element.map(|i| upper[i]),
+                e.element.and_then(|i| alarm.alarm_limit_c(i, ambient_c)),
+                alarm.warning_margin_k(),
+            ));
         }
     }
 }
@@ -576,13 +603,7 @@ impl ObserverEstimator {
                 settings,
                 ..config.clone()
             },
-            protected: Protected {
-                upper_c: vec![0.0; n],
-                alarm_limit_c: vec![None; n],
-                source_limit_a: vec![0.0; m],
-                time_to_limit_s: vec![None; n],
-                ..Protected::default()
-            },
+            protected: Protected::for_sizes(n, m),
             events: Vec::new(),
         })
     }

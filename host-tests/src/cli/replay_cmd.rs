@@ -14,7 +14,9 @@ use crate::library_observer::ObserverEstimator;
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::Measurement;
-use crate::observer::{replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, ScoreSum};
+use crate::observer::{
+    replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, Protection, ScoreSum,
+};
 use crate::plot::render;
 use crate::sim::{FilePlant, InputRow, Plant, PlantInfo, RowSource, TraceDrive};
 use crate::trace::CsvOut;
@@ -318,6 +320,23 @@ impl EventLog {
                 self.others.push(e.clone());
             }
         }
+    }
+}
+
+/// No host alarm: the firmware's observer raises its own (the replay
+/// reads its events instead of calling this).
+struct Unwatched;
+
+impl Protection for Unwatched {
+    fn check(
+        &mut self,
+        _: f64,
+        _: &[f64],
+        _: &[f64],
+        _: &[f64],
+        _: &[f64],
+        _: &mut Vec<AlarmEvent>,
+    ) {
     }
 }
 
@@ -705,12 +724,23 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         ..settings
     };
     let rule_product = settings.rule.product();
-    let predictor = TimeToLimit::new(&model)?;
-    let mut protection = LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
-        &info,
-        predictor,
-        settings.horizon_s,
-    )?;
+    // The host's alarm on the estimate, for the estimators without a
+    // protection of their own (the firmware's observer has its own).
+    let mut host_alarm = (path != Path::Firmware)
+        .then(|| -> Result<LibraryAlarm> {
+            let predictor = TimeToLimit::new(&model)?;
+            LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
+                &info,
+                predictor,
+                settings.horizon_s,
+            )
+        })
+        .transpose()?;
+    let mut unwatched = Unwatched;
+    let protection: &mut dyn Protection = match host_alarm.as_mut() {
+        Some(p) => p,
+        None => &mut unwatched,
+    };
     let mut observer = None;
     let mut kalman = None;
     let mut disturbance_std = None;
@@ -881,7 +911,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut rows = drive.rows()?;
     let times = replay(
         estimator,
-        &mut protection,
+        protection,
         &init,
         &mut rows,
         &fused,
@@ -1069,12 +1099,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let hot = hot.hottest();
     // The host's time-to-limit sweep watches the estimate: only for the
     // estimators without a protection of their own.
-    let ttl = (path != Path::Firmware)
-        .then(|| protection.time_to_limit())
-        .flatten();
-    let shutdown_latched = match &final_protection {
-        Some((p, _)) => p.shutdown,
-        None => protection.shutdown_latched(),
+    let ttl = host_alarm.as_ref().and_then(LibraryAlarm::time_to_limit);
+    let shutdown_latched = match (&final_protection, &host_alarm) {
+        (Some((p, _)), _) => p.shutdown,
+        (None, Some(h)) => h.shutdown_latched(),
+        (None, None) => false,
     };
     let summary = json!({
         "command": "replay",
