@@ -752,6 +752,15 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
     pub(crate) fn devs_k(&self) -> &[f32; N] {
         &self.dev_k
     }
+
+    /// Moves the shadow to the deviations `dev_k` \[K\] (the carry
+    /// cleared, the block in progress kept): the start's warm-up, while
+    /// the shadow knows no more than the filter (see
+    /// [`super::start`]).
+    pub(crate) fn reseed(&mut self, dev_k: [f32; N]) {
+        self.dev_k = dev_k;
+        self.residual_k = [0.0; N];
+    }
 }
 
 impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {

@@ -20,7 +20,10 @@
 //!   for the filtered Omnimagnet, `k sigma`), see
 //!   [`crate::protect::margin`]; the outputs carry both;
 //! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
-//!   the conservative start when a snapshot is refused.
+//!   the conservative start when a snapshot is refused;
+//! * [`start`]: safe from the first tick without a history (the start's
+//!   covariance, held by the filter and by the upper bound until it
+//!   settles) and the restore whose off time only the sensors know.
 
 pub mod clock;
 mod consistency;
@@ -30,6 +33,7 @@ pub mod network;
 pub mod omnimagnet;
 pub mod shared;
 pub mod snapshot;
+pub mod start;
 mod tables;
 
 pub use clock::{

@@ -261,6 +261,7 @@ use super::cycle::{latch_and_publish, record_verdicts, sample_readings, Protecti
 use super::grid::EVENT_CAPACITY;
 use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
 use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::start;
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -675,6 +676,10 @@ pub struct NetworkObserver<
     limiter: LimiterConfig<f32, N>,
     predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
     bound: UpperBound<f32, N>,
+    /// The bound's `k` (of `k sigma`).
+    k_sigma: f32,
+    /// The steady `sigma` in each node's bound \[K\] (of the prior).
+    bound_sigma_k: [f32; N],
     shadow: Shadow<N, B, M>,
     stuck_test: StuckTest,
     /// No reading for this long makes a sensor silent \[us\]: two
@@ -738,6 +743,9 @@ pub struct NetworkObserverState<
     warmup_cov: SMatrix<f32, X, X>,
     /// Corrections the warm-up has left.
     warmup_left: u16,
+    /// The warm-up ends once its covariance has settled (the start's, see
+    /// [`super::start`]), not after a count.
+    warmup_until_steady: bool,
     outputs: NetworkOutputs<N, M, P>,
 }
 
@@ -857,6 +865,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov
             },
             warmup_left: self.warmup_corrections,
+            warmup_until_steady: false,
             stuck: StuckWatch::new(),
             bias_at_change_w: [[0.0; M]; P],
             drift: DriftHold::new(),
@@ -1088,6 +1097,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
+        if state.warmup_left > 0 {
+            // The covariance held, not the steady one (see `super::start`).
+            for (i, (upper, sigma)) in out.upper_c.iter_mut().zip(&self.bound_sigma_k).enumerate() {
+                let variance = state.warmup_cov.get((i, i)).copied().unwrap_or(f32::NAN);
+                *upper += start::bound_extra_k(variance, *sigma, self.k_sigma);
+            }
+        }
         if !state.suspect.any() {
             return;
         }
@@ -1199,7 +1215,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     .get(self.sensor_nodes[j])
                     .copied()
                     .unwrap_or(f32::NAN),
-            innovation_var_k2: self.gain.innovation_var()[j],
+            innovation_var_k2: self.innovation_var_k2(state, j),
             rejections: state.estimate.gate.consecutive_rejections[j],
         });
         let gate = self.kalman.gate();
@@ -1252,6 +1268,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             state.estimate.x = full.x;
             state.estimate.gate = full.gate;
             state.warmup_cov = full.cov;
+            if state.warmup_until_steady {
+                // The start's shadow knows no more than the filter: it
+                // follows the filter until the start has settled.
+                state
+                    .shadow
+                    .reseed(core::array::from_fn(|i| state.estimate.x[i]));
+                if self.settled(&state.warmup_cov) {
+                    state.warmup_left = 0;
+                }
+            }
             report
         } else {
             update_steady(&self.kalman, &self.gain, &mut state.estimate, &z)
@@ -1267,6 +1293,29 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         self.note_doubt(state, true);
         (true, flags)
+    }
+
+    /// Sensor `j`'s innovation variance \[K^2\] against the covariance the
+    /// filter holds: the warm-up's while it runs, else the steady one.
+    fn innovation_var_k2(&self, state: &NetworkObserverState<N, B, M, X, P>, j: usize) -> f32 {
+        let steady = self.gain.innovation_var()[j];
+        if state.warmup_left == 0 {
+            return steady;
+        }
+        let node = self.sensor_nodes[j];
+        let held = state
+            .warmup_cov
+            .get((node, node))
+            .copied()
+            .unwrap_or(f32::NAN);
+        held + self.kalman.r()[j]
+    }
+
+    /// Whether the warm-up's covariance has settled: every variance within
+    /// [`start::SETTLED_FRACTION`] of the steady posterior's.
+    fn settled(&self, cov: &SMatrix<f32, X, X>) -> bool {
+        let steady = self.gain.posterior();
+        (0..X).all(|i| cov[(i, i)] <= (1.0 + start::SETTLED_FRACTION) * steady[(i, i)])
     }
 
     /// Notes which sensors' measurements are in doubt this tick (see
@@ -1492,12 +1541,87 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         };
         let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
         let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        Ok(self.restored(&saved_c, &meta, boundary_c, off_s))
+    }
+
+    /// [`Self::restore`] for a device whose off time is unknown (no
+    /// real-time clock), with what the sensors read now, `readings_c`
+    /// \[degC\] (`None` or non-finite: no reading): the saved estimates
+    /// cooled by the shortest off time, within the snapshot's age, that
+    /// brings some sensor's node within `k_sigma` sensor deviations
+    /// (0.75 K at the defaults) of its reading
+    /// ([`start::earliest_off_time_s`]), and every sensor's node no warmer
+    /// than its reading: the least cooling the readings allow, so the
+    /// nodes no sensor reads err hot, and the sensors' first readings
+    /// agree with the estimate (none refused, none colder than the
+    /// physics). A reading colder than the coldest boundary (no cooling
+    /// reaches it: a faulty sensor) is left out. With no usable reading (or a boundary outside
+    /// the input limits), the saved state uncooled, as
+    /// [`Self::restore_after`] with `None`. A latched shutdown stays
+    /// latched.
+    ///
+    /// # Errors
+    /// Those of [`Self::restore`].
+    pub fn restore_with_readings(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        boundary_c: &[f32; B],
+        readings_c: &[Option<f32>; P],
+    ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
+        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
+        let tolerance_k = self.k_sigma
+            * self
+                .kalman
+                .r()
+                .iter()
+                .fold(0.0f32, |a, r| a.max(libm::sqrtf(*r)));
+        // A reading colder than the coldest boundary is no cooling the
+        // device can have done: left out (a faulty sensor at the boot).
+        let coldest_c = boundary_c.iter().fold(f32::INFINITY, |a, b| a.min(*b));
+        let readings_c = readings_c.map(|r| r.filter(|t| *t >= coldest_c - tolerance_k));
+        let off_s = start::earliest_off_time_s(
+            |t| self.cooled_c(&saved_c, boundary_c, t),
+            &self.sensor_nodes,
+            &readings_c,
+            tolerance_k,
+            age_s,
+        );
+        let mut saved_c = saved_c;
+        if off_s > 0.0 {
+            saved_c = self.cooled_c(&saved_c, boundary_c, off_s);
+            // The sensors where they read: the cooling that fits one sensor
+            // may leave another warmer than its reading (model error).
+            for (reading, node) in readings_c.iter().zip(&self.sensor_nodes) {
+                if let (Some(t), Some(slot)) = (reading, saved_c.get_mut(*node)) {
+                    *slot = slot.min(*t);
+                }
+            }
+        }
+        Ok(self.restored(&saved_c, &meta, boundary_c, 0.0))
+    }
+
+    /// The state restored from `saved_c` \[degC\] after `off_s` \[s\] off.
+    fn restored(
+        &self,
+        saved_c: &[f32; N],
+        meta: &SnapshotMeta,
+        boundary_c: &[f32; B],
+        off_s: f32,
+    ) -> NetworkObserverState<N, B, M, X, P> {
         let mut held_c = *boundary_c;
         let rejected = self.limits.accept_temperatures(boundary_c, &mut held_c);
         let temps_c = if off_s > 0.0 && rejected == InputFlags::NONE {
-            self.cooled_c(&saved_c, boundary_c, off_s)
+            self.cooled_c(saved_c, boundary_c, off_s)
         } else {
-            saved_c
+            *saved_c
         };
         let mut state = self.state(&temps_c, boundary_c);
         if meta.shutdown_latched {
@@ -1507,7 +1631,59 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 &mut state.outputs.limits,
             );
         }
-        Ok(state)
+        state
+    }
+
+    /// The start without a history (the first boot, a refused snapshot, a
+    /// product that keeps none), safe from the first tick (see
+    /// [`super::start`]): every node a sensor reads now at its reading
+    /// `readings_c` \[degC\] (`None` or non-finite: no reading), every
+    /// other node no cooler than the hottest reading or the ambient, with
+    /// a variance that puts each limited element's upper bound
+    /// [`start::START_BELOW_LIMIT_K`] below its alarm limit; the
+    /// time-varying filter holds that covariance (the gate judges against
+    /// it, the upper bound widens by it) until it has settled on the
+    /// steady one. No shutdown is latched: the limiter starts in its taper
+    /// band and opens as the sensors teach the filter. The boundaries at
+    /// `boundary_c` \[degC\].
+    pub fn start(
+        &self,
+        readings_c: &[Option<f32>; P],
+        boundary_c: &[f32; B],
+    ) -> NetworkObserverState<N, B, M, X, P> {
+        let mut held_c = [self.origin_c; B];
+        let _ = self.limits.accept_temperatures(boundary_c, &mut held_c);
+        let ambient_c = self.ambient(&held_c);
+        let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
+        let mut state = self.state(&temps, boundary_c);
+        let mut read = [false; N];
+        for (reading, node) in readings_c.iter().zip(&self.sensor_nodes) {
+            if let (true, Some(r)) = (reading.is_some_and(f32::is_finite), read.get_mut(*node)) {
+                *r = true;
+            }
+        }
+        let mut steady_upper_c = [0.0; N];
+        self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
+        let sigma_k = start::start_sigma_k(
+            &read,
+            &steady_upper_c,
+            &self.alarm.alarm_limits_c(ambient_c),
+            &self.limited,
+            &self.bound_sigma_k,
+            self.k_sigma,
+        );
+        let mut cov = *self.gain.prior();
+        for (i, sigma) in sigma_k.iter().enumerate() {
+            if let Some(sigma) = sigma {
+                cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
+            }
+        }
+        state.warmup_cov = cov;
+        state.warmup_left = start::MAX_START_CORRECTIONS;
+        state.warmup_until_steady = true;
+        self.publish_upper(&mut state, ambient_c);
+        self.limit(&mut state.outputs, ambient_c);
+        state
     }
 
     /// The node temperatures \[degC\] `off_s` \[s\] after `temps_c` with no

@@ -1145,3 +1145,6 @@ fn a_shared_bias_warms_up_and_finds_the_heat_where_the_power_is() {
         assert!(error_k < 0.5, "{error_k} K");
     }
 }
+
+#[path = "network/start_tests.rs"]
+mod start;

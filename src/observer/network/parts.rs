@@ -774,6 +774,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             limiter,
             predictor,
             bound,
+            k_sigma: s.k_sigma as f32,
+            bound_sigma_k: core::array::from_fn(|i| libm::sqrtf(gain.prior[(i, i)].max(0.0))),
             shadow,
             warmup_corrections: s.warmup_corrections,
             cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
