@@ -78,7 +78,9 @@ use crate::devices::OmnimagnetPlant;
 use crate::sim::Plant;
 
 pub mod network;
+pub mod starts;
 pub use network::run_model;
+pub use starts::{StartScore, UNDER_BOUND_GOAL_K};
 
 /// A shutdown later than the reference's by more than this is late \[s\]
 /// (issue 17).
@@ -148,11 +150,27 @@ pub enum FaultClass {
     /// re-linearises the model) stops at the onset; run only with a
     /// refresh.
     RefreshStops,
+    /// Reset with no snapshot at the hottest point of the closed-loop run,
+    /// at once (see [`starts`]).
+    #[serde(rename = "reset-0s")]
+    Reset0s,
+    /// The same after 1 min off.
+    #[serde(rename = "reset-1min")]
+    Reset1Min,
+    /// The same after 10 min off.
+    #[serde(rename = "reset-10min")]
+    Reset10Min,
+    /// The same after 1 h off.
+    #[serde(rename = "reset-1h")]
+    Reset1H,
+    /// Saved at the hottest point, off for the off time, restored with
+    /// the off time unknown (the readings at the restore say it).
+    RestoreUnknownOff,
 }
 
 impl FaultClass {
     /// Every class, in report order.
-    pub const ALL: [Self; 17] = [
+    pub const ALL: [Self; 22] = [
         Self::Open,
         Self::ShortGnd,
         Self::ShortVcc,
@@ -170,6 +188,11 @@ impl FaultClass {
         Self::StaleSnapshot,
         Self::PowerOff,
         Self::RefreshStops,
+        Self::Reset0s,
+        Self::Reset1Min,
+        Self::Reset10Min,
+        Self::Reset1H,
+        Self::RestoreUnknownOff,
     ];
 
     /// The name on the command line and in the report.
@@ -192,6 +215,11 @@ impl FaultClass {
             Self::StaleSnapshot => "stale-snapshot",
             Self::PowerOff => "power-off",
             Self::RefreshStops => "refresh-stops",
+            Self::Reset0s => "reset-0s",
+            Self::Reset1Min => "reset-1min",
+            Self::Reset10Min => "reset-10min",
+            Self::Reset1H => "reset-1h",
+            Self::RestoreUnknownOff => "restore-unknown-off",
         }
     }
 
@@ -213,6 +241,18 @@ impl FaultClass {
                 | Self::JumpDown
                 | Self::Spikes
                 | Self::Dropout
+        )
+    }
+
+    /// A restart with the drive obeying the limits, scored by [`starts`].
+    pub fn is_start(self) -> bool {
+        matches!(
+            self,
+            Self::Reset0s
+                | Self::Reset1Min
+                | Self::Reset10Min
+                | Self::Reset1H
+                | Self::RestoreUnknownOff
         )
     }
 
@@ -470,6 +510,9 @@ pub struct CaseReport {
     pub protective_trip: bool,
     /// Restart cases: the snapshot's fate.
     pub snapshot: Option<SnapshotOutcome>,
+    /// Start cases: their scores (see [`starts`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<StartScore>,
 }
 
 /// Per-class summary.
@@ -688,6 +731,27 @@ pub trait Subject {
     ) -> Result<Self::State, String>;
     /// The latched start from the sensors after a refused snapshot.
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State;
+    /// The start without a history from the sensors' readings now (the
+    /// library's safe start).
+    fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State;
+    /// Restores a snapshot whose off time is unknown, from the readings
+    /// now.
+    ///
+    /// # Errors
+    /// The library's refusal, as text.
+    fn restore_with_readings(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        readings_c: &[Option<f32>],
+    ) -> Result<Self::State, String>;
+    /// Each plant node's derated alarm limit at `ambient_c` \[degC\]
+    /// (`None`: not limited).
+    fn alarm_limits_c(&self, ambient_c: f32) -> Vec<Option<f32>>;
+    /// The state's outputs as the campaign reads them.
+    fn view(&self, state: &Self::State) -> TickView;
     /// The state shows the shutdown latched.
     fn latched(&self, state: &Self::State) -> bool;
 }
@@ -732,6 +796,11 @@ pub struct TickView {
     pub flags: InputFlags,
     /// The shutdown is latched.
     pub shutdown: bool,
+    /// Each plant node's protective upper bound \[degC\] (NaN where the
+    /// observer has none).
+    pub upper_c: Vec<f32>,
+    /// The current each plant input may carry \[A\] (the limiter's).
+    pub limits_a: Vec<f32>,
 }
 
 /// The Omnimagnet: the library's [`OmniObserver`] against the paper's
@@ -840,13 +909,47 @@ impl Subject for OmniSubject {
             now_us: i.now_us,
             elapsed_us: i.elapsed_us,
         };
-        let out = self.observer.tick(state, &inputs);
+        self.observer.tick(state, &inputs);
+        self.view(state)
+    }
+    fn view(&self, state: &OmniObserverState) -> TickView {
+        let out = state.outputs();
         TickView {
             temps_c: out.temps_c.to_vec(),
             sensors: out.sensors.to_vec(),
             flags: out.flags,
             shutdown: out.alarm.shutdown,
+            upper_c: out.upper_c.to_vec(),
+            limits_a: out.limits.iter().map(|l| l.current_a).collect(),
         }
+    }
+    fn alarm_limits_c(&self, ambient_c: f32) -> Vec<Option<f32>> {
+        let limits = self.observer.alarm().alarm_limits_c(ambient_c);
+        let mut all = vec![None; NODES];
+        for (node, limit) in ALARM_NODES.iter().zip(limits) {
+            all[*node] = Some(limit);
+        }
+        all
+    }
+    fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
+        let readings: [Option<f32>; THERMOCOUPLES] =
+            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        let temps = coil_thermal::observer::conservative_start::<NODES, THERMOCOUPLES>(
+            &readings,
+            &THERMOCOUPLE_NODES,
+            ambient_c,
+        );
+        self.observer.state(&temps, ambient_c)
+    }
+    fn restore_with_readings(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        _readings_c: &[Option<f32>],
+    ) -> Result<OmniObserverState, String> {
+        self.restore(bytes, now_s, max_age_s, ambient_c, None)
     }
     fn refresh_s(&self) -> f64 {
         self.refresh_s
@@ -939,6 +1042,7 @@ impl<'c, S: Subject> Harness<'c, S> {
                     || out.flags.contains(InputFlags::CURRENT_NOT_FINITE)
             }
             FaultClass::CorruptSnapshot | FaultClass::StaleSnapshot | FaultClass::PowerOff => false,
+            c if c.is_start() => false,
             FaultClass::RefreshStops => out.flags.contains(InputFlags::MODEL_STALE),
             _ => match fault.sensor {
                 Some(j) => common || sensor_flag(j),
@@ -1322,7 +1426,7 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
     let stale_off_s = f64::from(cfg.max_snapshot_age_s) + 60.0;
     let mut references: Vec<((u64, u64), Option<f64>)> = Vec::new();
     let mut cases = Vec::new();
-    for &class in &classes {
+    for &class in classes.iter().filter(|c| !c.is_start()) {
         for &onset_s in &onsets_s {
             let targets: Vec<Option<usize>> = if class.per_sensor() {
                 sensors.iter().map(|j| Some(*j)).collect()
@@ -1383,6 +1487,7 @@ pub fn run_on<S: Subject>(cfg: &FaultConfig, subject: S) -> Result<FaultReport, 
             }
         }
     }
+    cases.extend(harness.run_starts(&classes));
     let summary = summarise(&classes, &cases);
     Ok(FaultReport {
         schema_version: SCHEMA_VERSION,
@@ -1436,6 +1541,7 @@ fn case_report(fault: Injected, run: RunResult, reference: Option<f64>) -> CaseR
         false_trip: unexpected && !fault.class.trips_by_design(),
         protective_trip: unexpected && fault.class.trips_by_design(),
         snapshot: run.snapshot,
+        start: None,
     }
 }
 
@@ -1452,7 +1558,9 @@ fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
             // A power-off restart is no fault: nothing to flag.
             unflagged: mine
                 .iter()
-                .filter(|c| c.flag_s.is_none() && c.class != FaultClass::PowerOff)
+                .filter(|c| {
+                    c.flag_s.is_none() && c.class != FaultClass::PowerOff && !c.class.is_start()
+                })
                 .count(),
             worst_flag_s: max(&|c| c.flag_s),
             worst_flag_after_detectable_s: max(&|c| {
@@ -1543,6 +1651,7 @@ fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
             count(&|c| c.snapshot.as_ref().is_some_and(|s| s.refused))
         ),
     });
+    goals.extend(start_goals(cases));
     Summary {
         classes: per_class,
         cases: cases.len(),
@@ -1553,6 +1662,50 @@ fn summarise(classes: &[FaultClass], cases: &[CaseReport]) -> Summary {
         refused_not_latched,
         goals,
     }
+}
+
+/// The start classes' goals (issue 35), when any ran: the plant never
+/// above its derated alarm limit, no healthy reading refused, the bound of
+/// every limited node no sensor reads within [`UNDER_BOUND_GOAL_K`] of the
+/// truth from the second correction period.
+fn start_goals(cases: &[CaseReport]) -> Vec<Goal> {
+    let starts: Vec<&StartScore> = cases.iter().filter_map(|c| c.start.as_ref()).collect();
+    if starts.is_empty() {
+        return Vec::new();
+    }
+    let over: Vec<f64> = starts.iter().map(|s| s.over_limit_k).collect();
+    let over_runs = over.iter().filter(|o| **o > 0.0).count();
+    let worst_over = over.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let refused: u32 = starts.iter().map(|s| s.refused).sum();
+    let under = starts
+        .iter()
+        .filter_map(|s| s.under_bound_k)
+        .reduce(f64::max);
+    vec![
+        Goal {
+            goal: "starts: the plant never above its derated alarm limit (drive obeying the limits)"
+                .into(),
+            met: over_runs == 0,
+            detail: format!(
+                "{over_runs} of {} runs above; closest {worst_over:+.2} K",
+                starts.len()
+            ),
+        },
+        Goal {
+            goal: "starts: no healthy reading refused after the restart".into(),
+            met: refused == 0,
+            detail: format!("{refused} refused"),
+        },
+        Goal {
+            goal: format!(
+                "starts: every unmeasured limited node's upper bound at most {UNDER_BOUND_GOAL_K} K below the truth from the second correction period"
+            ),
+            met: under.is_none_or(|u| u <= UNDER_BOUND_GOAL_K),
+            detail: under.map_or("every limited node is read".into(), |u| {
+                format!("worst {u:+.2} K (truth above the bound)")
+            }),
+        },
+    ]
 }
 
 #[cfg(test)]

@@ -559,8 +559,15 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// put 1 mK lower, so that rounding cannot place the bound inside the
     /// band.
     fn restart_temp(&self) -> f64 {
+        self.temp_below_limits(self.limiter.taper_k())
+    }
+
+    /// The lowest over the coils of the temperature \[degC\] whose upper
+    /// bound is `below_k` \[K\] under its alarm limit at 20 degC (1 mK
+    /// lower with a margin: see [`Self::restart_temp`]).
+    fn temp_below_limits(&self, below_k: S) -> f64 {
+        let taper_k = below_k;
         let nominal_c = S::from_f64(20.0);
-        let taper_k = self.limiter.taper_k();
         let limits_c = self.alarm.alarm_limits_c(nominal_c);
         if self.bound.is_zero() {
             let lowest_c = limits_c
@@ -1325,6 +1332,26 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             &mut state.outputs.limits,
         );
         state
+    }
+
+    /// The start without a history (the first boot, a product that keeps
+    /// no snapshot; see [`super::start`]): the grid has no sensor to learn
+    /// from, so every coil starts where its upper bound is
+    /// [`START_BELOW_LIMIT_K`](super::start::START_BELOW_LIMIT_K) under its
+    /// alarm limit at 20 degC (the hottest it can be if the protection held
+    /// before the reset), or at `ambient_c` \[degC\] if that is hotter, and
+    /// the model cools it from there at the modelled rate. Nothing is
+    /// latched: the limiter starts in its taper band (at the default 10 K
+    /// band, `sqrt(1/10)`: 32 % of the hardware current) and opens as the
+    /// model cools the coils. [`Self::conservative_state`] is the start
+    /// after a *refused* snapshot (which may have held a latch).
+    /// Not for the tick: it solves each coil's start once.
+    pub fn start(&self, ambient_c: f64) -> GridObserverState<S, ROWS, COLS, N> {
+        let below_k = S::from_f64(f64::from(super::start::START_BELOW_LIMIT_K));
+        let mut grid = GridState::uniform(ambient_c);
+        let hot = S::from_f64(self.temp_below_limits(below_k).max(ambient_c));
+        grid.temps_c = [[hot; COLS]; ROWS];
+        self.state_from(grid)
     }
 
     /// The deliberate clear of a latched shutdown (one restored from a

@@ -1039,7 +1039,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
             Stage::Alarm => {
                 self.age_time_to_limit(state);
-                self.publish_upper(state, ambient_c);
+                // The alarm judges the evidence: the steady bound, also
+                // while a warm-up's wider covariance is held (its doubt is
+                // the limiter's; see `super::start`).
+                self.publish_upper(state, ambient_c, false);
                 let out = &mut state.outputs;
                 out.alarm = state.alarm.tick(
                     &self.alarm,
@@ -1049,9 +1052,12 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &mut state.events,
                 );
                 state.cycle.alarmed();
+                if state.warmup_left > 0 {
+                    self.publish_upper(state, ambient_c, true);
+                }
             }
             Stage::Limit => {
-                self.publish_upper(state, ambient_c);
+                self.publish_upper(state, ambient_c, true);
                 self.limit(&mut state.outputs, ambient_c);
                 state.cycle.limited();
             }
@@ -1093,11 +1099,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// [`Suspicion`](super::consistency::Suspicion); the Omnimagnet's rule:
     /// the nodes exchange heat, so what a lying sensor dragged on its node
     /// is felt by the others' estimates).
-    fn publish_upper(&self, state: &mut NetworkObserverState<N, B, M, X, P>, ambient_c: f32) {
+    ///
+    /// With `widen`, while a warm-up holds its own covariance, each bound
+    /// is widened by it ([`start::bound_extra_k`]).
+    fn publish_upper(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P>,
+        ambient_c: f32,
+        widen: bool,
+    ) {
         let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
-        if state.warmup_left > 0 {
+        if widen && state.warmup_left > 0 {
             // The covariance held, not the steady one (see `super::start`).
             for (i, (upper, sigma)) in out.upper_c.iter_mut().zip(&self.bound_sigma_k).enumerate() {
                 let variance = state.warmup_cov.get((i, i)).copied().unwrap_or(f32::NAN);
@@ -1681,7 +1695,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state.warmup_cov = cov;
         state.warmup_left = start::MAX_START_CORRECTIONS;
         state.warmup_until_steady = true;
-        self.publish_upper(&mut state, ambient_c);
+        self.publish_upper(&mut state, ambient_c, true);
         self.limit(&mut state.outputs, ambient_c);
         state
     }

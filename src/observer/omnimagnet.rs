@@ -1021,6 +1021,12 @@ impl OmniObserver {
         self.clock.step_s()
     }
 
+    /// The alarm configuration of the [`ALARM_NODES`] elements (their
+    /// limits at an ambient).
+    pub fn alarm(&self) -> &AlarmConfig<f32, 6> {
+        &self.alarm
+    }
+
     /// A state with every node at `temps_c` \[degC\], the build-time model,
     /// zero heat-input biases, the ambient at `ambient_c` \[degC\], no
     /// current, no alarm.

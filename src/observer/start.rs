@@ -33,7 +33,17 @@
 //!   So the limiter starts in its taper band (at the default 10 K band and
 //!   a 1 K start, `sqrt(1/10)`: 32 % of the hardware current) and opens as
 //!   the sensors teach the filter: no latched shutdown, no assumed cold
-//!   winding.
+//!   winding;
+//! * **the limiter acts on the doubt, the alarm on the evidence**: while
+//!   the wider covariance is held, the alarm (warning and latched
+//!   shutdown) judges the steady bound, the estimate plus the steady
+//!   `k sigma` and margin, and the limiter and the published `upper_c`
+//!   the widened one. The widened bound of a hot start rises past the
+//!   limit as the filter's mean climbs faster than its deviation shrinks
+//!   (a reset at the hottest point of a three-phase motor's run latched a
+//!   shutdown 21 s in, the winding 0.9 K under its limit): a doubt that
+//!   the limiter already answers with no current. A device really above
+//!   its limit at the start is shut down as soon as the mean shows it.
 //!
 //! # The restore with an unknown off time
 //!
@@ -143,7 +153,7 @@ pub fn earliest_off_time_s<const N: usize, const P: usize>(
     max_off_s: f32,
 ) -> f32 {
     let usable = readings_c.iter().any(|r| r.is_some_and(f32::is_finite));
-    if !usable || !(max_off_s > 0.0) || !max_off_s.is_finite() {
+    if !usable || max_off_s.is_nan() || max_off_s <= 0.0 || !max_off_s.is_finite() {
         return 0.0;
     }
     let fits = |t: f32| {

@@ -74,7 +74,11 @@ pub struct FaultsArgs {
     /// stuck, drift, jump-up, jump-down, spikes, dropout, all-detached,
     /// all-stuck, frozen-clock, huge-current, corrupt-snapshot,
     /// stale-snapshot, power-off, refresh-stops (the model refresh's task
-    /// dies; by default run only with a refresh).
+    /// dies; by default run only with a refresh), and the start classes
+    /// (closed loop, the drive obeying the limits, restarted at the hottest
+    /// point of the run): reset-0s, reset-1min, reset-10min, reset-1h (no
+    /// snapshot: the safe start from the readings), restore-unknown-off (a
+    /// snapshot, the off time unknown, --off-s off).
     #[arg(long, value_name = "CLASS[,CLASS...]", value_delimiter = ',')]
     classes: Vec<String>,
     /// Off time of the power-off restart [s].
@@ -315,6 +319,36 @@ fn verdict(c: &CaseReport) -> String {
     }
 }
 
+/// The start classes' table (closed loop: the drive obeys the limits).
+fn print_starts(r: &FaultReport) {
+    let starts: Vec<_> = r
+        .cases
+        .iter()
+        .filter_map(|c| c.start.as_ref().map(|s| (c, s)))
+        .collect();
+    if starts.is_empty() {
+        return;
+    }
+    println!();
+    println!("starts (closed loop, restarted at the hottest point; goals: over_limit <= 0, under_bound <= 1 K, refused 0):");
+    println!(
+        "{:<20} {:>8} {:>10} {:>12} {:>13} {:>8} {:>11}",
+        "class", "off_s", "restart_s", "over_limit_K", "under_bound_K", "refused", "first_limit"
+    );
+    for (c, s) in starts {
+        println!(
+            "{:<20} {:>8.0} {:>10.1} {:>+12.2} {:>13} {:>8} {:>10.0}%",
+            c.class.name(),
+            s.off_s,
+            s.restart_s,
+            s.over_limit_k,
+            s.under_bound_k.map_or("-".into(), |u| format!("{u:+.2}")),
+            s.refused,
+            100.0 * s.first_limit_share
+        );
+    }
+}
+
 fn print_text(r: &FaultReport) {
     let drive = match &r.trace {
         Some(path) => format!("the currents of {path}"),
@@ -415,6 +449,7 @@ fn print_text(r: &FaultReport) {
             s.protective_trips
         );
     }
+    print_starts(r);
     println!();
     println!(
         "{} cases: {} lost shutdowns, {} late (> {} s), {} false trips ({} under spike trains)",

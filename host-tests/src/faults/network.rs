@@ -51,6 +51,8 @@ struct NetSubject<const C: usize, const X: usize, const P: usize> {
     settings: NetworkSettings,
     plant: FilePlant,
     nodes: usize,
+    /// Per node: it has a critical temperature.
+    limited: Vec<bool>,
     sensor_nodes: Vec<usize>,
     alarm_nodes: Vec<usize>,
     /// Per source: its input and the factor on that input's current (the
@@ -125,6 +127,7 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             settings,
             plant,
             nodes: model.nodes.len(),
+            limited: model.critical_c.iter().map(Option::is_some).collect(),
             sensor_nodes,
             alarm_nodes,
             drives: model
@@ -184,13 +187,62 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             now_us: i.now_us,
             elapsed_us: i.elapsed_us,
         };
-        let out = self.observer.tick(state, &inputs);
+        self.observer.tick(state, &inputs);
+        self.view(state)
+    }
+    fn view(&self, state: &Self::State) -> TickView {
+        let out = state.outputs();
+        // An input's limit: the tightest of its sources', each in the
+        // input's amperes (a source carries the input's current times
+        // its factor).
+        let mut limits_a = vec![f32::INFINITY; self.inputs()];
+        for ((input, k), limit) in self.drives.iter().zip(&out.limits) {
+            if let Some(l) = limits_a.get_mut(*input) {
+                let per_input = if *k > 0.0 {
+                    limit.current_a / k
+                } else {
+                    f32::INFINITY
+                };
+                *l = l.min(per_input);
+            }
+        }
         TickView {
             temps_c: out.temps_c[..self.nodes].to_vec(),
             sensors: out.sensors[..self.sensor_nodes.len()].to_vec(),
             flags: out.flags,
             shutdown: out.alarm.shutdown,
+            upper_c: out.upper_c[..self.nodes].to_vec(),
+            limits_a,
         }
+    }
+    fn alarm_limits_c(&self, ambient_c: f32) -> Vec<Option<f32>> {
+        let limits = self.observer.alarm().alarm_limits_c(ambient_c);
+        (0..self.nodes)
+            .map(|n| self.limited[n].then_some(limits[n]))
+            .collect()
+    }
+    fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
+        let mut readings = [None; P];
+        for (r, z) in readings.iter_mut().zip(readings_c) {
+            *r = *z;
+        }
+        self.observer.start(&readings, &[ambient_c; 2])
+    }
+    fn restore_with_readings(
+        &self,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        readings_c: &[Option<f32>],
+    ) -> Result<Self::State, String> {
+        let mut readings = [None; P];
+        for (r, z) in readings.iter_mut().zip(readings_c) {
+            *r = *z;
+        }
+        self.observer
+            .restore_with_readings(bytes, now_s, max_age_s, &[ambient_c; 2], &readings)
+            .map_err(|e| e.to_string())
     }
     fn save(&self, state: &Self::State, now_s: u32) -> Option<Vec<u8>> {
         let mut bytes = vec![0u8; snapshot_len(C)];
