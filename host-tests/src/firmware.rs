@@ -13,6 +13,7 @@
 
 use coil_thermal::observer::network::NetworkSettings;
 use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
+use coil_thermal::protect::margin::UncertaintyMargin;
 
 use crate::codegen::ObserverSpec;
 use crate::model_file::Model;
@@ -72,6 +73,18 @@ impl FirmwareConfig {
         }
         if let Some(v) = table.stuck_tolerance_k {
             settings.stuck_tolerance_k = v;
+        }
+        if table.unmeasured_margin.is_some() || table.unmeasured_margin_offset_k.is_some() {
+            let default = settings.unmeasured_margin;
+            let fraction = table.unmeasured_margin.unwrap_or(default.rise_fraction);
+            let offset_k = table.unmeasured_margin_offset_k.unwrap_or(default.offset_k);
+            let ok = |v: f64| v.is_finite() && v >= 0.0;
+            if !(ok(fraction) && ok(offset_k)) {
+                anyhow::bail!(
+                    "[observer] unmeasured_margin ({fraction}) and unmeasured_margin_offset_k ({offset_k} K) must be finite and >= 0"
+                );
+            }
+            settings.unmeasured_margin = UncertaintyMargin::new(fraction, offset_k);
         }
         settings.ambient_boundary = model
             .boundaries

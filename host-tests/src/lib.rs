@@ -44,6 +44,7 @@ pub mod grid_reference;
 pub mod kalman;
 pub mod library_observer;
 pub mod limits;
+pub mod margin;
 pub mod model_file;
 pub mod observer;
 pub mod plot;

@@ -14,6 +14,7 @@ use crate::calibrate::{
     access_param, default_bounds, first_readings, fit, FitData, FitOptions, FitReport, ParamSpec,
     Weighting,
 };
+use crate::margin;
 use crate::model_file::{Model, ModelFile};
 use crate::observer::{score, Score};
 use crate::sim::{
@@ -193,6 +194,23 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         .iter()
         .map(|d| validate(&fitted, d))
         .collect::<Result<Vec<_>>>()?;
+    // The margin of the nodes the product's sensors do not see, measured
+    // by the firmware's observer on the held-out recordings.
+    let mut fitted = fitted;
+    let margin_checks = match &fitted.observer {
+        Some(spec) if !held_out.is_empty() => {
+            let model = Model::build(&fitted)?;
+            held_out
+                .iter()
+                .filter_map(|d| margin::check(&model, spec, d).transpose())
+                .collect::<Result<Vec<_>>>()?
+        }
+        _ => Vec::new(),
+    };
+    let margin_written = margin::written_margin(&margin_checks);
+    if let (Some(m), Some(spec)) = (margin_written, fitted.observer.as_mut()) {
+        spec.unmeasured_margin = Some(m);
+    }
     let (text, kept_comments) = fitted_text(&a.model.model, &fitted)?;
     std::fs::write(&a.out, text)
         .with_context(|| format!("{}: cannot write the fitted model", a.out.display()))?;
@@ -206,6 +224,10 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             "model": info.name,
             "fit": report,
             "validation": validation,
+            "margin": {
+                "checks": margin_checks,
+                "written": margin_written,
+            },
             "starts": starts,
             "seconds": seconds,
             "out": a.out.display().to_string(),
@@ -241,6 +263,22 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             "{:<36} {:>14.6e} {:>14.6e} {:>12}  [{:.3e}, {:.3e}]{note}",
             p.name, p.initial, p.fitted, se, p.lo, p.hi,
         );
+    }
+    // What an unidentified parameter means for the firmware's estimate.
+    for p in &report.params {
+        let relative = p
+            .std_error
+            .map(|e| e / p.fitted.abs().max(f64::MIN_POSITIVE));
+        if relative.is_none_or(|r| r > UNIDENTIFIED_RELATIVE_ERROR) {
+            println!(
+                "  {}: not pinned down by these recordings ({}): what the observer estimates for the nodes it governs rests on its value; a sensor the product has corrects what it sees, but a node no sensor reads (a heatsink, a winding) may be off by what this parameter is. Give --validate a recording with a bench thermocouple on such a node: calibrate then measures the margin the product needs there",
+                p.name,
+                relative.map_or("no standard error: the fit's covariance is singular, some parameter has no effect on these readings".into(), |r| format!(
+                    "standard error {:.0} % of its value",
+                    100.0 * r
+                ))
+            );
+        }
     }
     // Strongly correlated pairs: the data cannot tell these apart.
     let mut pairs = Vec::new();
@@ -303,6 +341,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             );
         }
     }
+    print_margin(&margin_checks, margin_written);
     println!(
         "fitted model written to {}{}",
         a.out.display(),
@@ -316,6 +355,38 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         println!("fit report drawn to {}", p.display());
     }
     Ok(())
+}
+
+/// A fitted parameter whose standard error exceeds this share of its value
+/// is reported as not pinned down by the recordings.
+const UNIDENTIFIED_RELATIVE_ERROR: f64 = 0.5;
+
+/// What the held-out recordings say of the unmeasured nodes' margin.
+fn print_margin(checks: &[margin::MarginCheck], written: Option<f64>) {
+    for c in checks {
+        println!(
+            "margin check on {} (the firmware observer, the product's sensors only, margin {:.0} % of the rise):",
+            c.trace,
+            100.0 * c.margin
+        );
+        for n in &c.nodes {
+            let needed = if n.needed_margin.is_finite() {
+                format!("{:.1} %", 100.0 * n.needed_margin)
+            } else {
+                format!("- (never {} K above the ambient)", margin::MIN_RISE_K)
+            };
+            println!(
+                "  {:<20} -> {:<16} truth above its upper bound at most {:+.2} K (at {:.0} s); needs a margin of {needed}",
+                n.column, n.node, n.worst_above_bound_k, n.at_s
+            );
+        }
+    }
+    if let Some(m) = written {
+        println!(
+            "[observer] unmeasured_margin = {m} written (the share of the rise the held-out truth needed, rounded up to {} %): codegen flashes it",
+            100.0 * margin::MARGIN_STEP
+        );
+    }
 }
 
 /// The relative weight of each fitted trace from `--weight K:W` (K the

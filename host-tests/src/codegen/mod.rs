@@ -99,6 +99,16 @@ pub struct ObserverSpec {
     /// `NetworkSettings::stuck_tolerance_k`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stuck_tolerance_k: Option<f64>,
+    /// Model-uncertainty margin of the nodes no sensor measures, as a share
+    /// of their rise above the ambient (dimensionless, `>= 0`; default
+    /// 0.05, the Omnimagnet's): the share by which the truth of such a node
+    /// may stand above its estimate. `calibrate --validate` measures it on
+    /// a recording the fit did not see and writes it here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unmeasured_margin: Option<f64>,
+    /// The margin's fixed part on those nodes \[K\] (`>= 0`; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unmeasured_margin_offset_k: Option<f64>,
     /// The `[[source]]`s (by name) whose heat-input bias the observer
     /// estimates; the others', and every speed and `[[loss]]` source's,
     /// stay exactly 0 (`NetworkObserverBuilder::bias_sources`). Default:
@@ -411,6 +421,15 @@ impl Plan {
         }
         if let Some(v) = s.stuck_tolerance_k {
             fields.push(format!("stuck_tolerance_k: {v:?}"));
+        }
+        if s.unmeasured_margin.is_some() || s.unmeasured_margin_offset_k.is_some() {
+            let default =
+                coil_thermal::observer::network::NetworkSettings::DEFAULT.unmeasured_margin;
+            fields.push(format!(
+                "unmeasured_margin: coil_thermal::protect::margin::UncertaintyMargin::new({:?}, {:?})",
+                s.unmeasured_margin.unwrap_or(default.rise_fraction),
+                s.unmeasured_margin_offset_k.unwrap_or(default.offset_k)
+            ));
         }
         let ambient = self.ambient_boundary();
         if ambient != 0 {
