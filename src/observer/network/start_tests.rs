@@ -195,3 +195,31 @@ fn a_restore_without_the_off_time_finds_it_from_the_readings() {
     println!("uncooled: {stale:?}");
     assert!(stale.refused > 0, "{stale:?}");
 }
+
+#[test]
+fn k_sigma_is_what_keeps_a_reset_without_history_safe() {
+    // The start's doubt reaches the protection through `k sigma` (issue 36,
+    // section 3: a case where `k sigma`, not the model margin's share of
+    // the rise, keeps the plant under its limit). With `k_sigma` 0 the
+    // start's covariance widens nothing: the reset at the hottest point
+    // reads the winding at the housing's temperature, its bound stands far
+    // below the truth, as the ambient start did, and the winding runs past
+    // its limit (measured: 10.4 K past it, the bound 23.4 K under the
+    // truth; with the default `k_sigma` 3, 6.2 K under the limit).
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&device(), [1])
+        .critical_c([Some(155.0), None, None])
+        .hardware_limit_a([20.0])
+        .settings(NetworkSettings {
+            k_sigma: 0.0,
+            ..NetworkSettings::DEFAULT
+        })
+        .build()
+        .unwrap();
+    let (mut plant, _) = warm_device(0);
+    let housing = ((plant[1] * 4.0).round() / 4.0) as f32;
+    let mut state = obs.start(&[Some(housing)], &[20.0]);
+    let run = drive(&obs, &mut state, &mut plant, 0, 600, 1.0);
+    println!("k_sigma 0: {run:?}");
+    assert!(run.under_bound_k[0] > 5.0, "{run:?}");
+    assert!(run.winding_over_limit_k > 0.0, "{run:?}");
+}
