@@ -1,7 +1,7 @@
 //! The RTIC example's persistence on the host: its two-slot record store
 //! (`examples/rtic-stm32f4/src/persist.rs`) on the simulated NOR flash
 //! (`examples/support/sim_flash.rs`), through power lost anywhere in a
-//! save.
+//! save; and README's copy of that firmware and of what it prints in QEMU.
 
 use std::cell::Cell;
 
@@ -199,4 +199,32 @@ fn the_simulated_flash_is_a_nor_flash() {
     flash.write(page, &[0x3C; 8]).unwrap();
     flash.read(page, &mut buf).unwrap();
     assert_eq!(buf, [0x30; 8]);
+}
+
+fn read(path: &str) -> String {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(path);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn the_readme_shows_the_rtic_firmware_and_what_it_prints() {
+    let readme = read("README.md");
+    let main = read("examples/rtic-stm32f4/src/main.rs");
+    // The file less its module docs, as README shows it.
+    let body: String = main
+        .lines()
+        .skip_while(|l| l.starts_with("//!"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(
+        readme.contains(&format!("```rust,ignore\n{body}```")),
+        "README's RTIC firmware is not examples/rtic-stm32f4/src/main.rs"
+    );
+    let expected = read("examples/rtic-stm32f4/qemu.expected");
+    assert!(
+        readme.contains(&format!("```text\n{expected}```")),
+        "README's RTIC output is not examples/rtic-stm32f4/qemu.expected"
+    );
 }
