@@ -3,7 +3,9 @@
 //!
 //! Everything the tick needs is solved on the host and held in [`PARTS`]
 //! (flash); [`observer`] assembles it with no exponential and no Riccati
-//! solution.
+//! solution. The state starts from [`start_state`] (no history) or
+//! [`restore_state`] (a snapshot of [`save_snapshot`], [`SNAPSHOT_LEN`]
+//! bytes, kept in non-volatile storage through the power cycle).
 //!
 //! | node | critical \[degC\] | thermocouple |
 //! |---|---|---|
@@ -21,6 +23,7 @@
 use coil_thermal::observer::network::{
     NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,
 };
+use coil_thermal::observer::snapshot::{self, RestorePolicy, SnapshotError};
 use coil_thermal::protect::limiter::CoilLimit;
 use coil_thermal::{BuildError, Network, Resistance};
 
@@ -280,7 +283,105 @@ pub fn observer() -> Result<Observer, BuildError> {
     Observer::from_parts(&PARTS)
 }
 
-/// A state with every node and boundary at `ambient_c` \[degC\].
+/// A state with every node and boundary at `ambient_c` \[degC\]: for
+/// every node *known* to be at the ambient (e.g. a test). A product starts
+/// with [`start_state`] or [`restore_state`]: on a warm device this one
+/// reads cold.
 pub fn initial_state(observer: &Observer, ambient_c: f32) -> State {
     observer.state(&[ambient_c; NODES], &[ambient_c; BOUNDARIES])
+}
+
+/// The safe start without a history (the first boot, a refused snapshot,
+/// a product that keeps none), from what the thermocouples read now,
+/// `readings_c` \[degC\] (`None`: no reading): every node a sensor reads
+/// at its reading, every other node no cooler than the hottest reading or
+/// `ambient_c`, with a variance that puts each limited element's upper
+/// bound 1 K below its alarm limit. No shutdown is latched: the limiter
+/// starts in its taper band and opens as the sensors teach the filter
+/// (`NetworkObserver::start`). The boundaries at `ambient_c` \[degC\].
+pub fn start_state(
+    observer: &Observer,
+    readings_c: &[Option<f32>; SENSORS],
+    ambient_c: f32,
+) -> State {
+    observer.start(readings_c, &[ambient_c; BOUNDARIES])
+}
+
+/// Bytes of a snapshot ([`save_snapshot`], [`restore_state`]): the node
+/// estimates, the latched shutdown, the time stamp, the configuration's
+/// fingerprint and a CRC (`coil_thermal::observer::snapshot`).
+pub const SNAPSHOT_LEN: usize = snapshot::snapshot_len(NODES);
+
+/// Writes a snapshot of `state` into `buf`, stamped `now_s` \[s\] (the
+/// clock [`OffTime::SinceSave`] reads, when there is one), for
+/// non-volatile storage: every few seconds and at the brown-out warning.
+/// `O(NODES)` work and a CRC; the heat biases are not saved (a restored
+/// state starts them at zero).
+pub fn save_snapshot(observer: &Observer, state: &State, now_s: u32, buf: &mut [u8; SNAPSHOT_LEN]) {
+    // Never refused: the buffer is the snapshot's length.
+    let _ = observer.save(state, now_s, buf);
+}
+
+/// How long the device was off, as the firmware knows it at the boot
+/// ([`restore_state`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OffTime {
+    /// Off from the snapshot's save until now, `now_s` \[s\] on a clock
+    /// that ran through the power-off (a real-time clock) and stamped the
+    /// snapshot: a save at the power-off (the brown-out warning's). The
+    /// saved estimates cool exactly over the snapshot's age
+    /// (`NetworkObserver::restore_after`); older than `max_age_s`,
+    /// refused.
+    SinceSave {
+        /// Now \[s\], on the clock of [`save_snapshot`]'s `now_s`.
+        now_s: u32,
+    },
+    /// Unknown: no clock ran through the power-off, or the snapshot is
+    /// not the power-off's (a periodic save: the device may have run for
+    /// up to a save period after it, which no restore sees). The device
+    /// may have been off for anything up to `max_age_s`; the saved
+    /// estimates cool by the shortest of those off times that the boot
+    /// readings allow, the least cooling, so the nodes no sensor reads
+    /// err hot (`NetworkObserver::restore_with_readings`).
+    Unknown,
+}
+
+/// The state at the boot from a snapshot `bytes` of [`save_snapshot`],
+/// cooled over the off time `off`, the boundaries at `ambient_c`
+/// \[degC\]; `readings_c` \[degC\] is what the thermocouples read now.
+/// A latched shutdown stays latched. A snapshot the observer refuses
+/// (none, corrupted, another model or protection, older than `max_age_s`
+/// \[s\], ...) gives [`start_state`] and why it was refused.
+pub fn restore_state(
+    observer: &Observer,
+    bytes: &[u8],
+    off: OffTime,
+    max_age_s: u32,
+    readings_c: &[Option<f32>; SENSORS],
+    ambient_c: f32,
+) -> (State, Option<SnapshotError>) {
+    let boundary_c = [ambient_c; BOUNDARIES];
+    let restored = match off {
+        // Capped at the snapshot's age: off since the save.
+        OffTime::SinceSave { now_s } => {
+            observer.restore_after(bytes, now_s, max_age_s, &boundary_c, Some(f32::INFINITY))
+        }
+        // No clock: the snapshot's own stamp plus the longest off time
+        // stands for now, so the readings choose among every off time.
+        OffTime::Unknown => {
+            let any_age = RestorePolicy {
+                fingerprint: observer.fingerprint(),
+                now_s: u32::MAX,
+                max_age_s: u32::MAX,
+            };
+            snapshot::restore::<NODES>(bytes, &any_age).and_then(|(_, saved)| {
+                let now_s = saved.saved_at_s.saturating_add(max_age_s);
+                observer.restore_with_readings(bytes, now_s, max_age_s, &boundary_c, readings_c)
+            })
+        }
+    };
+    match restored {
+        Ok(state) => (state, None),
+        Err(refused) => (start_state(observer, readings_c, ambient_c), Some(refused)),
+    }
 }

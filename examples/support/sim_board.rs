@@ -13,7 +13,8 @@
 //!   500 ms. It stands in for the device: these are not measurements.
 //! * After 6 s, one line on semihosting (estimates, their protective upper
 //!   bounds, the plant, the limit, the alarm), and QEMU exits with status 0;
-//!   a panic exits with status 1.
+//!   a panic exits with status 1. (The RTIC example runs longer, through
+//!   power cycles: its `board.rs`.)
 
 use crate::model::{Inputs, CURRENTS, NODES, NODE_NAMES, SENSORS};
 use coil_thermal::observer::network::NetworkOutputs;
@@ -41,11 +42,26 @@ pub struct Board {
 impl Board {
     /// At rest, the plant 1 K above the ambient.
     pub const fn new() -> Self {
+        Self::with_plant([AMBIENT_C + 1.0; NODES])
+    }
+
+    /// At rest, the plant at `plant_c` \[degC\] (after a power cycle).
+    pub const fn with_plant(plant_c: [f32; NODES]) -> Self {
         Self {
             ticks: 0,
             applied_a: 0.0,
-            plant_c: [AMBIENT_C + 1.0; NODES],
+            plant_c,
         }
+    }
+
+    /// The plant's temperatures \[degC\].
+    pub fn plant_c(&self) -> [f32; NODES] {
+        self.plant_c
+    }
+
+    /// Ticks since the board was made.
+    pub fn ticks(&self) -> u32 {
+        self.ticks
     }
 
     /// One 1 ms period of the drive at its demand clamped to `limits`, and
@@ -54,7 +70,27 @@ impl Board {
         self.ticks += 1;
         let demand_a = if self.ticks <= 1000 { 3.0 } else { 10.0 };
         self.applied_a = limits[0].clamp_a(demand_a);
-        // model.toml's network, its resistance 5 % high.
+        self.step_plant();
+    }
+
+    /// One 1 ms period with the drive off (its supply failing).
+    pub fn drive_off(&mut self) {
+        self.ticks += 1;
+        self.applied_a = 0.0;
+        self.step_plant();
+    }
+
+    /// `off_s` \[s\] without power: the plant cools.
+    pub fn unpowered(&mut self, off_s: u32) {
+        self.applied_a = 0.0;
+        for _ in 0..off_s * (1_000_000 / TICK_US) {
+            self.step_plant();
+        }
+    }
+
+    /// The plant over one tick at the applied current: model.toml's
+    /// network, its resistance 5 % high.
+    fn step_plant(&mut self) {
         let [w, h, s] = self.plant_c;
         let r_ohm = 1.05 * 1.2 * (1.0 + 0.00393 * (w - 20.0));
         let power_w = r_ohm * self.applied_a * self.applied_a;
@@ -65,6 +101,11 @@ impl Board {
             h + dt_s * (wh - hs) / 60.0,
             s + dt_s * (hs - sa) / 300.0,
         ];
+    }
+
+    /// What the thermocouple reads now \[degC\] (at the boot).
+    pub fn readings_c(&self) -> [Option<f32>; SENSORS] {
+        [Some(self.plant_c[HOUSING])]
     }
 
     /// What the observer gets this tick: the measured current, the ambient,
@@ -92,7 +133,14 @@ impl Board {
         if self.ticks < RUN_TICKS {
             return;
         }
-        hprint!("after {} ms:", self.ticks);
+        self.print("after", out);
+        debug::exit(debug::EXIT_SUCCESS);
+    }
+
+    /// Prints one line: `{label} {ticks} ms:`, each node's estimate, upper
+    /// bound and plant temperature, the current, its limit and the alarm.
+    pub fn print(&self, label: &str, out: &NetworkOutputs<NODES, CURRENTS, SENSORS>) {
+        hprint!("{} {} ms:", label, self.ticks);
         for (i, name) in NODE_NAMES.iter().enumerate() {
             let (estimate_c, upper_c) = (out.temps_c[i], out.upper_c[i]);
             hprint!(
@@ -111,6 +159,5 @@ impl Board {
             out.alarm.predictive,
             out.alarm.shutdown
         );
-        debug::exit(debug::EXIT_SUCCESS);
     }
 }

@@ -21,7 +21,7 @@ use embassy_executor::InterruptExecutor;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_time::{Duration, Ticker};
-use model::{initial_state, observer, Observer, State};
+use model::{observer, start_state, Observer, State};
 
 static OBSERVER_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
@@ -32,8 +32,7 @@ unsafe fn UART4() {
 }
 
 #[embassy_executor::task]
-async fn observe(observer: Observer, mut state: State) {
-    let mut board = Board::new();
+async fn observe(observer: Observer, mut state: State, mut board: Board) {
     let mut ticker = Ticker::every(Duration::from_micros(board::TICK_US.into()));
     loop {
         ticker.next().await;
@@ -49,10 +48,13 @@ fn main() -> ! {
     let _peripherals = embassy_stm32::init(Default::default());
     // From the generated tables: nothing is solved on the MCU.
     let observer = observer().expect("the model builds");
-    let state = initial_state(&observer, board::AMBIENT_C);
+    // The safe start without history, from what the thermocouple reads
+    // (the RTIC example also keeps the state through power cycles).
+    let board = Board::new();
+    let state = start_state(&observer, &board.readings_c(), board::AMBIENT_C);
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = OBSERVER_EXECUTOR.start(interrupt::UART4);
-    spawner.spawn(observe(observer, state).expect("one observer task"));
+    spawner.spawn(observe(observer, state, board).expect("one observer task"));
     loop {
         // Thread mode has nothing else to do here.
         cortex_m::asm::wfi();
