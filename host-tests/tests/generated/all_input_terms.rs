@@ -184,8 +184,8 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             protect_period_steps: 16,
             k_sigma: 3.0,
             unmeasured_margin: coil_thermal::protect::margin::UncertaintyMargin {
-                rise_fraction: 0.05,
-                offset_k: 0.0,
+                rise_fraction: 0.08,
+                offset_k: 0.5,
             },
             incidence_fraction: 0.1,
             origin_c: 20.0,
