@@ -56,7 +56,7 @@ fn drive(
             let quantised = (plant[1] * 4.0).round() / 4.0;
             inp.readings = [reading(quantised as f32, now_us)];
         }
-        let out = obs.tick(state, &inp).clone();
+        let out = *obs.tick(state, &inp);
         if read && !matches!(out.sensors[0], SensorStatus::Fused { .. }) {
             run.refused += 1;
         }
@@ -108,7 +108,7 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
         let (mut plant, _) = warm_device(off_s);
         let housing = ((plant[1] * 4.0).round() / 4.0) as f32;
         let mut state = obs.start(&[Some(housing)], &[20.0]);
-        let first = state.outputs().clone();
+        let first = *state.outputs();
         let run = drive(&obs, &mut state, &mut plant, 0, 1800, 1.0);
         // The same run started from the truth: what a snapshot would give.
         let (mut known, _) = warm_device(off_s);
