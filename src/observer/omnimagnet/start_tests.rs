@@ -267,12 +267,13 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
     // state: what a snapshot would give) allows, within 1 %.
     let obs = observer();
     let amb = AMBIENT_C as f32;
+    let mut runs = Vec::new();
     for off_s in [0, 60, 600, 3600] {
         let plant = cooled(off_s);
         let readings = plant.clone().readings().map(Some);
         let mut state = obs.start(&Omnimagnet::PAPER, &readings, amb);
         let first = *state.outputs();
-        assert!(state.warming_up());
+        let warming = state.warming_up();
         let run = drive(&obs, &mut state, &mut plant.clone(), RUN_S, 1.0);
         let mut warm = obs.state(&truth_c(&plant), amb);
         let reference = drive(&obs, &mut warm, &mut plant.clone(), RUN_S, 1.0);
@@ -297,6 +298,10 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
             run.shadow_free_s,
             run.settled_s,
         );
+        runs.push((off_s, first, warming, run, reference));
+    }
+    // Every run printed first, then the goals, then the mechanism.
+    for (off_s, first, _, run, reference) in &runs {
         assert!(!first.alarm.shutdown, "the start latches nothing");
         assert!(!run.shutdown, "off {off_s} s: {run:?}");
         assert!(run.over_limit_k < 0.0, "off {off_s} s: {run:?}");
@@ -310,6 +315,7 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
         }
         assert!(run.protection_settled_s.is_some(), "off {off_s} s: {run:?}");
     }
+    assert!(runs.iter().all(|r| r.2), "the start holds its covariance");
 }
 
 #[test]
