@@ -24,7 +24,9 @@
 //!   `Q32`), the time-to-limit predictor's `tick` and `predict` (`f32`);
 //! * the Omnimagnet: `OmniObserver::tick` and `install_model` (`f32`:
 //!   the carried mean predict, `update_steady`, the shadow and the reading
-//!   screens, predictor slice, alarm, limiter) and the Kalman
+//!   screens, predictor slice, alarm, limiter; on an opaque state, so the
+//!   start's held covariance too: its slices, its correction, its widened
+//!   bound) and the Kalman
 //!   `OmnimagnetObserver::predict`, `correct`, `correct_samples` and
 //!   `correct_winding` in `f32` and `f64`, in both gain modes;
 //! * the generic `NetworkObserver::tick` (`f32`);
@@ -176,7 +178,11 @@ fn observers() -> bool {
         return false;
     };
     let mut gs = grid.state(20.0);
-    let mut os = omni.state(&[22.0; NODES], 22.0);
+    // Opaque, so that the tick's paths for a state made by `start` (its
+    // held covariance: the slices, the correction against it, the widened
+    // bound) are linked too: `start` itself, like `new`, reads the model's
+    // geometry tables and runs before the loop.
+    let mut os = black_box(omni.state(&[22.0; NODES], 22.0));
     for k in 0..black_box(2000u32) {
         let current = black_box(if k % 7 == 0 { f32::NAN } else { 2.0 });
         let temp = black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 });

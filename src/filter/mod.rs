@@ -128,6 +128,7 @@ pub use gate::{GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_
 pub(crate) use kalman::predict_cov;
 pub use kalman::{predict, predict_mean, update, InputStatus, KalmanConfig, KalmanState};
 pub use observability::{observability, Observability};
+pub(crate) use riccati::update_against;
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};
 pub use virtual_sensor::update_virtual;
 

@@ -24,10 +24,14 @@
 //!   (nodes 7 .. 12, [`ALARM_NODES`]), the current limiter on the three
 //!   solenoid currents, and the sliced modal time-to-limit predictor.
 //!
-//! The time-varying filter is not offered here: one of its corrections costs
-//! about 12 000 multiply-adds, beyond a 1 ms tick's budget on a Cortex-M4F,
-//! so the steady-state gain runs from the first tick
-//! ([`OmniObserver::new`] refuses `GainMode::TimeVarying` and a warm-up).
+//! The time-varying filter of every model step is not offered here: its
+//! covariance predict costs about 8 400 multiply-adds a step and one of its
+//! corrections about 12 000, beyond a 1 ms tick's budget on a Cortex-M4F,
+//! so the steady-state gain runs from the first tick ([`OmniObserver::new`]
+//! refuses `GainMode::TimeVarying` and a warm-up). The one exception is the
+//! start without a history ([`OmniObserver::start`], "Start without
+//! history" below), which holds its covariance once per correction period,
+//! in slices.
 //!
 //! ```
 //! use coil_thermal::observer::omnimagnet::{OmniObserver, OmniSettings, OmniInputs};
@@ -194,7 +198,90 @@
 //! 0.5 K of it (measured from 1 s to 10 h after realistic heating runs:
 //! at most +0.32 K). One linearisation at the ambient would cool far too
 //! slowly (12.8 K above after the paper's run). An unknown off time means
-//! no cooling.
+//! no cooling there; [`OmniObserver::restore_with_readings`] finds it from
+//! the thermocouples instead (see [`super::start`]): the shortest off time,
+//! within the snapshot's age, whose cooled state brings some solenoid
+//! within `k_sigma` thermocouple deviations (0.75 K) of its reading, every
+//! solenoid no warmer than its readings. Saved at the limit and restored
+//! 15 min later after 10 min off, it errs hot by at most 1.2 K on any node
+//! (the known off time: 0.07 K), where the uncooled restore refuses 2 393
+//! healthy readings in 5 min (`start_tests.rs`).
+//!
+//! # Start without history
+//!
+//! After a reset with no snapshot to trust (the first boot, a refused
+//! snapshot, a product that keeps none), [`OmniObserver::start`] makes a
+//! state that is safe from the first tick and converges on the
+//! thermocouples, the network observer's start ([`super::start`]) with
+//! what the Omnimagnet needs on top:
+//!
+//! * **mean**: each solenoid at its readings (the hotter of its two); the
+//!   other nodes at the steady state of the nonlinear model's network with
+//!   the solenoids, every heat source, held there
+//!   ([`start::held_steady_state_c`], secant conductances at the start's
+//!   temperatures, three passes), each between the coolest reading and the
+//!   hottest; each wire or cover insulation no hotter than where its
+//!   steady upper bound is [`start::START_BELOW_LIMIT_K`] below its alarm
+//!   limit. At the hottest point of a protected run the solenoids sit some
+//!   kelvin above the cover's limit: the network observer's mean (every
+//!   unread node at the hottest reading) puts the frames 5 to 14 K too hot
+//!   there, whose heat drives a cover's estimate a kelvin up within
+//!   seconds, past its limit: the shutdown latched;
+//! * **covariance**: the steady prior widened on every node no
+//!   thermocouple reads, each insulation to a bound
+//!   [`start::START_BELOW_LIMIT_K`] below its alarm limit, the other nodes
+//!   to the widest of those (from the wire's 163 degC limit: about 25 K);
+//! * **held once per correction period**: the per-step covariance predict
+//!   is too costly (above), so the covariance is propagated with the
+//!   period's transition, the one the unfused shadow already steps with
+//!   (no new table), as `F (P+ - P_ss) F^T + M` from the steady solution,
+//!   in slices on the light ticks (no correction, no protection stage, no
+//!   model step longer than the loop's tick): 19 columns, 8 row pairs, 19
+//!   mirrored columns, 5 slices that prepare the next correction's gain,
+//!   `S` and `M H^T`, 53 slices per 0.5 s of at most about 400
+//!   multiply-adds each. The readings' information within a period adds
+//!   up (a `3 x 3` weight: any number of corrections, in any order). A
+//!   correction during the warm-up is then the steady filter's own code
+//!   on that gain (the gate judges against the covariance held). Against
+//!   the per-step time-varying filter in `f64` the held priors agree
+//!   within 1.3e-4 (relative) after 200 periods. Measured in
+//!   `examples/omni_start_m4.rs` (Cortex-M4F, `observer_m4`'s 5 ms
+//!   configuration): plain ticks 886 instructions mean, 3 328 worst (the
+//!   steady filter: 718 and 3 086), a correction 3 328 (2 647); the start
+//!   itself, once, 2.9 million; the state 7 264 B (3 552 B before: the
+//!   covariance and what the correction needs, 3.7 KiB);
+//! * **the protection follows it**: the upper bound widens by `k` times the
+//!   held deviation, on the insulations no higher than
+//!   [`start::START_BELOW_LIMIT_K`] below the limit
+//!   ([`start::capped_extra_k`]: the start assumes the protection held
+//!   before the reset, and the wires' far limit would otherwise widen the
+//!   covers past theirs within half a second); the limiter starts in its
+//!   taper band (2.53 A of 8 A) and the time to limit follows the widened
+//!   bound. No shutdown is latched;
+//! * **the shadow follows the estimate** until the start no longer widens
+//!   any solenoid's or insulation's bound by 0.1 K
+//!   ([`start::START_FORGOTTEN_K`], 9.5 to 18 min after the resets
+//!   below), then runs free. The warm-up itself ends when every variance
+//!   is within 5 % of the steady posterior's: the core (2.5 h time
+//!   constant) keeps an excess for hours, so the held covariance runs to
+//!   [`start::MAX_START_CORRECTIONS`] corrections (9.1 h), at the cost
+//!   above.
+//!
+//! The model refresh coexists: [`OmniObserver::install_model`] re-bases the
+//! mean, which moves no covariance, and the held covariance propagates with
+//! the build-time linearisation, as the steady gain does (a hot device's
+//! conductances are larger, so the cold model forgets the start more
+//! slowly: the safe side).
+//!
+//! Measured against the paper's nonlinear model (RK4, `f64`) driven by
+//! what the observer allows of 8 A after 3 h at the limit and a reset 0 s,
+//! 1 min, 10 min and 1 h later (`start_tests.rs`): no insulation within
+//! 3.3 K of its limit, every node's upper bound above the truth from 1 s
+//! on, no healthy reading refused, the last minute's currents within 0.1 %
+//! of a warm start's. The ambient start (`state(ambient)`) puts the bounds
+//! 23 to 59 K below the truth, refuses the readings and, 10 min after the
+//! reset, lets the insulations run 50 K past their limits; the start's
+//! mean with the steady covariance misses the core's heat by 5.3 K.
 //!
 //! # Readings
 //!
@@ -251,15 +338,16 @@ use super::consistency::{
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::grid::EVENT_CAPACITY;
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
 use crate::error::BuildError;
-use crate::filter::{update_steady, SteadyEstimate};
+use crate::filter::{update_against, update_steady, SteadyEstimate, UpdateReport};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
 use crate::omnimagnet::{
-    Linearization, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS, THERMOCOUPLES,
-    THERMOCOUPLE_NODES, WIRE_INSULATION_LIMIT_C,
+    CoolingPath, Linearization, Omnimagnet, COVER_INSULATION_LIMIT_C, NODES, SOLENOIDS,
+    THERMOCOUPLES, THERMOCOUPLE_NODES, WIRE_INSULATION_LIMIT_C,
 };
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
@@ -293,6 +381,31 @@ pub const MODEL_STALE_PERIODS: u32 = 3;
 pub const MAX_MODEL_REFRESH_S: f64 = 30.0;
 /// [`MAX_MODEL_REFRESH_S`] \[us\], for the integer checks.
 const MAX_MODEL_REFRESH_US: u64 = (MAX_MODEL_REFRESH_S * 1e6) as u64;
+/// The nodes the thermocouples read, the solenoids, in the order of the
+/// start's held covariance (see [`OmniObserver::start`]).
+const MEASURED_NODES: [usize; SOLENOIDS] = [0, 1, 2];
+/// Each thermocouple's place in [`MEASURED_NODES`].
+const SENSOR_MEASURED: [usize; THERMOCOUPLES] = {
+    let mut out = [0; THERMOCOUPLES];
+    let mut j = 0;
+    while j < THERMOCOUPLES {
+        let mut k = 0;
+        let mut found = false;
+        while k < SOLENOIDS {
+            if MEASURED_NODES[k] == THERMOCOUPLE_NODES[j] {
+                out[j] = k;
+                found = true;
+            }
+            k += 1;
+        }
+        assert!(found, "every thermocouple reads a measured node");
+        j += 1;
+    }
+    out
+};
+/// The start's covariance as the Omnimagnet holds it.
+type OmniHeld = HeldCovariance<STATES, SOLENOIDS, THERMOCOUPLES>;
+
 /// A limit no Omnimagnet winding reaches \[degC\], for the predictor,
 /// which takes each winding's power at its node's limit (so it must be
 /// finite there; the other nodes without an alarm get `+inf` and cost no
@@ -704,12 +817,24 @@ pub struct OmniObserverState {
     /// Model steps since the state was made or a model was last
     /// installed (saturating), for the refresh watchdog.
     model_age_steps: u32,
+    /// The start's covariance while its warm-up runs (see
+    /// [`OmniObserver::start`]); idle for every other state.
+    held: OmniHeld,
+    /// The start's widening of each [`ALARM_NODES`] element's bound at
+    /// the last protection stage \[K\] (the predictor's limits follow it).
+    held_extra_k: [f32; ALARM_NODES.len()],
 }
 
 impl OmniObserverState {
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &OmniOutputs {
         &self.outputs
+    }
+
+    /// The start's warm-up runs: the filter holds the covariance of
+    /// [`OmniObserver::start`] until it settles on the steady one.
+    pub fn warming_up(&self) -> bool {
+        self.held.active()
     }
 }
 
@@ -1039,7 +1164,13 @@ impl OmniObserver {
         let mut input = SVector::<f32, INPUTS>::zeros();
         input[SOLENOIDS] = ambient_c;
         input[INPUTS - 1] = 1.0;
-        let op = self.operating(temps_c, &[0.0; SOLENOIDS], ambient_c);
+        let held = OmniHeld::idle();
+        let op = self.operating(
+            temps_c,
+            &[0.0; SOLENOIDS],
+            ambient_c,
+            &[0.0; ALARM_NODES.len()],
+        );
         let mut state = OmniObserverState {
             estimate: SteadyEstimate::new(x),
             model,
@@ -1084,6 +1215,8 @@ impl OmniObserver {
             deferral: Deferral::default(),
             relinearised: false,
             model_age_steps: 0,
+            held,
+            held_extra_k: [0.0; ALARM_NODES.len()],
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -1156,6 +1289,7 @@ impl OmniObserver {
         temps_c: &[f32; NODES],
         currents_a: &[f32; SOLENOIDS],
         ambient_c: f32,
+        held_extra_k: &[f32; ALARM_NODES.len()],
     ) -> Operating<f32, NODES, 1, SOLENOIDS> {
         let alarm_limits = self.alarm.alarm_limits_c(ambient_c);
         let mut limits_c = [f32::INFINITY; NODES];
@@ -1164,13 +1298,13 @@ impl OmniObserver {
                 *slot = NO_LIMIT_C;
             }
         }
-        for (node, limit) in ALARM_NODES.iter().zip(alarm_limits) {
+        for ((node, limit), extra_k) in ALARM_NODES.iter().zip(alarm_limits).zip(held_extra_k) {
             // The predictor follows the mean: it is asked when the mean
             // reaches the temperature at which the upper bound reaches the
-            // limit.
+            // limit (the start's widened bound while it is held).
             if let (Some(slot), Some(bound)) = (limits_c.get_mut(*node), self.bound.element(*node))
             {
-                *slot = bound.mean_limit_c(limit, ambient_c);
+                *slot = bound.mean_limit_c(limit - extra_k, ambient_c);
             }
         }
         Operating {
@@ -1306,6 +1440,7 @@ impl OmniObserver {
                     &state.outputs.temps_c,
                     state.cycle.peak_currents_a(),
                     state.held_ambient_c,
+                    &state.held_extra_k,
                 );
                 state.predictor.tick(&self.predictor, &op);
                 state
@@ -1335,6 +1470,12 @@ impl OmniObserver {
         // The lag moves with the model's time and the predictor's slices.
         if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
             self.age_time_to_limit(state);
+        }
+        if state.held.active() {
+            // The start's covariance: a slice on a light tick (no
+            // correction, no step longer than the loop's tick, no
+            // protection stage).
+            self.hold_start(state, steps.steps, stage == Stage::Idle && !busy);
         }
         let out = &mut state.outputs;
         out.flags = flags;
@@ -1439,6 +1580,12 @@ impl OmniObserver {
         let amb = state.held_ambient_c;
         let out = &mut state.outputs;
         self.bound.upper_c(&out.temps_c, amb, &mut out.upper_c);
+        if state.held.active() {
+            // The covariance held, not the steady one (see `super::start`).
+            self.widen_held(&state.held, &mut out.upper_c, &mut state.held_extra_k, amb);
+        } else {
+            state.held_extra_k = [0.0; ALARM_NODES.len()];
+        }
         if !state.suspect.any() && !stale {
             return;
         }
@@ -1447,6 +1594,32 @@ impl OmniObserver {
         let mut shadow_upper_c = [f32::NAN; NODES];
         self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
         raise_to_shadow(&mut out.upper_c, &shadow_upper_c, ALARM_NODES.into_iter());
+    }
+
+    /// Widens the steady bounds `upper_c` \[degC\] by the start's held
+    /// covariance (see [`start::capped_extra_k`]): on each wire and cover
+    /// insulation no higher than [`start::START_BELOW_LIMIT_K`] below its
+    /// alarm limit at the ambient `ambient_c` \[degC\] (those widenings
+    /// kept in `alarm_extra_k` \[K\] for the predictor).
+    fn widen_held(
+        &self,
+        held: &OmniHeld,
+        upper_c: &mut [f32; NODES],
+        alarm_extra_k: &mut [f32; ALARM_NODES.len()],
+        ambient_c: f32,
+    ) {
+        let steady_c = *upper_c;
+        for (i, upper) in upper_c.iter_mut().enumerate() {
+            *upper += held.bound_extra_k(i);
+        }
+        let limits_c = self.alarm.alarm_limits_c(ambient_c);
+        for ((node, limit), slot) in ALARM_NODES.iter().zip(limits_c).zip(alarm_extra_k) {
+            if let (Some(upper), Some(steady)) = (upper_c.get_mut(*node), steady_c.get(*node)) {
+                let extra_k = start::capped_extra_k(held.bound_extra_k(*node), *steady, limit);
+                *upper = steady + extra_k;
+                *slot = extra_k;
+            }
+        }
     }
 
     /// Which solenoids lost their measurement this tick: a thermocouple in
@@ -1607,12 +1780,16 @@ impl OmniObserver {
             }
             return (false, flags);
         }
-        let report = update_steady(
-            self.filter.kalman(),
-            self.filter.gain(),
-            &mut state.estimate,
-            &z,
-        );
+        let report = if state.held.active() {
+            self.correct_held(state, &z)
+        } else {
+            update_steady(
+                self.filter.kalman(),
+                self.filter.gain(),
+                &mut state.estimate,
+                &z,
+            )
+        };
         record_verdicts(
             &mut state.outputs.sensors,
             &report.verdicts,
@@ -1656,6 +1833,78 @@ impl OmniObserver {
     fn drop_cold_biases(&self, state: &mut OmniObserverState, doubt: &[bool; SOLENOIDS]) {
         if state.relinearised {
             drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
+        }
+    }
+
+    /// The correction of the start's warm-up (see [`Self::start`]): gated
+    /// and fused against the covariance held (its columns at the
+    /// solenoids, made by a light tick before), the readings' information
+    /// counted, and the shadow moved to the estimate until the solenoids'
+    /// and the insulations' bounds have forgotten the start
+    /// ([`start::START_FORGOTTEN_K`]). About 300 multiply-adds: the
+    /// subset update (`6 x 6` Cholesky, `19 x 6`) and its `19 x 6` and
+    /// `6 x 6` inputs.
+    #[inline(never)]
+    fn correct_held(
+        &self,
+        state: &mut OmniObserverState,
+        z: &[Option<f32>; THERMOCOUPLES],
+    ) -> UpdateReport<THERMOCOUPLES> {
+        let kalman = self.filter.kalman();
+        let (gain, innovation_var, prior_ht, innovation_cov) = state.held.correction();
+        let report = update_against(
+            kalman,
+            gain,
+            innovation_var,
+            prior_ht,
+            innovation_cov,
+            &mut state.estimate,
+            z,
+        );
+        let recovery = report.recovered.then_some(&kalman.recovery_variance);
+        state.held.corrected(&report.verdicts, recovery);
+        if !state.held.forgotten() {
+            // The shadow, started from the start's guesses, knows no more
+            // than the filter: it follows the filter until the solenoids'
+            // and the insulations' bounds have forgotten the start, then
+            // runs free (the core's excess may be held for hours).
+            let origin = state.model.origin_c();
+            let shadow_origin = self.shadow.origin_c();
+            for i in 0..NODES {
+                state.shadow_x[i] = origin[i] + state.estimate.x[i] - shadow_origin[i];
+            }
+            state.shadow_residual_k = [0.0; NODES];
+        }
+        report
+    }
+
+    /// The start's warm-up between corrections: the model steps counted
+    /// and, on a light tick (no correction, no protection stage), one slice
+    /// of the held covariance's propagation (at most about 400
+    /// multiply-adds, see [`super::start`]); the warm-up ends once the
+    /// posterior has settled on the steady one. The period's transition is
+    /// the shadow's: the build-time linearisation stepped over one
+    /// correction period.
+    #[inline(never)]
+    fn hold_start(&self, state: &mut OmniObserverState, steps: u32, light: bool) {
+        state.held.stepped(steps);
+        if !light {
+            return;
+        }
+        let transition = PeriodTransition {
+            phi_minus_i: &self.shadow.phi_minus_i,
+            gamma: &self.shadow.g,
+        };
+        let gain = self.filter.gain();
+        let settled = state.held.work(
+            self.shadow_block_steps,
+            &transition,
+            gain.prior(),
+            gain.posterior(),
+            &self.filter.kalman().recovery_variance,
+        );
+        if settled == Some(true) {
+            state.held.end();
         }
     }
     /// Writes a snapshot of the node estimates \[degC\] and the latched
@@ -1763,7 +2012,18 @@ impl OmniObserver {
         } else {
             saved_c
         };
-        let mut state = self.state(&temps_c, ambient_c);
+        Ok(self.restored(&temps_c, &meta, ambient_c))
+    }
+
+    /// The state at `temps_c` \[degC\], the snapshot's latch restored and
+    /// shown.
+    fn restored(
+        &self,
+        temps_c: &[f32; NODES],
+        meta: &SnapshotMeta,
+        ambient_c: f32,
+    ) -> OmniObserverState {
+        let mut state = self.state(temps_c, ambient_c);
         if meta.shutdown_latched {
             latch_and_publish(
                 &mut state.alarm,
@@ -1771,7 +2031,107 @@ impl OmniObserver {
                 &mut state.outputs.limits,
             );
         }
-        Ok(state)
+        state
+    }
+
+    /// [`Self::restore`] for a device whose off time is unknown (no
+    /// real-time clock), with what the thermocouples read now, `readings_c`
+    /// \[degC\] (`None`, non-finite or an unfitted thermocouple: no
+    /// reading): the saved estimates cooled, by the nonlinear model with no
+    /// current ([`Self::cooled_c`]), for the shortest off time within the
+    /// snapshot's age that brings some thermocouple's solenoid within
+    /// `k_sigma` thermocouple deviations (0.75 K at the defaults) of its
+    /// reading ([`start::earliest_off_time_s`]), and every measured
+    /// solenoid no warmer than its readings: the least cooling the readings
+    /// allow, so the nodes no thermocouple reads (the insulations, the
+    /// core) err hot, and the first readings agree with the estimate (none
+    /// refused, none colder than the physics). A reading colder than the
+    /// ambient by more than that tolerance (no cooling reaches it: a faulty
+    /// sensor) is left out. With no usable reading, or an ambient
+    /// `ambient_c` \[degC\] outside the input limits, the saved state
+    /// uncooled, as [`Self::restore_after`] with `None`. A latched shutdown
+    /// stays latched. The state is the steady filter's, as every restore's.
+    ///
+    /// `model` must be the model the observer was built from (as for
+    /// [`Self::restore_after`]). Restore-time work, not for the tick: at
+    /// most 53 cooled states on one cooling path whose pieces are kept
+    /// ([`COOLING_MAX_PIECES`](crate::omnimagnet::COOLING_MAX_PIECES)
+    /// pieces of two `16 x 16` exponentials, 7 KiB of stack), so about
+    /// 1 + 53 / 56 times [`Self::restore_after`]'s work for the longest
+    /// off time.
+    ///
+    /// # Errors
+    /// Those of [`Self::restore`];
+    /// [`SnapshotError::CoolingModelMismatch`] for another `model` (when
+    /// there is cooling to do).
+    pub fn restore_with_readings(
+        &self,
+        model: &Omnimagnet,
+        bytes: &[u8],
+        now_s: u32,
+        max_age_s: u32,
+        ambient_c: f32,
+        readings_c: &[Option<f32>; THERMOCOUPLES],
+    ) -> Result<OmniObserverState, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint: self.fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
+        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
+        let mut held_c = ambient_c;
+        let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
+        let fitted = self.filter.settings().sensors;
+        let sigma_k = self
+            .filter
+            .kalman()
+            .r()
+            .iter()
+            .zip(fitted)
+            .filter(|(_, used)| *used)
+            .fold(0.0f32, |a, (r, _)| a.max(libm::sqrtf(*r)));
+        let tolerance_k = self.k_sigma() * sigma_k;
+        // A reading colder than the ambient is no cooling the device can
+        // have done: left out (a faulty sensor at the boot).
+        let readings_c: [Option<f32>; THERMOCOUPLES] = core::array::from_fn(|j| {
+            readings_c[j].filter(|t| fitted[j] && t.is_finite() && *t >= ambient_c - tolerance_k)
+        });
+        let usable = readings_c.iter().any(Option::is_some);
+        if !(ambient_ok && usable) {
+            return Ok(self.restored(&saved_c, &meta, ambient_c));
+        }
+        if plant_fingerprint(model) != self.plant_fingerprint {
+            return Err(SnapshotError::CoolingModelMismatch);
+        }
+        let path = core::cell::RefCell::new(CoolingPath::new(
+            model,
+            &saved_c.map(f64::from),
+            f64::from(ambient_c),
+        ));
+        let cooled = |t: f32| {
+            let cooled = path.borrow_mut().cooled_c(f64::from(t));
+            rounded_up(&saved_c, &cooled)
+        };
+        let off_s = start::earliest_off_time_s(
+            cooled,
+            &THERMOCOUPLE_NODES,
+            &readings_c,
+            tolerance_k,
+            age_s,
+        );
+        let mut temps_c = saved_c;
+        if off_s > 0.0 {
+            temps_c = cooled(off_s);
+            // The thermocouples where they read: the cooling that fits one
+            // may leave another warmer than its reading (model error).
+            for (reading, node) in readings_c.iter().zip(THERMOCOUPLE_NODES) {
+                if let (Some(t), Some(slot)) = (reading, temps_c.get_mut(node)) {
+                    *slot = slot.min(*t);
+                }
+            }
+        }
+        Ok(self.restored(&temps_c, &meta, ambient_c))
     }
 
     /// The node temperatures \[degC\] `off_s` \[s\] after `temps_c` with no
@@ -1803,14 +2163,7 @@ impl OmniObserver {
         }
         let start = temps_c.map(f64::from);
         let cooled = model.cooled_c(&start, f64::from(ambient_c), f64::from(off_s));
-        let mut out = *temps_c;
-        for (o, c) in out.iter_mut().zip(cooled) {
-            let t = (c + 1e-3) as f32;
-            if t.is_finite() {
-                *o = t;
-            }
-        }
-        Ok(out)
+        Ok(rounded_up(temps_c, &cooled))
     }
 
     /// The documented start when no snapshot can be trusted
@@ -1838,6 +2191,196 @@ impl OmniObserver {
             &mut state.outputs.limits,
         );
         state
+    }
+
+    /// The start without a history (the first boot, a refused snapshot, a
+    /// product that keeps none), safe from the first tick (see "Start
+    /// without history" in the module docs and [`super::start`]): every
+    /// solenoid a thermocouple reads now at its reading `readings_c`
+    /// \[degC\] (`None`, non-finite or an unfitted thermocouple: no
+    /// reading; two on one solenoid: the hotter), a solenoid with no
+    /// reading at the hottest reading (or the ambient `ambient_c`
+    /// \[degC\]), every other node at the steady state of `model`'s network
+    /// with the solenoids held there (between the coolest and the hottest
+    /// reading) and each wire or cover insulation no hotter than where its
+    /// upper bound is [`start::START_BELOW_LIMIT_K`] below its alarm limit;
+    /// a variance that puts each insulation's upper bound
+    /// [`start::START_BELOW_LIMIT_K`] below its alarm limit (the other
+    /// unread nodes the widest of those). The filter holds that covariance
+    /// (once per correction period, in slices on the light ticks): the
+    /// gate judges against it, the upper bound (on the insulations no
+    /// higher than the start's level), the limiter and the time to limit
+    /// follow it, until the posterior has settled on the steady one (every
+    /// variance within [`start::SETTLED_FRACTION`], or
+    /// [`start::MAX_START_CORRECTIONS`] corrections); the shadow follows
+    /// the estimate until the insulations' and solenoids' bounds have
+    /// forgotten the start. No shutdown is latched (unlike
+    /// [`Self::conservative_state`]): the limiter starts in its taper band
+    /// and opens as the thermocouples teach the filter. The build-time
+    /// model, no current, zero heat-input biases, as [`Self::state`].
+    ///
+    /// `model` must be the model the observer was built from (checked by
+    /// the fingerprint [`Self::restore_after`] checks): the configuration
+    /// does not keep it, and the mean needs its conductances at the start's
+    /// temperatures (the build-time linearisation at the ambient puts the
+    /// frames of a hot device kelvins too hot, enough to latch a cover's
+    /// shutdown at the hottest point). Another model is not used: the
+    /// unread nodes then start at the hottest reading, which errs hot.
+    /// Start-time work, not for the tick: about 2.9 million instructions
+    /// on a Cortex-M4F (three `f64` conductance evaluations and `16 x 16`
+    /// solves).
+    pub fn start(
+        &self,
+        model: &Omnimagnet,
+        readings_c: &[Option<f32>; THERMOCOUPLES],
+        ambient_c: f32,
+    ) -> OmniObserverState {
+        let fitted = self.filter.settings().sensors;
+        let readings: [Option<f32>; THERMOCOUPLES] =
+            core::array::from_fn(|j| readings_c[j].filter(|t| fitted[j] && t.is_finite()));
+        // Two thermocouples on one solenoid: the hotter (the conservative
+        // start takes the last).
+        let mut hotter = readings;
+        for (j, node) in THERMOCOUPLE_NODES.iter().enumerate() {
+            for (i, other) in THERMOCOUPLE_NODES.iter().enumerate() {
+                if let (true, Some(a), Some(b)) = (node == other, hotter[j], readings[i]) {
+                    hotter[j] = Some(a.max(b));
+                }
+            }
+        }
+        let hottest_c = snapshot::conservative_start::<NODES, THERMOCOUPLES>(
+            &hotter,
+            &THERMOCOUPLE_NODES,
+            ambient_c,
+        );
+        let mut read = [false; NODES];
+        for (reading, node) in hotter.iter().zip(THERMOCOUPLE_NODES) {
+            if let (Some(_), Some(slot)) = (reading, read.get_mut(node)) {
+                *slot = true;
+            }
+        }
+        // The model the observer was built from, or no steady state: the
+        // conservative start, which errs hot.
+        let steady = (plant_fingerprint(model) == self.plant_fingerprint)
+            .then(|| self.held_steady_start(model, &hottest_c, &hotter, ambient_c))
+            .flatten();
+        let mut temps = steady.unwrap_or(hottest_c);
+        let mut limits_c = [f32::INFINITY; NODES];
+        let mut limited = [false; NODES];
+        for (node, limit) in ALARM_NODES.iter().zip(self.alarm.alarm_limits_c(ambient_c)) {
+            if let (Some(l), Some(on)) = (limits_c.get_mut(*node), limited.get_mut(*node)) {
+                *l = limit;
+                *on = true;
+            }
+        }
+        let ceiling_c: [f32; NODES] = core::array::from_fn(|i| match self.bound.element(i) {
+            Some(bound) if limited[i] => {
+                bound.mean_limit_c(limits_c[i] - start::START_BELOW_LIMIT_K, ambient_c)
+            }
+            _ => f32::NAN,
+        });
+        start::cap_unread_c(&mut temps, &read, &limited, &ceiling_c);
+        let mut state = self.state(&temps, ambient_c);
+        let mut steady_upper_c = [0.0; NODES];
+        self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
+        let prior = self.filter.gain().prior();
+        let steady_sigma: [f32; STATES] =
+            core::array::from_fn(|i| libm::sqrtf(prior[(i, i)].max(0.0)));
+        let node_sigma: [f32; NODES] = core::array::from_fn(|i| steady_sigma[i]);
+        let k_sigma = self.k_sigma();
+        let sigma_k = start::start_sigma_k(
+            &read,
+            &steady_upper_c,
+            &limits_c,
+            &limited,
+            &node_sigma,
+            k_sigma,
+        );
+        let mut cov = *prior;
+        for (i, sigma) in sigma_k.iter().enumerate() {
+            if let Some(sigma) = sigma {
+                cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
+            }
+        }
+        let fitted = self.filter.settings().sensors;
+        let r = self.filter.kalman().r();
+        let layout = HeldLayout {
+            measured: MEASURED_NODES,
+            sensors: core::array::from_fn(|j| fitted[j].then_some(SENSOR_MEASURED[j])),
+            r: core::array::from_fn(|j| r[j]),
+            steady_sigma,
+            k_sigma,
+            // The solenoids and the insulations: once their bounds have
+            // forgotten the start, the shadow is free (see `correct_held`).
+            watched: core::array::from_fn(|i| {
+                MEASURED_NODES.contains(&i) || limited.get(i) == Some(&true)
+            }),
+        };
+        state.held = OmniHeld::start(cov, layout);
+        self.publish_upper(&mut state);
+        // The predictor's first sweep towards the held bound's limits.
+        let op = self.operating(&temps, &[0.0; SOLENOIDS], ambient_c, &state.held_extra_k);
+        state.predictor = PredictorState::new(&self.predictor, &op);
+        self.limit(&mut state.outputs, ambient_c);
+        state
+    }
+
+    /// The start's mean (see [`start::held_steady_state_c`]): the steady
+    /// state of `model`'s network with the solenoids (every heat source)
+    /// held at `hottest_c` (their readings, or the conservative start's
+    /// where none arrived) and the ambient at `ambient_c` \[degC\], its
+    /// secant conductances taken at the start's temperatures (three
+    /// passes, each at the last one's result), each other node between the
+    /// coolest reading (or the ambient) and its conservative start in
+    /// `hottest_c` \[degC\]. `None` if a solve fails.
+    fn held_steady_start(
+        &self,
+        model: &Omnimagnet,
+        hottest_c: &[f32; NODES],
+        readings_c: &[Option<f32>; THERMOCOUPLES],
+        ambient_c: f32,
+    ) -> Option<[f32; NODES]> {
+        let held: [Option<f64>; NODES] = core::array::from_fn(|i| {
+            MEASURED_NODES
+                .contains(&i)
+                .then(|| hottest_c.get(i).copied().map(f64::from))
+                .flatten()
+        });
+        let amb = f64::from(ambient_c);
+        let mut temps_c = hottest_c.map(f64::from);
+        for _ in 0..3 {
+            let g = model.conductances(&temps_c, amb);
+            temps_c = start::held_steady_state_c(&g.pair_w_per_k, &g.ambient_w_per_k, amb, &held)?;
+        }
+        let coolest_c = readings_c
+            .iter()
+            .flatten()
+            .fold(ambient_c, |a, t| a.min(*t));
+        let out: [f32; NODES] = core::array::from_fn(|i| match held[i] {
+            Some(_) => hottest_c[i],
+            None => (temps_c[i] as f32).max(coolest_c).min(hottest_c[i]),
+        });
+        out.iter().all(|t| t.is_finite()).then_some(out)
+    }
+
+    /// The upper bound's `k` (of `k sigma`): a fitted thermocouple's
+    /// solenoid carries no model margin, so its bound's offset is
+    /// `k sigma` alone (0 if no bound has one).
+    fn k_sigma(&self) -> f32 {
+        let fitted = self.filter.settings().sensors;
+        let prior = self.filter.gain().prior();
+        for (node, used) in THERMOCOUPLE_NODES.iter().zip(fitted) {
+            let (true, Some(bound), Some(var)) =
+                (used, self.bound.element(*node), prior.get((*node, *node)))
+            else {
+                continue;
+            };
+            let k = bound.offset_k() / libm::sqrtf(*var);
+            if k.is_finite() && k >= 0.0 {
+                return k;
+            }
+        }
+        0.0
     }
 
     /// The deliberate clear of a latched shutdown (restored from a
@@ -1879,6 +2422,19 @@ fn plant_fingerprint(model: &Omnimagnet) -> u32 {
     fp.finish()
 }
 
+/// The cooled state `cooled_c` \[degC\] in `f32`, 1 mK up for the
+/// rounding; a node whose cooled value is not finite keeps `temps_c`.
+fn rounded_up(temps_c: &[f32; NODES], cooled_c: &[f64; NODES]) -> [f32; NODES] {
+    let mut out = *temps_c;
+    for (o, c) in out.iter_mut().zip(cooled_c) {
+        let t = (c + 1e-3) as f32;
+        if t.is_finite() {
+            *o = t;
+        }
+    }
+    out
+}
+
 /// The estimates of the [`ALARM_NODES`] \[degC\].
 fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
     ALARM_NODES.map(|node| temps_c.get(node).copied().unwrap_or(f32::NAN))
@@ -1886,6 +2442,8 @@ fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
 
 #[cfg(test)]
 mod refresh_tests;
+#[cfg(test)]
+mod start_tests;
 
 /// The refresh watchdog's bound \[model steps\] for a declared refresh of
 /// `refresh_s` \[s\] at a model step of `step_us` \[us\]:

@@ -45,6 +45,54 @@
 //!   the limiter already answers with no current. A device really above
 //!   its limit at the start is shut down as soon as the mean shows it.
 //!
+//! A device whose heat sources all sit at nodes with a value at the start
+//! (read, or started conservatively where their sensors are silent: the
+//! Omnimagnet's three solenoids, two thermocouples each) starts its other
+//! nodes at the steady state of its network with those held
+//! ([`held_steady_state_c`], with the conductances at the start's
+//! temperatures), each between the ambient (or the coolest reading) and
+//! the hottest reading: with no source among them a steady state puts
+//! them there, and after a run near its steady state they are close to it
+//! (every Omnimagnet insulation and frame within 0.7 K at the hottest
+//! point of a 3 h run; 10 min into the cooling the frames lag, up to
+//! 2.6 K warmer than it; the core, hours slow, is the exception the
+//! variance covers). With the covariance held wide the mean need not err
+//! hot (the bound does), and a mean at the hottest reading puts every
+//! unread neighbour of an insulation hotter than it is (the Omnimagnet's
+//! frames 5 to 14 K), whose heat then raises the insulation's estimate by
+//! a kelvin within a second: at the hottest point, where the insulation's
+//! bound sits at its limit, that alone latched the shutdown.
+//!
+//! Where the hottest reading is already above the level at which a limited
+//! element's upper bound is [`START_BELOW_LIMIT_K`] below its alarm limit
+//! (a measured heat source hotter than the insulation it protects, as the
+//! Omnimagnet's solenoids and their covers: the solenoids run some kelvin
+//! above the cover's limit at the protected steady state), that element
+//! starts at that level ([`cap_unread_c`]): if the protection held before
+//! the reset it was no hotter than its limit, so the bound covers it
+//! within [`START_BELOW_LIMIT_K`], and a start at the hottest reading
+//! would put its bound above the limit and latch the shutdown.
+//!
+//! # A covariance per correction period, in slices
+//!
+//! An observer whose tick cannot afford the covariance predict of every
+//! model step (the Omnimagnet's 19 states: about 8 400 multiply-adds per
+//! step against a 0.1 ms tick) holds the start's covariance once per
+//! correction period instead, in slices spread over the light ticks
+//! between corrections (`held::HeldCovariance`, crate-private; `X`
+//! states, the first `T` with dynamics, `K` measured by `P` sensors): the
+//! readings fused against the period's prior are kept as information per
+//! measured state (the batch update of any number of readings), and the
+//! next prior is the steady solution plus the start's excess carried by
+//! the period's transition, `F (P+ - P_ss) F^T + M` (no `Q_k` needed: `M`
+//! carries it), in slices of at most `(T + 1) X + K X` multiply-adds. The
+//! slices after a correction or a new prior also make what the next
+//! correction needs, the gain of all the sensors, `S` and `M H^T`, so the
+//! correction is the steady filter's own code on them
+//! ([`crate::filter::update_steady`]) and costs what a steady one does.
+//! The period's transition `F` is one every such observer already keeps:
+//! its unfused shadow steps one correction period.
+//!
 //! # The restore with an unknown off time
 //!
 //! A snapshot says where the device was when it was saved; without a clock
@@ -58,6 +106,12 @@
 //! measured ones agree with their sensors from the first correction (no
 //! healthy reading refused, no "colder than the physics").
 
+mod held;
+
+pub(crate) use held::{HeldCovariance, HeldLayout, PeriodTransition};
+
+use nalgebra::{SMatrix, SVector};
+
 /// How far below its alarm limit the start puts the protective upper bound
 /// of a limited element no sensor reads \[K\]: below the shutdown level
 /// (the start never latches), inside the limiter's taper band (the current
@@ -67,6 +121,13 @@ pub const START_BELOW_LIMIT_K: f32 = 1.0;
 /// The start's warm-up ends when every variance of the covariance it holds
 /// is within this share of the steady posterior's (dimensionless).
 pub const SETTLED_FRACTION: f32 = 0.05;
+
+/// A bound the start's covariance widens by less than this \[K\] has
+/// forgotten the start: once every solenoid's and insulation's bound has,
+/// an observer that held its unfused shadow on the estimate through the
+/// start lets it run free again (the slow states' excess may be held for
+/// hours, see [`MAX_START_CORRECTIONS`]).
+pub const START_FORGOTTEN_K: f32 = 0.1;
 
 /// The most corrections the start's warm-up runs before the steady gain
 /// takes over whatever its covariance: at a 0.5 s correction period, 9 h.
@@ -119,6 +180,101 @@ pub fn start_sigma_k<const N: usize>(
     })
 }
 
+/// Lowers every limited element no sensor read at the start (`read`
+/// false, `limited` true) that starts hotter than `ceiling_c` \[degC\] to
+/// it: `ceiling_c` is the mean at which its steady upper bound is
+/// [`START_BELOW_LIMIT_K`] below its alarm limit (see the module docs).
+/// A NaN ceiling changes nothing.
+pub fn cap_unread_c<const N: usize>(
+    temps_c: &mut [f32; N],
+    read: &[bool; N],
+    limited: &[bool; N],
+    ceiling_c: &[f32; N],
+) {
+    for (((t, read), limited), ceiling) in temps_c.iter_mut().zip(read).zip(limited).zip(ceiling_c)
+    {
+        if *limited && !*read && *t > *ceiling {
+            *t = *ceiling;
+        }
+    }
+}
+
+/// The steady state \[degC\] of a network of conductances
+/// (`pair_w_per_k[i][j]` \[W/K\] between nodes `i` and `j`, symmetric,
+/// `boundary_w_per_k[i]` \[W/K\] from node `i` to a boundary at
+/// `boundary_c` \[degC\]) with every node that has a value in `held_c`
+/// \[degC\] held there and no heat source at the others: for a network
+/// whose heat sources are all held, where its other nodes settle whatever
+/// the powers (see the module docs). An `N x N` solve in `f64` (at the
+/// start, not in a tick); `None` if the system is singular or the result
+/// not finite.
+pub fn held_steady_state_c<const N: usize>(
+    pair_w_per_k: &[[f64; N]; N],
+    boundary_w_per_k: &[f64; N],
+    boundary_c: f64,
+    held_c: &[Option<f64>; N],
+) -> Option<[f64; N]> {
+    let mut a = SMatrix::<f64, N, N>::zeros();
+    let mut b = SVector::<f64, N>::zeros();
+    for (i, held) in held_c.iter().enumerate() {
+        match held {
+            Some(t) => {
+                a[(i, i)] = 1.0;
+                b[i] = *t;
+            }
+            None => {
+                // sum_j g_ij (T_j - T_i) + g_b (T_b - T_i) = 0.
+                let g_b = boundary_w_per_k[i];
+                let mut diagonal = -g_b;
+                for (j, g) in pair_w_per_k[i].iter().enumerate() {
+                    if j != i {
+                        a[(i, j)] = *g;
+                        diagonal -= *g;
+                    }
+                }
+                a[(i, i)] = diagonal;
+                b[i] = -g_b * boundary_c;
+            }
+        }
+    }
+    let x = solve(a, b)?;
+    Some(core::array::from_fn(|i| x[i]))
+}
+
+/// `a x = b` by Gaussian elimination with partial pivoting; `None` for a
+/// (numerically) singular `a`.
+fn solve<const N: usize>(
+    mut a: SMatrix<f64, N, N>,
+    mut b: SVector<f64, N>,
+) -> Option<SVector<f64, N>> {
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for col in 0..N {
+        let pivot = (col..N).max_by(|i, j| a[(*i, col)].abs().total_cmp(&a[(*j, col)].abs()))?;
+        let size = a[(pivot, col)].abs();
+        if size.is_nan() || size <= 1e-12 * scale {
+            return None;
+        }
+        a.swap_rows(col, pivot);
+        b.swap_rows(col, pivot);
+        for row in col + 1..N {
+            let f = a[(row, col)] / a[(col, col)];
+            for k in col..N {
+                a[(row, k)] -= f * a[(col, k)];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = SVector::<f64, N>::zeros();
+    for row in (0..N).rev() {
+        let mut v = b[row];
+        for k in row + 1..N {
+            v -= a[(row, k)] * x[k];
+        }
+        x[row] = v / a[(row, row)];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
 /// The upper bound's widening while a covariance wider than the steady one
 /// is held \[K\]: `k (sqrt(var) - sigma_steady)` where positive, else 0.
 pub fn bound_extra_k(variance_k2: f32, steady_sigma_k: f32, k_sigma: f32) -> f32 {
@@ -128,6 +284,29 @@ pub fn bound_extra_k(variance_k2: f32, steady_sigma_k: f32, k_sigma: f32) -> f32
         extra
     } else {
         0.0
+    }
+}
+
+/// The start's widening `extra_k` \[K\] of a limited element's upper
+/// bound ([`bound_extra_k`] of the covariance held) where the element's
+/// steady upper bound is `steady_upper_c` \[degC\] and its alarm limit
+/// `limit_c` \[degC\]: no higher than the start's own level,
+/// [`START_BELOW_LIMIT_K`] below the limit. The start assumes the
+/// protection held before the reset, so its ignorance reaches no higher;
+/// only the estimate (the steady bound) can take the bound above it, to
+/// the limiter's floor and the alarm. The ignorance held on one element
+/// flows into its neighbours' covariance with the first period's
+/// propagation (a wire insulation widened to its far limit makes its cover
+/// uncertain by kelvins within half a second): without this, that alone
+/// would latch the cover's shutdown. A NaN limit keeps `extra_k`.
+pub fn capped_extra_k(extra_k: f32, steady_upper_c: f32, limit_c: f32) -> f32 {
+    let room_k = limit_c - START_BELOW_LIMIT_K - steady_upper_c;
+    if room_k > 0.0 {
+        extra_k.min(room_k)
+    } else if room_k <= 0.0 {
+        0.0
+    } else {
+        extra_k
     }
 }
 
@@ -142,7 +321,7 @@ pub fn bound_extra_k(variance_k2: f32, steady_sigma_k: f32, k_sigma: f32) -> f32
 /// saved state already fits; `max_off_s` when none fits (the readings are
 /// colder than the device can have cooled: the most cooling there was
 /// time for, and the filter does the rest). A geometric grid of
-/// 32 off times from 1 s, then 20
+/// 32 off times from 1 s (`OFF_TIME_GRID`), then 20 (`OFF_TIME_BISECTIONS`)
 /// bisections between the last that does not fit and the first that does:
 /// at most 53 evaluations of `cooled`, at the restore (never in a tick).
 pub fn earliest_off_time_s<const N: usize, const P: usize>(
@@ -285,6 +464,52 @@ mod tests {
         // An element already past that level keeps its steady deviation.
         let hot = start_sigma_k(&[false], &[120.0], &[100.0], &[true], &[0.5], 3.0);
         assert_eq!(hot, [Some(0.5)]);
+    }
+
+    #[test]
+    fn the_held_steady_state_settles_the_free_nodes_between_the_held_ones() {
+        // A chain 0 - 1 - 2 - boundary (20 degC), 1 W/K each, node 0 held.
+        let pair = [[0.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 0.0]];
+        let boundary = [0.0, 0.0, 1.0];
+        let temps = held_steady_state_c(&pair, &boundary, 20.0, &[Some(80.0), None, None]).unwrap();
+        // Nodes 1 and 2 split the 60 K drop in thirds.
+        assert_eq!(temps[0], 80.0);
+        assert!((temps[1] - 60.0).abs() < 1e-9, "{temps:?}");
+        assert!((temps[2] - 40.0).abs() < 1e-9, "{temps:?}");
+        // Everything held: the values; a free node with no conductance: none.
+        let held = held_steady_state_c(&pair, &boundary, 20.0, &[Some(1.0), Some(2.0), Some(3.0)]);
+        assert_eq!(held, Some([1.0, 2.0, 3.0]));
+        let none = held_steady_state_c(&[[0.0; 3]; 3], &[0.0; 3], 20.0, &[Some(80.0), None, None]);
+        assert_eq!(none, None);
+    }
+
+    #[test]
+    fn a_limited_unread_element_starts_no_hotter_than_its_ceiling() {
+        let mut temps = [90.0, 90.0, 90.0, 90.0];
+        cap_unread_c(
+            &mut temps,
+            &[true, false, false, false],
+            &[true, true, false, true],
+            &[80.0, 80.0, 80.0, f32::NAN],
+        );
+        // Read, capped, unlimited, NaN ceiling.
+        assert_eq!(temps, [90.0, 80.0, 90.0, 90.0]);
+        let mut cool = [50.0];
+        cap_unread_c(&mut cool, &[false], &[true], &[80.0]);
+        assert_eq!(cool, [50.0]);
+    }
+
+    #[test]
+    fn the_widening_of_a_limited_bound_stops_at_the_start_level() {
+        // Room of 100 - 1 - 90 = 9 K.
+        assert_eq!(capped_extra_k(20.0, 90.0, 100.0), 9.0);
+        assert_eq!(capped_extra_k(2.0, 90.0, 100.0), 2.0);
+        // The estimate alone already at or past the start's level.
+        assert_eq!(capped_extra_k(2.0, 99.5, 100.0), 0.0);
+        assert_eq!(capped_extra_k(2.0, 101.0, 100.0), 0.0);
+        // No limit: as held; a NaN limit keeps it.
+        assert_eq!(capped_extra_k(2.0, 90.0, f32::INFINITY), 2.0);
+        assert_eq!(capped_extra_k(2.0, 90.0, f32::NAN), 2.0);
     }
 
     #[test]

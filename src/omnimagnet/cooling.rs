@@ -48,6 +48,79 @@ use super::{Omnimagnet, NODES};
 use crate::discretize::expm_with_integral;
 use nalgebra::SVector;
 
+/// [`Omnimagnet::cooled_c`] of one start at many off times: the state at
+/// the end of every whole piece is kept (7 KiB), so a further off time
+/// costs the piece it ends in and the whole pieces not reached before (the
+/// same pieces in the same order, so the same result to the bit). For a
+/// search over the off time
+/// ([`crate::observer::start::earliest_off_time_s`]), at the restore.
+#[derive(Debug, Clone)]
+pub(crate) struct CoolingPath<'a> {
+    model: &'a Omnimagnet,
+    temps_c: [f64; NODES],
+    ambient_c: f64,
+    /// The excess over the ambient at the end of whole piece `p`.
+    ends: [SVector<f64, NODES>; COOLING_MAX_PIECES as usize],
+    /// Whole pieces whose end is known.
+    known: usize,
+    /// A whole piece failed (no cooling from there on, the safe side).
+    failed: bool,
+}
+
+impl<'a> CoolingPath<'a> {
+    /// The path of `model` cooling from `temps_c` \[degC\] at the ambient
+    /// `ambient_c` \[degC\].
+    pub(crate) fn new(model: &'a Omnimagnet, temps_c: &[f64; NODES], ambient_c: f64) -> Self {
+        Self {
+            model,
+            temps_c: *temps_c,
+            ambient_c,
+            ends: [SVector::zeros(); COOLING_MAX_PIECES as usize],
+            known: 0,
+            failed: false,
+        }
+    }
+
+    /// [`Omnimagnet::cooled_c`] after `off_s` \[s\].
+    pub(crate) fn cooled_c(&mut self, off_s: f64) -> [f64; NODES] {
+        let (temps_c, ambient_c) = (&self.temps_c, self.ambient_c);
+        if !(off_s > 0.0 && ambient_c.is_finite() && temps_c.iter().all(|t| t.is_finite())) {
+            return *temps_c;
+        }
+        let mut x = SVector::<f64, NODES>::from_fn(|i, _| temps_c[i] - ambient_c);
+        let mut start_s = 0.0;
+        let mut length_s = COOLING_FIRST_PIECE_S;
+        for piece in 0..COOLING_MAX_PIECES as usize {
+            let last = piece + 1 == COOLING_MAX_PIECES as usize || start_s + length_s >= off_s;
+            let h = if last { off_s - start_s } else { length_s };
+            if last {
+                let Some(end) = self.model.piece(&x, ambient_c, h) else {
+                    return *temps_c;
+                };
+                x = end;
+                break;
+            }
+            if piece < self.known {
+                x = self.ends[piece];
+            } else {
+                let end = match self.model.piece(&x, ambient_c, h) {
+                    Some(end) if !self.failed => end,
+                    _ => {
+                        self.failed = true;
+                        return *temps_c;
+                    }
+                };
+                self.ends[piece] = end;
+                self.known = piece + 1;
+                x = end;
+            }
+            start_s += length_s;
+            length_s *= COOLING_PIECE_RATIO;
+        }
+        core::array::from_fn(|i| ambient_c + x[i])
+    }
+}
+
 /// Length of the first piece \[s\].
 pub const COOLING_FIRST_PIECE_S: f64 = 1.0;
 /// Each piece is this much longer than the one before.
@@ -78,16 +151,10 @@ impl Omnimagnet {
         for piece in 0..COOLING_MAX_PIECES {
             let last = piece + 1 == COOLING_MAX_PIECES || start_s + length_s >= off_s;
             let h = if last { off_s - start_s } else { length_s };
-            let Some(first) = self.frozen_piece(&x, &x, ambient_c, h) else {
+            let Some(end) = self.piece(&x, ambient_c, h) else {
                 return *temps_c;
             };
-            let Some(end) = self.frozen_piece(&x, &first, ambient_c, h) else {
-                return *temps_c;
-            };
-            // Each node at the hotter of the two frozen solutions: a node the
-            // cold end's weaker internal exchange starves (the core, the
-            // air, the frames, fed by the windings) is hotter in the start's.
-            x = end.zip_map(&first, f64::max);
+            x = end;
             if last {
                 break;
             }
@@ -95,6 +162,23 @@ impl Omnimagnet {
             length_s *= COOLING_PIECE_RATIO;
         }
         core::array::from_fn(|i| ambient_c + x[i])
+    }
+
+    /// One piece of `h` \[s\] from the excess `x` over the ambient
+    /// `ambient_c` \[degC\] (see the module docs): frozen at its start,
+    /// then at that solution's end, every node the hotter of the two.
+    fn piece(
+        &self,
+        x: &SVector<f64, NODES>,
+        ambient_c: f64,
+        h: f64,
+    ) -> Option<SVector<f64, NODES>> {
+        let first = self.frozen_piece(x, x, ambient_c, h)?;
+        let end = self.frozen_piece(x, &first, ambient_c, h)?;
+        // Each node at the hotter of the two frozen solutions: a node the
+        // cold end's weaker internal exchange starves (the core, the
+        // air, the frames, fed by the windings) is hotter in the start's.
+        Some(end.zip_map(&first, f64::max))
     }
 
     /// `exp(A(T_0 + at) h) x`, or `None` if that fails or is not finite.

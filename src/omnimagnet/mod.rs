@@ -150,6 +150,7 @@ mod relinearize;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use cooling::CoolingPath;
 pub use cooling::{COOLING_FIRST_PIECE_S, COOLING_MAX_PIECES, COOLING_PIECE_RATIO};
 pub use data::{
     Contact, ConvectionGroup, Correlation, Element, KelvinPoly, Material, OmnimagnetGeometry, Peer,
