@@ -934,12 +934,7 @@ impl Subject for OmniSubject {
     fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
         let readings: [Option<f32>; THERMOCOUPLES] =
             core::array::from_fn(|j| readings_c.get(j).copied().flatten());
-        let temps = coil_thermal::observer::conservative_start::<NODES, THERMOCOUPLES>(
-            &readings,
-            &THERMOCOUPLE_NODES,
-            ambient_c,
-        );
-        self.observer.state(&temps, ambient_c)
+        self.observer.start(&Omnimagnet::PAPER, &readings, ambient_c)
     }
     fn restore_with_readings(
         &self,
@@ -947,9 +942,20 @@ impl Subject for OmniSubject {
         now_s: u32,
         max_age_s: u32,
         ambient_c: f32,
-        _readings_c: &[Option<f32>],
+        readings_c: &[Option<f32>],
     ) -> Result<OmniObserverState, String> {
-        self.restore(bytes, now_s, max_age_s, ambient_c, None)
+        let readings: [Option<f32>; THERMOCOUPLES] =
+            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        self.observer
+            .restore_with_readings(
+                &Omnimagnet::PAPER,
+                bytes,
+                now_s,
+                max_age_s,
+                ambient_c,
+                &readings,
+            )
+            .map_err(|e| e.to_string())
     }
     fn refresh_s(&self) -> f64 {
         self.refresh_s
