@@ -215,6 +215,19 @@ pub struct Radiator {
     pub emissivity: f64,
 }
 
+/// How a radiator's exchange with the surroundings is written. The paper
+/// prints two forms of the same term, and they differ by a factor of about 4
+/// near the ambient (the tangent of `T^4` is `4 T^3`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RadiationForm {
+    /// Eq. 1: `sigma eps S (T^4 - T_0^4)`, kelvin (Stefan-Boltzmann).
+    StefanBoltzmann,
+    /// Appendix B: the radiative conductance `sigma eps S T_0^3` of the
+    /// paper's state-space form (its `G` vector, and `A_ii` the sum of the
+    /// row's conductances, ambient included), so `sigma eps S T_0^3 (T - T_0)`.
+    AppendixB,
+}
+
 /// A solenoid's resistance, Eq. A3: `R(T) = R0 (1 + alpha0 (T - T_ref))`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Solenoid {
@@ -238,6 +251,8 @@ pub struct OmnimagnetGeometry {
     pub contacts: &'static [Contact],
     /// Elements radiating to the surroundings.
     pub radiators: &'static [Radiator],
+    /// The form of their exchange.
+    pub radiation: RadiationForm,
     /// The three solenoids, in current-input order.
     pub solenoids: [Solenoid; SOLENOIDS],
     /// The trapped-air node: contacts with it are convective.
@@ -522,6 +537,7 @@ pub const PAPER_OMNIMAGNET: OmnimagnetGeometry = OmnimagnetGeometry {
     ],
     contacts: &PAPER_CONTACTS,
     radiators: &PAPER_RADIATORS,
+    radiation: RadiationForm::StefanBoltzmann,
     solenoids: [solenoid(0, 3.2), solenoid(1, 2.8), solenoid(2, 3.1)],
     inside_air_node: 13,
     convection_cf: [1.0; CONVECTION_GROUPS],

@@ -153,7 +153,8 @@ mod tests;
 pub use cooling::{COOLING_FIRST_PIECE_S, COOLING_MAX_PIECES, COOLING_PIECE_RATIO};
 pub use data::{
     Contact, ConvectionGroup, Correlation, Element, KelvinPoly, Material, OmnimagnetGeometry, Peer,
-    Radiator, Solenoid, SurfaceConvection, CONVECTION_GROUPS, NODES, PAPER_OMNIMAGNET, SOLENOIDS,
+    RadiationForm, Radiator, Solenoid, SurfaceConvection, CONVECTION_GROUPS, NODES,
+    PAPER_OMNIMAGNET, SOLENOIDS,
 };
 pub use linearize::Linearization;
 pub use nonlinear::{natural_convection_h_w_per_m2_k, AirProperties, Conductances};

@@ -219,30 +219,46 @@ fn nonlinear_rk4_matches_adaptive_dormand_prince() {
 }
 
 #[test]
-fn nonlinear_energy_account_closes_with_t4_radiation() {
-    // Ambient loss written out from the tables with T^4 in kelvin, apart from
-    // the model's factorised conductances.
+fn nonlinear_energy_account_closes_with_either_radiation_form() {
+    // Ambient loss written out from the tables, apart from the model's
+    // factorised conductances: Eq. 1's T^4 in kelvin, or Appendix B's
+    // conductance sigma eps S T_0^3.
     let t = hot_state();
     let cur = [3.8, 1.0, 2.5];
-    let g = PAPER.geometry();
-    let mut out_w = 0.0;
-    for c in g.contacts.iter().filter(|c| c.peer == Peer::Ambient) {
-        let s = g.elements[c.node].convection.unwrap();
-        out_w += PAPER.h_w_per_m2_k(&s, t[c.node], AMBIENT_C)
-            * c.area_m2.iter().sum::<f64>()
-            * (t[c.node] - AMBIENT_C);
+    for form in [RadiationForm::StefanBoltzmann, RadiationForm::AppendixB] {
+        let mut g = PAPER_OMNIMAGNET;
+        g.radiation = form;
+        let model = Omnimagnet::new(g, ConvectionParams::PAPER).unwrap();
+        let mut out_w = 0.0;
+        for c in g.contacts.iter().filter(|c| c.peer == Peer::Ambient) {
+            let s = g.elements[c.node].convection.unwrap();
+            out_w += model.h_w_per_m2_k(&s, t[c.node], AMBIENT_C)
+                * c.area_m2.iter().sum::<f64>()
+                * (t[c.node] - AMBIENT_C);
+        }
+        let mut radiated_w = 0.0;
+        for r in g.radiators {
+            let (tk, t0) = (t[r.node] + 273.15, AMBIENT_C + 273.15);
+            radiated_w += 5.670374e-8
+                * r.emissivity
+                * r.area_m2
+                * match form {
+                    RadiationForm::StefanBoltzmann => tk.powi(4) - t0.powi(4),
+                    RadiationForm::AppendixB => t0.powi(3) * (tk - t0),
+                };
+        }
+        out_w += radiated_w;
+        let joule_w: f64 = model.joule_powers_w(&t, &cur).iter().sum();
+        let caps = model.capacities_j_per_k(&t);
+        let dtdt = model.derivative_k_per_s(&t, &cur, AMBIENT_C);
+        let stored_w: f64 = caps.iter().zip(dtdt).map(|(c, d)| c * d).sum();
+        println!(
+            "{form:?}: joule {joule_w:.3} W, stored {stored_w:.3} W, out {out_w:.3} W \
+             (radiated {radiated_w:.3} W)"
+        );
+        assert!(out_w > 10.0 && radiated_w > 1.0);
+        assert!((joule_w - stored_w - out_w).abs() < 1e-9 * joule_w);
     }
-    for r in g.radiators {
-        let (tk, t0) = (t[r.node] + 273.15, AMBIENT_C + 273.15);
-        out_w += 5.670374e-8 * r.emissivity * r.area_m2 * (tk.powi(4) - t0.powi(4));
-    }
-    let joule_w: f64 = PAPER.joule_powers_w(&t, &cur).iter().sum();
-    let caps = PAPER.capacities_j_per_k(&t);
-    let dtdt = PAPER.derivative_k_per_s(&t, &cur, AMBIENT_C);
-    let stored_w: f64 = caps.iter().zip(dtdt).map(|(c, d)| c * d).sum();
-    println!("joule {joule_w:.3} W, stored {stored_w:.3} W, out {out_w:.3} W");
-    assert!(out_w > 10.0);
-    assert!((joule_w - stored_w - out_w).abs() < 1e-9 * joule_w);
 }
 
 #[test]
