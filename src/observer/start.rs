@@ -141,8 +141,8 @@ pub fn bound_extra_k(variance_k2: f32, steady_sigma_k: f32, k_sigma: f32) -> f32
 /// `0` when no reading is usable (nothing says the device cooled) or the
 /// saved state already fits; `max_off_s` when none fits (the readings are
 /// colder than the device can have cooled: the most cooling there was
-/// time for, and the filter does the rest). A geometric grid of
-/// [`OFF_TIME_GRID`] off times from 1 s, then [`OFF_TIME_BISECTIONS`]
+/// time for, and the filter does the rest). A geometric grid of 32
+/// (`OFF_TIME_GRID`) off times from 1 s, then 20 (`OFF_TIME_BISECTIONS`)
 /// bisections between the last that does not fit and the first that does:
 /// at most 53 evaluations of `cooled`, at the restore (never in a tick).
 pub fn earliest_off_time_s<const N: usize, const P: usize>(
