@@ -9,7 +9,7 @@
 //! the Joule power at `R(20 degC)` through: open loop it left the
 //! solenoids 5.7-8.8 K low, with thermocouples the biases soaked up the
 //! missing power (6-11 W) while the temperatures still looked right.
-//! Both runs stay below 90 degC (the insulation limit is 120 degC, the
+//! Both runs stay below 93 degC (the insulation limit is 120 degC, the
 //! paper's stop 115 degC), within the model's validated range.
 
 use super::*;
@@ -24,8 +24,8 @@ const DT_S: f64 = 0.1;
 /// Thermocouple period \[s\] (2 Hz, the filter's design).
 const SAMPLE_S: f64 = 0.5;
 
-/// The runs: all three solenoids at 3.8 A for 40 min (89 degC) and at 3 A
-/// for 1 h (73.5 degC).
+/// The runs: all three solenoids at 3.8 A for 40 min (92.7 degC) and at
+/// 3 A for 1 h (78.1 degC).
 const RUNS: [(f64, f64); 2] = [(3.8, 2400.0), (3.0, 3600.0)];
 
 struct Outcome {
@@ -123,9 +123,10 @@ fn open_loop_tracks_the_nonlinear_model_within_0_35_k() {
             o.hottest_c
         );
         // README's figure for the open-loop observer following the
-        // re-linearisations (measured 0.26 K and 0.28 K, both on the outer
+        // re-linearisations (measured 0.27 K and 0.31 K, both on the outer
         // cover insulation, whose convection and radiation are the most
-        // nonlinear terms). The Joule power at R(20 degC): 8.8 K and 5.7 K.
+        // nonlinear terms). The Joule power at R(20 degC): 8.8 K and 5.7 K
+        // (measured with Eq. 1's radiation).
         assert!(
             o.worst_k < 0.35,
             "{current_a} A: {} off by {} K at {} s",
@@ -152,7 +153,7 @@ fn heat_biases_stay_near_zero_on_the_matched_model() {
         );
         // The device is the filter's own model, so a bias is only what
         // the linearisation misses between re-linearisations: measured
-        // 0.61 W and 0.58 W, 1-2 % of each solenoid's 30-60 W. A Joule
+        // 0.53 W and 0.54 W, 1-2 % of each solenoid's 30-60 W. A Joule
         // power off by `alpha0 (T - 20)` (0.27 at 90 degC) shows here as
         // 5.7-11 W, while the fused temperatures stay within 0.2 K.
         assert!(
