@@ -528,7 +528,7 @@ fn three_amps_for_an_hour(model: &Omnimagnet) -> [f64; NODES] {
 /// Each solenoid's rise after 3 A for 60 min relative to the paper's, minus
 /// one (`-0.05` = 5 % cold), and whether the figure holds: every rise in
 /// [`RISE_BAND`] and the order inner > middle > outer.
-fn against_the_3a_figure(model: &Omnimagnet) -> ([f64; NODES], [f64; SOLENOIDS], bool) {
+pub(super) fn against_the_3a_figure(model: &Omnimagnet) -> ([f64; NODES], [f64; SOLENOIDS], bool) {
     let t = three_amps_for_an_hour(model);
     let rel: [f64; SOLENOIDS] =
         core::array::from_fn(|k| (t[k] - AMBIENT_C) / (PAPER_3A_60MIN_C[k] - AMBIENT_C) - 1.0);
