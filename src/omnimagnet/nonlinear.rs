@@ -1,17 +1,21 @@
 //! The nonlinear model `dT/dt = f(T, I, T_0)` (paper's Eq. 1) in `f64`, with
 //! copper `c_p(T)`, `k(T)` (Eq. A1, A2), `R(T)` (Eq. A3), `h(T)` from the
-//! natural-convection correlations (Table 5) and radiation in `T^4` (kelvin).
+//! natural-convection correlations (Table 5) and radiation in the geometry's
+//! [`RadiationForm`].
 //!
 //! Every exchange is written as a conductance that depends on temperature:
 //! convection `h(T_s, T_f) S`, radiation `sigma eps S (T^2 + T_0^2)(T + T_0)`
-//! (so that times `T - T_0` it is `sigma eps S (T^4 - T_0^4)` exactly). The
+//! for Eq. 1 (so that times `T - T_0` it is `sigma eps S (T^4 - T_0^4)`
+//! exactly, kelvin) or Appendix B's `sigma eps S T_0^3`. The
 //! nonlinear right-hand side and the linearisation then share one code path,
 //! and the linear model differs only by freezing those conductances.
 //!
 //! `no_std`, allocation-free, `O(contacts)` work with about 20 `pow` calls:
 //! usable on target for re-linearisation.
 
-use super::data::{Contact, Correlation, Peer, Solenoid, SurfaceConvection, NODES, SOLENOIDS};
+use super::data::{
+    Contact, Correlation, Peer, RadiationForm, Solenoid, SurfaceConvection, NODES, SOLENOIDS,
+};
 use super::Omnimagnet;
 use crate::network::Resistance;
 
@@ -224,11 +228,12 @@ impl Omnimagnet {
         let t0 = to_k(ambient_c);
         for r in self.geometry.radiators {
             let t = to_k(temps_c[r.node]);
-            out.ambient_w_per_k[r.node] += STEFAN_BOLTZMANN_W_PER_M2_K4
-                * r.emissivity
-                * r.area_m2
-                * (t * t + t0 * t0)
-                * (t + t0);
+            let per_k4 = match self.geometry.radiation {
+                RadiationForm::StefanBoltzmann => (t * t + t0 * t0) * (t + t0),
+                RadiationForm::AppendixB => t0 * t0 * t0,
+            };
+            out.ambient_w_per_k[r.node] +=
+                STEFAN_BOLTZMANN_W_PER_M2_K4 * r.emissivity * r.area_m2 * per_k4;
         }
         out
     }

@@ -2,15 +2,26 @@
 //!
 //! The truth here is the filter's own device, `Omnimagnet::PAPER`,
 //! integrated nonlinearly (`Omnimagnet::step_rk4`: `R(T)` Joule power,
-//! `c_p(T)`, `T^4` radiation, temperature-dependent convection): what is
-//! left is what the filter adds, the linearisation (re-linearised every
-//! 5 K) and the Joule input `R(T) I^2` at the estimated temperatures. A
-//! relative check (better than the cold model, as in the host tests) let
-//! the Joule power at `R(20 degC)` through: open loop it left the
-//! solenoids 5.7-8.8 K low, with thermocouples the biases soaked up the
-//! missing power (6-11 W) while the temperatures still looked right.
-//! Both runs stay below 90 degC (the insulation limit is 120 degC, the
-//! paper's stop 115 degC), within the model's validated range.
+//! `c_p(T)`, Appendix B's radiation, temperature-dependent convection).
+//! **It shares every parameter with the filter**: the same tables, the
+//! same conductances, capacities, radiators and `R0`. So these tests
+//! measure only what the filter adds, the linearisation (re-linearised
+//! every 5 K) and the Joule input `R(T) I^2` at the estimated
+//! temperatures; a wrong model (a second radiator on the outer surface, a
+//! conductance read the wrong way) is in the truth and the filter alike and
+//! passes here. A relative check (better than the cold model, as in the
+//! host tests) let the Joule power at `R(20 degC)` through: open loop it
+//! left the solenoids 5.7-8.8 K low, with thermocouples the biases soaked
+//! up the missing power (6-11 W) while the temperatures still looked right.
+//!
+//! Whether the truth is physical is claimed only against truths the code
+//! did not produce: the paper's printed 3 A / 60 min figure (75.3, 71.1,
+//! 66.0 degC) and its 3.8 A experiment (115 degC within 2 h), in
+//! `omnimagnet::tests` (`matches_the_papers_3_a_figure`,
+//! `reaches_what_the_papers_experiments_reached`). The 3 A run below is
+//! that figure's run, and its truth is asserted to meet it; both runs stay
+//! below 93 degC (the insulation limit is 120 degC, the paper's stop
+//! 115 degC), inside what those two figures cover.
 
 use super::*;
 use crate::filter::testutil::Rng;
@@ -24,8 +35,8 @@ const DT_S: f64 = 0.1;
 /// Thermocouple period \[s\] (2 Hz, the filter's design).
 const SAMPLE_S: f64 = 0.5;
 
-/// The runs: all three solenoids at 3.8 A for 40 min (89 degC) and at 3 A
-/// for 1 h (73.5 degC).
+/// The runs: all three solenoids at 3.8 A for 40 min (92.7 degC) and at
+/// 3 A for 1 h (78.1 degC).
 const RUNS: [(f64, f64); 2] = [(3.8, 2400.0), (3.0, 3600.0)];
 
 struct Outcome {
@@ -122,10 +133,24 @@ fn open_loop_tracks_the_nonlinear_model_within_0_35_k() {
             "the run must heat: {} degC",
             o.hottest_c
         );
+        if current_a == 3.0 && duration_s == 3600.0 {
+            // The truth of this run is the model the paper's 3 A figure
+            // holds (its own RK4 at 0.5 s there, 0.1 s here).
+            let (paper_run, _, holds) =
+                crate::omnimagnet::tests::against_the_3a_figure(&Omnimagnet::PAPER);
+            assert!(holds, "the truth fails the paper's 3 A figure");
+            assert!(
+                (o.hottest_c - paper_run[0]).abs() < 0.01,
+                "{} against {} degC",
+                o.hottest_c,
+                paper_run[0]
+            );
+        }
         // README's figure for the open-loop observer following the
-        // re-linearisations (measured 0.26 K and 0.28 K, both on the outer
+        // re-linearisations (measured 0.27 K and 0.31 K, both on the outer
         // cover insulation, whose convection and radiation are the most
-        // nonlinear terms). The Joule power at R(20 degC): 8.8 K and 5.7 K.
+        // nonlinear terms). The Joule power at R(20 degC): 8.8 K and 5.7 K
+        // (measured with Eq. 1's radiation).
         assert!(
             o.worst_k < 0.35,
             "{current_a} A: {} off by {} K at {} s",
@@ -152,7 +177,7 @@ fn heat_biases_stay_near_zero_on_the_matched_model() {
         );
         // The device is the filter's own model, so a bias is only what
         // the linearisation misses between re-linearisations: measured
-        // 0.61 W and 0.58 W, 1-2 % of each solenoid's 30-60 W. A Joule
+        // 0.53 W and 0.54 W, 1-2 % of each solenoid's 30-60 W. A Joule
         // power off by `alpha0 (T - 20)` (0.27 at 90 degC) shows here as
         // 5.7-11 W, while the fused temperatures stay within 0.2 K.
         assert!(

@@ -219,30 +219,46 @@ fn nonlinear_rk4_matches_adaptive_dormand_prince() {
 }
 
 #[test]
-fn nonlinear_energy_account_closes_with_t4_radiation() {
-    // Ambient loss written out from the tables with T^4 in kelvin, apart from
-    // the model's factorised conductances.
+fn nonlinear_energy_account_closes_with_either_radiation_form() {
+    // Ambient loss written out from the tables, apart from the model's
+    // factorised conductances: Eq. 1's T^4 in kelvin, or Appendix B's
+    // conductance sigma eps S T_0^3.
     let t = hot_state();
     let cur = [3.8, 1.0, 2.5];
-    let g = PAPER.geometry();
-    let mut out_w = 0.0;
-    for c in g.contacts.iter().filter(|c| c.peer == Peer::Ambient) {
-        let s = g.elements[c.node].convection.unwrap();
-        out_w += PAPER.h_w_per_m2_k(&s, t[c.node], AMBIENT_C)
-            * c.area_m2.iter().sum::<f64>()
-            * (t[c.node] - AMBIENT_C);
+    for form in [RadiationForm::StefanBoltzmann, RadiationForm::AppendixB] {
+        let mut g = PAPER_OMNIMAGNET;
+        g.radiation = form;
+        let model = Omnimagnet::new(g, ConvectionParams::PAPER).unwrap();
+        let mut out_w = 0.0;
+        for c in g.contacts.iter().filter(|c| c.peer == Peer::Ambient) {
+            let s = g.elements[c.node].convection.unwrap();
+            out_w += model.h_w_per_m2_k(&s, t[c.node], AMBIENT_C)
+                * c.area_m2.iter().sum::<f64>()
+                * (t[c.node] - AMBIENT_C);
+        }
+        let mut radiated_w = 0.0;
+        for r in g.radiators {
+            let (tk, t0) = (t[r.node] + 273.15, AMBIENT_C + 273.15);
+            radiated_w += 5.670374e-8
+                * r.emissivity
+                * r.area_m2
+                * match form {
+                    RadiationForm::StefanBoltzmann => tk.powi(4) - t0.powi(4),
+                    RadiationForm::AppendixB => t0.powi(3) * (tk - t0),
+                };
+        }
+        out_w += radiated_w;
+        let joule_w: f64 = model.joule_powers_w(&t, &cur).iter().sum();
+        let caps = model.capacities_j_per_k(&t);
+        let dtdt = model.derivative_k_per_s(&t, &cur, AMBIENT_C);
+        let stored_w: f64 = caps.iter().zip(dtdt).map(|(c, d)| c * d).sum();
+        println!(
+            "{form:?}: joule {joule_w:.3} W, stored {stored_w:.3} W, out {out_w:.3} W \
+             (radiated {radiated_w:.3} W)"
+        );
+        assert!(out_w > 10.0 && radiated_w > 1.0);
+        assert!((joule_w - stored_w - out_w).abs() < 1e-9 * joule_w);
     }
-    for r in g.radiators {
-        let (tk, t0) = (t[r.node] + 273.15, AMBIENT_C + 273.15);
-        out_w += 5.670374e-8 * r.emissivity * r.area_m2 * (tk.powi(4) - t0.powi(4));
-    }
-    let joule_w: f64 = PAPER.joule_powers_w(&t, &cur).iter().sum();
-    let caps = PAPER.capacities_j_per_k(&t);
-    let dtdt = PAPER.derivative_k_per_s(&t, &cur, AMBIENT_C);
-    let stored_w: f64 = caps.iter().zip(dtdt).map(|(c, d)| c * d).sum();
-    println!("joule {joule_w:.3} W, stored {stored_w:.3} W, out {out_w:.3} W");
-    assert!(out_w > 10.0);
-    assert!((joule_w - stored_w - out_w).abs() < 1e-9 * joule_w);
 }
 
 #[test]
@@ -490,6 +506,72 @@ fn two_hours(model: &Omnimagnet, currents_a: [f64; 3]) -> ([f64; NODES], Option<
     (t, t115)
 }
 
+/// The paper's one printed transient (its cooling study, text beside its
+/// Fig. 7): its fitted model, which matched the experiments within about
+/// 4 % NRMSE, after all three solenoids at 3 A for 60 min, solenoids 1, 2, 3
+/// \[degC\]. The ambient is not stated; the experiments' room was 22 degC.
+const PAPER_3A_60MIN_C: [f64; SOLENOIDS] = [75.3, 71.1, 66.0];
+/// The band on each rise above [`AMBIENT_C`] against the paper's: 5 % cold
+/// to 10 % hot (a protection model may read hot more than cold).
+const RISE_BAND: (f64, f64) = (-0.05, 0.10);
+
+/// All three solenoids at 3 A for 60 min from the ambient (the model's own
+/// RK4 at 0.5 s, as [`Preset`] runs it).
+fn three_amps_for_an_hour(model: &Omnimagnet) -> [f64; NODES] {
+    let mut t = [AMBIENT_C; NODES];
+    for _ in 0..7200 {
+        model.step_rk4(&mut t, &[3.0; SOLENOIDS], AMBIENT_C, 0.5);
+    }
+    t
+}
+
+/// Each solenoid's rise after 3 A for 60 min relative to the paper's, minus
+/// one (`-0.05` = 5 % cold), and whether the figure holds: every rise in
+/// [`RISE_BAND`] and the order inner > middle > outer.
+pub(super) fn against_the_3a_figure(model: &Omnimagnet) -> ([f64; NODES], [f64; SOLENOIDS], bool) {
+    let t = three_amps_for_an_hour(model);
+    let rel: [f64; SOLENOIDS] =
+        core::array::from_fn(|k| (t[k] - AMBIENT_C) / (PAPER_3A_60MIN_C[k] - AMBIENT_C) - 1.0);
+    let in_band = rel.iter().all(|r| (RISE_BAND.0..=RISE_BAND.1).contains(r));
+    (t, rel, in_band && t[0] > t[1] && t[1] > t[2])
+}
+
+#[test]
+fn matches_the_papers_3_a_figure() {
+    // Checked against what the code did not produce: the paper's printed
+    // 75.3, 71.1, 66.0 degC. Eq. 1's radiation read the outer solenoids
+    // 11 % and 21 % cold here; a second radiator on the outer surface
+    // (solenoid 3 radiating as well as cover 3) reads solenoid 3 7.5 % cold
+    // and fails this test, while it still passed the 3.8 A one.
+    let (t, rel, holds) = against_the_3a_figure(&PAPER);
+    println!(
+        "all three at 3 A, 60 min: solenoids {:.1} {:.1} {:.1} degC (paper {:?}), rises \
+         {:+.1} % {:+.1} % {:+.1} %; covers {:.1} {:.1} {:.1} degC",
+        t[0],
+        t[1],
+        t[2],
+        PAPER_3A_60MIN_C,
+        100.0 * rel[0],
+        100.0 * rel[1],
+        100.0 * rel[2],
+        t[8],
+        t[10],
+        t[12]
+    );
+    for (k, r) in rel.iter().enumerate() {
+        assert!(
+            (RISE_BAND.0..=RISE_BAND.1).contains(r),
+            "solenoid {}: {:.1} degC, rise {:+.1} % against the paper's {} degC",
+            k + 1,
+            t[k],
+            100.0 * r,
+            PAPER_3A_60MIN_C[k]
+        );
+    }
+    assert!(t[0] > t[1] && t[1] > t[2], "{:?}", &t[..3]);
+    assert!(holds);
+}
+
 #[test]
 fn reaches_what_the_papers_experiments_reached() {
     // The paper ran all three solenoids at 3.8 A from the ambient until the
@@ -550,9 +632,10 @@ fn reaches_what_the_papers_experiments_reached() {
 
 /// The module docs' sensitivity table: each reading the paper leaves open,
 /// and each estimated quantity, changed alone from [`Omnimagnet::PAPER`];
-/// `t_max` to 115 degC with all three at 3.8 A \[s\] and the hottest
-/// solenoid after 2 h without the stop \[degC\]. Keeps the docs the tested
-/// figures.
+/// `t_max` to 115 degC with all three at 3.8 A \[s\], the hottest solenoid
+/// after 2 h without the stop \[degC\], and the three solenoids after 3 A
+/// for 60 min \[degC\] with whether the paper's figure holds
+/// ([`against_the_3a_figure`]). Keeps the docs the tested figures.
 #[test]
 fn sensitivity_table_of_the_module_docs() {
     fn leak<T>(v: Vec<T>) -> &'static [T] {
@@ -569,8 +652,24 @@ fn sensitivity_table_of_the_module_docs() {
             .with_convection(ConvectionParams::scaled(factor))
             .unwrap()
     };
-    let rows: [(&str, Omnimagnet, Option<f64>, f64); 15] = [
-        ("this crate", PAPER, Some(4256.0), 132.7),
+    type Row = (&'static str, Omnimagnet, Option<f64>, f64, [f64; 3], bool);
+    let rows: [Row; 16] = [
+        (
+            "this crate",
+            PAPER,
+            Some(3556.0),
+            152.8,
+            [78.1, 71.3, 64.9],
+            true,
+        ),
+        (
+            "Eq. 1 radiation (Stefan-Boltzmann)",
+            scaled(&|g| g.radiation = RadiationForm::StefanBoltzmann),
+            Some(4256.0),
+            132.7,
+            [73.5, 65.5, 56.8],
+            false,
+        ),
         (
             "half thicknesses",
             scaled(&|g| {
@@ -578,14 +677,18 @@ fn sensitivity_table_of_the_module_docs() {
                     .iter_mut()
                     .for_each(|e| e.thickness_m = e.thickness_m.map(|d| d * 0.5))
             }),
-            None,
-            110.8,
+            Some(4367.0),
+            134.3,
+            [72.9, 69.1, 65.5],
+            true,
         ),
         (
             "Table 7 convection CFs",
             scaled(&|g| g.convection_cf = data::TABLE_7_CONVECTION_CF),
             None,
-            92.1,
+            95.9,
+            [62.1, 54.2, 46.8],
+            false,
         ),
         (
             "no Table 6 conduction CFs",
@@ -600,8 +703,10 @@ fn sensitivity_table_of_the_module_docs() {
                         .collect(),
                 )
             }),
-            Some(7184.0),
-            115.1,
+            Some(4912.0),
+            132.5,
+            [69.3, 65.2, 61.6],
+            false,
         ),
         (
             "solenoid 3 radiates as well",
@@ -610,8 +715,10 @@ fn sensitivity_table_of_the_module_docs() {
                 r.push(data::SOLENOID_3_RADIATOR);
                 g.radiators = leak(r);
             }),
-            Some(5398.0),
-            121.1,
+            Some(3674.0),
+            148.3,
+            [76.9, 69.9, 62.7],
+            false,
         ),
         (
             "solenoid 3 radiates instead of cover 3",
@@ -625,14 +732,18 @@ fn sensitivity_table_of_the_module_docs() {
                 r.push(data::SOLENOID_3_RADIATOR);
                 g.radiators = leak(r);
             }),
-            Some(4327.0),
-            131.2,
+            Some(3558.0),
+            152.7,
+            [78.1, 71.3, 64.8],
+            true,
         ),
         (
             "no radiation",
             scaled(&|g| g.radiators = &[]),
             Some(3412.0),
             159.5,
+            [79.7, 73.4, 67.7],
+            true,
         ),
         (
             "convection lengths x0.5",
@@ -642,8 +753,10 @@ fn sensitivity_table_of_the_module_docs() {
                     .filter_map(|e| e.convection.as_mut())
                     .for_each(|c| c.length_m *= 0.5)
             }),
-            Some(5113.0),
-            123.6,
+            Some(4014.0),
+            139.7,
+            [74.6, 67.9, 61.6],
+            false,
         ),
         (
             "convection lengths x2",
@@ -653,47 +766,87 @@ fn sensitivity_table_of_the_module_docs() {
                     .filter_map(|e| e.convection.as_mut())
                     .for_each(|c| c.length_m *= 2.0)
             }),
-            Some(3976.0),
-            137.9,
+            Some(3381.0),
+            161.3,
+            [79.9, 73.4, 66.9],
+            true,
         ),
-        ("h x0.8", h(0.8), Some(3804.0), 142.4),
-        ("h x1.2", h(1.2), Some(4924.0), 124.6),
+        (
+            "h x0.8",
+            h(0.8),
+            Some(3264.0),
+            169.3,
+            [81.3, 75.0, 68.8],
+            false,
+        ),
+        (
+            "h x1.2",
+            h(1.2),
+            Some(3937.0),
+            140.2,
+            [75.3, 68.2, 61.5],
+            false,
+        ),
         (
             "capacities x0.8",
             scaled(&|g| g.elements.iter_mut().for_each(|e| e.volume_m3 *= 0.8)),
-            Some(3405.0),
-            137.2,
+            Some(2845.0),
+            161.5,
+            [85.5, 77.6, 69.9],
+            false,
         ),
         (
             "capacities x1.2",
             scaled(&|g| g.elements.iter_mut().for_each(|e| e.volume_m3 *= 1.2)),
-            Some(5107.0),
-            127.6,
+            Some(4268.0),
+            144.3,
+            [71.9, 66.2, 60.6],
+            false,
         ),
         (
             "frame volumes read as totals (x0.5)",
             scaled(&|g| g.elements[3..7].iter_mut().for_each(|e| e.volume_m3 *= 0.5)),
-            Some(4013.0),
-            134.0,
+            Some(3346.0),
+            155.4,
+            [80.2, 73.3, 66.4],
+            true,
         ),
         (
             "R0 x0.9",
             scaled(&|g| g.solenoids.iter_mut().for_each(|s| s.r0_ohm *= 0.9)),
-            Some(5822.0),
-            120.2,
+            Some(4352.0),
+            137.6,
+            [72.2, 66.3, 60.6],
+            false,
         ),
     ];
-    for (name, model, doc_t_max, doc_end) in rows {
+    let mut wrong = Vec::new();
+    for (name, model, doc_t_max, doc_end, doc_3a, doc_holds) in rows {
         let (end, t_max) = two_hours(&model, [3.8; 3]);
         let end = hottest_solenoid_c(&model, &end);
-        println!("{name:40} t_max {t_max:?} s, after 2 h {end:.1} degC");
-        match (t_max, doc_t_max) {
-            (Some(got), Some(doc)) => assert!((got - doc).abs() <= 1.0, "{name}: {got}"),
-            (None, None) => {}
-            _ => panic!("{name}: t_max {t_max:?} against the docs' {doc_t_max:?}"),
+        let (t3, rel, holds) = against_the_3a_figure(&model);
+        println!(
+            "| {name} | {} | {end:.1} degC | {:.1} / {:.1} / {:.1} degC ({:+.1} / {:+.1} / {:+.1} %) | {} |",
+            t_max.map_or("never".to_string(), |t| format!("{t:.0} s")),
+            t3[0],
+            t3[1],
+            t3[2],
+            100.0 * rel[0],
+            100.0 * rel[1],
+            100.0 * rel[2],
+            if holds { "holds" } else { "fails" },
+        );
+        let t_max_ok = match (t_max, doc_t_max) {
+            (Some(got), Some(doc)) => (got - doc).abs() <= 1.0,
+            (None, None) => true,
+            _ => false,
+        };
+        let three_ok = (0..3).all(|k| (t3[k] - doc_3a[k]).abs() < 0.06);
+        if !t_max_ok || (end - doc_end).abs() >= 0.06 || !three_ok || holds != doc_holds {
+            wrong.push(name);
         }
-        assert!((end - doc_end).abs() < 0.06, "{name}: {end}");
     }
+    assert!(wrong.is_empty(), "rows off the docs: {wrong:?}");
 }
 
 #[test]
@@ -733,9 +886,10 @@ fn presets_are_the_papers_experiments() {
         last = t[0];
         !ok
     });
-    // Two hours later the inner solenoid is within 8 K of the ambient (the
-    // thermally isolated core, 2.2 kJ/K, cools slowest).
-    assert!(t[0] < AMBIENT_C + 8.0, "{}", t[0]);
+    // Two hours later the inner solenoid is within 13 K of the ambient
+    // (12.1 K measured: the thermally isolated core, 2.2 kJ/K, cools
+    // slowest, and Appendix B's radiation takes less than Eq. 1's).
+    assert!(t[0] < AMBIENT_C + 13.0, "{}", t[0]);
     let names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
     assert_eq!(
         names,
