@@ -196,8 +196,9 @@
 //! no current ([`Omnimagnet::cooled_c`]: frozen pieces, each an exact
 //! linear solution), never below the model's exact cooled state and within
 //! 0.5 K of it (measured from 1 s to 10 h after realistic heating runs:
-//! at most +0.32 K). One linearisation at the ambient would cool far too
-//! slowly (12.8 K above after the paper's run). An unknown off time means
+//! at most +0.42 K for the model's cooling, +0.31 K for this restore's).
+//! One linearisation at the ambient would cool far too slowly (18.3 K
+//! above after the paper's run). An unknown off time means
 //! no cooling there; [`OmniObserver::restore_with_readings`] finds it from
 //! the thermocouples instead (see [`super::start`]): the shortest off time,
 //! within the snapshot's age, whose cooled state brings some solenoid
