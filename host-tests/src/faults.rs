@@ -934,7 +934,8 @@ impl Subject for OmniSubject {
     fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
         let readings: [Option<f32>; THERMOCOUPLES] =
             core::array::from_fn(|j| readings_c.get(j).copied().flatten());
-        self.observer.start(&Omnimagnet::PAPER, &readings, ambient_c)
+        self.observer
+            .start(&Omnimagnet::PAPER, &readings, ambient_c)
     }
     fn restore_with_readings(
         &self,

@@ -837,7 +837,12 @@ fn the_campaign_shows_what_the_bias_floor_prevents() {
             .as_array()
             .unwrap()
             .iter()
-            .find(|g| g["goal"].as_str().unwrap().contains("estimate error within"))
+            .find(|g| {
+                g["goal"]
+                    .as_str()
+                    .unwrap()
+                    .contains("estimate error within")
+            })
             .unwrap()["met"]
             .as_bool()
             .unwrap();
