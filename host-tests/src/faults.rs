@@ -867,6 +867,12 @@ fn frozen_ticks(step_us: u32) -> (u32, u32) {
     (per_100ms, 10 * per_100ms)
 }
 
+/// Readings \[degC\] per sensor in the observer's fixed slots (`None` past
+/// the given ones).
+fn sensor_slots<const P: usize>(readings_c: &[Option<f32>]) -> [Option<f32>; P] {
+    core::array::from_fn(|j| readings_c.get(j).copied().flatten())
+}
+
 /// The thermocouple sample period \[s\].
 fn reading_period_s(cfg: &FaultConfig) -> f64 {
     f64::from(cfg.reading_every * cfg.step_us) * 1e-6
@@ -932,8 +938,7 @@ impl Subject for OmniSubject {
         all
     }
     fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
-        let readings: [Option<f32>; THERMOCOUPLES] =
-            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        let readings: [Option<f32>; THERMOCOUPLES] = sensor_slots(readings_c);
         self.observer
             .start(&Omnimagnet::PAPER, &readings, ambient_c)
     }
@@ -945,8 +950,7 @@ impl Subject for OmniSubject {
         ambient_c: f32,
         readings_c: &[Option<f32>],
     ) -> Result<OmniObserverState, String> {
-        let readings: [Option<f32>; THERMOCOUPLES] =
-            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        let readings: [Option<f32>; THERMOCOUPLES] = sensor_slots(readings_c);
         self.observer
             .restore_with_readings(
                 &Omnimagnet::PAPER,
@@ -999,8 +1003,7 @@ impl Subject for OmniSubject {
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
-        let readings: [Option<f32>; THERMOCOUPLES] =
-            core::array::from_fn(|j| readings_c.get(j).copied().flatten());
+        let readings: [Option<f32>; THERMOCOUPLES] = sensor_slots(readings_c);
         self.observer.conservative_state(&readings, ambient_c)
     }
     fn latched(&self, state: &OmniObserverState) -> bool {

@@ -222,10 +222,7 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             .collect()
     }
     fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
-        let mut readings = [None; P];
-        for (r, z) in readings.iter_mut().zip(readings_c) {
-            *r = *z;
-        }
+        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
         self.observer.start(&readings, &[ambient_c; 2])
     }
     fn restore_with_readings(
@@ -236,10 +233,7 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         ambient_c: f32,
         readings_c: &[Option<f32>],
     ) -> Result<Self::State, String> {
-        let mut readings = [None; P];
-        for (r, z) in readings.iter_mut().zip(readings_c) {
-            *r = *z;
-        }
+        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
         self.observer
             .restore_with_readings(bytes, now_s, max_age_s, &[ambient_c; 2], &readings)
             .map_err(|e| e.to_string())
@@ -262,10 +256,7 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
-        let mut readings = [None; P];
-        for (r, z) in readings.iter_mut().zip(readings_c) {
-            *r = *z;
-        }
+        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
         self.observer.conservative_state(&readings, &[ambient_c; 2])
     }
     fn latched(&self, state: &Self::State) -> bool {
