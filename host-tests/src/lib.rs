@@ -14,6 +14,8 @@
 //!   later), input bindings and open-loop simulation;
 //! * [`observer`]: replay with an [`observer::Estimator`] and a
 //!   [`observer::Protection`] stage, scoring and step timing;
+//! * [`grid_firmware`], [`omni_firmware`]: `replay --model hppa` and `--model
+//!   omnimagnet` through the observers the firmware flashes for them;
 //! * [`library_observer`]: the library's `NetworkObserver` at 1 ms ticks on
 //!   a model file (the replay's estimator);
 //! * [`kalman`]: the library's Kalman filter with disturbance states;
@@ -47,6 +49,7 @@ pub mod limits;
 pub mod margin;
 pub mod model_file;
 pub mod observer;
+pub mod omni_firmware;
 pub mod plot;
 pub mod sim;
 pub mod synth;

@@ -285,10 +285,12 @@ pub struct ReplayArgs {
     /// empty or `NaN` cell is a missing reading. Repeatable (at most 4 without
     /// `--disturbance`). The library's `NetworkObserver` ticks every
     /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
-    /// (steady-state gain for the trace's row spacing; a heat-input bias per
-    /// model source, as the firmware: see --bias-noise-w2-per-s); with
+    /// (steady-state gain for the firmware's correction period; heat-input
+    /// biases as the firmware: see --bias-noise-w2-per-s); with
     /// `--disturbance` the library's time-varying Kalman filter runs at the
-    /// trace's rows instead.
+    /// trace's rows instead. With `--model omnimagnet` the flashed
+    /// `OmniObserver` fuses them: up to its six thermocouples, two on each
+    /// solenoid node.
     #[arg(long = "measure", value_name = "COL=NODE")]
     measure: Vec<String>,
     /// The firmware observer's tick and model step [us]: the trace's rows

@@ -17,6 +17,7 @@ use crate::observer::Measurement;
 use crate::observer::{
     replay, AlarmEvent, AlarmSettings, Estimator, LibraryAlarm, Protection, ScoreSum,
 };
+use crate::omni_firmware::{self, OmniFirmwareEstimator, OmniOverrides};
 use crate::plot::render;
 use crate::sim::{FilePlant, InputRow, Plant, PlantInfo, RowSource, TraceDrive};
 use crate::trace::CsvOut;
@@ -595,6 +596,103 @@ impl ColdMisses {
     }
 }
 
+/// Each fused sensor's counts, as JSON.
+fn sensor_stats_json(
+    stats: &[crate::kalman::FusionStats],
+    measured: &[StreamSensor],
+    info: &PlantInfo,
+) -> Vec<serde_json::Value> {
+    stats
+        .iter()
+        .zip(measured)
+        .map(|(s, m)| {
+            json!({
+                "column": m.column,
+                "node": info.nodes[s.node],
+                "fused": s.fused,
+                "rejected": s.rejected,
+                "stuck": s.stuck,
+                "colder_than_physics": s.colder_than_physics,
+            })
+        })
+        .collect()
+}
+
+/// Each fused sensor's counts, one line each.
+fn print_sensor_stats(
+    stats: &[crate::kalman::FusionStats],
+    measured: &[StreamSensor],
+    info: &PlantInfo,
+) {
+    for (s, m) in stats.iter().zip(measured) {
+        println!(
+            "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
+            m.column, info.nodes[s.node], s.fused, s.rejected, s.stuck, s.colder_than_physics
+        );
+    }
+}
+
+/// The overrides of the flashed Omnimagnet observer's settings (the
+/// noise flags; `firmware_config` has checked their values), and the
+/// flags it refuses: its derating and critical temperatures are the
+/// device's, its tick the loop's.
+fn omni_overrides(a: &ReplayArgs) -> Result<Vec<Override>> {
+    if !a.factors.is_empty() || a.critical_c.is_some() {
+        let flag = if a.factors.is_empty() {
+            "--critical-c"
+        } else {
+            "--factors"
+        };
+        bail!(
+            "{flag}: the flashed Omnimagnet observer derates the device's own critical temperatures by the device's rule \
+             (what `codegen --device omnimagnet` flashes; neither is a setting of it): drop {flag}"
+        );
+    }
+    if a.tick_us.is_some_and(|t| t != omni_firmware::TICK_US) {
+        bail!(
+            "--tick-us: the flashed Omnimagnet observer ticks every {} us (its model steps are 5 ms on the ticks' mean I^2): drop --tick-us",
+            omni_firmware::TICK_US
+        );
+    }
+    let flashed = omni_firmware::settings(
+        [true; coil_thermal::omnimagnet::THERMOCOUPLES],
+        &OmniOverrides::default(),
+    );
+    let f = &flashed.filter;
+    let mut overrides = Vec::new();
+    for (flag, value, name, unit, was) in [
+        (
+            "--measurement-noise-k",
+            a.measurement_noise_k,
+            "thermocouple noise",
+            "K",
+            f.thermocouple_sigma_k,
+        ),
+        (
+            "--process-noise-k2-per-s",
+            a.process_noise_k2_per_s,
+            "every node's noise",
+            "K^2/s",
+            f.node_noise_k2_per_s[0],
+        ),
+        (
+            "--bias-noise-w2-per-s",
+            a.bias_noise_w2_per_s,
+            "bias noise",
+            "W^2/s",
+            f.bias_noise_w2_per_s,
+        ),
+    ] {
+        if let Some(v) = value.filter(|v| *v != was) {
+            overrides.push(Override {
+                flag,
+                what: format!("{name} {v} {unit} instead of {was} {unit}"),
+            });
+        }
+    }
+    Ok(overrides)
+}
+
 /// The sources each model input drives (the generated module's
 /// `input_limits_a`: an input's limit is the smallest of theirs).
 fn input_sources(model: &Model) -> Vec<Vec<usize>> {
@@ -695,7 +793,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     refuse_inapplicable(&a, path)?;
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
-    let (config, overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
+    let (config, mut overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
+    // `--model omnimagnet` as flashed: the device's own observer.
+    let flashed_omni = path == Path::Firmware && spec == common::ModelSpec::Omnimagnet;
+    if flashed_omni {
+        overrides = omni_overrides(&a)?;
+    }
     let tick_us = config.settings.step_us;
     if path == Path::Firmware {
         let span_s = file.last_time_s() - file.first_time_s();
@@ -764,6 +867,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         );
     }
     let mut grid = None;
+    let mut omni = None;
     let estimator: &mut dyn Estimator = if let Some(s) = stepped.as_mut() {
         s
     } else if flashed_grid {
@@ -772,6 +876,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             .critical_c
             .unwrap_or(coil_thermal::protect::derating::HPPA_CRITICAL_C);
         grid.insert(GridFirmwareEstimator::new(info.clone(), &rule, critical_c)?)
+    } else if flashed_omni {
+        omni.insert(OmniFirmwareEstimator::new(
+            info.clone(),
+            &fused_nodes,
+            &OmniOverrides {
+                sensor_sigma_k: a.measurement_noise_k,
+                node_noise_k2_per_s: a.process_noise_k2_per_s,
+                bias_noise_w2_per_s: a.bias_noise_w2_per_s,
+            },
+        )?)
     } else if path == Path::Firmware {
         observer.insert(ObserverEstimator::firmware(
             model.clone(),
@@ -1001,6 +1115,16 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         a.measurement_noise_k.is_some(),
         table.is_some_and(|t| t.sensor_sigma_k.is_some()),
     );
+    let omni_fusion = omni.as_ref().filter(|_| !measured.is_empty()).map(|o| {
+        let f = &o.settings().filter;
+        json!({
+            "bias_noise_w2_per_s": f.bias_noise_w2_per_s,
+            "sensor_sigma_k": f.thermocouple_sigma_k,
+            "sensor_sigma_from": if a.measurement_noise_k.is_some() { "flag" } else { "device" },
+            "correction_period_s": f.correction_period_s,
+            "sensors": sensor_stats_json(o.stats(), &measured, &info),
+        })
+    });
     let observer_fusion = observer.as_ref().filter(|_| !measured.is_empty()).map(|o| {
         let s = &o.config().settings;
         json!({
@@ -1013,14 +1137,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "sensor_sigma_k": s.sensor_sigma_k,
             "sensor_sigma_from": sensor_sigma_from,
             "correction_period_s": s.correction_period_s,
-            "sensors": o.stats().iter().zip(&measured).map(|(s, m)| json!({
-                "column": m.column,
-                "node": info.nodes[s.node],
-                "fused": s.fused,
-                "rejected": s.rejected,
-                "stuck": s.stuck,
-                "colder_than_physics": s.colder_than_physics,
-            })).collect::<Vec<_>>(),
+            "sensors": sensor_stats_json(o.stats(), &measured, &info),
         })
     });
     let grid_json = grid.as_ref().map(|_| {
@@ -1030,6 +1147,21 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "derating_product": rule_product,
             "hardware_limit_a": crate::codegen::GRID_HARDWARE_LIMIT_A,
             "step_us": grid_firmware::TICK_US,
+            "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
+        })
+    });
+    let omni_json = omni.as_ref().map(|o| {
+        let s = o.settings();
+        json!({
+            "kind": "omni-observer",
+            "settings_from": "the device (codegen --device omnimagnet, examples/observer_m4)",
+            "derating_product": rule_product,
+            "thermocouples_fitted": s.filter.sensors,
+            "sensor_sigma_k": s.filter.thermocouple_sigma_k,
+            "correction_period_s": s.filter.correction_period_s,
+            "hardware_limit_a": s.hardware_limit_a,
+            "model_step_us": s.step_us,
+            "step_us": omni_firmware::TICK_US,
             "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
         })
     });
@@ -1110,11 +1242,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
         "model": info.name,
         "estimator": kind,
-        "fusion": fusion.or(observer_fusion),
+        "fusion": fusion.or(observer_fusion).or(omni_fusion),
         "trace": a.trace.display().to_string(),
         "rows": rows_inside,
         "truth": scores,
-        "firmware_observer": firmware_json.or(grid_json),
+        "firmware_observer": firmware_json.or(grid_json).or(omni_json),
         "protection": protection_json,
         "cold_misses": (path == Path::Firmware).then_some(&cold_misses),
         "alarm": {
@@ -1152,6 +1284,27 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         for o in &overrides {
             println!("override {}: {} (not what the MCU runs)", o.flag, o.what);
         }
+    } else if let Some(o) = omni.as_ref() {
+        let s = o.settings();
+        let fitted: Vec<&str> = (0..s.filter.sensors.len())
+            .filter(|j| s.filter.sensors[*j])
+            .map(|j| info.nodes[coil_thermal::omnimagnet::THERMOCOUPLE_NODES[j]].as_str())
+            .collect();
+        println!(
+            "observer: the firmware's OmniObserver (what `codegen --device omnimagnet` flashes and examples/observer_m4 runs): derating product {rule_product:.4}, \
+             model step {} us on ticks of {} us, thermocouples on {} ({}), noise {} K, correction period {} s, hardware limit {} A",
+            s.step_us,
+            omni_firmware::TICK_US,
+            fitted.join(", "),
+            if measured.is_empty() { "fitted, none read: the protection takes the unfused model's bound" } else { "fused" },
+            s.filter.thermocouple_sigma_k,
+            s.filter.correction_period_s,
+            s.hardware_limit_a
+        );
+        for o in &overrides {
+            println!("override {}: {} (not what the MCU runs)", o.flag, o.what);
+        }
+        print_sensor_stats(o.stats(), &measured, &info);
     } else if let Some(o) = observer.as_ref() {
         let c = o.config();
         println!(
@@ -1163,10 +1316,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             c.hardware_limit_a,
             c.settings.max_current_a
         );
-        if matches!(
-            spec,
-            common::ModelSpec::Hppa | common::ModelSpec::Omnimagnet
-        ) {
+        if spec == common::ModelSpec::Hppa {
             println!(
                 "note: `--model {}` is flashed as its own device observer (codegen --device); this replay runs the NetworkObserver over the same network, with the device's derating",
                 a.model.model
@@ -1230,12 +1380,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 );
             }
         }
-        for (s, m) in o.stats().iter().zip(&measured) {
-            println!(
-                "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
-                m.column, info.nodes[s.node], s.fused, s.rejected, s.stuck, s.colder_than_physics
-            );
-        }
+        print_sensor_stats(o.stats(), &measured, &info);
+    }
+    if path == Path::Firmware {
         if let Some((p, input_limits)) = &final_protection {
             for &i in &limited {
                 if let Some((u, at)) = highest_upper[i] {
@@ -1344,6 +1491,18 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     print_events(&events);
     let t = &times;
+    if omni.is_some() {
+        println!(
+            "Omnimagnet observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            t.steps,
+            t.min_ns * 1e-3,
+            t.p50_ns * 1e-3,
+            t.p99_ns * 1e-3,
+            t.max_ns * 1e-3,
+            t.p99_over_budget
+        );
+        return Ok(());
+    }
     if grid.is_some() {
         println!(
             "grid observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
