@@ -132,6 +132,10 @@ trait PaddedObserver: Send {
     fn protection(&self, out: &mut Protected);
     /// Moves the alarm events of the last tick into `out`.
     fn drain_events(&mut self, out: &mut Vec<EventKindAt>);
+    /// The estimate of `node` \[degC\] at which its protective upper bound
+    /// reaches `limit_c` \[degC\], its reference at `reference_c` \[degC\]
+    /// (the library's `ElementBound::mean_limit_c`).
+    fn mean_limit_c(&self, node: usize, limit_c: f64, reference_c: f64) -> f64;
 }
 
 /// An alarm event of the observer: the element (a node of the model, or
@@ -394,6 +398,15 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         out.predictive = o.alarm.predictive;
     }
 
+    fn mean_limit_c(&self, node: usize, limit_c: f64, reference_c: f64) -> f64 {
+        self.observer
+            .upper_bound()
+            .element(node)
+            .map_or(limit_c, |e| {
+                f64::from(e.mean_limit_c(limit_c as f32, reference_c as f32))
+            })
+    }
+
     fn drain_events(&mut self, out: &mut Vec<EventKindAt>) {
         let ambient_c = self.inputs.boundary_c[self.ambient_boundary];
         let upper = self.state.outputs().upper_c;
@@ -623,6 +636,24 @@ impl ObserverEstimator {
     /// reset.
     pub fn take_events(&mut self) -> Vec<EventKindAt> {
         std::mem::take(&mut self.events)
+    }
+
+    /// Each node's estimate \[degC\] at which the protective upper bound
+    /// reaches its limit in `limits_c` \[degC\] (`None`: unlimited), with
+    /// `boundary_c` \[degC\] the boundaries: the limits a prediction of the
+    /// mean is given so that it answers for the bound the firmware's
+    /// limiter, alarm and time to limit act on (see
+    /// `coil_thermal::protect::margin`).
+    pub fn mean_limits_c(&self, limits_c: &[Option<f64>], boundary_c: &[f64]) -> Vec<Option<f64>> {
+        let reference_c = boundary_c
+            .get(self.config.settings.ambient_boundary)
+            .copied()
+            .unwrap_or(f64::NAN);
+        limits_c
+            .iter()
+            .enumerate()
+            .map(|(i, l)| l.map(|l| self.observer.mean_limit_c(i, l, reference_c)))
+            .collect()
     }
 
     /// Per-sensor fusion counts so far.

@@ -245,11 +245,15 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         }
         list
     };
+    // The firmware's limiter, alarm and time to limit act on its upper
+    // bound, not on the estimate: each element's limit for the model's
+    // mean is the temperature at which that bound reaches its limit.
+    let (mean_limits_c, bound_by) = mean_limits(&spec, &file, &model, &limits_c, &boundary_c)?;
     let query = LimitsQuery {
         network: model.network.clone(),
         currents_a: currents.clone(),
         boundary_c: boundary_c.clone(),
-        limits_c: limits_c.clone(),
+        limits_c: mean_limits_c.clone(),
         horizon_s: a.horizon_s,
         coils,
     };
@@ -262,9 +266,11 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     if a.json {
         let mut ttl = serde_json::Map::new();
         let mut lim = serde_json::Map::new();
+        let mut mean_lim = serde_json::Map::new();
         for (i, n) in nodes.iter().enumerate() {
             ttl.insert(n.clone(), json!(report.time_to_limit_s[i]));
             lim.insert(n.clone(), json!(limits_c[i]));
+            mean_lim.insert(n.clone(), json!(mean_limits_c[i]));
         }
         let coils: Vec<_> = report
             .coils
@@ -288,6 +294,9 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             "boundary_c": boundary_c,
             "derating_product": if a.limit_c.is_some() { None } else { Some(rule.product()) },
             "limits_c": lim,
+            "acts_on": "upper bound",
+            "upper_bound": bound_by,
+            "mean_limits_c": mean_lim,
             "assumed_limit_nodes": nodes.iter().zip(&assumed).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect::<Vec<_>>(),
             "time_to_limit_s": ttl,
             "horizon_s": a.horizon_s,
@@ -323,8 +332,11 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         ),
     }
     println!(
-        "{:<24} {:>12} {:>14} {:>16}",
-        "element", "limit [degC]", "steady [degC]", "time to limit"
+        "on the firmware's upper bound ({bound_by}): \"mean at limit\" is the estimate at which the bound reaches the limit"
+    );
+    println!(
+        "{:<24} {:>12} {:>14} {:>14} {:>16}",
+        "element", "limit [degC]", "mean at limit", "steady [degC]", "time to limit"
     );
     // Limit the table for large grids: the elements that reach their limit
     // first, then the hottest.
@@ -339,13 +351,14 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     let shown = if nodes.len() > 20 { 10 } else { order.len() };
     for &i in order.iter().take(shown) {
         println!(
-            "{:<24} {:>12} {:>14} {:>16}",
+            "{:<24} {:>12} {:>14} {:>14} {:>16}",
             nodes[i],
             format!(
                 "{:.2}{}",
                 limits_c[i].unwrap_or(f64::NAN),
                 if assumed[i] { "*" } else { "" }
             ),
+            format!("{:.2}", mean_limits_c[i].unwrap_or(f64::NAN)),
             report
                 .steady_c
                 .as_ref()
@@ -415,6 +428,82 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Each element's limit for the model's mean \[degC\]: the estimate at
+/// which the upper bound the firmware protects on reaches `limits_c`
+/// \[degC\] (`boundary_c` \[degC\] the boundaries), and a description of
+/// that bound. The built-in devices: their flashed observers' margins (the
+/// grid's on the rise above the colder of its coolant and ambient, the
+/// Omnimagnet's `k sigma` and unmeasured margin); a model file: the
+/// `NetworkObserver` `codegen` flashes from its `[observer]` table.
+fn mean_limits(
+    spec: &ModelSpec,
+    file: &crate::model_file::ModelFile,
+    model: &Model,
+    limits_c: &[Option<f64>],
+    boundary_c: &[f64],
+) -> Result<(Vec<Option<f64>>, String)> {
+    match spec {
+        ModelSpec::Hppa => {
+            let margin = coil_thermal::observer::grid::DEFAULT_MARGIN;
+            let bound = coil_thermal::protect::margin::UpperBoundBuilder::<1>::new(margin)
+                .build::<f64>()
+                .map_err(|e| anyhow::anyhow!("the grid's upper bound: {e}"))?;
+            let element = bound.elements()[0];
+            let reference_c = boundary_c.iter().copied().fold(f64::INFINITY, f64::min);
+            Ok((
+                limits_c
+                    .iter()
+                    .map(|l| l.map(|l| element.mean_limit_c(l, reference_c)))
+                    .collect(),
+                format!(
+                    "the grid observer's: {} x the rise above the colder of coolant and ambient, + {} K",
+                    margin.rise_fraction, margin.offset_k
+                ),
+            ))
+        }
+        ModelSpec::Omnimagnet => {
+            let observer = crate::codegen::omnimagnet_observer()?;
+            let bound = observer.upper_bound();
+            let reference_c = boundary_c.first().copied().unwrap_or(f64::NAN);
+            Ok((
+                limits_c
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| {
+                        l.map(|l| {
+                            bound.element(i).map_or(l, |e| {
+                                f64::from(e.mean_limit_c(l as f32, reference_c as f32))
+                            })
+                        })
+                    })
+                    .collect(),
+                "the flashed OmniObserver's: k sigma with its six thermocouples, and its margin on the unmeasured elements' rise".into(),
+            ))
+        }
+        _ => {
+            let config = crate::firmware::FirmwareConfig::of(model, file.observer.as_ref())?;
+            let sensors = config.sensor_nodes.clone();
+            let observer = crate::library_observer::ObserverEstimator::firmware(
+                model.clone(),
+                config.settings.step_us,
+                &config,
+                &sensors,
+            )
+            .context(
+                "limits act on the upper bound of the firmware's observer, which does not build",
+            )?;
+            Ok((
+                observer.mean_limits_c(limits_c, boundary_c),
+                format!(
+                    "the firmware's NetworkObserver from {}: k sigma with its {} sensor(s), and the unmeasured margin",
+                    if config.from_table { "the [observer] table" } else { "codegen's defaults" },
+                    sensors.len()
+                ),
+            ))
+        }
+    }
 }
 
 fn combination_name(powered: &[bool; 3]) -> String {
