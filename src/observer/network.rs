@@ -1564,8 +1564,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// cooled by the shortest off time, within the snapshot's age, that
     /// brings some sensor's node within `k_sigma` sensor deviations
     /// (0.75 K at the defaults) of its reading
-    /// ([`start::earliest_off_time_s`]), and every sensor's node no warmer
-    /// than its reading: the least cooling the readings allow, so the
+    /// ([`start::earliest_off_time_s`]: of the sensors the saved state puts
+    /// above their readings), and every sensor's node at its reading
+    /// ([`start::at_readings`]): the least cooling the readings allow, so the
     /// nodes no sensor reads err hot, and the sensors' first readings
     /// agree with the estimate (none refused, none colder than the
     /// physics). A reading colder than the coldest boundary (no cooling
@@ -1611,14 +1612,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let mut saved_c = saved_c;
         if off_s > 0.0 {
             saved_c = self.cooled_c(&saved_c, boundary_c, off_s);
-            // The sensors where they read: the cooling that fits one sensor
-            // may leave another warmer than its reading (model error).
-            for (reading, node) in readings_c.iter().zip(&self.sensor_nodes) {
-                if let (Some(t), Some(slot)) = (reading, saved_c.get_mut(*node)) {
-                    *slot = slot.min(*t);
-                }
-            }
         }
+        // The sensors where they read: the cooling that fits one sensor may
+        // leave another warmer than its reading (model error, or a node
+        // that warmed while off).
+        start::at_readings(&mut saved_c, &self.sensor_nodes, &readings_c);
         Ok(self.restored(&saved_c, &meta, boundary_c, 0.0))
     }
 

@@ -202,8 +202,9 @@
 //! no cooling there; [`OmniObserver::restore_with_readings`] finds it from
 //! the thermocouples instead (see [`super::start`]): the shortest off time,
 //! within the snapshot's age, whose cooled state brings some solenoid
-//! within `k_sigma` thermocouple deviations (0.75 K) of its reading, every
-//! solenoid no warmer than its readings. Saved at the limit and restored
+//! within `k_sigma` thermocouple deviations (0.75 K) of its reading (of
+//! the solenoids the saved state puts above their readings), every read
+//! solenoid at its hotter reading. Saved at the limit and restored
 //! 15 min later after 10 min off, it errs hot by at most 1.2 K on any node
 //! (the known off time: 0.07 K), where the uncooled restore refuses 2 393
 //! healthy readings in 5 min (`start_tests.rs`).
@@ -2042,8 +2043,9 @@ impl OmniObserver {
     /// current ([`Self::cooled_c`]), for the shortest off time within the
     /// snapshot's age that brings some thermocouple's solenoid within
     /// `k_sigma` thermocouple deviations (0.75 K at the defaults) of its
-    /// reading ([`start::earliest_off_time_s`]), and every measured
-    /// solenoid no warmer than its readings: the least cooling the readings
+    /// reading ([`start::earliest_off_time_s`]: of the solenoids the saved
+    /// state puts above their readings), and every measured solenoid at
+    /// its hotter reading ([`start::at_readings`]): the least cooling the readings
     /// allow, so the nodes no thermocouple reads (the insulations, the
     /// core) err hot, and the first readings agree with the estimate (none
     /// refused, none colder than the physics). A reading colder than the
@@ -2051,7 +2053,11 @@ impl OmniObserver {
     /// sensor) is left out. With no usable reading, or an ambient
     /// `ambient_c` \[degC\] outside the input limits, the saved state
     /// uncooled, as [`Self::restore_after`] with `None`. A latched shutdown
-    /// stays latched. The state is the steady filter's, as every restore's.
+    /// stays latched. With readings, the state is held as [`Self::start`]
+    /// holds it (the unread insulations capped and widened to 1 K under
+    /// their limits, the covariance held until settled): the snapshot
+    /// keeps no heat-input bias, and without one the build-time
+    /// linearisation runs a hot device hotter than its thermocouples.
     ///
     /// `model` must be the model the observer was built from (as for
     /// [`Self::restore_after`]). Restore-time work, not for the tick: at
@@ -2124,15 +2130,30 @@ impl OmniObserver {
         let mut temps_c = saved_c;
         if off_s > 0.0 {
             temps_c = cooled(off_s);
-            // The thermocouples where they read: the cooling that fits one
-            // may leave another warmer than its reading (model error).
-            for (reading, node) in readings_c.iter().zip(THERMOCOUPLE_NODES) {
-                if let (Some(t), Some(slot)) = (reading, temps_c.get_mut(node)) {
-                    *slot = slot.min(*t);
-                }
+        }
+        // The thermocouples where they read: the cooling that fits one may
+        // leave another warmer than its reading (model error, or an outer
+        // solenoid that the inner one warmed while off).
+        start::at_readings(&mut temps_c, &THERMOCOUPLE_NODES, &readings_c);
+        // Held as a start is: the snapshot keeps no heat-input bias, and
+        // without it the build-time linearisation runs a hot device hotter
+        // than its readings; the held covariance lets the gate take them
+        // and the shadow follow the estimate until the filter has settled.
+        let mut read = [false; NODES];
+        for (reading, node) in readings_c.iter().zip(THERMOCOUPLE_NODES) {
+            if let (Some(_), Some(slot)) = (reading, read.get_mut(node)) {
+                *slot = true;
             }
         }
-        Ok(self.restored(&temps_c, &meta, ambient_c))
+        let mut state = self.held_start(temps_c, &read, ambient_c);
+        if meta.shutdown_latched {
+            latch_and_publish(
+                &mut state.alarm,
+                &mut state.outputs.alarm,
+                &mut state.outputs.limits,
+            );
+        }
+        Ok(state)
     }
 
     /// The node temperatures \[degC\] `off_s` \[s\] after `temps_c` with no
@@ -2265,7 +2286,22 @@ impl OmniObserver {
         let steady = (plant_fingerprint(model) == self.plant_fingerprint)
             .then(|| self.held_steady_start(model, &hottest_c, &hotter, ambient_c))
             .flatten();
-        let mut temps = steady.unwrap_or(hottest_c);
+        self.held_start(steady.unwrap_or(hottest_c), &read, ambient_c)
+    }
+
+    /// The state at `temps` \[degC\] (the nodes in `read` at their
+    /// readings) held as [`Self::start`] holds it: each unread insulation
+    /// capped where its bound is [`start::START_BELOW_LIMIT_K`] under its
+    /// alarm limit, a variance that puts it there, the filter holding that
+    /// covariance and the shadow following the estimate until both have
+    /// settled (shared by [`Self::start`] and
+    /// [`Self::restore_with_readings`]).
+    fn held_start(
+        &self,
+        mut temps: [f32; NODES],
+        read: &[bool; NODES],
+        ambient_c: f32,
+    ) -> OmniObserverState {
         let mut limits_c = [f32::INFINITY; NODES];
         let mut limited = [false; NODES];
         for (node, limit) in ALARM_NODES.iter().zip(self.alarm.alarm_limits_c(ambient_c)) {
@@ -2280,7 +2316,7 @@ impl OmniObserver {
             }
             _ => f32::NAN,
         });
-        start::cap_unread_c(&mut temps, &read, &limited, &ceiling_c);
+        start::cap_unread_c(&mut temps, read, &limited, &ceiling_c);
         let mut state = self.state(&temps, ambient_c);
         let mut steady_upper_c = [0.0; NODES];
         self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
@@ -2290,7 +2326,7 @@ impl OmniObserver {
         let node_sigma: [f32; NODES] = core::array::from_fn(|i| steady_sigma[i]);
         let k_sigma = self.k_sigma();
         let sigma_k = start::start_sigma_k(
-            &read,
+            read,
             &steady_upper_c,
             &limits_c,
             &limited,

@@ -101,7 +101,7 @@
 //! cooling of the saved one), and the readings at the restore say which
 //! are possible: [`earliest_off_time_s`] finds the *shortest* off time
 //! that cools some sensor's node to its reading (plus a tolerance; every
-//! sensor's node is then set no warmer than its reading), the least
+//! sensor's node is then set at its reading, [`at_readings`]), the least
 //! cooling the readings allow, so the unmeasured nodes err hot and the
 //! measured ones agree with their sensors from the first correction (no
 //! healthy reading refused, no "colder than the physics").
@@ -310,6 +310,34 @@ pub fn capped_extra_k(extra_k: f32, steady_upper_c: f32, limit_c: f32) -> f32 {
     }
 }
 
+/// Sets every sensor's node in `temps_c` \[degC\] at its reading
+/// `readings_c` \[degC\] (`None` or not finite: no reading; two sensors
+/// on one node: the hotter, as the start takes it): a restore's cooled
+/// state where the sensors read. The cooling that fits one sensor may
+/// leave another's node off its reading (model error, or a node that
+/// warmed while the device was off: the heat of a hotter neighbour
+/// spreading), and the sensor is the best knowledge of its node.
+pub fn at_readings<const N: usize, const P: usize>(
+    temps_c: &mut [f32; N],
+    sensor_nodes: &[usize; P],
+    readings_c: &[Option<f32>; P],
+) {
+    for (j, (reading, node)) in readings_c.iter().zip(sensor_nodes).enumerate() {
+        let Some(t) = reading.filter(|t| t.is_finite()) else {
+            continue;
+        };
+        let hotter_before = readings_c[..j]
+            .iter()
+            .zip(sensor_nodes)
+            .filter(|(r, n)| *n == node && r.is_some_and(f32::is_finite))
+            .filter_map(|(r, _)| *r)
+            .fold(t, f32::max);
+        if let Some(slot) = temps_c.get_mut(*node) {
+            *slot = hotter_before;
+        }
+    }
+}
+
 /// The shortest off time \[s\] in `[0, max_off_s]` after which the cooled
 /// state (`cooled(t)`, the node temperatures \[degC\] after `t` \[s\] off)
 /// puts some sensor with a reading no more than `tolerance_k` \[K\] above
@@ -317,8 +345,12 @@ pub fn capped_extra_k(extra_k: f32, steady_upper_c: f32, limit_c: f32) -> f32 {
 /// the sensors disagree, the one that cooled least decides, and the
 /// others' nodes are the caller's to set to their readings).
 ///
-/// `0` when no reading is usable (nothing says the device cooled) or the
-/// saved state already fits; `max_off_s` when none fits (the readings are
+/// Only the sensors whose nodes the saved state (`cooled(0)`) puts more
+/// than `tolerance_k` above their readings take part: a node can warm
+/// while the device is off (a hotter neighbour's heat spreading), and its
+/// sensor then fits the uncooled state without saying anything about the
+/// time. `0` when no reading is usable or none takes part (nothing says
+/// the device cooled); `max_off_s` when none fits (the readings are
 /// colder than the device can have cooled: the most cooling there was
 /// time for, and the filter does the rest). A geometric grid of
 /// 32 off times from 1 s (`OFF_TIME_GRID`), then 20 (`OFF_TIME_BISECTIONS`)
@@ -331,22 +363,31 @@ pub fn earliest_off_time_s<const N: usize, const P: usize>(
     tolerance_k: f32,
     max_off_s: f32,
 ) -> f32 {
-    let usable = readings_c.iter().any(|r| r.is_some_and(f32::is_finite));
-    if !usable || max_off_s.is_nan() || max_off_s <= 0.0 || !max_off_s.is_finite() {
+    if max_off_s.is_nan() || max_off_s <= 0.0 || !max_off_s.is_finite() {
+        return 0.0;
+    }
+    // Only a sensor whose node the saved state puts above its reading says
+    // how long the device cooled: one below it (a node that warmed while
+    // off, an estimate that was cold) says nothing about the time.
+    let saved = cooled(0.0);
+    let telling: [Option<f32>; P] = core::array::from_fn(|j| {
+        let reading = readings_c[j].filter(|r| r.is_finite())?;
+        let model = saved.get(sensor_nodes[j])?;
+        (*model > reading + tolerance_k).then_some(reading)
+    });
+    if telling.iter().all(Option::is_none) {
         return 0.0;
     }
     let fits = |t: f32| {
         let temps = cooled(t);
-        readings_c.iter().zip(sensor_nodes).any(|(r, node)| {
-            match (r.filter(|r| r.is_finite()), temps.get(*node)) {
+        telling
+            .iter()
+            .zip(sensor_nodes)
+            .any(|(r, node)| match (r, temps.get(*node)) {
                 (Some(reading), Some(model)) => *model <= reading + tolerance_k,
                 _ => false,
-            }
-        })
+            })
     };
-    if fits(0.0) {
-        return 0.0;
-    }
     // t_k = max_off_s^(k / GRID): 1 s to max_off_s (a single step below 1 s).
     let ratio = if max_off_s > 1.0 {
         libm::powf(max_off_s, 1.0 / OFF_TIME_GRID as f32)
@@ -419,6 +460,32 @@ mod tests {
             3600.0,
         );
         assert!((other - 300.0).abs() < 0.5, "{other} s");
+    }
+
+    #[test]
+    fn a_node_that_warmed_while_off_does_not_stop_the_cooling() {
+        // Node 1 read warmer than saved (it warmed from a neighbour): it
+        // fits at once, and says nothing; node 0 decides.
+        let truth_s = 300.0f32;
+        let t = earliest_off_time_s(
+            cooled,
+            &[0, 1],
+            &[Some(cooled(truth_s)[0]), Some(cooled(0.0)[1] + 2.0)],
+            0.0,
+            3600.0,
+        );
+        assert!((t - truth_s).abs() < 0.5, "{t} s");
+    }
+
+    #[test]
+    fn the_restore_takes_every_sensor_at_its_reading() {
+        let mut temps = [50.0f32, 50.0, 50.0];
+        at_readings(
+            &mut temps,
+            &[0, 0, 2, 1],
+            &[Some(40.0), Some(42.0), Some(55.0), Some(f32::NAN)],
+        );
+        assert_eq!(temps, [42.0, 50.0, 55.0]);
     }
 
     #[test]
