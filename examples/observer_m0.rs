@@ -10,7 +10,7 @@
 //!   -semihosting-config enable=on,target=native -kernel target/thumbv6m-none-eabi/firmware/examples/observer_m0
 //! ```
 //!
-//! Coil (1, 2) carries 3.3 A for 30 s, enough for its protective upper bound
+//! Coil (1, 2) carries 3.0 A for 30 s, enough for its protective upper bound
 //! (the estimate plus the default model-uncertainty margin, 0.65 of the rise)
 //! to enter the limiter's taper band. Checks (exit 1 on a mismatch): the Q32
 //! temperatures agree with the same grid stepped in `f32` to 5 mK; the Q32
@@ -45,7 +45,7 @@ const N: usize = ROWS * COLS;
 const TICKS: u32 = 30_000;
 const HOT: (usize, usize) = (1, 2);
 /// The hot coil's current \[A\].
-const HOT_A: f32 = 3.3;
+const HOT_A: f32 = 3.0;
 
 /// Without an FPU the `f32` time to limit (a division and a short `ln`
 /// series per coil, all in software, ~3 800 instructions) is the heaviest

@@ -140,8 +140,8 @@ const HPPA_SCALE: f64 = 2.0;
 /// The coils' hardware current limit \[A\] (the limiter's full current).
 const HPPA_HARDWARE_A: f64 = 3.0;
 /// The 300 s trace is periodic (10 s), so six copies make a seamless
-/// 1800 s run: 4.5 times a coil's time constant to the base
-/// (`C Rz` = 68.7 * 5.74 = 394 s), near the steady state.
+/// 1800 s run: 5.6 times a coil's time constant to the base
+/// (`C Rz` = 56.4 * 5.74 = 324 s), near the steady state.
 const HPPA_REPEATS: usize = 6;
 /// The limiter's taper band below the alarm limit \[K\].
 const TAPER_K: f64 = 10.0;

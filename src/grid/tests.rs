@@ -39,7 +39,7 @@ fn run<S: Scalar, const R: usize, const C: usize>(
 
 #[test]
 fn report_and_digest_give_the_same_model() {
-    let report = GridParams::FDM_FITTED;
+    let report = GridParams::FDM_TABLE_7;
     let digest = GridParams::FDM_FITTED_DIGEST;
     // Table 7 lists the totals between two coils; the digest the halves
     // one element holds (see the `params` docs for the evidence).
@@ -59,6 +59,18 @@ fn report_and_digest_give_the_same_model() {
     assert_eq!(
         GridParams::new(Convention::BetweenCoils, 19.8, 6.99, 5.74, 68.7),
         report
+    );
+    // The default is Table 7's resistances with the capacity of the
+    // report's other fits of the same runs (see the `params` docs).
+    let default = GridParams::FDM_FITTED;
+    assert_eq!(
+        default,
+        GridParams::between_coils(19.8, 6.99, 5.74, 56.4),
+        "{default:?}"
+    );
+    assert_eq!(
+        default.capacity_j_per_k(),
+        GridParams::hppa(HppaPreset::GlobalFit).capacity_j_per_k()
     );
     // The RC-network tables are per element: between coils is twice.
     let global = GridParams::hppa(HppaPreset::GlobalFit);
@@ -92,16 +104,17 @@ fn bad_configurations_are_refused() {
 fn an_unstable_grid_step_is_refused_with_the_worst_coil() {
     // Every HPPA coil (padding included): sum G = 2/19.8 + 2/6.99 + 1/5.74
     // = 0.5614 W/K (each side's 1/Ry shared by two contacts);
-    // C / sum G = 122.4 s, so a 123 s step is unstable and a 122 s one is not.
+    // C / sum G = 56.4 / 0.5614 = 100.5 s, so a 101 s step is unstable and a
+    // 100 s one is not.
     let ok = GridConfig {
         tick_dt_s: 1.0,
-        ticks_per_update: 122,
+        ticks_per_update: 100,
         ..GridConfig::default()
     };
     let grid = Hppa::<f64>::new(&ok).unwrap();
     assert!(grid.stability_ratio() < 1.0 && grid.stability_ratio() > 0.99);
     let unstable = GridConfig {
-        ticks_per_update: 123,
+        ticks_per_update: 101,
         ..ok
     };
     match Hppa::<f64>::new(&unstable) {
@@ -472,7 +485,7 @@ fn decimation_loses_no_joule_energy() {
         s.temps_c
             .iter()
             .flatten()
-            .map(|t| (t - 20.0) * 68.7)
+            .map(|t| (t - 20.0) * GridParams::FDM_FITTED.capacity_j_per_k())
             .sum::<f64>()
     };
     // Little has left through the base in 5 s: both hold nearly all of it.

@@ -117,8 +117,9 @@ pub struct ModelArgs {
     /// HPPA grid columns (`--model hppa`; default 12).
     #[arg(long, value_name = "C")]
     pub cols: Option<usize>,
-    /// HPPA parameter set (`--model hppa`): `fdm-fitted` (report Table 7,
-    /// the default), `calculated`, `stepwise-fit`, `global-fit`.
+    /// HPPA parameter set (`--model hppa`): `fdm-fitted` (report Table 7's
+    /// resistances with the 56.4 J/K capacity of its other fits, the
+    /// default), `calculated`, `stepwise-fit`, `global-fit`.
     #[arg(long, value_name = "SET")]
     pub grid_params: Option<String>,
     /// A sensor with a first-order lag of TAU [s] on NODE: adds node
