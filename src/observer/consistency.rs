@@ -36,7 +36,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::omnimagnet::SensorStatus;
+use super::vocabulary::SensorStatus;
 use crate::network::{compensated_add, ScalarResistance};
 
 /// The band a reading must keep to below the shadow: the model's
@@ -280,6 +280,17 @@ pub(crate) fn raise_to_shadow<const N: usize>(
 /// under the threshold in a window. Since the reading's last change the
 /// slow test applies instead (see [`StuckWatch`]).
 pub(crate) const STUCK_WINDOW_S: f64 = 120.0;
+
+/// The readings in [`STUCK_WINDOW_S`] at one per `correction_period_s`
+/// \[s\] (at least 2).
+pub(crate) fn stuck_window(correction_period_s: f64) -> u32 {
+    let n = libm::ceil(STUCK_WINDOW_S / correction_period_s);
+    if n.is_finite() && n >= 2.0 {
+        n.min(f64::from(u32::MAX)) as u32
+    } else {
+        2
+    }
+}
 
 /// Stuck readings, told without the estimate they drag: a reading that
 /// has not changed (to the bit) while the shadow model at its node moved,

@@ -17,7 +17,7 @@
 //! (`with_phase`) makes every slice after the first due that much after
 //! its period's boundary; the lag stays the real one.
 
-use super::omnimagnet::{SensorStatus, TimedReading};
+use super::vocabulary::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
 use crate::protect::alarm::{AlarmState, AlarmStatus};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
@@ -225,6 +225,20 @@ pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
     alarm.latch_shutdown();
     published.shutdown = true;
     hold_shutdown(limits);
+}
+
+/// A predictor's answer `time_s` \[s\] made older by `lag_s` \[s\] (the
+/// real time it lags behind), never below zero; NaN ("unknown") and `None`
+/// ("never") pass through. Shared by the observers.
+pub(crate) fn aged_time_to_limit(time_s: Option<f32>, lag_s: f32) -> Option<f32> {
+    time_s.map(|t| {
+        let left = t - lag_s;
+        if left < 0.0 {
+            0.0
+        } else {
+            left
+        }
+    })
 }
 
 #[cfg(test)]

@@ -143,8 +143,7 @@ mod parts;
 
 pub use parts::{GridModelTables, GridParts, TimeToLimitTables};
 
-/// Capacity of each observer's alarm event queue.
-pub const EVENT_CAPACITY: usize = 16;
+pub use super::vocabulary::EVENT_CAPACITY;
 
 /// The model-uncertainty margin [`GridObserver::new`] sets:
 /// [`UncertaintyMargin::GRID_20_PERCENT`] (the grid runs open loop, so every

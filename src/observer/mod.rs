@@ -21,6 +21,8 @@
 //!   [`crate::protect::margin`]; the outputs carry both;
 //! * [`snapshot`]: warm restart from a versioned, CRC-checked byte buffer, and
 //!   the conservative start when a snapshot is refused;
+//! * [`vocabulary`]: what every observer speaks (a timed sample, what
+//!   became of it, the event queue's capacity), owned by no device;
 //! * [`start`]: safe from the first tick without a history (the start's
 //!   covariance, held by the filter and by the upper bound until it
 //!   settles) and the restore whose off time only the sensors know.
@@ -35,6 +37,7 @@ pub mod shared;
 pub mod snapshot;
 pub mod start;
 mod tables;
+pub mod vocabulary;
 
 pub use clock::{
     ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,
@@ -47,12 +50,10 @@ pub use network::{
     NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkOutputs,
     NetworkSettings,
 };
-pub use omnimagnet::{
-    OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings, SensorStatus,
-    TimedReading,
-};
+pub use omnimagnet::{OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings};
 pub use shared::{Mailbox, Shared};
 pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
 pub use tables::{AlarmTables, ClockTables, LimiterTables};
+pub use vocabulary::{SensorStatus, TimedReading, EVENT_CAPACITY};

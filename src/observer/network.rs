@@ -257,11 +257,11 @@ use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
     SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
 };
+use super::cycle::aged_time_to_limit;
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
-use super::grid::EVENT_CAPACITY;
-use super::omnimagnet::{aged_time_to_limit, SensorStatus, TimedReading};
 use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
 use super::start;
+use super::vocabulary::{SensorStatus, TimedReading, EVENT_CAPACITY};
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -1802,7 +1802,6 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 mod bias;
 mod parts;
 pub use bias::BiasMode;
-pub(crate) use parts::stuck_window as parts_stuck_window;
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 
 #[cfg(test)]

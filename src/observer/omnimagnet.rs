@@ -288,7 +288,7 @@
 //! # Readings
 //!
 //! Each thermocouple reading arrives on its own, as a [`TimedReading`]: the
-//! driver's [`SensorResult`] and the time it was sampled on the same
+//! driver's [`SensorResult`](crate::sensors::SensorResult) and the time it was sampled on the same
 //! microsecond clock as [`OmniInputs::now_us`]. A fault is not fused and is
 //! reported as [`SensorStatus::Fault`]; a reading older than
 //! `max_reading_age_us` is not fused and reported [`SensorStatus::TooOld`]; a
@@ -337,10 +337,13 @@ use super::consistency::{
     drop_cold_biases, raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
     SilenceWatch, StuckTest, StuckWatch, Suspicion,
 };
-use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
-use super::grid::EVENT_CAPACITY;
+use super::cycle::{
+    aged_time_to_limit, latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage,
+};
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
+use super::vocabulary::EVENT_CAPACITY;
+pub use super::vocabulary::{SensorStatus, TimedReading};
 use crate::error::BuildError;
 use crate::filter::{update_against, update_steady, SteadyEstimate, UpdateReport};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
@@ -357,7 +360,6 @@ use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
-use crate::sensors::{SensorFault, SensorResult};
 
 mod parts;
 
@@ -569,99 +571,6 @@ impl Default for OmniSettings {
             model_refresh_s: None,
         }
     }
-}
-
-/// One thermocouple sample and when it was taken.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TimedReading {
-    /// The driver's result.
-    pub result: SensorResult,
-    /// Sample time on the tick's microsecond clock \[us\] (wrapping).
-    pub sampled_at_us: u32,
-}
-
-impl TimedReading {
-    /// The reading \[degC\] if it can be fused at `now_us` \[us\]: not a
-    /// fault, not older than `max_age_us` \[us\], finite; otherwise what
-    /// to report. Shared by the observers' corrections.
-    pub(crate) fn sample_c(&self, now_us: u32, max_age_us: u32) -> Result<f32, SensorStatus> {
-        match self.result {
-            Err(fault) => Err(SensorStatus::Fault(fault)),
-            Ok(r) => {
-                let age_us = now_us.wrapping_sub(self.sampled_at_us);
-                if age_us > max_age_us {
-                    Err(SensorStatus::TooOld { age_us })
-                } else if !r.temp_c.is_finite() {
-                    Err(SensorStatus::Fault(SensorFault::NotFinite))
-                } else {
-                    Ok(r.temp_c)
-                }
-            }
-        }
-    }
-}
-
-/// A predictor's answer `time_s` \[s\] made older by `lag_s` \[s\] (the
-/// real time it lags behind), never below zero; NaN ("unknown") and `None`
-/// ("never") pass through. Shared by the observers.
-pub(crate) fn aged_time_to_limit(time_s: Option<f32>, lag_s: f32) -> Option<f32> {
-    time_s.map(|t| {
-        let left = t - lag_s;
-        if left < 0.0 {
-            0.0
-        } else {
-            left
-        }
-    })
-}
-
-/// What happened to one thermocouple this tick.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum SensorStatus {
-    /// No reading arrived.
-    #[default]
-    NoReading,
-    /// Fused, with its normalised innovation squared (dimensionless).
-    Fused {
-        /// `nu^2 / S`.
-        nis: f32,
-    },
-    /// Refused by the innovation gate.
-    Rejected {
-        /// `nu^2 / S`.
-        nis: f32,
-    },
-    /// The sensor reported a fault; not fused.
-    Fault(SensorFault),
-    /// Older than `max_reading_age_us`; not fused.
-    TooOld {
-        /// Its age \[us\].
-        age_us: u32,
-    },
-    /// Colder than the physics allows: below the band of the observer's
-    /// unfused shadow model (see the network observer's "Sensors against
-    /// the physics"); not fused.
-    ColderThanPhysics {
-        /// How far below the band's lower edge \[K\].
-        below_k: f32,
-    },
-    /// Silent: no reading (not even a fault) for more than two correction
-    /// periods; a dropout (a cable, a driver, a bus).
-    Silent {
-        /// Since the last reading \[ms\].
-        for_ms: u32,
-    },
-    /// Stuck: the reading has not moved while the shadow model at its node
-    /// moved by more than the stuck threshold within the stuck window, or
-    /// by more than the threshold plus the band's share of the rise since
-    /// the reading last changed; not fused until it moves.
-    Stuck {
-        /// How far the shadow moved since the reading last changed or
-        /// within the window, the larger \[K\].
-        model_moved_k: f32,
-    },
 }
 
 /// The inputs of one tick.
@@ -982,7 +891,7 @@ impl OmniObserver {
             stuck_test: StuckTest {
                 threshold_k: settings.stuck_threshold_k as f32,
                 tolerance_k: settings.stuck_tolerance_k as f32,
-                window: super::network::parts_stuck_window(settings.filter.correction_period_s),
+                window: super::consistency::stuck_window(settings.filter.correction_period_s),
             },
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)

@@ -37,7 +37,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{Band, BiasBound, Shadow, StuckTest, STUCK_WINDOW_S};
+use crate::observer::consistency::{stuck_window, Band, BiasBound, Shadow, StuckTest};
 use crate::observer::snapshot::Fingerprint;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -902,17 +902,6 @@ impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
             slowest_time_constant_s: self.slowest_time_constant_s,
             elements_per_tick,
         }
-    }
-}
-
-/// The readings in [`STUCK_WINDOW_S`] at one per `correction_period_s`
-/// \[s\] (at least 2).
-pub(crate) fn stuck_window(correction_period_s: f64) -> u32 {
-    let n = libm::ceil(STUCK_WINDOW_S / correction_period_s);
-    if n.is_finite() && n >= 2.0 {
-        n.min(f64::from(u32::MAX)) as u32
-    } else {
-        2
     }
 }
 
