@@ -41,6 +41,10 @@ pub struct FirmwareConfig {
     pub settings: NetworkSettings,
     /// Which of the network's sources carry a heat-input bias.
     pub bias_sources: Vec<bool>,
+    /// The biased sources share one heat bias in proportion to their Joule
+    /// power (`[observer] shared_bias`, `BiasMode::Shared`); else
+    /// `BiasMode::Auto`.
+    pub shared_bias: bool,
 }
 
 impl FirmwareConfig {
@@ -67,6 +71,9 @@ impl FirmwareConfig {
         }
         if let Some(v) = table.bias_noise_w2_per_s {
             settings.bias_noise_w2_per_s = v;
+        }
+        if let Some(v) = table.bias_tau_s {
+            settings.bias_tau_s = v;
         }
         if let Some(v) = table.max_cooling_bias_fraction {
             settings.max_cooling_bias_fraction = v;
@@ -111,6 +118,7 @@ impl FirmwareConfig {
             derating,
             settings,
             bias_sources: (0..sources).map(|m| model.carries_bias(m)).collect(),
+            shared_bias: table.shared_bias.unwrap_or(false),
         })
     }
 

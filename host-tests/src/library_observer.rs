@@ -88,7 +88,8 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
-    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
+    BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
+    NetworkSettings,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::Reading;
@@ -231,6 +232,7 @@ struct BuildSpec {
     settings: NetworkSettings,
     sensor_nodes: Vec<usize>,
     biased: Vec<bool>,
+    shared_bias: bool,
     critical_c: Vec<Option<f64>>,
     hardware_limit_a: f64,
     rule: DeratingRule,
@@ -244,6 +246,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             settings,
             sensor_nodes,
             biased,
+            shared_bias,
             critical_c,
             hardware_limit_a,
             rule,
@@ -275,6 +278,13 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             .derating(rule.clone())
             .settings(scaled)
             .bias_sources(bias_sources)
+            .bias_mode(if *shared_bias {
+                // `[observer] shared_bias`: the padding's sources carry no
+                // bias, so they share none either.
+                BiasMode::Shared([true; C])
+            } else {
+                BiasMode::Auto
+            })
             .build::<X>()
             .map_err(|e| {
                 // The same words as `codegen` and `faults` (one fix for one
@@ -545,6 +555,7 @@ impl ObserverEstimator {
             settings,
             sensor_nodes: sensors.clone(),
             biased,
+            shared_bias: config.shared_bias,
             critical_c: config.critical_c.clone(),
             hardware_limit_a: config.hardware_limit_a,
             rule: config.rule(),

@@ -304,6 +304,20 @@ pub struct NetworkSettings {
     /// heat" in the module docs). Default 1e-3. 0 freezes the biases at
     /// zero.
     pub bias_noise_w2_per_s: f64,
+    /// Correlation time of the heat-input biases \[s\] (finite, `>= 0`):
+    /// each bias is a first-order Gauss-Markov process that decays towards
+    /// zero with this time constant, driven by `bias_noise_w2_per_s`, so
+    /// its steady standard deviation is `sqrt(bias_noise_w2_per_s *
+    /// bias_tau_s / 2)` \[W\]. Default 0: no decay, a random walk (every
+    /// table as before this setting, to the bit). A device whose missing
+    /// heat is a bounded share of a loss that comes and goes (a motor's
+    /// copper at changing load) sets it: with a random walk, heat learnt
+    /// under load stays in the estimate at standstill, where no loss
+    /// explains it; and a decaying bias keeps the steady gain solvable when
+    /// the sensors cannot tell every bias apart (a decaying state need not
+    /// be observable). The mean decays once per correction period (one
+    /// exponential), the covariance every step.
+    pub bias_tau_s: f64,
     /// Standard deviation the gate's recovery widens each temperature by
     /// \[K\]. Default 10.
     pub recovery_sigma_k: f64,
@@ -416,6 +430,7 @@ impl NetworkSettings {
         sensor_sigma_k: 0.25,
         node_noise_k2_per_s: 1e-4,
         bias_noise_w2_per_s: 1e-3,
+        bias_tau_s: 0.0,
         recovery_sigma_k: 10.0,
         recovery_bias_sigma_w: 5.0,
         correction_period_s: 0.5,
@@ -688,6 +703,9 @@ pub struct NetworkObserver<
     warmup_corrections: u16,
     /// `max_cooling_bias_fraction` (dimensionless).
     cooling_bias_fraction: f32,
+    /// The biases' decay per model step, `step / bias_tau_s`
+    /// (dimensionless; 0: random walks, no decay).
+    bias_decay_per_step: f32,
     /// The sources sharing one heat bias (see "One sensor sees one heat").
     shared_bias: [bool; M],
     /// Each shared source's nominal Joule power \[W\] (0 for the others):
@@ -743,6 +761,8 @@ pub struct NetworkObserverState<
     warmup_cov: SMatrix<f32, X, X>,
     /// Corrections the warm-up has left.
     warmup_left: u16,
+    /// Model steps since the biases' means last decayed.
+    bias_steps: u32,
     /// The warm-up ends once its covariance has settled (the start's, see
     /// [`super::start`]), not after a count.
     warmup_until_steady: bool,
@@ -865,6 +885,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov
             },
             warmup_left: self.warmup_corrections,
+            bias_steps: 0,
             warmup_until_steady: false,
             stuck: StuckWatch::new(),
             bias_at_change_w: [[0.0; M]; P],
@@ -949,6 +970,25 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
+    /// The biases' mean decay (see [`NetworkSettings::bias_tau_s`]), once
+    /// a correction period: `exp(-steps / (bias_tau_s / step))` in one
+    /// factor, since a per-step factor `1 - 5.6e-7` (1 ms, 30 min) is held
+    /// by `f32` to a few ulps only and would misstate the time constant.
+    fn decay_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>, steps: u32) {
+        if self.bias_decay_per_step <= 0.0 {
+            return;
+        }
+        state.bias_steps = state.bias_steps.saturating_add(steps);
+        if state.bias_steps < self.gain.period {
+            return;
+        }
+        let factor = libm::expf(-self.bias_decay_per_step * state.bias_steps as f32);
+        state.bias_steps = 0;
+        for bias in state.estimate.x.iter_mut().skip(N).take(M) {
+            *bias *= factor;
+        }
+    }
+
     fn operating(
         &self,
         temps_c: &[f32; N],
@@ -1000,6 +1040,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for _ in 0..steps.steps {
             self.predict(state);
         }
+        self.decay_biases(state, steps.steps);
         state.cycle.stepped(
             steps.steps,
             self.step_us,

@@ -212,6 +212,7 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     )?;
     check(nonneg(s.node_noise_k2_per_s), "node_noise_k2_per_s")?;
     check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
+    check(nonneg(s.bias_tau_s), "bias_tau_s")?;
     check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
     check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
     check(
@@ -450,6 +451,14 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
             } else {
                 bd_power[(i, m)]
             };
+        }
+    }
+    if s.bias_tau_s > 0.0 {
+        // Gauss-Markov biases (`bias_tau_s`): each decays alike, so the
+        // shared bias's reduced slot decays as the biases it stands for.
+        let decay = libm::exp(-dt_s / s.bias_tau_s);
+        for m in (0..M).filter(|m| layout.biased[*m]) {
+            f[(N + m, N + m)] = decay;
         }
     }
     let mut h = SMatrix::<f64, P, X>::zeros();
@@ -779,6 +788,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             shadow,
             warmup_corrections: s.warmup_corrections,
             cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
+            bias_decay_per_step: if s.bias_tau_s > 0.0 {
+                (timing.clock.step_s() / s.bias_tau_s) as f32
+            } else {
+                0.0
+            },
             shared_bias: layout.shared_mask(),
             nominal_power_w: core::array::from_fn(|k| {
                 if layout.is_shared(k) {
@@ -1056,6 +1070,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             "        consistency_fraction: {:?},",
             s.consistency_fraction
         )?;
+        writeln!(out, "        bias_tau_s: {:?},", s.bias_tau_s)?;
         writeln!(
             out,
             "        max_cooling_bias_fraction: {:?},",
