@@ -75,6 +75,15 @@ impl FirmwareConfig {
         if let Some(v) = table.bias_tau_s {
             settings.bias_tau_s = v;
         }
+        if let Some(name) = &table.boundary_offset {
+            settings.boundary_offset = Some(boundary_index(model, name)?);
+        }
+        if let Some(v) = table.boundary_offset_std_k {
+            settings.boundary_offset_std_k = v;
+        }
+        if let Some(v) = table.boundary_offset_tau_s {
+            settings.boundary_offset_tau_s = v;
+        }
         if let Some(v) = table.max_cooling_bias_fraction {
             settings.max_cooling_bias_fraction = v;
         }
@@ -132,6 +141,28 @@ impl FirmwareConfig {
                 .expect("a product in (0, 1] is one valid factor")
         }
     }
+}
+
+/// The index of `[[boundary]]` `name` (`[observer] boundary_offset`).
+///
+/// # Errors
+/// No boundary of that name.
+pub fn boundary_index(model: &Model, name: &str) -> anyhow::Result<usize> {
+    model
+        .boundaries
+        .iter()
+        .position(|b| b.name == name)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "[observer] boundary_offset: no [[boundary]] `{name}` (boundaries: {})",
+                model
+                    .boundaries
+                    .iter()
+                    .map(|b| b.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
 }
 
 /// A replay flag that changes the firmware's observer: named in the

@@ -130,6 +130,18 @@ pub struct ObserverSpec {
     /// (`BiasMode::Auto`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shared_bias: Option<bool>,
+    /// The `[[boundary]]` (by name) whose temperature the network sees may
+    /// stand above its reading by an estimated offset, never below it
+    /// (`NetworkSettings::boundary_offset`; one more filter state). Default:
+    /// none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset: Option<String>,
+    /// The offset's steady standard deviation \[K\] (default 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset_std_k: Option<f64>,
+    /// The offset's correlation time \[s\] (default 7200).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset_tau_s: Option<f64>,
 }
 
 /// What to generate.
@@ -207,6 +219,9 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         .iter()
         .map(|s| model.node_index(s))
         .collect::<Result<Vec<_>>>()?;
+    if let Some(name) = &spec.boundary_offset {
+        crate::firmware::boundary_index(&model, name)?;
+    }
     check_f32_range(&model).with_context(|| req.model.display().to_string())?;
     let currents = currents_of(&model);
     let sources = model
@@ -258,6 +273,13 @@ impl Plan {
             CurrentOf::SpeedLoss(_) => format!("{node}: speed loss"),
             CurrentOf::Loss { k, .. } => format!("{node}: loss {k}"),
         }
+    }
+
+    /// The boundary with an offset state (`[observer] boundary_offset`,
+    /// checked by `plan`).
+    fn offset_boundary(&self) -> Option<usize> {
+        let name = self.spec.boundary_offset.as_ref()?;
+        self.model.boundaries.iter().position(|b| &b.name == name)
     }
 
     /// The derating's and the margin's reference: the boundary named
@@ -313,7 +335,11 @@ impl Plan {
             o,
             "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};"
         );
-        let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
+        if self.offset_boundary().is_some() {
+            let _ = writeln!(o, "/// Filter states: the nodes, a heat-input bias per current, then the\n/// boundary offset.\npub const STATES: usize = NODES + CURRENTS + 1;");
+        } else {
+            let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
+        }
         let _ = writeln!(o, "/// Thermocouples.\npub const SENSORS: usize = {p};");
         let inputs: Vec<&str> = self.model.inputs.iter().map(|i| i.name.as_str()).collect();
         let _ = writeln!(o, "/// Current inputs of the model file (sources may share one).\npub const INPUTS: usize = {};", inputs.len());
@@ -432,6 +458,15 @@ impl Plan {
         }
         if let Some(v) = s.bias_tau_s {
             fields.push(format!("bias_tau_s: {v:?}"));
+        }
+        if let Some(b) = self.offset_boundary() {
+            fields.push(format!("boundary_offset: Some({b})"));
+        }
+        if let Some(v) = s.boundary_offset_std_k {
+            fields.push(format!("boundary_offset_std_k: {v:?}"));
+        }
+        if let Some(v) = s.boundary_offset_tau_s {
+            fields.push(format!("boundary_offset_tau_s: {v:?}"));
         }
         if let Some(v) = s.max_cooling_bias_fraction {
             fields.push(format!("max_cooling_bias_fraction: {v:?}"));
