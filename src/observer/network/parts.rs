@@ -447,9 +447,11 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
 /// a recovery widening of `w_m^2` times the bias's (the configuration the
 /// tick's warm-up runs). Without a shared source both are today's.
 fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
-    ad: &SMatrix<f64, N, N>,
-    bd_power: &SMatrix<f64, N, M>,
-    gd_boundary: &SMatrix<f64, N, B>,
+    (ad, bd_power, gd_boundary): (
+        &SMatrix<f64, N, N>,
+        &SMatrix<f64, N, M>,
+        &SMatrix<f64, N, B>,
+    ),
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
     layout: &BiasLayout<M>,
@@ -550,9 +552,7 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     period: u32,
 ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
     let kalman = filter_config::<N, B, M, X, P>(
-        &model.ad,
-        &model.bd_power_f64,
-        &model.gd_boundary_f64,
+        (&model.ad, &model.bd_power_f64, &model.gd_boundary_f64),
         sensor_nodes,
         s,
         layout,
@@ -739,9 +739,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let nominal_w = nominal_powers_w(&parts.hardware_limit_a, &m.resistance, s.origin_c);
         let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
         let kalman = filter_config::<N, B, M, X, P>(
-            &ad,
-            &bd_power.cast(),
-            &matrix(&m.gd_boundary).cast(),
+            (&ad, &bd_power.cast(), &matrix(&m.gd_boundary).cast()),
             &parts.sensor_nodes,
             s,
             &layout,
