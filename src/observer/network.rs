@@ -774,6 +774,8 @@ pub struct NetworkObserver<
     bias_decay_per_step: f32,
     /// The boundary with an offset state (at `N + M`), if any.
     offset_boundary: Option<usize>,
+    /// A bias or the offset decays (one test on the tick's path).
+    decays: bool,
     /// The offset's decay per model step, `step / boundary_offset_tau_s`
     /// (dimensionless).
     offset_decay_per_step: f32,
@@ -1028,9 +1030,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         let mut boundary =
             SVector::<f32, B>::from_fn(|k, _| state.held_boundary_c[k] - self.origin_c);
-        if let (Some(b), Some(offset_k)) = (self.offset_boundary, x.get(N + M)) {
+        if let Some(b) = self.offset_boundary {
             // The boundary the links see: its reading plus the offset.
-            if let Some(y) = boundary.get_mut(b) {
+            if let (Some(y), Some(offset_k)) = (boundary.get_mut(b), x.get(N + M)) {
                 *y += *offset_k;
             }
         }
@@ -1061,7 +1063,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// factor, since a per-step factor `1 - 5.6e-7` (1 ms, 30 min) is held
     /// by `f32` to a few ulps only and would misstate the time constant.
     fn decay_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>, steps: u32) {
-        if self.bias_decay_per_step <= 0.0 && self.offset_decay_per_step <= 0.0 {
+        if !self.decays {
             return;
         }
         state.bias_steps = state.bias_steps.saturating_add(steps);

@@ -833,6 +833,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 0.0
             },
             offset_boundary: s.boundary_offset,
+            decays: s.bias_tau_s > 0.0 || s.boundary_offset.is_some(),
             offset_decay_per_step: if s.boundary_offset.is_some() {
                 (timing.clock.step_s() / s.boundary_offset_tau_s) as f32
             } else {
