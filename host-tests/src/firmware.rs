@@ -41,6 +41,10 @@ pub struct FirmwareConfig {
     pub settings: NetworkSettings,
     /// Which of the network's sources carry a heat-input bias.
     pub bias_sources: Vec<bool>,
+    /// The biased sources share one heat bias in proportion to their Joule
+    /// power (`[observer] shared_bias`, `BiasMode::Shared`); else
+    /// `BiasMode::Auto`.
+    pub shared_bias: bool,
 }
 
 impl FirmwareConfig {
@@ -67,6 +71,18 @@ impl FirmwareConfig {
         }
         if let Some(v) = table.bias_noise_w2_per_s {
             settings.bias_noise_w2_per_s = v;
+        }
+        if let Some(v) = table.bias_tau_s {
+            settings.bias_tau_s = v;
+        }
+        if let Some(name) = &table.boundary_offset {
+            settings.boundary_offset = Some(boundary_index(model, name)?);
+        }
+        if let Some(v) = table.boundary_offset_std_k {
+            settings.boundary_offset_std_k = v;
+        }
+        if let Some(v) = table.boundary_offset_tau_s {
+            settings.boundary_offset_tau_s = v;
         }
         if let Some(v) = table.max_cooling_bias_fraction {
             settings.max_cooling_bias_fraction = v;
@@ -111,6 +127,7 @@ impl FirmwareConfig {
             derating,
             settings,
             bias_sources: (0..sources).map(|m| model.carries_bias(m)).collect(),
+            shared_bias: table.shared_bias.unwrap_or(false),
         })
     }
 
@@ -124,6 +141,28 @@ impl FirmwareConfig {
                 .expect("a product in (0, 1] is one valid factor")
         }
     }
+}
+
+/// The index of `[[boundary]]` `name` (`[observer] boundary_offset`).
+///
+/// # Errors
+/// No boundary of that name.
+pub fn boundary_index(model: &Model, name: &str) -> anyhow::Result<usize> {
+    model
+        .boundaries
+        .iter()
+        .position(|b| b.name == name)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "[observer] boundary_offset: no [[boundary]] `{name}` (boundaries: {})",
+                model
+                    .boundaries
+                    .iter()
+                    .map(|b| b.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
 }
 
 /// A replay flag that changes the firmware's observer: named in the

@@ -88,7 +88,8 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
-    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
+    BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
+    NetworkSettings,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::Reading;
@@ -235,6 +236,7 @@ struct BuildSpec {
     settings: NetworkSettings,
     sensor_nodes: Vec<usize>,
     biased: Vec<bool>,
+    shared_bias: bool,
     critical_c: Vec<Option<f64>>,
     hardware_limit_a: f64,
     rule: DeratingRule,
@@ -248,6 +250,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             settings,
             sensor_nodes,
             biased,
+            shared_bias,
             critical_c,
             hardware_limit_a,
             rule,
@@ -279,6 +282,13 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             .derating(rule.clone())
             .settings(scaled)
             .bias_sources(bias_sources)
+            .bias_mode(if *shared_bias {
+                // `[observer] shared_bias`: the padding's sources carry no
+                // bias, so they share none either.
+                BiasMode::Shared([true; C])
+            } else {
+                BiasMode::Auto
+            })
             .build::<X>()
             .map_err(|e| {
                 // The same words as `codegen` and `faults` (one fix for one
@@ -506,8 +516,10 @@ impl ObserverEstimator {
         let class = class_of(&net, &OBSERVER_CLASSES, "the library observer")?;
         let mut settings = config.settings;
         if sensors.is_empty() {
-            // Open loop: no sensor, no bias (see the module docs).
+            // Open loop: no sensor, no bias (see the module docs), no
+            // boundary offset.
             settings.bias_noise_w2_per_s = 0.0;
+            settings.boundary_offset = None;
         } else {
             let positive = |v: f64| v.is_finite() && v > 0.0;
             if !positive(settings.sensor_sigma_k) {
@@ -558,6 +570,7 @@ impl ObserverEstimator {
             settings,
             sensor_nodes: sensors.clone(),
             biased,
+            shared_bias: config.shared_bias,
             critical_c: config.critical_c.clone(),
             hardware_limit_a: config.hardware_limit_a,
             rule: config.rule(),
@@ -568,15 +581,26 @@ impl ObserverEstimator {
         // doubt, which raises the published upper bounds to the shadow
         // model's; the firmware has no such slot.
         let slots = sensors.len().max(1);
+        let offset = spec.settings.boundary_offset.is_some();
         macro_rules! sized {
             ($($c:literal, $x:literal);*) => {
-                move || match (class, slots) {
+                move || match (class, slots, offset) {
                     $(
-                        ($c, 1) => Sized::<$c, $x, 1>::build(&spec),
-                        ($c, 2) => Sized::<$c, $x, 2>::build(&spec),
-                        ($c, 3) => Sized::<$c, $x, 3>::build(&spec),
-                        ($c, _) => Sized::<$c, $x, 4>::build(&spec),
+                        ($c, 1, false) => Sized::<$c, $x, 1>::build(&spec),
+                        ($c, 2, false) => Sized::<$c, $x, 2>::build(&spec),
+                        ($c, 3, false) => Sized::<$c, $x, 3>::build(&spec),
+                        ($c, _, false) => Sized::<$c, $x, 4>::build(&spec),
                     )*
+                    // A boundary offset is one more state: built for the
+                    // two smallest classes only (the build time of every
+                    // class twice), with one sensor slot or two.
+                    (8, 1, true) => Sized::<8, 17, 1>::build(&spec),
+                    (8, 2, true) => Sized::<8, 17, 2>::build(&spec),
+                    (16, 1, true) => Sized::<16, 33, 1>::build(&spec),
+                    (16, 2, true) => Sized::<16, 33, 2>::build(&spec),
+                    _ if offset => Err(anyhow!(
+                        "[observer] boundary_offset: replay runs it for models of at most 16 nodes and 2 sensors"
+                    )),
                     _ => unreachable!("class_of returns one of OBSERVER_CLASSES"),
                 }
             };

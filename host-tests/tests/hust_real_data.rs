@@ -328,8 +328,10 @@ fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
 /// library's default bias noise: better than open loop on both
 /// active-winding sensors on every profile, at the declared 0.2 K sensor
 /// noise and at profile 0's 0.5 K (docs/hust.md, "The firmware's
-/// observer"; it is within issue 18's goals on 10 and 11 of the 12
-/// profiles, which this test does not claim).
+/// observer"). At the 0.5 K `codegen` flashes, also within issue 18's
+/// goals (1 K^2 and 3 K) on both sensors of every profile but the one
+/// goal it misses, profile 10's `activewind_2` MSE (1.14 K^2), which this
+/// test leaves out rather than asserts; its max error is held to 3 K.
 #[test]
 #[ignore = "needs the HUST recordings: COIL_THERMAL_HUST_DIR=shared/data/hust-ipmsm, run with --ignored"]
 fn the_firmware_observer_fusing_endwind_1_beats_open_loop_on_every_profile() {
@@ -349,12 +351,20 @@ fn the_firmware_observer_fusing_endwind_1_beats_open_loop_on_every_profile() {
             ]);
             let fused = scores(&path, model, &args, &tmp);
             eprintln!("profile {n}, {noise} K: firmware observer {fused:?}, open loop {open:?}");
-            for (k, ((mse, _), (open_mse, _))) in fused.iter().zip(&open).enumerate() {
+            for (k, ((mse, max), (open_mse, _))) in fused.iter().zip(&open).enumerate() {
                 assert!(
                     mse < open_mse,
                     "profile {n}, {noise} K: activewind_{} fused {mse} against open loop {open_mse} K^2",
                     k + 1
                 );
+                if noise == "0.5" {
+                    let known_miss = n == 10 && k == 1;
+                    assert!(
+                        *max <= 3.0 && (known_miss || *mse <= 1.0),
+                        "profile {n}, the flashed 0.5 K: activewind_{} {mse} K^2, {max} K",
+                        k + 1
+                    );
+                }
             }
         }
     }

@@ -89,6 +89,12 @@ pub struct ObserverSpec {
     /// 1e-3; 0 when the sensors cannot tell the currents' heat apart).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bias_noise_w2_per_s: Option<f64>,
+    /// Correlation time of each heat-input bias \[s\] (default 0: a random
+    /// walk; see `NetworkSettings::bias_tau_s`): the bias decays towards 0
+    /// with it, its steady standard deviation `sqrt(bias_noise_w2_per_s *
+    /// bias_tau_s / 2)` \[W\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_tau_s: Option<f64>,
     /// Largest heat the thermocouples may explain away, as a share of each
     /// current's Joule power (default 0: a reading colder than the model
     /// never takes heat away; see `NetworkSettings::max_cooling_bias_fraction`).
@@ -116,6 +122,26 @@ pub struct ObserverSpec {
     /// one sensor sees one heat.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bias_sources: Option<Vec<String>>,
+    /// The biased sources (every source, or those `bias_sources` names)
+    /// share one heat bias in proportion to their Joule power
+    /// (`BiasMode::Shared`), also where the sensors could tell their biases
+    /// apart (with `bias_tau_s`, decaying biases always can). Default
+    /// false: each its own where the steady gain exists, else shared
+    /// (`BiasMode::Auto`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shared_bias: Option<bool>,
+    /// The `[[boundary]]` (by name) whose temperature the network sees may
+    /// stand above its reading by an estimated offset, never below it
+    /// (`NetworkSettings::boundary_offset`; one more filter state). Default:
+    /// none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset: Option<String>,
+    /// The offset's steady standard deviation \[K\] (default 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset_std_k: Option<f64>,
+    /// The offset's correlation time \[s\] (default 7200).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundary_offset_tau_s: Option<f64>,
 }
 
 /// What to generate.
@@ -193,6 +219,9 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         .iter()
         .map(|s| model.node_index(s))
         .collect::<Result<Vec<_>>>()?;
+    if let Some(name) = &spec.boundary_offset {
+        crate::firmware::boundary_index(&model, name)?;
+    }
     check_f32_range(&model).with_context(|| req.model.display().to_string())?;
     let currents = currents_of(&model);
     let sources = model
@@ -244,6 +273,13 @@ impl Plan {
             CurrentOf::SpeedLoss(_) => format!("{node}: speed loss"),
             CurrentOf::Loss { k, .. } => format!("{node}: loss {k}"),
         }
+    }
+
+    /// The boundary with an offset state (`[observer] boundary_offset`,
+    /// checked by `plan`).
+    fn offset_boundary(&self) -> Option<usize> {
+        let name = self.spec.boundary_offset.as_ref()?;
+        self.model.boundaries.iter().position(|b| &b.name == name)
     }
 
     /// The derating's and the margin's reference: the boundary named
@@ -299,7 +335,11 @@ impl Plan {
             o,
             "/// Currents: one per Joule source.\npub const CURRENTS: usize = {m};"
         );
-        let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
+        if self.offset_boundary().is_some() {
+            let _ = writeln!(o, "/// Filter states: the nodes, a heat-input bias per current, then the\n/// boundary offset.\npub const STATES: usize = NODES + CURRENTS + 1;");
+        } else {
+            let _ = writeln!(o, "/// Filter states: the nodes, then a heat-input bias per current.\npub const STATES: usize = NODES + CURRENTS;");
+        }
         let _ = writeln!(o, "/// Thermocouples.\npub const SENSORS: usize = {p};");
         let inputs: Vec<&str> = self.model.inputs.iter().map(|i| i.name.as_str()).collect();
         let _ = writeln!(o, "/// Current inputs of the model file (sources may share one).\npub const INPUTS: usize = {};", inputs.len());
@@ -416,6 +456,18 @@ impl Plan {
         if let Some(v) = s.bias_noise_w2_per_s {
             fields.push(format!("bias_noise_w2_per_s: {v:?}"));
         }
+        if let Some(v) = s.bias_tau_s {
+            fields.push(format!("bias_tau_s: {v:?}"));
+        }
+        if let Some(b) = self.offset_boundary() {
+            fields.push(format!("boundary_offset: Some({b})"));
+        }
+        if let Some(v) = s.boundary_offset_std_k {
+            fields.push(format!("boundary_offset_std_k: {v:?}"));
+        }
+        if let Some(v) = s.boundary_offset_tau_s {
+            fields.push(format!("boundary_offset_tau_s: {v:?}"));
+        }
         if let Some(v) = s.max_cooling_bias_fraction {
             fields.push(format!("max_cooling_bias_fraction: {v:?}"));
         }
@@ -448,9 +500,14 @@ impl Plan {
         let hardware = s.hardware_limit_a.unwrap_or(8.0);
         // Only the solved tables carry it (a left-out bias has a zero
         // prior), so `from_parts` needs nothing more.
-        let bias_sources = self.model.bias_sources.as_ref().map_or(String::new(), |b| {
+        let mut bias_sources = self.model.bias_sources.as_ref().map_or(String::new(), |b| {
             format!("\n        .bias_sources({})", list(b))
         });
+        if s.shared_bias == Some(true) {
+            // The tables say which biases share (a tied prior block), so
+            // `from_parts` needs nothing more here either.
+            bias_sources.push_str("\n        .shared_bias([true; head::CURRENTS])");
+        }
         format!(
             "#[allow(dead_code, unused_imports)]\n#[path = \"head.rs\"]\nmod head;\n#[allow(dead_code)]\n#[path = \"build_hint.rs\"]\nmod build_hint;\n\nuse coil_thermal::observer::network::{{NetworkObserverBuilder, NetworkSettings}};\n#[allow(unused_imports)]\nuse coil_thermal::protect::derating::{{DeratingFactor, DeratingRule}};\n\nfn parts(settings: NetworkSettings) -> Result<String, coil_thermal::BuildError> {{\n    let network = head::network()?;\n    let parts = NetworkObserverBuilder::new(&network, {sensors})\n        .critical_c({critical})\n        .hardware_limit_a([{hardware:?}; head::CURRENTS])\n        .derating({derating})\n        .settings(settings){bias_sources}\n        .parts::<{{ head::STATES }}>()?;\n    let mut text = String::new();\n    parts.write_rust(&mut text).expect(\"a String grows\");\n    Ok(text)\n}}\n\nfn main() {{\n    let settings = {settings};\n    match parts(settings) {{\n        Ok(text) => print!(\"{{text}}\"),\n        Err(e) => {{\n            eprintln!(\"{error_marker}{{e}}\");\n            if let Some(hint) = build_hint::observer_build_hint(&e, settings.bias_noise_w2_per_s) {{\n                eprintln!(\"{hint_marker}{{hint}}\");\n            }}\n            std::process::exit({exit});\n        }}\n    }}\n}}\n",
             sensors = list(&self.sensor_nodes),

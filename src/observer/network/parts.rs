@@ -203,6 +203,18 @@ struct Timing {
     correction_period: u32,
 }
 
+/// The state has the offset's entry exactly when the settings ask for a
+/// boundary offset, on a boundary that exists.
+fn check_offset<const N: usize, const B: usize, const M: usize, const X: usize>(
+    s: &NetworkSettings,
+) -> Result<(), BuildError> {
+    let wanted = s.boundary_offset.is_some_and(|b| b < B);
+    check(
+        s.boundary_offset.is_none_or(|b| b < B) && (X == N + M + 1) == wanted,
+        "boundary_offset",
+    )
+}
+
 fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     check(s.origin_c.is_finite(), "origin_c")?;
     let nonneg = |v: f64| v.is_finite() && v >= 0.0;
@@ -212,6 +224,12 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     )?;
     check(nonneg(s.node_noise_k2_per_s), "node_noise_k2_per_s")?;
     check(nonneg(s.bias_noise_w2_per_s), "bias_noise_w2_per_s")?;
+    check(nonneg(s.bias_tau_s), "bias_tau_s")?;
+    if s.boundary_offset.is_some() {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        check(positive(s.boundary_offset_std_k), "boundary_offset_std_k")?;
+        check(positive(s.boundary_offset_tau_s), "boundary_offset_tau_s")?;
+    }
     check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
     check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
     check(
@@ -261,13 +279,17 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     /// As [`Self::build`].
     pub fn parts<const X: usize>(&self) -> Result<NetworkParts<N, B, M, X, P>, BuildError> {
         const {
-            assert!(X == N + M, "X must be N + M (temperatures and biases)");
+            assert!(
+                X == N + M || X == N + M + 1,
+                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
+            );
             assert!(B >= 1, "a network needs a boundary (the ambient)");
             assert!(M >= 1 && P >= 1, "at least one current and one sensor");
         };
         let s = &self.settings;
         let network = self.network;
         network.check_sources()?;
+        check_offset::<N, B, M, X>(s)?;
         check(self.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
         check(s.ambient_boundary < B, "ambient_boundary")?;
         let timing = timing(s)?;
@@ -424,9 +446,12 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
 /// every shared source's bias is `w_m S`: the rank-one noise `q w w^T` and
 /// a recovery widening of `w_m^2` times the bias's (the configuration the
 /// tick's warm-up runs). Without a shared source both are today's.
-fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>(
-    ad: &SMatrix<f64, N, N>,
-    bd_power: &SMatrix<f64, N, M>,
+fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+    (ad, bd_power, gd_boundary): (
+        &SMatrix<f64, N, N>,
+        &SMatrix<f64, N, M>,
+        &SMatrix<f64, N, B>,
+    ),
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
     layout: &BiasLayout<M>,
@@ -452,13 +477,29 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
             };
         }
     }
+    if s.bias_tau_s > 0.0 {
+        // Gauss-Markov biases (`bias_tau_s`): each decays alike, so the
+        // shared bias's reduced slot decays as the biases it stands for.
+        let decay = libm::exp(-dt_s / s.bias_tau_s);
+        for m in (0..M).filter(|m| layout.biased[*m]) {
+            f[(N + m, N + m)] = decay;
+        }
+    }
     let mut h = SMatrix::<f64, P, X>::zeros();
     for (j, node) in sensor_nodes.iter().enumerate() {
         h[(j, *node)] = 1.0;
     }
     let mut q = SMatrix::<f64, X, X>::zeros();
     let mut recovery = SVector::<f64, X>::zeros();
-    for i in 0..X {
+    let offset = s.boundary_offset.filter(|_| X == N + M + 1);
+    if let Some(b) = offset {
+        // The offset enters like its boundary (`Gd`'s column), and decays.
+        for i in 0..N {
+            f[(i, N + M)] = gd_boundary[(i, b)];
+        }
+        f[(N + M, N + M)] = libm::exp(-dt_s / s.boundary_offset_tau_s);
+    }
+    for i in 0..N + M {
         let (noise, widen) = if i < N {
             (s.node_noise_k2_per_s, s.recovery_sigma_k)
         } else if layout.is_shared(i - N) {
@@ -471,6 +512,11 @@ fn filter_config<const N: usize, const M: usize, const X: usize, const P: usize>
         };
         q[(i, i)] = noise * dt_s;
         recovery[i] = widen * widen;
+    }
+    if offset.is_some() {
+        let variance_k2 = s.boundary_offset_std_k * s.boundary_offset_std_k;
+        q[(N + M, N + M)] = 2.0 * variance_k2 / s.boundary_offset_tau_s * dt_s;
+        recovery[N + M] = variance_k2;
     }
     if let Some(lead) = lead {
         let q_shared = s.bias_noise_w2_per_s * dt_s;
@@ -505,9 +551,8 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     layout: &BiasLayout<M>,
     period: u32,
 ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
-    let kalman = filter_config::<N, M, X, P>(
-        &model.ad,
-        &model.bd_power_f64,
+    let kalman = filter_config::<N, B, M, X, P>(
+        (&model.ad, &model.bd_power_f64, &model.gd_boundary_f64),
         sensor_nodes,
         s,
         layout,
@@ -600,12 +645,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// `hardware_limit_a`).
     pub fn from_parts(parts: &NetworkParts<N, B, M, X, P>) -> Result<Self, BuildError> {
         const {
-            assert!(X == N + M, "X must be N + M (temperatures and biases)");
+            assert!(
+                X == N + M || X == N + M + 1,
+                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
+            );
             assert!(B >= 1, "a network needs a boundary (the ambient)");
             assert!(M >= 1 && P >= 1, "at least one current and one sensor");
         };
         let s = &parts.settings;
         let timing = timing(s)?;
+        check_offset::<N, B, M, X>(s)?;
         check(parts.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
         check(s.ambient_boundary < B, "ambient_boundary")?;
         check(
@@ -689,9 +738,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let bd_power = matrix(&m.bd_power);
         let nominal_w = nominal_powers_w(&parts.hardware_limit_a, &m.resistance, s.origin_c);
         let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
-        let kalman = filter_config::<N, M, X, P>(
-            &ad,
-            &bd_power.cast(),
+        let kalman = filter_config::<N, B, M, X, P>(
+            (&ad, &bd_power.cast(), &matrix(&m.gd_boundary).cast()),
             &parts.sensor_nodes,
             s,
             &layout,
@@ -779,6 +827,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             shadow,
             warmup_corrections: s.warmup_corrections,
             cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
+            bias_decay_per_step: if s.bias_tau_s > 0.0 {
+                (timing.clock.step_s() / s.bias_tau_s) as f32
+            } else {
+                0.0
+            },
+            offset_boundary: s.boundary_offset,
+            decays: s.bias_tau_s > 0.0 || s.boundary_offset.is_some(),
+            offset_decay_per_step: if s.boundary_offset.is_some() {
+                (timing.clock.step_s() / s.boundary_offset_tau_s) as f32
+            } else {
+                0.0
+            },
             shared_bias: layout.shared_mask(),
             nominal_power_w: core::array::from_fn(|k| {
                 if layout.is_shared(k) {
@@ -1044,6 +1104,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             out,
             "        consistency_fraction: {:?},",
             s.consistency_fraction
+        )?;
+        writeln!(out, "        bias_tau_s: {:?},", s.bias_tau_s)?;
+        writeln!(out, "        boundary_offset: {:?},", s.boundary_offset)?;
+        writeln!(
+            out,
+            "        boundary_offset_std_k: {:?},",
+            s.boundary_offset_std_k
+        )?;
+        writeln!(
+            out,
+            "        boundary_offset_tau_s: {:?},",
+            s.boundary_offset_tau_s
         )?;
         writeln!(
             out,
