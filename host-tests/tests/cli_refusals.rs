@@ -538,3 +538,25 @@ fn the_build_hint_names_the_fix_for_its_error_only() {
         .contains("[observer] sensors"));
     assert_eq!(observer_build_hint(&BuildError::Singular, 1e-3), None);
 }
+
+/// The fault campaign's padded observers have no room for a boundary
+/// offset state: a model asking for one is refused by name, not run
+/// without it.
+#[test]
+fn faults_refuses_a_boundary_offset_it_cannot_run() {
+    let dir = TempDir::new().unwrap();
+    let text = fs::read_to_string(models().join("drive-3node.toml")).unwrap();
+    let text = text.replace(
+        "[observer]\nsensors = [\"housing\"]",
+        "[observer]\nsensors = [\"housing\"]\nboundary_offset = \"ambient\"",
+    );
+    assert!(text.contains("boundary_offset"));
+    let p = dir.path().join("offset.toml");
+    fs::write(&p, text).unwrap();
+    refused(
+        ct().args(["faults", "--model", s(&p), "--current-a", "4"])
+            .args(["--duration-s", "60", "--classes", "stuck"])
+            .assert(),
+        &["boundary_offset"],
+    );
+}

@@ -22,7 +22,8 @@
 //! campaign runs the firmware's filter, heat-bias alarm and all.
 
 use coil_thermal::observer::network::{
-    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkSettings,
+    BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
+    NetworkSettings,
 };
 use coil_thermal::observer::snapshot::snapshot_len;
 
@@ -77,6 +78,13 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         // defaults, as `replay` and `codegen` resolve them), with the
         // campaign's step, reading period, stuck tolerance and origin.
         let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
+        if firmware.settings.boundary_offset.is_some() {
+            return Err(FaultError::Invalid(format!(
+                "model `{}`: [observer] boundary_offset adds a state the campaign's observer sizes have no room for; \
+                 run the campaign without it (replay and codegen take it)",
+                model.name
+            )));
+        }
         let derating = firmware.rule();
         let (flag, loss) = frozen_ticks(cfg.step_us);
         let settings = NetworkSettings {
@@ -100,6 +108,13 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             .derating(derating)
             .settings(settings)
             .bias_sources(bias_sources)
+            .bias_mode(if firmware.shared_bias {
+                // `[observer] shared_bias`, as `codegen` and `replay` build
+                // it: the padding's sources carry no bias to share.
+                BiasMode::Shared([true; C])
+            } else {
+                BiasMode::Auto
+            })
             .build::<X>()
             .map_err(|e| {
                 // The same words as `codegen` and `replay`.
