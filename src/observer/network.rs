@@ -328,8 +328,7 @@ use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
 /// floors after a correction (see [`NetworkSettings::boundary_offset`]).
 const FLOOR_PASSES: usize = 8;
 
-/// Horizons of the time-to-limit predictor.
-pub const PREDICTOR_POINTS: usize = 32;
+pub use super::tables::PREDICTOR_POINTS;
 /// The critical temperature given to elements without a limit \[degC\]
 /// (the alarm and the predictor need a finite one): never reached by a
 /// device that works.

@@ -367,8 +367,7 @@ pub use parts::{FilterTables, MeanModelTables, OmniParts, ProtectionTables};
 
 /// Elements with an alarm: wire and cover insulation of each solenoid.
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
-/// Horizons of the time-to-limit predictor.
-pub const PREDICTOR_POINTS: usize = 32;
+pub use super::tables::PREDICTOR_POINTS;
 /// Refresh periods without an [`OmniObserver::install_model`] after which
 /// a declared model refresh ([`OmniSettings::model_refresh_s`]) is stale
 /// and the tick flags [`InputFlags::MODEL_STALE`]: one refresh missed or

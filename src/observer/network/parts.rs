@@ -39,6 +39,7 @@ use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
 use crate::observer::consistency::{stuck_window, Band, BiasBound, Shadow, StuckTest};
 use crate::observer::snapshot::Fingerprint;
+pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
 use crate::protect::limiter::LimiterConfig;
@@ -81,66 +82,6 @@ pub struct ShadowTables<const N: usize, const B: usize, const M: usize> {
     pub gd_boundary: [[f32; B]; N],
     /// The block's constant term \[K\].
     pub constant_k: [f32; N],
-}
-
-/// The steady-state Kalman gain and covariances (see
-/// [`SteadyStateGain`]), `X = N + M` states, `P` sensors.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GainTables<const X: usize, const P: usize> {
-    /// Model steps between corrections the gain was solved for.
-    pub period: u32,
-    /// `K` (X x P): \[K/K\] on temperatures, \[W/K\] on biases.
-    pub gain: [[f32; P]; X],
-    /// Prior covariance `M` (X x X) \[K^2, K W, W^2\].
-    pub prior: [[f32; X]; X],
-    /// Posterior covariance (X x X).
-    pub posterior: [[f32; X]; X],
-    /// `S_jj` per sensor \[K^2\].
-    pub innovation_var: [f32; P],
-    /// `M H^T` (X x P).
-    pub prior_ht: [[f32; P]; X],
-    /// `S = H M H^T + R` (P x P) \[K^2\].
-    pub innovation_cov: [[f32; P]; P],
-}
-
-/// The time-to-limit predictor's modal tables (see
-/// [`crate::protect::predict`]), [`PREDICTOR_POINTS`] horizons.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PredictorTables<const N: usize, const B: usize, const M: usize> {
-    /// Horizons \[s\].
-    pub grid_s: [f32; PREDICTOR_POINTS],
-    /// `exp(lambda_j t_k)`, row `k` for horizon `k`.
-    pub decay: [[f32; N]; PREDICTOR_POINTS],
-    /// Mode rates `lambda_j` \[1/s\] (negative).
-    pub lambda_per_s: [f32; N],
-    /// Mode shapes `V` (columns).
-    pub v: [[f32; N]; N],
-    /// `V^-1`.
-    pub v_inv: [[f32; N]; N],
-    /// Steady rise per watt of each source \[K/W\].
-    pub gain_power: [[f32; M]; N],
-    /// The same in modal coordinates.
-    pub mode_gain_power: [[f32; M]; N],
-    /// Steady temperature per degree of each boundary (dimensionless).
-    pub gain_boundary: [[f32; B]; N],
-    /// The same in modal coordinates.
-    pub mode_gain_boundary: [[f32; B]; N],
-    /// Steady rise from the fixed powers \[K\].
-    pub offset_c: [f32; N],
-    /// The same in modal coordinates.
-    pub mode_offset: [f32; N],
-    /// The node of each winding.
-    pub winding_node: [usize; M],
-    /// Each winding's resistance extrapolated to 0 degC \[ohm\].
-    pub winding_r_at_0c_ohm: [f32; M],
-    /// Each winding's `dR/dT` \[ohm/K\].
-    pub winding_slope_ohm_per_k: [f32; M],
-    /// Time between two predictor slices \[s\].
-    pub tick_s: f32,
-    /// Horizons evaluated per slice.
-    pub points_per_tick: usize,
-    /// The network's slowest time constant \[s\].
-    pub slowest_time_constant_s: f64,
 }
 
 /// A [`NetworkObserver`] as data: the builder's inputs that the tick reads

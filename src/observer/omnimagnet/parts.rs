@@ -44,22 +44,17 @@ use crate::error::BuildError;
 use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
 use crate::input::ScalarLimits;
 use crate::observer::consistency::{Band, BiasBound, StuckTest};
-use crate::observer::network::{GainTables, PredictorTables};
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
     write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
 };
+use crate::observer::tables::{GainTables, PredictorTables};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
 use crate::omnimagnet::{NODES, SOLENOIDS, THERMOCOUPLES};
 
 const ALARMS: usize = ALARM_NODES.len();
-
-const _: () = assert!(
-    PREDICTOR_POINTS == crate::observer::network::PREDICTOR_POINTS,
-    "the predictor tables are the network observer's"
-);
 
 /// The linear model of one step (see [`MeanModel`]), rows first.
 #[derive(Debug, Clone, Copy, PartialEq)]
