@@ -425,6 +425,20 @@ pub struct FusionStats {
     pub rejected_at_s: Vec<f64>,
 }
 
+impl FusionStats {
+    /// Nothing counted yet for the sensor on `node`.
+    pub fn new(node: usize) -> Self {
+        Self {
+            node,
+            fused: 0,
+            rejected: 0,
+            stuck: 0,
+            colder_than_physics: 0,
+            rejected_at_s: Vec::new(),
+        }
+    }
+}
+
 /// How many rejection times [`FusionStats::rejected_at_s`] keeps (the count
 /// in [`FusionStats::rejected`] goes on).
 pub const MAX_REJECTED_TIMES: usize = 10_000;
@@ -554,14 +568,7 @@ impl KalmanEstimator {
             .unwrap_or_default();
         let stats = sensor_nodes
             .iter()
-            .map(|&node| FusionStats {
-                node,
-                fused: 0,
-                rejected: 0,
-                stuck: 0,
-                colder_than_physics: 0,
-                rejected_at_s: Vec::new(),
-            })
+            .map(|&node| FusionStats::new(node))
             .collect();
         let size = states.max(b.ncols()).max(sensor_nodes.len());
         let filter = match FILTER_CLASSES.iter().find(|c| **c >= size) {

@@ -623,17 +623,7 @@ impl ObserverEstimator {
             tick_ns: crate::observer::TimeHistogram::default(),
             size_class: class,
             statuses: vec![SensorStatus::NoReading; sensors.len()],
-            stats: sensors
-                .iter()
-                .map(|&node| FusionStats {
-                    node,
-                    fused: 0,
-                    rejected: 0,
-                    stuck: 0,
-                    colder_than_physics: 0,
-                    rejected_at_s: Vec::new(),
-                })
-                .collect(),
+            stats: sensors.iter().map(|&node| FusionStats::new(node)).collect(),
             sensors,
             awaiting: false,
             config: FirmwareConfig {

@@ -146,14 +146,7 @@ impl OmniFirmwareEstimator {
         let state = Box::new(observer.state(&[ambient; NODES], ambient));
         let stats = fused_nodes
             .iter()
-            .map(|&node| FusionStats {
-                node,
-                fused: 0,
-                rejected: 0,
-                stuck: 0,
-                colder_than_physics: 0,
-                rejected_at_s: Vec::new(),
-            })
+            .map(|&node| FusionStats::new(node))
             .collect();
         Ok(Self {
             info,

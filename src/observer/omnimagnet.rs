@@ -1934,13 +1934,7 @@ impl OmniObserver {
         ambient_c: f32,
     ) -> OmniObserverState {
         let mut state = self.state(temps_c, ambient_c);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
+        relatch(&mut state, meta);
         state
     }
 
@@ -2047,20 +2041,8 @@ impl OmniObserver {
         // without it the build-time linearisation runs a hot device hotter
         // than its readings; the held covariance lets the gate take them
         // and the shadow follow the estimate until the filter has settled.
-        let mut read = [false; NODES];
-        for (reading, node) in readings_c.iter().zip(THERMOCOUPLE_NODES) {
-            if let (Some(_), Some(slot)) = (reading, read.get_mut(node)) {
-                *slot = true;
-            }
-        }
-        let mut state = self.held_start(temps_c, &read, ambient_c);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
+        let mut state = self.held_start(temps_c, &read_nodes(&readings_c), ambient_c);
+        relatch(&mut state, &meta);
         Ok(state)
     }
 
@@ -2183,12 +2165,7 @@ impl OmniObserver {
             &THERMOCOUPLE_NODES,
             ambient_c,
         );
-        let mut read = [false; NODES];
-        for (reading, node) in hotter.iter().zip(THERMOCOUPLE_NODES) {
-            if let (Some(_), Some(slot)) = (reading, read.get_mut(node)) {
-                *slot = true;
-            }
-        }
+        let read = read_nodes(&hotter);
         // The model the observer was built from, or no steady state: the
         // conservative start, which errs hot.
         let steady = (plant_fingerprint(model) == self.plant_fingerprint)
@@ -2414,6 +2391,28 @@ fn stale_after_steps(refresh_s: Option<f64>, step_us: u32) -> Result<u32, BuildE
         Ok((steps as u32).max(1))
     } else {
         Err(invalid)
+    }
+}
+
+/// The nodes some thermocouple of `readings_c` reads.
+fn read_nodes(readings_c: &[Option<f32>; THERMOCOUPLES]) -> [bool; NODES] {
+    let mut read = [false; NODES];
+    for (reading, node) in readings_c.iter().zip(THERMOCOUPLE_NODES) {
+        if let (Some(_), Some(slot)) = (reading, read.get_mut(node)) {
+            *slot = true;
+        }
+    }
+    read
+}
+
+/// The snapshot's latched shutdown, restored and shown in `state`.
+fn relatch(state: &mut OmniObserverState, meta: &SnapshotMeta) {
+    if meta.shutdown_latched {
+        latch_and_publish(
+            &mut state.alarm,
+            &mut state.outputs.alarm,
+            &mut state.outputs.limits,
+        );
     }
 }
 

@@ -1491,21 +1491,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     print_events(&events);
     let t = &times;
-    if omni.is_some() {
+    let device = if omni.is_some() {
+        Some("Omnimagnet")
+    } else {
+        grid.as_ref().map(|_| "grid")
+    };
+    if let Some(device) = device {
         println!(
-            "Omnimagnet observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
-            t.steps,
-            t.min_ns * 1e-3,
-            t.p50_ns * 1e-3,
-            t.p99_ns * 1e-3,
-            t.max_ns * 1e-3,
-            t.p99_over_budget
-        );
-        return Ok(());
-    }
-    if grid.is_some() {
-        println!(
-            "grid observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            "{device} observer tick time [us] over {} ticks of 1 ms: min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
             t.steps,
             t.min_ns * 1e-3,
             t.p50_ns * 1e-3,
