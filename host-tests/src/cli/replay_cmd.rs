@@ -1206,16 +1206,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     });
     let fusion = kalman.as_ref().map(|k| {
         json!({
-            "sensors": k.stats().iter().zip(&measured).zip(k.noise_k()).map(|((s, m), noise)| json!({
-                "column": m.column,
-                "node": info.nodes[s.node],
-                "fused": s.fused,
-                "rejected": s.rejected,
-                "stuck": s.stuck,
-                "colder_than_physics": s.colder_than_physics,
-                "noise_k": noise,
-                "rejected_at_s": s.rejected_at_s,
-            })).collect::<Vec<_>>(),
+            "sensors": sensor_stats_json(k.stats(), &measured, &info)
+                .into_iter()
+                .zip(k.stats().iter().zip(k.noise_k()))
+                .map(|(mut v, (s, noise))| {
+                    v["noise_k"] = json!(noise);
+                    v["rejected_at_s"] = json!(s.rejected_at_s);
+                    v
+                })
+                .collect::<Vec<_>>(),
             "sensor_sigma_k": measurement_noise_k,
             "sensor_sigma_from": sensor_sigma_from,
             "recoveries": k.recoveries(),
