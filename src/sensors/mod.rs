@@ -36,6 +36,7 @@
 
 pub mod max31855;
 pub mod max31856;
+pub mod resistive;
 
 use core::fmt;
 
