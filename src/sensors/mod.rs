@@ -11,7 +11,9 @@
 //! | MAX31855 | [`max31855`] | one 32-bit read-only frame | 14 bit, 0.25 degC | 12 bit, 0.0625 degC |
 //! | MAX31856 | [`max31856`] | register file | 19 bit, 0.0078125 degC | 14 bit, 0.015625 degC |
 //!
-//! Both modules offer a pure `decode` that needs no bus (for tests, and for
+//! | MAX31865 | [`max31865`] | register file | RTD ratio, 15 bit (PT100 on 430 ohm: 0.034 K at 0 degC) | none (RTD) |
+//!
+//! The modules offer a pure `decode` that needs no bus (for tests, and for
 //! users who move the bytes by DMA) and a driver that does the SPI traffic.
 //!
 //! Resistive sensors read by the MCU's own ADC through a divider need no
@@ -54,6 +56,7 @@
 
 pub mod max31855;
 pub mod max31856;
+pub mod max31865;
 pub mod resistive;
 
 use core::fmt;
