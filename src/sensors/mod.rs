@@ -1,4 +1,5 @@
-//! Thermocouple drivers and the sensor vocabulary the filter and observer use.
+//! Thermocouple drivers, resistive sensors on an ADC, and the sensor
+//! vocabulary the filter and observer use.
 //!
 //! The thermal maths of this crate never names a HAL trait. Hardware lives
 //! here, at the edge: the drivers take an `embedded_hal::spi::SpiDevice`
@@ -10,8 +11,27 @@
 //! | MAX31855 | [`max31855`] | one 32-bit read-only frame | 14 bit, 0.25 degC | 12 bit, 0.0625 degC |
 //! | MAX31856 | [`max31856`] | register file | 19 bit, 0.0078125 degC | 14 bit, 0.015625 degC |
 //!
-//! Both modules offer a pure `decode` that needs no bus (for tests, and for
+//! | MAX31865 | [`max31865`] | register file | RTD ratio, 15 bit (PT100 on 430 ohm: 0.034 K at 0 degC) | none (RTD) |
+//!
+//! The modules offer a pure `decode` that needs no bus (for tests, and for
 //! users who move the bytes by DMA) and a driver that does the SPI traffic.
+//!
+//! Resistive sensors read by the MCU's own ADC through a divider need no
+//! driver: [`resistive`] converts a count (the user's ADC, any width 1 ..= 24
+//! bit) into a [`SensorResult`]. Its arithmetic error against the reference
+//! equation in f64, over every 12-bit count from -40 to 150 degC; the
+//! quantisation of one count is larger (0.02 .. 0.9 K at 12 bits, see
+//! [`resistive`]):
+//!
+//! | kind | module | reference equation | conversion error |
+//! |---|---|---|---|
+//! | NTC, beta | [`resistive`] | 1/T = 1/T0 + ln(R/R0)/beta | 3.7e-5 K |
+//! | NTC, Steinhart-Hart | [`resistive`] | 1/T = a + b ln R + c (ln R)^3 | 6.2e-5 K |
+//! | NTC, R-T table | [`resistive`] | piecewise beta between points | 4.6e-5 K (plus the table's own interpolation error: 8.7e-3 K for 5 K steps) |
+//! | PT100 / PT1000 | [`resistive`] | Callendar-Van Dusen, IEC 60751 | 4.1e-5 K (1.5e-4 K over -200 .. 850 degC) |
+//!
+//! A resistive sensor has no cold junction: its [`Reading::cold_junction_c`]
+//! repeats the temperature.
 //!
 //! # How a fault reaches the filter
 //!
@@ -36,6 +56,8 @@
 
 pub mod max31855;
 pub mod max31856;
+pub mod max31865;
+pub mod resistive;
 
 use core::fmt;
 
