@@ -833,6 +833,10 @@ impl OmniSubject {
         };
         let settings = OmniSettings {
             step_us: cfg.step_us,
+            // One step per tick: the loop ticks at the step (a longer
+            // nominal loop than the step would make every tick busy and
+            // put every predictor and warm-up slice off).
+            loop_period_us: cfg.step_us,
             filter: ObserverSettings {
                 sensors,
                 correction_period_s: reading_period_s(cfg),
