@@ -17,7 +17,7 @@ use coil_thermal::protect::derating::DeratingRule;
 
 use crate::codegen::{grid_observer_with, HppaGridObserver};
 use crate::library_observer::{EventKindAt, Protected};
-use crate::observer::{Estimator, Measurement, TimeHistogram};
+use crate::observer::{Estimator, Measurement, TickClock, TimeHistogram};
 use crate::sim::PlantInfo;
 
 /// The flashed grid's rows and columns.
@@ -38,8 +38,7 @@ pub struct GridFirmwareEstimator {
     ambient_c: f32,
     coolant: usize,
     ambient: usize,
-    done_us: u64,
-    asked_s: f64,
+    clock: TickClock,
     temps: Vec<f64>,
     tick_ns: TimeHistogram,
     protected: Protected,
@@ -80,8 +79,7 @@ impl GridFirmwareEstimator {
             ambient_c: 0.0,
             coolant,
             ambient,
-            done_us: 0,
-            asked_s: 0.0,
+            clock: TickClock::default(),
             temps: vec![0.0; n],
             tick_ns: TimeHistogram::default(),
             protected: Protected::for_sizes(n, n),
@@ -120,8 +118,7 @@ impl Estimator for GridFirmwareEstimator {
     fn reset(&mut self, temps_c: &[f64]) {
         let mean = temps_c.iter().sum::<f64>() / temps_c.len().max(1) as f64;
         *self.state = self.observer.state(mean);
-        self.done_us = 0;
-        self.asked_s = 0.0;
+        self.clock = TickClock::default();
         self.events.clear();
         self.publish();
     }
@@ -135,10 +132,8 @@ impl Estimator for GridFirmwareEstimator {
         }
         self.coolant_c = boundary_c[self.coolant] as f32;
         self.ambient_c = boundary_c[self.ambient] as f32;
-        self.asked_s += dt_s;
-        let target_us = (self.asked_s * 1e6).round() as u64;
-        let tick = u64::from(TICK_US);
-        while self.done_us + tick <= target_us {
+        self.clock.ask(dt_s);
+        while self.clock.next_tick(TICK_US) {
             let inputs = GridInputs {
                 currents_a: &self.currents_a,
                 coolant_c: self.coolant_c,
@@ -148,14 +143,13 @@ impl Estimator for GridFirmwareEstimator {
             let start = Instant::now();
             std::hint::black_box(self.observer.tick(&mut self.state, &inputs));
             self.tick_ns.record(start.elapsed().as_nanos());
-            self.done_us += tick;
             let upper = self.state.outputs().upper_c;
             let ambient_c = self.state.alarm.ambient_c();
             let alarm = self.observer.alarm();
             while let Some(e) = self.state.events.pop() {
                 self.events.push(EventKindAt::of(
                     &e,
-                    self.done_us as f64 * 1e-6,
+                    self.clock.done_s(),
                     e.element.map(|i| upper[i / COLS][i % COLS]),
                     e.element.and_then(|i| alarm.alarm_limit_c(i, ambient_c)),
                     alarm.warning_margin_k(),

@@ -99,7 +99,7 @@ use crate::firmware::FirmwareConfig;
 use crate::kalman::FusionStats;
 use crate::limits::{class_of, on_big_stack, padded_with, Padding};
 use crate::model_file::Model;
-use crate::observer::{Estimator, Measurement};
+use crate::observer::{Estimator, Measurement, TickClock};
 use crate::sim::{plant_info, PlantInfo};
 use coil_thermal::protect::derating::DeratingRule;
 
@@ -440,10 +440,8 @@ pub struct ObserverEstimator {
     info: PlantInfo,
     observer: Box<dyn PaddedObserver>,
     tick_us: u32,
-    /// Time simulated so far since the reset \[us\].
-    done_us: u64,
-    /// Time asked for so far since the reset \[us\].
-    asked_s: f64,
+    /// The trace time asked for and the ticks done since the reset.
+    clock: TickClock,
     temps: Vec<f64>,
     effective: Vec<f64>,
     tick_ns: crate::observer::TimeHistogram,
@@ -616,8 +614,7 @@ impl ObserverEstimator {
             info,
             observer,
             tick_us,
-            done_us: 0,
-            asked_s: 0.0,
+            clock: TickClock::default(),
             temps: vec![0.0; n],
             effective: Vec::new(),
             tick_ns: crate::observer::TimeHistogram::default(),
@@ -713,8 +710,7 @@ impl Estimator for ObserverEstimator {
         self.observer.protection(&mut self.protected);
         self.events.clear();
         self.temps.copy_from_slice(temps_c);
-        self.done_us = 0;
-        self.asked_s = 0.0;
+        self.clock = TickClock::default();
     }
 
     /// Ticks of `tick_us` until the simulated time reaches the trace's
@@ -726,17 +722,14 @@ impl Estimator for ObserverEstimator {
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
         self.observer.inputs(&self.effective, boundary_c);
-        self.asked_s += dt_s;
-        let target_us = (self.asked_s * 1e6).round() as u64;
-        let tick = u64::from(self.tick_us);
-        while self.done_us + tick <= target_us {
+        self.clock.ask(dt_s);
+        while self.clock.next_tick(self.tick_us) {
             let ns = self.observer.tick(self.tick_us);
             self.tick_ns.record(ns);
-            self.done_us += tick;
             let first = self.events.len();
             self.observer.drain_events(&mut self.events);
             for e in &mut self.events[first..] {
-                e.since_start_s = self.done_us as f64 * 1e-6;
+                e.since_start_s = self.clock.done_s();
             }
             if self.awaiting {
                 self.awaiting = false;

@@ -631,6 +631,38 @@ impl StepTimes {
     }
 }
 
+/// A trace's time turned into whole firmware ticks, as the replays tick
+/// the library: the time asked for so far \[s\] and the ticks done \[us\];
+/// a remainder shorter than a tick carries to the next row.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TickClock {
+    asked_s: f64,
+    done_us: u64,
+}
+
+impl TickClock {
+    /// Asks for `dt_s` \[s\] more.
+    pub fn ask(&mut self, dt_s: f64) {
+        self.asked_s += dt_s;
+    }
+
+    /// Counts one more tick of `tick_us` \[us\] done if it fits in the
+    /// time asked for; `false` when the next one does not.
+    pub fn next_tick(&mut self, tick_us: u32) -> bool {
+        let target_us = (self.asked_s * 1e6).round() as u64;
+        let fits = self.done_us + u64::from(tick_us) <= target_us;
+        if fits {
+            self.done_us += u64::from(tick_us);
+        }
+        fits
+    }
+
+    /// The end of the ticks done \[s\].
+    pub fn done_s(&self) -> f64 {
+        self.done_us as f64 * 1e-6
+    }
+}
+
 /// Host times \[ns\] counted in memory that does not grow with their
 /// number: exact below 2048 ns, above in buckets of 1/1024 of their size
 /// (a percentile is its bucket's lowest time, within 0.1 %); the smallest

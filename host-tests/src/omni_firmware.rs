@@ -27,7 +27,7 @@ use coil_thermal::Reading;
 use crate::codegen::{omnimagnet_settings, OMNIMAGNET_AMBIENT_C};
 use crate::kalman::FusionStats;
 use crate::library_observer::{EventKindAt, Protected};
-use crate::observer::{Estimator, Measurement, TimeHistogram};
+use crate::observer::{Estimator, Measurement, TickClock, TimeHistogram};
 use crate::sim::PlantInfo;
 
 /// The loop tick of the flashed Omnimagnet observer \[us\]
@@ -79,8 +79,7 @@ pub struct OmniFirmwareEstimator {
     now_us: u32,
     /// The start temperatures, until the first row's ambient arrives.
     start_c: Option<[f32; NODES]>,
-    done_us: u64,
-    asked_s: f64,
+    clock: TickClock,
     temps: Vec<f64>,
     tick_ns: TimeHistogram,
     protected: Protected,
@@ -159,8 +158,7 @@ impl OmniFirmwareEstimator {
             pending: [None; THERMOCOUPLES],
             now_us: 0,
             start_c: None,
-            done_us: 0,
-            asked_s: 0.0,
+            clock: TickClock::default(),
             temps: vec![OMNIMAGNET_AMBIENT_C; NODES],
             tick_ns: TimeHistogram::default(),
             protected: Protected::for_sizes(NODES, SOLENOIDS),
@@ -224,7 +222,6 @@ impl OmniFirmwareEstimator {
         let start = Instant::now();
         std::hint::black_box(self.observer.tick(&mut self.state, &inputs));
         self.tick_ns.record(start.elapsed().as_nanos());
-        self.done_us += u64::from(TICK_US);
         let upper = self.state.outputs().upper_c;
         let limits_c = self.observer.alarm().alarm_limits_c(self.ambient_c);
         let margin_k = self.observer.alarm().warning_margin_k();
@@ -232,7 +229,7 @@ impl OmniFirmwareEstimator {
             let node = e.element.and_then(|k| ALARM_NODES.get(k).copied());
             let mut at = EventKindAt::of(
                 &e,
-                self.done_us as f64 * 1e-6,
+                self.clock.done_s(),
                 node.map(|n| upper[n]),
                 e.element.and_then(|k| limits_c.get(k).copied()),
                 margin_k,
@@ -270,8 +267,7 @@ impl Estimator for OmniFirmwareEstimator {
         self.start_c = Some(start);
         self.pending = [None; THERMOCOUPLES];
         self.now_us = 0;
-        self.done_us = 0;
-        self.asked_s = 0.0;
+        self.clock = TickClock::default();
         self.events.clear();
         *self.state = self.observer.state(&start, self.ambient_c);
         self.publish();
@@ -288,9 +284,8 @@ impl Estimator for OmniFirmwareEstimator {
         if let Some(start) = self.start_c.take() {
             *self.state = self.observer.state(&start, self.ambient_c);
         }
-        self.asked_s += dt_s;
-        let target_us = (self.asked_s * 1e6).round() as u64;
-        while self.done_us + u64::from(TICK_US) <= target_us {
+        self.clock.ask(dt_s);
+        while self.clock.next_tick(TICK_US) {
             self.tick();
         }
         self.publish();
