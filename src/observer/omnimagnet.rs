@@ -238,18 +238,22 @@
 //!   period's transition, the one the unfused shadow already steps with
 //!   (no new table), as `F (P+ - P_ss) F^T + M` from the steady solution,
 //!   in slices on the light ticks (no correction, no protection stage, no
-//!   model step longer than the loop's tick): 19 columns, 8 row pairs, 19
+//!   model step longer than the tick lasted): 19 columns, 8 row pairs, 19
 //!   mirrored columns, 5 slices that prepare the next correction's gain,
-//!   `S` and `M H^T`, 53 slices per 0.5 s of at most about 400
-//!   multiply-adds each. The readings' information within a period adds
+//!   `S` and `M H^T` after the new prior and after a correction, 58
+//!   slices per 0.5 s of at most about 400 multiply-adds each, as many a
+//!   light tick as fit a period's propagation into half the light ticks
+//!   the declared loop leaves (one at 1 ms; all at a 100 ms loop, whose
+//!   five ticks a period would otherwise leave the prior ten periods
+//!   behind the readings and the gate refusing healthy ones). The readings' information within a period adds
 //!   up (a `3 x 3` weight: any number of corrections, in any order). A
 //!   correction during the warm-up is then the steady filter's own code
 //!   on that gain (the gate judges against the covariance held). Against
 //!   the per-step time-varying filter in `f64` the held priors agree
 //!   within 1.3e-4 (relative) after 200 periods. Measured in
 //!   `examples/omni_start_m4.rs` (Cortex-M4F, `observer_m4`'s 5 ms
-//!   configuration): plain ticks 886 instructions mean, 3 328 worst (the
-//!   steady filter: 718 and 3 086), a correction 3 328 (2 647); the start
+//!   configuration): plain ticks 926 instructions mean, 3 377 worst (the
+//!   steady filter: 718 and 3 086), a correction 3 336 (2 647); the start
 //!   itself, once, 2.9 million; the state 7 264 B (3 552 B before: the
 //!   covariance and what the correction needs, 3.7 KiB);
 //! * **the protection follows it**: the upper bound widens by `k` times the
@@ -663,6 +667,9 @@ pub struct OmniObserver {
     silent_after_us: u32,
     /// The control loop's nominal tick \[us\] ([`OmniSettings::loop_period_us`]).
     loop_period_us: u32,
+    /// Slices of the start's held covariance per light tick (see
+    /// [`Self::held_slices_per_tick`]).
+    held_slices_per_tick: u32,
     /// The share of a protection cycle each predictor slice catches up
     /// \[us\].
     predictor_slice_us: u32,
@@ -896,9 +903,58 @@ impl OmniObserver {
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
             loop_period_us: settings.loop_period_us,
+            held_slices_per_tick: Self::held_slices_per_tick(
+                settings.step_us,
+                settings.loop_period_us,
+                shadow_block_steps,
+                protect_period_us,
+                slices,
+            ),
             predictor_slice_us: protect_period_us / slices,
             model_stale_after_steps,
         })
+    }
+
+    /// Slices of the start's held covariance per light tick: enough that a
+    /// correction period's propagation fits in half the light ticks the
+    /// declared loop leaves a period ([`start`]'s "A covariance per
+    /// correction period, in slices"). A period's ticks less its
+    /// correction, its protection stages (each cycle's predictor slices,
+    /// the alarm and the limiter) and, for a model step longer than the
+    /// loop's tick, the ticks that step. One at a 1 ms loop (the flashed
+    /// 5 ms configuration leaves about 380 light ticks a period), a whole
+    /// period's 58 at a loop of the model's 100 ms step.
+    /// `step_us`, `loop_period_us` \[us\], `period_steps` model steps a
+    /// correction period, `protect_period_us` \[us\] and
+    /// `predictor_slices` per protection cycle.
+    pub(crate) const fn held_slices_per_tick(
+        step_us: u32,
+        loop_period_us: u32,
+        period_steps: u32,
+        protect_period_us: u32,
+        predictor_slices: u32,
+    ) -> u32 {
+        let period_us = period_steps.saturating_mul(step_us);
+        let ticks = match period_us.checked_div(loop_period_us) {
+            Some(ticks) => ticks,
+            None => 0,
+        };
+        let cycles = if protect_period_us == 0 {
+            period_us
+        } else {
+            period_us.div_ceil(protect_period_us)
+        };
+        let stages = cycles.saturating_mul(predictor_slices.saturating_add(2));
+        let stepping = if step_us > loop_period_us {
+            period_steps
+        } else {
+            0
+        };
+        let light = ticks
+            .saturating_sub(1)
+            .saturating_sub(stages)
+            .saturating_sub(stepping);
+        start::slices_per_tick(start::period_slices(STATES, NODES), light)
     }
 
     #[inline(never)]
@@ -1382,10 +1438,14 @@ impl OmniObserver {
             self.age_time_to_limit(state);
         }
         if state.held.active() {
-            // The start's covariance: a slice on a light tick (no
-            // correction, no step longer than the loop's tick, no
-            // protection stage).
-            self.hold_start(state, steps.steps, stage == Stage::Idle && !busy);
+            // The start's covariance: slices on a light tick (no
+            // correction, no protection stage, no step longer than the
+            // loop's tick unless the tick lasted as long: a loop slower
+            // than declared is never starved of its slices).
+            let owed_us = steps.steps.saturating_mul(self.step_us);
+            let lasted = steps.steps <= 1 && owed_us <= inputs.elapsed_us;
+            let light = stage == Stage::Idle && !corrected && (!busy || lasted);
+            self.hold_start(state, steps.steps, light, inputs.elapsed_us);
         }
         let out = &mut state.outputs;
         out.flags = flags;
@@ -1789,14 +1849,18 @@ impl OmniObserver {
     }
 
     /// The start's warm-up between corrections: the model steps counted
-    /// and, on a light tick (no correction, no protection stage), one slice
+    /// and, on a light tick (no correction, no protection stage), slices
     /// of the held covariance's propagation (at most about 400
-    /// multiply-adds, see [`super::start`]); the warm-up ends once the
+    /// multiply-adds each, see [`super::start`]); the warm-up ends once the
     /// posterior has settled on the steady one. The period's transition is
     /// the shadow's: the build-time linearisation stepped over one
     /// correction period.
+    ///
+    /// A light tick takes [`Self::held_slices_per_tick`] slices, times the
+    /// loop's ticks it lasted (`elapsed_us` over the declared loop period:
+    /// a loop slower than declared still propagates once a period).
     #[inline(never)]
-    fn hold_start(&self, state: &mut OmniObserverState, steps: u32, light: bool) {
+    fn hold_start(&self, state: &mut OmniObserverState, steps: u32, light: bool, elapsed_us: u32) {
         state.held.stepped(steps);
         if !light {
             return;
@@ -1806,7 +1870,15 @@ impl OmniObserver {
             gamma: &self.shadow.g,
         };
         let gain = self.filter.gain();
-        let settled = state.held.work(
+        let mut slices = self.held_slices_per_tick;
+        if elapsed_us / 2 >= self.loop_period_us {
+            let ticks_lasted = elapsed_us / self.loop_period_us.max(1);
+            slices = slices
+                .saturating_mul(ticks_lasted)
+                .min(start::period_slices(STATES, NODES));
+        }
+        let settled = state.held.work_slices(
+            slices,
             self.shadow_block_steps,
             &transition,
             gain.prior(),

@@ -108,7 +108,9 @@
 
 mod held;
 
-pub(crate) use held::{HeldCovariance, HeldLayout, PeriodTransition};
+pub(crate) use held::{
+    period_slices, slices_per_tick, HeldCovariance, HeldLayout, PeriodTransition,
+};
 
 use nalgebra::{SMatrix, SVector};
 

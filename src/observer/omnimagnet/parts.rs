@@ -514,6 +514,13 @@ impl OmniObserver {
             protect_period_us: parts.protect_period_us,
             protect_phase_us: parts.protect_phase_us,
             loop_period_us: parts.loop_period_us,
+            held_slices_per_tick: OmniObserver::held_slices_per_tick(
+                parts.clock.step_us,
+                parts.loop_period_us,
+                parts.shadow_block_steps,
+                parts.protect_period_us,
+                parts.protect_period_us / parts.predictor_slice_us,
+            ),
             predictor_slice_us: parts.predictor_slice_us,
             fingerprint: parts.fingerprint,
             plant_fingerprint: parts.plant_fingerprint,

@@ -121,6 +121,19 @@ fn drive(
     seconds: u32,
     score_from_s: f64,
 ) -> Run {
+    drive_ticking(obs, state, plant, seconds, score_from_s, 1)
+}
+
+/// [`drive`] on a loop that ticks every `tick_ms` (a divisor of
+/// [`PLANT_MS`]).
+fn drive_ticking(
+    obs: &OmniObserver,
+    state: &mut OmniObserverState,
+    plant: &mut Plant,
+    seconds: u32,
+    score_from_s: f64,
+    tick_ms: u32,
+) -> Run {
     let amb = AMBIENT_C as f32;
     let limits_c = obs.alarm.alarm_limits_c(amb);
     let mut run = Run {
@@ -133,7 +146,7 @@ fn drive(
     let mut square_a2 = [0.0f64; SOLENOIDS];
     let mut late = ([0.0f64; SOLENOIDS], 0u32);
     let mut steady = [0.0f32; NODES];
-    for k in 0..seconds * 1000 {
+    for k in (0..seconds * 1000).step_by(tick_ms as usize) {
         if k % REFRESH_MS == 0 {
             let at = obs.temps_c(state).map(f64::from);
             let lin = Omnimagnet::PAPER
@@ -142,7 +155,7 @@ fn drive(
             let model = obs.prepare_model(&lin).unwrap();
             obs.install_model(state, &model).unwrap();
         }
-        let now_us = (k + 1).wrapping_mul(1000);
+        let now_us = (k + tick_ms).wrapping_mul(1000);
         let read = k % 500 == 0;
         let readings = if read {
             plant.readings().map(|temp_c| {
@@ -162,7 +175,7 @@ fn drive(
             ambient_c: amb,
             readings,
             now_us,
-            elapsed_us: 1000,
+            elapsed_us: tick_ms * 1000,
         };
         let out = *obs.tick(state, &inputs);
         if read {
@@ -174,10 +187,10 @@ fn drive(
         }
         run.shutdown |= out.alarm.shutdown;
         for (sq, i) in square_a2.iter_mut().zip(currents_a) {
-            *sq += f64::from(i * i);
+            *sq += f64::from(i * i) * f64::from(tick_ms);
         }
         currents_a = out.limits.map(|l| l.clamp_a(ASKED_A));
-        let t_s = f64::from(k + 1) * 1e-3;
+        let t_s = f64::from(k + tick_ms) * 1e-3;
         if t_s <= 1.0 {
             for l in &out.limits {
                 run.first_limit_a = run.first_limit_a.min(l.current_a);
@@ -215,7 +228,7 @@ fn drive(
             }
             late.1 += 1;
         }
-        if (k + 1) % PLANT_MS == 0 {
+        if (k + tick_ms).is_multiple_of(PLANT_MS) {
             // The plant's step takes the RMS current of its ticks.
             let rms = square_a2.map(|s| (s / f64::from(PLANT_MS)).sqrt());
             let dt_s = 1e-3 * f64::from(PLANT_MS);
@@ -316,6 +329,57 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
         assert!(run.protection_settled_s.is_some(), "off {off_s} s: {run:?}");
     }
     assert!(runs.iter().all(|r| r.2), "the start holds its covariance");
+}
+
+#[test]
+fn a_loop_slower_than_declared_still_propagates_the_start() {
+    // 5 ms model steps declared on a 1 ms loop that really ticks every
+    // 5 ms: every tick runs a step longer than the declared tick, so none
+    // was light and the held covariance was never propagated (the
+    // campaign's first 5 ms runs: 3 000 to 6 400 healthy readings refused
+    // after a reset). A tick that lasted its step takes the slices of the
+    // loop ticks it lasted. The same goals as a 1 ms loop's.
+    let settings = OmniSettings {
+        step_us: 5000,
+        loop_period_us: 1000,
+        ..OmniSettings::default()
+    };
+    let obs = OmniObserver::new(
+        &Omnimagnet::PAPER,
+        &[LINEARISED_AT_C; NODES],
+        AMBIENT_C,
+        &settings,
+    )
+    .unwrap();
+    let amb = AMBIENT_C as f32;
+    let plant = cooled(600);
+    let readings = plant.clone().readings().map(Some);
+    let mut state = obs.start(&Omnimagnet::PAPER, &readings, amb);
+    let run = drive_ticking(&obs, &mut state, &mut plant.clone(), 900, 1.0, 5);
+    println!("{run:?}");
+    assert!(!run.shutdown && run.over_limit_k < 0.0, "{run:?}");
+    assert!(run.under_bound_k < 1.0, "{run:?}");
+    assert_eq!(run.refused, 0, "{run:?}");
+    // As the 1 ms loop's (723 s after 10 min off): the held covariance
+    // shrinks and the bound comes back to the steady one.
+    assert!(run.protection_settled_s.is_some(), "{run:?}");
+}
+
+#[test]
+fn slices_per_tick_follow_the_declared_loop() {
+    // The flashed configuration (5 ms steps, 1 ms loop): one slice a light
+    // tick, as before the rule; a loop at a 100 ms step: the whole
+    // period's propagation on a light tick.
+    let periods = |step_us: u32, loop_us: u32| {
+        let steps = 500_000 / step_us;
+        OmniObserver::held_slices_per_tick(step_us, loop_us, steps, 16 * step_us, 1)
+    };
+    let all = start::period_slices(STATES, NODES);
+    assert_eq!(all, 58);
+    assert_eq!(periods(5000, 1000), 1);
+    assert_eq!(periods(1000, 1000), 1);
+    assert_eq!(periods(100_000, 100_000), all);
+    assert_eq!(periods(5000, 5000), 2);
 }
 
 #[test]

@@ -198,6 +198,31 @@ fn cholesky_solve<const P: usize>(l: &[[f32; P]; P], b: [f32; P]) -> [f32; P] {
     x
 }
 
+/// Slices of [`HeldCovariance::work`] one correction period takes, for
+/// `x` states of which `t` have dynamics: the start, `x` columns, `t / 2`
+/// row pairs, `x` mirrored columns, the finish, and the five refresh
+/// slices after the new prior and after a correction.
+pub(crate) const fn period_slices(x: usize, t: usize) -> u32 {
+    (2 * x + t.div_ceil(2) + 2 + 2 * 5) as u32
+}
+
+/// Slices per light tick that propagate a period's covariance within half
+/// a correction period: `period_slices` spread over half the
+/// `light_ticks` a period leaves (at least one tick, at least one slice
+/// each). A 1 kHz loop has hundreds of light ticks a period and takes one
+/// slice each; a loop at the model's 100 ms step has about three, and
+/// one slice each would leave the prior some ten periods behind the
+/// readings (the gate then judges them against a stale covariance and
+/// refuses healthy ones).
+pub(crate) const fn slices_per_tick(period_slices: u32, light_ticks: u32) -> u32 {
+    let ticks = if light_ticks / 2 > 1 {
+        light_ticks / 2
+    } else {
+        1
+    };
+    period_slices.div_ceil(ticks)
+}
+
 /// Column `j` of a column-major `R x C` slice (`None` past the end).
 fn column<const R: usize>(m: &[f32], j: usize) -> Option<&[f32]> {
     m.chunks_exact(R).nth(j)
@@ -490,6 +515,34 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
             }
         }
         self.weight = weight.symmetric_part();
+    }
+
+    /// Up to `slices` slices of [`Self::work`] in a row, fewer when the
+    /// propagation is done or waits for its period's model steps: a loop
+    /// whose light ticks are too few for one slice each (see
+    /// [`slices_per_tick`]). `Some(settled)` as [`Self::work`] when a new
+    /// prior is ready (the slices stop there).
+    pub(crate) fn work_slices<const T: usize, const G: usize>(
+        &mut self,
+        slices: u32,
+        period: u32,
+        transition: &PeriodTransition<'_, T, G>,
+        steady_prior: &SMatrix<f32, X, X>,
+        steady_posterior: &SMatrix<f32, X, X>,
+        recovery: &SVector<f32, X>,
+    ) -> Option<bool> {
+        let mut done = self.work(period, transition, steady_prior, steady_posterior, recovery);
+        let mut left = slices.saturating_sub(1);
+        while done.is_none() && left > 0 && !self.waiting(period) {
+            done = self.work(period, transition, steady_prior, steady_posterior, recovery);
+            left -= 1;
+        }
+        done
+    }
+
+    /// Nothing to slice until the period's model steps are in.
+    fn waiting(&self, period: u32) -> bool {
+        self.stale == 0 && self.phase == Phase::Ready && self.steps < period.max(1)
     }
 
     /// Adds `steps` model steps to the time not yet propagated.
