@@ -41,7 +41,10 @@
 //!   than the stuck threshold (1 K) off the truth (before that it reads
 //!   the truth). The flag goals count from there: a drift within
 //!   [`FLAG_GOAL_S`] of becoming detectable, a stuck sensor within
-//!   [`STUCK_FLAG_GOAL_S`]; every other fault is detectable at its onset.
+//!   [`STUCK_FLAG_GOAL_S`]. A *dropout* is detectable at the first
+//!   reading it withholds (an onset between two readings withholds
+//!   nothing until the next is due); every other fault is detectable at
+//!   its onset.
 //!   The time to flag itself is always counted from the onset;
 //! * **largest estimate error** \[K\] from the onset to the shutdown (or
 //!   the end): `|estimate - truth|` on the thermocouple nodes, and on the
@@ -1128,7 +1131,7 @@ impl<'c, S: Subject> Harness<'c, S> {
         let mut score = RunScore::default();
         let mut flag_s = None;
         let mut detectable_s = match fault.map(|f| f.class) {
-            None | Some(FaultClass::Drift | FaultClass::Stuck) => None,
+            None | Some(FaultClass::Drift | FaultClass::Stuck | FaultClass::Dropout) => None,
             Some(_) => Some(0.0),
         };
         let mut snapshot = None;
@@ -1211,7 +1214,11 @@ impl<'c, S: Subject> Harness<'c, S> {
                         FaultClass::Spikes if faulty_readings % 2 == 1 => {
                             Ok(read(truth[j] + JUMP_K as f32))
                         }
-                        FaultClass::Dropout => continue,
+                        FaultClass::Dropout => {
+                            // Detectable at the first reading it withholds.
+                            detectable_s.get_or_insert(t_s - f.onset_s);
+                            continue;
+                        }
                         FaultClass::AllDetached => Ok(read(amb as f32)),
                         _ => result,
                     };

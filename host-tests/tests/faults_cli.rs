@@ -858,3 +858,50 @@ fn the_campaign_shows_what_the_bias_floor_prevents() {
     assert!(floor_k < 1.0 && floor_met, "{floor_k}");
     assert!(free_k > 2.0 && !free_met, "{free_k}");
 }
+
+/// Two scoring rules of the campaign at its default 100 ms step, all three
+/// Omnimagnet solenoids at 7 A. A dropout whose onset falls between two
+/// readings (the half-time onset, 252.1 s) withholds nothing until the
+/// next reading is due: it is detectable from there (it was counted from
+/// the onset, and the silence, two correction periods after the last
+/// reading heard, came 1.1 s after it: the flag goal "not met" by one
+/// tick). A restart is another trajectory than the clean closed loop
+/// (which latches at about 709 s): a restarted run that does not latch
+/// then is no lost shutdown (all five start classes were counted lost);
+/// it is judged by the start goals.
+#[test]
+fn a_dropout_counts_from_its_first_withheld_reading_and_a_restart_loses_no_shutdown() {
+    let r = json_run(&[
+        "faults",
+        "--model",
+        "omnimagnet",
+        "--current-a",
+        "7",
+        "--duration-s",
+        "1800",
+        "--classes",
+        "dropout,reset-0s,reset-1h",
+        "--json",
+    ]);
+    let dropouts = cases(&r, "dropout");
+    assert_eq!(dropouts.len(), 12, "{r}");
+    let between: Vec<_> = dropouts
+        .iter()
+        .filter(|c| c["onset_s"].as_f64().unwrap() > 100.0)
+        .collect();
+    assert!(!between.is_empty(), "{r}");
+    for c in between {
+        let detectable = c["detectable_s"].as_f64().unwrap();
+        assert!(detectable > 0.05 && detectable < 0.5, "{c}");
+        assert_eq!(c["flag_goal_met"], true, "{c}");
+    }
+    for class in ["reset-0s", "reset-1h"] {
+        for c in cases(&r, class) {
+            assert_eq!(c["lost_shutdown"], false, "{c}");
+            assert!(c["reference_shutdown_s"].as_f64().is_some(), "{c}");
+        }
+    }
+    for goal in r["summary"]["goals"].as_array().unwrap() {
+        assert_eq!(goal["met"], true, "{goal}");
+    }
+}

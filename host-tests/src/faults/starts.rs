@@ -110,6 +110,13 @@ impl<S: Subject> Harness<'_, S> {
                     snapshot,
                 };
                 let mut case = super::case_report(fault, run, clean.run.shutdown_s);
+                // A restarted run is another trajectory than the clean
+                // one: whether it latches at the clean run's moment says
+                // nothing. It is judged by the start goals (the plant
+                // under its limit, the bound, the readings), and a
+                // shutdown the clean run did not have stays a false trip.
+                case.lost_shutdown = false;
+                case.late_shutdown = false;
                 case.start = Some(score.start);
                 case
             })
