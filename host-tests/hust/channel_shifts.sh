@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The HUST thermocouple channel's shifts (docs/hust.md, "The thermocouple
+# The HUST thermocouple channel's shifts (docs/hust-trials.md, "The thermocouple
 # channel's shifts"), five tables from the replays `reproduce.sh` wrote
 # (target/hust/seven_fused_N.json and .csv; reproduce.sh runs this last).
 #

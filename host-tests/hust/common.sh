@@ -41,7 +41,7 @@ INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
 # Gauss-Markov, the flag's 2 K and 7200 s: a few K, hours), never below
 # the outlet's reading (--boundary-offset-floor-k 0): the bench's stator
 # thermocouples sit up to 3.7 K above the water outlet at rest, where no
-# heat explains it (docs/hust.md, "A coolant offset that never cools"),
+# heat explains it (docs/hust-trials.md, "A coolant offset that never cools"),
 # which the copper disturbance alone took for heat in the copper; an
 # offset may warm the model, like the disturbances, never cool it.
 FUSE7=(--measure endwind_1=end_winding --measurement-noise-k 0.2 --disturbance active_winding,slot_centre,end_winding

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Leave-one-out over the seven-node model's fit profiles (docs/hust.md,
+# Leave-one-out over the seven-node model's fit profiles (docs/hust-trials.md,
 # "Leave one out"): for each of the six fit profiles, the model is
 # calibrated as reproduce.sh calibrates it but on the other five, then run
 # on the one left out, open loop and with endwind_1 fused, and scored

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# How much the fused results hang on the filter's settings (docs/hust.md,
+# How much the fused results hang on the filter's settings (docs/hust-trials.md,
 # "Filter settings"): the committed seven-node model with endwind_1 fused
 # on every profile, first with the settings of the table (FUSE7 in
 # common.sh), then with one setting moved at a time, down and up. For

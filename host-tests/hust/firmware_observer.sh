@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The firmware's observer on the real motor (docs/hust.md, "The
+# The firmware's observer on the real motor (docs/hust-trials.md, "The
 # firmware's observer"): the committed seven-node model with endwind_1
 # fused by the library's NetworkObserver, the firmware's packaged observer
 # (steady gain, f32, 1 ms ticks, one heat bias: the model file's

@@ -113,28 +113,28 @@ for n in $HELD_OUT; do row "$n" scored; done
 
 # Where the gate refuses endwind_1 and what the other thermocouples do
 # there, and the fused estimates against the readings with the channel's
-# shifts taken out (docs/hust.md, "The thermocouple channel's shifts").
+# shifts taken out (docs/hust-trials.md, "The thermocouple channel's shifts").
 echo
 host-tests/hust/channel_shifts.sh
 
 # The committed seven-node model against its alternatives, each against
-# every goal of issue 18 (docs/hust.md, "The committed model against its
+# every goal of issue 18 (docs/hust-trials.md, "The committed model against its
 # alternatives").
 echo
 host-tests/hust/variants.sh
 
 # Each fit profile left out of the fit in turn and scored like a held-out
-# one (docs/hust.md, "Leave one out").
+# one (docs/hust-trials.md, "Leave one out").
 echo
 host-tests/hust/cross_validation.sh
 
 # How much the fused results hang on the filter's settings, each moved
-# down and up (docs/hust.md, "Filter settings").
+# down and up (docs/hust-trials.md, "Filter settings").
 echo
 host-tests/hust/filter_sensitivity.sh
 
 # The firmware's observer (the library's NetworkObserver, as codegen
-# builds it) with endwind_1 fused (docs/hust.md, "The firmware's
+# builds it) with endwind_1 fused (docs/hust-trials.md, "The firmware's
 # observer").
 echo
 host-tests/hust/firmware_observer.sh

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The seven-node model against its alternatives, each scored against every
-# goal of issue 18 side by side (docs/hust.md, "The committed model against
+# goal of issue 18 side by side (docs/hust-trials.md, "The committed model against
 # its alternatives"):
 #
 #   committed:        host-tests/hust/params_slot.txt and the model file as

@@ -248,7 +248,7 @@ fn seven_node_model_beats_the_full_published_network_open_loop_on_every_profile(
 /// replay's `--out`) against each active-winding reading of `trace` minus
 /// the thermocouple channel's shift: the mean departure of `outer_yoke`
 /// and `endcap` from their own 61-row centred means (as
-/// `hust/channel_shifts.sh` computes it; docs/hust.md, "The thermocouple
+/// `hust/channel_shifts.sh` computes it; docs/hust-trials.md, "The thermocouple
 /// channel's shifts"). Row 0, the initial state, is left out.
 fn channel_corrected_scores(trace: &Path, estimate: &Path) -> Vec<(f64, f64)> {
     let t = columns(trace);
@@ -327,7 +327,7 @@ fn seven_node_fused_active_winding_stays_within_1_k2_and_3_k() {
 /// active winding (the model file's `[observer] bias_sources`), at the
 /// library's default bias noise: better than open loop on both
 /// active-winding sensors on every profile, at the declared 0.2 K sensor
-/// noise and at profile 0's 0.5 K (docs/hust.md, "The firmware's
+/// noise and at profile 0's 0.5 K (docs/hust-trials.md, "The firmware's
 /// observer"). At the 0.5 K `codegen` flashes, also within issue 18's
 /// goals (1 K^2 and 3 K) on both sensors of every profile but the one
 /// goal it misses, profile 10's `activewind_2` MSE (1.14 K^2), which this
