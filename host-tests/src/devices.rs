@@ -229,6 +229,8 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
                 name: n.clone(),
                 capacity_j_per_k: params.capacity_j_per_k(),
                 critical_c: Some(HPPA_CRITICAL_C),
+                lags: None,
+                time_constant_s: None,
             })
             .collect(),
         boundaries: vec![boundary("coolant"), boundary("ambient")],

@@ -80,17 +80,43 @@ pub enum InputHold {
     End,
 }
 
+/// The capacity of a sensor node left without one, as a fraction of the
+/// node it lags: small enough that the node does not feel it (its heat
+/// flow is this fraction of the node's own rate), large enough to keep
+/// the network well conditioned.
+pub const LAG_CAPACITY_FRACTION: f64 = 1e-4;
+
 /// A state node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NodeSpec {
     /// Unique name (used by conductances, sources, `--measure`, CSV headers).
     pub name: String,
-    /// Heat capacity \[J/K\], > 0.
+    /// Heat capacity \[J/K\], > 0. A sensor node (`lags`) may leave it out:
+    /// [`LAG_CAPACITY_FRACTION`] of the node it lags.
+    #[serde(default = "unset_capacity", skip_serializing_if = "is_unset")]
     pub capacity_j_per_k: f64,
     /// Critical temperature \[degC\] for limits and alarms (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub critical_c: Option<f64>,
+    /// A sensor that lags this state node by `time_constant_s`: a
+    /// thermistor glued to the end turns, a thermocouple in a potted well
+    /// (the conductance `capacity / time_constant_s` to it is added; name
+    /// this node in `[observer] sensors` and `--measure`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lags: Option<String>,
+    /// The sensor's first-order time constant \[s\] (finite, > 0; with
+    /// `lags` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_constant_s: Option<f64>,
+}
+
+fn unset_capacity() -> f64 {
+    f64::NAN
+}
+
+fn is_unset(capacity: &f64) -> bool {
+    capacity.is_nan()
 }
 
 /// A boundary node: its temperature comes from a trace column or a constant.
@@ -478,6 +504,8 @@ impl ModelFile {
                 name: name.clone(),
                 capacity_j_per_k: net.capacity_j_per_k(i).unwrap_or(f64::NAN),
                 critical_c: None,
+                lags: None,
+                time_constant_s: None,
             })
             .collect();
         let boundaries = boundary_names
@@ -943,13 +971,25 @@ impl Model {
             bail!("the model has no [[node]]");
         }
         let mut names: BTreeMap<&str, Endpoint> = BTreeMap::new();
+        let lags = sensor_lags(file)?;
+        let caps: Vec<f64> = file
+            .nodes
+            .iter()
+            .zip(&lags)
+            .map(|(n, lag)| match lag {
+                Some((of, _)) if n.capacity_j_per_k.is_nan() => {
+                    file.nodes[*of].capacity_j_per_k * LAG_CAPACITY_FRACTION
+                }
+                _ => n.capacity_j_per_k,
+            })
+            .collect();
         for (k, n) in file.nodes.iter().enumerate() {
-            if !(n.capacity_j_per_k.is_finite() && n.capacity_j_per_k > 0.0) {
+            if !(caps[k].is_finite() && caps[k] > 0.0) {
                 bail!(
                     "[[node]] #{} `{}`: capacity_j_per_k must be finite and > 0 J/K, got {}",
                     k + 1,
                     n.name,
-                    n.capacity_j_per_k
+                    caps[k]
                 );
             }
             if let Some(c) = n.critical_c {
@@ -980,8 +1020,12 @@ impl Model {
             }
         }
         let known = || names.keys().copied().collect::<Vec<_>>().join(", ");
-        let caps = file.nodes.iter().map(|n| n.capacity_j_per_k).collect();
-        let mut network = DynNetwork::new(caps, file.boundaries.len())?;
+        let mut network = DynNetwork::new(caps.clone(), file.boundaries.len())?;
+        for (k, lag) in lags.iter().enumerate() {
+            if let Some((of, tau_s)) = lag {
+                connect(&mut network, Ends::Nodes(*of, k), caps[k] / tau_s)?;
+            }
+        }
         let mut keys = BTreeMap::new();
         let mut signals: Vec<String> = Vec::new();
         let mut varying = Vec::new();
@@ -1450,6 +1494,40 @@ fn signal_index(signals: &mut Vec<String>, column: &str) -> usize {
             signals.len() - 1
         }
     }
+}
+
+/// Each node's `lags`: the index of the node it lags and its time
+/// constant \[s\], checked.
+fn sensor_lags(file: &ModelFile) -> Result<Vec<Option<(usize, f64)>>> {
+    let mut lags = Vec::with_capacity(file.nodes.len());
+    for (k, n) in file.nodes.iter().enumerate() {
+        let ctx = || format!("[[node]] #{} `{}`", k + 1, n.name);
+        let lag = match (&n.lags, n.time_constant_s) {
+            (None, None) => None,
+            (Some(of), Some(tau_s)) => {
+                let Some(i) = file.nodes.iter().position(|m| &m.name == of) else {
+                    bail!("{}: lags unknown node `{of}`", ctx());
+                };
+                if i == k {
+                    bail!("{}: a sensor cannot lag itself", ctx());
+                }
+                if !(tau_s.is_finite() && tau_s > 0.0) {
+                    bail!(
+                        "{}: time_constant_s must be finite and > 0 s, got {tau_s}",
+                        ctx()
+                    );
+                }
+                if file.nodes[i].capacity_j_per_k.is_nan() {
+                    bail!("{}: lags `{of}`, which has no capacity of its own", ctx());
+                }
+                Some((i, tau_s))
+            }
+            (Some(_), None) => bail!("{}: `lags` needs `time_constant_s`", ctx()),
+            (None, Some(_)) => bail!("{}: `time_constant_s` needs `lags`", ctx()),
+        };
+        lags.push(lag);
+    }
+    Ok(lags)
 }
 
 fn connect(net: &mut DynNetwork, ends: Ends, g: f64) -> Result<()> {

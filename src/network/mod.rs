@@ -128,6 +128,39 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
         Ok(self)
     }
 
+    /// Makes state node `sensor` a sensor that lags node `of` by the time
+    /// constant `time_constant_s` \[s\] (finite, `> 0`): a conductance
+    /// `C_sensor / time_constant_s` \[W/K\] joins them, so that with the
+    /// sensor's own capacity small against its node's, the sensor follows
+    /// `tau dT_s/dt = T_of - T_s`.
+    ///
+    /// A thermistor glued to the end turns, or a thermocouple in a potted
+    /// well, reads its winding seconds to tens of seconds late; an
+    /// observer that reads it as the winding itself takes the lag for a
+    /// cold winding while it heats. Measure the sensor node instead
+    /// ([`crate::observer::NetworkObserverBuilder::new`]'s `sensor_nodes`)
+    /// and the filter sees the lag as physics. Give the sensor node a
+    /// capacity small against its node's (the model file's default is
+    /// 1e-3 of it: the heat it draws is then negligible), and add no other
+    /// conductance to it unless the sensor also sees something else (its
+    /// leads, the air).
+    pub fn connect_sensor(
+        self,
+        of: usize,
+        sensor: usize,
+        time_constant_s: f64,
+    ) -> Result<Self, BuildError> {
+        let Some(capacity) = self.capacity_j_per_k(sensor) else {
+            return Err(BuildError::NodeOutOfRange { index: sensor });
+        };
+        if !(time_constant_s.is_finite() && time_constant_s > 0.0) {
+            return Err(BuildError::InvalidParameter {
+                name: "time_constant_s",
+            });
+        }
+        self.connect(of, sensor, capacity / time_constant_s)
+    }
+
     /// Adds a conductance \[W/K\] from state node `node` to boundary `boundary`.
     pub fn connect_boundary(
         mut self,

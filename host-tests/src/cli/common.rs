@@ -138,11 +138,6 @@ pub fn model_file_at(args: &ModelArgs, omnimagnet_op_c: f64) -> Result<ModelFile
     Ok(file)
 }
 
-/// The capacity of a lag node as a fraction of its node's: small enough
-/// that the node does not feel it (its heat flow is this fraction of the
-/// node's own rate), large enough to keep the network well conditioned.
-const LAG_CAPACITY_FRACTION: f64 = 1e-4;
-
 /// Adds `--sensor-lag NODE=TAU_S`: a node `NODE_lag` following NODE with
 /// a first-order lag `tau` \[s\] (capacity `c`, conductance `c / tau`).
 fn add_sensor_lag(file: &mut ModelFile, flag: &str) -> Result<()> {
@@ -163,11 +158,13 @@ fn add_sensor_lag(file: &mut ModelFile, flag: &str) -> Result<()> {
     if names.contains(&lag) {
         bail!("--sensor-lag `{flag}`: the model already has a node `{lag}`");
     }
-    let capacity = spec.capacity_j_per_k * LAG_CAPACITY_FRACTION;
+    let capacity = spec.capacity_j_per_k * crate::model_file::LAG_CAPACITY_FRACTION;
     file.nodes.push(crate::model_file::NodeSpec {
         name: lag.clone(),
         capacity_j_per_k: capacity,
         critical_c: None,
+        lags: None,
+        time_constant_s: None,
     });
     file.conductances
         .push(crate::model_file::ConductanceSpec::g(
