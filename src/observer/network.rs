@@ -594,6 +594,9 @@ pub struct NetworkObserverBuilder<
     settings: NetworkSettings,
     bias_sources: [bool; M],
     bias_mode: BiasMode<M>,
+    sensor_kinds: [SensorKind; P],
+    /// [`Self::resistance_sensor`] named a sensor that does not exist.
+    bad_sensor: bool,
 }
 
 impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
@@ -612,7 +615,35 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             settings: NetworkSettings::DEFAULT,
             bias_sources: [true; M],
             bias_mode: BiasMode::Auto,
+            sensor_kinds: [SensorKind::Thermocouple; P],
+            bad_sensor: false,
         }
+    }
+
+    /// Sensor `sensor` is the winding resistance `resistance` of one of the
+    /// network's sources (see [`resistance`]): its node becomes that
+    /// source's node, its noise the sensor's own, and its readings come
+    /// from [`NetworkObserver::resistance_reading`]. An index beyond the
+    /// sensors is refused at build (`resistance_sensor`).
+    pub fn resistance_sensor(mut self, sensor: usize, resistance: ResistanceSensor) -> Self {
+        match (
+            self.sensor_kinds.get_mut(sensor),
+            self.sensor_nodes.get_mut(sensor),
+        ) {
+            (Some(kind), Some(node)) => {
+                *kind = SensorKind::Resistance(resistance);
+                *node = resistance.node;
+            }
+            _ => self.bad_sensor = true,
+        }
+        self
+    }
+
+    /// What each sensor is (default: every one a thermocouple). A
+    /// resistance sensor must read its source's node in the sensor map.
+    pub fn sensor_kinds(mut self, kinds: [SensorKind; P]) -> Self {
+        self.sensor_kinds = kinds;
+        self
     }
 
     /// Each element's critical temperature \[degC\] (the lowest its
@@ -721,6 +752,12 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     pub fn build<const X: usize>(&self) -> Result<NetworkObserver<N, B, M, X, P>, BuildError> {
         NetworkObserver::new(self)
     }
+
+    /// What each sensor is, as [`NetworkObserver::from_parts_with_sensors`]
+    /// takes it beside [`Self::parts`].
+    pub fn kinds(&self) -> [SensorKind; P] {
+        self.sensor_kinds
+    }
 }
 
 /// The configuration of one device's observer (see the module docs).
@@ -749,6 +786,8 @@ pub struct NetworkObserver<
     kalman: KalmanConfig<f32, X, 1, P>,
     gain: SteadyStateGain<f32, X, P>,
     sensor_nodes: [usize; P],
+    /// Each resistance sensor's conversion (`None`: a thermocouple).
+    resistance_sensors: [Option<resistance::Conversion>; P],
     limited: [bool; N],
     incidence: [[bool; M]; N],
     hardware_limit_a: [f32; M],
@@ -887,7 +926,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     NetworkObserver<N, B, M, X, P>
 {
     fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
-        Self::from_parts(&b.parts()?)
+        Self::from_parts_with_sensors(&b.parts()?, &b.sensor_kinds)
     }
 
     /// The configuration fingerprint that snapshots carry.
@@ -1969,7 +2008,9 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 
 mod bias;
 mod parts;
+pub mod resistance;
 pub use bias::BiasMode;
+pub use resistance::{ResistanceSensor, SensorKind};
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
 
 #[cfg(test)]
