@@ -788,6 +788,9 @@ pub struct NetworkObserver<
     sensor_nodes: [usize; P],
     /// Each resistance sensor's conversion (`None`: a thermocouple).
     resistance_sensors: [Option<resistance::Conversion>; P],
+    /// How far below the shadow each sensor's screens take its node \[K\]:
+    /// its noise at the gate's width (0 for a thermocouple).
+    noise_allowance_k: [f32; P],
     limited: [bool; N],
     incidence: [[bool; M]; N],
     hardware_limit_a: [f32; M],
@@ -1380,9 +1383,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &mut state.outputs.sensors,
         );
         let ambient_c = self.ambient(&state.held_boundary_c);
-        let shadow_c = self
+        // A noisy sensor's band is wider by its noise (0 for a
+        // thermocouple, whose screens are as they were, to the bit): see
+        // `resistance`, "Against the physics".
+        let mut shadow_c = self
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
+        for (shadow, allowance) in shadow_c.iter_mut().zip(&self.noise_allowance_k) {
+            *shadow -= *allowance;
+        }
         let present = samples.iter().any(Option::is_some);
         let (mut common_mode, stuck_events) = screen_readings(
             &self.shadow.band,

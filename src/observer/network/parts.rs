@@ -802,6 +802,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             gain,
             sensor_nodes: parts.sensor_nodes,
             resistance_sensors: kinds.map(|k| k.resistance().map(|r| r.conversion())),
+            noise_allowance_k: kinds.map(|k| {
+                k.resistance()
+                    .map_or(0.0, |r| (libm::sqrt(s.gate_threshold) * r.sigma_k()) as f32)
+            }),
             limited,
             incidence: parts.incidence,
             hardware_limit_a: parts.hardware_limit_a.map(|a| a as f32),
