@@ -418,6 +418,7 @@ pub(super) fn check_kinds<const P: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     fn copper() -> ResistanceSensor {
         let network: Network<2, 1, 1> = Network::new([60.0, 400.0])
@@ -460,6 +461,80 @@ mod tests {
         // An open lead: twice the resistance, 274 degC... and ten times.
         assert_eq!(c.read(12.0, 2.0), Some(Err(SensorFault::OutOfRange)));
         assert_eq!(c.read(0.5, 2.0), Some(Err(SensorFault::OutOfRange)));
+    }
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            any::<u32>().prop_map(f32::from_bits),
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            Just(0.0f32),
+            Just(-0.0f32),
+            Just(f32::MAX),
+            Just(f32::MIN_POSITIVE),
+            -1e3f32..1e3,
+        ]
+    }
+
+    proptest! {
+        /// NaN, infinite, extreme, negative resistances, currents and
+        /// voltages at the reading path and through the tick: nothing
+        /// panics, nothing below the least current is a reading, every
+        /// measurement that cannot be a winding's is a fault, every
+        /// temperature handed on is finite and in range, and the estimate
+        /// stays finite.
+        #[test]
+        fn no_input_panics_and_every_bad_one_is_a_fault(
+            inputs in proptest::collection::vec((any_f32(), any_f32(), any_f32()), 1..40),
+        ) {
+            use super::super::{NetworkInputs, NetworkObserverBuilder};
+            let network: Network<2, 1, 1> = Network::new([60.0, 400.0])
+                .and_then(|n| n.connect(0, 1, 0.8))
+                .and_then(|n| n.connect_boundary(1, 0, 1.2))
+                .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(1.2, 0.00393, 20.0)))
+                .expect("a valid network");
+            let sensor = ResistanceSensor::of_source(&network, 0, 0.01, 0.5).expect("valid");
+            let observer: NetworkObserver<2, 1, 1, 3, 1> = NetworkObserverBuilder::new(&network, [1])
+                .critical_c([Some(155.0), None])
+                .resistance_sensor(0, sensor)
+                .build()
+                .expect("builds");
+            let mut state = observer.state(&[20.0; 2], &[20.0]);
+            for (k, (r, i, v)) in inputs.iter().enumerate() {
+                let now_us = k as u32 * 1000;
+                for (reading, measured) in [
+                    (observer.resistance_reading(0, *r, *i, now_us), *r),
+                    (observer.voltage_current_reading(0, *v, *i, now_us), *v / *i),
+                ] {
+                    match reading.map(|t| t.result) {
+                        None => prop_assert!(i.is_finite() && i.abs() < 0.5),
+                        Some(Ok(t)) => {
+                            prop_assert!(measured.is_finite() && measured > 0.0);
+                            prop_assert!(i.is_finite() && i.abs() >= 0.5);
+                            prop_assert!(t.temp_c.is_finite());
+                            prop_assert!((-60.0..=300.0).contains(&t.temp_c));
+                        }
+                        Some(Err(fault)) => prop_assert!(matches!(
+                            fault,
+                            SensorFault::NotFinite | SensorFault::OutOfRange
+                        )),
+                    }
+                    if !(measured.is_finite() && measured > 0.0) {
+                        prop_assert!(!matches!(reading.map(|t| t.result), Some(Ok(_))));
+                    }
+                    let inputs = NetworkInputs {
+                        currents_a: [*i],
+                        boundary_c: [20.0],
+                        readings: [reading],
+                        now_us,
+                        elapsed_us: 1000,
+                    };
+                    let out = observer.tick(&mut state, &inputs);
+                    prop_assert!(out.temps_c.iter().all(|t| t.is_finite()));
+                }
+            }
+        }
     }
 
     #[test]
