@@ -90,7 +90,10 @@ fn run(observer: &Observer, offset: f64, offset_from_s: u32, read: bool) -> Run 
     let mut now_us: u32 = 0;
     for (second, line) in TRACE.lines().skip(1).enumerate() {
         let second = second as u32;
-        let f: Vec<f64> = line.split(',').map(|v| v.parse().expect("a number")).collect();
+        let f: Vec<f64> = line
+            .split(',')
+            .map(|v| v.parse().expect("a number"))
+            .collect();
         let (current_a, ambient_c, winding_tc) = (f[1], f[2], f[3]);
         let noise = 0.01 * rng.normal();
         let error = if second >= offset_from_s { offset } else { 0.0 };
@@ -129,7 +132,11 @@ fn run(observer: &Observer, offset: f64, offset_from_s: u32, read: bool) -> Run 
         let Some(next) = TRACE.lines().nth(second as usize + 2) else {
             break;
         };
-        let truth: f64 = next.split(',').nth(3).and_then(|v| v.parse().ok()).expect("truth");
+        let truth: f64 = next
+            .split(',')
+            .nth(3)
+            .and_then(|v| v.parse().ok())
+            .expect("truth");
         let e = (f64::from(state.outputs().temps_c[0]) - truth).abs();
         if second + 1 >= 60 {
             run.worst_k = run.worst_k.max(e);
@@ -203,7 +210,10 @@ fn a_resistance_off_by_10_percent_is_flagged() {
         assert!(after_s <= 2, "{r:?}");
         if offset > 0.0 {
             // 10 % high is 25-35 K hot: the innovation gate.
-            assert!(matches!(status, SensorStatus::Rejected { .. }), "{status:?}");
+            assert!(
+                matches!(status, SensorStatus::Rejected { .. }),
+                "{status:?}"
+            );
         } else {
             // 10 % low is as cold: below the physics' band.
             assert!(

@@ -2019,8 +2019,8 @@ mod bias;
 mod parts;
 pub mod resistance;
 pub use bias::BiasMode;
-pub use resistance::{ResistanceSensor, SensorKind};
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
+pub use resistance::{ResistanceSensor, SensorKind};
 
 #[cfg(test)]
 #[path = "network_tests.rs"]
