@@ -786,11 +786,6 @@ pub struct NetworkObserver<
     kalman: KalmanConfig<f32, X, 1, P>,
     gain: SteadyStateGain<f32, X, P>,
     sensor_nodes: [usize; P],
-    /// Each resistance sensor's conversion (`None`: a thermocouple).
-    resistance_sensors: [Option<resistance::Conversion>; P],
-    /// How far below the shadow each sensor's screens take its node \[K\]:
-    /// its noise at the gate's width (0 for a thermocouple).
-    noise_allowance_k: [f32; P],
     limited: [bool; N],
     incidence: [[bool; M]; N],
     hardware_limit_a: [f32; M],
@@ -832,6 +827,13 @@ pub struct NetworkObserver<
     step_us: u32,
     protect_period_us: u32,
     fingerprint: u32,
+    // Last, so that the fields every tick reads keep their offsets (a
+    // Cortex-M load reaches 1020 bytes from its base in one instruction).
+    /// Each resistance sensor's conversion (`None`: a thermocouple).
+    resistance_sensors: [Option<resistance::Conversion>; P],
+    /// How far below the shadow each sensor's screens take its node \[K\]:
+    /// its noise at the gate's width (0 for a thermocouple).
+    noise_allowance_k: [f32; P],
 }
 
 /// The per-device state.
