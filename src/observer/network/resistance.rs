@@ -538,6 +538,50 @@ mod tests {
     }
 
     #[test]
+    fn flashed_tables_need_their_sensor_kinds() {
+        use super::super::NetworkObserverBuilder;
+        let network: Network<2, 1, 1> = Network::new([60.0, 400.0])
+            .and_then(|n| n.connect(0, 1, 0.8))
+            .and_then(|n| n.connect_boundary(1, 0, 1.2))
+            .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(1.2, 0.00393, 20.0)))
+            .expect("a valid network");
+        let builder = NetworkObserverBuilder::new(&network, [1])
+            .critical_c([Some(155.0), None])
+            .resistance_sensor(0, copper());
+        let parts = builder.parts::<3>().expect("solves");
+        // The slot reads the source's node, not the map's housing.
+        assert_eq!(parts.sensor_nodes, [0]);
+        let built: NetworkObserver<2, 1, 1, 3, 1> = builder.build().expect("builds");
+        let assembled =
+            NetworkObserver::from_parts_with_sensors(&parts, &builder.kinds()).expect("assembles");
+        assert_eq!(built.fingerprint(), assembled.fingerprint());
+        // Assembled as thermocouples' tables, they are refused.
+        assert!(matches!(
+            NetworkObserver::from_parts(&parts),
+            Err(BuildError::InvalidParameter {
+                name: "sensor_kinds"
+            })
+        ));
+        // A thermocouple-only observer's fingerprint differs (its gain).
+        let thermocouple: NetworkObserver<2, 1, 1, 3, 1> =
+            NetworkObserverBuilder::new(&network, [0])
+                .critical_c([Some(155.0), None])
+                .build()
+                .expect("builds");
+        assert_ne!(thermocouple.fingerprint(), built.fingerprint());
+        assert_eq!(thermocouple.resistance_reading(0, 1.3, 2.0, 0), None);
+        // A sensor that does not exist.
+        assert!(matches!(
+            NetworkObserverBuilder::new(&network, [1])
+                .resistance_sensor(1, copper())
+                .build::<3>(),
+            Err(BuildError::InvalidParameter {
+                name: "resistance_sensor"
+            })
+        ));
+    }
+
+    #[test]
     fn invalid_sensors_are_refused_by_name() {
         let s = copper();
         let name = |r: Result<ResistanceSensor, BuildError>| match r {
