@@ -29,7 +29,9 @@
 //!   bound) and the Kalman
 //!   `OmnimagnetObserver::predict`, `correct`, `correct_samples` and
 //!   `correct_winding` in `f32` and `f64`, in both gain modes;
-//! * the generic `NetworkObserver::tick` (`f32`);
+//! * the generic `NetworkObserver::tick` (`f32`), with a winding
+//!   resistance sensor's reading path (`resistance_reading`,
+//!   `voltage_current_reading`);
 //! * the filters: the time-varying `predict` and `update` (`f32`) and
 //!   `update_virtual` (`f32`, `f64`);
 //! * the network steppers (`f32`, `Q32`), the protective upper bounds and
@@ -147,12 +149,20 @@ fn network_observer() -> bool {
             },
             sampled_at_us: k,
         });
+        // A winding resistance sensor's reading path, as hostile
+        // (`observer::network::resistance`).
+        let resistance = black_box(if k % 3 == 0 { -temp } else { temp * 0.01 });
+        let from_resistance = if k % 2 == 0 {
+            obs.resistance_reading(0, resistance, current, k)
+        } else {
+            obs.voltage_current_reading(0, resistance, current, k)
+        };
         black_box(obs.tick(
             &mut state,
             &NetworkInputs {
                 currents_a: [current],
                 boundary_c: [temp],
-                readings: [Some(reading)],
+                readings: [from_resistance.or(Some(reading))],
                 now_us: k.wrapping_mul(1000),
                 elapsed_us,
             },

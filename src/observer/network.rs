@@ -594,6 +594,9 @@ pub struct NetworkObserverBuilder<
     settings: NetworkSettings,
     bias_sources: [bool; M],
     bias_mode: BiasMode<M>,
+    sensor_kinds: [SensorKind; P],
+    /// [`Self::resistance_sensor`] named a sensor that does not exist.
+    bad_sensor: bool,
 }
 
 impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
@@ -612,7 +615,35 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             settings: NetworkSettings::DEFAULT,
             bias_sources: [true; M],
             bias_mode: BiasMode::Auto,
+            sensor_kinds: [SensorKind::Thermocouple; P],
+            bad_sensor: false,
         }
+    }
+
+    /// Sensor `sensor` is the winding resistance `resistance` of one of the
+    /// network's sources (see [`resistance`]): its node becomes that
+    /// source's node, its noise the sensor's own, and its readings come
+    /// from [`NetworkObserver::resistance_reading`]. An index beyond the
+    /// sensors is refused at build (`resistance_sensor`).
+    pub fn resistance_sensor(mut self, sensor: usize, resistance: ResistanceSensor) -> Self {
+        match (
+            self.sensor_kinds.get_mut(sensor),
+            self.sensor_nodes.get_mut(sensor),
+        ) {
+            (Some(kind), Some(node)) => {
+                *kind = SensorKind::Resistance(resistance);
+                *node = resistance.node;
+            }
+            _ => self.bad_sensor = true,
+        }
+        self
+    }
+
+    /// What each sensor is (default: every one a thermocouple). A
+    /// resistance sensor must read its source's node in the sensor map.
+    pub fn sensor_kinds(mut self, kinds: [SensorKind; P]) -> Self {
+        self.sensor_kinds = kinds;
+        self
     }
 
     /// Each element's critical temperature \[degC\] (the lowest its
@@ -721,6 +752,12 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     pub fn build<const X: usize>(&self) -> Result<NetworkObserver<N, B, M, X, P>, BuildError> {
         NetworkObserver::new(self)
     }
+
+    /// What each sensor is, as [`NetworkObserver::from_parts_with_sensors`]
+    /// takes it beside [`Self::parts`].
+    pub fn kinds(&self) -> [SensorKind; P] {
+        self.sensor_kinds
+    }
 }
 
 /// The configuration of one device's observer (see the module docs).
@@ -790,6 +827,13 @@ pub struct NetworkObserver<
     step_us: u32,
     protect_period_us: u32,
     fingerprint: u32,
+    // Last, so that the fields every tick reads keep their offsets (a
+    // Cortex-M load reaches 1020 bytes from its base in one instruction).
+    /// Each resistance sensor's conversion (`None`: a thermocouple).
+    resistance_sensors: [Option<resistance::Conversion>; P],
+    /// How far below the shadow each sensor's screens take its node \[K\]:
+    /// its noise at the gate's width (0 for a thermocouple).
+    noise_allowance_k: [f32; P],
 }
 
 /// The per-device state.
@@ -887,7 +931,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     NetworkObserver<N, B, M, X, P>
 {
     fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
-        Self::from_parts(&b.parts()?)
+        Self::from_parts_with_sensors(&b.parts()?, &b.sensor_kinds)
     }
 
     /// The configuration fingerprint that snapshots carry.
@@ -1341,9 +1385,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &mut state.outputs.sensors,
         );
         let ambient_c = self.ambient(&state.held_boundary_c);
-        let shadow_c = self
+        // A noisy sensor's band is wider by its noise (0 for a
+        // thermocouple, whose screens are as they were, to the bit): see
+        // `resistance`, "Against the physics".
+        let mut shadow_c = self
             .sensor_nodes
             .map(|node| self.origin_c + state.shadow.dev_k(node));
+        for (shadow, allowance) in shadow_c.iter_mut().zip(&self.noise_allowance_k) {
+            *shadow -= *allowance;
+        }
         let present = samples.iter().any(Option::is_some);
         let (mut common_mode, stuck_events) = screen_readings(
             &self.shadow.band,
@@ -1969,8 +2019,10 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 
 mod bias;
 mod parts;
+pub mod resistance;
 pub use bias::BiasMode;
 pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
+pub use resistance::{ResistanceSensor, SensorKind};
 
 #[cfg(test)]
 #[path = "network_tests.rs"]

@@ -29,6 +29,7 @@
 //! | NTC, Steinhart-Hart | [`resistive`] | 1/T = a + b ln R + c (ln R)^3 | 6.2e-5 K |
 //! | NTC, R-T table | [`resistive`] | piecewise beta between points | 4.6e-5 K (plus the table's own interpolation error: 8.7e-3 K for 5 K steps) |
 //! | PT100 / PT1000 | [`resistive`] | Callendar-Van Dusen, IEC 60751 | 4.1e-5 K (1.5e-4 K over -200 .. 850 degC) |
+//! | winding resistance (a source's own `V/I`, DC injection) | [`crate::observer::network::resistance`] | T = (R - r0) / s, the winding's measured `R(T)` | the resistance's relative noise times `R(T) / s`: 2.5 K at 20 degC, 3.3 K at 100 degC per reading for copper at 1 %; through the filter, 0.69 K worst (RMSE 0.19 K) on `drive-3node` over an hour at one reading a second |
 //!
 //! A resistive sensor has no cold junction: its [`Reading::cold_junction_c`]
 //! repeats the temperature.

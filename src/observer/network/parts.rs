@@ -28,6 +28,7 @@ use core::fmt::{self, Write};
 use nalgebra::{SMatrix, SVector};
 
 use super::bias::{nominal_powers_w, shared_in_tables, tie_block, BiasLayout, BiasMode};
+use super::resistance::{check_kinds, sensor_variances_k2, SensorKind};
 use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
@@ -232,6 +233,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         network.check_sources()?;
         check_offset::<N, B, M, X>(s)?;
         check(self.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
+        check(!self.bad_sensor, "resistance_sensor")?;
         check(s.ambient_boundary < B, "ambient_boundary")?;
         let timing = timing(s)?;
         check(
@@ -252,6 +254,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         };
         let dt_s = timing.clock.step_s();
         let model = Model::build(network, dt_s, s.origin_c)?;
+        check_kinds(&self.sensor_kinds, &self.sensor_nodes, &model.source_node)?;
         let gain = self.solve_biased_gain(&model, timing.correction_period)?;
         let cycle_s = dt_s * f64::from(s.protect_period_steps);
         let predictor = solve_predictor(network, cycle_s)?;
@@ -330,7 +333,14 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
             BiasLayout::shared(self.bias_sources, mask, &nominal_w)
         };
         let solve = |layout: &BiasLayout<M>| -> Result<SteadyStateGain<f32, X, P>, BuildError> {
-            let gain = solve_gain(model, &self.sensor_nodes, s, layout, period)?;
+            let gain = solve_gain(
+                model,
+                &self.sensor_nodes,
+                &sensor_variances_k2(&self.sensor_kinds, s.sensor_sigma_k),
+                s,
+                layout,
+                period,
+            )?;
             // The tables must say which biases are shared (`from_parts`
             // reads it back from the prior alone): a tie the rounding broke,
             // or a per-source solution correlated to the bit, is refused
@@ -393,7 +403,7 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
         &SMatrix<f64, N, M>,
         &SMatrix<f64, N, B>,
     ),
-    sensor_nodes: &[usize; P],
+    (sensor_nodes, sensor_var_k2): (&[usize; P], &[f64; P]),
     s: &NetworkSettings,
     layout: &BiasLayout<M>,
     reduced: bool,
@@ -474,7 +484,8 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
             }
         }
     }
-    let r = SVector::<f64, P>::repeat(s.sensor_sigma_k * s.sensor_sigma_k);
+    // Each sensor's own noise (a thermocouple's `sensor_sigma_k^2`).
+    let r = SVector::<f64, P>::from(*sensor_var_k2);
     // The input enters the mean predict only (see `Model`): the filter's
     // `G` is a placeholder column the gain solver never reads.
     let g = SMatrix::<f64, X, 1>::zeros();
@@ -488,13 +499,14 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
 fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
     model: &Model<N, B, M>,
     sensor_nodes: &[usize; P],
+    sensor_var_k2: &[f64; P],
     s: &NetworkSettings,
     layout: &BiasLayout<M>,
     period: u32,
 ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
     let kalman = filter_config::<N, B, M, X, P>(
         (&model.ad, &model.bd_power_f64, &model.gd_boundary_f64),
-        sensor_nodes,
+        (sensor_nodes, sensor_var_k2),
         s,
         layout,
         true,
@@ -585,6 +597,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// (`gain.period`), or the limits (`critical_c`, `derating_product`,
     /// `hardware_limit_a`).
     pub fn from_parts(parts: &NetworkParts<N, B, M, X, P>) -> Result<Self, BuildError> {
+        Self::from_parts_with_sensors(parts, &SensorKind::thermocouples())
+    }
+
+    /// [`Self::from_parts`] for tables solved with sensors of other kinds
+    /// (see [`super::resistance`]): `kinds[j]` is what sensor `j` is, as
+    /// [`NetworkObserverBuilder::kinds`] gave it to the solve.
+    ///
+    /// # Errors
+    /// Those of [`Self::from_parts`]; [`BuildError::InvalidParameter`]
+    /// naming a resistance sensor's field, `resistance_sensor` for one
+    /// that does not read its source's node, and `sensor_kinds` for
+    /// tables whose innovation variances were solved with other sensor
+    /// noises than these kinds' (a resistance sensor's tables assembled
+    /// as thermocouples', or the reverse).
+    pub fn from_parts_with_sensors(
+        parts: &NetworkParts<N, B, M, X, P>,
+        kinds: &[SensorKind; P],
+    ) -> Result<Self, BuildError> {
         const {
             assert!(
                 X == N + M || X == N + M + 1,
@@ -614,6 +644,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         let m = &parts.model;
         check(m.source_node.iter().all(|n| *n < N), "source_node")?;
+        check_kinds(kinds, &parts.sensor_nodes, &m.source_node)?;
+        let sensor_var_k2 = sensor_variances_k2(kinds, s.sensor_sigma_k);
         check(
             finite(m.ad.iter().flatten())
                 && finite(m.phi_minus_i.iter().flatten())
@@ -635,6 +667,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 && finite(g.prior_ht.iter().flatten())
                 && finite(g.innovation_cov.iter().flatten()),
             "gain",
+        )?;
+        check(
+            solved_with(g, &parts.sensor_nodes, &sensor_var_k2),
+            "sensor_kinds",
         )?;
         let predictor = predictor_from(&parts.predictor)?;
         let input_limits = InputLimits {
@@ -681,7 +717,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
         let kalman = filter_config::<N, B, M, X, P>(
             (&ad, &bd_power.cast(), &matrix(&m.gd_boundary).cast()),
-            &parts.sensor_nodes,
+            (&parts.sensor_nodes, &sensor_var_k2),
             s,
             &layout,
             false,
@@ -737,6 +773,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for n in parts.sensor_nodes {
             fingerprint = fingerprint.u32(n as u32);
         }
+        // A resistance sensor's conversion too (a thermocouple-only
+        // observer's fingerprint as before sensor kinds).
+        for r in kinds.iter().filter_map(SensorKind::resistance) {
+            fingerprint = fingerprint
+                .u32(r.source as u32)
+                .f64(r.r_at_0c_ohm)
+                .f64(r.slope_ohm_per_k)
+                .f64(r.sigma_k());
+        }
         // The protection too: a saved latch and temperatures were judged
         // against these limits (as the grid's and the Omnimagnet's).
         for row in &parts.incidence {
@@ -756,6 +801,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             kalman,
             gain,
             sensor_nodes: parts.sensor_nodes,
+            resistance_sensors: kinds.map(|k| k.resistance().map(|r| r.conversion())),
+            noise_allowance_k: kinds.map(|k| {
+                k.resistance()
+                    .map_or(0.0, |r| (libm::sqrt(s.gate_threshold) * r.sigma_k()) as f32)
+            }),
             limited,
             incidence: parts.incidence,
             hardware_limit_a: parts.hardware_limit_a.map(|a| a as f32),
@@ -806,6 +856,31 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             fingerprint: fingerprint.finish(),
         })
     }
+}
+
+/// Whether `g`'s innovation variances were solved with the sensor noises
+/// `sensor_var_k2` \[K^2\]: `S_jj = M_nn + r_j` for sensor `j` on node
+/// `n`, to the `f32` rounding of the tables (a relative 1e-4; the noises
+/// of a thermocouple and of a resistance sensor differ by tens of times).
+fn solved_with<const X: usize, const P: usize>(
+    g: &GainTables<X, P>,
+    sensor_nodes: &[usize; P],
+    sensor_var_k2: &[f64; P],
+) -> bool {
+    sensor_nodes
+        .iter()
+        .zip(sensor_var_k2)
+        .zip(&g.innovation_var)
+        .all(|((node, r), s)| {
+            let prior = g
+                .prior
+                .get(*node)
+                .and_then(|row| row.get(*node))
+                .copied()
+                .unwrap_or(f32::NAN);
+            let s = f64::from(*s);
+            (s - f64::from(prior) - r).abs() <= 1e-4 * s
+        })
 }
 
 fn predictor_from<const N: usize, const B: usize, const M: usize>(
