@@ -16,13 +16,13 @@
 //! returns [`BuildError::NoSteadyState`].
 //!
 //! A voltage-driven source's power `V_eff^2 / R(T)` is not affine in `T`:
-//! it is linearised at the previous iterate (Newton's method, `P(T) ~ P(T_k)
-//! + P'(T_k) (T - T_k)` with `P' = -s V_eff^2 / R^2 <= 0`, which only adds
-//! to the diagonal of `K`) and the linear solve repeated until the
-//! temperatures move by less than 1e-9 K (at most 100 solves). `1/R(T)` is
-//! convex and falling, so the iterates approach the one steady state from
-//! one side; the falling power never makes a pivot smaller, so a voltage
-//! drive never runs away.
+//! it is linearised at the previous iterate (Newton's method,
+//! `P(T) ~ P(T_k) + P'(T_k) (T - T_k)` with `P' = -s V_eff^2 / R^2 <= 0`,
+//! which only adds to the diagonal of `K`) and the linear solve repeated
+//! until the temperatures move by less than 1e-9 K (at most 100 solves).
+//! `1/R(T)` is convex and falling, so the iterates approach the one steady
+//! state from one side; the falling power never makes a pivot smaller, so
+//! a voltage drive never runs away.
 //!
 //! Build-time code: `O(N^3)` work and `N^2` `f64` on the stack (56 KiB for
 //! N = 84), meant for the host or for small networks on target.
