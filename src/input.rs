@@ -393,7 +393,10 @@ mod tests {
     fn bad_drives_are_flagged_and_give_no_voltage() {
         let ok = VoltageDrive::pwm(0.25, 24.0).effective_v();
         assert_eq!(ok, (12.0, DriveFlags::NONE));
-        assert_eq!(VoltageDrive::linear(12.0).effective_v(), (12.0, DriveFlags::NONE));
+        assert_eq!(
+            VoltageDrive::linear(12.0).effective_v(),
+            (12.0, DriveFlags::NONE)
+        );
         let (v, f) = VoltageDrive::pwm(1.5, 24.0).effective_v();
         assert_eq!((v, f), (24.0, DriveFlags::DUTY_CLAMPED));
         for duty in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.1] {
@@ -402,7 +405,10 @@ mod tests {
         }
         for supply in [f32::NAN, f32::INFINITY, 0.0, -24.0] {
             let (v, f) = VoltageDrive::pwm(0.5, supply).effective_v();
-            assert!(v.is_nan() && f.contains(DriveFlags::SUPPLY_INVALID), "{supply}");
+            assert!(
+                v.is_nan() && f.contains(DriveFlags::SUPPLY_INVALID),
+                "{supply}"
+            );
         }
     }
 

@@ -1455,7 +1455,9 @@ impl Model {
     pub fn currents_at(&self, effective: &mut [f64], temps_c: &[f64]) {
         for (d, slot) in self.drives.iter().zip(effective.iter_mut()) {
             if d.voltage.is_some() {
-                let r = d.resistance.at_c(temps_c.get(d.node).copied().unwrap_or(f64::NAN));
+                let r = d
+                    .resistance
+                    .at_c(temps_c.get(d.node).copied().unwrap_or(f64::NAN));
                 *slot = if r > 0.0 { *slot / r } else { 0.0 };
             }
         }

@@ -321,13 +321,9 @@ impl Plant for FilePlant {
             for _ in 0..n {
                 currents.copy_from_slice(&self.effective);
                 self.model.currents_at(&mut currents, &self.temps);
-                let _ = self.stepper.step(
-                    dt_s / n as f64,
-                    1,
-                    &currents,
-                    boundary_c,
-                    &mut self.temps,
-                );
+                let _ =
+                    self.stepper
+                        .step(dt_s / n as f64, 1, &currents, boundary_c, &mut self.temps);
             }
             return;
         }

@@ -174,7 +174,6 @@ impl<S: Scalar> ScalarResistance<S> {
         let r = (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(S::ZERO);
         r * current_a * current_a
     }
-
 }
 
 impl ScalarResistance<f32> {

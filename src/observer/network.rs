@@ -342,16 +342,16 @@ use crate::error::BuildError;
 use crate::filter::{
     predict_cov, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
 };
+use crate::input::{DriveFlags, VoltageDrive};
 use crate::input::{InputFlags, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::limiter::{drive_limit, DriveLimit};
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
-use crate::input::{DriveFlags, VoltageDrive};
-use crate::protect::limiter::{drive_limit, DriveLimit};
 
 /// Alternating projections of the heat biases' and the boundary offset's
 /// floors after a correction (see [`NetworkSettings::boundary_offset`]).

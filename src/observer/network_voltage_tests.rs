@@ -50,9 +50,7 @@ fn closed_form_steady_c(d: f64, v: f64) -> f64 {
 fn one_node_coil() -> Network<1, 1, 1> {
     Network::new([C_J_PER_K])
         .and_then(|n| n.connect_boundary(0, 0, 1.0 / RTH_K_PER_W))
-        .and_then(|n| {
-            n.voltage_source(0, 0, Resistance::with_alpha(R0_OHM, ALPHA_PER_K, T_REF_C))
-        })
+        .and_then(|n| n.voltage_source(0, 0, Resistance::with_alpha(R0_OHM, ALPHA_PER_K, T_REF_C)))
         .unwrap()
 }
 
@@ -146,9 +144,7 @@ fn voltage_drive_duty_held_at_the_limit_keeps_the_coil_under_its_alarm_limit() {
     let net: Network<2, 1, 1> = Network::new([C_W, C_H])
         .and_then(|n| n.connect(0, 1, G_WH))
         .and_then(|n| n.connect_boundary(1, 0, G_HA))
-        .and_then(|n| {
-            n.voltage_source(0, 0, Resistance::with_alpha(R0_OHM, ALPHA_PER_K, T_REF_C))
-        })
+        .and_then(|n| n.voltage_source(0, 0, Resistance::with_alpha(R0_OHM, ALPHA_PER_K, T_REF_C)))
         .unwrap();
     let obs: NetworkObserver<2, 1, 1, 3, 1> = NetworkObserverBuilder::new(&net, [1])
         .critical_c([Some(110.0), None])
@@ -265,7 +261,9 @@ fn a_falling_or_non_positive_resistance_is_refused_at_build() {
     );
     for r0 in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         assert_eq!(
-            base().joule_source(0, 0, Resistance::linear_fit(0.01, r0)).err(),
+            base()
+                .joule_source(0, 0, Resistance::linear_fit(0.01, r0))
+                .err(),
             Some(BuildError::InvalidResistance { input: 0 }),
             "{r0}"
         );
@@ -328,4 +326,41 @@ proptest::proptest! {
             }
         }
     }
+}
+
+/// The published duty limit is the current limit through `R` at the
+/// published *estimate* of the winding (not at its upper bound, which
+/// would give a larger duty), on the measured supply.
+#[test]
+fn voltage_drive_limit_takes_r_at_the_published_estimate() {
+    let net = one_node_coil();
+    let obs: NetworkObserver<1, 1, 1, 2, 1> = NetworkObserverBuilder::new(&net, [0])
+        .critical_c([Some(90.0)])
+        .hardware_limit_a([1.0])
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[AMBIENT_C as f32], &[AMBIENT_C as f32]);
+    for k in 0..1_200_000u32 {
+        let drive = [Some(VoltageDrive::pwm(1.0, 24.0))];
+        obs.tick_voltage(
+            &mut state,
+            &no_readings([25.0], k.wrapping_mul(1000)),
+            &drive,
+        );
+    }
+    let out = state.outputs();
+    let (t, lim) = (
+        f64::from(out.temps_c[0]),
+        f64::from(out.limits[0].current_a),
+    );
+    let want = (lim * r_ohm(t) / 24.0).powi(2).min(1.0);
+    let got = f64::from(obs.drive_limit(&state, 0, 24.0).duty);
+    std::println!(
+        "estimate {t:.3} degC, current limit {lim:.4} A: duty limit {got:.5} (formula {want:.5})"
+    );
+    assert!(lim < 0.99, "the limiter must act: {lim}");
+    assert!(
+        (got - want).abs() < 1e-4 * want.max(1e-3),
+        "{got} vs {want}"
+    );
 }

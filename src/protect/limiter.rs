@@ -134,7 +134,11 @@ pub fn drive_limit(
     } else {
         let ratio = voltage_v / supply_v;
         // `min` before squaring: a ratio beyond 1 is full on anyway.
-        let ratio = if ratio.is_finite() { ratio.min(1.0) } else { 0.0 };
+        let ratio = if ratio.is_finite() {
+            ratio.min(1.0)
+        } else {
+            0.0
+        };
         ratio * ratio
     };
     DriveLimit {

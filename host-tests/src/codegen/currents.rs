@@ -324,21 +324,18 @@ pub(super) fn source_drives_fn(model: &Model) -> String {
                     "observer.drive_limit(state, {m}, {scale} * {}).duty",
                     lit(v)
                 ),
-                Some(VoltageSource::PwmSignal(s)) => format!(
-                    "observer.drive_limit(state, {m}, {scale} * signal[{s}]).duty"
-                ),
-                Some(VoltageSource::Linear) => format!(
-                    "observer.drive_limit(state, {m}, 1.0_f32).voltage_v / {scale}"
-                ),
+                Some(VoltageSource::PwmSignal(s)) => {
+                    format!("observer.drive_limit(state, {m}, {scale} * signal[{s}]).duty")
+                }
+                Some(VoltageSource::Linear) => {
+                    format!("observer.drive_limit(state, {m}, 1.0_f32).voltage_v / {scale}")
+                }
             });
         }
         let (first, rest) = parts
             .split_first()
             .map_or(("0.0_f32".to_string(), &[][..]), |(f, r)| (f.clone(), r));
-        limits.push(
-            rest.iter()
-                .fold(first, |acc, l| format!("{acc}.min({l})")),
-        );
+        limits.push(rest.iter().fold(first, |acc, l| format!("{acc}.min({l})")));
     }
     o.push_str(concat!(
         "/// Each model input's limit in its own unit, after a tick: a `pwm`\n",

@@ -35,8 +35,8 @@ use crate::codegen::ObserverSpec;
 use crate::firmware::FirmwareConfig;
 use crate::limits::{on_big_stack, padded_with, Padding};
 use crate::model_file::{Model, VoltageSource};
-use coil_thermal::VoltageDrive;
 use crate::sim::{FilePlant, Plant};
+use coil_thermal::VoltageDrive;
 
 /// The padded sizes `C` the campaign builds (nodes + 1 for the spare
 /// sensor slot, and sources).
@@ -262,7 +262,9 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
                 // its supply, or the voltage.
                 let supply = self.supplies.get(m).copied().flatten();
                 let per_input = match supply {
-                    Some(v) if v > 0.0 && *k > 0.0 => self.observer.drive_limit(state, m, v * k).duty,
+                    Some(v) if v > 0.0 && *k > 0.0 => {
+                        self.observer.drive_limit(state, m, v * k).duty
+                    }
                     Some(_) if *k > 0.0 => self.observer.drive_limit(state, m, 1.0).voltage_v / k,
                     _ if *k > 0.0 => limit.current_a / k,
                     _ => f32::INFINITY,
