@@ -85,7 +85,7 @@
 //! [`Network::joule_source`]: the observer needs only `R(T)` and the node,
 //! and a measured current is exact whatever drives the coil), and tick
 //! with [`NetworkObserver::tick_voltage`], giving a
-//! [`VoltageDrive`](crate::input::VoltageDrive) for the driven inputs. Each
+//! [`VoltageDrive`] for the driven inputs. Each
 //! becomes the current the winding draws at its *estimated* temperature,
 //! `I = sqrt(D) V / R(T_est)`, so that the step's `R(T_est) I^2` is
 //! `D V^2 / R(T_est)`; the per-step path is [`tick`](NetworkObserver::tick)'s,
