@@ -39,6 +39,14 @@ pub enum BuildError {
         /// Current input index of the source.
         input: usize,
     },
+    /// A winding's resistance falls with temperature (`slope_ohm_per_k <
+    /// 0`): no winding's does, and `1/R(T)` is not faked this way; a coil
+    /// whose power falls as it heats is a voltage-driven source
+    /// ([`Network::voltage_source`](crate::Network::voltage_source)).
+    FallingResistance {
+        /// Input index of the source.
+        input: usize,
+    },
     /// A current input has no Joule source attached.
     MissingSource {
         /// Current input index.
@@ -123,6 +131,10 @@ impl fmt::Display for BuildError {
             Self::InvalidResistance { input } => write!(
                 f,
                 "resistance model of input {input} must be finite and > 0 ohm at its reference"
+            ),
+            Self::FallingResistance { input } => write!(
+                f,
+                "resistance of input {input} falls with temperature (slope_ohm_per_k < 0): give slope_ohm_per_k >= 0; a coil driven by a voltage is a voltage source (P = D V^2 / R(T))"
             ),
             Self::MissingSource { input } => write!(f, "current input {input} has no source"),
             Self::InvalidPower { node } => write!(f, "fixed power at node {node} must be finite"),

@@ -19,7 +19,131 @@
 //! elapsed time, or an early tick): its bad inputs are flagged and its good
 //! ones held, so the next step uses them.
 
+//!
+//! # Voltage-driven inputs
+//!
+//! A coil on a PWM duty `D` with a measured supply `V` (or a linear
+//! voltage `V`, `D = 1`) and no current sensing gives a [`VoltageDrive`]
+//! per tick instead of a current
+//! ([`NetworkObserver::tick_voltage`](crate::observer::NetworkObserver::tick_voltage)).
+//! Its rules, checked before the drive becomes a current, again chosen so
+//! that a bad drive never makes the model cooler than the truth:
+//!
+//! | input | bad when | what the step uses | flag |
+//! |---|---|---|---|
+//! | duty | NaN, infinite or negative | the last valid current of that input (held) | [`DriveFlags::DUTY_INVALID`] (and [`InputFlags::CURRENT_NOT_FINITE`]) |
+//! | duty | above 1 | 1 (full on: no drive applies more) | [`DriveFlags::DUTY_CLAMPED`] |
+//! | supply \[V\] | NaN, infinite, zero or negative | the last valid current of that input (held) | [`DriveFlags::SUPPLY_INVALID`] (and [`InputFlags::CURRENT_NOT_FINITE`]) |
+//!
+//! A supply reading of zero is taken as a missing reading, not as a coil
+//! switched off: a dead ADC channel reads zero, and taking it at its word
+//! would let the model cool a coil that may still be driven. The drive's
+//! limit for an invalid supply is a duty of zero (see
+//! [`crate::protect::limiter::drive_limit`]).
+
 use crate::scalar::Scalar;
+
+/// Bit set of the voltage-drive rules that fired during one tick (see
+/// "Voltage-driven inputs" above).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveFlags(u8);
+
+impl DriveFlags {
+    /// Every drive was used as given.
+    pub const NONE: Self = Self(0);
+    /// A duty was NaN, infinite or negative: the input's last valid
+    /// current was held.
+    pub const DUTY_INVALID: Self = Self(1);
+    /// A duty above 1 was taken as 1.
+    pub const DUTY_CLAMPED: Self = Self(2);
+    /// A supply reading was NaN, infinite, zero or negative: the input's
+    /// last valid current was held, and its duty limit is zero.
+    pub const SUPPLY_INVALID: Self = Self(4);
+    /// The winding's resistance at the estimate was not positive or the
+    /// current it gives not finite (a corrupted estimate): the last valid
+    /// current was held.
+    pub const RESISTANCE_INVALID: Self = Self(8);
+
+    /// `true` when no rule fired.
+    #[inline]
+    pub const fn is_clean(self) -> bool {
+        self.0 == 0
+    }
+    /// `true` when every flag in `other` is set in `self`.
+    #[inline]
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// Raw bits (for logging).
+    #[inline]
+    pub const fn bits(self) -> u8 {
+        self.0
+    }
+}
+
+impl core::ops::BitOr for DriveFlags {
+    type Output = Self;
+    fn bitor(self, rhs: Self) -> Self {
+        Self(self.0 | rhs.0)
+    }
+}
+
+impl core::ops::BitOrAssign for DriveFlags {
+    fn bitor_assign(&mut self, rhs: Self) {
+        self.0 |= rhs.0;
+    }
+}
+
+/// One tick's drive of a voltage-driven winding: a PWM duty on a measured
+/// supply, or a linear voltage (`duty = 1`, `supply_v` the voltage).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct VoltageDrive {
+    /// PWM duty in `[0, 1]` (dimensionless).
+    pub duty: f32,
+    /// Measured supply (or applied) voltage \[V\], > 0. A bipolar linear
+    /// drive gives its magnitude: heat goes with `V^2`.
+    pub supply_v: f32,
+}
+
+impl VoltageDrive {
+    /// A PWM duty `duty` in `[0, 1]` on a supply of `supply_v` \[V\].
+    pub const fn pwm(duty: f32, supply_v: f32) -> Self {
+        Self { duty, supply_v }
+    }
+
+    /// A linear voltage `voltage_v` \[V\] (duty 1).
+    pub const fn linear(voltage_v: f32) -> Self {
+        Self {
+            duty: 1.0,
+            supply_v: voltage_v,
+        }
+    }
+
+    /// The effective voltage `sqrt(D) V` \[V\] (the voltage whose square
+    /// is the mean `D V^2` a PWM drive puts across the winding), after the
+    /// rules of "Voltage-driven inputs": NaN for a drive whose current
+    /// must be held, with the rules that fired. Panic-free for any input.
+    #[inline]
+    pub fn effective_v(&self) -> (f32, DriveFlags) {
+        let mut flags = DriveFlags::NONE;
+        let duty = if !(self.duty.is_finite() && self.duty >= 0.0) {
+            flags |= DriveFlags::DUTY_INVALID;
+            f32::NAN
+        } else if self.duty > 1.0 {
+            flags |= DriveFlags::DUTY_CLAMPED;
+            1.0
+        } else {
+            self.duty
+        };
+        if !(self.supply_v.is_finite() && self.supply_v > 0.0) {
+            flags |= DriveFlags::SUPPLY_INVALID;
+            return (f32::NAN, flags);
+        }
+        (libm::sqrtf(duty) * self.supply_v, flags)
+    }
+}
 
 /// Bit set of the input rules that fired during one step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -263,6 +387,29 @@ mod tests {
             .accept_temperatures(&[21.0, 24.0], &mut held)
             .is_clean());
         assert_eq!(held, [21.0, 24.0]);
+    }
+
+    #[test]
+    fn bad_drives_are_flagged_and_give_no_voltage() {
+        let ok = VoltageDrive::pwm(0.25, 24.0).effective_v();
+        assert_eq!(ok, (12.0, DriveFlags::NONE));
+        assert_eq!(
+            VoltageDrive::linear(12.0).effective_v(),
+            (12.0, DriveFlags::NONE)
+        );
+        let (v, f) = VoltageDrive::pwm(1.5, 24.0).effective_v();
+        assert_eq!((v, f), (24.0, DriveFlags::DUTY_CLAMPED));
+        for duty in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.1] {
+            let (v, f) = VoltageDrive::pwm(duty, 24.0).effective_v();
+            assert!(v.is_nan() && f.contains(DriveFlags::DUTY_INVALID), "{duty}");
+        }
+        for supply in [f32::NAN, f32::INFINITY, 0.0, -24.0] {
+            let (v, f) = VoltageDrive::pwm(0.5, supply).effective_v();
+            assert!(
+                v.is_nan() && f.contains(DriveFlags::SUPPLY_INVALID),
+                "{supply}"
+            );
+        }
     }
 
     #[test]

@@ -124,8 +124,8 @@ pub struct ReadmeDoctests;
 
 pub use error::BuildError;
 pub use grid::{CoilGrid, GridConfig, GridParams, GridState, Stencil};
-pub use input::{InputFlags, InputLimits};
-pub use network::{ExplicitStepper, Network, NetworkState, Resistance};
+pub use input::{DriveFlags, InputFlags, InputLimits, VoltageDrive};
+pub use network::{Drive, ExplicitStepper, Network, NetworkState, Resistance};
 pub use network::{MotorBuilder, MotorDatasheet};
 pub use scalar::{Scalar, Q32};
 pub use sensors::{Reading, SensorFault, SensorResult};

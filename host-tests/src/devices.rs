@@ -207,6 +207,9 @@ fn grid_file_sized<const R: usize, const C: usize, const N: usize>(
             scale: None,
             scale_per_kj: None,
             speed: None,
+            drive: None,
+            supply_v: None,
+            supply_column: None,
         })
         .collect();
     let boundary = |name: &str| BoundarySpec {

@@ -744,6 +744,8 @@ impl Estimator for KalmanEstimator {
         let mut effective = std::mem::take(&mut self.effective);
         self.model
             .effective_currents(currents_a, signals, &mut effective);
+        // A voltage-driven winding draws `V_eff / R(T)` at the estimate.
+        self.model.currents_at(&mut effective, &self.temps);
         let net = &self.model.network;
         let mut u = vec![0.0; self.b.ncols()];
         for (s, (src, i)) in net.sources().iter().zip(&effective).enumerate() {

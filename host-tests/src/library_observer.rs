@@ -722,8 +722,18 @@ impl Estimator for ObserverEstimator {
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
         self.observer.inputs(&self.effective, boundary_c);
+        let voltage = self.model.has_voltage_drives();
         self.clock.ask(dt_s);
         while self.clock.next_tick(self.tick_us) {
+            if voltage {
+                // What `NetworkObserver::tick_voltage` does: each
+                // voltage-driven winding draws `V_eff / R(T_est)` at the
+                // estimate this tick starts from.
+                self.observer.temps_c(&mut self.temps);
+                let mut currents = self.effective.clone();
+                self.model.currents_at(&mut currents, &self.temps);
+                self.observer.inputs(&currents, boundary_c);
+            }
             let ns = self.observer.tick(self.tick_us);
             self.tick_ns.record(ns);
             let first = self.events.len();

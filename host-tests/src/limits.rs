@@ -491,6 +491,8 @@ impl TimeToLimit {
         }
         self.model
             .effective_currents(inputs_a, signals, &mut self.currents_a);
+        // A voltage-driven winding draws `V_eff / R(T)` at these temperatures.
+        self.model.currents_at(&mut self.currents_a, temps_c);
         self.predictor.predict(
             temps_c,
             &self.currents_a,

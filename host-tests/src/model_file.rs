@@ -326,6 +326,42 @@ pub struct SourceSpec {
     /// Optional speed-dependent factor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed: Option<SpeedSpec>,
+    /// What the input is (default `current`): `pwm` makes it a PWM duty in
+    /// `[0, 1]` on the supply `supply_v` or `supply_column`, `voltage` a
+    /// linear voltage \[V\]; both heat by `scale D V^2 / R(T)` (see
+    /// `coil_thermal::network::Drive`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<DriveKind>,
+    /// Constant supply of a `pwm` drive \[V\] (or give `supply_column`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supply_v: Option<f64>,
+    /// Trace column (or expression) of a `pwm` drive's measured supply \[V\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supply_column: Option<String>,
+}
+
+/// What a `[[source]]`'s input is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DriveKind {
+    /// The winding current \[A\]: `P = scale R(T) I^2`.
+    Current,
+    /// A PWM duty in `[0, 1]` on a supply: `P = scale D V^2 / R(T)`.
+    Pwm,
+    /// A linear voltage \[V\]: `P = scale V^2 / R(T)`.
+    Voltage,
+}
+
+/// Where a voltage-driven source's voltage comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VoltageSource {
+    /// A PWM duty (the input) on a constant supply \[V\].
+    PwmConstant(f64),
+    /// A PWM duty (the input) on a measured supply (index into
+    /// [`Model::signals`]).
+    PwmSignal(usize),
+    /// The input is the voltage \[V\].
+    Linear,
 }
 
 /// Speed factor `1 + a1 f + a2 f^2` with `f = |column| / reference`.
@@ -557,6 +593,11 @@ impl ModelFile {
                 scale: None,
                 scale_per_kj: None,
                 speed: None,
+                // A network's voltage-driven source takes its effective
+                // voltage as a linear voltage.
+                drive: (s.drive == coil_thermal::Drive::Voltage).then_some(DriveKind::Voltage),
+                supply_v: None,
+                supply_column: None,
             })
             .collect();
         let fixed_powers = (0..N)
@@ -844,6 +885,15 @@ pub struct SourceDrive {
     pub scale: f64,
     /// Speed factor, if any: (signal index into [`Model::signals`], reference, a1, a2).
     pub speed: Option<(usize, f64, f64, f64)>,
+    /// `Some` for a voltage-driven source: its input is a duty or a
+    /// voltage, and its network slot carries the effective voltage
+    /// `sqrt(scale D) V` until [`Model::currents_at`] turns it into the
+    /// current the winding draws at a temperature.
+    pub voltage: Option<VoltageSource>,
+    /// The node it heats and its resistance line (for [`Model::currents_at`]).
+    pub node: usize,
+    /// Its `R(T)`.
+    pub resistance: Resistance,
 }
 
 /// One current input of a model.
@@ -1153,10 +1203,43 @@ impl Model {
                     Some((idx, sp.reference, sp.a1, sp.a2))
                 }
             };
+            let voltage = match (s.drive.unwrap_or(DriveKind::Current), s.supply_v, &s.supply_column) {
+                (DriveKind::Current, None, None) => None,
+                (DriveKind::Current, _, _) | (DriveKind::Voltage, _, Some(_)) | (DriveKind::Voltage, Some(_), _) => bail!(
+                    "{}: supply_v and supply_column belong to drive = \"pwm\" (a duty on a supply)",
+                    ctx()
+                ),
+                (DriveKind::Voltage, None, None) => Some(VoltageSource::Linear),
+                (DriveKind::Pwm, Some(v), None) => {
+                    if !(v.is_finite() && v > 0.0) {
+                        bail!("{}: supply_v must be finite and > 0 V, got {v}", ctx());
+                    }
+                    Some(VoltageSource::PwmConstant(v))
+                }
+                (DriveKind::Pwm, None, Some(col)) => {
+                    Some(VoltageSource::PwmSignal(signal_index(&mut signals, col)))
+                }
+                (DriveKind::Pwm, None, None) => bail!(
+                    "{}: drive = \"pwm\" needs its supply: supply_v = 24.0 (constant) or supply_column = \"supply_v\" (measured)",
+                    ctx()
+                ),
+                (DriveKind::Pwm, Some(_), Some(_)) => {
+                    bail!("{}: give supply_v or supply_column, not both", ctx())
+                }
+            };
+            if voltage.is_some() && speed.is_some() {
+                bail!(
+                    "{}: a speed factor belongs to a current-driven source (a motor's copper), not to drive = \"pwm\" or \"voltage\"",
+                    ctx()
+                );
+            }
             drives.push(SourceDrive {
                 input,
                 scale,
                 speed,
+                voltage,
+                node,
+                resistance,
             });
         }
         let mut speed_losses = Vec::new();
@@ -1373,10 +1456,19 @@ impl Model {
                     factor *= (1.0 + a1 * f + a2 * f * f).max(0.0);
                 }
                 let i = currents_a[d.input];
-                if factor == 1.0 {
-                    i
-                } else {
-                    factor.sqrt() * i.abs()
+                match d.voltage {
+                    // The effective voltage `sqrt(k D) V` (a duty is
+                    // clamped to [0, 1]: no drive applies more or less).
+                    Some(VoltageSource::PwmConstant(v)) => {
+                        (factor * i.clamp(0.0, 1.0)).sqrt() * v.abs()
+                    }
+                    Some(VoltageSource::PwmSignal(k)) => {
+                        let v = signals.get(k).copied().unwrap_or(f64::NAN);
+                        (factor * i.clamp(0.0, 1.0)).sqrt() * v.abs()
+                    }
+                    Some(VoltageSource::Linear) => factor.sqrt() * i.abs(),
+                    None if factor == 1.0 => i,
+                    None => factor.sqrt() * i.abs(),
                 }
             }
             SourceKind::SpeedLoss(k) => {
@@ -1389,6 +1481,30 @@ impl Model {
                 if second { split.unwrap_or(0.0) } else { first }.sqrt()
             }
         }));
+    }
+
+    /// `true` when a `[[source]]` is driven by a voltage (`drive = "pwm"` or
+    /// `"voltage"`): its slot of [`Self::effective_currents`] is an
+    /// effective voltage until [`Self::currents_at`].
+    pub fn has_voltage_drives(&self) -> bool {
+        self.drives.iter().any(|d| d.voltage.is_some())
+    }
+
+    /// Turns the effective voltage `V_eff` of every voltage-driven source in
+    /// `effective` (from [`Self::effective_currents`]) into the current its
+    /// winding draws at node temperatures `temps_c`, `V_eff / R(T)`, so that
+    /// the library's `R(T) I^2` is its heat `V_eff^2 / R(T)`. A resistance
+    /// at or below zero gives no current (the line is refused where that
+    /// can happen in the model's range).
+    pub fn currents_at(&self, effective: &mut [f64], temps_c: &[f64]) {
+        for (d, slot) in self.drives.iter().zip(effective.iter_mut()) {
+            if d.voltage.is_some() {
+                let r = d
+                    .resistance
+                    .at_c(temps_c.get(d.node).copied().unwrap_or(f64::NAN));
+                *slot = if r > 0.0 { *slot / r } else { 0.0 };
+            }
+        }
     }
 
     /// `true` when a conductance depends on a signal: the network then

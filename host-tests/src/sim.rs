@@ -313,6 +313,20 @@ impl Plant for FilePlant {
             }
         }
         let n = self.substeps(dt_s);
+        if self.model.has_voltage_drives() {
+            // A voltage-driven winding draws `V_eff / R(T)`: its current is
+            // taken at the temperature each sub-step starts from, as the
+            // explicit step takes `R(T)` for a current.
+            let mut currents = self.effective.clone();
+            for _ in 0..n {
+                currents.copy_from_slice(&self.effective);
+                self.model.currents_at(&mut currents, &self.temps);
+                let _ =
+                    self.stepper
+                        .step(dt_s / n as f64, 1, &currents, boundary_c, &mut self.temps);
+            }
+            return;
+        }
         // A step the library refuses (only an overflowing rate can make
         // one) leaves the state where it is, as the library's own input
         // rules do.

@@ -74,7 +74,10 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
     ///
     /// Errors: [`BuildError::InvalidTimeStep`], [`BuildError::MissingSource`],
     /// [`BuildError::UnstableStep`] naming the worst node when
-    /// `dt * sum(G) / C >= 1` there, or an invalid `limits` parameter.
+    /// `dt * sum(G) / C >= 1` there, or an invalid `limits` parameter;
+    /// [`BuildError::InvalidParameter`] `"voltage_source"` for a network with
+    /// a voltage-driven source (its step takes currents only: drive it with
+    /// the current the winding draws, `V_eff / R(T)`, as the observers do).
     pub fn new(
         network: &Network<N, B, M>,
         dt_s: f64,
@@ -85,6 +88,16 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
             return Err(BuildError::InvalidTimeStep);
         }
         network.check_sources()?;
+        if network
+            .sources
+            .iter()
+            .flatten()
+            .any(|s| s.drive == super::Drive::Voltage)
+        {
+            return Err(BuildError::InvalidParameter {
+                name: "voltage_source",
+            });
+        }
         limits.validate()?;
         let mut worst = (0, 0.0f64);
         for i in 0..N {

@@ -3,7 +3,9 @@
 //! A network has `N` *state* nodes with heat capacity `C_i` \[J/K\], `B`
 //! *boundary* nodes whose temperatures are inputs each tick (ambient air,
 //! coolant), and `M` current inputs, each heating one node through a
-//! [`Resistance`] `R(T)`. Nodes are joined by conductances `G` \[W/K\], stored
+//! [`Resistance`] `R(T)` (or `M` inputs of which some are effective
+//! voltages, `P = V_eff^2 / R(T)`: see [`Drive`] and
+//! [`Network::voltage_source`]). Nodes are joined by conductances `G` \[W/K\], stored
 //! once per pair, so every watt that leaves one node arrives at the other and
 //! the network conserves energy by construction. The energy balance of node
 //! `i` is
@@ -30,7 +32,7 @@ mod steady;
 
 pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
 pub use motor::{DqScaling, Motor, MotorBuilder, MotorDatasheet, MotorHeatCapacity, MotorSensor};
-pub use source::{JouleSource, Resistance, ScalarResistance};
+pub use source::{Drive, JouleSource, Resistance, ScalarResistance};
 
 use crate::error::BuildError;
 use nalgebra::{SMatrix, SVector};
@@ -64,7 +66,9 @@ pub struct StateSpace<const N: usize, const B: usize, const M: usize> {
     /// Fixed powers over capacities \[K/s\].
     pub d: SVector<f64, N>,
     /// The paper's input matrix for `U = I^2` at the operating point
-    /// \[K/(s A^2)\]: `R(T_op) / C_node` (Omnimagnet Appendix B).
+    /// \[K/(s A^2)\]: `R(T_op) / C_node` (Omnimagnet Appendix B); for a
+    /// voltage-driven input, `U = V_eff^2` and the entry is `1 / (R(T_op)
+    /// C_node)` \[K/(s V^2)\].
     pub b_current_squared: SMatrix<f64, N, M>,
 }
 
@@ -184,12 +188,39 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
         Ok(self)
     }
 
-    /// Makes current input `input` heat `node` through `resistance`.
+    /// Makes current input `input` heat `node` through `resistance`:
+    /// `P = R(T) I^2`. The line is checked by [`Resistance::check`]: a
+    /// negative slope or `R(0 degC) <= 0` is refused.
     pub fn joule_source(
+        self,
+        input: usize,
+        node: usize,
+        resistance: Resistance,
+    ) -> Result<Self, BuildError> {
+        self.source_with(input, node, resistance, Drive::Current)
+    }
+
+    /// Makes input `input` a voltage-driven winding heating `node`: its
+    /// input is the effective voltage `V_eff = sqrt(D) V` \[V\] (PWM duty
+    /// `D` on supply `V`; a linear voltage has `D = 1`) and its heat is
+    /// `P = V_eff^2 / R(T)`, falling as the winding heats (see
+    /// [`Drive::Voltage`]). The line is checked as for
+    /// [`joule_source`](Self::joule_source).
+    pub fn voltage_source(
+        self,
+        input: usize,
+        node: usize,
+        resistance: Resistance,
+    ) -> Result<Self, BuildError> {
+        self.source_with(input, node, resistance, Drive::Voltage)
+    }
+
+    fn source_with(
         mut self,
         input: usize,
         node: usize,
         resistance: Resistance,
+        drive: Drive,
     ) -> Result<Self, BuildError> {
         if node >= N {
             return Err(BuildError::NodeOutOfRange { index: node });
@@ -198,10 +229,12 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
             .sources
             .get_mut(input)
             .ok_or(BuildError::NodeOutOfRange { index: input })?;
-        if !resistance.r_at_0c_ohm.is_finite() || !resistance.slope_ohm_per_k.is_finite() {
-            return Err(BuildError::InvalidResistance { input });
-        }
-        *slot = Some(JouleSource { node, resistance });
+        resistance.check(input)?;
+        *slot = Some(JouleSource {
+            node,
+            resistance,
+            drive,
+        });
         Ok(self)
     }
 
@@ -272,12 +305,14 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
         }
     }
 
-    /// Joule power of every input \[W\] at node temperatures `temps_c`.
+    /// Joule power of every input \[W\] at node temperatures `temps_c`
+    /// (`currents_a[m]` is an effective voltage \[V\] for a voltage-driven
+    /// input, see [`Drive`]).
     pub fn joule_powers_w(&self, temps_c: &[f64; N], currents_a: &[f64; M]) -> [f64; M] {
         let mut p = [0.0; M];
         for ((p, source), i) in p.iter_mut().zip(&self.sources).zip(currents_a) {
             if let Some(s) = source {
-                *p = s.resistance.at_c(temps_c[s.node]) * i * i;
+                *p = s.resistance.power_w(s.drive, temps_c[s.node], *i);
             }
         }
         p
@@ -382,7 +417,12 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
             if let Some(s) = source {
                 let c = self.capacity_j_per_k[s.node];
                 b_power[(s.node, m)] = 1.0 / c;
-                b_current_squared[(s.node, m)] = s.resistance.at_c(op_temps_c[s.node]) / c;
+                let r = s.resistance.at_c(op_temps_c[s.node]);
+                b_current_squared[(s.node, m)] = match s.drive {
+                    Drive::Current => r / c,
+                    // The input squared is `V_eff^2`: `1 / (R C)`.
+                    Drive::Voltage => 1.0 / (r * c),
+                };
             }
         }
         StateSpace {

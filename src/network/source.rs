@@ -10,8 +10,44 @@
 //!   [`Resistance::HPPA_COIL`].
 //!
 //! Stored as `R(T) = r_at_0c + slope * T`, one multiply and one add per tick.
+//!
+//! A network refuses (at build, [`Resistance::check`]) a line with a
+//! negative slope or with `R(0 degC) <= 0`: a winding's resistance rises
+//! with temperature and is positive at 0 degC (copper, aluminium), and a
+//! falling line was once used to fake `1/R(T)` for a coil driven by a
+//! voltage. Such a coil is a [`Drive::Voltage`] source.
+//!
+//! # Two drives
+//!
+//! * [`Drive::Current`]: the input is the winding's current `I` \[A\] and
+//!   its heat is `P = R(T) I^2`, rising as the winding heats (the
+//!   quasi-runaway of solenoid-layers-runaway.md);
+//! * [`Drive::Voltage`]: the input is the *effective* voltage
+//!   `V_eff = sqrt(D) V` \[V\] of a PWM duty `D` on a supply `V` (or a
+//!   linear voltage, `D = 1`), and the heat is `P = V_eff^2 / R(T) = D V^2 /
+//!   R(T)`, *falling* as the winding heats: a voltage-driven coil cannot
+//!   run away (the solenoid note's advice: a voltage limit on the source).
+//!
+//! The observers keep one per-tick power, `R(T) I^2`: a voltage-driven input
+//! is handed to them as the current it draws at the estimated winding
+//! temperature, `I = V_eff / R(T_est)`, so that `R(T_est) I^2 = D V^2 /
+//! R(T_est)` exactly (see [`crate::input::VoltageDrive`]).
 
+use crate::error::BuildError;
 use crate::scalar::Scalar;
+
+/// What drives a winding, and so what its input means.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Drive {
+    /// The input is the winding current \[A\]: `P = R(T) I^2`.
+    #[default]
+    Current,
+    /// The input is the effective voltage `V_eff = sqrt(D) V` \[V\] (a PWM
+    /// duty `D` in `[0, 1]` on a supply `V`, or a linear voltage with `D =
+    /// 1`): `P = V_eff^2 / R(T)`.
+    Voltage,
+}
 
 /// A winding's electrical resistance as a straight line in temperature.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,6 +109,36 @@ impl Resistance {
         t.is_finite().then_some(t)
     }
 
+    /// Checks a winding's line for source `input`: both coefficients finite
+    /// ([`BuildError::InvalidResistance`]), `R(0 degC) > 0`
+    /// ([`BuildError::InvalidResistance`]) and a slope `>= 0`
+    /// ([`BuildError::FallingResistance`]). A falling line has no meaning
+    /// for a winding: for a coil driven by a voltage, whose *power* falls
+    /// as it heats, use [`Drive::Voltage`].
+    pub fn check(&self, input: usize) -> Result<(), BuildError> {
+        if !(self.r_at_0c_ohm.is_finite() && self.slope_ohm_per_k.is_finite())
+            || self.r_at_0c_ohm <= 0.0
+        {
+            return Err(BuildError::InvalidResistance { input });
+        }
+        if self.slope_ohm_per_k < 0.0 {
+            return Err(BuildError::FallingResistance { input });
+        }
+        Ok(())
+    }
+
+    /// Heat \[W\] of a winding at `temp_c` driven by `input`: `R(T) I^2`
+    /// for a current \[A\], `V_eff^2 / R(T)` for an effective voltage \[V\]
+    /// (zero where `R(T) <= 0`: never a heat sink, never infinite).
+    pub fn power_w(&self, drive: Drive, temp_c: f64, input: f64) -> f64 {
+        let r = self.at_c(temp_c);
+        match drive {
+            Drive::Current => r * input * input,
+            Drive::Voltage if r > 0.0 => input * input / r,
+            Drive::Voltage => 0.0,
+        }
+    }
+
     /// `true` when both coefficients are finite and the resistance is positive
     /// at `temp_c`.
     pub fn is_valid_at(&self, temp_c: f64) -> bool {
@@ -110,7 +176,26 @@ impl<S: Scalar> ScalarResistance<S> {
     }
 }
 
-/// One current input heating one node: `P = R(T_node) I^2`.
+impl ScalarResistance<f32> {
+    /// The current \[A\] a winding at `temp_c` \[degC\] draws under the
+    /// effective voltage `v_eff` \[V\]: `V_eff / R(T)`, so that
+    /// [`joule_power_w`](Self::joule_power_w) of it is `V_eff^2 / R(T)`.
+    /// NaN where `R(T) <= 0` or the result is not finite (the observer then
+    /// holds its last valid current).
+    #[inline]
+    pub fn current_for_voltage_a(&self, temp_c: f32, v_eff: f32) -> f32 {
+        let r = self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c;
+        let i = v_eff / r;
+        if r > 0.0 && i.is_finite() {
+            i
+        } else {
+            f32::NAN
+        }
+    }
+}
+
+/// One input heating one node: `P = R(T_node) I^2` for a current drive,
+/// `P = V_eff^2 / R(T_node)` for a voltage drive.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct JouleSource {
@@ -118,6 +203,8 @@ pub struct JouleSource {
     pub node: usize,
     /// The winding's resistance model.
     pub resistance: Resistance,
+    /// What the input is: a current or an effective voltage.
+    pub drive: Drive,
 }
 
 #[cfg(test)]

@@ -15,11 +15,25 @@
 //! "quasi thermal runaway" of solenoid-layers-runaway.md) and the solve
 //! returns [`BuildError::NoSteadyState`].
 //!
+//! A voltage-driven source's power `V_eff^2 / R(T)` is not affine in `T`:
+//! it is linearised at the previous iterate (Newton's method,
+//! `P(T) ~ P(T_k) + P'(T_k) (T - T_k)` with `P' = -s V_eff^2 / R^2 <= 0`,
+//! which only adds to the diagonal of `K`) and the linear solve repeated
+//! until the temperatures move by less than 1e-9 K (at most 100 solves).
+//! `1/R(T)` is convex and falling, so the iterates approach the one steady
+//! state from one side; the falling power never makes a pivot smaller, so
+//! a voltage drive never runs away.
+//!
 //! Build-time code: `O(N^3)` work and `N^2` `f64` on the stack (56 KiB for
 //! N = 84), meant for the host or for small networks on target.
 
-use super::Network;
+use super::{Drive, Network};
 use crate::error::BuildError;
+
+/// Newton iterations at most for voltage-driven sources.
+const MAX_NEWTON: usize = 100;
+/// Largest move \[K\] of the last Newton iterate.
+const NEWTON_TOLERANCE_K: f64 = 1e-9;
 
 /// Relative size under which a pivot counts as zero.
 const PIVOT_EPSILON: f64 = 1e-12;
@@ -41,27 +55,51 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
                 name: "currents_a/boundary_c",
             });
         }
-        let (k, q) = self.steady_system(currents_a, boundary_c, true);
-        match solve_m_matrix(k, q) {
-            Ok(t) => Ok(t),
-            Err(()) => {
-                // Tell runaway apart from a node with no way out.
-                let (k0, q0) = self.steady_system(currents_a, boundary_c, false);
-                match solve_m_matrix(k0, q0) {
-                    Ok(_) => Err(BuildError::NoSteadyState),
-                    Err(()) => Err(BuildError::Singular),
+        // Voltage-driven sources are linearised at the warmest boundary
+        // first (or 0 degC without one), then at each iterate.
+        let start = boundary_c.iter().copied().fold(0.0f64, f64::max);
+        let mut at = [start; N];
+        let voltage = self
+            .sources
+            .iter()
+            .flatten()
+            .any(|s| s.drive == Drive::Voltage);
+        for _ in 0..MAX_NEWTON {
+            let (k, q) = self.steady_system(currents_a, boundary_c, true, &at);
+            let t = match solve_m_matrix(k, q) {
+                Ok(t) => t,
+                Err(()) => {
+                    // Tell runaway apart from a node with no way out.
+                    let (k0, q0) = self.steady_system(currents_a, boundary_c, false, &at);
+                    return match solve_m_matrix(k0, q0) {
+                        Ok(_) => Err(BuildError::NoSteadyState),
+                        Err(()) => Err(BuildError::Singular),
+                    };
                 }
+            };
+            let moved = t
+                .iter()
+                .zip(&at)
+                .fold(0.0f64, |acc, (a, b)| acc.max((a - b).abs()));
+            if !voltage || moved < NEWTON_TOLERANCE_K {
+                return Ok(t);
             }
+            at = t;
         }
+        Err(BuildError::NotConverged {
+            name: "steady_state",
+        })
     }
 
     /// `K` and `q` of the module docs; `with_feedback = false` drops the
     /// `s I^2` terms (constant resistance at 0 degC, used to classify failure).
+    /// Voltage-driven sources are linearised at `at` \[degC\].
     fn steady_system(
         &self,
         currents_a: &[f64; M],
         boundary_c: &[f64; B],
         with_feedback: bool,
+        at: &[f64; N],
     ) -> ([[f64; N]; N], [f64; N]) {
         let mut k = [[0.0; N]; N];
         let mut q = self.fixed_power_w;
@@ -79,7 +117,17 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
             }
         }
         for (source, current) in self.sources.iter().zip(currents_a) {
-            if let Some(s) = source {
+            if let Some(s) = source.filter(|s| s.drive == Drive::Voltage) {
+                // P(T) ~ P(T_k) + P'(T_k) (T - T_k), P' = -s u / R^2.
+                let u = current * current;
+                let r = s.resistance.at_c(at[s.node]);
+                if r > 0.0 {
+                    let p = u / r;
+                    let dp = -s.resistance.slope_ohm_per_k * u / (r * r);
+                    q[s.node] += p - dp * at[s.node];
+                    k[s.node][s.node] -= dp;
+                }
+            } else if let Some(s) = source {
                 let i2 = current * current;
                 q[s.node] += s.resistance.r_at_0c_ohm * i2;
                 if with_feedback {

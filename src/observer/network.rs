@@ -77,6 +77,33 @@
 //! # Ok::<(), coil_thermal::BuildError>(())
 //! ```
 //!
+//! # Voltage-driven coils
+//!
+//! A 24 V solenoid valve on a PWM duty `D` with a measured supply `V` and
+//! no current sensing heats by `D V^2 / R(T)`, which *falls* as it heats.
+//! Describe its winding with [`Network::voltage_source`] (or
+//! [`Network::joule_source`]: the observer needs only `R(T)` and the node,
+//! and a measured current is exact whatever drives the coil), and tick
+//! with [`NetworkObserver::tick_voltage`], giving a
+//! [`VoltageDrive`] for the driven inputs. Each
+//! becomes the current the winding draws at its *estimated* temperature,
+//! `I = sqrt(D) V / R(T_est)`, so that the step's `R(T_est) I^2` is
+//! `D V^2 / R(T_est)`; the per-step path is [`tick`](NetworkObserver::tick)'s,
+//! unchanged (a current-driven tick costs not a cycle more). Within one
+//! tick's catch-up steps `T_est` is the tick's first (at 1 ms steps the
+//! winding moves by 1e-5 K a step). The time-to-limit predictor then holds
+//! that current over its horizon with `R` at the alarm limit, which
+//! over-states a voltage-driven coil's heat (its true heat falls as it
+//! warms): the answer stays on the early side. The limit is published in
+//! the drive's own units by [`NetworkObserver::drive_limit`]: `D_max =
+//! (I_lim R(T_est) / V)^2` in `[0, 1]`, zero for a NaN, zero or negative
+//! supply reading (see [`crate::protect::limiter`], "A limit in the
+//! drive's own unit"). Tested against an independent `f64` RK4 of `C dT/dt
+//! = D V^2 / (R0 (1 + alpha (T - T_ref))) - (T - T_a) / R_th` and its
+//! closed-form steady state, and in closed loop (a duty held at the
+//! published limit keeps the coil under its derated alarm limit):
+//! `voltage_drive` tests of this module.
+//!
 //! # Limits per current: the incidence
 //!
 //! Each element with a limit derates *every* current that heats it, not
@@ -315,11 +342,13 @@ use crate::error::BuildError;
 use crate::filter::{
     predict_cov, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
 };
+use crate::input::{DriveFlags, VoltageDrive};
 use crate::input::{InputFlags, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::limiter::{drive_limit, DriveLimit};
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
@@ -1253,6 +1282,71 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         &state.outputs
     }
 
+    /// [`tick`](Self::tick) for windings driven by a voltage (see
+    /// "Voltage-driven coils" above): each `Some` drive replaces the
+    /// current of its input by the current the winding draws at the
+    /// estimated temperature of the node it heats, `sqrt(D) V / R(T_est)`,
+    /// so that every model step of this tick heats it by `D V^2 /
+    /// R(T_est)`. A bad drive holds the input's last valid current (flagged
+    /// here and as [`InputFlags::CURRENT_NOT_FINITE`] in the outputs); `None`
+    /// inputs take `inputs.currents_a` as measured. Bounded, allocation-free,
+    /// panic-free: one square root and one division per driven input more
+    /// than [`tick`](Self::tick), which it then calls.
+    pub fn tick_voltage<'s>(
+        &self,
+        state: &'s mut NetworkObserverState<N, B, M, X, P>,
+        inputs: &NetworkInputs<B, M, P>,
+        drives: &[Option<VoltageDrive>; M],
+    ) -> (&'s NetworkOutputs<N, M, P>, DriveFlags) {
+        let mut flags = DriveFlags::NONE;
+        let mut driven = *inputs;
+        for (((current, drive), node), r) in driven
+            .currents_a
+            .iter_mut()
+            .zip(drives)
+            .zip(&self.source_node)
+            .zip(&self.resistance)
+        {
+            if let Some(drive) = drive {
+                let (v_eff, f) = drive.effective_v();
+                flags |= f;
+                let t = self.origin_c + state.estimate.x.get(*node).copied().unwrap_or(f32::NAN);
+                *current = r.current_for_voltage_a(t, v_eff);
+                if f.is_clean() && current.is_nan() {
+                    flags |= DriveFlags::RESISTANCE_INVALID;
+                }
+            }
+        }
+        (self.tick(state, &driven), flags)
+    }
+
+    /// The limit of voltage-driven input `input` in its drive's units (a
+    /// duty and an effective voltage) for a supply measured at `supply_v`
+    /// \[V\], from the published current limit and `R(T)` at the
+    /// published estimate of the node it heats (see
+    /// [`crate::protect::limiter::drive_limit`]: an invalid supply gives
+    /// duty zero, flagged). Call after a tick; `O(1)`, panic-free; an input
+    /// out of range gets a zero limit.
+    pub fn drive_limit(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P>,
+        input: usize,
+        supply_v: f32,
+    ) -> DriveLimit {
+        let out = &state.outputs;
+        match (
+            out.limits.get(input),
+            self.resistance.get(input),
+            self.source_node.get(input),
+        ) {
+            (Some(limit), Some(r), Some(node)) => {
+                let t = out.temps_c.get(*node).copied().unwrap_or(f32::NAN);
+                drive_limit(limit, r, t, supply_v)
+            }
+            _ => DriveLimit::default(),
+        }
+    }
+
     fn age_time_to_limit(&self, state: &mut NetworkObserverState<N, B, M, X, P>) {
         let lag_s = state.cycle.lag_s();
         let ttl = state.predictor.time_to_limit_s();
@@ -2027,3 +2121,7 @@ pub use resistance::{ResistanceSensor, SensorKind};
 #[cfg(test)]
 #[path = "network_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "network_voltage_tests.rs"]
+mod voltage_drive;

@@ -39,6 +39,33 @@
 //! `taper_k` keeps the divisor positive, and a NaN ambient falls back to the
 //! taper band (NaN loses in [`Scalar::max`]).
 //!
+//! # A limit in the drive's own unit
+//!
+//! A voltage-driven winding (a PWM duty `D` on a supply `V`, see
+//! [`Drive::Voltage`](crate::network::Drive::Voltage)) is limited by its
+//! duty, not its current. [`drive_limit`] turns the current limit `I_lim`
+//! into the effective voltage and duty that draw it at the winding's
+//! estimated temperature `T`:
+//!
+//! ```text
+//! V_lim = I_lim R(T)                 (a linear voltage drive's limit)
+//! D_max = clamp((I_lim R(T) / V)^2, 0, 1)
+//! ```
+//!
+//! Held at `D_max`, the coil's heat `D_max V^2 / R(T')` equals the current
+//! limit's `I_lim^2 R(T)` at `T' = T` and is *below* it at any hotter `T'`
+//! (the current limit's heat rises with `T'`, the duty's falls), so a coil
+//! heating from `T` under the duty stays below the path the current limit
+//! allows. `R` is taken at the estimate, not at the upper bound: a hotter
+//! `R` would give a larger duty. With a supply reading that is NaN,
+//! infinite, zero or negative the duty limit is **zero** and flagged
+//! ([`DriveFlags::SUPPLY_INVALID`]): without the supply the heat a duty
+//! makes is unknown, the last valid reading may be lower than the supply
+//! now (a duty computed from it would overshoot the current limit by the
+//! ratio squared), and a de-energised solenoid valve is the fail-safe
+//! position it is designed for. The effective voltage limit `V_lim` needs
+//! no supply and stays published.
+//!
 //! # Invalid inputs
 //!
 //! A non-finite temperature or alarm limit gives the floor current and zero
@@ -48,7 +75,78 @@
 use core::ops::Range;
 
 use crate::error::BuildError;
+use crate::input::DriveFlags;
+use crate::network::ScalarResistance;
 use crate::scalar::Scalar;
+
+/// A voltage-driven winding's limit in its drive's units (see "A limit in
+/// the drive's own unit").
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveLimit {
+    /// The largest PWM duty in `[0, 1]` (dimensionless); zero for an
+    /// invalid supply reading or an invalid current limit.
+    pub duty: f32,
+    /// The largest effective voltage `sqrt(D) V` \[V\] (a linear drive's
+    /// voltage limit), `>= 0`; zero for an invalid current limit.
+    pub voltage_v: f32,
+    /// [`DriveFlags::SUPPLY_INVALID`] when the supply reading was unusable,
+    /// [`DriveFlags::RESISTANCE_INVALID`] when `R(T)` was not positive.
+    pub flags: DriveFlags,
+}
+
+/// The duty and effective-voltage limits of a voltage-driven winding with
+/// current limit `limit`, resistance `resistance` at its estimated
+/// temperature `temp_c` \[degC\], on a supply measured at `supply_v` \[V\]
+/// (see "A limit in the drive's own unit"). Panic-free for any input; a
+/// NaN anywhere gives a zero limit, never a NaN one.
+pub fn drive_limit(
+    limit: &CoilLimit<f32>,
+    resistance: &ScalarResistance<f32>,
+    temp_c: f32,
+    supply_v: f32,
+) -> DriveLimit {
+    let mut flags = DriveFlags::NONE;
+    let r = resistance.r_at_0c_ohm + resistance.slope_ohm_per_k * temp_c;
+    if !(r.is_finite() && r > 0.0) {
+        flags |= DriveFlags::RESISTANCE_INVALID;
+    }
+    let current_a = if limit.invalid || !limit.current_a.is_finite() {
+        0.0
+    } else {
+        limit.current_a.abs()
+    };
+    let voltage_v = if flags.is_clean() {
+        let v = current_a * r;
+        if v.is_finite() {
+            v
+        } else {
+            0.0
+        }
+    } else {
+        0.0
+    };
+    if !(supply_v.is_finite() && supply_v > 0.0) {
+        flags |= DriveFlags::SUPPLY_INVALID;
+    }
+    let duty = if flags.contains(DriveFlags::SUPPLY_INVALID) {
+        0.0
+    } else {
+        let ratio = voltage_v / supply_v;
+        // `min` before squaring: a ratio beyond 1 is full on anyway.
+        let ratio = if ratio.is_finite() {
+            ratio.min(1.0)
+        } else {
+            0.0
+        };
+        ratio * ratio
+    };
+    DriveLimit {
+        duty,
+        voltage_v,
+        flags,
+    }
+}
 
 /// The limiter configuration for `N` coils, in scalar `S`.
 #[derive(Debug, Clone, PartialEq)]

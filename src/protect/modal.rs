@@ -55,7 +55,12 @@ pub(crate) fn feedback_w_per_k<const N: usize, const B: usize, const M: usize>(
 ) -> [f64; N] {
     let mut feedback = [0.0; N];
     for (m, current) in currents_a.iter().enumerate() {
-        if let Some(source) = network.source(m) {
+        // A voltage drive's feedback is negative (its power falls as it
+        // heats): left out, which keeps the analysis on the hot side.
+        if let Some(source) = network
+            .source(m)
+            .filter(|s| s.drive == crate::network::Drive::Current)
+        {
             if let Some(f) = feedback.get_mut(source.node) {
                 *f += source.resistance.slope_ohm_per_k * current * current;
             }

@@ -66,7 +66,8 @@ pub fn runaway_current_a<const N: usize, const B: usize, const M: usize>(
         return Err(BuildError::InvalidParameter { name: "currents_a" });
     }
     let slope = source.resistance.slope_ohm_per_k;
-    if slope <= 0.0 {
+    // A voltage-driven coil's power falls as it heats: it cannot run away.
+    if slope <= 0.0 || source.drive == crate::network::Drive::Voltage {
         return Ok(None);
     }
     let mut others = *currents_a;

@@ -170,6 +170,13 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             ),
         }
     };
+    if model.has_voltage_drives() {
+        bail!(
+            "limits: model `{}` has a voltage-driven [[source]] (drive = \"pwm\" or \"voltage\"): \
+             `limits` takes currents only; simulate or replay the duty instead",
+            model.name
+        );
+    }
     let mut currents = Vec::new();
     model.effective_currents(&per_input, &[], &mut currents);
     let boundary_c: Vec<f64> = model

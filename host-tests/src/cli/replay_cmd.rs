@@ -273,6 +273,7 @@ fn survey(
             // (20 degC without a boundary) plus the fixed powers.
             let t_c = first.boundaries.first().copied().unwrap_or(20.0);
             model.effective_currents(&row.currents, &row.signals, &mut effective);
+            model.currents_at(&mut effective, &vec![t_c; model.nodes.len()]);
             let joule: f64 = net
                 .sources()
                 .iter()

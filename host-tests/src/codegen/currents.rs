@@ -20,7 +20,7 @@
 
 use std::fmt::Write as _;
 
-use crate::model_file::{LossTerm, Model, SourceKind};
+use crate::model_file::{LossTerm, Model, SourceKind, VoltageSource};
 
 /// What one current of the observer is made of.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -256,5 +256,98 @@ pub(super) fn source_currents_fn(model: &Model, currents: &[CurrentOf]) -> Strin
             o.push_str("/// `x` clipped to `[0, 1]`, NaN kept.\nfn unit_interval(x: f32) -> f32 {\n    x.clamp(0.0, 1.0)\n}\n\n");
         }
     }
+    o
+}
+
+/// The generated module's `source_drives` and `input_drive_limits`, for a
+/// model with a voltage-driven `[[source]]` (`drive = "pwm"` or
+/// `"voltage"`; nothing for a current-driven model, whose module is
+/// unchanged). A `pwm` source's duty is its input, its supply the constant
+/// `supply_v` or the signal `supply_column`; its power scale `k` (folded
+/// into its resistance, see the module docs) multiplies the supply by
+/// `k`: `V_eff = sqrt(D) k V` through `k R(T)` is `k D V^2 / R(T)`. A
+/// linear `voltage` source is a duty of 1 on its input voltage.
+pub(super) fn source_drives_fn(model: &Model) -> String {
+    let mut exprs = Vec::new();
+    for kind in model.source_kinds() {
+        exprs.push(match kind {
+            SourceKind::Drive(k) => {
+                let d = &model.drives[k];
+                let scale = lit(d.scale.max(0.0));
+                match d.voltage {
+                    None => "None".to_string(),
+                    Some(VoltageSource::PwmConstant(v)) => format!(
+                        "Some(VoltageDrive::pwm(input[{}], {scale} * {}))",
+                        d.input,
+                        lit(v)
+                    ),
+                    Some(VoltageSource::PwmSignal(s)) => format!(
+                        "Some(VoltageDrive::pwm(input[{}], {scale} * signal[{s}]))",
+                        d.input
+                    ),
+                    Some(VoltageSource::Linear) => format!(
+                        "Some(VoltageDrive::linear({scale} * <f32 as coil_thermal::Scalar>::abs(input[{}])))",
+                        d.input
+                    ),
+                }
+            }
+            _ => "None".to_string(),
+        });
+    }
+    let mut o = String::new();
+    o.push_str(concat!(
+        "/// The voltage drive of each current (`None`: a current drive, taken\n",
+        "/// from [`source_currents_a`]) from the model file's inputs (a PWM\n",
+        "/// duty, or a voltage \\[V\\]) and signals (a measured supply \\[V\\]).\n",
+        "/// Tick with `observer.tick_voltage(&mut state, &inputs, &source_drives(..))`:\n",
+        "/// each becomes the current the winding draws at its estimated\n",
+        "/// temperature; a NaN, negative or zero duty or supply is held and\n",
+        "/// flagged (`DriveFlags`).\n",
+        "pub fn source_drives(input: &[f32; INPUTS], signal: &[f32; SIGNALS]) -> [Option<VoltageDrive>; CURRENTS] {\n",
+        "    let _ = signal;\n",
+    ));
+    let _ = writeln!(o, "    [{}]\n}}\n", exprs.join(", "));
+    // Each voltage-driven input's limit in its own unit.
+    let mut limits = Vec::new();
+    for (k, _) in model.inputs.iter().enumerate() {
+        let mut parts = Vec::new();
+        for (m, kind) in model.source_kinds().enumerate() {
+            let SourceKind::Drive(j) = kind else { continue };
+            let d = &model.drives[j];
+            if d.input != k {
+                continue;
+            }
+            let scale = lit(d.scale.max(0.0));
+            parts.push(match d.voltage {
+                None => format!("outputs.limits[{m}].current_a"),
+                Some(VoltageSource::PwmConstant(v)) => format!(
+                    "observer.drive_limit(state, {m}, {scale} * {}).duty",
+                    lit(v)
+                ),
+                Some(VoltageSource::PwmSignal(s)) => {
+                    format!("observer.drive_limit(state, {m}, {scale} * signal[{s}]).duty")
+                }
+                Some(VoltageSource::Linear) => {
+                    format!("observer.drive_limit(state, {m}, 1.0_f32).voltage_v / {scale}")
+                }
+            });
+        }
+        let (first, rest) = parts
+            .split_first()
+            .map_or(("0.0_f32".to_string(), &[][..]), |(f, r)| (f.clone(), r));
+        limits.push(rest.iter().fold(first, |acc, l| format!("{acc}.min({l})")));
+    }
+    o.push_str(concat!(
+        "/// Each model input's limit in its own unit, after a tick: a `pwm`\n",
+        "/// input's largest duty in `[0, 1]` on its supply (`(I_lim R(T) / V)^2`,\n",
+        "/// zero for a NaN, zero or negative supply reading), a `voltage`\n",
+        "/// input's largest voltage \\[V\\], a current input's current \\[A\\]\n",
+        "/// (as [`input_limits_a`]).\n",
+        "pub fn input_drive_limits(observer: &Observer, state: &State, signal: &[f32; SIGNALS]) -> [f32; INPUTS] {\n",
+        "    let _ = signal;\n",
+        "    let outputs = state.outputs();\n",
+        "    let _ = outputs;\n",
+    ));
+    let _ = writeln!(o, "    [{}]\n}}\n", limits.join(", "));
     o
 }

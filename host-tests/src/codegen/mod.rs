@@ -53,7 +53,9 @@ pub mod build_hint;
 mod currents;
 mod devices;
 
-use currents::{check_f32_range, currents_of, input_limits_fn, source_currents_fn, CurrentOf};
+use currents::{
+    check_f32_range, currents_of, input_limits_fn, source_currents_fn, source_drives_fn, CurrentOf,
+};
 pub use devices::*;
 
 /// The `[observer]` table of a model file: what the firmware observer needs
@@ -324,7 +326,11 @@ impl Plan {
         o.push_str(
             "\n#![allow(dead_code, clippy::approx_constant, clippy::excessive_precision, clippy::unreadable_literal)]\n\n",
         );
-        o.push_str("use coil_thermal::observer::network::{\n    NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,\n};\nuse coil_thermal::observer::snapshot::{self, RestorePolicy, SnapshotError};\nuse coil_thermal::protect::limiter::CoilLimit;\nuse coil_thermal::{BuildError, Network, Resistance};\n\n");
+        o.push_str("use coil_thermal::observer::network::{\n    NetworkInputs, NetworkObserver, NetworkObserverState, NetworkOutputs, NetworkParts,\n};\nuse coil_thermal::observer::snapshot::{self, RestorePolicy, SnapshotError};\nuse coil_thermal::protect::limiter::CoilLimit;\nuse coil_thermal::{BuildError, Network, Resistance};\n");
+        if self.model.has_voltage_drives() {
+            o.push_str("use coil_thermal::VoltageDrive;\n");
+        }
+        o.push('\n');
         let _ = writeln!(o, "/// State nodes.\npub const NODES: usize = {n};");
         let _ = writeln!(
             o,
@@ -406,6 +412,9 @@ impl Plan {
         o.push_str("\n/// The configuration.\npub type Observer = NetworkObserver<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// The per-device state.\npub type State = NetworkObserverState<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS>;\n/// One tick's inputs.\npub type Inputs = NetworkInputs<BOUNDARIES, CURRENTS, SENSORS>;\n/// One tick's outputs.\npub type Outputs = NetworkOutputs<NODES, CURRENTS, SENSORS>;\n\n");
         o.push_str(&source_currents_fn(&self.model, &self.currents));
         o.push_str(&input_limits_fn(self.model.inputs.len(), &self.currents));
+        if self.model.has_voltage_drives() {
+            o.push_str(&source_drives_fn(&self.model));
+        }
         o.push_str("/// The network the tables were solved from (for host checks; the\n/// firmware needs only [`PARTS`]).\n///\n/// # Errors\n/// None for a generated file; the type is the builder's.\npub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {\n");
         // A chain of builder calls, each but the last with `?`.
         let mut calls = vec![format!("Network::new({})", list(net.capacities_j_per_k()))];

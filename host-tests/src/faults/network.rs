@@ -34,8 +34,9 @@ use super::{
 use crate::codegen::ObserverSpec;
 use crate::firmware::FirmwareConfig;
 use crate::limits::{on_big_stack, padded_with, Padding};
-use crate::model_file::Model;
+use crate::model_file::{Model, VoltageSource};
 use crate::sim::{FilePlant, Plant};
+use coil_thermal::VoltageDrive;
 
 /// The padded sizes `C` the campaign builds (nodes + 1 for the spare
 /// sensor slot, and sources).
@@ -59,6 +60,11 @@ struct NetSubject<const C: usize, const X: usize, const P: usize> {
     /// Per source: its input and the factor on that input's current (the
     /// square root of the source's scale: the same power).
     drives: Vec<(usize, f32)>,
+    /// Per source: the constant supply \[V\] of a `pwm` drive, or `0` for
+    /// a linear `voltage` drive; `None` for a current drive. The observer
+    /// takes them through `tick_voltage`, and their limits are duties (or
+    /// volts) from `drive_limit`.
+    supplies: Vec<Option<f32>>,
 }
 
 impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
@@ -129,6 +135,22 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
                     None => FaultError::Build(e),
                 }
             })?;
+        let mut supplies = Vec::new();
+        for (k, d) in model.drives.iter().enumerate() {
+            supplies.push(match d.voltage {
+                None => None,
+                Some(VoltageSource::PwmConstant(v)) => Some(v as f32),
+                Some(VoltageSource::Linear) => Some(0.0),
+                Some(VoltageSource::PwmSignal(_)) => {
+                    return Err(FaultError::Invalid(format!(
+                        "model `{}`: [[source]] #{} takes its supply from a trace column, and the campaign has no signal columns; \
+                         give it a constant supply_v for the campaign",
+                        model.name,
+                        k + 1
+                    )))
+                }
+            });
+        }
         let plant = FilePlant::new(model.clone()).map_err(invalid)?;
         let mut alarm_nodes: Vec<usize> = (0..model.nodes.len())
             .filter(|n| model.critical_c[*n].is_some())
@@ -150,6 +172,7 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
                 .iter()
                 .map(|d| (d.input, d.scale.max(0.0).sqrt() as f32))
                 .collect(),
+            supplies,
         })
     }
 }
@@ -202,7 +225,29 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             now_us: i.now_us,
             elapsed_us: i.elapsed_us,
         };
-        self.observer.tick(state, &inputs);
+        if self.supplies.iter().any(Option::is_some) {
+            // `scale D V^2 / R` is the duty `D` on the supply `k V`, `k =
+            // sqrt(scale)` (a linear drive: the voltage `k V`), so the
+            // duty's own rules (flags, clamp) act on the trace's duty.
+            let mut drives = [None; C];
+            for ((d, supply), ((input, k), current)) in drives
+                .iter_mut()
+                .zip(&self.supplies)
+                .zip(self.drives.iter().zip(&currents_a))
+            {
+                *d = supply.map(|v| {
+                    let given = i.currents_a.get(*input).copied().unwrap_or(0.0);
+                    if v > 0.0 {
+                        VoltageDrive::pwm(given, v * k)
+                    } else {
+                        VoltageDrive::linear(current.abs())
+                    }
+                });
+            }
+            self.observer.tick_voltage(state, &inputs, &drives);
+        } else {
+            self.observer.tick(state, &inputs);
+        }
         self.view(state)
     }
     fn view(&self, state: &Self::State) -> TickView {
@@ -211,12 +256,18 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         // input's amperes (a source carries the input's current times
         // its factor).
         let mut limits_a = vec![f32::INFINITY; self.inputs()];
-        for ((input, k), limit) in self.drives.iter().zip(&out.limits) {
+        for (m, ((input, k), limit)) in self.drives.iter().zip(&out.limits).enumerate() {
             if let Some(l) = limits_a.get_mut(*input) {
-                let per_input = if *k > 0.0 {
-                    limit.current_a / k
-                } else {
-                    f32::INFINITY
+                // A voltage drive's limit in its own unit: the duty on
+                // its supply, or the voltage.
+                let supply = self.supplies.get(m).copied().flatten();
+                let per_input = match supply {
+                    Some(v) if v > 0.0 && *k > 0.0 => {
+                        self.observer.drive_limit(state, m, v * k).duty
+                    }
+                    Some(_) if *k > 0.0 => self.observer.drive_limit(state, m, 1.0).voltage_v / k,
+                    _ if *k > 0.0 => limit.current_a / k,
+                    _ => f32::INFINITY,
                 };
                 *l = l.min(per_input);
             }
