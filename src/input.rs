@@ -43,6 +43,48 @@
 
 use crate::scalar::Scalar;
 
+/// The methods and `|` of a `u8` bit set of rules that fired.
+macro_rules! flag_set {
+    ($name:ident) => {
+        impl $name {
+            /// `true` when no rule fired.
+            #[inline]
+            pub const fn is_clean(self) -> bool {
+                self.0 == 0
+            }
+            /// `true` when every flag in `other` is set in `self`.
+            #[inline]
+            pub const fn contains(self, other: Self) -> bool {
+                self.0 & other.0 == other.0
+            }
+            /// The union of two flag sets.
+            #[inline]
+            #[must_use]
+            pub const fn union(self, other: Self) -> Self {
+                Self(self.0 | other.0)
+            }
+            /// Raw bits (for logging).
+            #[inline]
+            pub const fn bits(self) -> u8 {
+                self.0
+            }
+        }
+
+        impl core::ops::BitOr for $name {
+            type Output = Self;
+            fn bitor(self, rhs: Self) -> Self {
+                self.union(rhs)
+            }
+        }
+
+        impl core::ops::BitOrAssign for $name {
+            fn bitor_assign(&mut self, rhs: Self) {
+                *self = self.union(rhs);
+            }
+        }
+    };
+}
+
 /// Bit set of the voltage-drive rules that fired during one tick (see
 /// "Voltage-driven inputs" above).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -65,35 +107,9 @@ impl DriveFlags {
     /// current was held.
     pub const RESISTANCE_INVALID: Self = Self(8);
 
-    /// `true` when no rule fired.
-    #[inline]
-    pub const fn is_clean(self) -> bool {
-        self.0 == 0
-    }
-    /// `true` when every flag in `other` is set in `self`.
-    #[inline]
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-    /// Raw bits (for logging).
-    #[inline]
-    pub const fn bits(self) -> u8 {
-        self.0
-    }
 }
 
-impl core::ops::BitOr for DriveFlags {
-    type Output = Self;
-    fn bitor(self, rhs: Self) -> Self {
-        Self(self.0 | rhs.0)
-    }
-}
-
-impl core::ops::BitOrAssign for DriveFlags {
-    fn bitor_assign(&mut self, rhs: Self) {
-        self.0 |= rhs.0;
-    }
-}
+flag_set!(DriveFlags);
 
 /// One tick's drive of a voltage-driven winding: a PWM duty on a measured
 /// supply, or a linear voltage (`duty = 1`, `supply_v` the voltage).
@@ -189,41 +205,9 @@ impl InputFlags {
     /// sensor in doubt.
     pub const MODEL_STALE: Self = Self(128);
 
-    /// `true` when no rule fired.
-    #[inline]
-    pub const fn is_clean(self) -> bool {
-        self.0 == 0
-    }
-    /// `true` when every flag in `other` is set in `self`.
-    #[inline]
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-    /// The union of two flag sets.
-    #[inline]
-    #[must_use]
-    pub const fn union(self, other: Self) -> Self {
-        Self(self.0 | other.0)
-    }
-    /// Raw bits (for logging).
-    #[inline]
-    pub const fn bits(self) -> u8 {
-        self.0
-    }
 }
 
-impl core::ops::BitOr for InputFlags {
-    type Output = Self;
-    fn bitor(self, rhs: Self) -> Self {
-        self.union(rhs)
-    }
-}
-
-impl core::ops::BitOrAssign for InputFlags {
-    fn bitor_assign(&mut self, rhs: Self) {
-        *self = self.union(rhs);
-    }
-}
+flag_set!(InputFlags);
 
 /// The plausible range of each input, fixed when a stepper is built.
 #[derive(Debug, Clone, Copy, PartialEq)]
