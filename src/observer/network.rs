@@ -151,7 +151,7 @@
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
 //! the model until a sensor agrees with it again. A reading that repeats
 //! its value (to the bit) while the shadow at its node has moved by more
-//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s, or
+//! than [`SensorChecks::stuck_threshold_k`] (1 K) within 120 s, or
 //! since the reading last changed by more than that plus the band's share
 //! of the node's rise then, is stuck ([`SensorStatus::Stuck`]) and not
 //! fused until it moves: a test that does not lean on the estimate the
@@ -309,7 +309,9 @@ use super::cycle::aged_time_to_limit;
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
 use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
 use super::start;
-use super::vocabulary::{SensorStatus, TimedReading, EVENT_CAPACITY};
+use super::vocabulary::{
+    FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
+};
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -427,20 +429,6 @@ pub struct NetworkSettings {
     /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
     /// 100 (0.1 s at a 1 ms loop).
     pub frozen_flag_ticks: u32,
-    /// How far the shadow model at a sensor's node must move while its
-    /// reading stays the same (to the bit) for the sensor to count as
-    /// stuck \[K\] (see "Sensors against the physics"; `f64::INFINITY`
-    /// turns the test off). Default 1.0.
-    pub stuck_threshold_k: f64,
-    /// How far a reading may move and still count as unchanged for the
-    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0; see
-    /// [`OmniSettings::stuck_tolerance_k`](super::OmniSettings::stuck_tolerance_k).
-    pub stuck_tolerance_k: f64,
-    /// Largest steady-state standard deviation \[K\] an element with a
-    /// limit may have: a sensor set that leaves one less certain is refused
-    /// at build ([`BuildError::Unobservable`]). Default 5
-    /// (`f64::INFINITY`: no check).
-    pub max_element_sigma_k: f64,
     /// Corrections run by the time-varying filter before the steady gain
     /// takes over (the optional time-varying path): from the steady prior
     /// widened by the recovery variances (`recovery_sigma_k`,
@@ -457,13 +445,10 @@ pub struct NetworkSettings {
     /// ([`InputLimits::default`](crate::InputLimits)); a 400 A motor
     /// drive sets its own.
     pub max_current_a: f64,
-    /// Fixed part of the band a reading must keep to against the unfused
-    /// shadow model, below it \[K\] (see "Sensors against the physics";
-    /// `f64::INFINITY` turns the test off). Default 3.
-    pub consistency_offset_k: f64,
-    /// Share of the shadow model's rise above the ambient in that band
-    /// (dimensionless, `>= 0`): the model's uncertainty. Default 0.25.
-    pub consistency_fraction: f64,
+    /// The checks the sensors are held to against the physics and the
+    /// bound on what they leave uncertain (see "Sensors against the
+    /// physics"). Default [`SensorChecks::DEFAULT`].
+    pub checks: SensorChecks,
     /// Largest heat the thermocouples may explain away, as a share of each
     /// current's Joule power at the estimate (dimensionless, finite,
     /// `>= 0`): the floor of each heat-input bias is `-fraction * P_m`.
@@ -510,13 +495,9 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
-        stuck_threshold_k: 1.0,
-        stuck_tolerance_k: 0.0,
-        max_element_sigma_k: 5.0,
         warmup_corrections: 0,
         max_current_a: 100.0,
-        consistency_offset_k: 3.0,
-        consistency_fraction: 0.25,
+        checks: SensorChecks::DEFAULT,
         max_cooling_bias_fraction: 0.0,
         frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
         frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
@@ -545,35 +526,10 @@ pub struct NetworkInputs<const B: usize, const M: usize, const P: usize> {
     pub elapsed_us: u32,
 }
 
-/// What one tick produced (`Copy`, for [`Shared`](super::Shared)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct NetworkOutputs<const N: usize, const M: usize, const P: usize> {
-    /// Node temperature estimates \[degC\].
-    pub temps_c: [f32; N],
-    /// Each node's protective upper bound \[degC\] (what the alarm and the
-    /// limiter act on), taken with the protection cycle.
-    pub upper_c: [f32; N],
-    /// Current limit per input.
-    pub limits: [CoilLimit<f32>; M],
-    /// Time until each limited element's upper bound reaches its alarm
-    /// limit \[s\] (`None`: never, or no limit).
-    pub time_to_limit_s: [Option<f32>; N],
-    /// The alarm summary.
-    pub alarm: AlarmStatus,
-    /// What happened to each sensor's reading.
-    pub sensors: [SensorStatus; P],
-    /// A correction ran this tick.
-    pub corrected: bool,
-    /// Input rules that fired this tick.
-    pub flags: InputFlags,
-    /// Model steps taken this tick.
-    pub steps: u32,
-    /// Time dropped by the catch-up limit \[us\].
-    pub dropped_us: u32,
-    /// Ticks since the state was made.
-    pub tick: u32,
-}
+/// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
+/// filtered observers' outputs, a time to limit for every node.
+pub type NetworkOutputs<const N: usize, const M: usize, const P: usize> =
+    FilteredOutputs<N, M, N, P>;
 
 /// Builds a [`NetworkObserver`]: the network, the sensor map, the limits;
 /// everything else has a default ([`NetworkSettings::DEFAULT`]).

@@ -342,7 +342,7 @@ use super::cycle::{
 };
 use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
-use super::vocabulary::EVENT_CAPACITY;
+use super::vocabulary::{FilteredOutputs, SensorChecks, EVENT_CAPACITY};
 pub use super::vocabulary::{SensorStatus, TimedReading};
 use crate::error::BuildError;
 use crate::filter::{update_against, update_steady, SteadyEstimate, UpdateReport};
@@ -480,30 +480,11 @@ pub struct OmniSettings {
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
     /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
     pub frozen_loss_ticks: u32,
-    /// Fixed part of the band a reading must keep to below the unfused
-    /// shadow model \[K\] (as [`NetworkSettings::consistency_offset_k`](super::NetworkSettings::consistency_offset_k);
-    /// `f64::INFINITY` turns the test off). Default 3.
-    pub consistency_offset_k: f64,
-    /// Share of the shadow's rise above the ambient in that band
-    /// (dimensionless, `>= 0`). Default 0.25.
-    pub consistency_fraction: f64,
-    /// How far the shadow at a thermocouple's node must move while its
-    /// reading stays the same for it to count as stuck \[K\] (as
-    /// [`NetworkSettings::stuck_threshold_k`](super::NetworkSettings::stuck_threshold_k)).
-    /// Default 1.0.
-    pub stuck_threshold_k: f64,
-    /// How far a reading may move and still count as unchanged for the
-    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0. Set
-    /// it to about one converter code plus twice the reading noise (0.3 K
-    /// for a MAX31855 with 0.1 K of noise) so that a detached
-    /// thermocouple jittering around the room's temperature is told
-    /// stuck (see docs/protection.md, "Thermocouples as they read").
-    pub stuck_tolerance_k: f64,
-    /// Largest steady-state standard deviation \[K\] a wire or cover
-    /// insulation may have: a thermocouple subset that leaves one less
-    /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
-    /// solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K). Default 5.
-    pub max_element_sigma_k: f64,
+    /// The checks the thermocouples are held to against the physics and
+    /// the bound on what they leave uncertain (as the network observer's,
+    /// [`NetworkSettings::checks`](super::NetworkSettings::checks)).
+    /// Default [`SensorChecks::DEFAULT`].
+    pub checks: SensorChecks,
     /// The control loop's nominal tick \[us\]. Default 1000. A model step
     /// longer than it (`step_us` of several ticks: the multi-rate model,
     /// see "Model step and ticks" in the module docs) makes every tick
@@ -559,11 +540,7 @@ impl Default for OmniSettings {
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
             frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
             frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
-            consistency_offset_k: 3.0,
-            consistency_fraction: 0.25,
-            stuck_threshold_k: 1.0,
-            stuck_tolerance_k: 0.0,
-            max_element_sigma_k: 5.0,
+            checks: SensorChecks::DEFAULT,
             loop_period_us: 1000,
             predictor_slices_per_cycle: 1,
             predictor_nodes_per_slice: u32::MAX,
@@ -587,40 +564,10 @@ pub struct OmniInputs {
     pub elapsed_us: u32,
 }
 
-/// What one tick produced (`Copy`, for [`Shared`](super::Shared)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct OmniOutputs {
-    /// Node temperature estimates \[degC\]: the filter's mean (see
-    /// [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES)).
-    pub temps_c: [f32; NODES],
-    /// Each node's protective upper bound \[degC\], what the limiter and
-    /// the alarm act on: the estimate plus `k_sigma` steady-state standard
-    /// deviations and, on the unmeasured nodes, the model-uncertainty
-    /// margin (see [`OmniSettings`]). Taken with the protection cycle (by
-    /// its alarm and limiter stages), so it lags `temps_c` by up to a
-    /// cycle, as the limits do.
-    pub upper_c: [f32; NODES],
-    /// Current limit per solenoid.
-    pub limits: [CoilLimit<f32>; SOLENOIDS],
-    /// Time until the upper bound of each [`ALARM_NODES`] element reaches
-    /// its alarm limit \[s\] (`None`: never).
-    pub time_to_limit_s: [Option<f32>; ALARM_NODES.len()],
-    /// The alarm summary.
-    pub alarm: AlarmStatus,
-    /// What happened to each thermocouple's reading.
-    pub sensors: [SensorStatus; THERMOCOUPLES],
-    /// A correction ran this tick.
-    pub corrected: bool,
-    /// Input rules that fired this tick.
-    pub flags: InputFlags,
-    /// Model steps taken this tick.
-    pub steps: u32,
-    /// Time dropped by the catch-up limit \[us\].
-    pub dropped_us: u32,
-    /// Ticks since the state was made.
-    pub tick: u32,
-}
+/// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
+/// filtered observers' outputs, over the [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES),
+/// a time to limit for each of the [`ALARM_NODES`].
+pub type OmniOutputs = FilteredOutputs<NODES, SOLENOIDS, { ALARM_NODES.len() }, THERMOCOUPLES>;
 
 /// The configuration of one Omnimagnet device.
 ///
@@ -799,6 +746,7 @@ impl OmniObserver {
                 name: "filter.warmup_corrections",
             });
         }
+        settings.checks.validate()?;
         let filter = Self::build_filter(model, op_temps_c, ambient_c, dt_s, &settings.filter)?;
         let rule = DeratingRule::omnimagnet();
         let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
@@ -843,30 +791,7 @@ impl OmniObserver {
             ambient_c,
             dt_s * f64::from(shadow_block_steps),
         )?;
-        if settings.consistency_offset_k.is_nan() || settings.consistency_offset_k < 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "consistency_offset_k",
-            });
-        }
-        if settings.stuck_threshold_k.is_nan() || settings.stuck_threshold_k < 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "stuck_threshold_k",
-            });
-        }
-        if !(settings.stuck_tolerance_k.is_finite() && settings.stuck_tolerance_k >= 0.0) {
-            return Err(BuildError::InvalidParameter {
-                name: "stuck_tolerance_k",
-            });
-        }
-        if !(settings.consistency_fraction.is_finite() && settings.consistency_fraction >= 0.0) {
-            return Err(BuildError::InvalidParameter {
-                name: "consistency_fraction",
-            });
-        }
-        let band = Band {
-            offset_k: settings.consistency_offset_k as f32,
-            fraction: settings.consistency_fraction as f32,
-        };
+        let band = settings.checks.band();
         let (phi_minus_i, bd_power) = shadow.power_response();
         let bias_bound = BiasBound::new(&band, &phi_minus_i, &bd_power);
         Ok(Self {
@@ -887,11 +812,9 @@ impl OmniObserver {
             shadow_block_steps,
             band,
             bias_bound,
-            stuck_test: StuckTest {
-                threshold_k: settings.stuck_threshold_k as f32,
-                tolerance_k: settings.stuck_tolerance_k as f32,
-                window: super::consistency::stuck_window(settings.filter.correction_period_s),
-            },
+            stuck_test: settings
+                .checks
+                .stuck_test(settings.filter.correction_period_s),
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
@@ -953,19 +876,9 @@ impl OmniObserver {
         let prior = filter.gain().prior();
         let sigma_k: [f64; NODES] =
             core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
-        if settings.max_element_sigma_k.is_nan() || settings.max_element_sigma_k <= 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "max_element_sigma_k",
-            });
-        }
         for node in ALARM_NODES {
             let sigma = sigma_k.get(node).copied().unwrap_or(f64::INFINITY);
-            if sigma > settings.max_element_sigma_k {
-                return Err(BuildError::Unobservable {
-                    node,
-                    sigma_k: sigma as f32,
-                });
-            }
+            settings.checks.observable(node, true, sigma)?;
         }
         let mut margins = [settings.unmeasured_margin; NODES];
         let used = filter.settings().sensors.iter();
