@@ -307,7 +307,7 @@ use super::consistency::{
 };
 use super::cycle::aged_time_to_limit;
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
-use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
 use super::vocabulary::{
     FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
@@ -1670,14 +1670,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         boundary_c: &[f32; B],
         off_s: Option<f32>,
     ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
-        Ok(self.restored(&saved_c, &meta, boundary_c, off_s))
+        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let off_s = snap.off_time_s(off_s);
+        Ok(self.restored(&snap.saved_c, &snap.meta, boundary_c, off_s))
     }
 
     /// [`Self::restore`] for a device whose off time is unknown (no
@@ -1707,39 +1702,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         boundary_c: &[f32; B],
         readings_c: &[Option<f32>; P],
     ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
-        let tolerance_k = self.k_sigma
-            * self
-                .kalman
-                .r()
-                .iter()
-                .fold(0.0f32, |a, r| a.max(libm::sqrtf(*r)));
-        // A reading colder than the coldest boundary is no cooling the
-        // device can have done: left out (a faulty sensor at the boot).
+        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let tolerance_k = start::restore_tolerance_k(self.k_sigma, self.kalman.r().iter().copied());
         let coldest_c = boundary_c.iter().fold(f32::INFINITY, |a, b| a.min(*b));
-        let readings_c = readings_c.map(|r| r.filter(|t| *t >= coldest_c - tolerance_k));
-        let off_s = start::earliest_off_time_s(
-            |t| self.cooled_c(&saved_c, boundary_c, t),
+        let readings_c = start::restore_readings(readings_c, &[true; P], coldest_c, tolerance_k);
+        let saved_c = start::cooled_to_readings(
+            &snap.saved_c,
+            |t| self.cooled_c(&snap.saved_c, boundary_c, t),
             &self.sensor_nodes,
             &readings_c,
             tolerance_k,
-            age_s,
+            snap.age_s(),
         );
-        let mut saved_c = saved_c;
-        if off_s > 0.0 {
-            saved_c = self.cooled_c(&saved_c, boundary_c, off_s);
-        }
-        // The sensors where they read: the cooling that fits one sensor may
-        // leave another warmer than its reading (model error, or a node
-        // that warmed while off).
-        start::at_readings(&mut saved_c, &self.sensor_nodes, &readings_c);
-        Ok(self.restored(&saved_c, &meta, boundary_c, 0.0))
+        Ok(self.restored(&saved_c, &snap.meta, boundary_c, 0.0))
     }
 
     /// The state restored from `saved_c` \[degC\] after `off_s` \[s\] off.

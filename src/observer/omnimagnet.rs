@@ -340,7 +340,7 @@ use super::consistency::{
 use super::cycle::{
     aged_time_to_limit, latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage,
 };
-use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
 use super::vocabulary::{FilteredOutputs, SensorChecks, EVENT_CAPACITY};
 pub use super::vocabulary::{SensorStatus, TimedReading};
@@ -1821,13 +1821,8 @@ impl OmniObserver {
         off_s: Option<f32>,
         cool: impl FnOnce(&[f32; NODES], f32) -> Result<[f32; NODES], SnapshotError>,
     ) -> Result<OmniObserverState, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
-        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let (saved_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let temps_c = if off_s > 0.0 && ambient_ok {
@@ -1895,30 +1890,20 @@ impl OmniObserver {
         ambient_c: f32,
         readings_c: &[Option<f32>; THERMOCOUPLES],
     ) -> Result<OmniObserverState, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
-        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
+        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let (saved_c, meta) = (snap.saved_c, snap.meta);
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let fitted = self.filter.settings().sensors;
-        let sigma_k = self
-            .filter
-            .kalman()
-            .r()
-            .iter()
-            .zip(fitted)
-            .filter(|(_, used)| *used)
-            .fold(0.0f32, |a, (r, _)| a.max(libm::sqrtf(*r)));
-        let tolerance_k = self.k_sigma() * sigma_k;
-        // A reading colder than the ambient is no cooling the device can
-        // have done: left out (a faulty sensor at the boot).
-        let readings_c: [Option<f32>; THERMOCOUPLES] = core::array::from_fn(|j| {
-            readings_c[j].filter(|t| fitted[j] && t.is_finite() && *t >= ambient_c - tolerance_k)
-        });
+        let r = self.filter.kalman().r();
+        let tolerance_k = start::restore_tolerance_k(
+            self.k_sigma(),
+            r.iter()
+                .zip(fitted)
+                .filter(|(_, used)| *used)
+                .map(|(r, _)| *r),
+        );
+        let readings_c = start::restore_readings(readings_c, &fitted, ambient_c, tolerance_k);
         let usable = readings_c.iter().any(Option::is_some);
         if !(ambient_ok && usable) {
             return Ok(self.restored(&saved_c, &meta, ambient_c));
@@ -1931,25 +1916,14 @@ impl OmniObserver {
             &saved_c.map(f64::from),
             f64::from(ambient_c),
         ));
-        let cooled = |t: f32| {
-            let cooled = path.borrow_mut().cooled_c(f64::from(t));
-            rounded_up(&saved_c, &cooled)
-        };
-        let off_s = start::earliest_off_time_s(
-            cooled,
+        let temps_c = start::cooled_to_readings(
+            &saved_c,
+            |t: f32| rounded_up(&saved_c, &path.borrow_mut().cooled_c(f64::from(t))),
             &THERMOCOUPLE_NODES,
             &readings_c,
             tolerance_k,
-            age_s,
+            snap.age_s(),
         );
-        let mut temps_c = saved_c;
-        if off_s > 0.0 {
-            temps_c = cooled(off_s);
-        }
-        // The thermocouples where they read: the cooling that fits one may
-        // leave another warmer than its reading (model error, or an outer
-        // solenoid that the inner one warmed while off).
-        start::at_readings(&mut temps_c, &THERMOCOUPLE_NODES, &readings_c);
         // Held as a start is: the snapshot keeps no heat-input bias, and
         // without it the build-time linearisation runs a hot device hotter
         // than its readings; the held covariance lets the gate take them
