@@ -303,7 +303,7 @@ use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
 
 use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
-    SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
+    SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::aged_time_to_limit;
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
@@ -778,9 +778,9 @@ pub struct NetworkObserverState<
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
     stuck: StuckWatch<P>,
-    /// The heat-input biases \[W\] when each sensor's reading last changed:
+    /// The heat-input biases when each sensor's reading last changed:
     /// where a stuck sensor's biases go back to.
-    bias_at_change_w: [[f32; M]; P],
+    rewind: StuckRewind<P, M>,
     drift: DriftHold<P>,
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
@@ -916,7 +916,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bias_steps: 0,
             warmup_until_steady: false,
             stuck: StuckWatch::new(),
-            bias_at_change_w: [[0.0; M]; P],
+            rewind: StuckRewind::new(),
             drift: DriftHold::new(),
             suspect: Suspicion::new(),
             silence: SilenceWatch::new(),
@@ -1438,16 +1438,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    /// Takes back what a sensor found stuck taught the heat-input biases:
-    /// each goes back to its value when that sensor's reading last
-    /// changed, and the temperatures by their regression on it
-    /// ([`condition_on`](crate::filter::condition_on), on the steady
-    /// posterior). Until the stuck test sees it, an unchanged reading
-    /// under a moving physics is fused like any other, and what it teaches
-    /// a bias stays after the sensor is dropped (a housing thermocouple
-    /// stuck while the drive cooled left a positive bias: the hot spot read
-    /// 6.3 K hot an hour on). Also notes the biases at every sensor whose
-    /// reading changed (`events`: this correction's stuck screen).
+    /// Takes back what a sensor found stuck taught the heat-input biases
+    /// ([`StuckRewind`], the rule the Omnimagnet observer shares), the
+    /// shared heat's sum too, in the present shares. `events`: this
+    /// correction's stuck screen.
     fn rewind_stuck_biases(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P>,
@@ -1460,42 +1454,27 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         } else {
             [0.0; M]
         };
-        for ((at_change, changed), became_stuck) in state
-            .bias_at_change_w
-            .iter_mut()
-            .zip(&events.changed)
-            .zip(&events.became_stuck)
-        {
-            if *changed {
-                for (m, bias) in at_change.iter_mut().enumerate() {
-                    *bias = state.estimate.x.get(N + m).copied().unwrap_or(0.0);
-                }
-            } else if *became_stuck {
-                for (m, bias) in at_change.iter().enumerate() {
-                    if shared[m] {
-                        continue;
-                    }
-                    crate::filter::condition_on(
-                        &mut state.estimate.x,
-                        self.gain.posterior(),
-                        N + m,
-                        *bias,
-                    );
-                }
+        state.rewind.rewind(
+            &mut state.estimate.x,
+            self.gain.posterior(),
+            N,
+            events,
+            shared,
+            |x, at_change| {
                 if any_shared {
                     // The shared heat goes back to its sum then, in the
                     // present shares.
                     let sum_w: f32 = (0..M).filter(|m| shared[*m]).map(|m| at_change[m]).sum();
                     condition_shared_sum::<N, M, X>(
-                        &mut state.estimate.x,
+                        x,
                         self.gain.posterior(),
                         shared,
                         &shares,
                         sum_w,
                     );
                 }
-            }
-        }
+            },
+        );
     }
 
     /// Keeps every heat-input bias at or above its floor and the boundary
