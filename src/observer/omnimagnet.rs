@@ -335,7 +335,7 @@ use nalgebra::SVector;
 use super::clock::{ClockState, Deferral, StepClock, TickSteps};
 use super::consistency::{
     drop_cold_biases, raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
-    SilenceWatch, StuckTest, StuckWatch, Suspicion,
+    SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{
     aged_time_to_limit, latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage,
@@ -650,6 +650,9 @@ pub struct OmniObserverState {
     shadow_x: SVector<f32, STATES>,
     shadow_residual_k: [f32; NODES],
     stuck: StuckWatch<THERMOCOUPLES>,
+    /// The heat-input biases when each thermocouple's reading last
+    /// changed: where a stuck one's biases go back to.
+    rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
     silence: SilenceWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
     /// The solenoids whose measurement is in doubt.
@@ -1017,6 +1020,7 @@ impl OmniObserver {
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(),
+            rewind: StuckRewind::new(),
             silence: SilenceWatch::new(),
             suspect: Suspicion::new(),
             outputs: OmniOutputs {
@@ -1564,7 +1568,7 @@ impl OmniObserver {
         }
         let shadow_origin = self.shadow.origin_c();
         let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
-        let (common_mode, _) = screen_readings(
+        let (common_mode, stuck_events) = screen_readings(
             &self.band,
             &self.stuck_test,
             &mut state.stuck,
@@ -1572,6 +1576,16 @@ impl OmniObserver {
             &mut state.outputs.sensors,
             &shadow_c,
             state.held_ambient_c,
+        );
+        // What a thermocouple taught the biases before it was found stuck
+        // goes back (the network observer's rule).
+        state.rewind.rewind(
+            &mut state.estimate.x,
+            self.filter.gain().posterior(),
+            NODES,
+            &stuck_events,
+            &[false; SOLENOIDS],
+            |_, _| {},
         );
         let mut flags = InputFlags::NONE;
         if common_mode {
