@@ -173,6 +173,46 @@
 //! state starts it at zero with the build-time model, as it starts the
 //! model.
 //!
+//! # Rules shared with the network observer, and why it is not one
+//!
+//! The sensor checks are the network observer's, from one place: the same
+//! settings ([`SensorChecks`]), the consistency band
+//! and the stuck test (`consistency::screen_readings`), silence (`SilenceWatch`) and
+//! the stuck sensor's rewind (`consistency::StuckRewind`: what a thermocouple taught
+//! the heat-input biases before it was found stuck goes back; the
+//! Omnimagnet gained it in issue 37, 144 more instructions on a correction
+//! tick, QEMU `observer_m4`). The outputs are one type
+//! ([`FilteredOutputs`]), the readings' restore
+//! one helper ([`start::cooled_to_readings`]).
+//!
+//! Two rules stay the Omnimagnet's own:
+//!
+//! * **no bias floor.** The network observer holds every heat-input bias at
+//!   or above `-max_cooling_bias_fraction * P` (default 0: no heat taken
+//!   away), right for a linear network whose `R(T)` is taken at the
+//!   estimate. The Omnimagnet's build-time linearisation at the ambient
+//!   over-predicts a hot solenoid's heat, and a healthy *negative* bias
+//!   corrects it: dropping it put a stuck thermocouple's solenoid 2.56 K
+//!   off instead of 1.91 K. So negative biases are dropped only once the
+//!   model is re-linearised, on the solenoids in doubt
+//!   (`drop_cold_biases`), where the model needs no bias;
+//! * **the model refresh** (above): the network observer has none, because
+//!   its network is linear.
+//!
+//! For the same reason the Omnimagnet cannot be the network observer over
+//! its own network at no cost. Its conductances move with temperature
+//! (`Omnimagnet` is not a [`Network`](crate::Network) of constants), so a
+//! network observer would run the build-time linearisation for ever (3.7 K
+//! off a solenoid left to the model at 7 A) or carry the refresh: the
+//! model in the *state* (the [`MeanModel`], in RAM: the Omnimagnet state is
+//! 7 336 B where the network observer keeps its tables in flash), its
+//! install between ticks (3 372 instructions, QEMU `observer_m4`) and the
+//! watchdog's add and compare on every tick, work the linear network
+//! observer's tick (network_roundtrip 456 mean / 1 146 worst,
+//! motor_qemu 1 728 / 4 376 against a ceiling of 1 730 / 4 405) has no
+//! room for. What both can share they share (above); what follows from a
+//! nonlinear plant stays here.
+//!
 //! # Warm restart and the latch
 //!
 //! [`OmniObserver::save`] writes the node estimates and the latched
