@@ -69,6 +69,7 @@
 use coil_thermal::observer::omnimagnet::needs_model_refresh;
 use coil_thermal::observer::omnimagnet::ALARM_NODES;
 use coil_thermal::observer::snapshot::snapshot_len;
+use coil_thermal::observer::SensorChecks;
 use coil_thermal::observer::{
     OmniInputs, OmniObserver, OmniObserverState, OmniSettings, SensorStatus, TimedReading,
 };
@@ -340,7 +341,7 @@ pub struct FaultConfig {
     /// converter's quantum.
     pub sensor_model: SensorModel,
     /// The observer's stuck-test tolerance \[K\]
-    /// (`OmniSettings::stuck_tolerance_k`, `NetworkSettings::stuck_tolerance_k`).
+    /// (`SensorChecks::stuck_tolerance_k`).
     /// `None`: a model file's `[observer] stuck_tolerance_k`, else the
     /// library's default (0, to the bit).
     pub stuck_tolerance_k: Option<f64>,
@@ -848,7 +849,12 @@ impl OmniSubject {
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
             model_refresh_s: (refresh_s > 0.0).then_some(refresh_s),
-            stuck_tolerance_k: cfg.stuck_tolerance_k.unwrap_or(defaults.stuck_tolerance_k),
+            checks: SensorChecks {
+                stuck_tolerance_k: cfg
+                    .stuck_tolerance_k
+                    .unwrap_or(defaults.checks.stuck_tolerance_k),
+                ..defaults.checks
+            },
             ..defaults
         };
         let observer = OmniObserver::new(
@@ -905,10 +911,10 @@ impl Subject for OmniSubject {
     }
     fn consistency(&self) -> Consistency {
         Consistency {
-            offset_k: self.settings.consistency_offset_k,
-            fraction: self.settings.consistency_fraction,
-            stuck_threshold_k: self.settings.stuck_threshold_k,
-            stuck_tolerance_k: self.settings.stuck_tolerance_k,
+            offset_k: self.settings.checks.consistency_offset_k,
+            fraction: self.settings.checks.consistency_fraction,
+            stuck_threshold_k: self.settings.checks.stuck_threshold_k,
+            stuck_tolerance_k: self.settings.checks.stuck_tolerance_k,
         }
     }
     fn state(&self, ambient_c: f32) -> OmniObserverState {

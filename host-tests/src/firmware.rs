@@ -88,7 +88,7 @@ impl FirmwareConfig {
             settings.max_cooling_bias_fraction = v;
         }
         if let Some(v) = table.stuck_tolerance_k {
-            settings.stuck_tolerance_k = v;
+            settings.checks.stuck_tolerance_k = v;
         }
         if table.unmeasured_margin.is_some() || table.unmeasured_margin_offset_k.is_some() {
             let default = settings.unmeasured_margin;

@@ -456,6 +456,68 @@ pub(crate) struct StuckEvents<const P: usize> {
     pub became_stuck: [bool; P],
 }
 
+/// The stuck sensor's rewind: each sensor's heat-input biases \[W\] when
+/// its reading last changed, and the step that takes back what it taught
+/// them once it is found stuck. Until the stuck test sees it, an unchanged
+/// reading under a moving physics is fused like any other, and what it
+/// teaches a bias stays after the sensor is dropped (a housing
+/// thermocouple stuck while the drive cooled left a positive bias: the hot
+/// spot read 6.3 K hot an hour on). One rule for the Omnimagnet and the
+/// network observers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StuckRewind<const P: usize, const M: usize> {
+    /// Sensor `j`'s biases when its reading last changed \[W\].
+    bias_at_change_w: [[f32; M]; P],
+}
+
+impl<const P: usize, const M: usize> StuckRewind<P, M> {
+    /// No bias noted (zero: a bias starts at zero).
+    pub(crate) const fn new() -> Self {
+        Self {
+            bias_at_change_w: [[0.0; M]; P],
+        }
+    }
+
+    /// After a stuck screen (`events`): notes the biases (`x[first_bias
+    /// ..][..M]`) at every sensor whose reading changed, and puts each
+    /// bias not in `skip` back at its value when a sensor just found stuck
+    /// last changed, the other states moving by their regression on it
+    /// ([`condition_on`](crate::filter::condition_on) with `cov`, the
+    /// steady posterior); `also(x, at_change)` then takes back what the
+    /// skipped biases learnt (the network's shared heat).
+    #[inline]
+    pub(crate) fn rewind<const S: usize>(
+        &mut self,
+        x: &mut SVector<f32, S>,
+        cov: &SMatrix<f32, S, S>,
+        first_bias: usize,
+        events: &StuckEvents<P>,
+        skip: &[bool; M],
+        mut also: impl FnMut(&mut SVector<f32, S>, &[f32; M]),
+    ) {
+        for ((at_change, changed), became_stuck) in self
+            .bias_at_change_w
+            .iter_mut()
+            .zip(&events.changed)
+            .zip(&events.became_stuck)
+        {
+            if *changed {
+                for (m, bias) in at_change.iter_mut().enumerate() {
+                    *bias = x.get(first_bias + m).copied().unwrap_or(0.0);
+                }
+            } else if *became_stuck {
+                for (m, bias) in at_change.iter().enumerate() {
+                    if skip[m] {
+                        continue;
+                    }
+                    crate::filter::condition_on(x, cov, first_bias + m, *bias);
+                }
+                also(x, at_change);
+            }
+        }
+    }
+}
+
 /// Readings the gate refused as colder than the estimate, held out of the
 /// gate's *recovery* while they move away from the physics.
 ///

@@ -129,7 +129,7 @@
 
 use super::clock::{ClockState, StepClock};
 use super::cycle::latch_and_publish;
-use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
@@ -1124,13 +1124,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         ambient_c: f64,
         off_s: Option<f32>,
     ) -> Result<GridObserverState<S, ROWS, COLS, N>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (temps_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let (temps_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut grid = GridState::uniform(ambient_c);
         for (t, s) in grid.temps_c.as_flattened_mut().iter_mut().zip(&temps_c) {
             *t = S::from_f32(*s);

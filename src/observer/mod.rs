@@ -56,4 +56,4 @@ pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
 pub use tables::{AlarmTables, ClockTables, LimiterTables};
-pub use vocabulary::{SensorStatus, TimedReading, EVENT_CAPACITY};
+pub use vocabulary::{FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY};

@@ -178,7 +178,7 @@
 //! [`InputFlags::SENSORS_COLDER_THAN_PHYSICS`]: the protection then runs on
 //! the model until a sensor agrees with it again. A reading that repeats
 //! its value (to the bit) while the shadow at its node has moved by more
-//! than [`NetworkSettings::stuck_threshold_k`] (1 K) within 120 s, or
+//! than [`SensorChecks::stuck_threshold_k`] (1 K) within 120 s, or
 //! since the reading last changed by more than that plus the band's share
 //! of the node's rise then, is stuck ([`SensorStatus::Stuck`]) and not
 //! fused until it moves: a test that does not lean on the estimate the
@@ -330,13 +330,15 @@ use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
 
 use super::consistency::{
     raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
-    SilenceWatch, StuckEvents, StuckTest, StuckWatch, Suspicion,
+    SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::aged_time_to_limit;
 use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
-use super::snapshot::{self, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
-use super::vocabulary::{SensorStatus, TimedReading, EVENT_CAPACITY};
+use super::vocabulary::{
+    FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
+};
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -456,20 +458,6 @@ pub struct NetworkSettings {
     /// flagged [`InputFlags::CLOCK_FROZEN`] (see [`super::clock`]). Default
     /// 100 (0.1 s at a 1 ms loop).
     pub frozen_flag_ticks: u32,
-    /// How far the shadow model at a sensor's node must move while its
-    /// reading stays the same (to the bit) for the sensor to count as
-    /// stuck \[K\] (see "Sensors against the physics"; `f64::INFINITY`
-    /// turns the test off). Default 1.0.
-    pub stuck_threshold_k: f64,
-    /// How far a reading may move and still count as unchanged for the
-    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0; see
-    /// [`OmniSettings::stuck_tolerance_k`](super::OmniSettings::stuck_tolerance_k).
-    pub stuck_tolerance_k: f64,
-    /// Largest steady-state standard deviation \[K\] an element with a
-    /// limit may have: a sensor set that leaves one less certain is refused
-    /// at build ([`BuildError::Unobservable`]). Default 5
-    /// (`f64::INFINITY`: no check).
-    pub max_element_sigma_k: f64,
     /// Corrections run by the time-varying filter before the steady gain
     /// takes over (the optional time-varying path): from the steady prior
     /// widened by the recovery variances (`recovery_sigma_k`,
@@ -486,13 +474,10 @@ pub struct NetworkSettings {
     /// ([`InputLimits::default`](crate::InputLimits)); a 400 A motor
     /// drive sets its own.
     pub max_current_a: f64,
-    /// Fixed part of the band a reading must keep to against the unfused
-    /// shadow model, below it \[K\] (see "Sensors against the physics";
-    /// `f64::INFINITY` turns the test off). Default 3.
-    pub consistency_offset_k: f64,
-    /// Share of the shadow model's rise above the ambient in that band
-    /// (dimensionless, `>= 0`): the model's uncertainty. Default 0.25.
-    pub consistency_fraction: f64,
+    /// The checks the sensors are held to against the physics and the
+    /// bound on what they leave uncertain (see "Sensors against the
+    /// physics"). Default [`SensorChecks::DEFAULT`].
+    pub checks: SensorChecks,
     /// Largest heat the thermocouples may explain away, as a share of each
     /// current's Joule power at the estimate (dimensionless, finite,
     /// `>= 0`): the floor of each heat-input bias is `-fraction * P_m`.
@@ -539,13 +524,9 @@ impl NetworkSettings {
         incidence_fraction: 0.1,
         origin_c: 20.0,
         ambient_boundary: 0,
-        stuck_threshold_k: 1.0,
-        stuck_tolerance_k: 0.0,
-        max_element_sigma_k: 5.0,
         warmup_corrections: 0,
         max_current_a: 100.0,
-        consistency_offset_k: 3.0,
-        consistency_fraction: 0.25,
+        checks: SensorChecks::DEFAULT,
         max_cooling_bias_fraction: 0.0,
         frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
         frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
@@ -574,35 +555,10 @@ pub struct NetworkInputs<const B: usize, const M: usize, const P: usize> {
     pub elapsed_us: u32,
 }
 
-/// What one tick produced (`Copy`, for [`Shared`](super::Shared)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct NetworkOutputs<const N: usize, const M: usize, const P: usize> {
-    /// Node temperature estimates \[degC\].
-    pub temps_c: [f32; N],
-    /// Each node's protective upper bound \[degC\] (what the alarm and the
-    /// limiter act on), taken with the protection cycle.
-    pub upper_c: [f32; N],
-    /// Current limit per input.
-    pub limits: [CoilLimit<f32>; M],
-    /// Time until each limited element's upper bound reaches its alarm
-    /// limit \[s\] (`None`: never, or no limit).
-    pub time_to_limit_s: [Option<f32>; N],
-    /// The alarm summary.
-    pub alarm: AlarmStatus,
-    /// What happened to each sensor's reading.
-    pub sensors: [SensorStatus; P],
-    /// A correction ran this tick.
-    pub corrected: bool,
-    /// Input rules that fired this tick.
-    pub flags: InputFlags,
-    /// Model steps taken this tick.
-    pub steps: u32,
-    /// Time dropped by the catch-up limit \[us\].
-    pub dropped_us: u32,
-    /// Ticks since the state was made.
-    pub tick: u32,
-}
+/// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
+/// filtered observers' outputs, a time to limit for every node.
+pub type NetworkOutputs<const N: usize, const M: usize, const P: usize> =
+    FilteredOutputs<N, M, N, P>;
 
 /// Builds a [`NetworkObserver`]: the network, the sensor map, the limits;
 /// everything else has a default ([`NetworkSettings::DEFAULT`]).
@@ -895,9 +851,9 @@ pub struct NetworkObserverState<
     cycle: ProtectionCycle<M>,
     shadow: ShadowState<N, M>,
     stuck: StuckWatch<P>,
-    /// The heat-input biases \[W\] when each sensor's reading last changed:
+    /// The heat-input biases when each sensor's reading last changed:
     /// where a stuck sensor's biases go back to.
-    bias_at_change_w: [[f32; M]; P],
+    rewind: StuckRewind<P, M>,
     drift: DriftHold<P>,
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
@@ -1033,7 +989,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bias_steps: 0,
             warmup_until_steady: false,
             stuck: StuckWatch::new(),
-            bias_at_change_w: [[0.0; M]; P],
+            rewind: StuckRewind::new(),
             drift: DriftHold::new(),
             suspect: Suspicion::new(),
             silence: SilenceWatch::new(),
@@ -1626,16 +1582,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    /// Takes back what a sensor found stuck taught the heat-input biases:
-    /// each goes back to its value when that sensor's reading last
-    /// changed, and the temperatures by their regression on it
-    /// ([`condition_on`](crate::filter::condition_on), on the steady
-    /// posterior). Until the stuck test sees it, an unchanged reading
-    /// under a moving physics is fused like any other, and what it teaches
-    /// a bias stays after the sensor is dropped (a housing thermocouple
-    /// stuck while the drive cooled left a positive bias: the hot spot read
-    /// 6.3 K hot an hour on). Also notes the biases at every sensor whose
-    /// reading changed (`events`: this correction's stuck screen).
+    /// Takes back what a sensor found stuck taught the heat-input biases
+    /// ([`StuckRewind`], the rule the Omnimagnet observer shares), the
+    /// shared heat's sum too, in the present shares. `events`: this
+    /// correction's stuck screen.
     fn rewind_stuck_biases(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P>,
@@ -1648,42 +1598,27 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         } else {
             [0.0; M]
         };
-        for ((at_change, changed), became_stuck) in state
-            .bias_at_change_w
-            .iter_mut()
-            .zip(&events.changed)
-            .zip(&events.became_stuck)
-        {
-            if *changed {
-                for (m, bias) in at_change.iter_mut().enumerate() {
-                    *bias = state.estimate.x.get(N + m).copied().unwrap_or(0.0);
-                }
-            } else if *became_stuck {
-                for (m, bias) in at_change.iter().enumerate() {
-                    if shared[m] {
-                        continue;
-                    }
-                    crate::filter::condition_on(
-                        &mut state.estimate.x,
-                        self.gain.posterior(),
-                        N + m,
-                        *bias,
-                    );
-                }
+        state.rewind.rewind(
+            &mut state.estimate.x,
+            self.gain.posterior(),
+            N,
+            events,
+            shared,
+            |x, at_change| {
                 if any_shared {
                     // The shared heat goes back to its sum then, in the
                     // present shares.
                     let sum_w: f32 = (0..M).filter(|m| shared[*m]).map(|m| at_change[m]).sum();
                     condition_shared_sum::<N, M, X>(
-                        &mut state.estimate.x,
+                        x,
                         self.gain.posterior(),
                         shared,
                         &shares,
                         sum_w,
                     );
                 }
-            }
-        }
+            },
+        );
     }
 
     /// Keeps every heat-input bias at or above its floor and the boundary
@@ -1858,14 +1793,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         boundary_c: &[f32; B],
         off_s: Option<f32>,
     ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
-        Ok(self.restored(&saved_c, &meta, boundary_c, off_s))
+        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let off_s = snap.off_time_s(off_s);
+        Ok(self.restored(&snap.saved_c, &snap.meta, boundary_c, off_s))
     }
 
     /// [`Self::restore`] for a device whose off time is unknown (no
@@ -1895,39 +1825,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         boundary_c: &[f32; B],
         readings_c: &[Option<f32>; P],
     ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<N>(bytes, &policy)?;
-        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
-        let tolerance_k = self.k_sigma
-            * self
-                .kalman
-                .r()
-                .iter()
-                .fold(0.0f32, |a, r| a.max(libm::sqrtf(*r)));
-        // A reading colder than the coldest boundary is no cooling the
-        // device can have done: left out (a faulty sensor at the boot).
+        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let tolerance_k = start::restore_tolerance_k(self.k_sigma, self.kalman.r().iter().copied());
         let coldest_c = boundary_c.iter().fold(f32::INFINITY, |a, b| a.min(*b));
-        let readings_c = readings_c.map(|r| r.filter(|t| *t >= coldest_c - tolerance_k));
-        let off_s = start::earliest_off_time_s(
-            |t| self.cooled_c(&saved_c, boundary_c, t),
+        let readings_c = start::restore_readings(readings_c, &[true; P], coldest_c, tolerance_k);
+        let saved_c = start::cooled_to_readings(
+            &snap.saved_c,
+            |t| self.cooled_c(&snap.saved_c, boundary_c, t),
             &self.sensor_nodes,
             &readings_c,
             tolerance_k,
-            age_s,
+            snap.age_s(),
         );
-        let mut saved_c = saved_c;
-        if off_s > 0.0 {
-            saved_c = self.cooled_c(&saved_c, boundary_c, off_s);
-        }
-        // The sensors where they read: the cooling that fits one sensor may
-        // leave another warmer than its reading (model error, or a node
-        // that warmed while off).
-        start::at_readings(&mut saved_c, &self.sensor_nodes, &readings_c);
-        Ok(self.restored(&saved_c, &meta, boundary_c, 0.0))
+        Ok(self.restored(&saved_c, &snap.meta, boundary_c, 0.0))
     }
 
     /// The state restored from `saved_c` \[degC\] after `off_s` \[s\] off.

@@ -173,6 +173,46 @@
 //! state starts it at zero with the build-time model, as it starts the
 //! model.
 //!
+//! # Rules shared with the network observer, and why it is not one
+//!
+//! The sensor checks are the network observer's, from one place: the same
+//! settings ([`SensorChecks`]), the consistency band
+//! and the stuck test (`consistency::screen_readings`), silence (`SilenceWatch`) and
+//! the stuck sensor's rewind (`consistency::StuckRewind`: what a thermocouple taught
+//! the heat-input biases before it was found stuck goes back; the
+//! Omnimagnet gained it in issue 37, 144 more instructions on a correction
+//! tick, QEMU `observer_m4`). The outputs are one type
+//! ([`FilteredOutputs`]), the readings' restore
+//! one helper ([`start::cooled_to_readings`]).
+//!
+//! Two rules stay the Omnimagnet's own:
+//!
+//! * **no bias floor.** The network observer holds every heat-input bias at
+//!   or above `-max_cooling_bias_fraction * P` (default 0: no heat taken
+//!   away), right for a linear network whose `R(T)` is taken at the
+//!   estimate. The Omnimagnet's build-time linearisation at the ambient
+//!   over-predicts a hot solenoid's heat, and a healthy *negative* bias
+//!   corrects it: dropping it put a stuck thermocouple's solenoid 2.56 K
+//!   off instead of 1.91 K. So negative biases are dropped only once the
+//!   model is re-linearised, on the solenoids in doubt
+//!   (`drop_cold_biases`), where the model needs no bias;
+//! * **the model refresh** (above): the network observer has none, because
+//!   its network is linear.
+//!
+//! For the same reason the Omnimagnet cannot be the network observer over
+//! its own network at no cost. Its conductances move with temperature
+//! (`Omnimagnet` is not a [`Network`](crate::Network) of constants), so a
+//! network observer would run the build-time linearisation for ever (3.7 K
+//! off a solenoid left to the model at 7 A) or carry the refresh: the
+//! model in the *state* (the [`MeanModel`], in RAM: the Omnimagnet state is
+//! 7 336 B where the network observer keeps its tables in flash), its
+//! install between ticks (3 372 instructions, QEMU `observer_m4`) and the
+//! watchdog's add and compare on every tick, work the linear network
+//! observer's tick (network_roundtrip 456 mean / 1 146 worst,
+//! motor_qemu 1 728 / 4 376 against a ceiling of 1 730 / 4 405) has no
+//! room for. What both can share they share (above); what follows from a
+//! nonlinear plant stays here.
+//!
 //! # Warm restart and the latch
 //!
 //! [`OmniObserver::save`] writes the node estimates and the latched
@@ -339,14 +379,14 @@ use nalgebra::SVector;
 use super::clock::{ClockState, Deferral, StepClock, TickSteps};
 use super::consistency::{
     drop_cold_biases, raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
-    SilenceWatch, StuckTest, StuckWatch, Suspicion,
+    SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{
     aged_time_to_limit, latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage,
 };
-use super::snapshot::{self, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta};
+use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
-use super::vocabulary::EVENT_CAPACITY;
+use super::vocabulary::{FilteredOutputs, SensorChecks, EVENT_CAPACITY};
 pub use super::vocabulary::{SensorStatus, TimedReading};
 use crate::error::BuildError;
 use crate::filter::{update_against, update_steady, SteadyEstimate, UpdateReport};
@@ -484,30 +524,11 @@ pub struct OmniSettings {
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
     /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
     pub frozen_loss_ticks: u32,
-    /// Fixed part of the band a reading must keep to below the unfused
-    /// shadow model \[K\] (as [`NetworkSettings::consistency_offset_k`](super::NetworkSettings::consistency_offset_k);
-    /// `f64::INFINITY` turns the test off). Default 3.
-    pub consistency_offset_k: f64,
-    /// Share of the shadow's rise above the ambient in that band
-    /// (dimensionless, `>= 0`). Default 0.25.
-    pub consistency_fraction: f64,
-    /// How far the shadow at a thermocouple's node must move while its
-    /// reading stays the same for it to count as stuck \[K\] (as
-    /// [`NetworkSettings::stuck_threshold_k`](super::NetworkSettings::stuck_threshold_k)).
-    /// Default 1.0.
-    pub stuck_threshold_k: f64,
-    /// How far a reading may move and still count as unchanged for the
-    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0. Set
-    /// it to about one converter code plus twice the reading noise (0.3 K
-    /// for a MAX31855 with 0.1 K of noise) so that a detached
-    /// thermocouple jittering around the room's temperature is told
-    /// stuck (see docs/protection.md, "Thermocouples as they read").
-    pub stuck_tolerance_k: f64,
-    /// Largest steady-state standard deviation \[K\] a wire or cover
-    /// insulation may have: a thermocouple subset that leaves one less
-    /// certain is refused ([`BuildError::Unobservable`]; one thermocouple on
-    /// solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K). Default 5.
-    pub max_element_sigma_k: f64,
+    /// The checks the thermocouples are held to against the physics and
+    /// the bound on what they leave uncertain (as the network observer's,
+    /// [`NetworkSettings::checks`](super::NetworkSettings::checks)).
+    /// Default [`SensorChecks::DEFAULT`].
+    pub checks: SensorChecks,
     /// The control loop's nominal tick \[us\]. Default 1000. A model step
     /// longer than it (`step_us` of several ticks: the multi-rate model,
     /// see "Model step and ticks" in the module docs) makes every tick
@@ -563,11 +584,7 @@ impl Default for OmniSettings {
             unmeasured_margin: UncertaintyMargin::OMNIMAGNET_UNMEASURED_20_PERCENT,
             frozen_flag_ticks: super::clock::DEFAULT_FROZEN_FLAG_TICKS,
             frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
-            consistency_offset_k: 3.0,
-            consistency_fraction: 0.25,
-            stuck_threshold_k: 1.0,
-            stuck_tolerance_k: 0.0,
-            max_element_sigma_k: 5.0,
+            checks: SensorChecks::DEFAULT,
             loop_period_us: 1000,
             predictor_slices_per_cycle: 1,
             predictor_nodes_per_slice: u32::MAX,
@@ -591,40 +608,10 @@ pub struct OmniInputs {
     pub elapsed_us: u32,
 }
 
-/// What one tick produced (`Copy`, for [`Shared`](super::Shared)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct OmniOutputs {
-    /// Node temperature estimates \[degC\]: the filter's mean (see
-    /// [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES)).
-    pub temps_c: [f32; NODES],
-    /// Each node's protective upper bound \[degC\], what the limiter and
-    /// the alarm act on: the estimate plus `k_sigma` steady-state standard
-    /// deviations and, on the unmeasured nodes, the model-uncertainty
-    /// margin (see [`OmniSettings`]). Taken with the protection cycle (by
-    /// its alarm and limiter stages), so it lags `temps_c` by up to a
-    /// cycle, as the limits do.
-    pub upper_c: [f32; NODES],
-    /// Current limit per solenoid.
-    pub limits: [CoilLimit<f32>; SOLENOIDS],
-    /// Time until the upper bound of each [`ALARM_NODES`] element reaches
-    /// its alarm limit \[s\] (`None`: never).
-    pub time_to_limit_s: [Option<f32>; ALARM_NODES.len()],
-    /// The alarm summary.
-    pub alarm: AlarmStatus,
-    /// What happened to each thermocouple's reading.
-    pub sensors: [SensorStatus; THERMOCOUPLES],
-    /// A correction ran this tick.
-    pub corrected: bool,
-    /// Input rules that fired this tick.
-    pub flags: InputFlags,
-    /// Model steps taken this tick.
-    pub steps: u32,
-    /// Time dropped by the catch-up limit \[us\].
-    pub dropped_us: u32,
-    /// Ticks since the state was made.
-    pub tick: u32,
-}
+/// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
+/// filtered observers' outputs, over the [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES),
+/// a time to limit for each of the [`ALARM_NODES`].
+pub type OmniOutputs = FilteredOutputs<NODES, SOLENOIDS, { ALARM_NODES.len() }, THERMOCOUPLES>;
 
 /// The configuration of one Omnimagnet device.
 ///
@@ -710,6 +697,9 @@ pub struct OmniObserverState {
     shadow_x: SVector<f32, STATES>,
     shadow_residual_k: [f32; NODES],
     stuck: StuckWatch<THERMOCOUPLES>,
+    /// The heat-input biases when each thermocouple's reading last
+    /// changed: where a stuck one's biases go back to.
+    rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
     silence: SilenceWatch<THERMOCOUPLES>,
     shadow_block: BlockMean<SOLENOIDS>,
     /// The solenoids whose measurement is in doubt.
@@ -806,6 +796,7 @@ impl OmniObserver {
                 name: "filter.warmup_corrections",
             });
         }
+        settings.checks.validate()?;
         let filter = Self::build_filter(model, op_temps_c, ambient_c, dt_s, &settings.filter)?;
         let rule = DeratingRule::omnimagnet();
         let (w, c) = (WIRE_INSULATION_LIMIT_C, COVER_INSULATION_LIMIT_C);
@@ -850,30 +841,7 @@ impl OmniObserver {
             ambient_c,
             dt_s * f64::from(shadow_block_steps),
         )?;
-        if settings.consistency_offset_k.is_nan() || settings.consistency_offset_k < 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "consistency_offset_k",
-            });
-        }
-        if settings.stuck_threshold_k.is_nan() || settings.stuck_threshold_k < 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "stuck_threshold_k",
-            });
-        }
-        if !(settings.stuck_tolerance_k.is_finite() && settings.stuck_tolerance_k >= 0.0) {
-            return Err(BuildError::InvalidParameter {
-                name: "stuck_tolerance_k",
-            });
-        }
-        if !(settings.consistency_fraction.is_finite() && settings.consistency_fraction >= 0.0) {
-            return Err(BuildError::InvalidParameter {
-                name: "consistency_fraction",
-            });
-        }
-        let band = Band {
-            offset_k: settings.consistency_offset_k as f32,
-            fraction: settings.consistency_fraction as f32,
-        };
+        let band = settings.checks.band();
         let (phi_minus_i, bd_power) = shadow.power_response();
         let bias_bound = BiasBound::new(&band, &phi_minus_i, &bd_power);
         Ok(Self {
@@ -894,11 +862,9 @@ impl OmniObserver {
             shadow_block_steps,
             band,
             bias_bound,
-            stuck_test: StuckTest {
-                threshold_k: settings.stuck_threshold_k as f32,
-                tolerance_k: settings.stuck_tolerance_k as f32,
-                window: super::consistency::stuck_window(settings.filter.correction_period_s),
-            },
+            stuck_test: settings
+                .checks
+                .stuck_test(settings.filter.correction_period_s),
             silent_after_us: shadow_block_steps
                 .saturating_mul(settings.step_us)
                 .saturating_mul(2),
@@ -1009,19 +975,9 @@ impl OmniObserver {
         let prior = filter.gain().prior();
         let sigma_k: [f64; NODES] =
             core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
-        if settings.max_element_sigma_k.is_nan() || settings.max_element_sigma_k <= 0.0 {
-            return Err(BuildError::InvalidParameter {
-                name: "max_element_sigma_k",
-            });
-        }
         for node in ALARM_NODES {
             let sigma = sigma_k.get(node).copied().unwrap_or(f64::INFINITY);
-            if sigma > settings.max_element_sigma_k {
-                return Err(BuildError::Unobservable {
-                    node,
-                    sigma_k: sigma as f32,
-                });
-            }
+            settings.checks.observable(node, true, sigma)?;
         }
         let mut margins = [settings.unmeasured_margin; NODES];
         let used = filter.settings().sensors.iter();
@@ -1160,6 +1116,7 @@ impl OmniObserver {
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(),
+            rewind: StuckRewind::new(),
             silence: SilenceWatch::new(),
             suspect: Suspicion::new(),
             outputs: OmniOutputs {
@@ -1711,7 +1668,7 @@ impl OmniObserver {
         }
         let shadow_origin = self.shadow.origin_c();
         let shadow_c = THERMOCOUPLE_NODES.map(|n| shadow_origin[n] + state.shadow_x[n]);
-        let (common_mode, _) = screen_readings(
+        let (common_mode, stuck_events) = screen_readings(
             &self.band,
             &self.stuck_test,
             &mut state.stuck,
@@ -1719,6 +1676,16 @@ impl OmniObserver {
             &mut state.outputs.sensors,
             &shadow_c,
             state.held_ambient_c,
+        );
+        // What a thermocouple taught the biases before it was found stuck
+        // goes back (the network observer's rule).
+        state.rewind.rewind(
+            &mut state.estimate.x,
+            self.filter.gain().posterior(),
+            NODES,
+            &stuck_events,
+            &[false; SOLENOIDS],
+            |_, _| {},
         );
         let mut flags = InputFlags::NONE;
         if common_mode {
@@ -1980,13 +1947,8 @@ impl OmniObserver {
         off_s: Option<f32>,
         cool: impl FnOnce(&[f32; NODES], f32) -> Result<[f32; NODES], SnapshotError>,
     ) -> Result<OmniObserverState, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
-        let off_s = snapshot::off_time_s(off_s, &meta, &policy);
+        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let (saved_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let temps_c = if off_s > 0.0 && ambient_ok {
@@ -2054,30 +2016,20 @@ impl OmniObserver {
         ambient_c: f32,
         readings_c: &[Option<f32>; THERMOCOUPLES],
     ) -> Result<OmniObserverState, SnapshotError> {
-        let policy = RestorePolicy {
-            fingerprint: self.fingerprint,
-            now_s,
-            max_age_s,
-        };
-        let (saved_c, meta) = snapshot::restore::<NODES>(bytes, &policy)?;
-        let age_s = now_s.saturating_sub(meta.saved_at_s) as f32;
+        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let (saved_c, meta) = (snap.saved_c, snap.meta);
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
         let fitted = self.filter.settings().sensors;
-        let sigma_k = self
-            .filter
-            .kalman()
-            .r()
-            .iter()
-            .zip(fitted)
-            .filter(|(_, used)| *used)
-            .fold(0.0f32, |a, (r, _)| a.max(libm::sqrtf(*r)));
-        let tolerance_k = self.k_sigma() * sigma_k;
-        // A reading colder than the ambient is no cooling the device can
-        // have done: left out (a faulty sensor at the boot).
-        let readings_c: [Option<f32>; THERMOCOUPLES] = core::array::from_fn(|j| {
-            readings_c[j].filter(|t| fitted[j] && t.is_finite() && *t >= ambient_c - tolerance_k)
-        });
+        let r = self.filter.kalman().r();
+        let tolerance_k = start::restore_tolerance_k(
+            self.k_sigma(),
+            r.iter()
+                .zip(fitted)
+                .filter(|(_, used)| *used)
+                .map(|(r, _)| *r),
+        );
+        let readings_c = start::restore_readings(readings_c, &fitted, ambient_c, tolerance_k);
         let usable = readings_c.iter().any(Option::is_some);
         if !(ambient_ok && usable) {
             return Ok(self.restored(&saved_c, &meta, ambient_c));
@@ -2090,25 +2042,14 @@ impl OmniObserver {
             &saved_c.map(f64::from),
             f64::from(ambient_c),
         ));
-        let cooled = |t: f32| {
-            let cooled = path.borrow_mut().cooled_c(f64::from(t));
-            rounded_up(&saved_c, &cooled)
-        };
-        let off_s = start::earliest_off_time_s(
-            cooled,
+        let temps_c = start::cooled_to_readings(
+            &saved_c,
+            |t: f32| rounded_up(&saved_c, &path.borrow_mut().cooled_c(f64::from(t))),
             &THERMOCOUPLE_NODES,
             &readings_c,
             tolerance_k,
-            age_s,
+            snap.age_s(),
         );
-        let mut temps_c = saved_c;
-        if off_s > 0.0 {
-            temps_c = cooled(off_s);
-        }
-        // The thermocouples where they read: the cooling that fits one may
-        // leave another warmer than its reading (model error, or an outer
-        // solenoid that the inner one warmed while off).
-        start::at_readings(&mut temps_c, &THERMOCOUPLE_NODES, &readings_c);
         // Held as a start is: the snapshot keeps no heat-input bias, and
         // without it the build-time linearisation runs a hot device hotter
         // than its readings; the held covariance lets the gate take them

@@ -367,6 +367,55 @@ pub fn off_time_s(off_s: Option<f32>, meta: &SnapshotMeta, policy: &RestorePolic
     }
 }
 
+/// A snapshot read back for a running configuration: its temperatures, its
+/// header, and the policy it was checked against. The one read of every
+/// observer's restore (the grid's, the Omnimagnet's, the network's), so
+/// that each checks its snapshot and measures its age the same way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Restored<const N: usize> {
+    /// The saved node temperatures \[degC\].
+    pub saved_c: [f32; N],
+    /// The snapshot's header.
+    pub meta: SnapshotMeta,
+    /// What it was checked against.
+    pub policy: RestorePolicy,
+}
+
+impl<const N: usize> Restored<N> {
+    /// [`restore`] of `bytes` for the configuration `fingerprint`, at
+    /// `now_s` \[s\], no older than `max_age_s` \[s\].
+    pub(crate) fn read(
+        bytes: &[u8],
+        fingerprint: u32,
+        now_s: u32,
+        max_age_s: u32,
+    ) -> Result<Self, SnapshotError> {
+        let policy = RestorePolicy {
+            fingerprint,
+            now_s,
+            max_age_s,
+        };
+        let (saved_c, meta) = restore::<N>(bytes, &policy)?;
+        Ok(Self {
+            saved_c,
+            meta,
+            policy,
+        })
+    }
+
+    /// The snapshot's age \[s\]: the longest the device can have been
+    /// off.
+    pub(crate) fn age_s(&self) -> f32 {
+        self.policy.now_s.saturating_sub(self.meta.saved_at_s) as f32
+    }
+
+    /// [`off_time_s`] of the application's `off_s` \[s\] for this
+    /// snapshot.
+    pub(crate) fn off_time_s(&self, off_s: Option<f32>) -> f32 {
+        off_time_s(off_s, &self.meta, &self.policy)
+    }
+}
+
 /// The documented start when no snapshot can be trusted: every measured node
 /// at its reading, and every *unmeasured* node no cooler than the hottest
 /// valid reading (nor than the ambient). A coil that was hot before the reset

@@ -312,6 +312,55 @@ pub fn capped_extra_k(extra_k: f32, steady_upper_c: f32, limit_c: f32) -> f32 {
     }
 }
 
+/// How close a node must come to its sensor's reading for a cooled
+/// restore to fit it \[K\]: `k_sigma` (dimensionless) sensor deviations,
+/// of the noisiest of the sensors in use (`variances_k2`, \[K^2\], the
+/// filter's `R`). 0.75 K at the defaults (3 x 0.25 K).
+pub fn restore_tolerance_k(k_sigma: f32, variances_k2: impl IntoIterator<Item = f32>) -> f32 {
+    k_sigma
+        * variances_k2
+            .into_iter()
+            .fold(0.0f32, |a, r| a.max(libm::sqrtf(r)))
+}
+
+/// The readings \[degC\] a restore may trust: finite, of a sensor in use
+/// (`used[j]`), and no colder than `coldest_c` \[degC\] (the coldest
+/// boundary the device can have cooled towards) by more than
+/// `tolerance_k` \[K\]. A reading colder than that is no cooling the
+/// device can have done: left out (a faulty sensor at the boot).
+pub fn restore_readings<const P: usize>(
+    readings_c: &[Option<f32>; P],
+    used: &[bool; P],
+    coldest_c: f32,
+    tolerance_k: f32,
+) -> [Option<f32>; P] {
+    core::array::from_fn(|j| {
+        readings_c[j].filter(|t| used[j] && t.is_finite() && *t >= coldest_c - tolerance_k)
+    })
+}
+
+/// The saved state `saved_c` \[degC\] cooled (`cooled(t)`, the state
+/// after `t` \[s\] off) by the least off time within `max_off_s` \[s\]
+/// the readings allow
+/// ([`earliest_off_time_s`]), then every sensor's node at its reading
+/// ([`at_readings`]): the cooling that fits one sensor may leave another
+/// warmer than its reading (model error, or a node that a hotter
+/// neighbour warmed while off), and the sensor is the best knowledge of
+/// its node. `readings_c` as [`restore_readings`] leaves them.
+pub fn cooled_to_readings<const N: usize, const P: usize>(
+    saved_c: &[f32; N],
+    cooled: impl Fn(f32) -> [f32; N],
+    sensor_nodes: &[usize; P],
+    readings_c: &[Option<f32>; P],
+    tolerance_k: f32,
+    max_off_s: f32,
+) -> [f32; N] {
+    let off_s = earliest_off_time_s(&cooled, sensor_nodes, readings_c, tolerance_k, max_off_s);
+    let mut temps_c = if off_s > 0.0 { cooled(off_s) } else { *saved_c };
+    at_readings(&mut temps_c, sensor_nodes, readings_c);
+    temps_c
+}
+
 /// Sets every sensor's node in `temps_c` \[degC\] at its reading
 /// `readings_c` \[degC\] (`None` or not finite: no reading; two sensors
 /// on one node: the hotter, as the start takes it): a restore's cooled

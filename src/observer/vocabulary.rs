@@ -1,8 +1,14 @@
 //! The words every observer speaks: a timed sensor sample, what became of
-//! it, and the capacity of the alarm event queue. No device owns them
-//! (the grid, the Omnimagnet and the network observers, the consistency
-//! screen and the protection cycle all use them).
+//! it, the checks a reading must pass against the physics, what a tick of
+//! a filtered observer produces, and the capacity of the alarm event queue.
+//! No device owns them (the grid, the Omnimagnet and the network observers,
+//! the consistency screen and the protection cycle all use them).
 
+use super::consistency::{stuck_window, Band, StuckTest};
+use crate::error::BuildError;
+use crate::input::InputFlags;
+use crate::protect::alarm::AlarmStatus;
+use crate::protect::limiter::CoilLimit;
 use crate::sensors::{SensorFault, SensorResult};
 
 /// Capacity of each observer's alarm event queue.
@@ -85,4 +91,153 @@ pub enum SensorStatus {
         /// within the window, the larger \[K\].
         model_moved_k: f32,
     },
+}
+
+/// The checks every filtered observer (the Omnimagnet's, the network's)
+/// holds its sensors to against the unfused shadow model, and the bound on
+/// what its sensors leave uncertain (see the network observer's "Sensors
+/// against the physics"). One set of settings, read by both builders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SensorChecks {
+    /// Fixed part of the band a reading must keep to below the unfused
+    /// shadow model \[K\] (`f64::INFINITY` turns the test off). Default 3.
+    pub consistency_offset_k: f64,
+    /// Share of the shadow model's rise above the ambient in that band
+    /// (dimensionless, finite, `>= 0`): the model's uncertainty. Default
+    /// 0.25.
+    pub consistency_fraction: f64,
+    /// How far the shadow model at a sensor's node must move while its
+    /// reading stays the same for the sensor to count as stuck \[K\]
+    /// (`f64::INFINITY` turns the test off). Default 1.0.
+    pub stuck_threshold_k: f64,
+    /// How far a reading may move and still count as unchanged for the
+    /// stuck test \[K\] (finite, `>= 0`; 0: to the bit). Default 0. Set
+    /// it to about one converter code plus twice the reading noise (0.3 K
+    /// for a MAX31855 with 0.1 K of noise) so that a detached
+    /// thermocouple jittering around the room's temperature is told
+    /// stuck (see docs/protection.md, "Thermocouples as they read").
+    pub stuck_tolerance_k: f64,
+    /// Largest steady-state standard deviation \[K\] an element with a
+    /// limit may have: a sensor set that leaves one less certain is refused
+    /// at build ([`BuildError::Unobservable`]; one thermocouple on the
+    /// Omnimagnet's solenoid 1 alone leaves solenoids 2 and 3 at 22-24 K).
+    /// Default 5 (`f64::INFINITY`: no check).
+    pub max_element_sigma_k: f64,
+}
+
+impl SensorChecks {
+    /// The defaults (see each field).
+    pub const DEFAULT: Self = Self {
+        consistency_offset_k: 3.0,
+        consistency_fraction: 0.25,
+        stuck_threshold_k: 1.0,
+        stuck_tolerance_k: 0.0,
+        max_element_sigma_k: 5.0,
+    };
+
+    /// Refuses a setting out of its range, naming it.
+    pub(crate) fn validate(&self) -> Result<(), BuildError> {
+        let check = |ok: bool, name: &'static str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(BuildError::InvalidParameter { name })
+            }
+        };
+        let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+        check(
+            !self.consistency_offset_k.is_nan() && self.consistency_offset_k >= 0.0,
+            "consistency_offset_k",
+        )?;
+        check(nonneg(self.consistency_fraction), "consistency_fraction")?;
+        check(
+            !self.stuck_threshold_k.is_nan() && self.stuck_threshold_k >= 0.0,
+            "stuck_threshold_k",
+        )?;
+        check(nonneg(self.stuck_tolerance_k), "stuck_tolerance_k")?;
+        check(
+            !self.max_element_sigma_k.is_nan() && self.max_element_sigma_k > 0.0,
+            "max_element_sigma_k",
+        )
+    }
+
+    /// The consistency band, in the tick's `f32`.
+    pub(crate) fn band(&self) -> Band {
+        Band {
+            offset_k: self.consistency_offset_k as f32,
+            fraction: self.consistency_fraction as f32,
+        }
+    }
+
+    /// The stuck test for readings every `correction_period_s` \[s\].
+    pub(crate) fn stuck_test(&self, correction_period_s: f64) -> StuckTest {
+        StuckTest {
+            threshold_k: self.stuck_threshold_k as f32,
+            tolerance_k: self.stuck_tolerance_k as f32,
+            window: stuck_window(correction_period_s),
+        }
+    }
+
+    /// Refuses an element with a limit (`limited`) whose steady standard
+    /// deviation `sigma_k` \[K\] exceeds [`Self::max_element_sigma_k`].
+    pub(crate) fn observable(
+        &self,
+        node: usize,
+        limited: bool,
+        sigma_k: f64,
+    ) -> Result<(), BuildError> {
+        if limited && sigma_k > self.max_element_sigma_k {
+            Err(BuildError::Unobservable {
+                node,
+                sigma_k: sigma_k as f32,
+            })
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl Default for SensorChecks {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// What one tick of a filtered observer produced (`Copy`, for
+/// [`Shared`](super::Shared)): the Omnimagnet's
+/// ([`OmniOutputs`](super::OmniOutputs)) and the network's
+/// ([`NetworkOutputs`](super::NetworkOutputs)), for `N` nodes, `M`
+/// currents, `A` elements with a time to limit and `P` sensors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FilteredOutputs<const N: usize, const M: usize, const A: usize, const P: usize> {
+    /// Node temperature estimates \[degC\]: the filter's mean.
+    pub temps_c: [f32; N],
+    /// Each node's protective upper bound \[degC\], what the limiter and
+    /// the alarm act on: the estimate plus `k_sigma` steady-state standard
+    /// deviations and, on the unmeasured nodes, the model-uncertainty
+    /// margin (see [`crate::protect::margin`]). Taken with the protection
+    /// cycle (by its alarm and limiter stages), so it lags `temps_c` by up
+    /// to a cycle, as the limits do.
+    pub upper_c: [f32; N],
+    /// Current limit per input.
+    pub limits: [CoilLimit<f32>; M],
+    /// Time until each limited element's upper bound reaches its alarm
+    /// limit \[s\] (`None`: never, or no limit).
+    pub time_to_limit_s: [Option<f32>; A],
+    /// The alarm summary.
+    pub alarm: AlarmStatus,
+    /// What happened to each sensor's reading.
+    pub sensors: [SensorStatus; P],
+    /// A correction ran this tick.
+    pub corrected: bool,
+    /// Input rules that fired this tick.
+    pub flags: InputFlags,
+    /// Model steps taken this tick.
+    pub steps: u32,
+    /// Time dropped by the catch-up limit \[us\].
+    pub dropped_us: u32,
+    /// Ticks since the state was made.
+    pub tick: u32,
 }

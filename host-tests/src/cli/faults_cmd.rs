@@ -128,8 +128,8 @@ pub struct FaultsArgs {
     #[arg(long, value_name = "N", default_value_t = faults::DEFAULT_NOISE_SEED)]
     sensor_noise_seed: u64,
     /// The observer's stuck-test tolerance [K]: a reading that moves less
-    /// than this counts as unchanged (`OmniSettings::stuck_tolerance_k`,
-    /// `NetworkSettings::stuck_tolerance_k`). Default: a model file's
+    /// than this counts as unchanged (`SensorChecks::stuck_tolerance_k`).
+    /// Default: a model file's
     /// `[observer] stuck_tolerance_k`, else 0 (to the bit). About one code
     /// plus twice the noise: 0.3 for --sensor-noise-k 0.1.
     #[arg(long, value_name = "K", allow_negative_numbers = true)]

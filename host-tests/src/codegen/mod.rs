@@ -104,7 +104,7 @@ pub struct ObserverSpec {
     pub max_cooling_bias_fraction: Option<f64>,
     /// How far a reading may move and still count as unchanged for the
     /// stuck test \[K\] (default 0: to the bit; see
-    /// `NetworkSettings::stuck_tolerance_k`).
+    /// `SensorChecks::stuck_tolerance_k`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stuck_tolerance_k: Option<f64>,
     /// Model-uncertainty margin of the nodes no sensor measures, as a share
@@ -481,7 +481,9 @@ impl Plan {
             fields.push(format!("max_cooling_bias_fraction: {v:?}"));
         }
         if let Some(v) = s.stuck_tolerance_k {
-            fields.push(format!("stuck_tolerance_k: {v:?}"));
+            fields.push(format!(
+                "checks: coil_thermal::observer::SensorChecks {{ stuck_tolerance_k: {v:?}, ..coil_thermal::observer::SensorChecks::DEFAULT }}"
+            ));
         }
         if s.unmeasured_margin.is_some() || s.unmeasured_margin_offset_k.is_some() {
             let default =

@@ -26,6 +26,7 @@ use coil_thermal::observer::network::{
     NetworkSettings,
 };
 use coil_thermal::observer::snapshot::snapshot_len;
+use coil_thermal::observer::SensorChecks;
 
 use super::{
     frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
@@ -96,9 +97,12 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         let settings = NetworkSettings {
             step_us: cfg.step_us,
             correction_period_s: reading_period_s(cfg),
-            stuck_tolerance_k: cfg
-                .stuck_tolerance_k
-                .unwrap_or(firmware.settings.stuck_tolerance_k),
+            checks: SensorChecks {
+                stuck_tolerance_k: cfg
+                    .stuck_tolerance_k
+                    .unwrap_or(firmware.settings.checks.stuck_tolerance_k),
+                ..firmware.settings.checks
+            },
             origin_c: cfg.ambient_c,
             frozen_flag_ticks: flag,
             frozen_loss_ticks: loss,
@@ -200,10 +204,10 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
     }
     fn consistency(&self) -> Consistency {
         Consistency {
-            offset_k: self.settings.consistency_offset_k,
-            fraction: self.settings.consistency_fraction,
-            stuck_threshold_k: self.settings.stuck_threshold_k,
-            stuck_tolerance_k: self.settings.stuck_tolerance_k,
+            offset_k: self.settings.checks.consistency_offset_k,
+            fraction: self.settings.checks.consistency_fraction,
+            stuck_threshold_k: self.settings.checks.stuck_threshold_k,
+            stuck_tolerance_k: self.settings.checks.stuck_tolerance_k,
         }
     }
     fn state(&self, ambient_c: f32) -> Self::State {

@@ -38,7 +38,7 @@ use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{stuck_window, Band, BiasBound, Shadow, StuckTest};
+use crate::observer::consistency::{BiasBound, Shadow};
 use crate::observer::snapshot::Fingerprint;
 pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::protect::alarm::AlarmBuilder;
@@ -174,20 +174,11 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     }
     check(nonneg(s.recovery_sigma_k), "recovery_sigma_k")?;
     check(nonneg(s.recovery_bias_sigma_w), "recovery_bias_sigma_w")?;
-    check(
-        !s.consistency_offset_k.is_nan() && s.consistency_offset_k >= 0.0,
-        "consistency_offset_k",
-    )?;
-    check(nonneg(s.consistency_fraction), "consistency_fraction")?;
+    s.checks.validate()?;
     check(
         nonneg(s.max_cooling_bias_fraction),
         "max_cooling_bias_fraction",
     )?;
-    check(
-        !s.stuck_threshold_k.is_nan() && s.stuck_threshold_k >= 0.0,
-        "stuck_threshold_k",
-    )?;
-    check(nonneg(s.stuck_tolerance_k), "stuck_tolerance_k")?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -309,7 +300,10 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
     fn observes_limited<const X: usize>(&self, gain: &SteadyStateGain<f32, X, P>) -> bool {
         self.critical_c.iter().enumerate().all(|(node, critical)| {
             let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
-            critical.is_none() || f64::from(sigma_k) <= self.settings.max_element_sigma_k
+            self.settings
+                .checks
+                .observable(node, critical.is_some(), f64::from(sigma_k))
+                .is_ok()
         })
     }
 
@@ -694,10 +688,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 && finite(&sh.constant_k),
             "shadow",
         )?;
-        let band = Band {
-            offset_k: s.consistency_offset_k as f32,
-            fraction: s.consistency_fraction as f32,
-        };
+        let band = s.checks.band();
         let (phi_minus_i, bd_power) = (matrix(&sh.phi_minus_i), matrix(&sh.bd_power));
         let shadow = Shadow {
             phi_minus_i,
@@ -745,15 +736,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // The taper's factor per element, scaled by each current's
         // hardware limit afterwards (see "Limits per current").
         let limiter = LimiterConfig::new([1.0; N], s.taper_k, 0.0)?;
-        check(
-            !s.max_element_sigma_k.is_nan() && s.max_element_sigma_k > 0.0,
-            "max_element_sigma_k",
-        )?;
         for (node, critical) in parts.critical_c.iter().enumerate() {
             let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
-            if critical.is_some() && f64::from(sigma_k) > s.max_element_sigma_k {
-                return Err(BuildError::Unobservable { node, sigma_k });
-            }
+            s.checks
+                .observable(node, critical.is_some(), f64::from(sigma_k))?;
         }
         let bound = upper_bound(&gain, &parts.sensor_nodes, s)?;
 
@@ -838,11 +824,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     0.0
                 }
             }),
-            stuck_test: StuckTest {
-                threshold_k: s.stuck_threshold_k as f32,
-                tolerance_k: s.stuck_tolerance_k as f32,
-                window: stuck_window(s.correction_period_s),
-            },
+            stuck_test: s.checks.stuck_test(s.correction_period_s),
             silent_after_us: timing
                 .correction_period
                 .saturating_mul(s.step_us)
@@ -1102,24 +1084,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )?;
         writeln!(out, "        origin_c: {:?},", s.origin_c)?;
         writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
-        writeln!(out, "        stuck_threshold_k: {:?},", s.stuck_threshold_k)?;
-        writeln!(out, "        stuck_tolerance_k: {:?},", s.stuck_tolerance_k)?;
-        writeln!(
-            out,
-            "        max_element_sigma_k: {:?},",
-            s.max_element_sigma_k
-        )?;
         writeln!(out, "        warmup_corrections: {},", s.warmup_corrections)?;
         writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
+        let c = &s.checks;
         writeln!(
             out,
-            "        consistency_offset_k: {:?},",
-            s.consistency_offset_k
-        )?;
-        writeln!(
-            out,
-            "        consistency_fraction: {:?},",
-            s.consistency_fraction
+            "        checks: coil_thermal::observer::SensorChecks {{\n            consistency_offset_k: {:?},\n            consistency_fraction: {:?},\n            stuck_threshold_k: {:?},\n            stuck_tolerance_k: {:?},\n            max_element_sigma_k: {:?},\n        }},",
+            c.consistency_offset_k,
+            c.consistency_fraction,
+            c.stuck_threshold_k,
+            c.stuck_tolerance_k,
+            c.max_element_sigma_k
         )?;
         writeln!(out, "        bias_tau_s: {:?},", s.bias_tau_s)?;
         writeln!(out, "        boundary_offset: {:?},", s.boundary_offset)?;
