@@ -106,7 +106,6 @@ impl DriveFlags {
     /// current it gives not finite (a corrupted estimate): the last valid
     /// current was held.
     pub const RESISTANCE_INVALID: Self = Self(8);
-
 }
 
 flag_set!(DriveFlags);
@@ -204,7 +203,6 @@ impl InputFlags {
     /// of the estimate's and the unfused shadow's upper bounds, as for a
     /// sensor in doubt.
     pub const MODEL_STALE: Self = Self(128);
-
 }
 
 flag_set!(InputFlags);
