@@ -136,10 +136,7 @@ fn run(
                 let result = if j == 5 && k > 10_000 {
                     Err(SensorFault::OpenCircuit)
                 } else {
-                    Ok(Reading {
-                        temp_c,
-                        cold_junction_c: AMBIENT_C as f32,
-                    })
+                    Ok(Reading::new(temp_c))
                 };
                 let age_us = match (j, k) {
                     (0, 2_999) => 30_000,

@@ -158,10 +158,7 @@ fn ticks(
         if reading_tick {
             for (slot, node) in readings.iter_mut().zip(THERMOCOUPLE_NODES) {
                 *slot = Some(TimedReading {
-                    result: Ok(Reading {
-                        temp_c: truth[node] as f32,
-                        cold_junction_c: AMBIENT_C as f32,
-                    }),
+                    result: Ok(Reading::new(truth[node] as f32)),
                     sampled_at_us: now_us,
                 });
             }

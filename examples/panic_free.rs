@@ -142,10 +142,7 @@ fn network_observer() -> bool {
             result: if k % 5 == 0 {
                 Err(SensorFault::OpenCircuit)
             } else {
-                Ok(Reading {
-                    temp_c: temp,
-                    cold_junction_c: 20.0,
-                })
+                Ok(Reading::new(temp))
             },
             sampled_at_us: k,
         });
@@ -211,10 +208,7 @@ fn observers() -> bool {
             result: if k % 5 == 0 {
                 Err(SensorFault::OpenCircuit)
             } else {
-                Ok(Reading {
-                    temp_c: temp,
-                    cold_junction_c: 20.0,
-                })
+                Ok(Reading::new(temp))
             },
             sampled_at_us: k,
         });

@@ -137,10 +137,7 @@ pub fn replay<W: Write>(
             };
             observer.tick(&mut open, &inputs);
             inputs.readings = [(k == 0).then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: reading_c,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(reading_c)),
                 sampled_at_us: now_us,
             })];
             let mut published = None;

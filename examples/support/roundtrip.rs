@@ -89,10 +89,7 @@ pub fn replay<W: Write>(
         let (current_a, ambient_c, winding_tc, housing_tc) = row(line).ok_or("trace row")?;
         for k in 0..1000u32 {
             let reading = (k == 0).then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: housing_tc,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(housing_tc)),
                 sampled_at_us: now_us,
             });
             let inputs = model::Inputs {

@@ -113,10 +113,7 @@ impl Board {
     pub fn inputs(&self) -> Inputs {
         let now_us = self.ticks * TICK_US;
         let reading = TimedReading {
-            result: Ok(Reading {
-                temp_c: self.plant_c[HOUSING],
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(self.plant_c[HOUSING])),
             sampled_at_us: now_us,
         };
         Inputs {

@@ -1246,10 +1246,7 @@ impl<'c, S: Subject> Harness<'c, S> {
                     }
                 }
                 *slot = Some(TimedReading {
-                    result: result.map(|temp_c| Reading {
-                        temp_c,
-                        cold_junction_c: 25.0,
-                    }),
+                    result: result.map(Reading::new),
                     sampled_at_us: now_us,
                 });
             }

@@ -367,10 +367,7 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         let now_us = self.inputs.now_us;
         for (slot, z) in self.inputs.readings.iter_mut().zip(&mut self.pending) {
             *slot = z.take().map(|temp_c| TimedReading {
-                result: Ok(Reading {
-                    temp_c,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(temp_c)),
                 sampled_at_us: now_us,
             });
         }

@@ -205,10 +205,7 @@ impl OmniFirmwareEstimator {
         let now_us = self.now_us;
         let readings = core::array::from_fn(|j| {
             self.pending[j].take().map(|temp_c| TimedReading {
-                result: Ok(Reading {
-                    temp_c,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(temp_c)),
                 sampled_at_us: now_us,
             })
         });

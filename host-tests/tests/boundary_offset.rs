@@ -103,10 +103,7 @@ fn run<const X: usize>(offset: bool, plant_offset_k: f64, bias: bool) -> End {
         rk4(&net, &mut plant, &plant_boundary, f64::from(STEP_US) * 1e-6);
         let now_us = tick.wrapping_mul(STEP_US);
         let reading = (tick % ticks_per_s == 0).then_some(TimedReading {
-            result: Ok(Reading {
-                temp_c: plant[1] as f32,
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(plant[1] as f32)),
             sampled_at_us: now_us,
         });
         let inputs = NetworkInputs {

@@ -45,10 +45,7 @@ fn run(observer: &Observer, state: &mut State, plant_c: &mut [f64; NODES], secon
         step_plant(plant_c, f64::from(current_a));
         let now_us = k * 1000;
         let reading = TimedReading {
-            result: Ok(Reading {
-                temp_c: plant_c[HOUSING] as f32,
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(plant_c[HOUSING] as f32)),
             sampled_at_us: now_us,
         };
         let inputs = model::Inputs {

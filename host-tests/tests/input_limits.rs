@@ -104,10 +104,7 @@ fn run(held: bool) -> Run {
         for k in 0..PLANT_STEP_MS {
             let read = k == 0 && step % (1000 / PLANT_STEP_MS) == 0;
             let reading = read.then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: plant.temps_c()[STATOR] as f32,
-                    cold_junction_c: AMBIENT_C,
-                }),
+                result: Ok(Reading::new(plant.temps_c()[STATOR] as f32)),
                 sampled_at_us: now_us,
             });
             let inputs = model::Inputs {

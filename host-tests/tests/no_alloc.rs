@@ -98,10 +98,7 @@ fn network_observer_ticks_allocate_nothing() {
                 result: if k % 1000 == 0 {
                     Err(SensorFault::OpenCircuit)
                 } else {
-                    Ok(Reading {
-                        temp_c: 21.0,
-                        cold_junction_c: 25.0,
-                    })
+                    Ok(Reading::new(21.0))
                 },
                 sampled_at_us: k.wrapping_mul(1000),
             };

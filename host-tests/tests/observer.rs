@@ -499,10 +499,7 @@ fn omni() -> OmniObserver {
 
 fn reading(temp_c: f32, sampled_at_us: u32) -> Option<TimedReading> {
     Some(TimedReading {
-        result: Ok(Reading {
-            temp_c,
-            cold_junction_c: 22.0,
-        }),
+        result: Ok(Reading::new(temp_c)),
         sampled_at_us,
     })
 }

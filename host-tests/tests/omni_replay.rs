@@ -156,10 +156,7 @@ fn replay_of_the_omnimagnet_is_the_flashed_omni_observer() {
                 ambient_c: ambient,
                 readings: core::array::from_fn(|j| {
                     (tick == 0).then_some(TimedReading {
-                        result: Ok(Reading {
-                            temp_c: z[j],
-                            cold_junction_c: 25.0,
-                        }),
+                        result: Ok(Reading::new(z[j])),
                         sampled_at_us: now_us,
                     })
                 }),

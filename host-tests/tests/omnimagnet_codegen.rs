@@ -58,10 +58,7 @@ fn the_static_ticks_as_the_built_observer() {
                 let result = if j == 5 && k > 10_000 {
                     Err(SensorFault::OpenCircuit)
                 } else {
-                    Ok(Reading {
-                        temp_c: 22.0 + 0.0004 * k as f32 + 0.05 * j as f32,
-                        cold_junction_c: 22.0,
-                    })
+                    Ok(Reading::new(22.0 + 0.0004 * k as f32 + 0.05 * j as f32))
                 };
                 *slot = Some(TimedReading {
                     result,

@@ -297,10 +297,7 @@ const OMNI_WATCHED: [(usize, f64); 6] = {
 fn omni_readings(plant_c: &[f64], now_us: u32) -> [Option<TimedReading>; 6] {
     THERMOCOUPLE_NODES.map(|node| {
         Some(TimedReading {
-            result: Ok(Reading {
-                temp_c: plant_c[node] as f32,
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(plant_c[node] as f32)),
             sampled_at_us: now_us,
         })
     })

@@ -672,10 +672,7 @@ fn omni_run(draw: Draw, observer: &OmniObserver, protected: bool) -> Run {
         let temps = plant.temps_c();
         let readings = THERMOCOUPLE_NODES.map(|node| {
             Some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: temps[node] as f32,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(temps[node] as f32)),
                 sampled_at_us: now_us,
             })
         });

@@ -69,10 +69,7 @@ fn tick_each_second<
             now_us += 1000;
             let readings = readings_c.map(|r| {
                 r.filter(|_| k == 0).map(|temp_c| TimedReading {
-                    result: Ok(Reading {
-                        temp_c,
-                        cold_junction_c: 25.0,
-                    }),
+                    result: Ok(Reading::new(temp_c)),
                     sampled_at_us: now_us,
                 })
             });

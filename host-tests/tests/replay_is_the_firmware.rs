@@ -84,10 +84,7 @@ fn generated() -> (Vec<Row>, Vec<Event>) {
         for k in 0..1000 {
             now_us += 1000;
             let readings = [(k == 0).then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: *housing_tc,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(*housing_tc)),
                 sampled_at_us: now_us,
             })];
             let inputs = NetworkInputs {

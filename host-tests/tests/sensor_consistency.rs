@@ -117,10 +117,7 @@ fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
         let readings = if k % READING_EVERY == 0 {
             read.map(|temp_c| {
                 Some(TimedReading {
-                    result: Ok(Reading {
-                        temp_c,
-                        cold_junction_c: 25.0,
-                    }),
+                    result: Ok(Reading::new(temp_c)),
                     sampled_at_us: now_us,
                 })
             })
@@ -267,10 +264,7 @@ fn drive_run(read: impl Fn(f64, f32) -> f32) -> DriveOutcome {
         let now_us = (tick + 1).wrapping_mul(1000);
         let t_s = f64::from(tick + 1) * 1e-3;
         let reading = (tick % 1000 == 0).then(|| TimedReading {
-            result: Ok(Reading {
-                temp_c: read(t_s, plant.temps_c[1] as f32),
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(read(t_s, plant.temps_c[1] as f32))),
             sampled_at_us: now_us,
         });
         let inputs = drive::Inputs {

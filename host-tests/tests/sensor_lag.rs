@@ -91,10 +91,7 @@ fn run<const N: usize, const X: usize>(obs: &NetworkObserver<N, 1, 1, X, 1>) -> 
         let readings = if read {
             let temp_c = ((plant[3] * 10.0).round() / 10.0) as f32;
             [Some(TimedReading {
-                result: Ok(Reading {
-                    temp_c,
-                    cold_junction_c: temp_c,
-                }),
+                result: Ok(Reading::new(temp_c)),
                 sampled_at_us: now_us,
             })]
         } else {

@@ -104,10 +104,7 @@ fn run(obs: &Observer, readings: bool) -> Scores {
         let now_us = k.wrapping_mul(1000);
         let i = currents_a(t_s);
         let reading = (readings && k % 500 == 0).then_some(TimedReading {
-            result: Ok(Reading {
-                temp_c: plant[3] as f32,
-                cold_junction_c: 25.0,
-            }),
+            result: Ok(Reading::new(plant[3] as f32)),
             sampled_at_us: now_us,
         });
         let inputs = NetworkInputs {

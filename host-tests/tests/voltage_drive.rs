@@ -300,10 +300,7 @@ fn the_generated_valve_firmware_holds_the_coil_under_its_alarm_limit() {
         };
         if k % 500 == 0 {
             inputs.readings = [Some(coil_thermal::observer::TimedReading {
-                result: Ok(coil_thermal::Reading {
-                    temp_c: plant.temps_c()[1] as f32,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(coil_thermal::Reading::new(plant.temps_c()[1] as f32)),
                 sampled_at_us: now_us,
             })];
         }

@@ -59,7 +59,7 @@
 //!     let now_us = tick * 1000;
 //!     // A thermocouple sample every 500 ms (here a constant 20.5 degC).
 //!     let reading = (tick % 500 == 0).then_some(TimedReading {
-//!         result: Ok(Reading { temp_c: 20.5, cold_junction_c: 25.0 }),
+//!         result: Ok(Reading::new(20.5)),
 //!         sampled_at_us: now_us,
 //!     });
 //!     let inputs = NetworkInputs {

@@ -74,10 +74,7 @@ fn inputs<const B: usize, const M: usize, const P: usize>(
 
 fn reading(temp_c: f32, now_us: u32) -> Option<TimedReading> {
     Some(TimedReading {
-        result: Ok(Reading {
-            temp_c,
-            cold_junction_c: 25.0,
-        }),
+        result: Ok(Reading::new(temp_c)),
         sampled_at_us: now_us,
     })
 }

@@ -169,10 +169,7 @@ fn voltage_drive_duty_held_at_the_limit_keeps_the_coil_under_its_alarm_limit() {
         let mut inp = no_readings([AMBIENT_C as f32], now_us);
         if k % 500 == 0 {
             inp.readings = [Some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: th as f32,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(th as f32)),
                 sampled_at_us: now_us,
             })];
         }

@@ -97,7 +97,7 @@ pub fn decode(frame: u32) -> Result<Reading, SensorFault> {
     // a power of two are exact.
     Ok(Reading {
         temp_c: thermocouple_code as f32 * THERMOCOUPLE_LSB_C,
-        cold_junction_c: cold_junction_code as f32 * COLD_JUNCTION_LSB_C,
+        cold_junction_c: Some(cold_junction_code as f32 * COLD_JUNCTION_LSB_C),
     })
 }
 
@@ -191,7 +191,7 @@ mod tests {
                     decode(frame(tc_bits, cj_bits, 0)),
                     Ok(Reading {
                         temp_c: tc_c,
-                        cold_junction_c: cj_c
+                        cold_junction_c: Some(cj_c)
                     }),
                     "tc {tc_bits:014b} cj {cj_bits:012b}"
                 );
@@ -202,9 +202,9 @@ mod tests {
     #[test]
     fn extremes_of_both_fields() {
         let max = decode(frame(0x1FFF, 0x7FF, 0)).unwrap();
-        assert_eq!((max.temp_c, max.cold_junction_c), (2047.75, 127.9375));
+        assert_eq!((max.temp_c, max.cold_junction_c), (2047.75, Some(127.9375)));
         let min = decode(frame(0x2000, 0x800, 0)).unwrap();
-        assert_eq!((min.temp_c, min.cold_junction_c), (-2048.0, -128.0));
+        assert_eq!((min.temp_c, min.cold_junction_c), (-2048.0, Some(-128.0)));
     }
 
     #[test]
@@ -241,7 +241,7 @@ mod tests {
             decode(0),
             Ok(Reading {
                 temp_c: 0.0,
-                cold_junction_c: 0.0
+                cold_junction_c: Some(0.0)
             })
         );
     }
@@ -260,7 +260,7 @@ mod tests {
             sensor.read(),
             Ok(Reading {
                 temp_c: 100.75,
-                cold_junction_c: 25.0
+                cold_junction_c: Some(25.0)
             })
         );
         sensor.release().done();
@@ -324,9 +324,10 @@ mod tests {
                 Ok(reading) => {
                     prop_assert!(!flagged && !corrupt);
                     prop_assert!((-2048.0..=2047.75).contains(&reading.temp_c));
-                    prop_assert!((-128.0..=127.9375).contains(&reading.cold_junction_c));
+                    let cj_c = reading.cold_junction_c.unwrap_or(f32::NAN);
+                    prop_assert!((-128.0..=127.9375).contains(&cj_c));
                     prop_assert_eq!(reading.temp_c % THERMOCOUPLE_LSB_C, 0.0);
-                    prop_assert_eq!(reading.cold_junction_c % COLD_JUNCTION_LSB_C, 0.0);
+                    prop_assert_eq!(cj_c % COLD_JUNCTION_LSB_C, 0.0);
                 }
                 Err(fault) => {
                     prop_assert!(flagged || corrupt);
@@ -346,7 +347,7 @@ mod tests {
             let encoded = ((tc as u32 & 0x3FFF) << 18) | ((cj as u32 & 0xFFF) << 4);
             let reading = decode(encoded).unwrap();
             prop_assert_eq!(reading.temp_c, tc as f32 * 0.25);
-            prop_assert_eq!(reading.cold_junction_c, cj as f32 * 0.0625);
+            prop_assert_eq!(reading.cold_junction_c, Some(cj as f32 * 0.0625));
         }
     }
 }

@@ -343,7 +343,7 @@ pub fn decode(block: &[u8; READ_BLOCK_LEN]) -> Result<Reading, SensorFault> {
     let thermocouple_code = i32::from_be_bytes([tc_high, tc_mid, tc_low, 0]) >> 13;
     Ok(Reading {
         temp_c: thermocouple_code as f32 * THERMOCOUPLE_LSB_C,
-        cold_junction_c: f32::from(cold_junction_code) * COLD_JUNCTION_LSB_C,
+        cold_junction_c: Some(f32::from(cold_junction_code) * COLD_JUNCTION_LSB_C),
     })
 }
 
@@ -544,7 +544,7 @@ mod tests {
                     decode(&block(cj, tc, 0)),
                     Ok(Reading {
                         temp_c: tc_c,
-                        cold_junction_c: cj_c
+                        cold_junction_c: Some(cj_c)
                     }),
                     "tc {tc:02X?} cj {cj:02X?}"
                 );
@@ -558,7 +558,7 @@ mod tests {
             decode(&block([0x19, 0x03], [0x01, 0x90, 0x1F], 0)),
             Ok(Reading {
                 temp_c: 25.0,
-                cold_junction_c: 25.0
+                cold_junction_c: Some(25.0)
             })
         );
     }
@@ -692,7 +692,7 @@ mod tests {
             sensor.read(),
             Ok(Reading {
                 temp_c: -250.0,
-                cold_junction_c: -55.0
+                cold_junction_c: Some(-55.0)
             })
         );
         sensor.release().done();
@@ -737,9 +737,10 @@ mod tests {
                 Ok(reading) => {
                     prop_assert_eq!(bytes[5], 0);
                     prop_assert!((-2048.0..=2048.0 - THERMOCOUPLE_LSB_C).contains(&reading.temp_c));
-                    prop_assert!((-128.0..=127.984375).contains(&reading.cold_junction_c));
+                    let cj_c = reading.cold_junction_c.unwrap_or(f32::NAN);
+                    prop_assert!((-128.0..=127.984375).contains(&cj_c));
                     prop_assert_eq!(reading.temp_c % THERMOCOUPLE_LSB_C, 0.0);
-                    prop_assert_eq!(reading.cold_junction_c % COLD_JUNCTION_LSB_C, 0.0);
+                    prop_assert_eq!(cj_c % COLD_JUNCTION_LSB_C, 0.0);
                 }
                 Err(fault) => {
                     prop_assert_ne!(bytes[5], 0);
@@ -754,7 +755,7 @@ mod tests {
             let cj_bytes = (cj << 2).to_be_bytes();
             let reading = decode(&block(cj_bytes, [tc_high, tc_mid, tc_low], 0)).unwrap();
             prop_assert_eq!(reading.temp_c, tc as f32 / 128.0);
-            prop_assert_eq!(reading.cold_junction_c, f32::from(cj) / 64.0);
+            prop_assert_eq!(reading.cold_junction_c, Some(f32::from(cj) / 64.0));
         }
     }
 }

@@ -148,7 +148,8 @@ impl Converter {
 }
 
 /// Decode the RTD register pair (`rtd`: MSB first) and the FAULT STATUS
-/// register. [`Reading::cold_junction_c`] repeats the temperature.
+/// register ([`Reading::cold_junction_c`] `None`: an RTD has no cold
+/// junction).
 ///
 /// Needs no bus, so DMA users can call it on their own buffer.
 ///
@@ -182,10 +183,7 @@ pub fn decode(converter: &Converter, rtd: u16, fault_status: u8) -> SensorResult
     let resistance_ohm =
         converter.reference_resistance_ohm * code as f32 / FULL_SCALE_COUNTS as f32;
     let temp_c = converter.sensor.temp_c(resistance_ohm)?;
-    Ok(Reading {
-        temp_c,
-        cold_junction_c: temp_c,
-    })
+    Ok(Reading::new(temp_c))
 }
 
 /// Decode the block RTD MSB .. FAULT STATUS as [`Max31865::read_raw`]
@@ -320,7 +318,7 @@ mod tests {
         for t in [0.0, 25.0, 100.0, 150.0, 400.0] {
             let reading = decode(&pt100(), rtd_word(t), 0).unwrap();
             assert!((reading.temp_c as f64 - t).abs() < 0.02, "{t}: {reading:?}");
-            assert_eq!(reading.cold_junction_c, reading.temp_c);
+            assert_eq!(reading.cold_junction_c, None);
         }
         // Half a count is 0.017 K at 0 degC: the bound above is tight enough
         // to catch a code taken from the wrong bits (`rtd` instead of

@@ -32,7 +32,7 @@
 //! | winding resistance (a source's own `V/I`, DC injection) | [`crate::observer::network::resistance`] | T = (R - r0) / s, the winding's measured `R(T)` | the resistance's relative noise times `R(T) / s`: 2.5 K at 20 degC, 3.3 K at 100 degC per reading for copper at 1 %; through the filter, 0.69 K worst (RMSE 0.19 K) on `drive-3node` over an hour at one reading a second |
 //!
 //! A resistive sensor has no cold junction: its [`Reading::cold_junction_c`]
-//! repeats the temperature.
+//! is `None` ([`Reading::new`]).
 //!
 //! # How a fault reaches the filter
 //!
@@ -64,16 +64,31 @@ use core::fmt;
 
 use crate::error::BuildError;
 
-/// One thermocouple sample.
+/// One sensor sample: a temperature, and for a thermocouple the
+/// temperature of its cold junction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Reading {
-    /// Cold-junction-compensated thermocouple (hot junction) temperature
-    /// \[degC\].
+    /// The sensed temperature \[degC\]: a thermocouple's hot junction
+    /// (cold-junction compensated), a thermistor's or an RTD's element, a
+    /// winding's mean from its resistance.
     pub temp_c: f32,
-    /// Cold-junction temperature \[degC\]: the converter's die, where the
-    /// thermocouple wires end.
-    pub cold_junction_c: f32,
+    /// A thermocouple's cold-junction temperature \[degC\]: the
+    /// converter's die, where the thermocouple wires end (the MAX31855 and
+    /// MAX31856 drivers fill it). `None` for a sensor without one.
+    pub cold_junction_c: Option<f32>,
+}
+
+impl Reading {
+    /// A reading of `temp_c` \[degC\] from a sensor without a cold
+    /// junction (a thermistor, an RTD, a winding's resistance, a
+    /// simulation).
+    pub const fn new(temp_c: f32) -> Self {
+        Self {
+            temp_c,
+            cold_junction_c: None,
+        }
+    }
 }
 
 /// What one sensor sample produced: a reading, or why there is none.
@@ -89,12 +104,13 @@ pub type SensorResult = Result<Reading, SensorFault>;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum SensorFault {
-    /// The thermocouple is open: broken or unplugged wire (chip-detected).
+    /// The sensor is open: a broken or unplugged wire (a thermocouple
+    /// converter's flag; a resistive divider's rail count).
     OpenCircuit,
-    /// The thermocouple is shorted to ground (chip-detected).
+    /// The sensor is shorted to ground (converter flag or rail count).
     ShortToGnd,
-    /// The thermocouple is shorted to the supply, or (MAX31856) its inputs
-    /// are outside the supply rails (chip-detected).
+    /// The sensor is shorted to the supply, or (MAX31856) its inputs are
+    /// outside the supply rails (converter flag or rail count).
     ShortToVcc,
     /// The temperature is outside the sensor's physical or configured range:
     /// reported by the MAX31856's range and threshold flags, and by
@@ -123,9 +139,9 @@ pub enum SensorFault {
 impl fmt::Display for SensorFault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Self::OpenCircuit => "thermocouple open circuit",
-            Self::ShortToGnd => "thermocouple shorted to ground",
-            Self::ShortToVcc => "thermocouple shorted to supply",
+            Self::OpenCircuit => "sensor open circuit",
+            Self::ShortToGnd => "sensor shorted to ground",
+            Self::ShortToVcc => "sensor shorted to supply",
             Self::OutOfRange => "temperature outside the sensor's range",
             Self::NotFinite => "reading is not finite",
             Self::Stuck => "reading stuck while the estimate moves",
@@ -498,10 +514,7 @@ mod tests {
     #[test]
     fn errors_display_and_reduce_to_faults() {
         use embedded_hal::spi::ErrorKind;
-        assert_eq!(
-            SensorFault::OpenCircuit.to_string(),
-            "thermocouple open circuit"
-        );
+        assert_eq!(SensorFault::OpenCircuit.to_string(), "sensor open circuit");
         let bus: Error<ErrorKind> = Error::Bus(ErrorKind::ModeFault);
         assert_eq!(bus.to_string(), "SPI bus error: ModeFault");
         assert_eq!(SensorFault::from(bus), SensorFault::Bus);

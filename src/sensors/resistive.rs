@@ -80,10 +80,8 @@
 //!
 //! # Reading
 //!
-//! A [`Reading`] carries a thermocouple's cold-junction temperature, which a
-//! resistive sensor does not have: [`ResistiveInput::convert`] repeats the
-//! sensor temperature in [`Reading::cold_junction_c`] so the field stays
-//! finite and plausible. Nothing in the filter or observer reads it.
+//! A resistive sensor has no cold junction: [`ResistiveInput::convert`]'s
+//! [`Reading::cold_junction_c`] is `None`.
 
 use libm::{logf, sqrtf};
 
@@ -593,8 +591,7 @@ impl ResistiveInput {
         &self.sensor
     }
 
-    /// Convert one ADC count. [`Reading::cold_junction_c`] repeats the
-    /// temperature (see the [module documentation](self)).
+    /// Convert one ADC count ([`Reading::cold_junction_c`] `None`).
     ///
     /// # Errors
     /// The faults of the [module documentation](self): a count that is not
@@ -603,10 +600,7 @@ impl ResistiveInput {
     pub fn convert(&self, counts: u32) -> SensorResult {
         let resistance_ohm = self.divider.resistance_ohm(counts)?;
         let temp_c = self.sensor.temp_c(resistance_ohm)?;
-        Ok(Reading {
-            temp_c,
-            cold_junction_c: temp_c,
-        })
+        Ok(Reading::new(temp_c))
     }
 }
 
@@ -837,7 +831,7 @@ mod tests {
                             case.name,
                             reading.temp_c
                         );
-                        assert_eq!(reading.cold_junction_c, reading.temp_c);
+                        assert_eq!(reading.cold_junction_c, None);
                     } else if let Ok(reading) = got {
                         // Outside -40 .. 150 but inside the sensor's range.
                         let error_k = (reading.temp_c as f64 - expected_c).abs();

@@ -228,10 +228,9 @@ impl<S: Subject> Harness<'_, S> {
             let readings: Vec<Option<TimedReading>> = (0..sensor_nodes.len())
                 .map(|j| {
                     (due && cfg.sensors[j]).then(|| TimedReading {
-                        result: Ok::<_, SensorFault>(Reading {
-                            temp_c: model.read(truth[j], j, reading_no),
-                            cold_junction_c: 25.0,
-                        }),
+                        result: Ok::<_, SensorFault>(Reading::new(
+                            model.read(truth[j], j, reading_no),
+                        )),
                         sampled_at_us: now_us,
                     })
                 })

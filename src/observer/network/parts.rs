@@ -1276,10 +1276,7 @@ mod tests {
         for tick in 0..20_000u32 {
             let now_us = tick * 1000;
             let reading = (tick % 500 == 0).then_some(TimedReading {
-                result: Ok(Reading {
-                    temp_c: 20.0 + tick as f32 * 1e-3,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(20.0 + tick as f32 * 1e-3)),
                 sampled_at_us: now_us,
             });
             let inputs = NetworkInputs {

@@ -318,10 +318,7 @@ impl Conversion {
         }
         // No cold junction: it repeats the temperature, as the resistive
         // sensors' readings do.
-        Some(Ok(Reading {
-            temp_c,
-            cold_junction_c: temp_c,
-        }))
+        Some(Ok(Reading::new(temp_c)))
     }
 }
 

@@ -141,10 +141,7 @@ fn tick(
     let readings = match readings_c {
         Some(r) if k.is_multiple_of(500) => r.map(|temp_c| {
             Some(TimedReading {
-                result: Ok(Reading {
-                    temp_c,
-                    cold_junction_c: 25.0,
-                }),
+                result: Ok(Reading::new(temp_c)),
                 sampled_at_us: now_us,
             })
         }),

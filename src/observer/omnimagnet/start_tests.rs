@@ -160,10 +160,7 @@ fn drive_ticking(
         let readings = if read {
             plant.readings().map(|temp_c| {
                 Some(TimedReading {
-                    result: Ok(Reading {
-                        temp_c,
-                        cold_junction_c: 25.0,
-                    }),
+                    result: Ok(Reading::new(temp_c)),
                     sampled_at_us: now_us,
                 })
             })
