@@ -69,6 +69,19 @@
 //! time-varying filter ([`crate::kalman`]). Open loop (no sensor) there is
 //! nothing to fuse and no bias.
 //!
+//! # Voltage-driven sources
+//! A `[[source]]` driven by a PWM duty or a voltage (`drive = "pwm"` or
+//! `"voltage"`) ticks through the library's `tick_voltage`, as the
+//! generated module does: each row's duty and supply become a
+//! `VoltageDrive` ([`Model::voltage_drive`]), the winding draws `sqrt(D) V
+//! / R(T_est)` at the estimate, and the library's rules flag, clamp or hold
+//! a bad duty or supply (counted per rule: [`DriveFlagTicks`]). Its limit
+//! is published in the input's own unit (a duty, or a voltage) from the
+//! library's `drive_limit` ([`Protected::drive_limit`]). Test
+//! `replay_voltage_firmware`: the 24 V valve over two hours with a dead
+//! supply channel and a duty above 1 is the generated module's, within
+//! 5e-7 K and 5e-7 of duty, the drive rules on the same ticks.
+//!
 //! # Currents above 100 A
 //! The observer holds a current beyond its plausibility limit (the
 //! library's `InputLimits::default()`, 100 A, fixed for the observer) at
@@ -92,7 +105,7 @@ use coil_thermal::observer::network::{
     NetworkSettings,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
-use coil_thermal::Reading;
+use coil_thermal::{DriveFlags, Reading, VoltageDrive};
 
 use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
@@ -122,6 +135,16 @@ trait PaddedObserver: Send {
     fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]);
     /// Readings (one per fused sensor, `None`: none) for the next tick.
     fn readings(&mut self, z: &[Option<f64>]);
+    /// Holds each source's voltage drive `(duty, supply_v)` in the
+    /// model's units (see `Model::voltage_drive`; `None`: its current is
+    /// the input's): the ticks run `tick_voltage` while one is `Some`.
+    fn drives(&mut self, drives: &[Option<(f64, f64)>]);
+    /// The drive rules that fired since the last call (`DriveFlags`).
+    fn take_drive_flags(&mut self) -> DriveFlags;
+    /// Each held voltage drive's limit after the last tick, `(duty,
+    /// effective voltage [V])` from the library's `drive_limit` on the
+    /// held supply (`None` for a current-driven source).
+    fn drive_limits(&self, out: &mut [Option<(f64, f64)>]);
     /// What the last tick did with each fused sensor's reading.
     fn statuses(&self, out: &mut [SensorStatus]);
     /// One library tick of `elapsed_us`; returns its host time \[ns\].
@@ -195,6 +218,12 @@ pub struct Protected {
     /// Each source's current limit \[A\] (its effective current: a speed
     /// factor's `sqrt` included).
     pub source_limit_a: Vec<f64>,
+    /// Each voltage-driven source's limit in its input's own unit, from
+    /// the library's `drive_limit` on the row's supply: the duty of a
+    /// `pwm` input, the voltage \[V\] of a linear `voltage` input, as the
+    /// generated module's `input_drive_limits` (`None`: a current-driven
+    /// source, limited by `source_limit_a`).
+    pub drive_limit: Vec<Option<f64>>,
     /// Each limited node's time to its alarm limit \[s\] (`None`: never,
     /// or not limited).
     pub time_to_limit_s: Vec<Option<f64>>,
@@ -213,6 +242,7 @@ impl Protected {
             upper_c: vec![0.0; nodes],
             alarm_limit_c: vec![None; nodes],
             source_limit_a: vec![0.0; sources],
+            drive_limit: vec![None; sources],
             time_to_limit_s: vec![None; nodes],
             ..Self::default()
         }
@@ -223,6 +253,12 @@ struct Sized<const C: usize, const X: usize, const P: usize> {
     observer: NetworkObserver<C, 2, C, X, P>,
     state: NetworkObserverState<C, 2, C, X, P>,
     inputs: NetworkInputs<2, C, P>,
+    /// Each source's voltage drive, in the padded network's units (the
+    /// supply times [`CURRENT_SCALE`]); all `None` for a current-driven
+    /// model.
+    drives: [Option<VoltageDrive>; C],
+    /// The drive rules that fired since [`PaddedObserver::take_drive_flags`].
+    drive_flags: DriveFlags,
     /// Readings waiting for the next tick.
     pending: [Option<f32>; P],
     /// The boundary the alarm takes as the ambient.
@@ -318,6 +354,8 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
                 elapsed_us: 0,
             },
             pending: [None; P],
+            drives: [None; C],
+            drive_flags: DriveFlags::NONE,
             ambient_boundary: settings.ambient_boundary.min(1),
         }))
     }
@@ -355,6 +393,36 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         }
     }
 
+    fn drives(&mut self, drives: &[Option<(f64, f64)>]) {
+        self.drives = [None; C];
+        for (slot, d) in self.drives.iter_mut().zip(drives) {
+            // The padded winding's resistance is `CURRENT_SCALE^2` times
+            // the model's and its current `1 / CURRENT_SCALE` of it: the
+            // same heat on a supply `CURRENT_SCALE` times the model's.
+            *slot = d.map(|(duty, supply_v)| {
+                VoltageDrive::pwm(duty as f32, (supply_v * CURRENT_SCALE) as f32)
+            });
+        }
+    }
+
+    fn take_drive_flags(&mut self) -> DriveFlags {
+        core::mem::take(&mut self.drive_flags)
+    }
+
+    fn drive_limits(&self, out: &mut [Option<(f64, f64)>]) {
+        for ((m, l), d) in out.iter_mut().enumerate().zip(&self.drives) {
+            *l = d.map(|d| {
+                let limit = self.observer.drive_limit(&self.state, m, d.supply_v);
+                // The effective voltage in the model's volts (the
+                // padding's scale taken out, exactly: a power of two).
+                (
+                    f64::from(limit.duty),
+                    f64::from(limit.voltage_v) / CURRENT_SCALE,
+                )
+            });
+        }
+    }
+
     fn statuses(&self, out: &mut [SensorStatus]) {
         out.copy_from_slice(&self.state.outputs().sensors[..out.len()]);
     }
@@ -372,8 +440,19 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
             });
         }
         let start = Instant::now();
-        std::hint::black_box(self.observer.tick(&mut self.state, &self.inputs));
-        start.elapsed().as_nanos() as u64
+        if self.drives.iter().any(Option::is_some) {
+            let (_, flags) = std::hint::black_box(self.observer.tick_voltage(
+                &mut self.state,
+                &self.inputs,
+                &self.drives,
+            ));
+            let ns = start.elapsed().as_nanos() as u64;
+            self.drive_flags |= flags;
+            ns
+        } else {
+            std::hint::black_box(self.observer.tick(&mut self.state, &self.inputs));
+            start.elapsed().as_nanos() as u64
+        }
     }
 
     fn temps_c(&self, out: &mut [f64]) {
@@ -454,6 +533,48 @@ pub struct ObserverEstimator {
     protected: Protected,
     /// Alarm events since the last [`Self::take_events`].
     events: Vec<EventKindAt>,
+    /// Each source's voltage drive of the present row (see
+    /// [`Model::voltage_drive`]).
+    drives: Vec<Option<(f64, f64)>>,
+    /// Each voltage drive's `(duty, effective voltage)` limit.
+    drive_limits: Vec<Option<(f64, f64)>>,
+    /// Ticks on which each drive rule fired.
+    drive_flag_ticks: DriveFlagTicks,
+}
+
+/// How many ticks each of the library's drive rules fired on (see
+/// `coil_thermal::DriveFlags`): a voltage-driven model's bad duties and
+/// supplies are counted, never dropped without a word.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DriveFlagTicks {
+    /// A duty was NaN, infinite or negative: the last valid current held.
+    pub duty_invalid: u64,
+    /// A duty above 1 was taken as 1.
+    pub duty_clamped: u64,
+    /// A supply was NaN, infinite, zero or negative: the last valid
+    /// current held, the duty limit zero.
+    pub supply_invalid: u64,
+    /// `R(T)` at the estimate was not positive: the last valid current
+    /// held.
+    pub resistance_invalid: u64,
+}
+
+impl DriveFlagTicks {
+    fn count(&mut self, flags: DriveFlags) {
+        for (n, flag) in [
+            (&mut self.duty_invalid, DriveFlags::DUTY_INVALID),
+            (&mut self.duty_clamped, DriveFlags::DUTY_CLAMPED),
+            (&mut self.supply_invalid, DriveFlags::SUPPLY_INVALID),
+            (&mut self.resistance_invalid, DriveFlags::RESISTANCE_INVALID),
+        ] {
+            *n += u64::from(flags.contains(flag));
+        }
+    }
+
+    /// `true` when no rule fired.
+    pub fn is_clean(&self) -> bool {
+        *self == Self::default()
+    }
 }
 
 impl ObserverEstimator {
@@ -626,6 +747,9 @@ impl ObserverEstimator {
             },
             protected: Protected::for_sizes(n, m),
             events: Vec::new(),
+            drives: vec![None; m],
+            drive_limits: vec![None; m],
+            drive_flag_ticks: DriveFlagTicks::default(),
         })
     }
 
@@ -685,6 +809,56 @@ impl ObserverEstimator {
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
         self.observer.inputs(&self.effective, boundary_c);
+        self.hold_drives(currents_a, signals);
+    }
+
+    /// Hands the row's voltage drives to the observer (nothing for a
+    /// current-driven model).
+    fn hold_drives(&mut self, currents_a: &[f64], signals: &[f64]) {
+        if self.model.has_voltage_drives() {
+            for (m, d) in self.drives.iter_mut().enumerate() {
+                *d = self.model.voltage_drive(m, currents_a, signals);
+            }
+            self.observer.drives(&self.drives);
+        }
+    }
+
+    /// Ticks on which each drive rule fired since the reset (all zero for
+    /// a current-driven model).
+    pub fn drive_flag_ticks(&self) -> DriveFlagTicks {
+        self.drive_flag_ticks
+    }
+
+    /// The protection after a tick, each voltage drive's limit in its
+    /// input's unit: a `pwm` input's duty, a linear input's voltage (the
+    /// effective voltage over the source's `sqrt(scale)`), as the
+    /// generated module's `input_drive_limits`.
+    fn publish_protection(&mut self) {
+        self.observer.protection(&mut self.protected);
+        if !self.model.has_voltage_drives() {
+            return;
+        }
+        self.observer.drive_limits(&mut self.drive_limits);
+        for (m, (out, limit)) in self
+            .protected
+            .drive_limit
+            .iter_mut()
+            .zip(&self.drive_limits)
+            .enumerate()
+        {
+            if !self.model.is_voltage_driven(m) {
+                continue;
+            }
+            // Before the first row's drive (the reset) the supply is not
+            // known: no limit yet (NaN), never a current in a duty's place.
+            *out = Some(limit.map_or(f64::NAN, |(duty, voltage_v)| {
+                match self.model.linear_drive_scale(m) {
+                    Some(k) if k > 0.0 => voltage_v / k,
+                    Some(_) => 0.0,
+                    None => duty,
+                }
+            }));
+        }
     }
 
     /// One library tick of `tick_us` with the held inputs, not recorded;
@@ -704,7 +878,8 @@ impl Estimator for ObserverEstimator {
         // until then the padding sits at the mean start temperature.
         let mean = temps_c.iter().sum::<f64>() / temps_c.len().max(1) as f64;
         self.observer.reset(temps_c, &[mean, mean]);
-        self.observer.protection(&mut self.protected);
+        self.drive_flag_ticks = DriveFlagTicks::default();
+        self.publish_protection();
         self.events.clear();
         self.temps.copy_from_slice(temps_c);
         self.clock = TickClock::default();
@@ -719,20 +894,15 @@ impl Estimator for ObserverEstimator {
         self.model
             .effective_currents(currents_a, signals, &mut self.effective);
         self.observer.inputs(&self.effective, boundary_c);
-        let voltage = self.model.has_voltage_drives();
+        // A voltage-driven winding's current is the library's
+        // (`tick_voltage`: `sqrt(D) V / R(T_est)`), as on the MCU.
+        self.hold_drives(currents_a, signals);
         self.clock.ask(dt_s);
         while self.clock.next_tick(self.tick_us) {
-            if voltage {
-                // What `NetworkObserver::tick_voltage` does: each
-                // voltage-driven winding draws `V_eff / R(T_est)` at the
-                // estimate this tick starts from.
-                self.observer.temps_c(&mut self.temps);
-                let mut currents = self.effective.clone();
-                self.model.currents_at(&mut currents, &self.temps);
-                self.observer.inputs(&currents, boundary_c);
-            }
             let ns = self.observer.tick(self.tick_us);
             self.tick_ns.record(ns);
+            let flags = self.observer.take_drive_flags();
+            self.drive_flag_ticks.count(flags);
             let first = self.events.len();
             self.observer.drain_events(&mut self.events);
             for e in &mut self.events[first..] {
@@ -753,7 +923,7 @@ impl Estimator for ObserverEstimator {
             }
         }
         self.observer.temps_c(&mut self.temps);
-        self.observer.protection(&mut self.protected);
+        self.publish_protection();
     }
 
     /// Hands the row's readings to the next tick (the estimate recorded at

@@ -694,6 +694,23 @@ fn omni_overrides(a: &ReplayArgs) -> Result<Vec<Override>> {
     Ok(overrides)
 }
 
+/// The unit of a model input's limit: `a` (amperes) for a current, `duty`
+/// for a PWM duty, `v` (volts) for a linear voltage (the generated
+/// module's `input_limits_a` and `input_drive_limits`).
+fn input_limit_unit(model: &Model, input: usize) -> &'static str {
+    use crate::model_file::VoltageSource;
+    match model
+        .drives
+        .iter()
+        .find(|d| d.input == input)
+        .and_then(|d| d.voltage)
+    {
+        None => "a",
+        Some(VoltageSource::Linear) => "v",
+        Some(_) => "duty",
+    }
+}
+
 /// The sources each model input drives (the generated module's
 /// `input_limits_a`: an input's limit is the smallest of theirs).
 fn input_sources(model: &Model) -> Vec<Vec<usize>> {
@@ -987,14 +1004,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         .filter(|i| config.critical_c.get(*i).copied().flatten().is_some())
         .collect();
     let input_sources = input_sources(&model);
+    let limit_units: Vec<&str> = (0..info.inputs.len())
+        .map(|k| input_limit_unit(&model, k))
+        .collect();
     let mut columns = info.nodes.clone();
     if path == Path::Firmware {
         for &i in &limited {
             columns.push(format!("upper_c.{}", info.nodes[i]));
             columns.push(format!("alarm_limit_c.{}", info.nodes[i]));
         }
-        for input in &info.inputs {
-            columns.push(format!("limit_a.{}", input.name));
+        for (input, unit) in info.inputs.iter().zip(&limit_units) {
+            columns.push(format!("limit_{unit}.{}", input.name));
         }
         columns.extend(["warning", "predictive", "shutdown"].map(String::from));
     }
@@ -1042,8 +1062,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     .iter()
                     .map(|ms| {
                         ms.iter()
-                            .map(|m| p.source_limit_a[*m])
-                            .fold(f64::INFINITY, f64::min)
+                            .map(|m| p.drive_limit[*m].unwrap_or(p.source_limit_a[*m]))
+                            // A NaN (no drive limit yet) stays NaN.
+                            .fold(f64::INFINITY, |a, l| if l.is_nan() { l } else { a.min(l) })
                     })
                     .collect()
             });
@@ -1062,7 +1083,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     }
                 }
                 for (low, l) in lowest_limit_a.iter_mut().zip(&input_limits) {
-                    if low.is_none_or(|(v, _)| *l < v) {
+                    // NaN: a drive's limit before its first row.
+                    if !l.is_nan() && low.is_none_or(|(v, _)| *l < v) {
                         *low = Some((*l, t));
                     }
                 }
@@ -1194,12 +1216,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "shortest_time_to_limit": shortest_ttl.map(|(s, i, at)| json!({
                 "s": s, "node": info.nodes[i], "at_s": at,
             })),
-            "inputs": info.inputs.iter().zip(input_limits).zip(&lowest_limit_a).map(|((input, l), low)| json!({
-                "input": input.name,
-                "limit_a": l,
-                "lowest_limit_a": low.map(|v| v.0),
-                "lowest_limit_at_s": low.map(|v| v.1),
-            })).collect::<Vec<_>>(),
+            "inputs": info.inputs.iter().zip(input_limits).zip(&lowest_limit_a).zip(&limit_units).map(|(((input, l), low), unit)| {
+                // A current's limit keeps its `_a` keys; a duty's or a
+                // voltage's is named by its unit.
+                let mut v = json!({"input": input.name, "unit": unit, "lowest_limit_at_s": low.map(|v| v.1)});
+                v[format!("limit_{unit}")] = json!(l);
+                v[format!("lowest_limit_{unit}")] = json!(low.map(|v| v.0));
+                v
+            }).collect::<Vec<_>>(),
             "warning": p.warning,
             "predictive": p.predictive,
             "shutdown": p.shutdown,
@@ -1248,6 +1272,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "truth": scores,
         "firmware_observer": firmware_json.or(grid_json).or(omni_json),
         "protection": protection_json,
+        "drive_flag_ticks": observer
+            .as_ref()
+            .filter(|_| model.has_voltage_drives())
+            .map(|o| o.drive_flag_ticks()),
         "cold_misses": (path == Path::Firmware).then_some(&cold_misses),
         "alarm": {
             "by": if path == Path::Firmware { "firmware" } else { "host" },
@@ -1381,6 +1409,17 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             }
         }
         print_sensor_stats(o.stats(), &measured, &info);
+        let f = o.drive_flag_ticks();
+        if model.has_voltage_drives() {
+            if f.is_clean() {
+                println!("voltage drives: every duty and supply used as recorded");
+            } else {
+                println!(
+                    "voltage drives (the library's rules, as on the MCU): duty invalid on {} ticks, duty above 1 on {}, supply invalid on {}, resistance invalid on {} (an invalid one holds the last valid current; an invalid supply's duty limit is 0)",
+                    f.duty_invalid, f.duty_clamped, f.supply_invalid, f.resistance_invalid
+                );
+            }
+        }
     }
     if path == Path::Firmware {
         if let Some((p, input_limits)) = &final_protection {
@@ -1393,12 +1432,28 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                     );
                 }
             }
-            for ((input, l), low) in info.inputs.iter().zip(input_limits).zip(&lowest_limit_a) {
+            for (((input, l), low), unit) in info
+                .inputs
+                .iter()
+                .zip(input_limits)
+                .zip(&lowest_limit_a)
+                .zip(&limit_units)
+            {
                 if let Some((v, at)) = low {
-                    println!(
-                        "current limit {}: lowest {v:.2} A (t = {at:.1} s), {l:.2} A at the end",
-                        input.name
-                    );
+                    match *unit {
+                        "duty" => println!(
+                            "duty limit {}: lowest {v:.3} (t = {at:.1} s), {l:.3} at the end",
+                            input.name
+                        ),
+                        "v" => println!(
+                            "voltage limit {}: lowest {v:.2} V (t = {at:.1} s), {l:.2} V at the end",
+                            input.name
+                        ),
+                        _ => println!(
+                            "current limit {}: lowest {v:.2} A (t = {at:.1} s), {l:.2} A at the end",
+                            input.name
+                        ),
+                    }
                 }
             }
         }
