@@ -2378,6 +2378,8 @@ fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
 #[cfg(test)]
 mod refresh_tests;
 #[cfg(test)]
+mod rewind_tests;
+#[cfg(test)]
 mod start_tests;
 
 /// The refresh watchdog's bound \[model steps\] for a declared refresh of
