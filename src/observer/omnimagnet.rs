@@ -382,7 +382,7 @@ use super::consistency::{
     SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{
-    aged_time_to_limit, latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage,
+    aged_time_to_limit, record_verdicts, sample_readings, Latch, ProtectionCycle, Stage,
 };
 use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
@@ -400,7 +400,7 @@ use crate::omnimagnet::{
 };
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
-use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::events::EventQueue;
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
@@ -742,6 +742,16 @@ impl OmniObserverState {
     /// [`OmniObserver::start`] until it settles on the steady one.
     pub fn warming_up(&self) -> bool {
         self.held.active()
+    }
+
+    /// What the shutdown latch touches (its rules are every observer's).
+    fn latch(&mut self) -> Latch<'_, f32, { ALARM_NODES.len() }, EVENT_CAPACITY> {
+        Latch {
+            alarm: &mut self.alarm,
+            events: &mut self.events,
+            published: &mut self.outputs.alarm,
+            limits: &mut self.outputs.limits,
+        }
     }
 }
 
@@ -1260,11 +1270,7 @@ impl OmniObserver {
         }
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
-            state
-                .alarm
-                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            state.latch().clock_lost();
         }
         let mut flags = steps.flags;
         // The refresh watchdog: one add and one compare per tick (no
@@ -1868,12 +1874,7 @@ impl OmniObserver {
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
         let temps_c = self.temps_c(state);
-        let meta = SnapshotMeta {
-            fingerprint: self.fingerprint,
-            saved_at_s: now_s,
-            shutdown_latched: state.alarm.shutdown_latched(),
-        };
-        snapshot::save(&temps_c, &meta, out)
+        snapshot::save_state(&temps_c, self.fingerprint, now_s, &state.alarm, out)
     }
 
     /// Restores a state saved by [`Self::save`] with this configuration at
@@ -1968,7 +1969,7 @@ impl OmniObserver {
         ambient_c: f32,
     ) -> OmniObserverState {
         let mut state = self.state(temps_c, ambient_c);
-        relatch(&mut state, meta);
+        state.latch().restore(meta);
         state
     }
 
@@ -2055,7 +2056,7 @@ impl OmniObserver {
         // than its readings; the held covariance lets the gate take them
         // and the shadow follow the estimate until the filter has settled.
         let mut state = self.held_start(temps_c, &read_nodes(&readings_c), ambient_c);
-        relatch(&mut state, &meta);
+        state.latch().restore(&meta);
         Ok(state)
     }
 
@@ -2110,11 +2111,7 @@ impl OmniObserver {
             ambient_c,
         );
         let mut state = self.state(&temps, ambient_c);
-        latch_and_publish(
-            &mut state.alarm,
-            &mut state.outputs.alarm,
-            &mut state.outputs.limits,
-        );
+        state.latch().latch();
         state
     }
 
@@ -2335,9 +2332,7 @@ impl OmniObserver {
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
     pub fn clear_shutdown(&self, state: &mut OmniObserverState) -> Result<(), ResetError> {
-        state.alarm.reset(&self.alarm, &mut state.events)?;
-        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
-        Ok(())
+        state.latch().clear(&self.alarm)
     }
 }
 
@@ -2418,17 +2413,6 @@ fn read_nodes(readings_c: &[Option<f32>; THERMOCOUPLES]) -> [bool; NODES] {
         }
     }
     read
-}
-
-/// The snapshot's latched shutdown, restored and shown in `state`.
-fn relatch(state: &mut OmniObserverState, meta: &SnapshotMeta) {
-    if meta.shutdown_latched {
-        latch_and_publish(
-            &mut state.alarm,
-            &mut state.outputs.alarm,
-            &mut state.outputs.limits,
-        );
-    }
 }
 
 /// The first solenoid a single sensor fault would leave without a healthy

@@ -51,6 +51,29 @@ pub struct GainTables<const X: usize, const P: usize> {
     pub innovation_cov: [[f32; P]; P],
 }
 
+impl<const X: usize, const P: usize> GainTables<X, P> {
+    /// The tables of a solved gain (the Omnimagnet's and the network's
+    /// `parts()`), row-major.
+    pub(crate) fn of(gain: &crate::filter::SteadyStateGain<f32, X, P>) -> Self {
+        Self {
+            period: gain.period,
+            gain: rows(&gain.gain),
+            prior: rows(&gain.prior),
+            posterior: rows(&gain.posterior),
+            innovation_var: gain.innovation_var.into(),
+            prior_ht: rows(&gain.prior_ht),
+            innovation_cov: rows(&gain.innovation_cov),
+        }
+    }
+}
+
+/// A matrix as its rows (the tables' layout).
+pub(crate) fn rows<const R: usize, const C: usize>(
+    m: &nalgebra::SMatrix<f32, R, C>,
+) -> [[f32; C]; R] {
+    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
+}
+
 /// The time-to-limit predictor's modal tables (see
 /// [`crate::protect::predict`]), [`PREDICTOR_POINTS`] horizons.
 #[derive(Debug, Clone, Copy, PartialEq)]

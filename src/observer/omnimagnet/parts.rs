@@ -48,7 +48,7 @@ use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
     write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
 };
-use crate::observer::tables::{GainTables, PredictorTables};
+use crate::observer::tables::{rows, GainTables, PredictorTables};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
@@ -182,9 +182,6 @@ pub struct OmniParts {
     pub model_stale_after_steps: u32,
 }
 
-fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
-    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
-}
 
 /// Row-major to nalgebra's column-major storage.
 const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
@@ -289,15 +286,7 @@ impl OmniObserver {
                 recover_after: k.gate.recover_after,
                 recovery_variance: k.recovery_variance.into(),
                 walk_from: k.walk_from,
-                gain: GainTables {
-                    period: gain.period,
-                    gain: rows(&gain.gain),
-                    prior: rows(&gain.prior),
-                    posterior: rows(&gain.posterior),
-                    innovation_var: gain.innovation_var.into(),
-                    prior_ht: rows(&gain.prior_ht),
-                    innovation_cov: rows(&gain.innovation_cov),
-                },
+                gain: GainTables::of(gain),
                 model: MeanModelTables::of(&c.model),
                 resistance: c.resistance.map(|(r0, slope)| [r0, slope]),
                 solenoid_nodes: c.solenoid_nodes,
