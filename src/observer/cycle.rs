@@ -17,9 +17,9 @@
 //! (`with_phase`) makes every slice after the first due that much after
 //! its period's boundary; the lag stays the real one.
 
+use super::snapshot::SnapshotMeta;
 use super::vocabulary::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
-use super::snapshot::SnapshotMeta;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};

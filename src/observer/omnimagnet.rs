@@ -378,8 +378,8 @@ use nalgebra::SVector;
 
 use super::clock::{ClockState, Deferral, StepClock, TickSteps};
 use super::consistency::{
-    drop_cold_biases, raise_to_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
-    SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
+    drop_cold_biases, protect_on_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
+    RefreshWatchdog, SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{
     aged_time_to_limit, record_verdicts, sample_readings, Latch, ProtectionCycle, Stage,
@@ -411,12 +411,12 @@ pub use parts::{FilterTables, MeanModelTables, OmniParts, ProtectionTables};
 
 /// Elements with an alarm: wire and cover insulation of each solenoid.
 pub const ALARM_NODES: [usize; 6] = [7, 8, 9, 10, 11, 12];
-pub use super::tables::PREDICTOR_POINTS;
 /// Refresh periods without an [`OmniObserver::install_model`] after which
 /// a declared model refresh ([`OmniSettings::model_refresh_s`]) is stale
-/// and the tick flags [`InputFlags::MODEL_STALE`]: one refresh missed or
-/// late is a busy background task, three in a row a dead one.
-pub const MODEL_STALE_PERIODS: u32 = 3;
+/// and the tick flags [`InputFlags::MODEL_STALE`] (the watchdog every
+/// observer with a model refresh shares).
+pub use super::consistency::MODEL_STALE_PERIODS;
+pub use super::tables::PREDICTOR_POINTS;
 /// The slowest model refresh \[s\] that makes a placement with one
 /// thermocouple on a solenoid acceptable ([`BuildError::ModelRefreshRequired`]).
 /// Measured with one thermocouple per solenoid (`coil-thermal faults
@@ -660,10 +660,9 @@ pub struct OmniObserver {
     /// The share of a protection cycle each predictor slice catches up
     /// \[us\].
     predictor_slice_us: u32,
-    /// Model steps without an install after which the declared model
-    /// refresh is stale ([`InputFlags::MODEL_STALE`]); `u32::MAX`: none
-    /// declared, never stale (the step counter saturates there).
-    model_stale_after_steps: u32,
+    /// The declared model refresh's watchdog ([`InputFlags::MODEL_STALE`];
+    /// none declared: never stale).
+    refresh: RefreshWatchdog,
 }
 
 /// The per-device state.
@@ -829,21 +828,14 @@ impl OmniObserver {
             settings.predictor_nodes_per_slice,
         )?;
         let bound = Self::build_bound(&filter, settings)?;
-        let model_stale_after_steps =
-            stale_after_steps(settings.model_refresh_s, settings.step_us)?;
+        let refresh = RefreshWatchdog::new(settings.model_refresh_s, settings.step_us)?;
         check_refresh(
             &settings.filter.sensors,
-            model_stale_after_steps,
+            refresh.bound_steps(),
             settings.step_us,
         )?;
-        let fingerprint = Self::fingerprint_of(
-            &filter,
-            settings,
-            &alarm,
-            &limiter,
-            &bound,
-            model_stale_after_steps,
-        );
+        let fingerprint =
+            Self::fingerprint_of(&filter, settings, &alarm, &limiter, &bound, &refresh);
         let shadow_block_steps = filter.period().max(1);
         let shadow = Self::build_shadow(
             model,
@@ -887,7 +879,7 @@ impl OmniObserver {
                 slices,
             ),
             predictor_slice_us: protect_period_us / slices,
-            model_stale_after_steps,
+            refresh,
         })
     }
 
@@ -1012,14 +1004,7 @@ impl OmniObserver {
     /// [`MODEL_STALE_PERIODS`] times [`OmniSettings::model_refresh_s`],
     /// rounded up to whole steps; `None` when no refresh is declared.
     pub fn model_stale_after_steps(&self) -> Option<u32> {
-        (self.model_stale_after_steps != u32::MAX).then_some(self.model_stale_after_steps)
-    }
-
-    /// The declared model refresh has not happened for
-    /// [`MODEL_STALE_PERIODS`] periods: the model `state` predicts with is
-    /// stale ([`InputFlags::MODEL_STALE`]).
-    fn model_stale(&self, state: &OmniObserverState) -> bool {
-        state.model_age_steps > self.model_stale_after_steps
+        self.refresh.declared_steps()
     }
 
     /// What a snapshot must have been made with: the filter's matrices and
@@ -1038,7 +1023,7 @@ impl OmniObserver {
         alarm: &AlarmConfig<f32, 6>,
         limiter: &LimiterConfig<f32, SOLENOIDS>,
         bound: &UpperBound<f32, NODES>,
-        model_stale_after_steps: u32,
+        refresh: &RefreshWatchdog,
     ) -> u32 {
         let kalman = filter.kalman();
         let widen = |m: &[f32], f: Fingerprint| m.iter().fold(f, |f, v| f.f64(f64::from(*v)));
@@ -1056,8 +1041,8 @@ impl OmniObserver {
         let fingerprint = alarm.fingerprint(fingerprint);
         let fingerprint = limiter.fingerprint(fingerprint);
         let mut fingerprint = bound.fingerprint(fingerprint);
-        if model_stale_after_steps != u32::MAX {
-            fingerprint = fingerprint.u32(model_stale_after_steps);
+        if let Some(steps) = refresh.declared_steps() {
+            fingerprint = fingerprint.u32(steps);
         }
         fingerprint.finish()
     }
@@ -1273,12 +1258,8 @@ impl OmniObserver {
             state.latch().clock_lost();
         }
         let mut flags = steps.flags;
-        // The refresh watchdog: one add and one compare per tick (no
-        // refresh declared: the bound is `u32::MAX`, never exceeded).
-        state.model_age_steps = state.model_age_steps.saturating_add(steps.steps);
-        if self.model_stale(state) {
-            flags |= InputFlags::MODEL_STALE;
-        }
+        // The refresh watchdog: one add and one compare per tick.
+        flags |= self.refresh.aged(&mut state.model_age_steps, steps.steps);
         let previous_a = state.held_currents_a;
         flags |= self
             .limits
@@ -1509,7 +1490,7 @@ impl OmniObserver {
     /// a placement that needs the refresh cannot be trusted on a model the
     /// refresh no longer follows.
     fn publish_upper(&self, state: &mut OmniObserverState) {
-        let stale = self.model_stale(state);
+        let stale = self.refresh.stale(state.model_age_steps);
         let amb = state.held_ambient_c;
         let out = &mut state.outputs;
         self.bound.upper_c(&out.temps_c, amb, &mut out.upper_c);
@@ -1524,9 +1505,13 @@ impl OmniObserver {
         }
         let origin = self.shadow.origin_c();
         let shadow_c: [f32; NODES] = core::array::from_fn(|i| origin[i] + state.shadow_x[i]);
-        let mut shadow_upper_c = [f32::NAN; NODES];
-        self.bound.upper_c(&shadow_c, amb, &mut shadow_upper_c);
-        raise_to_shadow(&mut out.upper_c, &shadow_upper_c, ALARM_NODES.into_iter());
+        protect_on_shadow(
+            &self.bound,
+            &shadow_c,
+            amb,
+            &mut out.upper_c,
+            ALARM_NODES.into_iter(),
+        );
     }
 
     /// Widens the steady bounds `upper_c` \[degC\] by the start's held
@@ -2376,33 +2361,6 @@ mod refresh_tests;
 mod rewind_tests;
 #[cfg(test)]
 mod start_tests;
-
-/// The refresh watchdog's bound \[model steps\] for a declared refresh of
-/// `refresh_s` \[s\] at a model step of `step_us` \[us\]:
-/// [`MODEL_STALE_PERIODS`] periods rounded up to whole steps; `u32::MAX`
-/// when none is declared.
-///
-/// # Errors
-/// [`BuildError::InvalidParameter`] (`"model_refresh_s"`) for a period that
-/// is not finite, not positive, or whose watchdog does not fit a `u32` of
-/// steps.
-fn stale_after_steps(refresh_s: Option<f64>, step_us: u32) -> Result<u32, BuildError> {
-    let Some(refresh_s) = refresh_s else {
-        return Ok(u32::MAX);
-    };
-    let invalid = BuildError::InvalidParameter {
-        name: "model_refresh_s",
-    };
-    if !(refresh_s.is_finite() && refresh_s > 0.0) || step_us == 0 {
-        return Err(invalid);
-    }
-    let steps = libm::ceil(f64::from(MODEL_STALE_PERIODS) * refresh_s * 1e6 / f64::from(step_us));
-    if steps < f64::from(u32::MAX) {
-        Ok((steps as u32).max(1))
-    } else {
-        Err(invalid)
-    }
-}
 
 /// The nodes some thermocouple of `readings_c` reads.
 fn read_nodes(readings_c: &[Option<f32>; THERMOCOUPLES]) -> [bool; NODES] {

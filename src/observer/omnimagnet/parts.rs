@@ -43,7 +43,7 @@ use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
 use crate::error::BuildError;
 use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
 use crate::input::ScalarLimits;
-use crate::observer::consistency::{Band, BiasBound, StuckTest};
+use crate::observer::consistency::{Band, BiasBound, RefreshWatchdog, StuckTest};
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
     write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
@@ -181,7 +181,6 @@ pub struct OmniParts {
     /// [`OmniSettings::model_refresh_s`](super::OmniSettings::model_refresh_s)).
     pub model_stale_after_steps: u32,
 }
-
 
 /// Row-major to nalgebra's column-major storage.
 const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
@@ -322,7 +321,7 @@ impl OmniObserver {
             silent_after_us: self.silent_after_us,
             fingerprint: self.fingerprint,
             plant_fingerprint: self.plant_fingerprint,
-            model_stale_after_steps: self.model_stale_after_steps,
+            model_stale_after_steps: self.refresh.bound_steps(),
         }
     }
 
@@ -529,7 +528,7 @@ impl OmniObserver {
                 tolerance_k: parts.stuck_tolerance_k,
             },
             silent_after_us: parts.silent_after_us,
-            model_stale_after_steps: parts.model_stale_after_steps,
+            refresh: RefreshWatchdog::from_steps(parts.model_stale_after_steps),
         })
     }
 }
