@@ -2358,7 +2358,7 @@ fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
 #[cfg(test)]
 mod refresh_tests;
 #[cfg(test)]
-mod rewind_tests;
+mod rules_tests;
 #[cfg(test)]
 mod start_tests;
 
