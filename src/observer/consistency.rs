@@ -299,8 +299,9 @@ pub(crate) fn protect_on_shadow<S: Scalar, const N: usize>(
 }
 
 /// Refresh periods without a model install after which a declared model
-/// refresh is stale (see [`RefreshWatchdog`]): one refresh missed or late
-/// is a busy background task, three in a row a dead one.
+/// refresh is stale (the watchdog, `RefreshWatchdog`, of every observer
+/// whose model is refreshed): one refresh missed or late is a busy
+/// background task, three in a row a dead one.
 pub const MODEL_STALE_PERIODS: u32 = 3;
 
 /// The watchdog of a declared model refresh (a background task that

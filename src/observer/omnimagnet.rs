@@ -175,29 +175,45 @@
 //!
 //! # Rules shared with the network observer, and why it is not one
 //!
-//! The sensor checks are the network observer's, from one place: the same
-//! settings ([`SensorChecks`]), the consistency band
-//! and the stuck test (`consistency::screen_readings`), silence (`SilenceWatch`) and
-//! the stuck sensor's rewind (`consistency::StuckRewind`: what a thermocouple taught
-//! the heat-input biases before it was found stuck goes back; the
-//! Omnimagnet gained it in issue 37, 144 more instructions on a correction
-//! tick, QEMU `observer_m4`). The outputs are one type
-//! ([`FilteredOutputs`]), the readings' restore
-//! one helper ([`start::cooled_to_readings`]).
+//! Every rule the two filtered observers both apply is written once and
+//! used by both: the settings ([`SensorChecks`]), the consistency band and
+//! the stuck test (`consistency::screen_readings`), silence
+//! (`SilenceWatch`), the stuck sensor's rewind (`consistency::StuckRewind`:
+//! what a thermocouple taught the heat-input biases before it was found
+//! stuck goes back; the Omnimagnet gained it in issue 37, 144 more
+//! instructions on a correction tick, QEMU `observer_m4`; test
+//! `a_thermocouple_stuck_while_its_solenoid_heats_gives_back_the_heat_it_taught`),
+//! the doubt (`sensor_doubt`, `Suspicion`) and the protection on the
+//! shadow while a measurement is in doubt or the model stale
+//! (`consistency::protect_on_shadow`), the model refresh's watchdog
+//! (`consistency::RefreshWatchdog`, [`MODEL_STALE_PERIODS`]), the latch
+//! (`cycle::Latch`: latched, restored, clock lost, cleared; the grid's
+//! too), the snapshot writer (`snapshot::save_state`), the gain's tables
+//! ([`GainTables`](super::network::GainTables)), the start's rules
+//! ([`super::start`]) and the outputs ([`FilteredOutputs`]).
 //!
 //! Two rules stay the Omnimagnet's own:
 //!
 //! * **no bias floor.** The network observer holds every heat-input bias at
 //!   or above `-max_cooling_bias_fraction * P` (default 0: no heat taken
 //!   away), right for a linear network whose `R(T)` is taken at the
-//!   estimate. The Omnimagnet's build-time linearisation at the ambient
-//!   over-predicts a hot solenoid's heat, and a healthy *negative* bias
-//!   corrects it: dropping it put a stuck thermocouple's solenoid 2.56 K
-//!   off instead of 1.91 K. So negative biases are dropped only once the
-//!   model is re-linearised, on the solenoids in doubt
-//!   (`drop_cold_biases`), where the model needs no bias;
+//!   estimate: there a cold drift and a model that runs hot look the same,
+//!   and a model known to run hot declares the share. The Omnimagnet's
+//!   build-time linearisation at the ambient is such a model, by up to a
+//!   quarter of the heat: its conductances are the cold ones, so it
+//!   over-predicts a hot solenoid's temperature, and a healthy *negative*
+//!   bias corrects it. With six healthy thermocouples against the RK4
+//!   plant the biases settle at -7.0, -11.8 and -34.5 W after 15 min at
+//!   7 A (up to 17 % of the Joule power; 28 % after 30 min at 3.1 A), the
+//!   solenoids within 0.28 K of the plant; held at the floor, 0.68 K
+//!   (test `the_omnimagnets_healthy_heat_bias_is_negative_and_a_floor_would_cost_accuracy`),
+//!   and a stuck thermocouple's solenoid 2.56 K off instead of 1.91 K. So
+//!   negative biases are dropped only once the model is re-linearised, on
+//!   the solenoids in doubt (`drop_cold_biases`), where the model needs no
+//!   bias;
 //! * **the model refresh** (above): the network observer has none, because
-//!   its network is linear.
+//!   its network is linear; the watchdog is written for any observer that
+//!   declares one.
 //!
 //! For the same reason the Omnimagnet cannot be the network observer over
 //! its own network at no cost. Its conductances move with temperature
