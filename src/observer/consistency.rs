@@ -38,7 +38,6 @@ use nalgebra::{SMatrix, SVector};
 
 use super::vocabulary::SensorStatus;
 use crate::error::BuildError;
-use crate::input::InputFlags;
 use crate::network::{compensated_add, ScalarResistance};
 use crate::protect::margin::UpperBound;
 use crate::scalar::Scalar;
@@ -377,16 +376,12 @@ impl RefreshWatchdog {
         age_steps > self.stale_after_steps
     }
 
-    /// A tick's `steps` model steps on the count `age_steps`; the tick's
-    /// flag ([`InputFlags::MODEL_STALE`] when stale).
+    /// A tick's `steps` model steps on the count `age_steps`; whether the
+    /// model is now stale (the tick is flagged [`InputFlags::MODEL_STALE`]).
     #[inline]
-    pub(crate) fn aged(&self, age_steps: &mut u32, steps: u32) -> InputFlags {
+    pub(crate) fn aged(&self, age_steps: &mut u32, steps: u32) -> bool {
         *age_steps = age_steps.saturating_add(steps);
-        if self.stale(*age_steps) {
-            InputFlags::MODEL_STALE
-        } else {
-            InputFlags::NONE
-        }
+        self.stale(*age_steps)
     }
 }
 

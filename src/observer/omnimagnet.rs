@@ -1275,7 +1275,9 @@ impl OmniObserver {
         }
         let mut flags = steps.flags;
         // The refresh watchdog: one add and one compare per tick.
-        flags |= self.refresh.aged(&mut state.model_age_steps, steps.steps);
+        if self.refresh.aged(&mut state.model_age_steps, steps.steps) {
+            flags |= InputFlags::MODEL_STALE;
+        }
         let previous_a = state.held_currents_a;
         flags |= self
             .limits
