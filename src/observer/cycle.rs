@@ -261,10 +261,7 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
     }
 
     /// The model is lost (a clock frozen for `frozen_loss_ticks`): latched
-    /// with a [`EventKind::ClockFrozen`] event, shown at once. Out of line:
-    /// the tick's rarest path keeps out of its frame.
-    #[cold]
-    #[inline(never)]
+    /// with a [`EventKind::ClockFrozen`] event, shown at once.
     pub(crate) fn clock_lost(self) {
         self.alarm
             .latch_shutdown_for(EventKind::ClockFrozen, self.events);
