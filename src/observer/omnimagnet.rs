@@ -417,7 +417,7 @@ use crate::omnimagnet::{
 use crate::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
-use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
+use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
 
@@ -1409,15 +1409,7 @@ impl OmniObserver {
             let light = stage == Stage::Idle && !corrected && (!busy || lasted);
             self.hold_start(state, steps.steps, light, inputs.elapsed_us);
         }
-        let out = &mut state.outputs;
-        out.flags = flags;
-        out.steps = steps.steps;
-        out.dropped_us = steps.dropped_us;
-        if out.alarm.shutdown {
-            // Latched: no current until the deliberate clear.
-            hold_shutdown(&mut out.limits);
-        }
-        out.tick = out.tick.wrapping_add(1);
+        state.outputs.finish_tick(flags, &steps);
         &state.outputs
     }
 

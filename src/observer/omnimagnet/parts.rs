@@ -37,18 +37,16 @@
 
 use core::fmt::{self, Write};
 
-use nalgebra::{ArrayStorage, SMatrix};
-
 use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
 use crate::error::BuildError;
-use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
+use crate::filter::{GatePolicy, KalmanConfig};
 use crate::input::ScalarLimits;
 use crate::observer::consistency::{Band, BiasBound, RefreshWatchdog, StuckTest};
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
     write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
 };
-use crate::observer::tables::{rows, GainTables, PredictorTables};
+use crate::observer::tables::{matrix, rows, vector, GainTables, PredictorTables};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
@@ -180,25 +178,6 @@ pub struct OmniParts {
     /// model refresh is stale (`u32::MAX`: none declared; see
     /// [`OmniSettings::model_refresh_s`](super::OmniSettings::model_refresh_s)).
     pub model_stale_after_steps: u32,
-}
-
-/// Row-major to nalgebra's column-major storage.
-const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
-    let mut columns = [[0.0f32; R]; C];
-    let mut i = 0;
-    while i < R {
-        let mut j = 0;
-        while j < C {
-            columns[j][i] = rows[i][j];
-            j += 1;
-        }
-        i += 1;
-    }
-    SMatrix::from_array_storage(ArrayStorage(columns))
-}
-
-const fn vector<const R: usize>(values: &[f32; R]) -> SMatrix<f32, R, 1> {
-    SMatrix::from_array_storage(ArrayStorage([*values]))
 }
 
 impl MeanModelTables {
@@ -466,15 +445,7 @@ impl OmniObserver {
                     recovery_variance: vector(&f.recovery_variance),
                     walk_from: f.walk_from,
                 },
-                gain: SteadyStateGain {
-                    period: g.period,
-                    gain: matrix(&g.gain),
-                    prior: matrix(&g.prior),
-                    posterior: matrix(&g.posterior),
-                    innovation_var: vector(&g.innovation_var),
-                    prior_ht: matrix(&g.prior_ht),
-                    innovation_cov: matrix(&g.innovation_cov),
-                },
+                gain: g.gain(),
                 model: f.model.model(),
                 resistance,
                 solenoid_nodes: f.solenoid_nodes,
