@@ -261,7 +261,7 @@ impl<const N: usize, const M: usize, const A: usize, const P: usize> FilteredOut
     /// Ends a tick: its input flags, its model steps and dropped time
     /// (`steps`), every current limit held at zero while the shutdown is
     /// latched (until the deliberate clear), and the tick counted.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn finish_tick(&mut self, flags: InputFlags, steps: &TickSteps) {
         self.flags = flags;
         self.steps = steps.steps;
