@@ -37,7 +37,10 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::vocabulary::SensorStatus;
+use crate::error::BuildError;
 use crate::network::{compensated_add, ScalarResistance};
+use crate::protect::margin::UpperBound;
+use crate::scalar::Scalar;
 
 /// The band a reading must keep to below the shadow: the model's
 /// uncertainty.
@@ -255,19 +258,130 @@ pub(crate) fn drop_cold_biases<'b, const M: usize>(
 /// Raises each upper bound \[degC\] in `nodes` to the shadow's,
 /// `shadow_upper_c`, where that is hotter (or NaN: a NaN must win, the
 /// limiter then gives the floor): the protection while a measurement is
-/// in doubt (see [`Suspicion`]).
-pub(crate) fn raise_to_shadow<const N: usize>(
-    upper_c: &mut [f32; N],
-    shadow_upper_c: &[f32; N],
+/// in doubt (see [`Suspicion`]) or the model is stale (see
+/// [`RefreshWatchdog`]).
+pub(crate) fn raise_to_shadow<S: Scalar, const N: usize>(
+    upper_c: &mut [S; N],
+    shadow_upper_c: &[S; N],
     nodes: impl Iterator<Item = usize>,
 ) {
     for node in nodes {
         if let (Some(u), Some(s)) = (upper_c.get_mut(node), shadow_upper_c.get(node)) {
-            // Not `max`: a NaN must win.
-            if s.is_nan() || *s > *u {
+            // Not `max`: a NaN must win (`partial_cmp` is `None` for NaN
+            // alone; a fixed-point scalar has none).
+            if s.partial_cmp(s).is_none() || *s > *u {
                 *u = *s;
             }
         }
+    }
+}
+
+/// The protection on the shadow, every observer's: while a measurement is
+/// in doubt ([`Suspicion`]) or the model is stale ([`RefreshWatchdog`]),
+/// each upper bound \[degC\] of `upper_c` in `nodes` (the elements with a
+/// limit) is raised to the bound `bound` gives the shadow's temperatures
+/// `shadow_c` \[degC\] at the ambient `ambient_c` \[degC\], where that is
+/// hotter ([`raise_to_shadow`]). The estimate is then the model alone or
+/// what a lying sensor dragged, the shadow the physics no reading moved:
+/// a flagged fault can only make the protection err hot.
+pub(crate) fn protect_on_shadow<S: Scalar, const N: usize>(
+    bound: &UpperBound<S, N>,
+    shadow_c: &[S; N],
+    ambient_c: S,
+    upper_c: &mut [S; N],
+    nodes: impl Iterator<Item = usize>,
+) {
+    // Every entry is written by `upper_c`.
+    let mut shadow_upper_c = [S::ZERO; N];
+    bound.upper_c(shadow_c, ambient_c, &mut shadow_upper_c);
+    raise_to_shadow(upper_c, &shadow_upper_c, nodes);
+}
+
+/// Refresh periods without a model install after which a declared model
+/// refresh is stale (the watchdog, `RefreshWatchdog`, of every observer
+/// whose model is refreshed): one refresh missed or late is a busy
+/// background task, three in a row a dead one.
+pub const MODEL_STALE_PERIODS: u32 = 3;
+
+/// The watchdog of a declared model refresh (a background task that
+/// re-linearises a nonlinear plant's model at the estimate and installs it
+/// between ticks; the Omnimagnet's `model_refresh_s`): every tick adds its
+/// model steps to a saturating count that an install resets, and a count
+/// beyond [`MODEL_STALE_PERIODS`] periods flags the tick
+/// [`InputFlags::MODEL_STALE`] and puts the protection on the shadow
+/// ([`protect_on_shadow`]). One add and one compare per tick; a refresh
+/// not declared never goes stale (the bound is `u32::MAX`, which the
+/// saturating count never exceeds). The count is state, the bound
+/// configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RefreshWatchdog {
+    /// Model steps without an install after which the model is stale;
+    /// `u32::MAX`: no refresh declared.
+    stale_after_steps: u32,
+}
+
+impl RefreshWatchdog {
+    /// The bound for a declared refresh of `refresh_s` \[s\] at a model
+    /// step of `step_us` \[us\]: [`MODEL_STALE_PERIODS`] periods rounded up
+    /// to whole steps; no refresh declared (`None`): never stale.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] (`"model_refresh_s"`) for a period
+    /// that is not finite, not positive, or whose watchdog does not fit a
+    /// `u32` of steps.
+    pub(crate) fn new(refresh_s: Option<f64>, step_us: u32) -> Result<Self, BuildError> {
+        let Some(refresh_s) = refresh_s else {
+            return Ok(Self::from_steps(u32::MAX));
+        };
+        let invalid = BuildError::InvalidParameter {
+            name: "model_refresh_s",
+        };
+        if !(refresh_s.is_finite() && refresh_s > 0.0) || step_us == 0 {
+            return Err(invalid);
+        }
+        let steps =
+            libm::ceil(f64::from(MODEL_STALE_PERIODS) * refresh_s * 1e6 / f64::from(step_us));
+        if steps < f64::from(u32::MAX) {
+            Ok(Self::from_steps((steps as u32).max(1)))
+        } else {
+            Err(invalid)
+        }
+    }
+
+    /// The watchdog whose bound is `stale_after_steps` model steps
+    /// (`u32::MAX`: no refresh declared), as the tables carry it.
+    pub(crate) const fn from_steps(stale_after_steps: u32) -> Self {
+        Self { stale_after_steps }
+    }
+
+    /// The bound in model steps, `u32::MAX` when no refresh is declared
+    /// (the tables' and the fingerprint's form).
+    pub(crate) const fn bound_steps(&self) -> u32 {
+        self.stale_after_steps
+    }
+
+    /// The bound in model steps; `None` when no refresh is declared.
+    pub(crate) const fn declared_steps(&self) -> Option<u32> {
+        if self.stale_after_steps == u32::MAX {
+            None
+        } else {
+            Some(self.stale_after_steps)
+        }
+    }
+
+    /// The model whose age is `age_steps` (model steps since the state was
+    /// made or a model last installed) is stale.
+    #[inline]
+    pub(crate) fn stale(&self, age_steps: u32) -> bool {
+        age_steps > self.stale_after_steps
+    }
+
+    /// A tick's `steps` model steps on the count `age_steps`; whether the
+    /// model is now stale (the tick is flagged [`InputFlags::MODEL_STALE`]).
+    #[inline]
+    pub(crate) fn aged(&self, age_steps: &mut u32, steps: u32) -> bool {
+        *age_steps = age_steps.saturating_add(steps);
+        self.stale(*age_steps)
     }
 }
 

@@ -1,7 +1,7 @@
 //! The machinery the Omnimagnet and the network observer share around
 //! their models: the protection cycle (one stage per tick), the sorting of
 //! fresh readings, the filter's verdicts as sensor statuses, and the latch
-//! made visible.
+//! made visible ([`Latch`], the grid's too).
 //!
 //! # The protection cycle
 //!
@@ -17,9 +17,11 @@
 //! (`with_phase`) makes every slice after the first due that much after
 //! its period's boundary; the lag stays the real one.
 
+use super::snapshot::SnapshotMeta;
 use super::vocabulary::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
-use crate::protect::alarm::{AlarmState, AlarmStatus};
+use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
+use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::scalar::Scalar;
 
@@ -225,6 +227,61 @@ pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
     alarm.latch_shutdown();
     published.shutdown = true;
     hold_shutdown(limits);
+}
+
+/// What the shutdown latch touches in an observer's state, borrowed for
+/// one rule: its alarm's state and event queue, and the published alarm
+/// and current limits. The rules of the latch are the same for every
+/// observer (the grid, the Omnimagnet, the network): latched, the
+/// published alarm says so at once and every current limit is zero until
+/// the deliberate clear.
+pub(crate) struct Latch<'a, S: Scalar, const E: usize, const CAP: usize> {
+    /// The alarm's state (`E` elements).
+    pub alarm: &'a mut AlarmState<S, E>,
+    /// The state's event queue.
+    pub events: &'a mut EventQueue<CAP>,
+    /// The published alarm summary.
+    pub published: &'a mut AlarmStatus,
+    /// The published current limits.
+    pub limits: &'a mut [CoilLimit<S>],
+}
+
+impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
+    /// Latches the shutdown and shows it ([`latch_and_publish`]): a
+    /// conservative start, a snapshot that held a latch.
+    pub(crate) fn latch(self) {
+        latch_and_publish(self.alarm, self.published, self.limits);
+    }
+
+    /// Latches the shutdown if the snapshot `meta` recorded one.
+    pub(crate) fn restore(self, meta: &SnapshotMeta) {
+        if meta.shutdown_latched {
+            self.latch();
+        }
+    }
+
+    /// The model is lost (a clock frozen for `frozen_loss_ticks`): latched
+    /// with a [`EventKind::ClockFrozen`] event, shown at once.
+    pub(crate) fn clock_lost(self) {
+        self.alarm
+            .latch_shutdown_for(EventKind::ClockFrozen, self.events);
+        self.published.shutdown = true;
+        hold_shutdown(self.limits);
+    }
+
+    /// The deliberate clear ([`AlarmState::reset`] under its conditions,
+    /// judged by `config`): on success a `Reset` event is queued and the
+    /// published alarm is clear at once; the limits come back with the
+    /// next limiter stage.
+    ///
+    /// # Errors
+    /// Why not, naming the first element that blocks it; nothing changes
+    /// then.
+    pub(crate) fn clear(self, config: &AlarmConfig<S, E>) -> Result<(), ResetError> {
+        self.alarm.reset(config, self.events)?;
+        self.published.shutdown = self.alarm.shutdown_latched();
+        Ok(())
+    }
 }
 
 /// A predictor's answer `time_s` \[s\] made older by `lag_s` \[s\] (the

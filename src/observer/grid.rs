@@ -128,13 +128,13 @@
 //! within about 1 mK of it. An unknown off time means no cooling.
 
 use super::clock::{ClockState, StepClock};
-use super::cycle::latch_and_publish;
-use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
+use super::cycle::Latch;
+use super::snapshot::{self, Fingerprint, Restored, SnapshotError};
 use crate::error::BuildError;
 use crate::grid::{Border, CoilGrid, CoilTemp, GridConfig, GridState, UpdateWork};
 use crate::input::InputFlags;
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
-use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::events::EventQueue;
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
@@ -443,6 +443,16 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &GridOutputs<S, ROWS, COLS, N> {
         &self.outputs
+    }
+
+    /// What the shutdown latch touches (its rules are every observer's).
+    fn latch(&mut self) -> Latch<'_, S, N, EVENT_CAPACITY> {
+        Latch {
+            alarm: &mut self.alarm,
+            events: &mut self.events,
+            published: &mut self.outputs.alarm,
+            limits: &mut self.outputs.limits,
+        }
     }
 }
 
@@ -758,11 +768,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
-            state
-                .alarm
-                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
-            state.outputs.alarm.shutdown = true;
-            hold_shutdown(&mut state.outputs.limits);
+            state.latch().clock_lost();
         }
         let rows_before = state.work.rows_done();
         let (grid, work, i) = (&mut state.grid, &mut state.work, inputs);
@@ -1077,12 +1083,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         for (t, s) in temps_c.iter_mut().zip(state.grid.temps_c.as_flattened()) {
             *t = s.to_f32();
         }
-        let meta = SnapshotMeta {
-            fingerprint: self.fingerprint,
-            saved_at_s: now_s,
-            shutdown_latched: state.alarm.shutdown_latched(),
-        };
-        snapshot::save(&temps_c, &meta, out)
+        snapshot::save_state(&temps_c, self.fingerprint, now_s, &state.alarm, out)
     }
 
     /// Restores a state from a snapshot taken by [`Self::save`] with this
@@ -1134,13 +1135,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
             grid.temps_c = self.cooled_c(&grid.temps_c, ambient_c, f64::from(off_s));
         }
         let mut state = self.state_from(grid);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
+        state.latch().restore(&meta);
         Ok(state)
     }
 
@@ -1320,11 +1315,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         let hot = S::from_f64(self.restart_c.max(ambient_c));
         grid.temps_c = [[hot; COLS]; ROWS];
         let mut state = self.state_from(grid);
-        latch_and_publish(
-            &mut state.alarm,
-            &mut state.outputs.alarm,
-            &mut state.outputs.limits,
-        );
+        state.latch().latch();
         state
     }
 
@@ -1368,9 +1359,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         &self,
         state: &mut GridObserverState<S, ROWS, COLS, N>,
     ) -> Result<(), ResetError> {
-        state.alarm.reset(&self.alarm, &mut state.events)?;
-        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
-        Ok(())
+        state.latch().clear(&self.alarm)
     }
 
     /// The temperature [`Self::conservative_state`] assumes \[degC\].

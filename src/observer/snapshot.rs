@@ -56,6 +56,9 @@
 
 use core::fmt;
 
+use crate::protect::alarm::AlarmState;
+use crate::scalar::Scalar;
+
 /// Format version written by [`save`].
 pub const SNAPSHOT_VERSION: u16 = 2;
 const MAGIC: [u8; 4] = *b"CTHS";
@@ -232,6 +235,28 @@ impl Fingerprint {
     pub(crate) const fn from_register(register: u32) -> Self {
         Self(Crc32(register))
     }
+}
+
+/// An observer's snapshot ([`save`]): its node estimates `temps_c`
+/// \[degC\], its configuration's `fingerprint`, the time `now_s` \[s\] and
+/// whether `alarm` holds the shutdown latched. One writer for every
+/// observer (the grid, the Omnimagnet, the network).
+///
+/// # Errors
+/// Those of [`save`].
+pub(crate) fn save_state<S: Scalar, const N: usize, const E: usize>(
+    temps_c: &[f32; N],
+    fingerprint: u32,
+    now_s: u32,
+    alarm: &AlarmState<S, E>,
+    out: &mut [u8],
+) -> Result<usize, SnapshotError> {
+    let meta = SnapshotMeta {
+        fingerprint,
+        saved_at_s: now_s,
+        shutdown_latched: alarm.shutdown_latched(),
+    };
+    save(temps_c, &meta, out)
 }
 
 /// Writes a snapshot of `temps_c` \[degC\] into `out`; returns the bytes

@@ -51,6 +51,68 @@ pub struct GainTables<const X: usize, const P: usize> {
     pub innovation_cov: [[f32; P]; P],
 }
 
+impl<const X: usize, const P: usize> GainTables<X, P> {
+    /// The tables of a solved gain (the Omnimagnet's and the network's
+    /// `parts()`), row-major.
+    pub(crate) fn of(gain: &crate::filter::SteadyStateGain<f32, X, P>) -> Self {
+        Self {
+            period: gain.period,
+            gain: rows(&gain.gain),
+            prior: rows(&gain.prior),
+            posterior: rows(&gain.posterior),
+            innovation_var: gain.innovation_var.into(),
+            prior_ht: rows(&gain.prior_ht),
+            innovation_cov: rows(&gain.innovation_cov),
+        }
+    }
+}
+
+impl<const X: usize, const P: usize> GainTables<X, P> {
+    /// The gain these tables hold (a `const fn` that only moves values,
+    /// for a configuration in flash).
+    pub(crate) const fn gain(&self) -> crate::filter::SteadyStateGain<f32, X, P> {
+        crate::filter::SteadyStateGain {
+            period: self.period,
+            gain: matrix(&self.gain),
+            prior: matrix(&self.prior),
+            posterior: matrix(&self.posterior),
+            innovation_var: vector(&self.innovation_var),
+            prior_ht: matrix(&self.prior_ht),
+            innovation_cov: matrix(&self.innovation_cov),
+        }
+    }
+}
+
+/// Rows (the tables' layout) to nalgebra's column-major storage, in a
+/// `const fn`.
+pub(crate) const fn matrix<const R: usize, const C: usize>(
+    rows: &[[f32; C]; R],
+) -> nalgebra::SMatrix<f32, R, C> {
+    let mut columns = [[0.0f32; R]; C];
+    let mut i = 0;
+    while i < R {
+        let mut j = 0;
+        while j < C {
+            columns[j][i] = rows[i][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    nalgebra::SMatrix::from_array_storage(nalgebra::ArrayStorage(columns))
+}
+
+/// A column vector of `values`, in a `const fn`.
+pub(crate) const fn vector<const R: usize>(values: &[f32; R]) -> nalgebra::SMatrix<f32, R, 1> {
+    nalgebra::SMatrix::from_array_storage(nalgebra::ArrayStorage([*values]))
+}
+
+/// A matrix as its rows (the tables' layout).
+pub(crate) fn rows<const R: usize, const C: usize>(
+    m: &nalgebra::SMatrix<f32, R, C>,
+) -> [[f32; C]; R] {
+    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
+}
+
 /// The time-to-limit predictor's modal tables (see
 /// [`crate::protect::predict`]), [`PREDICTOR_POINTS`] horizons.
 #[derive(Debug, Clone, Copy, PartialEq)]

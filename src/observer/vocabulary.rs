@@ -4,11 +4,12 @@
 //! No device owns them (the grid, the Omnimagnet and the network observers,
 //! the consistency screen and the protection cycle all use them).
 
+use super::clock::TickSteps;
 use super::consistency::{stuck_window, Band, StuckTest};
 use crate::error::BuildError;
 use crate::input::InputFlags;
 use crate::protect::alarm::AlarmStatus;
-use crate::protect::limiter::CoilLimit;
+use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::sensors::{SensorFault, SensorResult};
 
 /// Capacity of each observer's alarm event queue.
@@ -42,6 +43,20 @@ impl TimedReading {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+impl TimedReading {
+    /// The readings `temps_c` \[degC\] of every sensor, healthy, sampled at
+    /// `now_us` \[us\] (the tests' thermocouples).
+    pub(crate) fn all_at<const P: usize>(temps_c: [f32; P], now_us: u32) -> [Option<Self>; P] {
+        temps_c.map(|temp_c| {
+            Some(Self {
+                result: Ok(crate::sensors::Reading::new(temp_c)),
+                sampled_at_us: now_us,
+            })
+        })
     }
 }
 
@@ -240,4 +255,20 @@ pub struct FilteredOutputs<const N: usize, const M: usize, const A: usize, const
     pub dropped_us: u32,
     /// Ticks since the state was made.
     pub tick: u32,
+}
+
+impl<const N: usize, const M: usize, const A: usize, const P: usize> FilteredOutputs<N, M, A, P> {
+    /// Ends a tick: its input flags, its model steps and dropped time
+    /// (`steps`), every current limit held at zero while the shutdown is
+    /// latched (until the deliberate clear), and the tick counted.
+    #[inline(always)]
+    pub(crate) fn finish_tick(&mut self, flags: InputFlags, steps: &TickSteps) {
+        self.flags = flags;
+        self.steps = steps.steps;
+        self.dropped_us = steps.dropped_us;
+        if self.alarm.shutdown {
+            hold_shutdown(&mut self.limits);
+        }
+        self.tick = self.tick.wrapping_add(1);
+    }
 }

@@ -37,18 +37,16 @@
 
 use core::fmt::{self, Write};
 
-use nalgebra::{ArrayStorage, SMatrix};
-
 use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
 use crate::error::BuildError;
-use crate::filter::{GatePolicy, KalmanConfig, SteadyStateGain};
+use crate::filter::{GatePolicy, KalmanConfig};
 use crate::input::ScalarLimits;
-use crate::observer::consistency::{Band, BiasBound, StuckTest};
+use crate::observer::consistency::{Band, BiasBound, RefreshWatchdog, StuckTest};
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
     write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
 };
-use crate::observer::tables::{GainTables, PredictorTables};
+use crate::observer::tables::{matrix, rows, vector, GainTables, PredictorTables};
 use crate::omnimagnet::observer::{
     GainMode, MeanModel, ObserverConfig, ObserverSettings, INPUTS, STATES,
 };
@@ -182,29 +180,6 @@ pub struct OmniParts {
     pub model_stale_after_steps: u32,
 }
 
-fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
-    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
-}
-
-/// Row-major to nalgebra's column-major storage.
-const fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
-    let mut columns = [[0.0f32; R]; C];
-    let mut i = 0;
-    while i < R {
-        let mut j = 0;
-        while j < C {
-            columns[j][i] = rows[i][j];
-            j += 1;
-        }
-        i += 1;
-    }
-    SMatrix::from_array_storage(ArrayStorage(columns))
-}
-
-const fn vector<const R: usize>(values: &[f32; R]) -> SMatrix<f32, R, 1> {
-    SMatrix::from_array_storage(ArrayStorage([*values]))
-}
-
 impl MeanModelTables {
     fn of(model: &MeanModel<f32>) -> Self {
         Self {
@@ -289,15 +264,7 @@ impl OmniObserver {
                 recover_after: k.gate.recover_after,
                 recovery_variance: k.recovery_variance.into(),
                 walk_from: k.walk_from,
-                gain: GainTables {
-                    period: gain.period,
-                    gain: rows(&gain.gain),
-                    prior: rows(&gain.prior),
-                    posterior: rows(&gain.posterior),
-                    innovation_var: gain.innovation_var.into(),
-                    prior_ht: rows(&gain.prior_ht),
-                    innovation_cov: rows(&gain.innovation_cov),
-                },
+                gain: GainTables::of(gain),
                 model: MeanModelTables::of(&c.model),
                 resistance: c.resistance.map(|(r0, slope)| [r0, slope]),
                 solenoid_nodes: c.solenoid_nodes,
@@ -333,7 +300,7 @@ impl OmniObserver {
             silent_after_us: self.silent_after_us,
             fingerprint: self.fingerprint,
             plant_fingerprint: self.plant_fingerprint,
-            model_stale_after_steps: self.model_stale_after_steps,
+            model_stale_after_steps: self.refresh.bound_steps(),
         }
     }
 
@@ -478,15 +445,7 @@ impl OmniObserver {
                     recovery_variance: vector(&f.recovery_variance),
                     walk_from: f.walk_from,
                 },
-                gain: SteadyStateGain {
-                    period: g.period,
-                    gain: matrix(&g.gain),
-                    prior: matrix(&g.prior),
-                    posterior: matrix(&g.posterior),
-                    innovation_var: vector(&g.innovation_var),
-                    prior_ht: matrix(&g.prior_ht),
-                    innovation_cov: matrix(&g.innovation_cov),
-                },
+                gain: g.gain(),
                 model: f.model.model(),
                 resistance,
                 solenoid_nodes: f.solenoid_nodes,
@@ -540,7 +499,7 @@ impl OmniObserver {
                 tolerance_k: parts.stuck_tolerance_k,
             },
             silent_after_us: parts.silent_after_us,
-            model_stale_after_steps: parts.model_stale_after_steps,
+            refresh: RefreshWatchdog::from_steps(parts.model_stale_after_steps),
         })
     }
 }

@@ -14,7 +14,6 @@ use std::sync::OnceLock;
 use super::*;
 use crate::filter::{k_step_model, update, KalmanState};
 use crate::omnimagnet::observer::ObserverConfig;
-use crate::sensors::Reading;
 
 const AMBIENT_C: f64 = 22.0;
 /// What the drive asks of every solenoid \[A\]: the hardware limit.
@@ -158,12 +157,7 @@ fn drive_ticking(
         let now_us = (k + tick_ms).wrapping_mul(1000);
         let read = k % 500 == 0;
         let readings = if read {
-            plant.readings().map(|temp_c| {
-                Some(TimedReading {
-                    result: Ok(Reading::new(temp_c)),
-                    sampled_at_us: now_us,
-                })
-            })
+            TimedReading::all_at(plant.readings(), now_us)
         } else {
             [None; THERMOCOUPLES]
         };
