@@ -170,7 +170,9 @@ fn calibrate_then_codegen_reproduce_the_committed_files() {
         "calibrate no longer reproduces three-phase-1tc-fitted.toml: regenerate it and the module (README, \"A three-phase motor with one thermocouple\")"
     );
     assert!(
-        !text.lines().any(|l| l.trim_start().starts_with("bias_sources")),
+        !text
+            .lines()
+            .any(|l| l.trim_start().starts_with("bias_sources")),
         "the walkthrough needs no bias_sources line"
     );
     // Against the bench's truth, which the fit never read.

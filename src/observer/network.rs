@@ -329,11 +329,11 @@ use super::clock::{ClockState, StepClock};
 use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
 
 use super::consistency::{
-    raise_to_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
+    protect_on_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
     SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::aged_time_to_limit;
-use super::cycle::{latch_and_publish, record_verdicts, sample_readings, ProtectionCycle, Stage};
+use super::cycle::{record_verdicts, sample_readings, Latch, ProtectionCycle, Stage};
 use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
 use super::vocabulary::{
@@ -349,9 +349,9 @@ use crate::input::{InputFlags, ScalarLimits};
 use crate::network::{compensated_add, Network, ScalarResistance};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
-use crate::protect::events::{EventKind, EventQueue};
+use crate::protect::events::EventQueue;
 use crate::protect::limiter::{drive_limit, DriveLimit};
-use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
+use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
 
@@ -877,6 +877,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     pub fn outputs(&self) -> &NetworkOutputs<N, M, P> {
         &self.outputs
     }
+
+    /// The shutdown's latch over this state (see [`Latch`]).
+    fn latch(&mut self) -> Latch<'_, f32, N, EVENT_CAPACITY> {
+        Latch {
+            alarm: &mut self.alarm,
+            events: &mut self.events,
+            published: &mut self.outputs.alarm,
+            limits: &mut self.outputs.limits,
+        }
+    }
 }
 
 fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
@@ -1147,10 +1157,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
-            state
-                .alarm
-                .latch_shutdown_for(EventKind::ClockFrozen, &mut state.events);
-            state.outputs.alarm.shutdown = true;
+            state.latch().clock_lost();
         }
         let mut flags = steps.flags;
         flags |= self
@@ -1226,15 +1233,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
         }
         self.age_time_to_limit(state);
-        let out = &mut state.outputs;
-        out.flags = flags;
-        out.steps = steps.steps;
-        out.dropped_us = steps.dropped_us;
-        if out.alarm.shutdown {
-            // Latched: no current until the deliberate clear.
-            hold_shutdown(&mut out.limits);
-        }
-        out.tick = out.tick.wrapping_add(1);
+        state.outputs.finish_tick(flags, &steps);
         &state.outputs
     }
 
@@ -1350,11 +1349,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             return;
         }
         let shadow_c: [f32; N] = core::array::from_fn(|i| self.origin_c + state.shadow.dev_k(i));
-        let mut shadow_upper_c = [f32::NAN; N];
-        self.bound
-            .upper_c(&shadow_c, ambient_c, &mut shadow_upper_c);
         let limited = (0..N).filter(|i| self.limited.get(*i).copied().unwrap_or(false));
-        raise_to_shadow(&mut out.upper_c, &shadow_upper_c, limited);
+        protect_on_shadow(&self.bound, &shadow_c, ambient_c, &mut out.upper_c, limited);
     }
 
     /// The limiter at the published upper bounds: a taper factor per
@@ -1741,12 +1737,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         now_s: u32,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
-        let meta = SnapshotMeta {
-            fingerprint: self.fingerprint,
-            saved_at_s: now_s,
-            shutdown_latched: state.alarm.shutdown_latched(),
-        };
-        snapshot::save(&self.temps_c(state), &meta, out)
+        snapshot::save_state(
+            &self.temps_c(state),
+            self.fingerprint,
+            now_s,
+            &state.alarm,
+            out,
+        )
     }
 
     /// Restores a state saved by [`Self::save`] with this configuration at
@@ -1856,13 +1853,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             *saved_c
         };
         let mut state = self.state(&temps_c, boundary_c);
-        if meta.shutdown_latched {
-            latch_and_publish(
-                &mut state.alarm,
-                &mut state.outputs.alarm,
-                &mut state.outputs.limits,
-            );
-        }
+        state.latch().restore(meta);
         state
     }
 
@@ -1941,11 +1932,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let ambient_c = self.ambient(boundary_c);
         let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
         let mut state = self.state(&temps, boundary_c);
-        latch_and_publish(
-            &mut state.alarm,
-            &mut state.outputs.alarm,
-            &mut state.outputs.limits,
-        );
+        state.latch().latch();
         state
     }
 
@@ -1966,9 +1953,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P>,
     ) -> Result<(), ResetError> {
-        state.alarm.reset(&self.alarm, &mut state.events)?;
-        state.outputs.alarm.shutdown = state.alarm.shutdown_latched();
-        Ok(())
+        state.latch().clear(&self.alarm)
     }
 }
 

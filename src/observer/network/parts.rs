@@ -40,6 +40,7 @@ use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
 use crate::observer::consistency::{BiasBound, Shadow};
 use crate::observer::snapshot::Fingerprint;
+use crate::observer::tables::{matrix, rows};
 pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -123,14 +124,6 @@ fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
     } else {
         Err(BuildError::InvalidParameter { name })
     }
-}
-
-fn rows<const R: usize, const C: usize>(m: &SMatrix<f32, R, C>) -> [[f32; C]; R] {
-    core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)]))
-}
-
-fn matrix<const R: usize, const C: usize>(rows: &[[f32; C]; R]) -> SMatrix<f32, R, C> {
-    SMatrix::from_fn(|i, j| rows[i][j])
 }
 
 fn finite<'a>(values: impl IntoIterator<Item = &'a f32>) -> bool {
@@ -270,15 +263,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
                 source_node: model.source_node,
                 resistance: model.resistance,
             },
-            gain: GainTables {
-                period: gain.period,
-                gain: rows(&gain.gain),
-                prior: rows(&gain.prior),
-                posterior: rows(&gain.posterior),
-                innovation_var: gain.innovation_var.into(),
-                prior_ht: rows(&gain.prior_ht),
-                innovation_cov: rows(&gain.innovation_cov),
-            },
+            gain: GainTables::of(&gain),
             predictor: PredictorTables::of(&predictor),
             shadow: ShadowTables {
                 block_steps: timing.correction_period,
@@ -715,15 +700,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             timing.clock.step_s(),
         )?
         .cast::<f32>();
-        let gain = SteadyStateGain {
-            period: g.period,
-            gain: matrix(&g.gain),
-            prior: matrix(&g.prior),
-            posterior: matrix(&g.posterior),
-            innovation_var: SVector::from(g.innovation_var),
-            prior_ht: matrix(&g.prior_ht),
-            innovation_cov: matrix(&g.innovation_cov),
-        };
+        let gain = g.gain();
         let limited = parts.critical_c.map(|c| c.is_some());
         let critical = parts.critical_c.map(|c| c.unwrap_or(NO_LIMIT_C));
         let rule = DeratingRule::new(&[DeratingFactor::new(
