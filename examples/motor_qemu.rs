@@ -77,14 +77,7 @@ fn main() -> ! {
         flash,
         ram
     );
-    hprintln!(
-        "cost: split: plain tick (model step, no stage) {} instructions; ticks without a reading mean {} worst {}; with a reading mean {} worst {}",
-        split.least,
-        split.plain.mean(),
-        split.plain.worst(),
-        split.corrected.mean(),
-        split.corrected.worst()
-    );
+    split.print();
     // The thermocouple pulls the estimate: it closes more than half of the
     // 2.5 K that open loop misses.
     exit::exit(summary.end_error_k < 0.5 * summary.open_error_k)

@@ -72,13 +72,6 @@ fn main() -> ! {
         flash,
         ram
     );
-    hprintln!(
-        "cost: split: plain tick (model step, no stage) {} instructions; ticks without a reading mean {} worst {}; with a reading mean {} worst {}",
-        split.least,
-        split.plain.mean(),
-        split.plain.worst(),
-        split.corrected.mean(),
-        split.corrected.worst()
-    );
+    split.print();
     exit::exit(summary.worst_winding_error_k < 1.0)
 }

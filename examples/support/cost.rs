@@ -131,6 +131,18 @@ impl Split {
             self.plain.add(value);
         }
     }
+
+    /// Prints the split as a `cost:` line.
+    pub fn print(&self) {
+        cortex_m_semihosting::hprintln!(
+            "cost: split: plain tick (model step, no stage) {} instructions; ticks without a reading mean {} worst {}; with a reading mean {} worst {}",
+            self.least,
+            self.plain.mean(),
+            self.plain.worst(),
+            self.corrected.mean(),
+            self.corrected.worst()
+        );
+    }
 }
 
 extern "C" {
