@@ -100,6 +100,51 @@ impl Stats {
     }
 }
 
+/// Where a tick's instructions go, by elimination: the ticks that fuse a
+/// reading, and the others, whose cheapest is a plain tick (the model step
+/// and the bookkeeping, no protection stage) and whose mean above it is the
+/// protection cycle's share (one stage every few ticks).
+#[derive(Default, Clone, Copy)]
+// Not every example that includes this file splits its ticks.
+#[allow(dead_code)]
+pub struct Split {
+    /// The ticks that fused a reading.
+    pub corrected: Stats,
+    /// The others.
+    pub plain: Stats,
+    /// The cheapest of the others.
+    pub least: u32,
+}
+
+#[allow(dead_code)]
+impl Split {
+    /// Adds one tick's count.
+    pub fn add(&mut self, value: u32, corrected: bool) {
+        if corrected {
+            self.corrected.add(value);
+        } else {
+            self.least = if self.plain.count() == 0 {
+                value
+            } else {
+                self.least.min(value)
+            };
+            self.plain.add(value);
+        }
+    }
+
+    /// Prints the split as a `cost:` line.
+    pub fn print(&self) {
+        cortex_m_semihosting::hprintln!(
+            "cost: split: plain tick (model step, no stage) {} instructions; ticks without a reading mean {} worst {}; with a reading mean {} worst {}",
+            self.least,
+            self.plain.mean(),
+            self.plain.worst(),
+            self.corrected.mean(),
+            self.corrected.worst()
+        );
+    }
+}
+
 extern "C" {
     static __erodata: u8;
     static __sdata: u8;

@@ -196,20 +196,29 @@ fn codegen_refuses_what_the_firmware_observer_cannot_take() {
 /// (`host-tests/tests/generated/all_input_terms.rs`, below).
 #[test]
 fn codegen_reproduces_the_committed_speed_term_modules() {
-    for (model, module) in [
+    for (model, extra, module) in [
         (
             "host-tests/models/hust_motor_slot_fitted.toml",
+            &[][..],
             "examples/generated/hust_motor.rs",
         ),
         (
             "host-tests/models/all-input-terms.toml",
+            &[][..],
             "host-tests/tests/generated/all_input_terms.rs",
+        ),
+        // The Cortex-M0 footprint example's (`examples/footprint_m0.rs`).
+        (
+            "host-tests/models/two-node-coil.toml",
+            &["--sensor", "housing"][..],
+            "examples/generated/two_node_coil.rs",
         ),
     ] {
         let out = cargo_bin_cmd!("coil-thermal")
             .arg("codegen")
             .arg("--model")
             .arg(root().join(model))
+            .args(extra)
             .args(["--out", "-"])
             .assert()
             .success();
@@ -217,7 +226,8 @@ fn codegen_reproduces_the_committed_speed_term_modules() {
         assert_eq!(
             text,
             read(&root().join(module)),
-            "codegen no longer reproduces {module}: cargo run --release -p coil-thermal-host --bin coil-thermal -- codegen --model {model} --out {module}"
+            "codegen no longer reproduces {module}: cargo run --release -p coil-thermal-host --bin coil-thermal -- codegen --model {model} {} --out {module}",
+            extra.join(" ")
         );
     }
     let motor = read(&root().join("examples/generated/hust_motor.rs"));
