@@ -130,8 +130,9 @@ impl Default for GridConfig {
     }
 }
 
-/// Neighbour offsets `(d_row, d_col)`, the order of the coefficient arrays.
-const DIRECTIONS: [(isize, isize); 8] = [
+/// Neighbour offsets `(d_row, d_col)`, the order of the coefficient arrays
+/// (and of the grid observer's per-direction tables).
+pub(crate) const DIRECTIONS: [(isize, isize); 8] = [
     (-1, -1),
     (-1, 0),
     (-1, 1),

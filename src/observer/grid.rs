@@ -236,17 +236,9 @@ impl Default for ProtectionPlan {
     }
 }
 
-/// Neighbour offsets, the order of [`GridObserver`]'s per-direction tables.
-const DIRECTIONS: [(isize, isize); 8] = [
-    (-1, -1),
-    (-1, 0),
-    (-1, 1),
-    (0, -1),
-    (0, 1),
-    (1, -1),
-    (1, 0),
-    (1, 1),
-];
+// Neighbour offsets, the order of the per-direction tables: the grid
+// model's own.
+use crate::grid::DIRECTIONS;
 
 /// The configuration of one grid device: model, protection and clock.
 /// `N` must be `ROWS * COLS` (checked at compile time).
