@@ -14,13 +14,10 @@
 
 use core::fmt::Write;
 
-use coil_thermal::observer::TimedReading;
-use coil_thermal::Reading;
-
 use crate::model;
 
-#[path = "checksum.rs"]
-mod checksum;
+#[path = "second.rs"]
+mod second;
 
 /// The recorded trace.
 pub const TRACE_CSV: &str = include_str!("../../host-tests/traces/drive-3node.csv");
@@ -81,31 +78,22 @@ pub fn replay<W: Write>(
 ) -> Result<Summary, &'static str> {
     let mut state = model::initial_state(observer, 22.0);
     let mut summary = Summary {
-        checksum: checksum::START,
+        checksum: second::START,
         ..Summary::default()
     };
     let mut now_us: u32 = 0;
     for (second, line) in TRACE_CSV.lines().skip(1).take(SECONDS as usize).enumerate() {
         let (current_a, ambient_c, winding_tc, housing_tc) = row(line).ok_or("trace row")?;
-        for k in 0..1000u32 {
-            let reading = (k == 0).then_some(TimedReading {
-                result: Ok(Reading::new(housing_tc)),
-                sampled_at_us: now_us,
-            });
-            let inputs = model::Inputs {
-                currents_a: [current_a],
-                boundary_c: [ambient_c],
-                readings: [reading],
-                now_us,
-                elapsed_us: 1000,
-            };
-            let mut out_copy = None;
-            tick(&mut || out_copy = Some(*observer.tick(&mut state, &inputs)));
-            let o = out_copy.ok_or("tick")?;
-            summary.corrections += u32::from(o.corrected);
-            summary.checksum = checksum::fold(summary.checksum, &o);
-            now_us = now_us.wrapping_add(1000);
-        }
+        summary.corrections += second::run(
+            observer,
+            &mut state,
+            [current_a],
+            [ambient_c],
+            [Some(housing_tc)],
+            &mut now_us,
+            &mut summary.checksum,
+            &mut tick,
+        )?;
         let t_s = second as u32 + 1;
         let o = state.outputs();
         if t_s >= 60 {

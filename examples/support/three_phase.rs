@@ -16,13 +16,10 @@
 
 use core::fmt::Write;
 
-use coil_thermal::observer::TimedReading;
-use coil_thermal::Reading;
-
 use crate::model;
 
-#[path = "checksum.rs"]
-mod checksum;
+#[path = "second.rs"]
+mod second;
 
 /// The held-out recording.
 pub const TRACE_CSV: &str = include_str!("../../host-tests/traces/three-phase-validation.csv");
@@ -77,32 +74,23 @@ pub fn replay<W: Write>(
     // ambient.
     let mut state = model::initial_state(observer, first.1);
     let mut summary = Summary {
-        checksum: checksum::START,
+        checksum: second::START,
         worst_cold_miss_k: f32::NEG_INFINITY,
         ..Summary::default()
     };
     let mut now_us: u32 = 0;
     for (second, line) in TRACE_CSV.lines().skip(1).take(SECONDS as usize).enumerate() {
         let (phase_a, ambient_c, phase_tc, housing_tc) = row(line).ok_or("trace row")?;
-        let currents_a = model::source_currents_a(&phase_a, &[]);
-        for k in 0..1000u32 {
-            let reading = (k == 0).then_some(TimedReading {
-                result: Ok(Reading::new(housing_tc)),
-                sampled_at_us: now_us,
-            });
-            let inputs = model::Inputs {
-                currents_a,
-                boundary_c: [ambient_c],
-                readings: [reading],
-                now_us,
-                elapsed_us: 1000,
-            };
-            let mut out_copy = None;
-            tick(&mut || out_copy = Some(*observer.tick(&mut state, &inputs)));
-            let o = out_copy.ok_or("tick")?;
-            summary.checksum = checksum::fold(summary.checksum, &o);
-            now_us = now_us.wrapping_add(1000);
-        }
+        second::run(
+            observer,
+            &mut state,
+            model::source_currents_a(&phase_a, &[]),
+            [ambient_c],
+            [Some(housing_tc)],
+            &mut now_us,
+            &mut summary.checksum,
+            &mut tick,
+        )?;
         let t_s = second as u32 + 1;
         let o = state.outputs();
         for (p, tc) in phase_tc.iter().enumerate() {
