@@ -435,6 +435,7 @@ fn firmware_config(
     fused_nodes: &[usize],
 ) -> Result<(FirmwareConfig, Vec<Override>)> {
     let mut config = FirmwareConfig::of(model, model_file.observer.as_ref())?;
+    config.require_temperature_sensors("replay")?;
     // A built-in device has no `[observer]` table: its own derating rule.
     if matches!(
         spec,
