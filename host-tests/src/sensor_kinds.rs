@@ -39,8 +39,36 @@ use crate::model_file::Model;
 pub struct AdcSensor {
     /// The kind's name as the file spells it (`ntc`, `kty84`, ...).
     pub kind: &'static str,
+    /// The curve's parameters as the file gives them (for `codegen`).
+    pub curve: Curve,
+    /// The file's `min_c`, `max_c` \[degC\], if given.
+    pub range_c: Option<(f32, f32)>,
     /// The library's conversion (divider, ADC width, curve, range).
     pub input: ResistiveInput,
+}
+
+/// A resistive sensor's curve, as the library's constructor takes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Curve {
+    /// `Sensor::ntc_beta(r0_ohm, t0_c, beta_k)`.
+    Beta {
+        /// Resistance at `t0_c` \[ohm\].
+        r0_ohm: f32,
+        /// Its temperature \[degC\].
+        t0_c: f32,
+        /// Beta \[K\].
+        beta_k: f32,
+    },
+    /// `Sensor::ntc_steinhart_hart(a, b, c)`.
+    SteinhartHart([f32; 3]),
+    /// `Sensor::KTY83_110`.
+    Kty83,
+    /// `Sensor::KTY84_130`.
+    Kty84,
+    /// `Sensor::PT100`.
+    Pt100,
+    /// `Sensor::PT1000`.
+    Pt1000,
 }
 
 /// A winding's resistance as a sensor, by the `[[source]]`'s name.
@@ -422,28 +450,44 @@ fn adc(kind: &'static str, t: &Keys) -> Result<AdcSensor, String> {
     let divider = Divider::new(topology, r_ref as f32, bits as u8)
         .and_then(|d| d.with_rail_margin(margin as u32))
         .map_err(|e| refused(e, &keys))?;
-    let sensor = match kind {
-        "ntc" => ntc(t, &what).and_then(|s| s.map_err(|e| refused(e, &keys)))?,
-        "kty83" => Sensor::KTY83_110,
-        "kty84" => Sensor::KTY84_130,
-        "pt100" => Sensor::PT100,
-        _ => Sensor::PT1000,
+    let curve = match kind {
+        "ntc" => ntc(t, &what)?,
+        "kty83" => Curve::Kty83,
+        "kty84" => Curve::Kty84,
+        "pt100" => Curve::Pt100,
+        _ => Curve::Pt1000,
     };
-    let sensor = match t.pair("min_c", "max_c")? {
-        Some((lo, hi)) => sensor
-            .with_range(lo as f32, hi as f32)
-            .map_err(|e| refused(e, &keys))?,
+    let sensor = match curve {
+        Curve::Beta {
+            r0_ohm,
+            t0_c,
+            beta_k,
+        } => Sensor::ntc_beta(r0_ohm, t0_c, beta_k),
+        Curve::SteinhartHart([a, b, c]) => Sensor::ntc_steinhart_hart(a, b, c),
+        Curve::Kty83 => Ok(Sensor::KTY83_110),
+        Curve::Kty84 => Ok(Sensor::KTY84_130),
+        Curve::Pt100 => Ok(Sensor::PT100),
+        Curve::Pt1000 => Ok(Sensor::PT1000),
+    }
+    .map_err(|e| refused(e, &keys))?;
+    let range_c = t
+        .pair("min_c", "max_c")?
+        .map(|(lo, hi)| (lo as f32, hi as f32));
+    let sensor = match range_c {
+        Some((lo, hi)) => sensor.with_range(lo, hi).map_err(|e| refused(e, &keys))?,
         None => sensor,
     };
     Ok(AdcSensor {
         kind,
+        curve,
+        range_c,
         input: ResistiveInput::new(divider, sensor),
     })
 }
 
 /// An NTC by its beta (`beta_k`, `r25_ohm`, `t0_c` default 25) or its
 /// Steinhart-Hart coefficients (`steinhart_hart = [a, b, c]`).
-fn ntc(t: &Keys, what: &str) -> Result<Result<Sensor, BuildError>, String> {
+fn ntc(t: &Keys, what: &str) -> Result<Curve, String> {
     let sh = t.table.get("steinhart_hart");
     let beta = t.number("beta_k")?;
     match (sh, beta) {
@@ -465,7 +509,7 @@ fn ntc(t: &Keys, what: &str) -> Result<Result<Sensor, BuildError>, String> {
                 })
                 .collect();
             match nums.as_deref() {
-                Some([a, b, c]) => Ok(Sensor::ntc_steinhart_hart(*a as f32, *b as f32, *c as f32)),
+                Some([a, b, c]) => Ok(Curve::SteinhartHart([*a as f32, *b as f32, *c as f32])),
                 _ => Err("[observer] sensors: `steinhart_hart` is three numbers [a, b, c] (1/T = a + b ln R + c (ln R)^3, T in K, R in ohm)".into()),
             }
         }
@@ -475,7 +519,11 @@ fn ntc(t: &Keys, what: &str) -> Result<Result<Sensor, BuildError>, String> {
         (None, Some(beta)) => {
             let r25 = t.required("r25_ohm", what)?;
             let t0 = t.number("t0_c")?.unwrap_or(25.0);
-            Ok(Sensor::ntc_beta(r25 as f32, t0 as f32, beta as f32))
+            Ok(Curve::Beta {
+                r0_ohm: r25 as f32,
+                t0_c: t0 as f32,
+                beta_k: beta as f32,
+            })
         }
         (None, None) => Err(format!(
             "[observer] sensors: {what} needs `beta_k` and `r25_ohm`, or `steinhart_hart`"

@@ -52,6 +52,7 @@ use crate::model_file::{Model, ModelFile};
 pub mod build_hint;
 mod currents;
 mod devices;
+mod sensors;
 
 use currents::{
     check_f32_range, currents_of, input_limits_fn, source_currents_fn, source_drives_fn, CurrentOf,
@@ -199,6 +200,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
             req.model.display()
         );
     }
+    sensors::check(&spec.sensors).with_context(|| req.model.display().to_string())?;
     if model.has_varying_conductances() {
         bail!(
             "{}: a conductance that depends on a signal (`[conductance.speed]`) changes the network with every row, and the firmware observer's tables are solved for one network; generate from a model without it",
@@ -388,6 +390,7 @@ impl Plan {
             names(&columns)
         );
         let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
+        sensors::write(&mut o, &self.spec.sensors);
         let _ = writeln!(
             o,
             "/// Signals the model's speed and loss terms read (e.g. a speed in the\n/// unit of its reference).\npub const SIGNALS: usize = {};",
