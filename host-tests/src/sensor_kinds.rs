@@ -16,7 +16,7 @@
 //! ```
 //!
 //! A resistive kind (`ntc`, `kty83`, `kty84`, `pt100`, `pt1000`) is read by
-//! the MCU's ADC through a divider: [`SensorEntry::input`] is the library's
+//! the MCU's ADC through a divider: [`SensorEntry::adc`] holds the library's
 //! [`ResistiveInput`], the one conversion (ADC count -> [`SensorResult`])
 //! that `codegen`'s generated module and the host tools call. A
 //! `resistance` entry is a `[[source]]`'s winding read as a temperature
@@ -496,9 +496,10 @@ fn ntc(t: &Keys, what: &str) -> Result<Curve, String> {
         )),
         (Some(toml::Value::Array(abc)), None) => {
             if t.table.contains_key("r25_ohm") || t.table.contains_key("t0_c") {
-                return Err(format!(
+                return Err(
                     "[observer] sensors: `r25_ohm` and `t0_c` belong to a beta NTC, not to `steinhart_hart`"
-                ));
+                        .to_string(),
+                );
             }
             let nums: Option<Vec<f64>> = abc
                 .iter()

@@ -11,7 +11,6 @@ use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal::sensors::SensorFault;
 use tempfile::TempDir;
 
-#[allow(dead_code)]
 #[path = "../../examples/generated/drive_3node_ntc.rs"]
 mod model;
 
