@@ -46,8 +46,14 @@ fn every_shipped_model_file_still_reads_and_writes_back_the_same() {
         let file = ModelFile::load(&path).unwrap();
         if let Some(observer) = &file.observer {
             for s in &observer.sensors {
-                assert_eq!(s.kind, SensorKindSpec::Thermocouple, "{}", path.display());
-                with_sensors += 1;
+                // Every file before kinds names thermocouples; the NTC
+                // example is the one file written with a kind.
+                if path.ends_with("drive-3node-ntc.toml") {
+                    assert_eq!(s.kind_name(), "ntc");
+                } else {
+                    assert_eq!(s.kind, SensorKindSpec::Thermocouple, "{}", path.display());
+                    with_sensors += 1;
+                }
             }
         }
         let again = ModelFile::parse(&file.to_toml().unwrap(), "again.toml").unwrap();
