@@ -17,6 +17,7 @@ use coil_thermal::protect::margin::UncertaintyMargin;
 
 use crate::codegen::ObserverSpec;
 use crate::model_file::Model;
+use crate::sensor_kinds::{SensorEntry, SensorKindSpec};
 
 /// Every current's hardware limit when the table has none \[A\] (as
 /// `codegen`).
@@ -30,6 +31,8 @@ pub struct FirmwareConfig {
     pub from_table: bool,
     /// The node of each `[observer] sensors` entry, in sensor order.
     pub sensor_nodes: Vec<usize>,
+    /// Each `[observer] sensors` entry's kind, in sensor order.
+    pub sensors: Vec<SensorEntry>,
     /// Critical temperature of each node \[degC\] (`[[node]] critical_c`).
     pub critical_c: Vec<Option<f64>>,
     /// Every current's hardware limit \[A\].
@@ -116,12 +119,13 @@ impl FirmwareConfig {
         let sensor_nodes = table
             .sensors
             .iter()
-            .map(|s| model.node_index(s))
+            .map(|s| s.node_index(model))
             .collect::<anyhow::Result<Vec<_>>>()?;
         let sources = model.network.sources().len();
         Ok(Self {
             from_table: spec.is_some(),
             sensor_nodes,
+            sensors: table.sensors.clone(),
             critical_c: model.critical_c.clone(),
             hardware_limit_a: table.hardware_limit_a.unwrap_or(DEFAULT_HARDWARE_LIMIT_A),
             derating,
@@ -129,6 +133,28 @@ impl FirmwareConfig {
             bias_sources: (0..sources).map(|m| model.carries_bias(m)).collect(),
             shared_bias: table.shared_bias.unwrap_or(false),
         })
+    }
+
+    /// Refuses a sensor whose readings `what` cannot fuse as the firmware
+    /// does: a winding's resistance is fused with its own noise and read
+    /// through its `R(T)` by the library's resistance sensor, which `what`
+    /// does not build yet (a thermocouple's or a resistive sensor's column
+    /// is a temperature, fused with `sensor_sigma_k`, as in the firmware).
+    ///
+    /// # Errors
+    /// The first `resistance` entry, named.
+    pub fn require_temperature_sensors(&self, what: &str) -> anyhow::Result<()> {
+        match self
+            .sensors
+            .iter()
+            .find(|s| matches!(s.kind, SensorKindSpec::Resistance(_)))
+        {
+            Some(s) => anyhow::bail!(
+                "{what} does not fuse a winding's resistance yet (`[observer] sensors` entry `{}`, kind = \"resistance\"): the firmware fuses it with its own noise through the library's resistance sensor, and {what} would run another observer than the MCU's. `codegen` generates it; test it with the library's `NetworkObserverBuilder::resistance_sensor` (host-tests/tests/resistance_sensor.rs)",
+                s.label()
+            ),
+            None => Ok(()),
+        }
     }
 
     /// The derating rule the alarm applies: the table's product as one

@@ -51,6 +51,8 @@ pub mod model_file;
 pub mod observer;
 pub mod omni_firmware;
 pub mod plot;
+pub mod raw_sensors;
+pub mod sensor_kinds;
 pub mod sim;
 pub mod synth;
 pub mod trace;

@@ -78,6 +78,7 @@ pub struct MarginCheck {
 /// observer that does not build.
 pub fn check(model: &Model, spec: &ObserverSpec, d: &FitData) -> Result<Option<MarginCheck>> {
     let config = FirmwareConfig::of(model, Some(spec))?;
+    config.require_temperature_sensors("calibrate --validate")?;
     if config.sensor_nodes.is_empty() {
         return Ok(None);
     }

@@ -989,6 +989,8 @@ pub struct Model {
     pub signals: Vec<String>,
     /// Drive of each Joule source (the network's first sources, in order).
     pub drives: Vec<SourceDrive>,
+    /// Each `[[source]]`'s name (its `key()`), in the order of `drives`.
+    pub source_names: Vec<String>,
     /// Speed losses: the network's sources after the Joule ones, each a
     /// constant 1 ohm driven by the effective current `sqrt(P)`.
     pub speed_losses: Vec<SpeedLossDrive>,
@@ -1393,6 +1395,7 @@ impl Model {
             inputs,
             signals,
             drives,
+            source_names: file.sources.iter().map(|s| s.key().to_string()).collect(),
             speed_losses,
             losses,
             varying,

@@ -6,11 +6,10 @@
 //! (embedded-hal 1.0), and everything they hand inwards is a plain
 //! [`SensorResult`]: either a [`Reading`] in degC or a [`SensorFault`].
 //!
-//! | chip | module | interface | thermocouple data | cold junction |
+//! | chip | module | interface | sensor data (resolution) | cold junction |
 //! |---|---|---|---|---|
 //! | MAX31855 | [`max31855`] | one 32-bit read-only frame | 14 bit, 0.25 degC | 12 bit, 0.0625 degC |
 //! | MAX31856 | [`max31856`] | register file | 19 bit, 0.0078125 degC | 14 bit, 0.015625 degC |
-//!
 //! | MAX31865 | [`max31865`] | register file | RTD ratio, 15 bit (PT100 on 430 ohm: 0.034 K at 0 degC) | none (RTD) |
 //!
 //! The modules offer a pure `decode` that needs no bus (for tests, and for
@@ -21,7 +20,9 @@
 //! bit) into a [`SensorResult`]. Its arithmetic error against the reference
 //! equation in f64, over every 12-bit count from -40 to 150 degC; the
 //! quantisation of one count is larger (0.02 .. 0.9 K at 12 bits, see
-//! [`resistive`]):
+//! [`resistive`]). The sensor's own tolerance (an NTC's R25 and beta class,
+//! an RTD's class A/B, a KTY's R25/R100 selection) comes on top of every
+//! row:
 //!
 //! | kind | module | reference equation | conversion error |
 //! |---|---|---|---|
@@ -29,6 +30,7 @@
 //! | NTC, Steinhart-Hart | [`resistive`] | 1/T = a + b ln R + c (ln R)^3 | 6.2e-5 K |
 //! | NTC, R-T table | [`resistive`] | piecewise beta between points | 4.6e-5 K (plus the table's own interpolation error: 8.7e-3 K for 5 K steps) |
 //! | PT100 / PT1000 | [`resistive`] | Callendar-Van Dusen, IEC 60751 | 4.1e-5 K (1.5e-4 K over -200 .. 850 degC) |
+//! | KTY83-110/120/150, KTY84-130/150 (silicon PTC), any PTC R-T table | [`resistive`] | the datasheet's R-T table, linear between rows | 1.8e-5 K (plus the table's own interpolation error: 0.12 K at its off-grid rows) |
 //! | winding resistance (a source's own `V/I`, DC injection) | [`crate::observer::network::resistance`] | T = (R - r0) / s, the winding's measured `R(T)` | the resistance's relative noise times `R(T) / s`: 2.5 K at 20 degC, 3.3 K at 100 degC per reading for copper at 1 %; through the filter, 0.69 K worst (RMSE 0.19 K) on `drive-3node` over an hour at one reading a second |
 //!
 //! A resistive sensor has no cold junction: its [`Reading::cold_junction_c`]

@@ -1,4 +1,5 @@
-//! Resistive temperature sensors (NTC thermistors, platinum RTDs) read
+//! Resistive temperature sensors (NTC thermistors, platinum RTDs, KTY silicon
+//! PTCs) read
 //! through a resistive divider by a ratiometric ADC.
 //!
 //! # Conversion
@@ -13,6 +14,7 @@
 //! | NTC, Steinhart-Hart | [`Sensor::ntc_steinhart_hart`] | 1/T = a + b ln R + c (ln R)^3 | 6.2e-5 K |
 //! | NTC, manufacturer's R-T table | [`Sensor::ntc_table`] | 1/T linear in ln R between points (piecewise beta) | 4.6e-5 K vs that interpolation; 8.7e-3 K vs the Steinhart-Hart curve a 5 K table was made from |
 //! | PT100 / PT1000 | [`Sensor::rtd`], [`Sensor::PT100`], [`Sensor::PT1000`] | Callendar-Van Dusen, IEC 60751: R = R0 (1 + A t + B t^2 + C (t - 100) t^3), C = 0 for t >= 0 | 4.1e-5 K (-40 .. 150 degC through the divider); 1.5e-4 K over -200 .. 850 degC from resistance |
+//! | KTY83-110/120/150, KTY84-130/150 (silicon PTC) | [`Sensor::KTY83_110`], [`Sensor::KTY84_130`], any PTC table: [`Sensor::ptc_table`] | the datasheet's R-T table, T linear in R between rows | 1.8e-5 K vs that interpolation; the table's own accuracy (its off-grid rows from their 10 K neighbours): 0.12 K |
 //!
 //! The error column is the largest difference between this module's `f32`
 //! arithmetic and the same equation evaluated in `f64` by the tests (closed
@@ -23,8 +25,22 @@
 //! sensor's own tolerance (NTC R25 and beta class, RTD class A/B) and the
 //! reference resistor's tolerance come on top and are not modelled here.
 //!
-//! KTY83 / KTY84 silicon PTCs are not offered: their datasheet tables were not
-//! at hand to cite, and a table typed from memory is not a reference.
+//! # KTY tables: where the rows come from
+//!
+//! [`KTY83_110_TABLE`] and [`KTY84_130_TABLE`] are the typical-resistance
+//! tables of the Philips/NXP datasheets "KTY83 series, Silicon temperature
+//! sensors" (1998 Apr 09 and later revisions) and "KTY84 series" (same
+//! family). The stored copies of those datasheets at hand
+//! (<https://manualmachine.com/philips/kty83120/4243353-datasheet>,
+//! <https://dtsheet.com/doc/219619/philips-kty84-151>) show only their first
+//! pages (type list, R25 / R100 limits), not the table; the rows were read
+//! from public transcriptions of the tables that agree row for row (two for
+//! the KTY83, three for the KTY84). What the copies do show is checked by
+//! the tests: the table's 1000 ohm at 25 degC is inside the KTY83-110's R25
+//! of 990 .. 1010 ohm, and 1000 ohm at 100 degC inside the KTY84-130's R100
+//! of 970 .. 1030 ohm. A part's tolerance (those ranges: about +-1 % and
+//! +-3 %, several kelvin) comes on top of the typical curve and is not
+//! modelled.
 //!
 //! # Divider and ADC
 //!
@@ -69,6 +85,8 @@
 //! | PT100, 100 ohm | 0.209 | 0.277 | 0.433 | 0.21 |
 //! | PT100, 1 kohm | 0.725 | 0.775 | 0.876 | 0.43 |
 //! | PT1000, 1 kohm | 0.209 | 0.277 | 0.433 | 0.21 |
+//! | KTY83-110, 1 kohm | 0.113 | 0.127 | 0.212 | 0.11 |
+//! | KTY84-130, 1 kohm | (table starts at -40) | 0.139 | 0.184 | 0.09 |
 //!
 //! The two topologies give the same figures (one's ratio is one minus the
 //! other's). So at 12 bits the arithmetic is far inside 0.1 K, but the
@@ -76,7 +94,9 @@
 //! NTC with a 10 kohm R_ref resolves 0.1 K only around room temperature (the
 //! step passes 0.1 K below about -34 degC and above about 89 degC), and an
 //! RTD on a plain divider needs a wider ADC (each extra bit halves the step)
-//! or a bridge with an amplifier (the MAX31865).
+//! or a bridge with an amplifier (the MAX31865). A KTY on 1 kohm comes
+//! closest of the kinds here (0.09 .. 0.11 K worst): its ohms per kelvin are
+//! a larger fraction of its resistance than a platinum RTD's.
 //!
 //! # Reading
 //!
@@ -255,6 +275,100 @@ pub struct TablePoint {
     pub resistance_ohm: f32,
 }
 
+/// A table point from literals (for the built-in tables).
+const fn point(temp_c: f32, resistance_ohm: f32) -> TablePoint {
+    TablePoint {
+        temp_c,
+        resistance_ohm,
+    }
+}
+
+/// The typical resistance-temperature table of the KTY83-110, KTY83-120 and
+/// KTY83-150 (Philips/NXP KTY83 series datasheet, the resistance table of its
+/// characteristics section; sensor current 1 mA): -55 .. 175 degC in 10 K
+/// steps plus -55, 25, 125 and 175 degC, resistances in ohm rounded to
+/// 1 ohm.
+///
+/// The tolerance of a real part comes on top: R25 is 990 .. 1010 ohm for the
+/// KTY83-110, 980 .. 1020 ohm for the -120 and 950 .. 1050 ohm for the -150
+/// (the datasheet's quick reference data).
+pub const KTY83_110_TABLE: [TablePoint; 27] = [
+    point(-55.0, 500.0),
+    point(-50.0, 525.0),
+    point(-40.0, 577.0),
+    point(-30.0, 632.0),
+    point(-20.0, 691.0),
+    point(-10.0, 754.0),
+    point(0.0, 820.0),
+    point(10.0, 889.0),
+    point(20.0, 962.0),
+    point(25.0, 1000.0),
+    point(30.0, 1039.0),
+    point(40.0, 1118.0),
+    point(50.0, 1202.0),
+    point(60.0, 1288.0),
+    point(70.0, 1379.0),
+    point(80.0, 1472.0),
+    point(90.0, 1569.0),
+    point(100.0, 1670.0),
+    point(110.0, 1774.0),
+    point(120.0, 1882.0),
+    point(125.0, 1937.0),
+    point(130.0, 1993.0),
+    point(140.0, 2107.0),
+    point(150.0, 2225.0),
+    point(160.0, 2346.0),
+    point(170.0, 2471.0),
+    point(175.0, 2535.0),
+];
+
+/// The typical resistance-temperature table of the KTY84-130 and KTY84-150
+/// (Philips/NXP KTY84 series datasheet, the resistance table of its
+/// characteristics section; sensor current 2 mA): -40 .. 300 degC in 10 K
+/// steps plus 25 degC, resistances in ohm rounded to 1 ohm.
+///
+/// The tolerance of a real part comes on top: R100 is 970 .. 1030 ohm for the
+/// KTY84-130 and 950 .. 1050 ohm for the KTY84-150 (the datasheet's quick
+/// reference data), a few kelvin.
+pub const KTY84_130_TABLE: [TablePoint; 36] = [
+    point(-40.0, 359.0),
+    point(-30.0, 391.0),
+    point(-20.0, 424.0),
+    point(-10.0, 460.0),
+    point(0.0, 498.0),
+    point(10.0, 538.0),
+    point(20.0, 581.0),
+    point(25.0, 603.0),
+    point(30.0, 626.0),
+    point(40.0, 672.0),
+    point(50.0, 722.0),
+    point(60.0, 773.0),
+    point(70.0, 826.0),
+    point(80.0, 882.0),
+    point(90.0, 940.0),
+    point(100.0, 1000.0),
+    point(110.0, 1062.0),
+    point(120.0, 1127.0),
+    point(130.0, 1194.0),
+    point(140.0, 1262.0),
+    point(150.0, 1334.0),
+    point(160.0, 1407.0),
+    point(170.0, 1482.0),
+    point(180.0, 1560.0),
+    point(190.0, 1640.0),
+    point(200.0, 1722.0),
+    point(210.0, 1807.0),
+    point(220.0, 1893.0),
+    point(230.0, 1982.0),
+    point(240.0, 2073.0),
+    point(250.0, 2166.0),
+    point(260.0, 2261.0),
+    point(270.0, 2357.0),
+    point(280.0, 2452.0),
+    point(290.0, 2542.0),
+    point(300.0, 2624.0),
+];
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 enum Kind {
@@ -272,7 +386,10 @@ enum Kind {
     Rtd {
         r0_ohm: f32,
     },
-    Table(&'static [TablePoint]),
+    /// An NTC's table, interpolated as piecewise beta.
+    NtcTable(&'static [TablePoint]),
+    /// A silicon PTC's table, interpolated linearly in R.
+    PtcTable(&'static [TablePoint]),
 }
 
 /// A resistive temperature sensor: its resistance-temperature curve and the
@@ -300,6 +417,12 @@ impl Sensor {
     pub const PT100: Self = expect_valid(Self::rtd(100.0));
     /// PT1000 (R0 = 1000 ohm), IEC 60751, over -200 .. 850 degC.
     pub const PT1000: Self = expect_valid(Self::rtd(1000.0));
+    /// KTY83-110 / -120 / -150 silicon PTC by its datasheet table
+    /// ([`KTY83_110_TABLE`]), over -55 .. 175 degC.
+    pub const KTY83_110: Self = expect_valid(Self::ptc_table(&KTY83_110_TABLE));
+    /// KTY84-130 / -150 silicon PTC by its datasheet table
+    /// ([`KTY84_130_TABLE`]), over -40 .. 300 degC.
+    pub const KTY84_130: Self = expect_valid(Self::ptc_table(&KTY84_130_TABLE));
 
     /// NTC by its beta equation: `r0_ohm` \[ohm\] at `t0_c` \[degC\]
     /// (usually 25 degC), and `beta_k` \[K\] (the datasheet's B25/85 or
@@ -384,36 +507,36 @@ impl Sensor {
     /// positive, a temperature is at or below absolute zero, temperatures do
     /// not strictly increase, or resistances do not strictly decrease.
     pub const fn ntc_table(table: &'static [TablePoint]) -> Result<Self, BuildError> {
-        const INVALID: BuildError = BuildError::InvalidParameter { name: "table" };
-        let (first, last) = match (table.first(), table.last()) {
-            (Some(first), Some(last)) if table.len() >= 2 => (*first, *last),
-            _ => return Err(INVALID),
-        };
-        let mut i = 0;
-        while i < table.len() {
-            let point = table[i];
-            if !point.temp_c.is_finite()
-                || point.temp_c <= -ZERO_C_IN_K
-                || !point.resistance_ohm.is_finite()
-                || point.resistance_ohm <= 0.0
-            {
-                return Err(INVALID);
-            }
-            if i > 0 {
-                let previous = table[i - 1];
-                if point.temp_c <= previous.temp_c
-                    || point.resistance_ohm >= previous.resistance_ohm
-                {
-                    return Err(INVALID);
-                }
-            }
-            i += 1;
+        match table_range_c(table, false) {
+            Ok((min_c, max_c)) => Ok(Self {
+                kind: Kind::NtcTable(table),
+                min_c,
+                max_c,
+            }),
+            Err(e) => Err(e),
         }
-        Ok(Self {
-            kind: Kind::Table(table),
-            min_c: first.temp_c,
-            max_c: last.temp_c,
-        })
+    }
+
+    /// PTC (a silicon sensor such as the KTY family) by a manufacturer's
+    /// resistance-temperature table, interpolated linearly in R between
+    /// neighbouring points: a silicon sensor's curve is nearly linear, so a
+    /// 10 K table interpolates within its own 1 ohm rounding (see
+    /// [`Sensor::KTY84_130`]). Range: the table's first to last temperature;
+    /// there is no extrapolation.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] (`"table"`) as for
+    /// [`Sensor::ntc_table`], except that resistances must strictly
+    /// increase.
+    pub const fn ptc_table(table: &'static [TablePoint]) -> Result<Self, BuildError> {
+        match table_range_c(table, true) {
+            Ok((min_c, max_c)) => Ok(Self {
+                kind: Kind::PtcTable(table),
+                min_c,
+                max_c,
+            }),
+            Err(e) => Err(e),
+        }
     }
 
     /// Narrow the plausible range to `min_c ..= max_c` \[degC\]: what the
@@ -429,7 +552,7 @@ impl Sensor {
         let (kind_min_c, kind_max_c) = match self.kind {
             Kind::Beta { .. } | Kind::SteinhartHart { .. } => (-ZERO_C_IN_K, f32::MAX),
             Kind::Rtd { .. } => (RTD_MIN_C, RTD_MAX_C),
-            Kind::Table(table) => match (table.first(), table.last()) {
+            Kind::NtcTable(table) | Kind::PtcTable(table) => match (table.first(), table.last()) {
                 (Some(first), Some(last)) => (first.temp_c, last.temp_c),
                 _ => return Err(BuildError::InvalidParameter { name: "table" }),
             },
@@ -478,7 +601,8 @@ impl Sensor {
                 kelvin_to_c(a + ln_r * (b + c * ln_r * ln_r))
             }
             Kind::Rtd { r0_ohm } => cvd_temp_c(resistance_ohm / r0_ohm),
-            Kind::Table(table) => table_temp_c(table, resistance_ohm),
+            Kind::NtcTable(table) => table_temp_c(table, resistance_ohm, Interpolation::Beta),
+            Kind::PtcTable(table) => table_temp_c(table, resistance_ohm, Interpolation::Linear),
         };
         // NaN fails both comparisons, so it cannot pass as a temperature.
         if temp_c >= self.min_c && temp_c <= self.max_c {
@@ -528,21 +652,81 @@ fn cvd_temp_c(ratio: f32) -> f32 {
     t
 }
 
-/// Interpolate the table at `resistance_ohm`: 1/T linear in ln R between the
-/// two points around it. NaN (refused by the range check) outside the table.
-fn table_temp_c(table: &[TablePoint], resistance_ohm: f32) -> f32 {
-    let ln_r = logf(resistance_ohm);
+/// The first and last temperature \[degC\] of a table whose temperatures
+/// strictly increase and whose resistances strictly increase (`rising`, a
+/// PTC) or decrease (an NTC), every value finite, resistances positive.
+const fn table_range_c(table: &[TablePoint], rising: bool) -> Result<(f32, f32), BuildError> {
+    const INVALID: BuildError = BuildError::InvalidParameter { name: "table" };
+    let (first, last) = match (table.first(), table.last()) {
+        (Some(first), Some(last)) if table.len() >= 2 => (*first, *last),
+        _ => return Err(INVALID),
+    };
+    let mut i = 0;
+    while i < table.len() {
+        let point = table[i];
+        if !point.temp_c.is_finite()
+            || point.temp_c <= -ZERO_C_IN_K
+            || !point.resistance_ohm.is_finite()
+            || point.resistance_ohm <= 0.0
+        {
+            return Err(INVALID);
+        }
+        if i > 0 {
+            let previous = table[i - 1];
+            let monotone = if rising {
+                point.resistance_ohm > previous.resistance_ohm
+            } else {
+                point.resistance_ohm < previous.resistance_ohm
+            };
+            if point.temp_c <= previous.temp_c || !monotone {
+                return Err(INVALID);
+            }
+        }
+        i += 1;
+    }
+    Ok((first.temp_c, last.temp_c))
+}
+
+/// How a table is read between its points.
+#[derive(Clone, Copy)]
+enum Interpolation {
+    /// 1/T linear in ln R (piecewise beta): exact for a beta-model NTC.
+    Beta,
+    /// T linear in R: a silicon PTC's nearly linear curve.
+    Linear,
+}
+
+/// Interpolate the table at `resistance_ohm` between the two points around
+/// it. NaN (refused by the range check) outside the table.
+fn table_temp_c(table: &[TablePoint], resistance_ohm: f32, interpolation: Interpolation) -> f32 {
     for pair in table.windows(2) {
-        // Resistances decrease along the table (checked when built).
         if let [cold, hot] = pair {
-            if resistance_ohm <= cold.resistance_ohm && resistance_ohm >= hot.resistance_ohm {
-                let (ln_cold, ln_hot) = (logf(cold.resistance_ohm), logf(hot.resistance_ohm));
-                let (inv_cold, inv_hot) = (
-                    1.0 / (cold.temp_c + ZERO_C_IN_K),
-                    1.0 / (hot.temp_c + ZERO_C_IN_K),
-                );
-                let fraction = (ln_r - ln_cold) / (ln_hot - ln_cold);
-                return kelvin_to_c(inv_cold + fraction * (inv_hot - inv_cold));
+            // Resistances are monotone along the table (checked when built),
+            // in either direction.
+            let (low, high) = if cold.resistance_ohm < hot.resistance_ohm {
+                (cold.resistance_ohm, hot.resistance_ohm)
+            } else {
+                (hot.resistance_ohm, cold.resistance_ohm)
+            };
+            if resistance_ohm >= low && resistance_ohm <= high {
+                return match interpolation {
+                    Interpolation::Beta => {
+                        let ln_r = logf(resistance_ohm);
+                        let (ln_cold, ln_hot) =
+                            (logf(cold.resistance_ohm), logf(hot.resistance_ohm));
+                        let (inv_cold, inv_hot) = (
+                            1.0 / (cold.temp_c + ZERO_C_IN_K),
+                            1.0 / (hot.temp_c + ZERO_C_IN_K),
+                        );
+                        let fraction = (ln_r - ln_cold) / (ln_hot - ln_cold);
+                        kelvin_to_c(inv_cold + fraction * (inv_hot - inv_cold))
+                    }
+                    Interpolation::Linear => {
+                        let fraction = (resistance_ohm - cold.resistance_ohm)
+                            / (hot.resistance_ohm - cold.resistance_ohm);
+                        cold.temp_c + fraction * (hot.temp_c - cold.temp_c)
+                    }
+                };
             }
         }
     }
@@ -732,6 +916,100 @@ mod tests {
         f64::NAN
     }
 
+    /// The KTY83 series datasheet's typical table (KTY83-110/120/150),
+    /// (degC, ohm), typed again here in the datasheet's own layout so a slip
+    /// in the library's copy shows.
+    const KTY83_ROWS: [(f64, f64); 27] = [
+        (-55.0, 500.0),
+        (-50.0, 525.0),
+        (-40.0, 577.0),
+        (-30.0, 632.0),
+        (-20.0, 691.0),
+        (-10.0, 754.0),
+        (0.0, 820.0),
+        (10.0, 889.0),
+        (20.0, 962.0),
+        (25.0, 1000.0),
+        (30.0, 1039.0),
+        (40.0, 1118.0),
+        (50.0, 1202.0),
+        (60.0, 1288.0),
+        (70.0, 1379.0),
+        (80.0, 1472.0),
+        (90.0, 1569.0),
+        (100.0, 1670.0),
+        (110.0, 1774.0),
+        (120.0, 1882.0),
+        (125.0, 1937.0),
+        (130.0, 1993.0),
+        (140.0, 2107.0),
+        (150.0, 2225.0),
+        (160.0, 2346.0),
+        (170.0, 2471.0),
+        (175.0, 2535.0),
+    ];
+
+    /// The KTY84 series datasheet's typical table (KTY84-130/150), as above.
+    const KTY84_ROWS: [(f64, f64); 36] = [
+        (-40.0, 359.0),
+        (-30.0, 391.0),
+        (-20.0, 424.0),
+        (-10.0, 460.0),
+        (0.0, 498.0),
+        (10.0, 538.0),
+        (20.0, 581.0),
+        (25.0, 603.0),
+        (30.0, 626.0),
+        (40.0, 672.0),
+        (50.0, 722.0),
+        (60.0, 773.0),
+        (70.0, 826.0),
+        (80.0, 882.0),
+        (90.0, 940.0),
+        (100.0, 1000.0),
+        (110.0, 1062.0),
+        (120.0, 1127.0),
+        (130.0, 1194.0),
+        (140.0, 1262.0),
+        (150.0, 1334.0),
+        (160.0, 1407.0),
+        (170.0, 1482.0),
+        (180.0, 1560.0),
+        (190.0, 1640.0),
+        (200.0, 1722.0),
+        (210.0, 1807.0),
+        (220.0, 1893.0),
+        (230.0, 1982.0),
+        (240.0, 2073.0),
+        (250.0, 2166.0),
+        (260.0, 2261.0),
+        (270.0, 2357.0),
+        (280.0, 2452.0),
+        (290.0, 2542.0),
+        (300.0, 2624.0),
+    ];
+
+    /// Straight line through the two rows around `x`, reading column `from`
+    /// and returning column `to` (0 = degC, 1 = ohm); NaN outside the rows.
+    fn rows_lerp(rows: &[(f64, f64)], x: f64, from: usize, to: usize) -> f64 {
+        let col = |row: &(f64, f64), c: usize| if c == 0 { row.0 } else { row.1 };
+        rows.windows(2)
+            .find(|w| col(&w[0], from) <= x && x <= col(&w[1], from))
+            .map(|w| {
+                let f = (x - col(&w[0], from)) / (col(&w[1], from) - col(&w[0], from));
+                col(&w[0], to) + f * (col(&w[1], to) - col(&w[0], to))
+            })
+            .unwrap_or(f64::NAN)
+    }
+
+    fn rows_temp(rows: &[(f64, f64)], r: f64) -> f64 {
+        rows_lerp(rows, r, 1, 0)
+    }
+
+    fn rows_resistance(rows: &[(f64, f64)], t: f64) -> f64 {
+        rows_lerp(rows, t, 0, 1)
+    }
+
     /// One configuration under test: the sensor, its R_ref and the f64
     /// reference R -> T and T -> R.
     struct Case {
@@ -745,7 +1023,7 @@ mod tests {
         source_error_k: f64,
     }
 
-    fn cases() -> [Case; 6] {
+    fn cases() -> [Case; 8] {
         [
             Case {
                 name: "NTC 10k B3950, R_ref 10k",
@@ -793,6 +1071,22 @@ mod tests {
                 reference_ohm: 1000.0,
                 temp: |r| cvd_temp(r / 1000.0),
                 resistance: |t| 1000.0 * cvd_ratio(t),
+                source_error_k: 0.0,
+            },
+            Case {
+                name: "KTY83-110, R_ref 1k",
+                sensor: Sensor::KTY83_110,
+                reference_ohm: 1000.0,
+                temp: |r| rows_temp(&KTY83_ROWS, r),
+                resistance: |t| rows_resistance(&KTY83_ROWS, t),
+                source_error_k: 0.0,
+            },
+            Case {
+                name: "KTY84-130, R_ref 1k",
+                sensor: Sensor::KTY84_130,
+                reference_ohm: 1000.0,
+                temp: |r| rows_temp(&KTY84_ROWS, r),
+                resistance: |t| rows_resistance(&KTY84_ROWS, t),
                 source_error_k: 0.0,
             },
         ]
@@ -892,7 +1186,7 @@ mod tests {
     }
 
     /// (case name, temperature, documented step of one count at 12 bits [K]).
-    const QUANTISATION: [(&str, f64, f64); 12] = [
+    const QUANTISATION: [(&str, f64, f64); 17] = [
         ("NTC 10k B3950, R_ref 10k", -40.0, 0.142),
         ("NTC 10k B3950, R_ref 10k", 25.0, 0.022),
         ("NTC 10k B3950, R_ref 10k", 150.0, 0.578),
@@ -905,6 +1199,11 @@ mod tests {
         ("PT1000, R_ref 1k", -40.0, 0.209),
         ("PT1000, R_ref 1k", 25.0, 0.277),
         ("PT1000, R_ref 1k", 150.0, 0.433),
+        ("KTY83-110, R_ref 1k", -40.0, 0.113),
+        ("KTY83-110, R_ref 1k", 25.0, 0.127),
+        ("KTY83-110, R_ref 1k", 150.0, 0.212),
+        ("KTY84-130, R_ref 1k", 25.0, 0.139),
+        ("KTY84-130, R_ref 1k", 150.0, 0.184),
     ];
 
     /// Quantise a true temperature through the divider (first principles,
@@ -938,8 +1237,11 @@ mod tests {
                         .abs()
                         .max((to_temp(k) - to_temp(k + 1)).abs());
                     let quantised_c = to_temp(k);
-                    if quantised_c > case.sensor.max_c() as f64 {
-                        // Rounding pushed 150 degC just past the range's end.
+                    let range = case.sensor.min_c() as f64..=case.sensor.max_c() as f64;
+                    // NaN where the table has no such resistance.
+                    if !range.contains(&quantised_c) {
+                        // Rounding pushed a range's end (150 degC, or a
+                        // table's first row) just past it.
                         assert_eq!(input.convert(k), Err(SensorFault::OutOfRange));
                         continue;
                     }
@@ -978,6 +1280,64 @@ mod tests {
             mismatches, 0,
             "steps differ from QUANTISATION by 5 % or more"
         );
+    }
+
+    #[test]
+    fn kty_tables_give_every_datasheet_row_back() {
+        for (sensor, rows) in [
+            (Sensor::KTY83_110, &KTY83_ROWS[..]),
+            (Sensor::KTY84_130, &KTY84_ROWS[..]),
+        ] {
+            assert_eq!(sensor.min_c() as f64, rows[0].0);
+            assert_eq!(sensor.max_c() as f64, rows[rows.len() - 1].0);
+            for &(t, r) in rows {
+                let got = sensor.temp_c(r as f32).unwrap();
+                assert!((got as f64 - t).abs() < 1e-4, "{r} ohm: {got} vs {t}");
+            }
+            // No extrapolation past either end.
+            assert_eq!(
+                sensor.temp_c(rows[0].1 as f32 - 1.0),
+                Err(SensorFault::OutOfRange)
+            );
+            let last = rows[rows.len() - 1].1 as f32;
+            assert_eq!(sensor.temp_c(last + 1.0), Err(SensorFault::OutOfRange));
+        }
+        // The datasheets' quick-reference data: KTY83-110 R25 990 .. 1010
+        // ohm, KTY84-130 R100 970 .. 1030 ohm; the typical tables sit inside.
+        assert!((990.0..=1010.0).contains(&rows_resistance(&KTY83_ROWS, 25.0)));
+        assert!((970.0..=1030.0).contains(&rows_resistance(&KTY84_ROWS, 100.0)));
+    }
+
+    /// The table's own accuracy: the datasheet rows off the 10 K grid
+    /// (25 degC; the KTY83's 125 and 175 degC), predicted from their 10 K
+    /// neighbours by the straight line the conversion draws. What is left
+    /// is the curve's bend over 10 K plus the rows' 1 ohm rounding.
+    #[test]
+    fn kty_interpolation_between_rows_is_within_the_tables_rounding() {
+        let mut worst_k: f64 = 0.0;
+        for (rows, off_grid) in [
+            (&KTY83_ROWS[..], &[25.0, 125.0, 175.0][..]),
+            (&KTY84_ROWS[..], &[25.0][..]),
+        ] {
+            for &t in off_grid {
+                let i = rows.iter().position(|row| row.0 == t).unwrap();
+                let (below, above) = (rows[i - 1], rows.get(i + 1).copied());
+                // The neighbours on the 10 K grid: 175 degC has none above,
+                // so take the 10 K step below it (170 and 160 degC).
+                let (a, b) = match above {
+                    Some(above) => (below, above),
+                    None => (rows[i - 2], below),
+                };
+                // Beyond the pair at 175 degC: extend its line.
+                let slope_k_per_ohm = (b.0 - a.0) / (b.1 - a.1);
+                let predicted_c = a.0 + (rows[i].1 - a.1) * slope_k_per_ohm;
+                let error_k = (predicted_c - t).abs();
+                println!("{t} degC row from its neighbours: {predicted_c:.3} degC");
+                worst_k = worst_k.max(error_k);
+            }
+        }
+        println!("KTY off-grid rows: worst {worst_k:.3} K");
+        assert!(worst_k < 0.15, "{worst_k}");
     }
 
     fn rails(topology: Topology) -> (SensorFault, SensorFault) {
@@ -1164,6 +1524,12 @@ mod tests {
             },
         ];
         invalid(Sensor::ntc_table(&UNSORTED), "table");
+        // A PTC table must rise; an NTC's falling table is refused.
+        invalid(Sensor::ptc_table(&UNSORTED), "table");
+        invalid(Sensor::ptc_table(sh_table()), "table");
+        invalid(Sensor::ntc_table(&KTY84_130_TABLE), "table");
+        invalid(Sensor::ptc_table(&ONE), "table");
+        assert!(Sensor::ptc_table(&RISING).is_ok());
         let table = Sensor::ntc_table(sh_table()).unwrap();
         invalid(table.with_range(-60.0, 100.0), "min_c");
         assert!(table.with_range(-40.0, 150.0).is_ok());
@@ -1203,6 +1569,8 @@ mod tests {
             Just(Sensor::ntc_steinhart_hart(SH.0 as f32, SH.1 as f32, SH.2 as f32).unwrap()),
             Just(Sensor::ntc_table(sh_table()).unwrap()),
             (1.0f32..1e5).prop_map(|r0| Sensor::rtd(r0).unwrap()),
+            Just(Sensor::KTY83_110),
+            Just(Sensor::KTY84_130),
         ]
     }
 

@@ -447,6 +447,14 @@ pub struct ReplayArgs {
     /// open loop (the score of --truth after it is the prediction's).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     measure_until_s: Option<f64>,
+    /// The --measure columns of the model file's ADC sensors (an
+    /// `[observer] sensors` entry of kind ntc, kty83, kty84, pt100 or
+    /// pt1000) hold raw ADC counts, converted by the library's conversion
+    /// the generated module's `convert_counts` calls: a count that is a
+    /// fault (open, short, out of range) is no reading, reported, never a
+    /// temperature. Refused when no --measure column is of such a sensor.
+    #[arg(long)]
+    raw_counts: bool,
     /// Output CSV: `time_s` [s] then the estimate of every node [degC]
     /// (optional: without it only the summary is printed).
     #[arg(long, value_name = "OUT.csv")]

@@ -239,6 +239,7 @@ fn survey(
     until_s: Option<f64>,
     window: (f64, f64),
     peak: bool,
+    raw: &[crate::raw_sensors::RawColumn],
 ) -> Result<Survey> {
     let mut s = Survey {
         first: None,
@@ -252,6 +253,7 @@ fn survey(
     let mut effective = Vec::new();
     let mut last_inside: Option<f64> = None;
     let mut rows = drive.rows()?;
+    let mut rows = crate::raw_sensors::ConvertedRows::new(&mut rows, raw.to_vec());
     while let Some(row) = rows.next_row()? {
         for ((sensor, fused), first) in sensors.iter().zip(&mut s.first_readings) {
             let masked = *fused && until_s.is_some_and(|u| row.time_s > u);
@@ -435,6 +437,7 @@ fn firmware_config(
     fused_nodes: &[usize],
 ) -> Result<(FirmwareConfig, Vec<Override>)> {
     let mut config = FirmwareConfig::of(model, model_file.observer.as_ref())?;
+    config.require_temperature_sensors("replay")?;
     // A built-in device has no `[observer]` table: its own derating rule.
     if matches!(
         spec,
@@ -746,6 +749,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         all.extend(flags.sensors().into_iter().map(|s| (s, fused)));
     }
     let window = common::window(&a.window);
+    // `--raw-counts`: the ADC sensors' columns, converted in every pass.
+    let raw = raw_columns(
+        a.raw_counts,
+        &measured.sensors(),
+        &FirmwareConfig::of(&model, model_file.observer.as_ref())?,
+    )?;
     let survey = survey(
         &mut drive,
         &model,
@@ -753,6 +762,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         a.measure_until_s,
         window,
         !a.disturbance.is_empty() && a.disturbance_std_w.is_none(),
+        &raw,
     )?;
     drive.check()?;
     measured.check(&drive)?;
@@ -1044,6 +1054,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         .map(|_| ReplaySeries::new(&info, &truth, &measured));
     let fused: Vec<(usize, usize)> = measured.iter().map(|m| (m.node, m.slot)).collect();
     let mut rows = drive.rows()?;
+    let mut rows = crate::raw_sensors::ConvertedRows::new(&mut rows, raw);
     let times = replay(
         estimator,
         protection,
@@ -1293,6 +1304,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     if a.json {
         common::print_json(&summary);
         return Ok(());
+    }
+    for line in crate::raw_sensors::report(&rows.columns) {
+        println!("{line}");
     }
     println!(
         "replayed `{}` ({}) over {} rows of {}{}",
@@ -1586,4 +1600,39 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         ),
     }
     Ok(())
+}
+
+/// `--raw-counts`: each `--measure` column that is an `[observer] sensors`
+/// ADC sensor's (the fused sensors are the file's, in order), to convert.
+///
+/// # Errors
+/// `--raw-counts` without any such column.
+fn raw_columns(
+    raw_counts: bool,
+    measured: &[common::StreamSensor],
+    config: &FirmwareConfig,
+) -> Result<Vec<crate::raw_sensors::RawColumn>> {
+    if !raw_counts {
+        return Ok(Vec::new());
+    }
+    let columns: Vec<_> = measured
+        .iter()
+        .zip(&config.sensors)
+        .zip(&config.sensor_nodes)
+        .filter(|((m, _), node)| m.node == **node)
+        .filter_map(|((m, s), _)| {
+            s.adc().map(|sensor| crate::raw_sensors::RawColumn {
+                column: m.column.clone(),
+                slot: m.slot,
+                sensor: *sensor,
+                faults: Default::default(),
+            })
+        })
+        .collect();
+    if columns.is_empty() {
+        bail!(
+            "--raw-counts: no --measure column is of an ADC sensor of the model file (an `[observer] sensors` entry of kind ntc, kty83, kty84, pt100 or pt1000, measured in its order); a thermocouple's column is already a temperature"
+        );
+    }
+    Ok(columns)
 }

@@ -52,6 +52,7 @@ use crate::model_file::{Model, ModelFile};
 pub mod build_hint;
 mod currents;
 mod devices;
+mod sensors;
 
 use currents::{
     check_f32_range, currents_of, input_limits_fn, source_currents_fn, source_drives_fn, CurrentOf,
@@ -63,9 +64,10 @@ pub use devices::*;
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObserverSpec {
-    /// The node each thermocouple measures, by name, in sensor order.
+    /// Each sensor, in sensor order: a node name (a thermocouple) or its
+    /// kind and parameters (see [`crate::sensor_kinds`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub sensors: Vec<String>,
+    pub sensors: Vec<crate::sensor_kinds::SensorEntry>,
     /// Every current's hardware limit \[A\] (default 8).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hardware_limit_a: Option<f64>,
@@ -190,7 +192,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
     let model = Model::build(&file)?;
     let mut spec = file.observer.clone().unwrap_or_default();
     if !req.sensors.is_empty() {
-        spec.sensors.clone_from(&req.sensors);
+        spec.sensors = req.sensors.iter().map(|s| s.as_str().into()).collect();
     }
     if spec.sensors.is_empty() {
         bail!(
@@ -198,6 +200,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
             req.model.display()
         );
     }
+    sensors::check(&spec.sensors).with_context(|| req.model.display().to_string())?;
     if model.has_varying_conductances() {
         bail!(
             "{}: a conductance that depends on a signal (`[conductance.speed]`) changes the network with every row, and the firmware observer's tables are solved for one network; generate from a model without it",
@@ -219,7 +222,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
     let sensor_nodes = spec
         .sensors
         .iter()
-        .map(|s| model.node_index(s))
+        .map(|s| s.node_index(&model))
         .collect::<Result<Vec<_>>>()?;
     if let Some(name) = &spec.boundary_offset {
         crate::firmware::boundary_index(&model, name)?;
@@ -362,7 +365,8 @@ impl Plan {
             .iter()
             .map(|b| b.name.as_str())
             .collect();
-        let sensors: Vec<&str> = self.spec.sensors.iter().map(String::as_str).collect();
+        let labels: Vec<String> = self.spec.sensors.iter().map(|s| s.label()).collect();
+        let sensors: Vec<&str> = labels.iter().map(String::as_str).collect();
         let _ = writeln!(
             o,
             "/// Node names, in state order.\npub const NODE_NAMES: [&str; NODES] = {};",
@@ -386,6 +390,7 @@ impl Plan {
             names(&columns)
         );
         let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
+        sensors::write(&mut o, &self.spec.sensors);
         let _ = writeln!(
             o,
             "/// Signals the model's speed and loss terms read (e.g. a speed in the\n/// unit of its reference).\npub const SIGNALS: usize = {};",

@@ -85,6 +85,9 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         // defaults, as `replay` and `codegen` resolve them), with the
         // campaign's step, reading period, stuck tolerance and origin.
         let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
+        firmware
+            .require_temperature_sensors("the fault campaign")
+            .map_err(invalid)?;
         if firmware.settings.boundary_offset.is_some() {
             return Err(FaultError::Invalid(format!(
                 "model `{}`: [observer] boundary_offset adds a state the campaign's observer sizes have no room for; \
@@ -366,7 +369,7 @@ pub fn run_model(
     let sensor_nodes = spec
         .sensors
         .iter()
-        .map(|s| model.node_index(s))
+        .map(|s| s.node_index(model))
         .collect::<anyhow::Result<Vec<_>>>()
         .map_err(|e| invalid(format!("{e:#}")))?;
     let n = model.nodes.len();

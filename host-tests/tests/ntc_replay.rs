@@ -1,0 +1,129 @@
+//! `replay --raw-counts` (issue 38, item 5): a model file whose
+//! `[observer] sensors` names an NTC on the ADC
+//! (`host-tests/models/drive-3node-ntc.toml`) replays a recording of the
+//! NTC's raw ADC counts exactly as the same observer fed the converted
+//! temperatures; an open NTC in the recording (the top code) is a fault,
+//! reported and never fused as a temperature.
+//!
+//! The counts are made here from the bench recording's housing thermocouple
+//! (`host-tests/traces/drive-3node.csv`) by the NTC's beta equation and the
+//! divider, in `f64`, independently of the library's inverse.
+
+use std::fs;
+use std::path::PathBuf;
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use coil_thermal::sensors::resistive::{Divider, ResistiveInput, Sensor, Topology};
+use tempfile::TempDir;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The model file's NTC: 10 kohm B3950 to ground, 10 kohm pull-up, 12 bits.
+fn counts_at(temp_c: f64) -> u32 {
+    let r = 10_000.0 * (3950.0 * (1.0 / (temp_c + 273.15) - 1.0 / 298.15)).exp();
+    ((4096.0 * r / (r + 10_000.0)).round() as u32).min(4095)
+}
+
+/// Rows whose NTC wire is open: the node at the reference, the top code.
+const OPEN_ROWS: std::ops::Range<usize> = 1200..1300;
+
+fn replay(dir: &TempDir, trace: &str, measure: &str, raw: bool) -> (String, String) {
+    let out = dir.path().join(format!("{measure}.csv"));
+    let mut cmd = cargo_bin_cmd!("coil-thermal");
+    cmd.arg("replay")
+        .arg("--model")
+        .arg(root().join("models/drive-3node-ntc.toml"))
+        .arg("--trace")
+        .arg(dir.path().join(trace))
+        .args(["--measure", &format!("{measure}=housing")])
+        .arg("--out")
+        .arg(&out);
+    if raw {
+        cmd.arg("--raw-counts");
+    }
+    let output = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    (stdout, fs::read_to_string(out).unwrap())
+}
+
+#[test]
+fn raw_counts_replay_as_the_converted_readings_and_an_open_ntc_is_a_fault() {
+    let bench = fs::read_to_string(root().join("traces/drive-3node.csv")).unwrap();
+    let input = ResistiveInput::new(
+        Divider::new(Topology::SensorToGround, 10_000.0, 12).unwrap(),
+        Sensor::ntc_beta(10_000.0, 25.0, 3950.0).unwrap(),
+    );
+    let dir = TempDir::new().unwrap();
+    let (mut raw, mut converted) = (
+        String::from("time_s,current,ambient,counts\n"),
+        String::from("time_s,current,ambient,temp\n"),
+    );
+    let mut faults = 0;
+    for (k, line) in bench.lines().skip(1).enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let housing_c: f64 = f[4].parse().unwrap();
+        let counts = if OPEN_ROWS.contains(&k) {
+            4095
+        } else {
+            counts_at(housing_c)
+        };
+        raw.push_str(&format!("{},{},{},{counts}\n", f[0], f[1], f[2]));
+        // The converted reading as the firmware's `convert_counts` gives
+        // it; a fault is no reading (an empty cell).
+        let cell = match input.convert(counts) {
+            Ok(r) => format!("{:?}", f64::from(r.temp_c)),
+            Err(_) => {
+                faults += 1;
+                String::new()
+            }
+        };
+        converted.push_str(&format!("{},{},{},{cell}\n", f[0], f[1], f[2]));
+    }
+    assert_eq!(faults, OPEN_ROWS.len());
+    fs::write(dir.path().join("raw.csv"), raw).unwrap();
+    fs::write(dir.path().join("converted.csv"), converted).unwrap();
+
+    let (raw_stdout, raw_out) = replay(&dir, "raw.csv", "counts", true);
+    let (_, converted_out) = replay(&dir, "converted.csv", "temp", false);
+    assert!(
+        raw_stdout.contains(&format!(
+            "raw counts `counts` (ntc, the library's conversion): faults, not fused, never read as temperatures: OpenCircuit {}",
+            OPEN_ROWS.len()
+        )),
+        "{raw_stdout}"
+    );
+    // Row for row the same estimates, bounds and limits: the output files
+    // differ only in the measured column's name.
+    assert_eq!(raw_out.replace("counts", "temp"), converted_out);
+    assert!(raw_out.lines().count() > 3000);
+
+    // Read as temperatures, the same counts would be ~2000 degC: the
+    // conversion is what the replay used (its winding estimate stays a
+    // winding's).
+    let last = raw_out.lines().last().unwrap();
+    let winding: f64 = last.split(',').nth(1).unwrap().parse().unwrap();
+    assert!((20.0..200.0).contains(&winding), "{last}");
+}
+
+#[test]
+fn raw_counts_without_an_adc_sensor_is_refused() {
+    let out = cargo_bin_cmd!("coil-thermal")
+        .arg("replay")
+        .arg("--model")
+        .arg(root().join("models/drive-3node-fitted.toml"))
+        .arg("--trace")
+        .arg(root().join("traces/drive-3node.csv"))
+        .args(["--measure", "housing_tc=housing", "--raw-counts"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--raw-counts"), "{stderr}");
+}
