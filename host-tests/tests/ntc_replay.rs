@@ -91,7 +91,16 @@ fn raw_counts_replay_as_the_converted_readings_and_an_open_ntc_is_a_fault() {
     fs::write(dir.path().join("converted.csv"), converted).unwrap();
 
     let (raw_stdout, raw_out) = replay(&dir, "raw.csv", "counts", true);
-    let (_, converted_out) = replay(&dir, "converted.csv", "temp", false);
+    let (converted_stdout, converted_out) = replay(&dir, "converted.csv", "temp", false);
+    // Without `--raw-counts` the ADC sensor's column is read as degC, and
+    // the replay says so (counts would not pass unnoticed).
+    assert!(
+        converted_stdout.contains(
+            "note: --measure temp: the model file's sensor is on an ADC (ntc); its column is read as degC"
+        ),
+        "{converted_stdout}"
+    );
+    assert!(!raw_stdout.contains("note: --measure"), "{raw_stdout}");
     assert!(
         raw_stdout.contains(&format!(
             "raw counts `counts` (ntc, the library's conversion): faults, not fused, never read as temperatures: OpenCircuit {}",

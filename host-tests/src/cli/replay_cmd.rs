@@ -755,6 +755,25 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         &measured.sensors(),
         &FirmwareConfig::of(&model, model_file.observer.as_ref())?,
     )?;
+    // Without `--raw-counts` an ADC sensor's column is a temperature (a
+    // logger that converted it); said, never assumed without a word.
+    if !a.raw_counts && !a.json {
+        let config = FirmwareConfig::of(&model, model_file.observer.as_ref())?;
+        for ((m, s), node) in measured
+            .sensors()
+            .iter()
+            .zip(&config.sensors)
+            .zip(&config.sensor_nodes)
+        {
+            if m.node == *node && s.adc().is_some() {
+                println!(
+                    "note: --measure {}: the model file's sensor is on an ADC ({}); its column is read as degC (give --raw-counts if it holds the ADC's counts)",
+                    m.column,
+                    s.kind_name()
+                );
+            }
+        }
+    }
     let survey = survey(
         &mut drive,
         &model,
