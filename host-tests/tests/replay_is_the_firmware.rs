@@ -20,10 +20,11 @@ use std::path::{Path, PathBuf};
 use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal::observer::network::NetworkInputs;
 use coil_thermal::observer::TimedReading;
-use coil_thermal::protect::events::EventKind;
 use coil_thermal::Reading;
 use serde_json::Value;
 use tempfile::TempDir;
+
+mod common;
 
 #[path = "../../examples/generated/drive_3node.rs"]
 mod model;
@@ -96,14 +97,7 @@ fn generated() -> (Vec<Row>, Vec<Event>) {
             };
             observer.tick(&mut state, &inputs);
             while let Some(e) = state.events.pop() {
-                let (level, kind) = match e.kind {
-                    EventKind::WarningRaised => ("warning", "raised"),
-                    EventKind::WarningCleared => ("warning", "cleared"),
-                    EventKind::ShutdownLatched => ("shutdown", "latched"),
-                    EventKind::PredictiveRaised => ("predictive", "raised"),
-                    EventKind::PredictiveCleared => ("predictive", "cleared"),
-                    other => panic!("an event this trace cannot raise: {other:?}"),
-                };
+                let (level, kind) = common::event_words(e.kind);
                 events.push((
                     f64::from(now_us) * 1e-6,
                     level.to_string(),
@@ -225,19 +219,7 @@ fn replay_prints_the_generated_modules_protection() {
     // The raised currents make the protection act: a limit below the
     // hardware's 6 A, a warning and a shutdown, which the test compares.
     assert!(firmware_rows.iter().any(|g| g.limit_a < 5.0));
-    let replay_events: Vec<(f64, String, String, Option<String>)> = json["alarms"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| {
-            (
-                e["time_s"].as_f64().unwrap(),
-                e["level"].as_str().unwrap().to_string(),
-                e["kind"].as_str().unwrap().to_string(),
-                e["node"].as_str().map(String::from),
-            )
-        })
-        .collect();
+    let replay_events = common::json_events(&json);
     assert!(
         firmware_events.iter().any(|e| e.1 == "shutdown"),
         "{firmware_events:?}"

@@ -28,10 +28,11 @@ use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal::observer::TimedReading;
-use coil_thermal::protect::events::EventKind;
 use coil_thermal::{DriveFlags, Reading};
 use serde_json::Value;
 use tempfile::TempDir;
+
+mod common;
 
 #[path = "generated/solenoid_valve_24v.rs"]
 mod valve;
@@ -165,14 +166,7 @@ fn generated(rows: &[[f32; 3]]) -> (Vec<Row>, Vec<Event>, FlagTicks) {
                 *n += u64::from(flags.contains(f));
             }
             while let Some(e) = state.events.pop() {
-                let (level, kind) = match e.kind {
-                    EventKind::WarningRaised => ("warning", "raised"),
-                    EventKind::WarningCleared => ("warning", "cleared"),
-                    EventKind::ShutdownLatched => ("shutdown", "latched"),
-                    EventKind::PredictiveRaised => ("predictive", "raised"),
-                    EventKind::PredictiveCleared => ("predictive", "cleared"),
-                    other => panic!("an event this trace cannot raise: {other:?}"),
-                };
+                let (level, kind) = common::event_words(e.kind);
                 events.push((
                     ticks as f64 * 1e-3,
                     level.to_string(),
@@ -295,19 +289,7 @@ fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
         flag_ticks,
         "{json}"
     );
-    let replay_events: Vec<(f64, String, String, Option<String>)> = json["alarms"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| {
-            (
-                e["time_s"].as_f64().unwrap(),
-                e["level"].as_str().unwrap().to_string(),
-                e["kind"].as_str().unwrap().to_string(),
-                e["node"].as_str().map(String::from),
-            )
-        })
-        .collect();
+    let replay_events = common::json_events(&json);
     assert_eq!(replay_events.len(), firmware_events.len(), "{json}");
     for (r, g) in replay_events.iter().zip(&firmware_events) {
         assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");

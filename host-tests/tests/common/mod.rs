@@ -1,9 +1,10 @@
-//! What the codegen round-trip tests share.
+//! What the codegen round-trip and replay-is-the-firmware tests share.
 
 use std::path::Path;
 
 /// Panics unless the committed `file` (from the workspace root) is
 /// `fresh`, the generator's text today, naming `command`, which writes it.
+#[allow(dead_code)]
 pub fn assert_committed_is_fresh(file: &str, command: &str, fresh: &str) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(file);
     let committed =
@@ -12,4 +13,44 @@ pub fn assert_committed_is_fresh(file: &str, command: &str, fresh: &str) {
         committed == fresh,
         "{file} is stale; regenerate with: {command}"
     );
+}
+
+/// An alarm event as `replay --json` lists it and as the tests compare
+/// it: time \[s\], level, kind and the node.
+pub type ListedEvent<N> = (f64, String, String, Option<N>);
+
+/// The `(level, kind)` words `replay` prints for a library event, for the
+/// events a warning, a predictive alarm and a shutdown raise.
+///
+/// # Panics
+/// On any other event: the tests' traces cannot raise it.
+#[allow(dead_code)]
+pub fn event_words(kind: coil_thermal::protect::events::EventKind) -> (&'static str, &'static str) {
+    use coil_thermal::protect::events::EventKind;
+    match kind {
+        EventKind::WarningRaised => ("warning", "raised"),
+        EventKind::WarningCleared => ("warning", "cleared"),
+        EventKind::ShutdownLatched => ("shutdown", "latched"),
+        EventKind::PredictiveRaised => ("predictive", "raised"),
+        EventKind::PredictiveCleared => ("predictive", "cleared"),
+        other => panic!("an event this trace cannot raise: {other:?}"),
+    }
+}
+
+/// The alarm events of a `replay --json` summary.
+#[allow(dead_code)]
+pub fn json_events(json: &serde_json::Value) -> Vec<ListedEvent<String>> {
+    json["alarms"]
+        .as_array()
+        .expect("an alarms list")
+        .iter()
+        .map(|e| {
+            (
+                e["time_s"].as_f64().unwrap_or(f64::NAN),
+                e["level"].as_str().unwrap_or_default().to_string(),
+                e["kind"].as_str().unwrap_or_default().to_string(),
+                e["node"].as_str().map(String::from),
+            )
+        })
+        .collect()
 }
