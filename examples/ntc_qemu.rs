@@ -88,8 +88,8 @@ impl Plant {
         let r_ohm = 1.05 * (1.10568 + 0.004716 * w);
         let power_w = r_ohm * current_a * current_a;
         let (wh, hs, sa) = (
-            0.91194221 * (w - h),
-            2.3005468 * (h - s),
+            0.911_942_2 * (w - h),
+            2.300_547 * (h - s),
             1.0568617 * (s - AMBIENT_C),
         );
         self.temps_c = [
