@@ -750,30 +750,30 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     let window = common::window(&a.window);
     // `--raw-counts`: the ADC sensors' columns, converted in every pass.
-    let raw = raw_columns(
-        a.raw_counts,
+    // Without it such a column is a temperature (a logger that converted
+    // it): said, never assumed without a word.
+    let adc = adc_columns(
         &measured.sensors(),
         &FirmwareConfig::of(&model, model_file.observer.as_ref())?,
-    )?;
-    // Without `--raw-counts` an ADC sensor's column is a temperature (a
-    // logger that converted it); said, never assumed without a word.
-    if !a.raw_counts && !a.json {
-        let config = FirmwareConfig::of(&model, model_file.observer.as_ref())?;
-        for ((m, s), node) in measured
-            .sensors()
-            .iter()
-            .zip(&config.sensors)
-            .zip(&config.sensor_nodes)
-        {
-            if m.node == *node && s.adc().is_some() {
+    );
+    let raw = if a.raw_counts {
+        if adc.is_empty() {
+            bail!(
+                "--raw-counts: no --measure column is of an ADC sensor of the model file (an `[observer] sensors` entry of kind ntc, kty83, kty84, pt100 or pt1000, measured in its order); a thermocouple's column is already a temperature"
+            );
+        }
+        adc
+    } else {
+        if !a.json {
+            for c in &adc {
                 println!(
                     "note: --measure {}: the model file's sensor is on an ADC ({}); its column is read as degC (give --raw-counts if it holds the ADC's counts)",
-                    m.column,
-                    s.kind_name()
+                    c.column, c.sensor.kind
                 );
             }
         }
-    }
+        Vec::new()
+    };
     let survey = survey(
         &mut drive,
         &model,
@@ -1621,20 +1621,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     Ok(())
 }
 
-/// `--raw-counts`: each `--measure` column that is an `[observer] sensors`
-/// ADC sensor's (the fused sensors are the file's, in order), to convert.
-///
-/// # Errors
-/// `--raw-counts` without any such column.
-fn raw_columns(
-    raw_counts: bool,
+/// Each `--measure` column that is an `[observer] sensors` ADC sensor's
+/// (the fused sensors are the file's, in order): what `--raw-counts`
+/// converts.
+fn adc_columns(
     measured: &[common::StreamSensor],
     config: &FirmwareConfig,
-) -> Result<Vec<crate::raw_sensors::RawColumn>> {
-    if !raw_counts {
-        return Ok(Vec::new());
-    }
-    let columns: Vec<_> = measured
+) -> Vec<crate::raw_sensors::RawColumn> {
+    measured
         .iter()
         .zip(&config.sensors)
         .zip(&config.sensor_nodes)
@@ -1647,11 +1641,5 @@ fn raw_columns(
                 faults: Default::default(),
             })
         })
-        .collect();
-    if columns.is_empty() {
-        bail!(
-            "--raw-counts: no --measure column is of an ADC sensor of the model file (an `[observer] sensors` entry of kind ntc, kty83, kty84, pt100 or pt1000, measured in its order); a thermocouple's column is already a temperature"
-        );
-    }
-    Ok(columns)
+        .collect()
 }

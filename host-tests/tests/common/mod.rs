@@ -19,22 +19,20 @@ pub fn assert_committed_is_fresh(file: &str, command: &str, fresh: &str) {
 /// it: time \[s\], level, kind and the node.
 pub type ListedEvent<N> = (f64, String, String, Option<N>);
 
-/// The `(level, kind)` words `replay` prints for a library event, for the
-/// events a warning, a predictive alarm and a shutdown raise.
+/// The `(level, kind)` words `replay` prints for a library event
+/// (`coil_thermal_host::observer::describe`), for the events a warning, a
+/// predictive alarm and a shutdown raise.
 ///
 /// # Panics
 /// On any other event: the tests' traces cannot raise it.
 #[allow(dead_code)]
 pub fn event_words(kind: coil_thermal::protect::events::EventKind) -> (&'static str, &'static str) {
-    use coil_thermal::protect::events::EventKind;
-    match kind {
-        EventKind::WarningRaised => ("warning", "raised"),
-        EventKind::WarningCleared => ("warning", "cleared"),
-        EventKind::ShutdownLatched => ("shutdown", "latched"),
-        EventKind::PredictiveRaised => ("predictive", "raised"),
-        EventKind::PredictiveCleared => ("predictive", "cleared"),
-        other => panic!("an event this trace cannot raise: {other:?}"),
-    }
+    let words = coil_thermal_host::observer::describe(kind);
+    assert!(
+        matches!(words.0, "warning" | "predictive" | "shutdown"),
+        "an event this trace cannot raise: {kind:?}"
+    );
+    words
 }
 
 /// The alarm events of a `replay --json` summary.
