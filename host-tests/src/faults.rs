@@ -399,6 +399,32 @@ impl Default for SensorModel {
     }
 }
 
+/// A reading the observer was given and did not fuse. `NoReading` and
+/// `Silent` say that none reached it: a winding's resistance is no reading
+/// below its least current (the drive cannot divide by nothing), which is
+/// not a refusal. A thermocouple's reading always reaches it.
+pub(crate) fn refused(status: &SensorStatus) -> bool {
+    !matches!(
+        status,
+        SensorStatus::Fused { .. } | SensorStatus::NoReading | SensorStatus::Silent { .. }
+    )
+}
+
+/// What sensor `j` of `subject` reads of `value_c` \[degC\] at its
+/// `reading`-th reading: the campaign's converter `model`, or the sensor's
+/// own where it is not a thermocouple ([`Subject::sensor_model`]).
+pub(crate) fn read_sensor<S: Subject>(
+    subject: &S,
+    model: &SensorModel,
+    value_c: f32,
+    j: usize,
+    reading: u64,
+) -> f32 {
+    subject
+        .sensor_model(j, value_c, *model)
+        .read(value_c, j, reading)
+}
+
 /// SplitMix64's output function: a well-mixed 64-bit hash of `x`.
 fn mix64(mut x: u64) -> u64 {
     x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
@@ -707,6 +733,18 @@ pub trait Subject {
     fn state(&self, ambient_c: f32) -> Self::State;
     /// One tick.
     fn tick(&self, state: &mut Self::State, inputs: &TickInputs<'_>) -> TickView;
+    /// How sensor `sensor` reads where it is not the campaign's
+    /// thermocouple (`campaign`): a winding's resistance reads with its
+    /// own relative noise, as kelvin at the truth `truth_c` \[degC\], and
+    /// no quantum. Default: the campaign's.
+    fn sensor_model(&self, _sensor: usize, _truth_c: f32, campaign: SensorModel) -> SensorModel {
+        campaign
+    }
+    /// How much lower than [`Self::consistency`]'s the band of sensor
+    /// `sensor` lies \[K\] (a winding resistance's, by its noise); default 0.
+    fn band_widening_k(&self, _sensor: usize) -> f64 {
+        0.0
+    }
     /// The heat-bias noise of the observer's bias states \[W^2/s\], for
     /// the report (default: not reported).
     fn bias_noise_w2_per_s(&self) -> Option<f64> {
@@ -1104,7 +1142,9 @@ impl<'c, S: Subject> Harness<'c, S> {
                     .iter()
                     .zip(&self.cfg.sensors)
                     .enumerate()
-                    .map(|(j, (t, used))| used.then(|| model.read(*t, j, reading)))
+                    .map(|(j, (t, used))| {
+                        used.then(|| read_sensor(&self.subject, model, *t, j, reading))
+                    })
                     .collect();
                 (self.subject.conservative_state(&readings, amb), Some(e))
             }
@@ -1188,7 +1228,7 @@ impl<'c, S: Subject> Harness<'c, S> {
                     truth
                         .iter()
                         .enumerate()
-                        .map(|(j, t)| model.read(*t, j, reading_no))
+                        .map(|(j, t)| read_sensor(subject, model, *t, j, reading_no))
                         .collect(),
                 );
             }
@@ -1201,7 +1241,7 @@ impl<'c, S: Subject> Harness<'c, S> {
                 if !cfg.sensors[j] || !due {
                     continue;
                 }
-                let read = |value_c: f32| model.read(value_c, j, reading_no);
+                let read = |value_c: f32| read_sensor(subject, model, value_c, j, reading_no);
                 let mut result = Ok(read(truth[j]));
                 let faulty_here = faulty.filter(|f| f.sensor.is_none_or(|s| s == j));
                 if let Some(f) = faulty_here {
@@ -1241,7 +1281,14 @@ impl<'c, S: Subject> Harness<'c, S> {
                     }
                 }
                 if let (Some(f), Ok(read), None) = (faulty, result, detectable_s) {
-                    if f.sensor == Some(j) && self.detectable(f.class, read, truth[j]) {
+                    // A drift is judged by how far it has drifted, not by
+                    // the sensor's noise on top (a winding resistance's is
+                    // kelvins: its noise alone would make it "detectable").
+                    let read = match f.class {
+                        FaultClass::Drift => truth[j] + (DRIFT_K_PER_S * (t_s - f.onset_s)) as f32,
+                        _ => read,
+                    };
+                    if f.sensor == Some(j) && self.detectable(f.class, j, read, truth[j]) {
                         detectable_s = Some(t_s - f.onset_s);
                     }
                 }
@@ -1288,10 +1335,7 @@ impl<'c, S: Subject> Harness<'c, S> {
             }
             for (j, status) in out.sensors.iter().enumerate() {
                 let faulty_sensor = faulty.is_some_and(|f| f.sensor.is_none_or(|x| x == j));
-                if readings[j].is_some()
-                    && !faulty_sensor
-                    && !matches!(status, SensorStatus::Fused { .. })
-                {
+                if readings[j].is_some() && !faulty_sensor && refused(status) {
                     score.healthy_flagged += 1;
                 }
             }
@@ -1325,13 +1369,17 @@ impl<'c, S: Subject> Harness<'c, S> {
 
     /// Whether a faulty `reading_c` of a `class` fault is one the observer
     /// can tell from the truth `truth_c` \[degC\] (see the module docs).
-    fn detectable(&self, class: FaultClass, reading_c: f32, truth_c: f32) -> bool {
+    fn detectable(&self, class: FaultClass, sensor: usize, reading_c: f32, truth_c: f32) -> bool {
         let s = self.subject.consistency();
+        // The band of this sensor: a winding resistance's lies lower by
+        // its noise (the library's resistance module, "Against the
+        // physics").
+        let offset_k = s.offset_k + self.subject.band_widening_k(sensor);
         let off_k = f64::from((reading_c - truth_c).abs());
         match class {
             FaultClass::Drift => {
                 let rise_k = (f64::from(truth_c) - self.cfg.ambient_c).max(0.0);
-                off_k > s.offset_k + s.fraction * rise_k
+                off_k > offset_k + s.fraction * rise_k
             }
             FaultClass::Stuck => off_k > s.stuck_threshold_k,
             _ => true,

@@ -11,7 +11,7 @@
 //! derating product 0.648 of [`DeratingRule::omnimagnet`], an 8 A hardware
 //! limit); a model file without a table runs with all of them.
 
-use coil_thermal::observer::network::NetworkSettings;
+use coil_thermal::observer::network::{NetworkSettings, SensorKind};
 use coil_thermal::protect::derating::{DeratingFactor, DeratingRule};
 use coil_thermal::protect::margin::UncertaintyMargin;
 
@@ -33,6 +33,10 @@ pub struct FirmwareConfig {
     pub sensor_nodes: Vec<usize>,
     /// Each `[observer] sensors` entry's kind, in sensor order.
     pub sensors: Vec<SensorEntry>,
+    /// What the library's observer takes each of them for, in sensor
+    /// order: a temperature, or a winding's resistance (its tables are
+    /// then solved with that sensor's own noise, as `codegen` solves them).
+    pub sensor_kinds: Vec<SensorKind>,
     /// Critical temperature of each node \[degC\] (`[[node]] critical_c`).
     pub critical_c: Vec<Option<f64>>,
     /// Every current's hardware limit \[A\].
@@ -121,10 +125,16 @@ impl FirmwareConfig {
             .iter()
             .map(|s| s.node_index(model))
             .collect::<anyhow::Result<Vec<_>>>()?;
+        let sensor_kinds = table
+            .sensors
+            .iter()
+            .map(|s| s.library_kind(model))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         let sources = model.network.sources().len();
         Ok(Self {
             from_table: spec.is_some(),
             sensor_nodes,
+            sensor_kinds,
             sensors: table.sensors.clone(),
             critical_c: model.critical_c.clone(),
             hardware_limit_a: table.hardware_limit_a.unwrap_or(DEFAULT_HARDWARE_LIMIT_A),
@@ -135,11 +145,9 @@ impl FirmwareConfig {
         })
     }
 
-    /// Refuses a sensor whose readings `what` cannot fuse as the firmware
-    /// does: a winding's resistance is fused with its own noise and read
-    /// through its `R(T)` by the library's resistance sensor, which `what`
-    /// does not build yet (a thermocouple's or a resistive sensor's column
-    /// is a temperature, fused with `sensor_sigma_k`, as in the firmware).
+    /// Refuses a sensor whose readings `what` cannot take as the firmware
+    /// does: a winding's resistance, which `replay` and `faults` fuse
+    /// through the library's resistance sensor, and `what` does not.
     ///
     /// # Errors
     /// The first `resistance` entry, named.
@@ -150,11 +158,16 @@ impl FirmwareConfig {
             .find(|s| matches!(s.kind, SensorKindSpec::Resistance(_)))
         {
             Some(s) => anyhow::bail!(
-                "{what} does not fuse a winding's resistance yet (`[observer] sensors` entry `{}`, kind = \"resistance\"): the firmware fuses it with its own noise through the library's resistance sensor, and {what} would run another observer than the MCU's. `codegen` generates it; test it with the library's `NetworkObserverBuilder::resistance_sensor` (host-tests/tests/resistance_sensor.rs)",
+                "{what} does not take a winding's resistance (`[observer] sensors` entry `{}`, kind = \"resistance\"): it scores temperatures against temperatures; `replay`, `faults` and `codegen` take it",
                 s.label()
             ),
             None => Ok(()),
         }
+    }
+
+    /// Some sensor is a winding's resistance.
+    pub fn has_resistance_sensor(&self) -> bool {
+        self.sensor_kinds.iter().any(|k| k.resistance().is_some())
     }
 
     /// The derating rule the alarm applies: the table's product as one

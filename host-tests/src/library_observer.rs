@@ -102,7 +102,7 @@ use std::time::Instant;
 use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
     BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
-    NetworkSettings,
+    NetworkSettings, SensorKind,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::{DriveFlags, Reading, VoltageDrive};
@@ -271,6 +271,8 @@ struct BuildSpec {
     net: DynNetwork,
     settings: NetworkSettings,
     sensor_nodes: Vec<usize>,
+    /// What each sensor is (a temperature or a winding's resistance).
+    sensor_kinds: Vec<SensorKind>,
     biased: Vec<bool>,
     shared_bias: bool,
     critical_c: Vec<Option<f64>>,
@@ -285,6 +287,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             net,
             settings,
             sensor_nodes,
+            sensor_kinds,
             biased,
             shared_bias,
             critical_c,
@@ -301,6 +304,13 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
         // One slot per sensor; open loop one slot on node 0, never read.
         let mut slots = [0; P];
         slots[..sensor_nodes.len()].copy_from_slice(sensor_nodes);
+        // A resistance sensor reads through the winding's own `R(T)` (the
+        // model's ohms, not the padding's scaled ones): only its noise and
+        // its node enter the tables, and its ohms are converted before
+        // they reach the observer (`raw_sensors`), as the MCU's
+        // `resistance_reading` converts them.
+        let mut kinds = [SensorKind::Thermocouple; P];
+        kinds[..sensor_kinds.len()].copy_from_slice(sensor_kinds);
         let bias_sources: [bool; C] =
             core::array::from_fn(|m| biased.get(m).copied().unwrap_or(false));
         let critical: [Option<f64>; C] =
@@ -318,6 +328,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
             .derating(rule.clone())
             .settings(scaled)
             .bias_sources(bias_sources)
+            .sensor_kinds(kinds)
             .bias_mode(if *shared_bias {
                 // `[observer] shared_bias`: the padding's sources carry no
                 // bias, so they share none either.
@@ -681,10 +692,23 @@ impl ObserverEstimator {
         // bias_sources` names, when given), the padding's do not (see the
         // module docs).
         let biased: Vec<bool> = (0..class).map(|m| model.carries_bias(m)).collect();
+        // The file's sensor kinds apply to its own sensors; a replay that
+        // fuses other nodes (an override it lists) fuses temperatures.
+        let sensor_kinds = if sensors == config.sensor_nodes {
+            config.sensor_kinds.clone()
+        } else if config.has_resistance_sensor() && !sensors.is_empty() {
+            bail!(
+                "--measure: the model file's sensors include a winding's resistance, fused with its own noise; measure exactly the file's sensors, in its order ({} column(s)), or none",
+                config.sensor_nodes.len()
+            );
+        } else {
+            vec![SensorKind::Thermocouple; sensors.len()]
+        };
         let spec = BuildSpec {
             net,
             settings,
             sensor_nodes: sensors.clone(),
+            sensor_kinds,
             biased,
             shared_bias: config.shared_bias,
             critical_c: config.critical_c.clone(),

@@ -1,20 +1,59 @@
-//! `replay --raw-counts`: `--measure` columns that hold a resistive
-//! sensor's raw ADC counts rather than its temperature, converted row by
-//! row by the library's `ResistiveInput::convert`, the conversion the
-//! generated module's `convert_counts` calls on the MCU. A count that
-//! converts to a fault (an open or shorted sensor, a count that is no ADC
-//! code, a temperature outside the sensor's range) becomes no reading (an
-//! empty cell: the observer predicts on the model) and is counted and
-//! reported as that fault; it is never a temperature. A cell that is not a
-//! whole count in `0 ..= u32::MAX` is refused, naming the row.
+//! `--measure` columns that hold what a sensor measures rather than its
+//! temperature, converted row by row by the library's conversion, the one
+//! the MCU calls:
+//!
+//! * `replay --raw-counts`: a resistive sensor's raw ADC counts, through
+//!   `ResistiveInput::convert` (the generated module's `convert_counts`).
+//!   A cell that is not a whole count in `0 ..= u32::MAX` is refused,
+//!   naming the row.
+//! * always, a winding's resistance \[ohm\] (an `[observer] sensors`
+//!   entry of kind `resistance`), through `ResistanceSensor::read` at the
+//!   row's current of the source's input (the observer's
+//!   `resistance_reading`): below the sensor's least current it is no
+//!   reading, and counted as such.
+//!
+//! A value that converts to a fault (an open or shorted sensor, a count
+//! that is no ADC code, a resistance that cannot be the winding's, a
+//! temperature outside the sensor's range) becomes no reading (an empty
+//! cell: the observer predicts on the model) and is counted and reported
+//! as that fault; it is never a temperature. (The firmware hands the fault
+//! itself to the observer, which marks the sensor faulted; both fuse
+//! nothing from it.)
 
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
 use coil_thermal::sensors::SensorFault;
 
+use coil_thermal::observer::network::ResistanceSensor;
+
 use crate::sensor_kinds::AdcSensor;
 use crate::sim::{InputRow, RowSource};
+
+/// What a converted column holds.
+#[derive(Debug, Clone)]
+pub enum Conversion {
+    /// A resistive sensor's ADC counts.
+    Adc(AdcSensor),
+    /// A winding's resistance \[ohm\], read at the current of model input
+    /// `input` in the same row.
+    Resistance {
+        /// The library's sensor.
+        sensor: ResistanceSensor,
+        /// The input whose current the source carries.
+        input: usize,
+    },
+}
+
+impl Conversion {
+    /// The kind's name as the model file spells it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Adc(a) => a.kind,
+            Self::Resistance { .. } => "resistance",
+        }
+    }
+}
 
 /// One converted column: its position in each row's `extra` and its
 /// sensor.
@@ -25,8 +64,9 @@ pub struct RawColumn {
     /// Position of its value in [`InputRow::extra`].
     pub slot: usize,
     /// The sensor's conversion.
-    pub sensor: AdcSensor,
-    /// The faults met, by kind, with their count.
+    pub sensor: Conversion,
+    /// The faults met, by kind, with their count (and a resistance's
+    /// readings below its least current, as `BelowLeastCurrent`).
     pub faults: BTreeMap<String, usize>,
 }
 
@@ -64,13 +104,31 @@ impl RowSource for ConvertedRows<'_> {
             return Ok(None);
         };
         for c in &mut self.columns {
-            let Some(k) = counts(row.extra[c.slot], &c.column, row.time_s)? else {
-                continue;
+            let value = row.extra[c.slot];
+            let result = match &c.sensor {
+                Conversion::Adc(a) => {
+                    let Some(k) = counts(value, &c.column, row.time_s)? else {
+                        continue;
+                    };
+                    Some(a.input.convert(k))
+                }
+                Conversion::Resistance { sensor, input } => {
+                    // An empty cell is no measurement (a logger's gap).
+                    if value.is_nan() {
+                        continue;
+                    }
+                    let current_a = row.currents.get(*input).copied().unwrap_or(0.0);
+                    sensor.read(value as f32, current_a as f32)
+                }
             };
-            row.extra[c.slot] = match c.sensor.input.convert(k) {
-                Ok(reading) => f64::from(reading.temp_c),
-                Err(fault) => {
+            row.extra[c.slot] = match result {
+                Some(Ok(reading)) => f64::from(reading.temp_c),
+                Some(Err(fault)) => {
                     *c.faults.entry(fault_name(fault)).or_default() += 1;
+                    f64::NAN
+                }
+                None => {
+                    *c.faults.entry("BelowLeastCurrent".into()).or_default() += 1;
                     f64::NAN
                 }
             };
@@ -88,11 +146,28 @@ pub fn report(columns: &[RawColumn]) -> Vec<String> {
     columns
         .iter()
         .map(|c| {
-            let faults: Vec<String> = c.faults.iter().map(|(k, n)| format!("{k} {n}")).collect();
+            let below = c.faults.get("BelowLeastCurrent").copied();
+            let faults: Vec<String> = c
+                .faults
+                .iter()
+                .filter(|(k, _)| k.as_str() != "BelowLeastCurrent")
+                .map(|(k, n)| format!("{k} {n}"))
+                .collect();
+            let what = match &c.sensor {
+                Conversion::Adc(_) => "raw counts",
+                Conversion::Resistance { .. } => "resistance [ohm]",
+            };
+            let below = match (&c.sensor, below) {
+                (Conversion::Resistance { sensor, .. }, Some(n)) => format!(
+                    "; {n} below the least current ({} A): no reading",
+                    sensor.min_current_a
+                ),
+                _ => String::new(),
+            };
             format!(
-                "raw counts `{}` ({}, the library's conversion): {}",
+                "{what} `{}` ({}, the library's conversion): {}{below}",
                 c.column,
-                c.sensor.kind,
+                c.sensor.kind(),
                 if faults.is_empty() {
                     "no fault".to_string()
                 } else {

@@ -26,10 +26,10 @@
 
 use std::collections::BTreeMap;
 
-use coil_thermal::observer::network::ResistanceSensor;
+use coil_thermal::observer::network::{ResistanceSensor, SensorKind};
 use coil_thermal::sensors::resistive::{Divider, ResistiveInput, Sensor, Topology};
 use coil_thermal::sensors::SensorResult;
-use coil_thermal::{BuildError, Network};
+use coil_thermal::BuildError;
 use serde::{Deserialize, Serialize};
 
 use crate::model_file::Model;
@@ -91,27 +91,42 @@ pub struct ResistanceEntry {
 }
 
 impl ResistanceEntry {
-    /// The library's sensor for source `source` of `network`.
+    /// The library's sensor for the winding of `model`'s `[[source]]`
+    /// `source` heating `node`, whose own `R(T)` is `resistance` (the
+    /// model file's line, without the source's power `scale`: the
+    /// winding's ohms as the drive measures them), unless the entry gives
+    /// the measured one. The same plain data `codegen` writes into the
+    /// generated module and `replay` and `faults` build their observer
+    /// with.
     ///
     /// # Errors
     /// The library's refusal, naming the parameter.
-    pub fn sensor<const N: usize, const B: usize, const M: usize>(
+    pub fn sensor(
         &self,
-        network: &Network<N, B, M>,
         source: usize,
+        node: usize,
+        resistance: coil_thermal::Resistance,
     ) -> Result<ResistanceSensor, BuildError> {
-        let mut s =
-            ResistanceSensor::of_source(network, source, self.noise_fraction, self.min_current_a)?;
-        if let Some((r0, slope)) = self.measured {
-            s = s.measured(coil_thermal::Resistance::linear_fit(slope, r0))?;
+        let (r0, slope) = self
+            .measured
+            .unwrap_or((resistance.r_at_0c_ohm, resistance.slope_ohm_per_k));
+        let (min_c, max_c) = self
+            .range_c
+            .unwrap_or(coil_thermal::observer::network::resistance::DEFAULT_RANGE_C);
+        ResistanceSensor {
+            source,
+            node,
+            r_at_0c_ohm: r0,
+            slope_ohm_per_k: slope,
+            noise_fraction: self.noise_fraction,
+            noise_reference_c: self
+                .noise_reference_c
+                .unwrap_or(coil_thermal::observer::network::resistance::DEFAULT_NOISE_REFERENCE_C),
+            min_current_a: self.min_current_a,
+            min_c,
+            max_c,
         }
-        if let Some((lo, hi)) = self.range_c {
-            s = s.range_c(lo, hi)?;
-        }
-        if let Some(t) = self.noise_reference_c {
-            s = s.noise_reference_c(t)?;
-        }
-        Ok(s)
+        .checked()
     }
 }
 
@@ -219,6 +234,30 @@ impl SensorEntry {
                     "[observer] sensors: no [[source]] `{}` for a resistance sensor (sources: {})",
                     r.source,
                     model.source_names.join(", ")
+                )
+            })
+    }
+
+    /// What the library's observer takes this sensor for: a temperature
+    /// (a thermocouple, or a resistive sensor the MCU converts first), or
+    /// the winding resistance of a `[[source]]` of `model` (see
+    /// [`ResistanceEntry::sensor`]).
+    ///
+    /// # Errors
+    /// No `[[source]]` of that name, or the library's refusal of the
+    /// sensor, named.
+    pub fn library_kind(&self, model: &Model) -> anyhow::Result<SensorKind> {
+        let SensorKindSpec::Resistance(r) = &self.kind else {
+            return Ok(SensorKind::Thermocouple);
+        };
+        let k = self.source_index(model)?;
+        let drive = &model.drives[k];
+        r.sensor(k, drive.node, drive.resistance)
+            .map(SensorKind::Resistance)
+            .map_err(|e| {
+                anyhow::anyhow!(
+                    "[observer] sensors: `{}`: the library refuses it: {e}",
+                    self.label()
                 )
             })
     }

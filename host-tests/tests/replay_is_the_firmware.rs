@@ -239,6 +239,9 @@ mod hust_motor;
 #[path = "generated/all_input_terms.rs"]
 mod all_input_terms;
 
+#[path = "../../examples/generated/drive_3node_resistance.rs"]
+mod drive_3node_resistance;
+
 /// The settings `replay` resolves from a model file (`FirmwareConfig`) are
 /// the ones `codegen` solved its generated module with, for every shipped
 /// model file with a generated module: the library settings, the sensor
@@ -253,7 +256,7 @@ fn replays_settings_are_the_generated_modules() {
     fn check<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
         file: &str,
         parts: &coil_thermal::observer::network::NetworkParts<N, B, M, X, P>,
-    ) {
+    ) -> FirmwareConfig {
         let path = root().join("host-tests").join(file);
         let model_file = ModelFile::load(&path).unwrap();
         let model = Model::build(&model_file).unwrap();
@@ -267,10 +270,41 @@ fn replays_settings_are_the_generated_modules() {
         for h in parts.hardware_limit_a {
             assert_eq!(config.hardware_limit_a, h, "{file}");
         }
+        config
     }
-    check("models/drive-3node-fitted.toml", &model::PARTS);
-    check("models/hust_motor_slot_fitted.toml", &hust_motor::PARTS);
-    check("models/all-input-terms.toml", &all_input_terms::PARTS);
+    fn kinds<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+        file: &str,
+        parts: &coil_thermal::observer::network::NetworkParts<N, B, M, X, P>,
+        kinds: &[coil_thermal::observer::network::SensorKind; P],
+    ) {
+        assert_eq!(check(file, parts).sensor_kinds, kinds, "{file}");
+    }
+    let thermocouple = |p| vec![coil_thermal::observer::network::SensorKind::Thermocouple; p];
+    for (file, config) in [
+        (
+            "drive-3node-fitted",
+            check("models/drive-3node-fitted.toml", &model::PARTS),
+        ),
+        (
+            "hust_motor_slot_fitted",
+            check("models/hust_motor_slot_fitted.toml", &hust_motor::PARTS),
+        ),
+        (
+            "all-input-terms",
+            check("models/all-input-terms.toml", &all_input_terms::PARTS),
+        ),
+    ] {
+        assert_eq!(
+            config.sensor_kinds,
+            thermocouple(config.sensor_nodes.len()),
+            "{file}"
+        );
+    }
+    kinds(
+        "models/drive-3node-resistance.toml",
+        &drive_3node_resistance::PARTS,
+        &drive_3node_resistance::SENSOR_KINDS,
+    );
 }
 
 #[path = "../../examples/generated/hppa_grid.rs"]

@@ -46,10 +46,12 @@ fn every_shipped_model_file_still_reads_and_writes_back_the_same() {
         let file = ModelFile::load(&path).unwrap();
         if let Some(observer) = &file.observer {
             for s in &observer.sensors {
-                // Every file before kinds names thermocouples; the NTC
-                // example is the one file written with a kind.
+                // Every file before kinds names thermocouples; the NTC and
+                // the resistance examples are the files written with a kind.
                 if path.ends_with("drive-3node-ntc.toml") {
                     assert_eq!(s.kind_name(), "ntc");
+                } else if path.ends_with("drive-3node-resistance.toml") {
+                    assert_eq!(s.kind_name(), "resistance");
                 } else {
                     assert_eq!(s.kind, SensorKindSpec::Thermocouple, "{}", path.display());
                     with_sensors += 1;
@@ -147,9 +149,29 @@ fn kty_platinum_steinhart_hart_and_resistance_entries_read() {
         config.sensors[1].convert_counts(65535 - 8),
         Some(Err(SensorFault::OpenCircuit))
     );
-    // The tools that cannot fuse a resistance yet refuse it, by name.
+    // The resistance is the library's sensor of source 0 on its node,
+    // through the source's own `R(T)` (no measured one given); the others
+    // are temperatures.
+    let r = config.sensor_kinds[4].resistance().copied().unwrap();
+    assert_eq!((r.source, r.node), (0, 0));
+    assert_eq!(r.noise_fraction, 0.01);
+    assert_eq!(r.min_current_a, 0.05);
+    assert_eq!(
+        (r.r_at_0c_ohm, r.slope_ohm_per_k),
+        (
+            model.drives[0].resistance.r_at_0c_ohm,
+            model.drives[0].resistance.slope_ohm_per_k
+        )
+    );
+    assert!(config
+        .sensor_kinds
+        .iter()
+        .enumerate()
+        .all(|(j, k)| (j == 4) == k.resistance().is_some()));
+    // `calibrate --validate` scores temperatures against temperatures: it
+    // refuses a resistance, by name.
     let e = config
-        .require_temperature_sensors("replay")
+        .require_temperature_sensors("calibrate --validate")
         .unwrap_err()
         .to_string();
     assert!(e.contains("resistance of coil"), "{e}");

@@ -437,7 +437,6 @@ fn firmware_config(
     fused_nodes: &[usize],
 ) -> Result<(FirmwareConfig, Vec<Override>)> {
     let mut config = FirmwareConfig::of(model, model_file.observer.as_ref())?;
-    config.require_temperature_sensors("replay")?;
     // A built-in device has no `[observer]` table: its own derating rule.
     if matches!(
         spec,
@@ -749,31 +748,49 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         all.extend(flags.sensors().into_iter().map(|s| (s, fused)));
     }
     let window = common::window(&a.window);
-    // `--raw-counts`: the ADC sensors' columns, converted in every pass.
-    // Without it such a column is a temperature (a logger that converted
-    // it): said, never assumed without a word.
-    let adc = adc_columns(
+    // A winding resistance's column is ohms: converted in every pass, as
+    // the MCU's `resistance_reading` converts them. `--raw-counts`: the
+    // ADC sensors' columns too. Without it such a column is a temperature
+    // (a logger that converted it): said, never assumed without a word.
+    let (adc, ohms): (Vec<_>, Vec<_>) = converted_columns(
         &measured.sensors(),
         &FirmwareConfig::of(&model, model_file.observer.as_ref())?,
-    );
-    let raw = if a.raw_counts {
+        &model,
+    )
+    .into_iter()
+    .partition(|c| matches!(c.sensor, crate::raw_sensors::Conversion::Adc(_)));
+    let mut raw = ohms;
+    if a.raw_counts {
         if adc.is_empty() {
             bail!(
                 "--raw-counts: no --measure column is of an ADC sensor of the model file (an `[observer] sensors` entry of kind ntc, kty83, kty84, pt100 or pt1000, measured in its order); a thermocouple's column is already a temperature"
             );
         }
-        adc
-    } else {
-        if !a.json {
-            for c in &adc {
+        raw.extend(adc);
+    } else if !a.json {
+        for c in &adc {
+            println!(
+                "note: --measure {}: the model file's sensor is on an ADC ({}); its column is read as degC (give --raw-counts if it holds the ADC's counts)",
+                c.column,
+                c.sensor.kind()
+            );
+        }
+    }
+    if !a.json {
+        for c in &raw {
+            if let crate::raw_sensors::Conversion::Resistance { sensor, .. } = &c.sensor {
                 println!(
-                    "note: --measure {}: the model file's sensor is on an ADC ({}); its column is read as degC (give --raw-counts if it holds the ADC's counts)",
-                    c.column, c.sensor.kind
+                    "--measure {}: a winding's resistance [ohm], read as the firmware reads it (R(T) = {} + {} T ohm, no reading below {} A, a fault outside {} .. {} degC)",
+                    c.column,
+                    sensor.r_at_0c_ohm,
+                    sensor.slope_ohm_per_k,
+                    sensor.min_current_a,
+                    sensor.min_c,
+                    sensor.max_c
                 );
             }
         }
-        Vec::new()
-    };
+    }
     let survey = survey(
         &mut drive,
         &model,
@@ -841,6 +858,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
     let (config, mut overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
+    if path == Path::RowRate && config.has_resistance_sensor() && !measured.is_empty() {
+        bail!(
+            "the model file fuses a winding's resistance, with its own noise, which the host's row-rate filter (--disturbance, --boundary-offset, --noise-half-window-rows) has not: replay it without those flags (the firmware's observer)"
+        );
+    }
     // `--model omnimagnet` as flashed: the device's own observer.
     let flashed_omni = path == Path::Firmware && spec == common::ModelSpec::Omnimagnet;
     if flashed_omni {
@@ -1621,23 +1643,33 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     Ok(())
 }
 
-/// Each `--measure` column that is an `[observer] sensors` ADC sensor's
-/// (the fused sensors are the file's, in order): what `--raw-counts`
-/// converts.
-fn adc_columns(
+/// Each `--measure` column that is an `[observer] sensors` ADC sensor's or
+/// winding resistance's (the fused sensors are the file's, in order): what
+/// `--raw-counts` converts, and the ohms converted always.
+fn converted_columns(
     measured: &[common::StreamSensor],
     config: &FirmwareConfig,
+    model: &Model,
 ) -> Vec<crate::raw_sensors::RawColumn> {
+    use crate::raw_sensors::Conversion;
     measured
         .iter()
         .zip(&config.sensors)
-        .zip(&config.sensor_nodes)
-        .filter(|((m, _), node)| m.node == **node)
-        .filter_map(|((m, s), _)| {
-            s.adc().map(|sensor| crate::raw_sensors::RawColumn {
+        .zip(config.sensor_nodes.iter().zip(&config.sensor_kinds))
+        .filter(|((m, _), (node, _))| m.node == **node)
+        .filter_map(|((m, s), (_, kind))| {
+            let sensor = match (s.adc(), kind.resistance()) {
+                (Some(a), _) => Conversion::Adc(*a),
+                (None, Some(r)) => Conversion::Resistance {
+                    sensor: *r,
+                    input: model.drives.get(r.source)?.input,
+                },
+                (None, None) => return None,
+            };
+            Some(crate::raw_sensors::RawColumn {
                 column: m.column.clone(),
                 slot: m.slot,
-                sensor: *sensor,
+                sensor,
                 faults: Default::default(),
             })
         })

@@ -181,6 +181,9 @@ struct Plan {
     source: String,
     spec: ObserverSpec,
     sensor_nodes: Vec<usize>,
+    /// What each sensor is (the library's kind: a temperature or a
+    /// winding's resistance).
+    sensor_kinds: Vec<coil_thermal::observer::network::SensorKind>,
     /// Per source: (node, `k R(0 degC)` \[ohm\], `k dR/dT` \[ohm/K\]).
     sources: Vec<(usize, f64, f64)>,
     /// What each source's current is made of.
@@ -200,7 +203,6 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
             req.model.display()
         );
     }
-    sensors::check(&spec.sensors).with_context(|| req.model.display().to_string())?;
     if model.has_varying_conductances() {
         bail!(
             "{}: a conductance that depends on a signal (`[conductance.speed]`) changes the network with every row, and the firmware observer's tables are solved for one network; generate from a model without it",
@@ -224,6 +226,12 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         .iter()
         .map(|s| s.node_index(&model))
         .collect::<Result<Vec<_>>>()?;
+    let sensor_kinds = spec
+        .sensors
+        .iter()
+        .map(|s| s.library_kind(&model))
+        .collect::<Result<Vec<_>>>()
+        .with_context(|| req.model.display().to_string())?;
     if let Some(name) = &spec.boundary_offset {
         crate::firmware::boundary_index(&model, name)?;
     }
@@ -256,6 +264,7 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
         source,
         spec,
         sensor_nodes,
+        sensor_kinds,
         sources,
         currents,
     })
@@ -295,6 +304,12 @@ impl Plan {
             .iter()
             .position(|b| b.name == "ambient")
             .unwrap_or(0)
+    }
+
+    /// Some sensor is a winding's resistance (the module then has
+    /// `SENSOR_KINDS`, and `observer()` assembles with them).
+    fn has_resistance_sensor(&self) -> bool {
+        self.sensor_kinds.iter().any(|k| k.resistance().is_some())
     }
 
     fn sizes(&self) -> (usize, usize, usize, usize) {
@@ -391,6 +406,7 @@ impl Plan {
         );
         let _ = writeln!(o, "/// The node each thermocouple measures, by name.\npub const SENSOR_NAMES: [&str; SENSORS] = {};", names(&sensors));
         sensors::write(&mut o, &self.spec.sensors);
+        sensors::write_kinds(&mut o, &labels, &self.sensor_kinds);
         let _ = writeln!(
             o,
             "/// Signals the model's speed and loss terms read (e.g. a speed in the\n/// unit of its reference).\npub const SIGNALS: usize = {};",
@@ -519,6 +535,10 @@ impl Plan {
         let mut bias_sources = self.model.bias_sources.as_ref().map_or(String::new(), |b| {
             format!("\n        .bias_sources({})", list(b))
         });
+        if self.has_resistance_sensor() {
+            // The gain is solved with each sensor's own noise.
+            bias_sources.push_str("\n        .sensor_kinds(head::SENSOR_KINDS)");
+        }
         if s.shared_bias == Some(true) {
             // The tables say which biases share (a tied prior block), so
             // `from_parts` needs nothing more here either.
@@ -744,7 +764,14 @@ pub fn generate(req: &CodegenRequest) -> Result<String> {
     o.push_str("\n/// Every table of the observer, solved on the host in `f64` and rounded\n/// once to `f32`.\npub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> = ");
     o.push_str(parts.trim_end());
     o.push_str(";\n");
-    o.push_str(STATES_AND_SNAPSHOTS);
+    if plan.has_resistance_sensor() {
+        o.push_str(&STATES_AND_SNAPSHOTS.replace(
+            "Observer::from_parts(&PARTS)",
+            "Observer::from_parts_with_sensors(&PARTS, &SENSOR_KINDS)",
+        ));
+    } else {
+        o.push_str(STATES_AND_SNAPSHOTS);
+    }
     Ok(rustfmt(&o).unwrap_or(o))
 }
 

@@ -7,33 +7,67 @@
 //! numbers, so the MCU converts exactly as `replay` and the tests do.
 //!
 //! A model whose sensors are all thermocouples gets none of it (its module
-//! is unchanged). A `resistance` entry (a winding's resistance) is refused:
-//! the generated observer is assembled from thermocouple-only parts
-//! (`NetworkObserver::from_parts`), and a resistance sensor's tables are
-//! solved with its own noise.
+//! is unchanged). A `resistance` entry (a winding's resistance) gets a
+//! `SENSOR_KINDS` table ([`write_kinds`]): its tables are solved with the
+//! sensor's own noise, and `observer()` assembles them with
+//! `NetworkObserver::from_parts_with_sensors`.
 
 use std::fmt::Write;
 
-use anyhow::{bail, Result};
+use coil_thermal::observer::network::SensorKind;
 use coil_thermal::sensors::resistive::Topology;
 
-use crate::sensor_kinds::{AdcSensor, Curve, SensorEntry, SensorKindSpec};
+use crate::sensor_kinds::{AdcSensor, Curve, SensorEntry};
 
-/// Refuses the sensors `codegen` cannot generate yet.
-///
-/// # Errors
-/// A `resistance` entry, named.
-pub fn check(sensors: &[SensorEntry]) -> Result<()> {
-    if let Some(s) = sensors
-        .iter()
-        .find(|s| matches!(s.kind, SensorKindSpec::Resistance(_)))
-    {
-        bail!(
-            "[observer] sensors: `{}` (kind = \"resistance\"): codegen does not generate a winding-resistance sensor yet (its observer tables are solved with the sensor's own noise and assembled by `NetworkObserver::from_parts_with_sensors`); build it with the library's `NetworkObserverBuilder::resistance_sensor` (docs/observer.md)",
-            s.label()
-        );
+/// The `SENSOR_KINDS` table of a model with a winding-resistance sensor
+/// (`kinds[j]`: what sensor `j` is, see
+/// [`SensorEntry::library_kind`](crate::sensor_kinds::SensorEntry::library_kind)),
+/// as a `const` of plain data; nothing for a model whose every sensor is a
+/// temperature (its module, and its `observer()`'s `from_parts`, are then
+/// unchanged).
+pub fn write_kinds(o: &mut String, labels: &[String], kinds: &[SensorKind]) {
+    if kinds.iter().all(|k| k.resistance().is_none()) {
+        return;
     }
-    Ok(())
+    let items: Vec<String> = labels
+        .iter()
+        .zip(kinds)
+        .map(|(label, kind)| match kind.resistance() {
+            None => format!("    // {label}: a temperature\n    SensorKind::Thermocouple,"),
+            Some(r) => format!(
+                "    // {label}: a winding's resistance, read at |I| >= {min:?} A\n    SensorKind::Resistance(ResistanceSensor {{\n        source: {source},\n        node: {node},\n        r_at_0c_ohm: {r0:?},\n        slope_ohm_per_k: {slope:?},\n        noise_fraction: {noise:?},\n        noise_reference_c: {reference:?},\n        min_current_a: {min:?},\n        min_c: {lo:?},\n        max_c: {hi:?},\n    }}),",
+                source = r.source,
+                node = r.node,
+                r0 = r.r_at_0c_ohm,
+                slope = r.slope_ohm_per_k,
+                noise = r.noise_fraction,
+                reference = r.noise_reference_c,
+                min = r.min_current_a,
+                lo = r.min_c,
+                hi = r.max_c,
+            ),
+        })
+        .collect();
+    let _ = write!(
+        o,
+        r#"
+/// What each sensor is, in sensor order: a temperature (a thermocouple, or
+/// a resistive sensor converted by [`convert_counts`] where it has one), or
+/// a winding's resistance, read through its `R(T)`. The tables of [`PARTS`]
+/// were solved with each sensor's own noise, so [`observer`] assembles them
+/// with these kinds. Feed a resistance sensor's slot of
+/// `Inputs::readings` with `observer.resistance_reading(j, ohm, current_a,
+/// sampled_at_us)` (or `voltage_current_reading`): no reading below its
+/// least current, a fault for a measurement that cannot be the winding's.
+pub const SENSOR_KINDS: [coil_thermal::observer::network::SensorKind; SENSORS] = {{
+    use coil_thermal::observer::network::{{ResistanceSensor, SensorKind}};
+    [
+{}
+    ]
+}};
+"#,
+        items.join("\n")
+    );
 }
 
 /// `f32` as a Rust literal that reads back to the same value.

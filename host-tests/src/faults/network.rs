@@ -23,10 +23,11 @@
 
 use coil_thermal::observer::network::{
     BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
-    NetworkSettings,
+    NetworkSettings, ResistanceSensor, SensorKind,
 };
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::SensorChecks;
+use coil_thermal::{SensorFault, SensorResult};
 
 use super::{
     frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
@@ -66,6 +67,26 @@ struct NetSubject<const C: usize, const X: usize, const P: usize> {
     /// takes them through `tick_voltage`, and their limits are duties (or
     /// volts) from `drive_limit`.
     supplies: Vec<Option<f32>>,
+    /// Per sensor: a winding's resistance (read in ohms, see
+    /// [`resistance_measured`]), or `None` for a temperature.
+    resistances: Vec<Option<ResistanceSensor>>,
+}
+
+/// What the drive measures of a winding whose campaign reading is
+/// `reading` (the truth at its node with the sensor's noise, or a fault):
+/// the ohms its `R(T)` gives that temperature; an open winding `+inf` (no
+/// current, a `V/I` that does not exist); a short to ground 0 ohm and one
+/// to the supply a negative resistance (a drop of the wrong sign). The
+/// observer's `resistance_reading` then turns it into the reading or fault
+/// the firmware fuses.
+fn resistance_measured(sensor: &ResistanceSensor, reading: SensorResult) -> f32 {
+    match reading {
+        Ok(r) => (sensor.r_at_0c_ohm + sensor.slope_ohm_per_k * f64::from(r.temp_c)) as f32,
+        Err(SensorFault::OpenCircuit) => f32::INFINITY,
+        Err(SensorFault::ShortToGnd) => 0.0,
+        Err(SensorFault::ShortToVcc) => -(sensor.r_at_0c_ohm as f32),
+        Err(_) => f32::NAN,
+    }
 }
 
 impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
@@ -79,15 +100,17 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         let network = padded_with::<C>(&model.network, Padding::DECAYING).map_err(invalid)?;
         let mut slots = [0; P];
         slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
+        let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
+        // Each sensor's kind, as `codegen` solves the tables with it (a
+        // resistance with its own noise).
+        let mut kinds = [SensorKind::Thermocouple; P];
+        kinds[..firmware.sensor_kinds.len()].copy_from_slice(&firmware.sensor_kinds);
         let mut critical = [None; C];
         critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
         // The firmware's settings (the `[observer]` table over codegen's
         // defaults, as `replay` and `codegen` resolve them), with the
         // campaign's step, reading period, stuck tolerance and origin.
         let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
-        firmware
-            .require_temperature_sensors("the fault campaign")
-            .map_err(invalid)?;
         if firmware.settings.boundary_offset.is_some() {
             return Err(FaultError::Invalid(format!(
                 "model `{}`: [observer] boundary_offset adds a state the campaign's observer sizes have no room for; \
@@ -121,6 +144,7 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             .derating(derating)
             .settings(settings)
             .bias_sources(bias_sources)
+            .sensor_kinds(kinds)
             .bias_mode(if firmware.shared_bias {
                 // `[observer] shared_bias`, as `codegen` and `replay` build
                 // it: the padding's sources carry no bias to share.
@@ -180,6 +204,11 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
                 .map(|d| (d.input, d.scale.max(0.0).sqrt() as f32))
                 .collect(),
             supplies,
+            resistances: firmware
+                .sensor_kinds
+                .iter()
+                .map(|k| k.resistance().copied())
+                .collect(),
         })
     }
 }
@@ -205,6 +234,31 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
     fn bias_noise_w2_per_s(&self) -> Option<f64> {
         Some(self.settings.bias_noise_w2_per_s)
     }
+    fn sensor_model(
+        &self,
+        sensor: usize,
+        truth_c: f32,
+        campaign: super::SensorModel,
+    ) -> super::SensorModel {
+        match self.resistances.get(sensor).copied().flatten() {
+            // The relative noise as kelvin at the truth: `f R(T) / s`.
+            Some(r) => super::SensorModel {
+                quantum_k: 0.0,
+                noise_k: r.noise_fraction
+                    * (r.r_at_0c_ohm / r.slope_ohm_per_k + f64::from(truth_c)),
+                ..campaign
+            },
+            None => campaign,
+        }
+    }
+    fn band_widening_k(&self, sensor: usize) -> f64 {
+        // As the library lowers a resistance sensor's band.
+        self.resistances
+            .get(sensor)
+            .copied()
+            .flatten()
+            .map_or(0.0, |r| self.settings.gate_threshold.sqrt() * r.sigma_k())
+    }
     fn consistency(&self) -> Consistency {
         Consistency {
             offset_k: self.settings.checks.consistency_offset_k,
@@ -222,8 +276,18 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             *c = i.currents_a.get(*input).copied().unwrap_or(0.0) * k;
         }
         let mut readings = [None; P];
-        for (r, z) in readings.iter_mut().zip(i.readings) {
-            *r = *z;
+        for (j, (r, z)) in readings.iter_mut().zip(i.readings).enumerate() {
+            *r = match (z, self.resistances.get(j).copied().flatten()) {
+                // A winding's resistance, read by the firmware's call at
+                // its source's current.
+                (Some(z), Some(sensor)) => self.observer.resistance_reading(
+                    j,
+                    resistance_measured(&sensor, z.result),
+                    currents_a.get(sensor.source).copied().unwrap_or(0.0),
+                    z.sampled_at_us,
+                ),
+                _ => *z,
+            };
         }
         let inputs = NetworkInputs {
             currents_a,

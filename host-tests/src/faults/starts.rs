@@ -197,7 +197,9 @@ impl<S: Subject> Harness<'_, S> {
                     .iter()
                     .zip(&cfg.sensors)
                     .enumerate()
-                    .map(|(j, (t, used))| used.then(|| model.read(*t, j, reading_no)))
+                    .map(|(j, (t, used))| {
+                        used.then(|| super::read_sensor(subject, model, *t, j, reading_no))
+                    })
                     .collect();
                 let class = restart.map(|r| r.class);
                 state = match (class, &saved) {
@@ -228,9 +230,9 @@ impl<S: Subject> Harness<'_, S> {
             let readings: Vec<Option<TimedReading>> = (0..sensor_nodes.len())
                 .map(|j| {
                     (due && cfg.sensors[j]).then(|| TimedReading {
-                        result: Ok::<_, SensorFault>(Reading::new(
-                            model.read(truth[j], j, reading_no),
-                        )),
+                        result: Ok::<_, SensorFault>(Reading::new(super::read_sensor(
+                            subject, model, truth[j], j, reading_no,
+                        ))),
                         sampled_at_us: now_us,
                     })
                 })
@@ -351,11 +353,8 @@ impl Scores {
             }
         }
         for (j, reading) in t.read.iter().enumerate() {
-            let fused = matches!(
-                t.view.sensors.get(j),
-                Some(coil_thermal::observer::SensorStatus::Fused { .. })
-            );
-            if reading.is_some() && !fused {
+            let refused = t.view.sensors.get(j).is_some_and(super::refused);
+            if reading.is_some() && refused {
                 self.start.refused += 1;
                 self.run.healthy_flagged += 1;
             }

@@ -270,6 +270,18 @@ impl ResistanceSensor {
         Ok(self)
     }
 
+    /// The reading of `resistance_ohm` \[ohm\] measured at `current_a`
+    /// \[A\], exactly as [`NetworkObserver::resistance_reading`] of an
+    /// observer with this sensor gives it (the same `f32` conversion):
+    /// `None` below [`Self::min_current_a`], a [`SensorFault`] for a
+    /// measurement that cannot be the winding's (see the module docs).
+    /// For a host tool that converts a recording's ohms as the MCU would;
+    /// the firmware calls the observer's method, which holds the
+    /// conversion ready. No panic.
+    pub fn read(&self, resistance_ohm: f32, current_a: f32) -> Option<SensorResult> {
+        self.conversion().read(resistance_ohm, current_a)
+    }
+
     /// The conversion the tick-side call holds, in `f32`.
     pub(super) fn conversion(&self) -> Conversion {
         Conversion {
@@ -458,6 +470,34 @@ mod tests {
         // An open lead: twice the resistance, 274 degC... and ten times.
         assert_eq!(c.read(12.0, 2.0), Some(Err(SensorFault::OutOfRange)));
         assert_eq!(c.read(0.5, 2.0), Some(Err(SensorFault::OutOfRange)));
+    }
+
+    #[test]
+    fn the_host_conversion_is_the_observers() {
+        use super::super::NetworkObserverBuilder;
+        let network: Network<2, 1, 1> = Network::new([60.0, 400.0])
+            .and_then(|n| n.connect(0, 1, 0.8))
+            .and_then(|n| n.connect_boundary(1, 0, 1.2))
+            .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(1.2, 0.00393, 20.0)))
+            .expect("a valid network");
+        let sensor = copper();
+        let observer: NetworkObserver<2, 1, 1, 3, 1> = NetworkObserverBuilder::new(&network, [1])
+            .resistance_sensor(0, sensor)
+            .build()
+            .expect("builds");
+        for (r, i) in [
+            (1.3, 2.0),
+            (1.388_64, -0.7),
+            (1.2, 0.1),
+            (0.0, 3.0),
+            (f32::NAN, 1.0),
+        ] {
+            assert_eq!(
+                sensor.read(r, i),
+                observer.resistance_reading(0, r, i, 7).map(|t| t.result),
+                "{r} ohm at {i} A"
+            );
+        }
     }
 
     fn any_f32() -> impl Strategy<Value = f32> {
