@@ -932,6 +932,7 @@ policy = "boundary"
             filter.update(&[Measurement {
                 node: 1,
                 value_c: plant.temps_c()[1],
+                fault: None,
             }]);
             if k >= 3 * rows / 4 {
                 let e = filter.estimate_c()[0] - plant.temps_c()[0];
@@ -1127,6 +1128,7 @@ policy = "boundary"
             filter.update(&[Measurement {
                 node: 1,
                 value_c: plant.temps_c()[1] + noise_k * rng.normal(),
+                fault: None,
             }]);
             each(k, &filter, &plant);
         }
@@ -1234,6 +1236,7 @@ g_w_per_k = 1.0
         let no_reading = [Measurement {
             node: 1,
             value_c: f64::NAN,
+            fault: None,
         }];
         let mut worst_k: f64 = 0.0;
         for k in 1..=200 {

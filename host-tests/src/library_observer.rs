@@ -105,7 +105,7 @@ use coil_thermal::observer::network::{
     NetworkSettings, SensorKind,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
-use coil_thermal::{DriveFlags, Reading, VoltageDrive};
+use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
 
 use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
@@ -133,8 +133,9 @@ trait PaddedObserver: Send {
     fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]);
     /// Sets the held inputs of the following ticks.
     fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]);
-    /// Readings (one per fused sensor, `None`: none) for the next tick.
-    fn readings(&mut self, z: &[Option<f64>]);
+    /// Readings (one per fused sensor, `None`: none; a fault the sensor
+    /// reported instead of a value) for the next tick.
+    fn readings(&mut self, z: &[Option<Result<f64, SensorFault>>]);
     /// Holds each source's voltage drive `(duty, supply_v)` in the
     /// model's units (see `Model::voltage_drive`; `None`: its current is
     /// the input's): the ticks run `tick_voltage` while one is `Some`.
@@ -260,7 +261,7 @@ struct Sized<const C: usize, const X: usize, const P: usize> {
     /// The drive rules that fired since [`PaddedObserver::take_drive_flags`].
     drive_flags: DriveFlags,
     /// Readings waiting for the next tick.
-    pending: [Option<f32>; P],
+    pending: [Option<Result<f32, SensorFault>>; P],
     /// The boundary the alarm takes as the ambient.
     ambient_boundary: usize,
 }
@@ -397,10 +398,14 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         }
     }
 
-    fn readings(&mut self, z: &[Option<f64>]) {
+    fn readings(&mut self, z: &[Option<Result<f64, SensorFault>>]) {
         self.pending = [None; P];
         for (p, v) in self.pending.iter_mut().zip(z) {
-            *p = v.filter(|v| v.is_finite()).map(|v| v as f32);
+            *p = match v {
+                Some(Ok(v)) if v.is_finite() => Some(Ok(*v as f32)),
+                Some(Err(fault)) => Some(Err(*fault)),
+                _ => None,
+            };
         }
     }
 
@@ -445,8 +450,8 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         // (the cold junction does not enter the fusion).
         let now_us = self.inputs.now_us;
         for (slot, z) in self.inputs.readings.iter_mut().zip(&mut self.pending) {
-            *slot = z.take().map(|temp_c| TimedReading {
-                result: Ok(Reading::new(temp_c)),
+            *slot = z.take().map(|result| TimedReading {
+                result: result.map(Reading::new),
                 sampled_at_us: now_us,
             });
         }
@@ -956,20 +961,21 @@ impl Estimator for ObserverEstimator {
         if self.sensors.is_empty() {
             return;
         }
-        let z: Vec<Option<f64>> = self
+        let z: Vec<Option<Result<f64, SensorFault>>> = self
             .sensors
             .iter()
             .enumerate()
             .map(|(j, node)| {
-                measured
-                    .get(j)
-                    .filter(|m| m.node == *node)
-                    .map(|m| m.value_c)
+                let m = measured.get(j).filter(|m| m.node == *node)?;
+                match m.fault {
+                    // A fault is handed over as the MCU hands it.
+                    Some(fault) => Some(Err(fault)),
                     // A missing reading (an empty or NaN cell) is no reading.
-                    .filter(|v| !v.is_nan())
+                    None => (!m.value_c.is_nan()).then_some(Ok(m.value_c)),
+                }
             })
             .collect();
-        self.awaiting = z.iter().any(|v| v.is_some_and(f64::is_finite));
+        self.awaiting = z.iter().any(|v| matches!(v, Some(Ok(v)) if v.is_finite()));
         self.observer.readings(&z);
     }
 

@@ -130,6 +130,7 @@ pub fn check(model: &Model, spec: &ObserverSpec, d: &FitData) -> Result<Option<M
             .map(|k| Measurement {
                 node: d.targets[*k].node,
                 value_c: d.targets[*k].values_c[row],
+                fault: None,
             })
             .collect();
         observer.update(&meas);

@@ -36,8 +36,11 @@ use crate::sim::{InputRow, PlantInfo, RowSource};
 pub struct Measurement {
     /// Node index.
     pub node: usize,
-    /// Measured value \[degC\].
+    /// Measured value \[degC\] (`NaN`: none).
     pub value_c: f64,
+    /// The fault the sensor reported instead of a value (a conversion's:
+    /// see [`crate::raw_sensors`]).
+    pub fault: Option<coil_thermal::SensorFault>,
 }
 
 /// A state estimator over a plant.
@@ -782,9 +785,16 @@ pub fn replay(
     while let Some(row) = current {
         let after = fuse_until_s.is_some_and(|until| row.time_s > until);
         meas.clear();
-        meas.extend(fused.iter().map(|(node, j)| Measurement {
-            node: *node,
-            value_c: if after { f64::NAN } else { row.extra[*j] },
+        meas.extend(fused.iter().map(|(node, j)| {
+            Measurement {
+                node: *node,
+                value_c: if after { f64::NAN } else { row.extra[*j] },
+                fault: row
+                    .faults
+                    .iter()
+                    .find(|(slot, _)| slot == j && !after)
+                    .map(|(_, fault)| *fault),
+            }
         }));
         let start = Instant::now();
         estimator.update(&meas);

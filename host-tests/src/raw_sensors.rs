@@ -14,11 +14,11 @@
 //!
 //! A value that converts to a fault (an open or shorted sensor, a count
 //! that is no ADC code, a resistance that cannot be the winding's, a
-//! temperature outside the sensor's range) becomes no reading (an empty
-//! cell: the observer predicts on the model) and is counted and reported
-//! as that fault; it is never a temperature. (The firmware hands the fault
-//! itself to the observer, which marks the sensor faulted; both fuse
-//! nothing from it.)
+//! temperature outside the sensor's range) is never a temperature: its
+//! cell becomes empty, the row carries the fault ([`InputRow::faults`]),
+//! and the firmware's observer is handed the fault itself, as the MCU
+//! hands it (the sensor shows `Fault`, nothing is fused); it is counted
+//! and reported.
 
 use std::collections::BTreeMap;
 
@@ -125,6 +125,7 @@ impl RowSource for ConvertedRows<'_> {
                 Some(Ok(reading)) => f64::from(reading.temp_c),
                 Some(Err(fault)) => {
                     *c.faults.entry(fault_name(fault)).or_default() += 1;
+                    row.faults.push((c.slot, fault));
                     f64::NAN
                 }
                 None => {

@@ -3,7 +3,9 @@
 //! (`host-tests/models/drive-3node-ntc.toml`) replays a recording of the
 //! NTC's raw ADC counts exactly as the same observer fed the converted
 //! temperatures; an open NTC in the recording (the top code) is a fault,
-//! reported and never fused as a temperature.
+//! reported, never fused as a temperature, and handed to the observer as
+//! the fault it is: the replay is the generated module fed
+//! `convert_counts`, row for row.
 //!
 //! The counts are made here from the bench recording's housing thermocouple
 //! (`host-tests/traces/drive-3node.csv`) by the NTC's beta equation and the
@@ -108,10 +110,43 @@ fn raw_counts_replay_as_the_converted_readings_and_an_open_ntc_is_a_fault() {
         )),
         "{raw_stdout}"
     );
-    // Row for row the same estimates, bounds and limits: the output files
-    // differ only in the measured column's name.
-    assert_eq!(raw_out.replace("counts", "temp"), converted_out);
-    assert!(raw_out.lines().count() > 3000);
+    // Row for row the same estimates, bounds and limits up to the open
+    // wire (the files differ only in the measured column's name); from
+    // there the raw replay hands the observer the fault itself, as the
+    // MCU does, where a converted recording can only leave the cell empty.
+    let raw_rows: Vec<String> = raw_out
+        .replace("counts", "temp")
+        .lines()
+        .map(String::from)
+        .collect();
+    let converted_rows: Vec<&str> = converted_out.lines().collect();
+    assert!(raw_rows.len() > 3000);
+    assert_eq!(raw_rows.len(), converted_rows.len());
+    for k in 0..=OPEN_ROWS.start + 1 {
+        assert_eq!(raw_rows[k], converted_rows[k], "line {k}");
+    }
+    // The generated module ticked with `convert_counts` on each row's
+    // counts, at 1 ms as `replay` ticks it: the raw replay's every row.
+    let firmware = generated(&raw_trace_counts(&bench));
+    assert_eq!(firmware.len(), raw_rows.len() - 1);
+    for (k, (line, (temps_c, upper_c))) in raw_rows.iter().skip(1).zip(&firmware).enumerate() {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        // time, winding, housing, heatsink, upper_c.winding,
+        // alarm_limit_c.winding, upper_c.housing, ...
+        for (r, e) in [
+            (v[1], temps_c[0]),
+            (v[2], temps_c[1]),
+            (v[3], temps_c[2]),
+            (v[4], upper_c[0]),
+            (v[6], upper_c[1]),
+        ] {
+            let e = f64::from(e);
+            assert!(
+                (r - e).abs() <= 4.0 * f64::from(f32::EPSILON) * e.abs() + 1e-6,
+                "row {k}: replay {r}, generated {e}"
+            );
+        }
+    }
 
     // Read as temperatures, the same counts would be ~2000 degC: the
     // conversion is what the replay used (its winding estimate stays a
@@ -119,6 +154,70 @@ fn raw_counts_replay_as_the_converted_readings_and_an_open_ntc_is_a_fault() {
     let last = raw_out.lines().last().unwrap();
     let winding: f64 = last.split(',').nth(1).unwrap().parse().unwrap();
     assert!((20.0..200.0).contains(&winding), "{last}");
+}
+
+#[path = "../../examples/generated/drive_3node_ntc.rs"]
+#[allow(unused)]
+mod model;
+
+/// Each row's (current \[A\], ambient \[degC\], ADC counts) of the raw
+/// recording the test writes.
+fn raw_trace_counts(bench: &str) -> Vec<(f32, f32, u32)> {
+    bench
+        .lines()
+        .skip(1)
+        .enumerate()
+        .map(|(k, line)| {
+            let f: Vec<&str> = line.split(',').collect();
+            let counts = if OPEN_ROWS.contains(&k) {
+                4095
+            } else {
+                counts_at(f[4].parse().unwrap())
+            };
+            (f[1].parse().unwrap(), f[2].parse().unwrap(), counts)
+        })
+        .collect()
+}
+
+/// The generated module over `rows` at 1 ms ticks, as `replay` hands them
+/// over (each row held for its second, its reading, `convert_counts` of
+/// its counts, given to the second's first tick): per row, the nodes'
+/// estimates and the winding's and the housing's upper bounds \[degC\].
+fn generated(rows: &[(f32, f32, u32)]) -> Vec<([f32; 3], [f32; 2])> {
+    use coil_thermal::observer::network::NetworkInputs;
+    use coil_thermal::observer::TimedReading;
+    let observer = model::observer().unwrap();
+    let mut state = model::initial_state(&observer, rows[0].1);
+    let row = |state: &model::State| {
+        let o = state.outputs();
+        (o.temps_c, [o.upper_c[0], o.upper_c[1]])
+    };
+    let mut out = vec![row(&state)];
+    let mut now_us: u32 = 0;
+    for (current_a, ambient_c, counts) in &rows[..rows.len() - 1] {
+        let currents_a = model::source_currents_a(&[*current_a], &[]);
+        for k in 0..1000 {
+            now_us += 1000;
+            let readings = [if k == 0 {
+                model::convert_counts(0, *counts).map(|result| TimedReading {
+                    result,
+                    sampled_at_us: now_us,
+                })
+            } else {
+                None
+            }];
+            let inputs = NetworkInputs {
+                currents_a,
+                boundary_c: [*ambient_c],
+                readings,
+                now_us,
+                elapsed_us: 1000,
+            };
+            observer.tick(&mut state, &inputs);
+        }
+        out.push(row(&state));
+    }
+    out
 }
 
 #[test]

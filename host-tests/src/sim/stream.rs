@@ -24,6 +24,10 @@ pub struct InputRow {
     /// The extra expressions' values ([`TraceDrive::add`]), in the order
     /// they were added (`NaN`: a missing reading).
     pub extra: Vec<f64>,
+    /// The sensor faults a conversion of an `extra` value met (its
+    /// position in `extra`, the fault; the value is then `NaN`): see
+    /// [`crate::raw_sensors`].
+    pub faults: Vec<(usize, coil_thermal::SensorFault)>,
 }
 
 /// Rows of inputs, one at a time, in increasing time.
@@ -259,6 +263,7 @@ impl<'a> TraceDrive<'a> {
             boundaries: self.boundaries.iter().map(value).collect(),
             signals: self.signals.iter().map(value).collect(),
             extra,
+            faults: Vec::new(),
         }
     }
 }
