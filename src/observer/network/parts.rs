@@ -10,15 +10,26 @@
 //!    predictor and the default incidence, in `f64`. Tens of KiB of stack
 //!    and milliseconds to seconds of a Cortex-M;
 //! 2. **assemble** ([`NetworkObserver::from_parts`]): validation, the
-//!    alarm, limiter and upper bound (a square root per node), and the
-//!    snapshot fingerprint. No exponential, no Riccati, no eigenvalue: a
-//!    few hundred bytes of stack and `O((N + M)^2)` copies.
+//!    filter's configuration, the alarm, limiter and upper bound (a square
+//!    root per node), and the snapshot fingerprint, in `f64`. No
+//!    exponential, no Riccati, no eigenvalue: a few hundred bytes of stack
+//!    and `O((N + M)^2)` copies.
 //!
 //! [`NetworkObserverBuilder::build`] is exactly `from_parts(&parts()?)`, so
 //! an observer assembled from parts written out by
 //! [`NetworkParts::write_rust`] (what `coil-thermal codegen` does) and
 //! compiled into a firmware image is the observer the builder makes, to the
 //! bit: same tables, same fingerprint, same outputs.
+//!
+//! `parts()` runs the assembly too and keeps what it derives
+//! ([`NetworkParts::assembled`], an [`AssembledTables`]), so a firmware
+//! need not: [`NetworkObserver::from_assembled_parts`] is a `const fn` that
+//! checks the tables' structure and copies them, and a `static` initialised
+//! with it (what a generated module's `OBSERVER` is) is assembled by the
+//! compiler. The image then holds no assembly and no `f64` routine (on a
+//! Cortex-M0, 23 620 B of a 57 596 B image; `docs/cost.md`).
+//! [`NetworkObserver::from_parts`] refuses parts whose assembled tables are
+//! not its own derivation, so both ways give the same observer.
 //!
 //! Matrices are stored row by row (`[row][column]`), as they read in a
 //! generated file.
@@ -785,8 +796,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// range (`sensor_nodes`, `source_node`, `winding_node`,
     /// `points_per_tick`), a non-finite table entry (`model`, `gain`,
     /// `predictor`), a gain solved for another correction period
-    /// (`gain.period`), or the limits (`critical_c`, `derating_product`,
-    /// `hardware_limit_a`).
+    /// (`gain.period`), the limits (`critical_c`, `derating_product`,
+    /// `hardware_limit_a`), or assembled tables that are not what it
+    /// derives (`assembled`).
     pub fn from_parts(parts: &NetworkParts<N, B, M, X, P>) -> Result<Self, BuildError> {
         Self::from_parts_with_sensors(parts, &SensorKind::thermocouples())
     }
