@@ -133,7 +133,7 @@ fn calibrate_then_codegen_reproduce_the_committed_files() {
         "codegen no longer reproduces examples/generated/drive_3node.rs"
     );
     // What the tick needs is data: no exponential is left for the MCU.
-    assert!(!text.contains("expm") && text.contains("Observer::from_parts(&PARTS)"));
+    assert!(!text.contains("expm") && text.contains("Observer::from_assembled_parts(&PARTS)"));
 }
 
 #[test]

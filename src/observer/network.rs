@@ -2010,7 +2010,9 @@ mod bias;
 mod parts;
 pub mod resistance;
 pub use bias::BiasMode;
-pub use parts::{GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables};
+pub use parts::{
+    AssembledTables, GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables,
+};
 pub use resistance::{ResistanceSensor, SensorKind};
 
 #[cfg(test)]

@@ -404,6 +404,19 @@ impl Literal for crate::scalar::Q32 {
     }
 }
 
+impl<T: Literal> Literal for Option<T> {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        match self {
+            Some(v) => {
+                out.write_str("Some(")?;
+                v.write(out)?;
+                out.write_char(')')
+            }
+            None => out.write_str("None"),
+        }
+    }
+}
+
 impl<T: Literal, const N: usize> Literal for [T; N] {
     fn write(&self, out: &mut dyn Write) -> fmt::Result {
         out.write_char('[')?;

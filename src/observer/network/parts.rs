@@ -10,15 +10,26 @@
 //!    predictor and the default incidence, in `f64`. Tens of KiB of stack
 //!    and milliseconds to seconds of a Cortex-M;
 //! 2. **assemble** ([`NetworkObserver::from_parts`]): validation, the
-//!    alarm, limiter and upper bound (a square root per node), and the
-//!    snapshot fingerprint. No exponential, no Riccati, no eigenvalue: a
-//!    few hundred bytes of stack and `O((N + M)^2)` copies.
+//!    filter's configuration, the alarm, limiter and upper bound (a square
+//!    root per node), and the snapshot fingerprint, in `f64`. No
+//!    exponential, no Riccati, no eigenvalue: a few hundred bytes of stack
+//!    and `O((N + M)^2)` copies.
 //!
 //! [`NetworkObserverBuilder::build`] is exactly `from_parts(&parts()?)`, so
 //! an observer assembled from parts written out by
 //! [`NetworkParts::write_rust`] (what `coil-thermal codegen` does) and
 //! compiled into a firmware image is the observer the builder makes, to the
 //! bit: same tables, same fingerprint, same outputs.
+//!
+//! `parts()` runs the assembly too and keeps what it derives
+//! ([`NetworkParts::assembled`], an [`AssembledTables`]), so a firmware
+//! need not: [`NetworkObserver::from_assembled_parts`] is a `const fn` that
+//! checks the tables' structure and copies them, and a `static` initialised
+//! with it (what a generated module's `OBSERVER` is) is assembled by the
+//! compiler. The image then holds no assembly and no `f64` routine (on a
+//! Cortex-M0, 23 620 B of a 57 596 B image; `docs/cost.md`).
+//! [`NetworkObserver::from_parts`] refuses parts whose assembled tables are
+//! not its own derivation, so both ways give the same observer.
 //!
 //! Matrices are stored row by row (`[row][column]`), as they read in a
 //! generated file.
@@ -28,19 +39,26 @@ use core::fmt::{self, Write};
 use nalgebra::{SMatrix, SVector};
 
 use super::bias::{nominal_powers_w, shared_in_tables, tie_block, BiasLayout, BiasMode};
+use super::resistance::Conversion;
 use super::resistance::{check_kinds, sensor_variances_k2, SensorKind};
 use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
 };
 use crate::error::BuildError;
+use crate::filter::GatePolicy;
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
+use crate::input::ScalarLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
+use crate::observer::consistency::{Band, StuckTest};
 use crate::observer::consistency::{BiasBound, Shadow};
 use crate::observer::snapshot::Fingerprint;
-use crate::observer::tables::{matrix, rows};
+use crate::observer::tables::{
+    below, bound_rows, finite as finite_values, finite_rows, invalid, matrix, rows, vector,
+    write_alarm, write_clock, write_limiter, AlarmTables, ClockTables, Fields, LimiterTables,
+};
 pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
@@ -116,6 +134,205 @@ pub struct NetworkParts<
     pub predictor: PredictorTables<N, B, M>,
     /// The shadow model.
     pub shadow: ShadowTables<N, B, M>,
+    /// What [`NetworkObserver::from_parts`] derives from everything above
+    /// (the filter's configuration, the protection, the fingerprint, ...),
+    /// solved on the host, so that [`NetworkObserver::from_assembled_parts`]
+    /// (a `const fn`) only copies it.
+    pub assembled: AssembledTables<N, M, X, P>,
+}
+
+/// What [`NetworkObserver::from_parts`] derives from a [`NetworkParts`]'
+/// settings and tables, in `f32` as the observer holds it: solved on the
+/// host by [`NetworkObserverBuilder::parts`] (which runs the derivation
+/// and keeps its result), checked against the derivation by
+/// [`NetworkObserver::from_parts`] (`assembled` when it differs), and
+/// copied by [`NetworkObserver::from_assembled_parts`], which computes
+/// nothing. Matrices row by row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AssembledTables<const N: usize, const M: usize, const X: usize, const P: usize> {
+    /// The filter's `F` (dimensionless; \[K/J\] in the bias columns).
+    pub f: [[f32; X]; X],
+    /// `H^T` (X x P).
+    pub ht: [[f32; P]; X],
+    /// The filter's process noise `Q` per model step \[K^2, K W, W^2\].
+    pub q: [[f32; X]; X],
+    /// Each sensor's noise variance `R` \[K^2\].
+    pub r: [f32; P],
+    /// The innovation gate's threshold (chi-square, 1 dof).
+    pub gate_threshold: f32,
+    /// Consecutive rejections that make a sensor suspect.
+    pub suspect_after: u16,
+    /// Corrections of rejected readings before the recovery widening.
+    pub recover_after: u16,
+    /// The recovery widening's variances.
+    pub recovery_variance: [f32; X],
+    /// The first of the trailing random-walk states.
+    pub walk_from: usize,
+    /// The alarm.
+    pub alarm: AlarmTables<f32, N>,
+    /// The limiter (per-element taper factors).
+    pub limiter: LimiterTables<f32, N>,
+    /// Each element's upper bound as a row: the share of its rise, `f / (1
+    /// + f)` and its offset \[K\].
+    pub bound: [[f32; 3]; N],
+    /// The bound's `k` (of `k sigma`).
+    pub k_sigma: f32,
+    /// The steady `sigma` in each node's bound \[K\].
+    pub bound_sigma_k: [f32; N],
+    /// The consistency band: its fixed part \[K\] and its share of the
+    /// rise.
+    pub band: [f32; 2],
+    /// The band's image on each heat-input bias \[W\] (`+inf`: none).
+    pub bias_offset_w: [f32; M],
+    /// The band's share of the Joule power on the biases.
+    pub bias_fraction: f32,
+    /// The stuck test's threshold \[K\].
+    pub stuck_threshold_k: f32,
+    /// The stuck test's tolerance \[K\].
+    pub stuck_tolerance_k: f32,
+    /// The stuck test's window (readings).
+    pub stuck_window: u32,
+    /// The input rules: the largest current \[A\], the lowest and the
+    /// highest boundary temperature \[degC\].
+    pub limits: [f32; 3],
+    /// The origin of the deviation coordinates \[degC\].
+    pub origin_c: f32,
+    /// Each current's hardware limit \[A\].
+    pub hardware_limit_a: [f32; M],
+    /// `max_cooling_bias_fraction`.
+    pub cooling_bias_fraction: f32,
+    /// The biases' decay per model step (0: random walks).
+    pub bias_decay_per_step: f32,
+    /// The boundary offset's decay per model step.
+    pub offset_decay_per_step: f32,
+    /// A bias or the offset decays.
+    pub decays: bool,
+    /// The sources sharing one heat bias.
+    pub shared_bias: [bool; M],
+    /// Each shared source's nominal Joule power \[W\] (0 for the others).
+    pub nominal_power_w: [f32; M],
+    /// Each resistance sensor's conversion (`None`: a thermocouple), as
+    /// `R(0 degC)` \[ohm\], `dR/dT` \[ohm/K\], the minimum current \[A\],
+    /// the lowest and the highest reading \[degC\].
+    pub resistance_sensors: [Option<[f32; 5]>; P],
+    /// How far below the shadow each sensor's screens take its node \[K\].
+    pub noise_allowance_k: [f32; P],
+    /// The model's clock.
+    pub clock: ClockTables,
+    /// No reading for this long makes a sensor silent \[us\].
+    pub silent_after_us: u32,
+    /// The protection cycle's period \[us\].
+    pub protect_period_us: u32,
+    /// The snapshot fingerprint.
+    pub fingerprint: u32,
+}
+
+impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTables<N, M, X, P> {
+    /// All zero: the tables before the derivation fills them (never an
+    /// observer's: [`NetworkObserver::from_parts`] refuses them).
+    const UNSOLVED: Self = Self {
+        f: [[0.0; X]; X],
+        ht: [[0.0; P]; X],
+        q: [[0.0; X]; X],
+        r: [0.0; P],
+        gate_threshold: 0.0,
+        suspect_after: 0,
+        recover_after: 0,
+        recovery_variance: [0.0; X],
+        walk_from: 0,
+        alarm: AlarmTables {
+            critical_c: [0.0; N],
+            derating_product: 0.0,
+            warning_margin_k: 0.0,
+            hysteresis_k: 0.0,
+            debounce_ticks: 0,
+            horizon_s: 0.0,
+            horizon_clear_s: 0.0,
+            nominal_ambient_c: 0.0,
+        },
+        limiter: LimiterTables {
+            hardware_limit_a: [0.0; N],
+            taper_k: 0.0,
+            taper_per_k: 0.0,
+            floor_a: 0.0,
+        },
+        bound: [[0.0; 3]; N],
+        k_sigma: 0.0,
+        bound_sigma_k: [0.0; N],
+        band: [0.0; 2],
+        bias_offset_w: [0.0; M],
+        bias_fraction: 0.0,
+        stuck_threshold_k: 0.0,
+        stuck_tolerance_k: 0.0,
+        stuck_window: 0,
+        limits: [0.0; 3],
+        origin_c: 0.0,
+        hardware_limit_a: [0.0; M],
+        cooling_bias_fraction: 0.0,
+        bias_decay_per_step: 0.0,
+        offset_decay_per_step: 0.0,
+        decays: false,
+        shared_bias: [false; M],
+        nominal_power_w: [0.0; M],
+        resistance_sensors: [None; P],
+        noise_allowance_k: [0.0; P],
+        clock: ClockTables {
+            step_us: 0,
+            max_steps_per_tick: 0,
+            frozen_flag_ticks: 0,
+            frozen_loss_ticks: 0,
+        },
+        silent_after_us: 0,
+        protect_period_us: 0,
+        fingerprint: 0,
+    };
+
+    /// Every `f32` finite (the gate's threshold may be `+inf`: no gate;
+    /// an unbounded bias is `+inf`) and the indices in range.
+    const fn is_valid(&self) -> bool {
+        let mut m = 0;
+        while m < M {
+            if self.bias_offset_w[m].is_nan() {
+                return false;
+            }
+            m += 1;
+        }
+        let mut j = 0;
+        while j < P {
+            if let Some(row) = &self.resistance_sensors[j] {
+                if !finite_values(row) {
+                    return false;
+                }
+            }
+            j += 1;
+        }
+        finite_rows(&self.f)
+            && finite_rows(&self.ht)
+            && finite_rows(&self.q)
+            && finite_values(&self.r)
+            && !self.gate_threshold.is_nan()
+            && finite_values(&self.recovery_variance)
+            && self.walk_from <= X
+            && self.alarm.is_finite()
+            && self.limiter.is_finite()
+            && finite_rows(&self.bound)
+            && finite_values(&self.bound_sigma_k)
+            && finite_values(&self.band)
+            && finite_values(&[
+                self.k_sigma,
+                self.bias_fraction,
+                self.stuck_tolerance_k,
+                self.origin_c,
+                self.cooling_bias_fraction,
+                self.bias_decay_per_step,
+                self.offset_decay_per_step,
+            ])
+            && !self.stuck_threshold_k.is_nan()
+            && finite_values(&self.limits)
+            && finite_values(&self.hardware_limit_a)
+            && finite_values(&self.nominal_power_w)
+            && finite_values(&self.noise_allowance_k)
+    }
 }
 
 fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
@@ -247,7 +464,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             dt_s * f64::from(timing.correction_period),
             s.origin_c,
         )?;
-        Ok(NetworkParts {
+        let mut parts = NetworkParts {
             settings: *s,
             sensor_nodes: self.sensor_nodes,
             critical_c: self.critical_c,
@@ -272,7 +489,13 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
                 gd_boundary: rows(&block.gd_boundary),
                 constant_k: block.constant_k.into(),
             },
-        })
+            assembled: AssembledTables::UNSOLVED,
+        };
+        // The assembly's derivations, once, here on the host: what
+        // `from_parts` checks the tables against and
+        // `from_assembled_parts` copies.
+        parts.assembled = NetworkObserver::derive(&parts, &self.sensor_kinds)?.assembled_tables();
+        Ok(parts)
     }
 }
 
@@ -573,8 +796,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// range (`sensor_nodes`, `source_node`, `winding_node`,
     /// `points_per_tick`), a non-finite table entry (`model`, `gain`,
     /// `predictor`), a gain solved for another correction period
-    /// (`gain.period`), or the limits (`critical_c`, `derating_product`,
-    /// `hardware_limit_a`).
+    /// (`gain.period`), the limits (`critical_c`, `derating_product`,
+    /// `hardware_limit_a`), or assembled tables that are not what it
+    /// derives (`assembled`).
     pub fn from_parts(parts: &NetworkParts<N, B, M, X, P>) -> Result<Self, BuildError> {
         Self::from_parts_with_sensors(parts, &SensorKind::thermocouples())
     }
@@ -591,6 +815,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// noises than these kinds' (a resistance sensor's tables assembled
     /// as thermocouples', or the reverse).
     pub fn from_parts_with_sensors(
+        parts: &NetworkParts<N, B, M, X, P>,
+        kinds: &[SensorKind; P],
+    ) -> Result<Self, BuildError> {
+        let observer = Self::derive(parts, kinds)?;
+        check(parts.assembled == observer.assembled_tables(), "assembled")?;
+        Ok(observer)
+    }
+
+    /// [`Self::from_parts_with_sensors`] but for the check of
+    /// [`NetworkParts::assembled`]: validates and derives everything in
+    /// `f64` (what [`NetworkObserverBuilder::parts`] runs on the host to
+    /// solve the assembled tables).
+    fn derive(
         parts: &NetworkParts<N, B, M, X, P>,
         kinds: &[SensorKind; P],
     ) -> Result<Self, BuildError> {
@@ -815,6 +1052,277 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             fingerprint: fingerprint.finish(),
         })
     }
+}
+
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
+    NetworkObserver<N, B, M, X, P>
+{
+    /// What this observer derived from its parts, as tables (see
+    /// [`AssembledTables`]).
+    fn assembled_tables(&self) -> AssembledTables<N, M, X, P> {
+        let k = &self.kalman;
+        let sh = &self.shadow;
+        AssembledTables {
+            f: rows(&k.f),
+            ht: rows(&k.ht),
+            q: rows(&k.q),
+            r: k.r.into(),
+            gate_threshold: k.gate.threshold,
+            suspect_after: k.gate.suspect_after,
+            recover_after: k.gate.recover_after,
+            recovery_variance: k.recovery_variance.into(),
+            walk_from: k.walk_from,
+            alarm: AlarmTables::of(&self.alarm),
+            limiter: LimiterTables::of(&self.limiter),
+            bound: bound_rows(&self.bound),
+            k_sigma: self.k_sigma,
+            bound_sigma_k: self.bound_sigma_k,
+            band: [sh.band.offset_k, sh.band.fraction],
+            bias_offset_w: sh.bias_bound.offset_w,
+            bias_fraction: sh.bias_bound.fraction,
+            stuck_threshold_k: self.stuck_test.threshold_k,
+            stuck_tolerance_k: self.stuck_test.tolerance_k,
+            stuck_window: self.stuck_test.window,
+            limits: [
+                self.limits.max_current_a,
+                self.limits.min_temp_c,
+                self.limits.max_temp_c,
+            ],
+            origin_c: self.origin_c,
+            hardware_limit_a: self.hardware_limit_a,
+            cooling_bias_fraction: self.cooling_bias_fraction,
+            bias_decay_per_step: self.bias_decay_per_step,
+            offset_decay_per_step: self.offset_decay_per_step,
+            decays: self.decays,
+            shared_bias: self.shared_bias,
+            nominal_power_w: self.nominal_power_w,
+            resistance_sensors: self.resistance_sensors.map(|c| c.map(|c| c.row())),
+            noise_allowance_k: self.noise_allowance_k,
+            clock: ClockTables::of(&self.clock),
+            silent_after_us: self.silent_after_us,
+            protect_period_us: self.protect_period_us,
+            fingerprint: self.fingerprint,
+        }
+    }
+
+    /// The observer of `parts` as [`Self::from_parts`] assembles it, copied
+    /// from [`NetworkParts::assembled`] and the tables: a `const fn` that
+    /// computes nothing, so a `static` initialised with it (what
+    /// `coil-thermal codegen` writes) is assembled by the compiler and the
+    /// firmware holds neither the assembly's code nor its `f64` routines.
+    /// The settings were validated on the host when the tables were solved
+    /// ([`NetworkObserverBuilder::parts`] runs the assembly), and
+    /// [`Self::from_parts`] of the same parts is this observer, to the bit,
+    /// or refuses them.
+    ///
+    /// # Errors
+    /// [`BuildError::InvalidParameter`] naming the first inconsistent part:
+    /// an index out of range (`sensor_nodes`, `source_node`,
+    /// `ambient_boundary`, `boundary_offset`, `predictor`), a non-finite
+    /// table entry (`model`, `gain`, `predictor`, `shadow`, `assembled`), a
+    /// gain or shadow solved for another correction period
+    /// (`gain.period`, `shadow.block_steps`), or a clock the tick cannot
+    /// run (`clock.step_us`, `clock.max_steps_per_tick`,
+    /// `clock.frozen_flag_ticks`, `clock.frozen_loss_ticks`).
+    pub const fn from_assembled_parts(
+        parts: &NetworkParts<N, B, M, X, P>,
+    ) -> Result<Self, BuildError> {
+        const {
+            assert!(
+                X == N + M || X == N + M + 1,
+                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
+            );
+            assert!(B >= 1, "a network needs a boundary (the ambient)");
+            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
+        };
+        let s = &parts.settings;
+        let (m, g, t, sh, a) = (
+            &parts.model,
+            &parts.gain,
+            &parts.predictor,
+            &parts.shadow,
+            &parts.assembled,
+        );
+        if !below(&parts.sensor_nodes, N) {
+            return Err(invalid("sensor_nodes"));
+        }
+        if !below(&m.source_node, N) {
+            return Err(invalid("source_node"));
+        }
+        if s.ambient_boundary >= B {
+            return Err(invalid("ambient_boundary"));
+        }
+        let offset_ok = match s.boundary_offset {
+            Some(b) => b < B && X == N + M + 1,
+            None => X == N + M,
+        };
+        if !offset_ok {
+            return Err(invalid("boundary_offset"));
+        }
+        let mut k = 0;
+        while k < M {
+            let r = &m.resistance[k];
+            if !(r.r_at_0c_ohm.is_finite() && r.slope_ohm_per_k.is_finite()) {
+                return Err(invalid("model"));
+            }
+            k += 1;
+        }
+        if !(finite_rows(&m.ad)
+            && finite_rows(&m.phi_minus_i)
+            && finite_rows(&m.bd_power)
+            && finite_rows(&m.gd_boundary)
+            && finite_values(&m.constant_k))
+        {
+            return Err(invalid("model"));
+        }
+        if g.period != sh.block_steps || g.period == 0 {
+            return Err(invalid("gain.period"));
+        }
+        if !(finite_rows(&g.gain)
+            && finite_rows(&g.prior)
+            && finite_rows(&g.posterior)
+            && finite_values(&g.innovation_var)
+            && finite_rows(&g.prior_ht)
+            && finite_rows(&g.innovation_cov))
+        {
+            return Err(invalid("gain"));
+        }
+        if !(below(&t.winding_node, N)
+            && t.points_per_tick >= 1
+            && t.points_per_tick <= PREDICTOR_POINTS + 1
+            && finite_values(&t.grid_s)
+            && finite_rows(&t.decay)
+            && finite_values(&t.lambda_per_s)
+            && finite_rows(&t.v)
+            && finite_rows(&t.v_inv)
+            && finite_rows(&t.gain_power)
+            && finite_rows(&t.mode_gain_power)
+            && finite_rows(&t.gain_boundary)
+            && finite_rows(&t.mode_gain_boundary)
+            && finite_values(&t.offset_c)
+            && finite_values(&t.mode_offset)
+            && finite_values(&t.winding_r_at_0c_ohm)
+            && finite_values(&t.winding_slope_ohm_per_k)
+            && t.tick_s.is_finite()
+            && t.tick_s > 0.0
+            && t.slowest_time_constant_s.is_finite())
+        {
+            return Err(invalid("predictor"));
+        }
+        if !(finite_rows(&sh.phi_minus_i)
+            && finite_rows(&sh.bd_power)
+            && finite_rows(&sh.gd_boundary)
+            && finite_values(&sh.constant_k))
+        {
+            return Err(invalid("shadow"));
+        }
+        if !a.is_valid() {
+            return Err(invalid("assembled"));
+        }
+        let clock = match a.clock.clock() {
+            Ok(clock) => clock,
+            Err(e) => return Err(e),
+        };
+        if clock.step_us != s.step_us || a.protect_period_us == 0 {
+            return Err(invalid("assembled"));
+        }
+        let mut resistance_sensors = [None; P];
+        let mut j = 0;
+        while j < P {
+            if let Some(row) = &a.resistance_sensors[j] {
+                resistance_sensors[j] = Some(Conversion::of_row(row));
+            }
+            j += 1;
+        }
+        let phi_minus_i = matrix(&sh.phi_minus_i);
+        Ok(Self {
+            phi_minus_i: matrix(&m.phi_minus_i),
+            bd_power: matrix(&m.bd_power),
+            gd_boundary: matrix(&m.gd_boundary),
+            constant_k: vector(&m.constant_k),
+            origin_c: a.origin_c,
+            source_node: m.source_node,
+            resistance: m.resistance,
+            kalman: KalmanConfig {
+                f: matrix(&a.f),
+                g: nalgebra::SMatrix::from_array_storage(nalgebra::ArrayStorage([[0.0; X]; 1])),
+                ht: matrix(&a.ht),
+                q: matrix(&a.q),
+                r: vector(&a.r),
+                gate: GatePolicy {
+                    threshold: a.gate_threshold,
+                    suspect_after: a.suspect_after,
+                    recover_after: a.recover_after,
+                },
+                recovery_variance: vector(&a.recovery_variance),
+                walk_from: a.walk_from,
+            },
+            gain: g.gain(),
+            sensor_nodes: parts.sensor_nodes,
+            resistance_sensors,
+            noise_allowance_k: a.noise_allowance_k,
+            limited: limited_of(&parts.critical_c),
+            incidence: parts.incidence,
+            hardware_limit_a: a.hardware_limit_a,
+            alarm: a.alarm.config(),
+            limiter: a.limiter.config(),
+            predictor: t.predictor(usize::MAX),
+            bound: crate::observer::tables::upper_bound(&a.bound),
+            k_sigma: a.k_sigma,
+            bound_sigma_k: a.bound_sigma_k,
+            shadow: Shadow {
+                phi_minus_i,
+                bd_power: matrix(&sh.bd_power),
+                gd_boundary: matrix(&sh.gd_boundary),
+                constant_k: vector(&sh.constant_k),
+                block_steps: sh.block_steps,
+                band: Band {
+                    offset_k: a.band[0],
+                    fraction: a.band[1],
+                },
+                bias_bound: BiasBound {
+                    offset_w: a.bias_offset_w,
+                    fraction: a.bias_fraction,
+                },
+            },
+            warmup_corrections: s.warmup_corrections,
+            cooling_bias_fraction: a.cooling_bias_fraction,
+            bias_decay_per_step: a.bias_decay_per_step,
+            offset_boundary: s.boundary_offset,
+            decays: a.decays,
+            offset_decay_per_step: a.offset_decay_per_step,
+            shared_bias: a.shared_bias,
+            nominal_power_w: a.nominal_power_w,
+            stuck_test: StuckTest {
+                threshold_k: a.stuck_threshold_k,
+                window: a.stuck_window,
+                tolerance_k: a.stuck_tolerance_k,
+            },
+            silent_after_us: a.silent_after_us,
+            clock,
+            limits: ScalarLimits {
+                max_current_a: a.limits[0],
+                min_temp_c: a.limits[1],
+                max_temp_c: a.limits[2],
+            },
+            ambient_boundary: s.ambient_boundary,
+            max_reading_age_us: s.max_reading_age_us,
+            step_us: s.step_us,
+            protect_period_us: a.protect_period_us,
+            fingerprint: a.fingerprint,
+        })
+    }
+}
+
+/// Which elements have a limit (`Some` critical temperature).
+const fn limited_of<const N: usize>(critical_c: &[Option<f64>; N]) -> [bool; N] {
+    let mut limited = [false; N];
+    let mut i = 0;
+    while i < N {
+        limited[i] = critical_c[i].is_some();
+        i += 1;
+    }
+    limited
 }
 
 /// Whether `g`'s innovation variances were solved with the sensor noises
@@ -1207,8 +1715,93 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         write!(out, ",\n{i2}constant_k: ")?;
         array(out, &sh.constant_k)?;
         writeln!(out, ",\n    }},")?;
+        out.write_str("    assembled: ")?;
+        write_assembled(out, &self.assembled)?;
         out.write_str("}")
     }
+}
+
+/// Writes `a` as an [`AssembledTables`] expression (and a comma).
+fn write_assembled<const N: usize, const M: usize, const X: usize, const P: usize>(
+    out: &mut dyn Write,
+    a: &AssembledTables<N, M, X, P>,
+) -> fmt::Result {
+    // Destructured whole: a field added to the tables is a compile error
+    // here, not a field silently left out of the generated file.
+    let AssembledTables {
+        f,
+        ht,
+        q,
+        r,
+        gate_threshold,
+        suspect_after,
+        recover_after,
+        recovery_variance,
+        walk_from,
+        alarm,
+        limiter,
+        bound,
+        k_sigma,
+        bound_sigma_k,
+        band,
+        bias_offset_w,
+        bias_fraction,
+        stuck_threshold_k,
+        stuck_tolerance_k,
+        stuck_window,
+        limits,
+        origin_c,
+        hardware_limit_a,
+        cooling_bias_fraction,
+        bias_decay_per_step,
+        offset_decay_per_step,
+        decays,
+        shared_bias,
+        nominal_power_w,
+        resistance_sensors,
+        noise_allowance_k,
+        clock,
+        silent_after_us,
+        protect_period_us,
+        fingerprint,
+    } = a;
+    let mut w = Fields::open(out, "observer::network::AssembledTables", 1)?;
+    w.table("f", f)?;
+    w.table("ht", ht)?;
+    w.table("q", q)?;
+    w.field("r", r)?;
+    w.field("gate_threshold", gate_threshold)?;
+    w.field("suspect_after", suspect_after)?;
+    w.field("recover_after", recover_after)?;
+    w.field("recovery_variance", recovery_variance)?;
+    w.field("walk_from", walk_from)?;
+    write_alarm(&mut w, "alarm", alarm)?;
+    write_limiter(&mut w, "limiter", limiter)?;
+    w.table("bound", bound)?;
+    w.field("k_sigma", k_sigma)?;
+    w.field("bound_sigma_k", bound_sigma_k)?;
+    w.field("band", band)?;
+    w.field("bias_offset_w", bias_offset_w)?;
+    w.field("bias_fraction", bias_fraction)?;
+    w.field("stuck_threshold_k", stuck_threshold_k)?;
+    w.field("stuck_tolerance_k", stuck_tolerance_k)?;
+    w.field("stuck_window", stuck_window)?;
+    w.field("limits", limits)?;
+    w.field("origin_c", origin_c)?;
+    w.field("hardware_limit_a", hardware_limit_a)?;
+    w.field("cooling_bias_fraction", cooling_bias_fraction)?;
+    w.field("bias_decay_per_step", bias_decay_per_step)?;
+    w.field("offset_decay_per_step", offset_decay_per_step)?;
+    w.field("decays", decays)?;
+    w.field("shared_bias", shared_bias)?;
+    w.field("nominal_power_w", nominal_power_w)?;
+    w.field("resistance_sensors", resistance_sensors)?;
+    w.field("noise_allowance_k", noise_allowance_k)?;
+    write_clock(&mut w, clock)?;
+    w.field("silent_after_us", silent_after_us)?;
+    w.field("protect_period_us", protect_period_us)?;
+    w.field("fingerprint", fingerprint)?;
+    w.close(false)
 }
 
 #[cfg(test)]
@@ -1248,6 +1841,12 @@ mod tests {
         let copied = parts();
         let assembled = NetworkObserver::from_parts(&copied).expect("assembles");
         assert_eq!(built.fingerprint(), assembled.fingerprint());
+        // The compiler's assembly (a `static` of a generated module: the
+        // same `const fn`) copies the same observer: every field to the bit (`{:?}` of a float
+        // reads back to its bits and tells -0.0 from 0.0).
+        let copied_here = NetworkObserver::from_assembled_parts(&copied).expect("assembles");
+        assert_eq!(format!("{built:?}"), format!("{copied_here:?}"));
+        assert_eq!(format!("{built:?}"), format!("{assembled:?}"));
         let mut a = built.state(&[20.0; 3], &[20.0]);
         let mut b = assembled.state(&[20.0; 3], &[20.0]);
         for tick in 0..20_000u32 {
@@ -1311,6 +1910,52 @@ mod tests {
         let mut p = parts();
         p.settings.step_us = 0;
         assert!(NetworkObserver::from_parts(&p).is_err());
+        // Assembled tables that are not the derivation's.
+        let mut p = parts();
+        p.assembled.fingerprint ^= 1;
+        assert_eq!(name(&p), "assembled");
+        let mut p = parts();
+        p.assembled.q[0][0] *= 2.0;
+        assert_eq!(name(&p), "assembled");
+    }
+
+    #[test]
+    fn the_compilers_assembly_refuses_inconsistent_parts_by_name() {
+        let name = |p: &Parts| match NetworkObserver::from_assembled_parts(p) {
+            Err(BuildError::InvalidParameter { name }) => name,
+            other => panic!(
+                "expected a refusal, got {:?}",
+                other.map(|o| o.fingerprint())
+            ),
+        };
+        let mut p = parts();
+        p.sensor_nodes = [3];
+        assert_eq!(name(&p), "sensor_nodes");
+        let mut p = parts();
+        p.model.source_node = [7];
+        assert_eq!(name(&p), "source_node");
+        let mut p = parts();
+        p.model.ad[1][2] = f32::NAN;
+        assert_eq!(name(&p), "model");
+        let mut p = parts();
+        p.gain.prior[3][3] = f32::INFINITY;
+        assert_eq!(name(&p), "gain");
+        let mut p = parts();
+        p.gain.period += 1;
+        assert_eq!(name(&p), "gain.period");
+        let mut p = parts();
+        p.predictor.winding_node = [3];
+        assert_eq!(name(&p), "predictor");
+        let mut p = parts();
+        p.shadow.constant_k[0] = f32::NAN;
+        assert_eq!(name(&p), "shadow");
+        let mut p = parts();
+        p.assembled.f[0][1] = f32::NAN;
+        assert_eq!(name(&p), "assembled");
+        let mut p = parts();
+        p.assembled.clock.step_us = 0;
+        assert_eq!(name(&p), "clock.step_us");
+        assert!(NetworkObserver::from_assembled_parts(&parts()).is_ok());
     }
 
     #[test]

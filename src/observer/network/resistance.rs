@@ -305,6 +305,32 @@ pub(super) struct Conversion {
 }
 
 impl Conversion {
+    /// The conversion as a row of the assembled tables
+    /// ([`super::AssembledTables::resistance_sensors`]): `R(0 degC)`
+    /// \[ohm\], `dR/dT` \[ohm/K\], the minimum current \[A\], the lowest and
+    /// the highest reading \[degC\].
+    pub(super) fn row(&self) -> [f32; 5] {
+        [
+            self.r_at_0c_ohm,
+            self.slope_ohm_per_k,
+            self.min_current_a,
+            self.min_c,
+            self.max_c,
+        ]
+    }
+
+    /// The conversion of a [`Self::row`], copied (a `const fn`, for an
+    /// observer assembled by the compiler).
+    pub(super) const fn of_row(row: &[f32; 5]) -> Self {
+        Self {
+            r_at_0c_ohm: row[0],
+            slope_ohm_per_k: row[1],
+            min_current_a: row[2],
+            min_c: row[3],
+            max_c: row[4],
+        }
+    }
+
     /// The reading of `resistance_ohm` \[ohm\] measured at `current_a`
     /// \[A\]: `None` below the minimum current, a fault for anything that
     /// is not a winding's resistance (see the module docs). No panic, no
