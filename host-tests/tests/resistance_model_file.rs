@@ -92,6 +92,11 @@ fn codegen_reproduces_the_committed_module_and_it_is_the_builders() {
                 .unwrap(),
         "codegen no longer reproduces examples/generated/drive_3node_resistance.rs"
     );
+    // It names the run-time assembly that equals its static: the one
+    // with the sensor kinds.
+    assert!(std::fs::read_to_string(&generated)
+        .unwrap()
+        .contains("`Observer::from_parts_with_sensors(&PARTS, &SENSOR_KINDS)` is"));
     // The tables are the builder's with the resistance sensor, and they
     // are refused as a thermocouple's (another noise, another gain).
     let network = model::network().unwrap();
@@ -107,6 +112,9 @@ fn codegen_reproduces_the_committed_module_and_it_is_the_builders() {
             .unwrap();
     let assembled = model::observer().unwrap();
     assert_eq!(built.fingerprint(), assembled.fingerprint());
+    let at_run_time =
+        NetworkObserver::from_parts_with_sensors(&model::PARTS, &model::SENSOR_KINDS).unwrap();
+    assert_eq!(built.fingerprint(), at_run_time.fingerprint());
     assert!(NetworkObserver::from_parts(&model::PARTS).is_err());
 }
 

@@ -770,9 +770,12 @@ pub fn generate(req: &CodegenRequest) -> Result<String> {
     o.push_str(parts.trim_end());
     o.push_str(";\n");
     if plan.has_resistance_sensor() {
+        // The compiler's assembly copies the resistance conversions from
+        // the assembled tables; the run-time assembly it names as its
+        // equal needs the sensor kinds (from_parts refuses these tables).
         o.push_str(&STATES_AND_SNAPSHOTS.replace(
-            "Observer::from_parts(&PARTS)",
-            "Observer::from_parts_with_sensors(&PARTS, &SENSOR_KINDS)",
+            "`Observer::from_parts(&PARTS)` is the same observer to the\n/// bit",
+            "`Observer::from_parts_with_sensors(&PARTS, &SENSOR_KINDS)` is\n/// the same observer to the bit",
         ));
     } else {
         o.push_str(STATES_AND_SNAPSHOTS);
