@@ -43,8 +43,12 @@ INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
 # thermocouples sit up to 3.7 K above the water outlet at rest, where no
 # heat explains it (docs/hust-trials.md, "A coolant offset that never cools"),
 # which the copper disturbance alone took for heat in the copper; an
-# offset may warm the model, like the disturbances, never cool it.
-FUSE7=(--measure endwind_1=end_winding --measurement-noise-k 0.2 --disturbance active_winding,slot_centre,end_winding
+# offset may warm the model, like the disturbances, never cool it. The
+# temperatures' own process noise is the replay's default, 1e-4 K^2/s,
+# given explicitly: the model file's `[observer] node_noise_k2_per_s`
+# (1e-3, the firmware observer's, which has no disturbance states to
+# carry the model's error) would otherwise be taken as this filter's too.
+FUSE7=(--measure endwind_1=end_winding --measurement-noise-k 0.2 --process-noise-k2-per-s 1e-4 --disturbance active_winding,slot_centre,end_winding
   --disturbance stator_teeth,stator_yoke --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
   --disturbance-floor-share 0 --boundary-offset coolant --boundary-offset-std-k 2 --boundary-offset-tau-s 7200
   --boundary-offset-floor-k 0)

@@ -70,6 +70,9 @@ impl FirmwareConfig {
         if let Some(v) = table.sensor_sigma_k {
             settings.sensor_sigma_k = v;
         }
+        if let Some(v) = table.node_noise_k2_per_s {
+            settings.node_noise_k2_per_s = v;
+        }
         if let Some(v) = table.correction_period_s {
             settings.correction_period_s = v;
         }

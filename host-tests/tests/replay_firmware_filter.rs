@@ -267,8 +267,11 @@ fn the_model_files_sensor_noise_is_the_replays_default() {
 ///   host, at every second;
 /// * the thermocouple, 2.5 K above open loop after five minutes (a heat
 ///   the model lacks), pulls the end winding more than half way (at the
-///   file's declared 0.5 K noise) and the copper's heat bias takes the
-///   heat up.
+///   file's declared 0.5 K noise, to 0.16 K) and the copper's heat bias
+///   takes up heat (2.69 W after five minutes, at the library's default
+///   bias noise: with the file's node noise, 1.5e-3 K^2/s, the temperatures
+///   take most of the correction; at the default 1e-4 the bias reached
+///   12.12 W).
 #[test]
 fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
     use motor_drive::{drive, AMBIENT_C, SECONDS};
@@ -326,7 +329,7 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
         summary.end_error_k < 0.5 * summary.open_error_k,
         "{summary:?}"
     );
-    assert!(summary.copper_bias_w > 5.0, "{summary:?}");
+    assert!(summary.copper_bias_w > 1.0, "{summary:?}");
 }
 
 /// The generated currents of the real motor: the speed by magnitude (a

@@ -224,9 +224,9 @@
 //! 7 336 B where the network observer keeps its tables in flash), its
 //! install between ticks (3 372 instructions, QEMU `observer_m4`) and the
 //! watchdog's add and compare on every tick, work the linear network
-//! observer's tick (network_roundtrip 456 mean / 1 146 worst,
-//! motor_qemu 1 728 / 4 376 against a ceiling of 1 730 / 4 405) has no
-//! room for. What both can share they share (above); what follows from a
+//! observer's tick (network_roundtrip 389 mean / 1 074 worst,
+//! motor_qemu 1 173 / 3 435, ticking their generated `static OBSERVER`)
+//! has no room for. What both can share they share (above); what follows from a
 //! nonlinear plant stays here.
 //!
 //! # Warm restart and the latch

@@ -90,6 +90,11 @@ pub struct ObserverSpec {
     /// Thermocouple noise standard deviation \[K\] (default 0.25).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_sigma_k: Option<f64>,
+    /// Growth rate of each node's temperature variance \[K^2/s\] (the
+    /// model's error in its heat balance; default 1e-4, see
+    /// `NetworkSettings::node_noise_k2_per_s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node_noise_k2_per_s: Option<f64>,
     /// Time between thermocouple samples the gain is solved for \[s\]
     /// (default 0.5).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -481,6 +486,9 @@ impl Plan {
         }
         if let Some(v) = s.sensor_sigma_k {
             fields.push(format!("sensor_sigma_k: {v:?}"));
+        }
+        if let Some(v) = s.node_noise_k2_per_s {
+            fields.push(format!("node_noise_k2_per_s: {v:?}"));
         }
         if let Some(v) = s.correction_period_s {
             fields.push(format!("correction_period_s: {v:?}"));
