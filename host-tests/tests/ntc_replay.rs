@@ -18,6 +18,8 @@ use assert_cmd::cargo::cargo_bin_cmd;
 use coil_thermal::sensors::resistive::{Divider, ResistiveInput, Sensor, Topology};
 use tempfile::TempDir;
 
+mod common;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -184,7 +186,6 @@ fn raw_trace_counts(bench: &str) -> Vec<(f32, f32, u32)> {
 /// its counts, given to the second's first tick): per row, the nodes'
 /// estimates and the winding's and the housing's upper bounds \[degC\].
 fn generated(rows: &[(f32, f32, u32)]) -> Vec<([f32; 3], [f32; 2])> {
-    use coil_thermal::observer::network::NetworkInputs;
     use coil_thermal::observer::TimedReading;
     let observer = model::observer().unwrap();
     let mut state = model::initial_state(&observer, rows[0].1);
@@ -196,25 +197,23 @@ fn generated(rows: &[(f32, f32, u32)]) -> Vec<([f32; 3], [f32; 2])> {
     let mut now_us: u32 = 0;
     for (current_a, ambient_c, counts) in &rows[..rows.len() - 1] {
         let currents_a = model::source_currents_a(&[*current_a], &[]);
-        for k in 0..1000 {
-            now_us += 1000;
-            let readings = [if k == 0 {
+        let reading = |now_us| {
+            [
                 model::convert_counts(0, *counts).map(|result| TimedReading {
                     result,
                     sampled_at_us: now_us,
-                })
-            } else {
-                None
-            }];
-            let inputs = NetworkInputs {
-                currents_a,
-                boundary_c: [*ambient_c],
-                readings,
-                now_us,
-                elapsed_us: 1000,
-            };
-            observer.tick(&mut state, &inputs);
-        }
+                }),
+            ]
+        };
+        common::tick_row(
+            &observer,
+            &mut state,
+            currents_a,
+            [*ambient_c],
+            reading,
+            &mut now_us,
+            &mut Vec::new(),
+        );
         out.push(row(&state));
     }
     out

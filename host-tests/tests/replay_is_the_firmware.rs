@@ -18,7 +18,6 @@
 use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
-use coil_thermal::observer::network::NetworkInputs;
 use coil_thermal::observer::TimedReading;
 use coil_thermal::Reading;
 use serde_json::Value;
@@ -82,30 +81,21 @@ fn generated() -> (Vec<Row>, Vec<Event>) {
     let mut now_us: u32 = 0;
     for [current_a, ambient_c, _, housing_tc] in &rows[..rows.len() - 1] {
         let currents_a = model::source_currents_a(&[*current_a * CURRENT_SCALE], &[]);
-        for k in 0..1000 {
-            now_us += 1000;
-            let readings = [(k == 0).then_some(TimedReading {
+        let reading = |now_us| {
+            [Some(TimedReading {
                 result: Ok(Reading::new(*housing_tc)),
                 sampled_at_us: now_us,
-            })];
-            let inputs = NetworkInputs {
-                currents_a,
-                boundary_c: [*ambient_c],
-                readings,
-                now_us,
-                elapsed_us: 1000,
-            };
-            observer.tick(&mut state, &inputs);
-            while let Some(e) = state.events.pop() {
-                let (level, kind) = common::event_words(e.kind);
-                events.push((
-                    f64::from(now_us) * 1e-6,
-                    level.to_string(),
-                    kind.to_string(),
-                    e.element,
-                ));
-            }
-        }
+            })]
+        };
+        common::tick_row(
+            &observer,
+            &mut state,
+            currents_a,
+            [*ambient_c],
+            reading,
+            &mut now_us,
+            &mut events,
+        );
         out.push(row(&state, *ambient_c));
     }
     (out, events)

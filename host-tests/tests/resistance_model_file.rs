@@ -23,7 +23,7 @@
 use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
-use coil_thermal::observer::network::{NetworkInputs, NetworkObserver};
+use coil_thermal::observer::network::NetworkObserver;
 use coil_thermal_host::synth::Rng;
 use serde_json::Value;
 use tempfile::TempDir;
@@ -159,31 +159,16 @@ fn generated() -> (Vec<Row>, Events, Vec<f64>) {
     for r in &rows[..rows.len() - 1] {
         let (current_a, ambient_c, ohm) = (r[1] as f32, r[2] as f32, r[5] as f32);
         let currents_a = model::source_currents_a(&[current_a], &[]);
-        for k in 0..1000 {
-            now_us += 1000;
-            let readings = [if k == 0 {
-                observer.resistance_reading(0, ohm, current_a, now_us)
-            } else {
-                None
-            }];
-            let inputs = NetworkInputs {
-                currents_a,
-                boundary_c: [ambient_c],
-                readings,
-                now_us,
-                elapsed_us: 1000,
-            };
-            observer.tick(&mut state, &inputs);
-            while let Some(e) = state.events.pop() {
-                let (level, kind) = common::event_words(e.kind);
-                events.push((
-                    f64::from(now_us) * 1e-6,
-                    level.to_string(),
-                    kind.to_string(),
-                    e.element,
-                ));
-            }
-        }
+        let reading = |now_us| [observer.resistance_reading(0, ohm, current_a, now_us)];
+        common::tick_row(
+            &observer,
+            &mut state,
+            currents_a,
+            [ambient_c],
+            reading,
+            &mut now_us,
+            &mut events,
+        );
         out.push(row(&state));
     }
     (out, events, rows.iter().map(|r| r[3]).collect())

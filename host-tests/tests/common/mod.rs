@@ -52,3 +52,44 @@ pub fn json_events(json: &serde_json::Value) -> Vec<ListedEvent<String>> {
         })
         .collect()
 }
+
+/// One trace row as `replay` hands it to the firmware's observer: 1000
+/// ticks of 1 ms with the row's `currents_a` \[A\] and `boundary_c`
+/// \[degC\] held, `readings_at(now_us)` (the row's sensor readings, sampled
+/// at that time \[us\]) given to the first tick only, `now_us` advanced;
+/// each event the ticks raise is pushed with its time \[s\].
+#[allow(dead_code)]
+pub fn tick_row<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+    observer: &coil_thermal::observer::network::NetworkObserver<N, B, M, X, P>,
+    state: &mut coil_thermal::observer::network::NetworkObserverState<N, B, M, X, P>,
+    currents_a: [f32; M],
+    boundary_c: [f32; B],
+    readings_at: impl Fn(u32) -> [Option<coil_thermal::observer::TimedReading>; P],
+    now_us: &mut u32,
+    events: &mut Vec<ListedEvent<usize>>,
+) {
+    for k in 0..1000 {
+        *now_us += 1000;
+        let inputs = coil_thermal::observer::network::NetworkInputs {
+            currents_a,
+            boundary_c,
+            readings: if k == 0 {
+                readings_at(*now_us)
+            } else {
+                [None; P]
+            },
+            now_us: *now_us,
+            elapsed_us: 1000,
+        };
+        observer.tick(state, &inputs);
+        while let Some(e) = state.events.pop() {
+            let (level, kind) = event_words(e.kind);
+            events.push((
+                f64::from(*now_us) * 1e-6,
+                level.to_string(),
+                kind.to_string(),
+                e.element,
+            ));
+        }
+    }
+}
