@@ -100,17 +100,16 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         let network = padded_with::<C>(&model.network, Padding::DECAYING).map_err(invalid)?;
         let mut slots = [0; P];
         slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
-        let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
-        // Each sensor's kind, as `codegen` solves the tables with it (a
-        // resistance with its own noise).
-        let mut kinds = [SensorKind::Thermocouple; P];
-        kinds[..firmware.sensor_kinds.len()].copy_from_slice(&firmware.sensor_kinds);
         let mut critical = [None; C];
         critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
         // The firmware's settings (the `[observer]` table over codegen's
         // defaults, as `replay` and `codegen` resolve them), with the
         // campaign's step, reading period, stuck tolerance and origin.
         let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
+        // Each sensor's kind, as `codegen` solves the tables with it (a
+        // resistance with its own noise).
+        let mut kinds = [SensorKind::Thermocouple; P];
+        kinds[..firmware.sensor_kinds.len()].copy_from_slice(&firmware.sensor_kinds);
         if firmware.settings.boundary_offset.is_some() {
             return Err(FaultError::Invalid(format!(
                 "model `{}`: [observer] boundary_offset adds a state the campaign's observer sizes have no room for; \
