@@ -65,9 +65,11 @@ pub struct RawColumn {
     pub slot: usize,
     /// The sensor's conversion.
     pub sensor: Conversion,
-    /// The faults met, by kind, with their count (and a resistance's
-    /// readings below its least current, as `BelowLeastCurrent`).
+    /// The faults met, by kind, with their count.
     pub faults: BTreeMap<String, usize>,
+    /// A resistance's values measured below its least current (no
+    /// reading, not a fault).
+    pub below_least_current: usize,
 }
 
 /// A row source whose raw columns come out as temperatures \[degC\] or
@@ -129,7 +131,7 @@ impl RowSource for ConvertedRows<'_> {
                     f64::NAN
                 }
                 None => {
-                    *c.faults.entry("BelowLeastCurrent".into()).or_default() += 1;
+                    c.below_least_current += 1;
                     f64::NAN
                 }
             };
@@ -147,21 +149,15 @@ pub fn report(columns: &[RawColumn]) -> Vec<String> {
     columns
         .iter()
         .map(|c| {
-            let below = c.faults.get("BelowLeastCurrent").copied();
-            let faults: Vec<String> = c
-                .faults
-                .iter()
-                .filter(|(k, _)| k.as_str() != "BelowLeastCurrent")
-                .map(|(k, n)| format!("{k} {n}"))
-                .collect();
+            let faults: Vec<String> = c.faults.iter().map(|(k, n)| format!("{k} {n}")).collect();
             let what = match &c.sensor {
                 Conversion::Adc(_) => "raw counts",
                 Conversion::Resistance { .. } => "resistance [ohm]",
             };
-            let below = match (&c.sensor, below) {
-                (Conversion::Resistance { sensor, .. }, Some(n)) => format!(
-                    "; {n} below the least current ({} A): no reading",
-                    sensor.min_current_a
+            let below = match &c.sensor {
+                Conversion::Resistance { sensor, .. } if c.below_least_current > 0 => format!(
+                    "; {} below the least current ({} A): no reading",
+                    c.below_least_current, sensor.min_current_a
                 ),
                 _ => String::new(),
             };

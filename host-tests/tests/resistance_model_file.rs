@@ -250,3 +250,45 @@ fn replay_is_the_generated_module_and_holds_the_winding_within_1_k() {
     eprintln!("winding against the bench thermocouple: worst {worst:.3} K");
     assert!(worst < 1.0, "{worst}");
 }
+
+/// `replay` reads the ohms as the firmware does: a row below the sensor's
+/// least current (0.5 A) is no reading, a resistance that cannot be the
+/// winding's (negative, far too high) a fault; both counted in the
+/// summary, neither fused.
+#[test]
+fn replay_counts_readings_below_the_least_current_and_faults() {
+    let text = std::fs::read_to_string(root().join(TRACE)).unwrap();
+    let mut edited = String::new();
+    for (k, line) in text.lines().enumerate() {
+        let mut f: Vec<String> = line.split(',').map(String::from).collect();
+        match k {
+            // Rows 100..110 at 0.2 A; rows 200..205 a sign error, rows
+            // 300..303 an open lead's 100 ohm (far above 300 degC).
+            101..=110 => f[1] = "0.2".into(),
+            201..=205 => f[5] = "-1.25".into(),
+            301..=303 => f[5] = "100".into(),
+            _ => {}
+        }
+        edited.push_str(&f.join(","));
+        edited.push('\n');
+    }
+    let tmp = TempDir::new().unwrap();
+    let trace = tmp.path().join("edited.csv");
+    std::fs::write(&trace, edited).unwrap();
+    let out = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(root().join("host-tests/models/drive-3node-resistance.toml"))
+        .arg("--trace")
+        .arg(&trace)
+        .args(["--measure", "winding_ohm=winding"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(
+        stdout.contains(
+            "resistance [ohm] `winding_ohm` (resistance, the library's conversion): faults, not fused, never read as temperatures: OutOfRange 8; 10 below the least current (0.5 A): no reading"
+        ),
+        "{stdout}"
+    );
+}

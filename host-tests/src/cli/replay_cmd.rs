@@ -1671,6 +1671,7 @@ fn converted_columns(
                 slot: m.slot,
                 sensor,
                 faults: Default::default(),
+                below_least_current: 0,
             })
         })
         .collect()
