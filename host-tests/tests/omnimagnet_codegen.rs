@@ -124,18 +124,18 @@ fn nan_limits_and_bias_bounds_are_refused() {
     let refused = |parts: &coil_thermal::observer::omnimagnet::OmniParts| {
         matches!(
             OmniObserver::from_parts(parts),
-            Err(BuildError::InvalidParameter { name }) if name == "bias_offset_w" || name == "limits"
+            Err(BuildError::InvalidParameter { name }) if name == "checks" || name == "limits"
         )
     };
     let mut p = generated::PARTS;
-    p.bias_offset_w[2] = f32::NAN;
+    p.checks.bias_offset_w[2] = f32::NAN;
     assert!(refused(&p));
     let mut p = generated::PARTS;
     p.max_current_a = f32::NAN;
     assert!(refused(&p));
     // An unbounded bias is `+inf`, and accepted.
     let mut p = generated::PARTS;
-    p.bias_offset_w[0] = f32::INFINITY;
+    p.checks.bias_offset_w[0] = f32::INFINITY;
     assert!(OmniObserver::from_parts(&p).is_ok());
 }
 

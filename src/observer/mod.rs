@@ -55,5 +55,5 @@ pub use shared::{Mailbox, Shared};
 pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
-pub use tables::{AlarmTables, ClockTables, LimiterTables};
+pub use tables::{AlarmTables, ChecksTables, ClockTables, KalmanTables, LimiterTables, StepTables};
 pub use vocabulary::{FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY};

@@ -3,16 +3,20 @@
 //! parts as Rust.
 //!
 //! Each observer kept in flash ([`OmniParts`](super::omnimagnet::OmniParts),
-//! [`GridParts`](super::grid::GridParts)) is read into plain tables by its
-//! `parts()`, written as a Rust expression by its `write_rust` (through
-//! [`Fields`] and [`Literal`] here, so every generated file spells values
-//! the same way: floats as the shortest text that reads back to the same
-//! bits) and assembled again by its `const fn from_parts`, which copies
-//! and checks but computes nothing (see the Omnimagnet's parts).
+//! [`GridParts`](super::grid::GridParts),
+//! [`NetworkParts`](super::network::NetworkParts)) is read into plain
+//! tables by its `parts()`, written as a Rust expression by its
+//! `write_rust` (through [`Fields`] and [`Literal`] here, so every
+//! generated file spells values the same way: floats as the shortest text
+//! that reads back to the same bits) and assembled again by a `const fn`
+//! (`from_parts`, the network's `from_assembled_parts`), which copies and
+//! checks but computes nothing (see the Omnimagnet's parts).
 //!
 //! The filtered observers (the network's, the Omnimagnet's) share the
-//! steady-state gain's and the time-to-limit predictor's tables
-//! ([`GainTables`], [`PredictorTables`]).
+//! filter's, the steady-state gain's and the time-to-limit predictor's
+//! tables ([`KalmanTables`], [`GainTables`], [`PredictorTables`]): each
+//! with its reading (`of`), its `const` check, its `const` copy into the
+//! configuration and its writer, here once.
 //!
 //! The alarm and the limiter are generic over the scalar: their tables
 //! ([`AlarmTables`], [`LimiterTables`]) and the upper bound's rows are
@@ -22,10 +26,13 @@
 use core::fmt::{self, Write};
 
 use super::clock::StepClock;
+use super::consistency::{Band, BiasBound, StuckTest};
 use crate::error::BuildError;
+use crate::filter::{GatePolicy, KalmanConfig};
 use crate::protect::alarm::AlarmConfig;
 use crate::protect::limiter::LimiterConfig;
 use crate::protect::margin::{ElementBound, UpperBound};
+use crate::protect::predict::{LimitPredictor, Winding};
 use crate::scalar::Scalar;
 
 /// Horizons of the time-to-limit predictor (both filtered observers').
@@ -65,9 +72,7 @@ impl<const X: usize, const P: usize> GainTables<X, P> {
             innovation_cov: rows(&gain.innovation_cov),
         }
     }
-}
 
-impl<const X: usize, const P: usize> GainTables<X, P> {
     /// The gain these tables hold (a `const fn` that only moves values,
     /// for a configuration in flash).
     pub(crate) const fn gain(&self) -> crate::filter::SteadyStateGain<f32, X, P> {
@@ -80,6 +85,227 @@ impl<const X: usize, const P: usize> GainTables<X, P> {
             prior_ht: matrix(&self.prior_ht),
             innovation_cov: matrix(&self.innovation_cov),
         }
+    }
+
+    /// Every entry finite.
+    pub(crate) const fn is_finite(&self) -> bool {
+        finite_rows(&self.gain)
+            && finite_rows(&self.prior)
+            && finite_rows(&self.posterior)
+            && finite(&self.innovation_var)
+            && finite_rows(&self.prior_ht)
+            && finite_rows(&self.innovation_cov)
+    }
+}
+
+/// A [`KalmanConfig`] as data but for its input matrix `G` (the
+/// network's is a placeholder column, the Omnimagnet's its own table):
+/// `X` states, `P` sensors, rows first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KalmanTables<const X: usize, const P: usize> {
+    /// The filter's `F` (dimensionless; \[K/J\] or \[K/W\] in the bias
+    /// columns).
+    pub f: [[f32; X]; X],
+    /// `H^T` (X x P, dimensionless).
+    pub ht: [[f32; P]; X],
+    /// The filter's process noise `Q` per model step \[K^2, K W, W^2\].
+    pub q: [[f32; X]; X],
+    /// Each sensor's noise variance `R` \[K^2\].
+    pub r: [f32; P],
+    /// The innovation gate's threshold on `nu^2 / S` (chi-square, 1 dof;
+    /// `+inf`: no gate).
+    pub gate_threshold: f32,
+    /// Consecutive rejections that make a sensor suspect.
+    pub suspect_after: u16,
+    /// Consecutive all-rejected corrections before the recovery widening.
+    pub recover_after: u16,
+    /// The recovery widening's variances \[K^2, W^2\].
+    pub recovery_variance: [f32; X],
+    /// The first of the trailing random-walk states (unit rows of `F`).
+    pub walk_from: usize,
+}
+
+impl<const X: usize, const P: usize> KalmanTables<X, P> {
+    /// All zero (a placeholder before a derivation fills it).
+    pub(crate) const ZERO: Self = Self {
+        f: [[0.0; X]; X],
+        ht: [[0.0; P]; X],
+        q: [[0.0; X]; X],
+        r: [0.0; P],
+        gate_threshold: 0.0,
+        suspect_after: 0,
+        recover_after: 0,
+        recovery_variance: [0.0; X],
+        walk_from: 0,
+    };
+
+    /// The tables of `k` (its `G` left out).
+    pub(crate) fn of<const U: usize>(k: &KalmanConfig<f32, X, U, P>) -> Self {
+        Self {
+            f: rows(&k.f),
+            ht: rows(&k.ht),
+            q: rows(&k.q),
+            r: k.r.into(),
+            gate_threshold: k.gate.threshold,
+            suspect_after: k.gate.suspect_after,
+            recover_after: k.gate.recover_after,
+            recovery_variance: k.recovery_variance.into(),
+            walk_from: k.walk_from,
+        }
+    }
+
+    /// The configuration of these tables with the input matrix `g`,
+    /// copied (no checks: [`Self::is_valid`] is the callers').
+    pub(crate) const fn config<const U: usize>(
+        &self,
+        g: nalgebra::SMatrix<f32, X, U>,
+    ) -> KalmanConfig<f32, X, U, P> {
+        KalmanConfig {
+            f: matrix(&self.f),
+            g,
+            ht: matrix(&self.ht),
+            q: matrix(&self.q),
+            r: vector(&self.r),
+            gate: GatePolicy {
+                threshold: self.gate_threshold,
+                suspect_after: self.suspect_after,
+                recover_after: self.recover_after,
+            },
+            recovery_variance: vector(&self.recovery_variance),
+            walk_from: self.walk_from,
+        }
+    }
+
+    /// Every entry finite (the gate's threshold may be `+inf`: no gate)
+    /// and `walk_from` within the state.
+    pub(crate) const fn is_valid(&self) -> bool {
+        finite_rows(&self.f)
+            && finite_rows(&self.ht)
+            && finite_rows(&self.q)
+            && finite(&self.r)
+            && !self.gate_threshold.is_nan()
+            && finite(&self.recovery_variance)
+            && self.walk_from <= X
+    }
+}
+
+/// The sensor checks' configuration as data (see
+/// [`SensorChecks`](super::SensorChecks)): the consistency band, its image
+/// on the `M` heat-input biases, the stuck test and silence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChecksTables<const M: usize> {
+    /// The consistency band's fixed part \[K\] and its share of the rise
+    /// (dimensionless).
+    pub band: [f32; 2],
+    /// The band's image on each heat-input bias \[W\] (`+inf`: unbounded).
+    pub bias_offset_w: [f32; M],
+    /// The bias bound's share of the Joule power (dimensionless).
+    pub bias_fraction: f32,
+    /// The stuck test's threshold \[K\].
+    pub stuck_threshold_k: f32,
+    /// The stuck test's tolerance for an unchanged reading \[K\].
+    pub stuck_tolerance_k: f32,
+    /// The stuck test's window (readings).
+    pub stuck_window: u32,
+    /// No reading for this long makes a sensor silent \[us\].
+    pub silent_after_us: u32,
+}
+
+impl<const M: usize> ChecksTables<M> {
+    /// All zero (a placeholder before a derivation fills it).
+    pub(crate) const ZERO: Self = Self {
+        band: [0.0; 2],
+        bias_offset_w: [0.0; M],
+        bias_fraction: 0.0,
+        stuck_threshold_k: 0.0,
+        stuck_tolerance_k: 0.0,
+        stuck_window: 0,
+        silent_after_us: 0,
+    };
+
+    pub(crate) fn of(
+        band: &Band,
+        bias_bound: &BiasBound<M>,
+        stuck_test: &StuckTest,
+        silent_after_us: u32,
+    ) -> Self {
+        Self {
+            band: [band.offset_k, band.fraction],
+            bias_offset_w: bias_bound.offset_w,
+            bias_fraction: bias_bound.fraction,
+            stuck_threshold_k: stuck_test.threshold_k,
+            stuck_tolerance_k: stuck_test.tolerance_k,
+            stuck_window: stuck_test.window,
+            silent_after_us,
+        }
+    }
+
+    pub(crate) const fn band(&self) -> Band {
+        Band {
+            offset_k: self.band[0],
+            fraction: self.band[1],
+        }
+    }
+
+    pub(crate) const fn bias_bound(&self) -> BiasBound<M> {
+        BiasBound {
+            offset_w: self.bias_offset_w,
+            fraction: self.bias_fraction,
+        }
+    }
+
+    pub(crate) const fn stuck_test(&self) -> StuckTest {
+        StuckTest {
+            threshold_k: self.stuck_threshold_k,
+            window: self.stuck_window,
+            tolerance_k: self.stuck_tolerance_k,
+        }
+    }
+
+    /// The band finite, no NaN bias bound (an unbounded bias is `+inf`; a
+    /// NaN would silently drop the bound), no NaN threshold (`+inf`: no
+    /// stuck test) and a finite, non-negative tolerance.
+    pub(crate) const fn is_valid(&self) -> bool {
+        let mut m = 0;
+        while m < M {
+            if self.bias_offset_w[m].is_nan() {
+                return false;
+            }
+            m += 1;
+        }
+        finite(&self.band)
+            && self.bias_fraction.is_finite()
+            && !self.stuck_threshold_k.is_nan()
+            && self.stuck_tolerance_k.is_finite()
+            && self.stuck_tolerance_k >= 0.0
+    }
+}
+
+/// One step of a network's exact zero-order hold in the network
+/// observer's deviation coordinates (see "f32 without drift" in
+/// [`network`](super::network)): the model's step
+/// ([`ModelTables`](super::network::ModelTables)) or the shadow's block of
+/// a correction period ([`ShadowTables`](super::network::ShadowTables)),
+/// every entry solved in `f64` and rounded once to `f32`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepTables<const N: usize, const B: usize, const M: usize> {
+    /// `Ad - I`, formed in `f64` (dimensionless).
+    pub phi_minus_i: [[f32; N]; N],
+    /// `Bd` of the Joule powers over the step \[K/W\].
+    pub bd_power: [[f32; M]; N],
+    /// `Gd` of the boundaries (dimensionless).
+    pub gd_boundary: [[f32; B]; N],
+    /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
+    pub constant_k: [f32; N],
+}
+
+impl<const N: usize, const B: usize, const M: usize> StepTables<N, B, M> {
+    /// Every entry finite.
+    pub(crate) const fn is_finite(&self) -> bool {
+        finite_rows(&self.phi_minus_i)
+            && finite_rows(&self.bd_power)
+            && finite_rows(&self.gd_boundary)
+            && finite(&self.constant_k)
     }
 }
 
@@ -151,6 +377,101 @@ pub struct PredictorTables<const N: usize, const B: usize, const M: usize> {
     pub points_per_tick: usize,
     /// The network's slowest time constant \[s\].
     pub slowest_time_constant_s: f64,
+}
+
+impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
+    /// The tables of `predictor`, the inverse of [`Self::predictor`] (the
+    /// per-tick element budget is a setting, not a table).
+    pub(crate) fn of(predictor: &LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>) -> Self {
+        Self {
+            grid_s: predictor.grid_s,
+            decay: predictor.decay,
+            lambda_per_s: predictor.lambda_per_s,
+            v: predictor.v,
+            v_inv: predictor.v_inv,
+            gain_power: predictor.gain_power,
+            mode_gain_power: predictor.mode_gain_power,
+            gain_boundary: predictor.gain_boundary,
+            mode_gain_boundary: predictor.mode_gain_boundary,
+            offset_c: predictor.offset_c,
+            mode_offset: predictor.mode_offset,
+            winding_node: predictor.windings.map(|w| w.node),
+            winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
+            winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
+            tick_s: predictor.tick_s,
+            points_per_tick: predictor.points_per_tick,
+            slowest_time_constant_s: predictor.slowest_time_constant_s,
+        }
+    }
+
+    /// The predictor of these tables, evaluating `elements_per_tick`
+    /// elements per tick (`usize::MAX`: all). Copies, no arithmetic and no
+    /// checks (the callers check): a `const fn`, so the Omnimagnet's
+    /// configuration can be assembled by the compiler.
+    pub(crate) const fn predictor(
+        &self,
+        elements_per_tick: usize,
+    ) -> LimitPredictor<f32, N, B, M, PREDICTOR_POINTS> {
+        let mut windings = [Winding {
+            node: 0,
+            r_at_0c_ohm: 0.0,
+            slope_ohm_per_k: 0.0,
+        }; M];
+        let mut m = 0;
+        while m < M {
+            windings[m] = Winding {
+                node: self.winding_node[m],
+                r_at_0c_ohm: self.winding_r_at_0c_ohm[m],
+                slope_ohm_per_k: self.winding_slope_ohm_per_k[m],
+            };
+            m += 1;
+        }
+        LimitPredictor {
+            grid_s: self.grid_s,
+            decay: self.decay,
+            lambda_per_s: self.lambda_per_s,
+            v: self.v,
+            v_inv: self.v_inv,
+            gain_power: self.gain_power,
+            mode_gain_power: self.mode_gain_power,
+            gain_boundary: self.gain_boundary,
+            mode_gain_boundary: self.mode_gain_boundary,
+            offset_c: self.offset_c,
+            mode_offset: self.mode_offset,
+            windings,
+            tick_s: self.tick_s,
+            points_per_tick: self.points_per_tick,
+            slowest_time_constant_s: self.slowest_time_constant_s,
+            elements_per_tick,
+        }
+    }
+}
+
+impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
+    /// The indices in range, a slice of one to all horizons (and one
+    /// more: the steady state), every entry finite and a positive slice
+    /// time.
+    pub(crate) const fn is_valid(&self) -> bool {
+        below(&self.winding_node, N)
+            && self.points_per_tick >= 1
+            && self.points_per_tick <= PREDICTOR_POINTS + 1
+            && finite(&self.grid_s)
+            && finite_rows(&self.decay)
+            && finite(&self.lambda_per_s)
+            && finite_rows(&self.v)
+            && finite_rows(&self.v_inv)
+            && finite_rows(&self.gain_power)
+            && finite_rows(&self.mode_gain_power)
+            && finite_rows(&self.gain_boundary)
+            && finite_rows(&self.mode_gain_boundary)
+            && finite(&self.offset_c)
+            && finite(&self.mode_offset)
+            && finite(&self.winding_r_at_0c_ohm)
+            && finite(&self.winding_slope_ohm_per_k)
+            && self.tick_s.is_finite()
+            && self.tick_s > 0.0
+            && self.slowest_time_constant_s.is_finite()
+    }
 }
 
 /// An [`AlarmConfig`] as data: the scalar values it holds, nothing
@@ -566,5 +887,149 @@ pub(crate) fn write_clock(out: &mut Fields<'_>, c: &ClockTables) -> fmt::Result 
     w.field("max_steps_per_tick", max_steps_per_tick)?;
     w.field("frozen_flag_ticks", frozen_flag_ticks)?;
     w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+    w.close(false)
+}
+
+/// Writes `k` as the field `name`, a [`KalmanTables`] expression.
+pub(crate) fn write_kalman<const X: usize, const P: usize>(
+    out: &mut Fields<'_>,
+    name: &str,
+    k: &KalmanTables<X, P>,
+) -> fmt::Result {
+    let KalmanTables {
+        f,
+        ht,
+        q,
+        r,
+        gate_threshold,
+        suspect_after,
+        recover_after,
+        recovery_variance,
+        walk_from,
+    } = k;
+    let mut w = out.nested(name, "observer::KalmanTables")?;
+    w.table("f", f)?;
+    w.table("ht", ht)?;
+    w.table("q", q)?;
+    w.field("r", r)?;
+    w.field("gate_threshold", gate_threshold)?;
+    w.field("suspect_after", suspect_after)?;
+    w.field("recover_after", recover_after)?;
+    w.field("recovery_variance", recovery_variance)?;
+    w.field("walk_from", walk_from)?;
+    w.close(false)
+}
+
+/// Writes `g` as the field `gain`, a [`GainTables`] expression.
+pub(crate) fn write_gain<const X: usize, const P: usize>(
+    out: &mut Fields<'_>,
+    g: &GainTables<X, P>,
+) -> fmt::Result {
+    let GainTables {
+        period,
+        gain,
+        prior,
+        posterior,
+        innovation_var,
+        prior_ht,
+        innovation_cov,
+    } = g;
+    let mut w = out.nested("gain", "observer::network::GainTables")?;
+    w.field("period", period)?;
+    w.table("gain", gain)?;
+    w.table("prior", prior)?;
+    w.table("posterior", posterior)?;
+    w.field("innovation_var", innovation_var)?;
+    w.table("prior_ht", prior_ht)?;
+    w.table("innovation_cov", innovation_cov)?;
+    w.close(false)
+}
+
+/// Writes `t` as the field `predictor`, a [`PredictorTables`] expression.
+pub(crate) fn write_predictor<const N: usize, const B: usize, const M: usize>(
+    out: &mut Fields<'_>,
+    t: &PredictorTables<N, B, M>,
+) -> fmt::Result {
+    let PredictorTables {
+        grid_s,
+        decay,
+        lambda_per_s,
+        v,
+        v_inv,
+        gain_power,
+        mode_gain_power,
+        gain_boundary,
+        mode_gain_boundary,
+        offset_c,
+        mode_offset,
+        winding_node,
+        winding_r_at_0c_ohm,
+        winding_slope_ohm_per_k,
+        tick_s,
+        points_per_tick,
+        slowest_time_constant_s,
+    } = t;
+    let mut w = out.nested("predictor", "observer::network::PredictorTables")?;
+    w.field("grid_s", grid_s)?;
+    w.table("decay", decay)?;
+    w.field("lambda_per_s", lambda_per_s)?;
+    w.table("v", v)?;
+    w.table("v_inv", v_inv)?;
+    w.table("gain_power", gain_power)?;
+    w.table("mode_gain_power", mode_gain_power)?;
+    w.table("gain_boundary", gain_boundary)?;
+    w.table("mode_gain_boundary", mode_gain_boundary)?;
+    w.field("offset_c", offset_c)?;
+    w.field("mode_offset", mode_offset)?;
+    w.field("winding_node", winding_node)?;
+    w.field("winding_r_at_0c_ohm", winding_r_at_0c_ohm)?;
+    w.field("winding_slope_ohm_per_k", winding_slope_ohm_per_k)?;
+    w.field("tick_s", tick_s)?;
+    w.field("points_per_tick", points_per_tick)?;
+    w.field("slowest_time_constant_s", slowest_time_constant_s)?;
+    w.close(false)
+}
+
+/// Writes `c` as the field `checks`, a [`ChecksTables`] expression.
+pub(crate) fn write_checks<const M: usize>(
+    out: &mut Fields<'_>,
+    c: &ChecksTables<M>,
+) -> fmt::Result {
+    let ChecksTables {
+        band,
+        bias_offset_w,
+        bias_fraction,
+        stuck_threshold_k,
+        stuck_tolerance_k,
+        stuck_window,
+        silent_after_us,
+    } = c;
+    let mut w = out.nested("checks", "observer::ChecksTables")?;
+    w.field("band", band)?;
+    w.field("bias_offset_w", bias_offset_w)?;
+    w.field("bias_fraction", bias_fraction)?;
+    w.field("stuck_threshold_k", stuck_threshold_k)?;
+    w.field("stuck_tolerance_k", stuck_tolerance_k)?;
+    w.field("stuck_window", stuck_window)?;
+    w.field("silent_after_us", silent_after_us)?;
+    w.close(false)
+}
+
+/// Writes `s` as the field `step`, a [`StepTables`] expression.
+pub(crate) fn write_step<const N: usize, const B: usize, const M: usize>(
+    out: &mut Fields<'_>,
+    s: &StepTables<N, B, M>,
+) -> fmt::Result {
+    let StepTables {
+        phi_minus_i,
+        bd_power,
+        gd_boundary,
+        constant_k,
+    } = s;
+    let mut w = out.nested("step", "observer::StepTables")?;
+    w.table("phi_minus_i", phi_minus_i)?;
+    w.table("bd_power", bd_power)?;
+    w.table("gd_boundary", gd_boundary)?;
+    w.field("constant_k", constant_k)?;
     w.close(false)
 }

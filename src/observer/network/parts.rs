@@ -32,7 +32,13 @@
 //! not its own derivation, so both ways give the same observer.
 //!
 //! Matrices are stored row by row (`[row][column]`), as they read in a
-//! generated file.
+//! generated file. The filter's configuration, the sensor checks, the gain
+//! and the predictor are the Omnimagnet's tables too
+//! ([`KalmanTables`](crate::observer::KalmanTables),
+//! [`ChecksTables`](crate::observer::ChecksTables), [`GainTables`],
+//! [`PredictorTables`]): each read, checked, copied and written in one
+//! place; the model's step and the shadow's block are one type
+//! ([`StepTables`](crate::observer::StepTables)).
 
 use core::fmt::{self, Write};
 
@@ -46,41 +52,45 @@ use super::{
     PREDICTOR_POINTS,
 };
 use crate::error::BuildError;
-use crate::filter::GatePolicy;
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::input::ScalarLimits;
 use crate::network::ScalarResistance;
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{Band, StuckTest};
 use crate::observer::consistency::{BiasBound, Shadow};
 use crate::observer::snapshot::Fingerprint;
 use crate::observer::tables::{
-    below, bound_rows, finite as finite_values, finite_rows, invalid, matrix, rows, vector,
-    write_alarm, write_clock, write_limiter, AlarmTables, ClockTables, Fields, LimiterTables,
+    below, bound_rows, finite, finite_rows, invalid, matrix, rows, vector, write_alarm,
+    write_checks, write_clock, write_gain, write_kalman, write_limiter, write_predictor,
+    write_step, AlarmTables, ChecksTables, ClockTables, Fields, KalmanTables, LimiterTables,
+    Literal, StepTables,
 };
 pub use crate::observer::tables::{GainTables, PredictorTables};
+use crate::observer::SensorChecks;
 use crate::protect::alarm::AlarmBuilder;
 use crate::protect::derating::{DeratingFactor, DeratingRule};
 use crate::protect::limiter::LimiterConfig;
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
-use crate::protect::predict::{LimitPredictor, PredictorBuilder, Winding};
+use crate::protect::predict::{LimitPredictor, PredictorBuilder};
 
-/// The discretised network in the observer's deviation coordinates (see
-/// "f32 without drift" in [`super`]), every entry solved in `f64` and
-/// rounded once to `f32`.
+impl<const N: usize, const B: usize, const M: usize> StepTables<N, B, M> {
+    fn of(model: &Model<N, B, M>) -> Self {
+        Self {
+            phi_minus_i: rows(&model.phi_minus_i),
+            bd_power: rows(&model.bd_power),
+            gd_boundary: rows(&model.gd_boundary),
+            constant_k: model.constant_k.into(),
+        }
+    }
+}
+
+/// The discretised network (see [`StepTables`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelTables<const N: usize, const B: usize, const M: usize> {
     /// `Ad`, the one-step transition (dimensionless); the filter's `F`.
     pub ad: [[f32; N]; N],
-    /// `Ad - I`, formed in `f64` (dimensionless).
-    pub phi_minus_i: [[f32; N]; N],
-    /// `Bd` of the Joule powers \[K/J\].
-    pub bd_power: [[f32; M]; N],
-    /// `Gd` of the boundaries (dimensionless).
-    pub gd_boundary: [[f32; B]; N],
-    /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
-    pub constant_k: [f32; N],
+    /// The model's step.
+    pub step: StepTables<N, B, M>,
     /// The node each current heats.
     pub source_node: [usize; M],
     /// Each source's `R(T)`.
@@ -94,14 +104,22 @@ pub struct ModelTables<const N: usize, const B: usize, const M: usize> {
 pub struct ShadowTables<const N: usize, const B: usize, const M: usize> {
     /// Model steps per block (the correction period).
     pub block_steps: u32,
-    /// `Ad - I` of one block (dimensionless).
-    pub phi_minus_i: [[f32; N]; N],
-    /// `Bd` of the Joule powers over one block \[K/W\].
-    pub bd_power: [[f32; M]; N],
-    /// `Gd` of the boundaries over one block (dimensionless).
-    pub gd_boundary: [[f32; B]; N],
-    /// The block's constant term \[K\].
-    pub constant_k: [f32; N],
+    /// The block's step.
+    pub step: StepTables<N, B, M>,
+}
+
+impl<const N: usize, const B: usize, const M: usize> ModelTables<N, B, M> {
+    const fn is_finite(&self) -> bool {
+        let mut k = 0;
+        while k < M {
+            let r = &self.resistance[k];
+            if !(r.r_at_0c_ohm.is_finite() && r.slope_ohm_per_k.is_finite()) {
+                return false;
+            }
+            k += 1;
+        }
+        finite_rows(&self.ad) && self.step.is_finite()
+    }
 }
 
 /// A [`NetworkObserver`] as data: the builder's inputs that the tick reads
@@ -150,24 +168,9 @@ pub struct NetworkParts<
 /// nothing. Matrices row by row.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AssembledTables<const N: usize, const M: usize, const X: usize, const P: usize> {
-    /// The filter's `F` (dimensionless; \[K/J\] in the bias columns).
-    pub f: [[f32; X]; X],
-    /// `H^T` (X x P).
-    pub ht: [[f32; P]; X],
-    /// The filter's process noise `Q` per model step \[K^2, K W, W^2\].
-    pub q: [[f32; X]; X],
-    /// Each sensor's noise variance `R` \[K^2\].
-    pub r: [f32; P],
-    /// The innovation gate's threshold (chi-square, 1 dof).
-    pub gate_threshold: f32,
-    /// Consecutive rejections that make a sensor suspect.
-    pub suspect_after: u16,
-    /// Corrections of rejected readings before the recovery widening.
-    pub recover_after: u16,
-    /// The recovery widening's variances.
-    pub recovery_variance: [f32; X],
-    /// The first of the trailing random-walk states.
-    pub walk_from: usize,
+    /// The filter's configuration (its `G` is a placeholder column the
+    /// tick never reads: the input enters the mean predict only).
+    pub kalman: KalmanTables<X, P>,
     /// The alarm.
     pub alarm: AlarmTables<f32, N>,
     /// The limiter (per-element taper factors).
@@ -179,19 +182,8 @@ pub struct AssembledTables<const N: usize, const M: usize, const X: usize, const
     pub k_sigma: f32,
     /// The steady `sigma` in each node's bound \[K\].
     pub bound_sigma_k: [f32; N],
-    /// The consistency band: its fixed part \[K\] and its share of the
-    /// rise.
-    pub band: [f32; 2],
-    /// The band's image on each heat-input bias \[W\] (`+inf`: none).
-    pub bias_offset_w: [f32; M],
-    /// The band's share of the Joule power on the biases.
-    pub bias_fraction: f32,
-    /// The stuck test's threshold \[K\].
-    pub stuck_threshold_k: f32,
-    /// The stuck test's tolerance \[K\].
-    pub stuck_tolerance_k: f32,
-    /// The stuck test's window (readings).
-    pub stuck_window: u32,
+    /// The sensor checks.
+    pub checks: ChecksTables<M>,
     /// The input rules: the largest current \[A\], the lowest and the
     /// highest boundary temperature \[degC\].
     pub limits: [f32; 3],
@@ -219,8 +211,6 @@ pub struct AssembledTables<const N: usize, const M: usize, const X: usize, const
     pub noise_allowance_k: [f32; P],
     /// The model's clock.
     pub clock: ClockTables,
-    /// No reading for this long makes a sensor silent \[us\].
-    pub silent_after_us: u32,
     /// The protection cycle's period \[us\].
     pub protect_period_us: u32,
     /// The snapshot fingerprint.
@@ -231,15 +221,7 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
     /// All zero: the tables before the derivation fills them (never an
     /// observer's: [`NetworkObserver::from_parts`] refuses them).
     const UNSOLVED: Self = Self {
-        f: [[0.0; X]; X],
-        ht: [[0.0; P]; X],
-        q: [[0.0; X]; X],
-        r: [0.0; P],
-        gate_threshold: 0.0,
-        suspect_after: 0,
-        recover_after: 0,
-        recovery_variance: [0.0; X],
-        walk_from: 0,
+        kalman: KalmanTables::ZERO,
         alarm: AlarmTables {
             critical_c: [0.0; N],
             derating_product: 0.0,
@@ -259,12 +241,7 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
         bound: [[0.0; 3]; N],
         k_sigma: 0.0,
         bound_sigma_k: [0.0; N],
-        band: [0.0; 2],
-        bias_offset_w: [0.0; M],
-        bias_fraction: 0.0,
-        stuck_threshold_k: 0.0,
-        stuck_tolerance_k: 0.0,
-        stuck_window: 0,
+        checks: ChecksTables::ZERO,
         limits: [0.0; 3],
         origin_c: 0.0,
         hardware_limit_a: [0.0; M],
@@ -282,7 +259,6 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
             frozen_flag_ticks: 0,
             frozen_loss_ticks: 0,
         },
-        silent_after_us: 0,
         protect_period_us: 0,
         fingerprint: 0,
     };
@@ -290,48 +266,32 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
     /// Every `f32` finite (the gate's threshold may be `+inf`: no gate;
     /// an unbounded bias is `+inf`) and the indices in range.
     const fn is_valid(&self) -> bool {
-        let mut m = 0;
-        while m < M {
-            if self.bias_offset_w[m].is_nan() {
-                return false;
-            }
-            m += 1;
-        }
         let mut j = 0;
         while j < P {
             if let Some(row) = &self.resistance_sensors[j] {
-                if !finite_values(row) {
+                if !finite(row) {
                     return false;
                 }
             }
             j += 1;
         }
-        finite_rows(&self.f)
-            && finite_rows(&self.ht)
-            && finite_rows(&self.q)
-            && finite_values(&self.r)
-            && !self.gate_threshold.is_nan()
-            && finite_values(&self.recovery_variance)
-            && self.walk_from <= X
+        self.kalman.is_valid()
             && self.alarm.is_finite()
             && self.limiter.is_finite()
             && finite_rows(&self.bound)
-            && finite_values(&self.bound_sigma_k)
-            && finite_values(&self.band)
-            && finite_values(&[
+            && finite(&self.bound_sigma_k)
+            && self.checks.is_valid()
+            && finite(&[
                 self.k_sigma,
-                self.bias_fraction,
-                self.stuck_tolerance_k,
                 self.origin_c,
                 self.cooling_bias_fraction,
                 self.bias_decay_per_step,
                 self.offset_decay_per_step,
             ])
-            && !self.stuck_threshold_k.is_nan()
-            && finite_values(&self.limits)
-            && finite_values(&self.hardware_limit_a)
-            && finite_values(&self.nominal_power_w)
-            && finite_values(&self.noise_allowance_k)
+            && finite(&self.limits)
+            && finite(&self.hardware_limit_a)
+            && finite(&self.nominal_power_w)
+            && finite(&self.noise_allowance_k)
     }
 }
 
@@ -341,10 +301,6 @@ fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
     } else {
         Err(BuildError::InvalidParameter { name })
     }
-}
-
-fn finite<'a>(values: impl IntoIterator<Item = &'a f32>) -> bool {
-    values.into_iter().all(|v| v.is_finite())
 }
 
 /// What the settings alone decide: the clock, the protection period \[us\]
@@ -421,14 +377,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     /// # Errors
     /// As [`Self::build`].
     pub fn parts<const X: usize>(&self) -> Result<NetworkParts<N, B, M, X, P>, BuildError> {
-        const {
-            assert!(
-                X == N + M || X == N + M + 1,
-                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
-            );
-            assert!(B >= 1, "a network needs a boundary (the ambient)");
-            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
-        };
+        let () = NetworkObserver::<N, B, M, X, P>::SIZES;
         let s = &self.settings;
         let network = self.network;
         network.check_sources()?;
@@ -473,10 +422,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             incidence,
             model: ModelTables {
                 ad: rows(&model.ad.cast()),
-                phi_minus_i: rows(&model.phi_minus_i),
-                bd_power: rows(&model.bd_power),
-                gd_boundary: rows(&model.gd_boundary),
-                constant_k: model.constant_k.into(),
+                step: StepTables::of(&model),
                 source_node: model.source_node,
                 resistance: model.resistance,
             },
@@ -484,10 +430,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             predictor: PredictorTables::of(&predictor),
             shadow: ShadowTables {
                 block_steps: timing.correction_period,
-                phi_minus_i: rows(&block.phi_minus_i),
-                bd_power: rows(&block.bd_power),
-                gd_boundary: rows(&block.gd_boundary),
-                constant_k: block.constant_k.into(),
+                step: StepTables::of(&block),
             },
             assembled: AssembledTables::UNSOLVED,
         };
@@ -785,6 +728,17 @@ fn solve_predictor<const N: usize, const B: usize, const M: usize>(
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
     NetworkObserver<N, B, M, X, P>
 {
+    /// The sizes an observer takes, checked where the solve or an
+    /// assembly names it: a compile error, never a run-time one.
+    const SIZES: () = {
+        assert!(
+            X == N + M || X == N + M + 1,
+            "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
+        );
+        assert!(B >= 1, "a network needs a boundary (the ambient)");
+        assert!(M >= 1 && P >= 1, "at least one current and one sensor");
+    };
+
     /// The assemble half of [`NetworkObserverBuilder::build`] (see the
     /// module docs): an observer from solved tables, typically a `const`
     /// written by `coil-thermal codegen`. Computes no exponential, no
@@ -831,14 +785,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         parts: &NetworkParts<N, B, M, X, P>,
         kinds: &[SensorKind; P],
     ) -> Result<Self, BuildError> {
-        const {
-            assert!(
-                X == N + M || X == N + M + 1,
-                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
-            );
-            assert!(B >= 1, "a network needs a boundary (the ambient)");
-            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
-        };
+        let () = Self::SIZES;
         let s = &parts.settings;
         let timing = timing(s)?;
         check_offset::<N, B, M, X>(s)?;
@@ -862,28 +809,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         check(m.source_node.iter().all(|n| *n < N), "source_node")?;
         check_kinds(kinds, &parts.sensor_nodes, &m.source_node)?;
         let sensor_var_k2 = sensor_variances_k2(kinds, s.sensor_sigma_k);
-        check(
-            finite(m.ad.iter().flatten())
-                && finite(m.phi_minus_i.iter().flatten())
-                && finite(m.bd_power.iter().flatten())
-                && finite(m.gd_boundary.iter().flatten())
-                && finite(&m.constant_k)
-                && m.resistance
-                    .iter()
-                    .all(|r| r.r_at_0c_ohm.is_finite() && r.slope_ohm_per_k.is_finite()),
-            "model",
-        )?;
+        check(m.is_finite(), "model")?;
         let g = &parts.gain;
         check(g.period == timing.correction_period, "gain.period")?;
-        check(
-            finite(g.gain.iter().flatten())
-                && finite(g.prior.iter().flatten())
-                && finite(g.posterior.iter().flatten())
-                && finite(&g.innovation_var)
-                && finite(g.prior_ht.iter().flatten())
-                && finite(g.innovation_cov.iter().flatten()),
-            "gain",
-        )?;
+        check(g.is_finite(), "gain")?;
         check(
             solved_with(g, &parts.sensor_nodes, &sensor_var_k2),
             "sensor_kinds",
@@ -903,20 +832,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             sh.block_steps == timing.correction_period,
             "shadow.block_steps",
         )?;
-        check(
-            finite(sh.phi_minus_i.iter().flatten())
-                && finite(sh.bd_power.iter().flatten())
-                && finite(sh.gd_boundary.iter().flatten())
-                && finite(&sh.constant_k),
-            "shadow",
-        )?;
+        check(sh.step.is_finite(), "shadow")?;
         let band = s.checks.band();
-        let (phi_minus_i, bd_power) = (matrix(&sh.phi_minus_i), matrix(&sh.bd_power));
+        let (phi_minus_i, bd_power) = (matrix(&sh.step.phi_minus_i), matrix(&sh.step.bd_power));
         let shadow = Shadow {
             phi_minus_i,
             bd_power,
-            gd_boundary: matrix(&sh.gd_boundary),
-            constant_k: SVector::from(sh.constant_k),
+            gd_boundary: matrix(&sh.step.gd_boundary),
+            constant_k: SVector::from(sh.step.constant_k),
             block_steps: sh.block_steps,
             band,
             bias_bound: BiasBound::new(&band, &phi_minus_i, &bd_power),
@@ -925,11 +848,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // The filter's configuration from the stored `Ad` and `Bd` (exact
         // in `f64`, so its `f32` image is the solved one to the bit).
         let ad = matrix(&m.ad).cast::<f64>();
-        let bd_power = matrix(&m.bd_power);
+        let bd_power = matrix(&m.step.bd_power);
         let nominal_w = nominal_powers_w(&parts.hardware_limit_a, &m.resistance, s.origin_c);
         let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
         let kalman = filter_config::<N, B, M, X, P>(
-            (&ad, &bd_power.cast(), &matrix(&m.gd_boundary).cast()),
+            (&ad, &bd_power.cast(), &matrix(&m.step.gd_boundary).cast()),
             (&parts.sensor_nodes, &sensor_var_k2),
             s,
             &layout,
@@ -966,7 +889,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for v in kalman.f().iter().chain(gain.gain.iter()) {
             fingerprint = fingerprint.f64(f64::from(*v));
         }
-        for v in bd_power.iter().chain(matrix(&m.gd_boundary).iter()) {
+        for v in bd_power.iter().chain(matrix(&m.step.gd_boundary).iter()) {
             fingerprint = fingerprint.f64(f64::from(*v));
         }
         fingerprint = fingerprint.f64s(&parts.hardware_limit_a);
@@ -991,10 +914,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
         Ok(Self {
-            phi_minus_i: matrix(&m.phi_minus_i),
+            phi_minus_i: matrix(&m.step.phi_minus_i),
             bd_power,
-            gd_boundary: matrix(&m.gd_boundary),
-            constant_k: SVector::from(m.constant_k),
+            gd_boundary: matrix(&m.step.gd_boundary),
+            constant_k: SVector::from(m.step.constant_k),
             origin_c: s.origin_c as f32,
             source_node: m.source_node,
             resistance: m.resistance,
@@ -1060,29 +983,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// What this observer derived from its parts, as tables (see
     /// [`AssembledTables`]).
     fn assembled_tables(&self) -> AssembledTables<N, M, X, P> {
-        let k = &self.kalman;
         let sh = &self.shadow;
         AssembledTables {
-            f: rows(&k.f),
-            ht: rows(&k.ht),
-            q: rows(&k.q),
-            r: k.r.into(),
-            gate_threshold: k.gate.threshold,
-            suspect_after: k.gate.suspect_after,
-            recover_after: k.gate.recover_after,
-            recovery_variance: k.recovery_variance.into(),
-            walk_from: k.walk_from,
+            kalman: KalmanTables::of(&self.kalman),
             alarm: AlarmTables::of(&self.alarm),
             limiter: LimiterTables::of(&self.limiter),
             bound: bound_rows(&self.bound),
             k_sigma: self.k_sigma,
             bound_sigma_k: self.bound_sigma_k,
-            band: [sh.band.offset_k, sh.band.fraction],
-            bias_offset_w: sh.bias_bound.offset_w,
-            bias_fraction: sh.bias_bound.fraction,
-            stuck_threshold_k: self.stuck_test.threshold_k,
-            stuck_tolerance_k: self.stuck_test.tolerance_k,
-            stuck_window: self.stuck_test.window,
+            checks: ChecksTables::of(
+                &sh.band,
+                &sh.bias_bound,
+                &self.stuck_test,
+                self.silent_after_us,
+            ),
             limits: [
                 self.limits.max_current_a,
                 self.limits.min_temp_c,
@@ -1099,7 +1013,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             resistance_sensors: self.resistance_sensors.map(|c| c.map(|c| c.row())),
             noise_allowance_k: self.noise_allowance_k,
             clock: ClockTables::of(&self.clock),
-            silent_after_us: self.silent_after_us,
             protect_period_us: self.protect_period_us,
             fingerprint: self.fingerprint,
         }
@@ -1127,14 +1040,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     pub const fn from_assembled_parts(
         parts: &NetworkParts<N, B, M, X, P>,
     ) -> Result<Self, BuildError> {
-        const {
-            assert!(
-                X == N + M || X == N + M + 1,
-                "X must be N + M (temperatures and biases), or N + M + 1 with a boundary offset"
-            );
-            assert!(B >= 1, "a network needs a boundary (the ambient)");
-            assert!(M >= 1 && P >= 1, "at least one current and one sensor");
-        };
+        let () = Self::SIZES;
         let s = &parts.settings;
         let (m, g, t, sh, a) = (
             &parts.model,
@@ -1159,61 +1065,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if !offset_ok {
             return Err(invalid("boundary_offset"));
         }
-        let mut k = 0;
-        while k < M {
-            let r = &m.resistance[k];
-            if !(r.r_at_0c_ohm.is_finite() && r.slope_ohm_per_k.is_finite()) {
-                return Err(invalid("model"));
-            }
-            k += 1;
-        }
-        if !(finite_rows(&m.ad)
-            && finite_rows(&m.phi_minus_i)
-            && finite_rows(&m.bd_power)
-            && finite_rows(&m.gd_boundary)
-            && finite_values(&m.constant_k))
-        {
+        if !m.is_finite() {
             return Err(invalid("model"));
         }
         if g.period != sh.block_steps || g.period == 0 {
             return Err(invalid("gain.period"));
         }
-        if !(finite_rows(&g.gain)
-            && finite_rows(&g.prior)
-            && finite_rows(&g.posterior)
-            && finite_values(&g.innovation_var)
-            && finite_rows(&g.prior_ht)
-            && finite_rows(&g.innovation_cov))
-        {
+        if !g.is_finite() {
             return Err(invalid("gain"));
         }
-        if !(below(&t.winding_node, N)
-            && t.points_per_tick >= 1
-            && t.points_per_tick <= PREDICTOR_POINTS + 1
-            && finite_values(&t.grid_s)
-            && finite_rows(&t.decay)
-            && finite_values(&t.lambda_per_s)
-            && finite_rows(&t.v)
-            && finite_rows(&t.v_inv)
-            && finite_rows(&t.gain_power)
-            && finite_rows(&t.mode_gain_power)
-            && finite_rows(&t.gain_boundary)
-            && finite_rows(&t.mode_gain_boundary)
-            && finite_values(&t.offset_c)
-            && finite_values(&t.mode_offset)
-            && finite_values(&t.winding_r_at_0c_ohm)
-            && finite_values(&t.winding_slope_ohm_per_k)
-            && t.tick_s.is_finite()
-            && t.tick_s > 0.0
-            && t.slowest_time_constant_s.is_finite())
-        {
+        if !t.is_valid() {
             return Err(invalid("predictor"));
         }
-        if !(finite_rows(&sh.phi_minus_i)
-            && finite_rows(&sh.bd_power)
-            && finite_rows(&sh.gd_boundary)
-            && finite_values(&sh.constant_k))
-        {
+        if !sh.step.is_finite() {
             return Err(invalid("shadow"));
         }
         if !a.is_valid() {
@@ -1234,29 +1098,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
             j += 1;
         }
-        let phi_minus_i = matrix(&sh.phi_minus_i);
         Ok(Self {
-            phi_minus_i: matrix(&m.phi_minus_i),
-            bd_power: matrix(&m.bd_power),
-            gd_boundary: matrix(&m.gd_boundary),
-            constant_k: vector(&m.constant_k),
+            phi_minus_i: matrix(&m.step.phi_minus_i),
+            bd_power: matrix(&m.step.bd_power),
+            gd_boundary: matrix(&m.step.gd_boundary),
+            constant_k: vector(&m.step.constant_k),
             origin_c: a.origin_c,
             source_node: m.source_node,
             resistance: m.resistance,
-            kalman: KalmanConfig {
-                f: matrix(&a.f),
-                g: nalgebra::SMatrix::from_array_storage(nalgebra::ArrayStorage([[0.0; X]; 1])),
-                ht: matrix(&a.ht),
-                q: matrix(&a.q),
-                r: vector(&a.r),
-                gate: GatePolicy {
-                    threshold: a.gate_threshold,
-                    suspect_after: a.suspect_after,
-                    recover_after: a.recover_after,
-                },
-                recovery_variance: vector(&a.recovery_variance),
-                walk_from: a.walk_from,
-            },
+            kalman: a.kalman.config(nalgebra::SMatrix::from_array_storage(
+                nalgebra::ArrayStorage([[0.0; X]; 1]),
+            )),
             gain: g.gain(),
             sensor_nodes: parts.sensor_nodes,
             resistance_sensors,
@@ -1271,19 +1123,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             k_sigma: a.k_sigma,
             bound_sigma_k: a.bound_sigma_k,
             shadow: Shadow {
-                phi_minus_i,
-                bd_power: matrix(&sh.bd_power),
-                gd_boundary: matrix(&sh.gd_boundary),
-                constant_k: vector(&sh.constant_k),
+                phi_minus_i: matrix(&sh.step.phi_minus_i),
+                bd_power: matrix(&sh.step.bd_power),
+                gd_boundary: matrix(&sh.step.gd_boundary),
+                constant_k: vector(&sh.step.constant_k),
                 block_steps: sh.block_steps,
-                band: Band {
-                    offset_k: a.band[0],
-                    fraction: a.band[1],
-                },
-                bias_bound: BiasBound {
-                    offset_w: a.bias_offset_w,
-                    fraction: a.bias_fraction,
-                },
+                band: a.checks.band(),
+                bias_bound: a.checks.bias_bound(),
             },
             warmup_corrections: s.warmup_corrections,
             cooling_bias_fraction: a.cooling_bias_fraction,
@@ -1293,12 +1139,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             offset_decay_per_step: a.offset_decay_per_step,
             shared_bias: a.shared_bias,
             nominal_power_w: a.nominal_power_w,
-            stuck_test: StuckTest {
-                threshold_k: a.stuck_threshold_k,
-                window: a.stuck_window,
-                tolerance_k: a.stuck_tolerance_k,
-            },
-            silent_after_us: a.silent_after_us,
+            stuck_test: a.checks.stuck_test(),
+            silent_after_us: a.checks.silent_after_us,
             clock,
             limits: ScalarLimits {
                 max_current_a: a.limits[0],
@@ -1358,94 +1200,10 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
         (1..=PREDICTOR_POINTS + 1).contains(&t.points_per_tick),
         "points_per_tick",
     )?;
-    check(
-        finite(&t.grid_s)
-            && finite(t.decay.iter().flatten())
-            && finite(&t.lambda_per_s)
-            && finite(t.v.iter().flatten())
-            && finite(t.v_inv.iter().flatten())
-            && finite(t.gain_power.iter().flatten())
-            && finite(t.mode_gain_power.iter().flatten())
-            && finite(t.gain_boundary.iter().flatten())
-            && finite(t.mode_gain_boundary.iter().flatten())
-            && finite(&t.offset_c)
-            && finite(&t.mode_offset)
-            && finite(&t.winding_r_at_0c_ohm)
-            && finite(&t.winding_slope_ohm_per_k)
-            && t.tick_s.is_finite()
-            && t.tick_s > 0.0
-            && t.slowest_time_constant_s.is_finite(),
-        "predictor",
-    )?;
+    // The indices by their own names; `is_valid` checks them again with
+    // every entry.
+    check(t.is_valid(), "predictor")?;
     Ok(t.predictor(usize::MAX))
-}
-
-impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
-    /// The tables of `predictor`, the inverse of [`Self::predictor`] (the
-    /// per-tick element budget is a setting, not a table).
-    pub(crate) fn of(predictor: &LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>) -> Self {
-        Self {
-            grid_s: predictor.grid_s,
-            decay: predictor.decay,
-            lambda_per_s: predictor.lambda_per_s,
-            v: predictor.v,
-            v_inv: predictor.v_inv,
-            gain_power: predictor.gain_power,
-            mode_gain_power: predictor.mode_gain_power,
-            gain_boundary: predictor.gain_boundary,
-            mode_gain_boundary: predictor.mode_gain_boundary,
-            offset_c: predictor.offset_c,
-            mode_offset: predictor.mode_offset,
-            winding_node: predictor.windings.map(|w| w.node),
-            winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
-            winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
-            tick_s: predictor.tick_s,
-            points_per_tick: predictor.points_per_tick,
-            slowest_time_constant_s: predictor.slowest_time_constant_s,
-        }
-    }
-
-    /// The predictor of these tables, evaluating `elements_per_tick`
-    /// elements per tick (`usize::MAX`: all). Copies, no arithmetic and no
-    /// checks (the callers check): a `const fn`, so the Omnimagnet's
-    /// configuration can be assembled by the compiler.
-    pub(crate) const fn predictor(
-        &self,
-        elements_per_tick: usize,
-    ) -> LimitPredictor<f32, N, B, M, PREDICTOR_POINTS> {
-        let mut windings = [Winding {
-            node: 0,
-            r_at_0c_ohm: 0.0,
-            slope_ohm_per_k: 0.0,
-        }; M];
-        let mut m = 0;
-        while m < M {
-            windings[m] = Winding {
-                node: self.winding_node[m],
-                r_at_0c_ohm: self.winding_r_at_0c_ohm[m],
-                slope_ohm_per_k: self.winding_slope_ohm_per_k[m],
-            };
-            m += 1;
-        }
-        LimitPredictor {
-            grid_s: self.grid_s,
-            decay: self.decay,
-            lambda_per_s: self.lambda_per_s,
-            v: self.v,
-            v_inv: self.v_inv,
-            gain_power: self.gain_power,
-            mode_gain_power: self.mode_gain_power,
-            gain_boundary: self.gain_boundary,
-            mode_gain_boundary: self.mode_gain_boundary,
-            offset_c: self.offset_c,
-            mode_offset: self.mode_offset,
-            windings,
-            tick_s: self.tick_s,
-            points_per_tick: self.points_per_tick,
-            slowest_time_constant_s: self.slowest_time_constant_s,
-            elements_per_tick,
-        }
-    }
 }
 
 /// `k sigma` from the steady prior on every node, the model margin on the
@@ -1466,33 +1224,6 @@ fn upper_bound<const N: usize, const X: usize, const P: usize>(
     UpperBoundBuilder::per_element(margins)
         .sigma(s.k_sigma, sigma_k)
         .build()
-}
-
-/// Writes `values` as a Rust array literal (`{:?}` of a float is the
-/// shortest text that reads back to the same bits).
-fn array<T: fmt::Debug>(out: &mut dyn Write, values: &[T]) -> fmt::Result {
-    out.write_char('[')?;
-    for (k, v) in values.iter().enumerate() {
-        if k > 0 {
-            out.write_str(", ")?;
-        }
-        write!(out, "{v:?}")?;
-    }
-    out.write_char(']')
-}
-
-fn table<T: fmt::Debug, const C: usize>(
-    out: &mut dyn Write,
-    indent: &str,
-    rows: &[[T; C]],
-) -> fmt::Result {
-    out.write_str("[\n")?;
-    for row in rows {
-        write!(out, "{indent}    ")?;
-        array(out, row)?;
-        out.write_str(",\n")?;
-    }
-    write!(out, "{indent}]")
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
@@ -1518,237 +1249,177 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// # Errors
     /// Those of `out`.
     pub fn write_rust(&self, out: &mut dyn Write) -> fmt::Result {
-        let s = &self.settings;
-        let net = "coil_thermal::observer::network";
-        writeln!(out, "{net}::NetworkParts {{")?;
-        writeln!(out, "    settings: {net}::NetworkSettings {{")?;
-        writeln!(out, "        step_us: {},", s.step_us)?;
-        writeln!(out, "        max_steps_per_tick: {},", s.max_steps_per_tick)?;
-        writeln!(out, "        sensor_sigma_k: {:?},", s.sensor_sigma_k)?;
-        writeln!(
-            out,
-            "        node_noise_k2_per_s: {:?},",
-            s.node_noise_k2_per_s
-        )?;
-        writeln!(
-            out,
-            "        bias_noise_w2_per_s: {:?},",
-            s.bias_noise_w2_per_s
-        )?;
-        writeln!(out, "        recovery_sigma_k: {:?},", s.recovery_sigma_k)?;
-        writeln!(
-            out,
-            "        recovery_bias_sigma_w: {:?},",
-            s.recovery_bias_sigma_w
-        )?;
-        writeln!(
-            out,
-            "        correction_period_s: {:?},",
-            s.correction_period_s
-        )?;
-        writeln!(out, "        gate_threshold: {:?},", s.gate_threshold)?;
-        writeln!(out, "        suspect_after: {},", s.suspect_after)?;
-        writeln!(out, "        recover_after: {},", s.recover_after)?;
-        writeln!(out, "        max_reading_age_us: {},", s.max_reading_age_us)?;
-        writeln!(out, "        taper_k: {:?},", s.taper_k)?;
-        writeln!(
-            out,
-            "        protect_period_steps: {},",
-            s.protect_period_steps
-        )?;
-        writeln!(out, "        k_sigma: {:?},", s.k_sigma)?;
-        writeln!(
-            out,
-            "        unmeasured_margin: coil_thermal::protect::margin::UncertaintyMargin {{ rise_fraction: {:?}, offset_k: {:?} }},",
-            s.unmeasured_margin.rise_fraction, s.unmeasured_margin.offset_k
-        )?;
-        writeln!(
-            out,
-            "        incidence_fraction: {:?},",
-            s.incidence_fraction
-        )?;
-        writeln!(out, "        origin_c: {:?},", s.origin_c)?;
-        writeln!(out, "        ambient_boundary: {},", s.ambient_boundary)?;
-        writeln!(out, "        warmup_corrections: {},", s.warmup_corrections)?;
-        writeln!(out, "        max_current_a: {:?},", s.max_current_a)?;
-        let c = &s.checks;
-        writeln!(
-            out,
-            "        checks: coil_thermal::observer::SensorChecks {{\n            consistency_offset_k: {:?},\n            consistency_fraction: {:?},\n            stuck_threshold_k: {:?},\n            stuck_tolerance_k: {:?},\n            max_element_sigma_k: {:?},\n        }},",
-            c.consistency_offset_k,
-            c.consistency_fraction,
-            c.stuck_threshold_k,
-            c.stuck_tolerance_k,
-            c.max_element_sigma_k
-        )?;
-        writeln!(out, "        bias_tau_s: {:?},", s.bias_tau_s)?;
-        writeln!(out, "        boundary_offset: {:?},", s.boundary_offset)?;
-        writeln!(
-            out,
-            "        boundary_offset_std_k: {:?},",
-            s.boundary_offset_std_k
-        )?;
-        writeln!(
-            out,
-            "        boundary_offset_tau_s: {:?},",
-            s.boundary_offset_tau_s
-        )?;
-        writeln!(
-            out,
-            "        max_cooling_bias_fraction: {:?},",
-            s.max_cooling_bias_fraction
-        )?;
-        writeln!(out, "        frozen_flag_ticks: {},", s.frozen_flag_ticks)?;
-        writeln!(out, "        frozen_loss_ticks: {},", s.frozen_loss_ticks)?;
-        writeln!(out, "    }},")?;
-        out.write_str("    sensor_nodes: ")?;
-        array(out, &self.sensor_nodes)?;
-        out.write_str(",\n    critical_c: ")?;
-        array(out, &self.critical_c)?;
-        writeln!(out, ",\n    derating_product: {:?},", self.derating_product)?;
-        out.write_str("    hardware_limit_a: ")?;
-        array(out, &self.hardware_limit_a)?;
-        out.write_str(",\n    incidence: ")?;
-        table(out, "    ", &self.incidence)?;
-        out.write_str(",\n")?;
-
-        let m = &self.model;
-        writeln!(out, "    model: {net}::ModelTables {{")?;
-        let i2 = "        ";
-        for (name, rows) in [("ad", &m.ad), ("phi_minus_i", &m.phi_minus_i)] {
-            write!(out, "{i2}{name}: ")?;
-            table(out, i2, rows)?;
-            out.write_str(",\n")?;
-        }
-        write!(out, "{i2}bd_power: ")?;
-        table(out, i2, &m.bd_power)?;
-        write!(out, ",\n{i2}gd_boundary: ")?;
-        table(out, i2, &m.gd_boundary)?;
-        write!(out, ",\n{i2}constant_k: ")?;
-        array(out, &m.constant_k)?;
-        write!(out, ",\n{i2}source_node: ")?;
-        array(out, &m.source_node)?;
-        write!(out, ",\n{i2}resistance: [")?;
-        for (k, r) in m.resistance.iter().enumerate() {
-            if k > 0 {
-                out.write_str(", ")?;
-            }
-            write!(
-                out,
-                "coil_thermal::network::ScalarResistance {{ r_at_0c_ohm: {:?}, slope_ohm_per_k: {:?} }}",
-                r.r_at_0c_ohm, r.slope_ohm_per_k
-            )?;
-        }
-        writeln!(out, "],\n    }},")?;
-
-        let g = &self.gain;
-        writeln!(out, "    gain: {net}::GainTables {{")?;
-        writeln!(out, "{i2}period: {},", g.period)?;
-        write!(out, "{i2}gain: ")?;
-        table(out, i2, &g.gain)?;
-        write!(out, ",\n{i2}prior: ")?;
-        table(out, i2, &g.prior)?;
-        write!(out, ",\n{i2}posterior: ")?;
-        table(out, i2, &g.posterior)?;
-        write!(out, ",\n{i2}innovation_var: ")?;
-        array(out, &g.innovation_var)?;
-        write!(out, ",\n{i2}prior_ht: ")?;
-        table(out, i2, &g.prior_ht)?;
-        write!(out, ",\n{i2}innovation_cov: ")?;
-        table(out, i2, &g.innovation_cov)?;
-        writeln!(out, ",\n    }},")?;
-
-        let p = &self.predictor;
-        writeln!(out, "    predictor: {net}::PredictorTables {{")?;
-        write!(out, "{i2}grid_s: ")?;
-        array(out, &p.grid_s)?;
-        write!(out, ",\n{i2}decay: ")?;
-        table(out, i2, &p.decay)?;
-        write!(out, ",\n{i2}lambda_per_s: ")?;
-        array(out, &p.lambda_per_s)?;
-        for (name, rows) in [("v", &p.v), ("v_inv", &p.v_inv)] {
-            write!(out, ",\n{i2}{name}: ")?;
-            table(out, i2, rows)?;
-        }
-        for (name, rows) in [
-            ("gain_power", &p.gain_power),
-            ("mode_gain_power", &p.mode_gain_power),
-        ] {
-            write!(out, ",\n{i2}{name}: ")?;
-            table(out, i2, rows)?;
-        }
-        for (name, rows) in [
-            ("gain_boundary", &p.gain_boundary),
-            ("mode_gain_boundary", &p.mode_gain_boundary),
-        ] {
-            write!(out, ",\n{i2}{name}: ")?;
-            table(out, i2, rows)?;
-        }
-        for (name, values) in [
-            ("offset_c", &p.offset_c[..]),
-            ("mode_offset", &p.mode_offset[..]),
-            ("winding_r_at_0c_ohm", &p.winding_r_at_0c_ohm[..]),
-            ("winding_slope_ohm_per_k", &p.winding_slope_ohm_per_k[..]),
-        ] {
-            write!(out, ",\n{i2}{name}: ")?;
-            array(out, values)?;
-        }
-        write!(out, ",\n{i2}winding_node: ")?;
-        array(out, &p.winding_node)?;
-        writeln!(out, ",\n{i2}tick_s: {:?},", p.tick_s)?;
-        writeln!(out, "{i2}points_per_tick: {},", p.points_per_tick)?;
-        writeln!(
-            out,
-            "{i2}slowest_time_constant_s: {:?},",
-            p.slowest_time_constant_s
-        )?;
-        writeln!(out, "    }},")?;
-        let sh = &self.shadow;
-        writeln!(out, "    shadow: {net}::ShadowTables {{")?;
-        writeln!(out, "{i2}block_steps: {},", sh.block_steps)?;
-        write!(out, "{i2}phi_minus_i: ")?;
-        table(out, i2, &sh.phi_minus_i)?;
-        write!(out, ",\n{i2}bd_power: ")?;
-        table(out, i2, &sh.bd_power)?;
-        write!(out, ",\n{i2}gd_boundary: ")?;
-        table(out, i2, &sh.gd_boundary)?;
-        write!(out, ",\n{i2}constant_k: ")?;
-        array(out, &sh.constant_k)?;
-        writeln!(out, ",\n    }},")?;
-        out.write_str("    assembled: ")?;
-        write_assembled(out, &self.assembled)?;
-        out.write_str("}")
+        // Destructured whole, so that a field added to the parts is a
+        // compile error here, not a field silently left out of the
+        // generated file.
+        let Self {
+            settings,
+            sensor_nodes,
+            critical_c,
+            derating_product,
+            hardware_limit_a,
+            incidence,
+            model,
+            gain,
+            predictor,
+            shadow,
+            assembled,
+        } = self;
+        let mut w = Fields::open(out, "observer::network::NetworkParts", 0)?;
+        write_settings(&mut w, settings)?;
+        w.field("sensor_nodes", sensor_nodes)?;
+        w.field("critical_c", critical_c)?;
+        w.field("derating_product", derating_product)?;
+        w.field("hardware_limit_a", hardware_limit_a)?;
+        w.table("incidence", incidence)?;
+        write_model(&mut w, model)?;
+        write_gain(&mut w, gain)?;
+        write_predictor(&mut w, predictor)?;
+        write_shadow(&mut w, shadow)?;
+        write_assembled(&mut w, assembled)?;
+        w.close(true)
     }
 }
 
-/// Writes `a` as an [`AssembledTables`] expression (and a comma).
+impl Literal for ScalarResistance<f32> {
+    fn write(&self, out: &mut dyn Write) -> fmt::Result {
+        out.write_str("coil_thermal::network::ScalarResistance { r_at_0c_ohm: ")?;
+        self.r_at_0c_ohm.write(out)?;
+        out.write_str(", slope_ohm_per_k: ")?;
+        self.slope_ohm_per_k.write(out)?;
+        out.write_str(" }")
+    }
+}
+
+fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
+    let NetworkSettings {
+        step_us,
+        max_steps_per_tick,
+        sensor_sigma_k,
+        node_noise_k2_per_s,
+        bias_noise_w2_per_s,
+        bias_tau_s,
+        boundary_offset,
+        boundary_offset_std_k,
+        boundary_offset_tau_s,
+        recovery_sigma_k,
+        recovery_bias_sigma_w,
+        correction_period_s,
+        gate_threshold,
+        suspect_after,
+        recover_after,
+        max_reading_age_us,
+        taper_k,
+        protect_period_steps,
+        k_sigma,
+        unmeasured_margin:
+            UncertaintyMargin {
+                rise_fraction,
+                offset_k,
+            },
+        incidence_fraction,
+        origin_c,
+        ambient_boundary,
+        frozen_flag_ticks,
+        warmup_corrections,
+        max_current_a,
+        checks:
+            SensorChecks {
+                consistency_offset_k,
+                consistency_fraction,
+                stuck_threshold_k,
+                stuck_tolerance_k,
+                max_element_sigma_k,
+            },
+        max_cooling_bias_fraction,
+        frozen_loss_ticks,
+    } = s;
+    let mut w = out.nested("settings", "observer::network::NetworkSettings")?;
+    w.field("step_us", step_us)?;
+    w.field("max_steps_per_tick", max_steps_per_tick)?;
+    w.field("sensor_sigma_k", sensor_sigma_k)?;
+    w.field("node_noise_k2_per_s", node_noise_k2_per_s)?;
+    w.field("bias_noise_w2_per_s", bias_noise_w2_per_s)?;
+    w.field("recovery_sigma_k", recovery_sigma_k)?;
+    w.field("recovery_bias_sigma_w", recovery_bias_sigma_w)?;
+    w.field("correction_period_s", correction_period_s)?;
+    w.field("gate_threshold", gate_threshold)?;
+    w.field("suspect_after", suspect_after)?;
+    w.field("recover_after", recover_after)?;
+    w.field("max_reading_age_us", max_reading_age_us)?;
+    w.field("taper_k", taper_k)?;
+    w.field("protect_period_steps", protect_period_steps)?;
+    w.field("k_sigma", k_sigma)?;
+    let mut m = w.nested("unmeasured_margin", "protect::margin::UncertaintyMargin")?;
+    m.field("rise_fraction", rise_fraction)?;
+    m.field("offset_k", offset_k)?;
+    m.close(false)?;
+    w.field("incidence_fraction", incidence_fraction)?;
+    w.field("origin_c", origin_c)?;
+    w.field("ambient_boundary", ambient_boundary)?;
+    w.field("warmup_corrections", warmup_corrections)?;
+    w.field("max_current_a", max_current_a)?;
+    let mut c = w.nested("checks", "observer::SensorChecks")?;
+    c.field("consistency_offset_k", consistency_offset_k)?;
+    c.field("consistency_fraction", consistency_fraction)?;
+    c.field("stuck_threshold_k", stuck_threshold_k)?;
+    c.field("stuck_tolerance_k", stuck_tolerance_k)?;
+    c.field("max_element_sigma_k", max_element_sigma_k)?;
+    c.close(false)?;
+    w.field("bias_tau_s", bias_tau_s)?;
+    w.field("boundary_offset", boundary_offset)?;
+    w.field("boundary_offset_std_k", boundary_offset_std_k)?;
+    w.field("boundary_offset_tau_s", boundary_offset_tau_s)?;
+    w.field("max_cooling_bias_fraction", max_cooling_bias_fraction)?;
+    w.field("frozen_flag_ticks", frozen_flag_ticks)?;
+    w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+    w.close(false)
+}
+
+fn write_model<const N: usize, const B: usize, const M: usize>(
+    out: &mut Fields<'_>,
+    m: &ModelTables<N, B, M>,
+) -> fmt::Result {
+    let ModelTables {
+        ad,
+        step,
+        source_node,
+        resistance,
+    } = m;
+    let mut w = out.nested("model", "observer::network::ModelTables")?;
+    w.table("ad", ad)?;
+    write_step(&mut w, step)?;
+    w.field("source_node", source_node)?;
+    w.field("resistance", resistance)?;
+    w.close(false)
+}
+
+fn write_shadow<const N: usize, const B: usize, const M: usize>(
+    out: &mut Fields<'_>,
+    sh: &ShadowTables<N, B, M>,
+) -> fmt::Result {
+    let ShadowTables { block_steps, step } = sh;
+    let mut w = out.nested("shadow", "observer::network::ShadowTables")?;
+    w.field("block_steps", block_steps)?;
+    write_step(&mut w, step)?;
+    w.close(false)
+}
+
+/// Writes `a` as the field `assembled`, an [`AssembledTables`] expression.
 fn write_assembled<const N: usize, const M: usize, const X: usize, const P: usize>(
-    out: &mut dyn Write,
+    out: &mut Fields<'_>,
     a: &AssembledTables<N, M, X, P>,
 ) -> fmt::Result {
     // Destructured whole: a field added to the tables is a compile error
     // here, not a field silently left out of the generated file.
     let AssembledTables {
-        f,
-        ht,
-        q,
-        r,
-        gate_threshold,
-        suspect_after,
-        recover_after,
-        recovery_variance,
-        walk_from,
+        kalman,
         alarm,
         limiter,
         bound,
         k_sigma,
         bound_sigma_k,
-        band,
-        bias_offset_w,
-        bias_fraction,
-        stuck_threshold_k,
-        stuck_tolerance_k,
-        stuck_window,
+        checks,
         limits,
         origin_c,
         hardware_limit_a,
@@ -1761,31 +1432,17 @@ fn write_assembled<const N: usize, const M: usize, const X: usize, const P: usiz
         resistance_sensors,
         noise_allowance_k,
         clock,
-        silent_after_us,
         protect_period_us,
         fingerprint,
     } = a;
-    let mut w = Fields::open(out, "observer::network::AssembledTables", 1)?;
-    w.table("f", f)?;
-    w.table("ht", ht)?;
-    w.table("q", q)?;
-    w.field("r", r)?;
-    w.field("gate_threshold", gate_threshold)?;
-    w.field("suspect_after", suspect_after)?;
-    w.field("recover_after", recover_after)?;
-    w.field("recovery_variance", recovery_variance)?;
-    w.field("walk_from", walk_from)?;
+    let mut w = out.nested("assembled", "observer::network::AssembledTables")?;
+    write_kalman(&mut w, "kalman", kalman)?;
     write_alarm(&mut w, "alarm", alarm)?;
     write_limiter(&mut w, "limiter", limiter)?;
     w.table("bound", bound)?;
     w.field("k_sigma", k_sigma)?;
     w.field("bound_sigma_k", bound_sigma_k)?;
-    w.field("band", band)?;
-    w.field("bias_offset_w", bias_offset_w)?;
-    w.field("bias_fraction", bias_fraction)?;
-    w.field("stuck_threshold_k", stuck_threshold_k)?;
-    w.field("stuck_tolerance_k", stuck_tolerance_k)?;
-    w.field("stuck_window", stuck_window)?;
+    write_checks(&mut w, checks)?;
     w.field("limits", limits)?;
     w.field("origin_c", origin_c)?;
     w.field("hardware_limit_a", hardware_limit_a)?;
@@ -1798,7 +1455,6 @@ fn write_assembled<const N: usize, const M: usize, const X: usize, const P: usiz
     w.field("resistance_sensors", resistance_sensors)?;
     w.field("noise_allowance_k", noise_allowance_k)?;
     write_clock(&mut w, clock)?;
-    w.field("silent_after_us", silent_after_us)?;
     w.field("protect_period_us", protect_period_us)?;
     w.field("fingerprint", fingerprint)?;
     w.close(false)
@@ -1868,15 +1524,26 @@ mod tests {
         assert!(a.outputs().temps_c[0] > 25.0, "{:?}", a.outputs().temps_c);
     }
 
-    #[test]
-    fn inconsistent_parts_are_refused_by_name() {
-        let name = |p: &Parts| match NetworkObserver::from_parts(p) {
+    /// The name `assemble` refuses `p` by.
+    fn refusal(
+        assemble: fn(&Parts) -> Result<NetworkObserver<3, 1, 1, 4, 1>, BuildError>,
+        p: &Parts,
+    ) -> &'static str {
+        match assemble(p) {
             Err(BuildError::InvalidParameter { name }) => name,
             other => panic!(
                 "expected a refusal, got {:?}",
                 other.map(|o| o.fingerprint())
             ),
-        };
+        }
+    }
+
+    /// What both assemblies refuse by the same name: an index out of
+    /// range, a non-finite table, a gain solved for another period.
+    fn refuses_the_shared_inconsistencies(
+        assemble: fn(&Parts) -> Result<NetworkObserver<3, 1, 1, 4, 1>, BuildError>,
+    ) {
+        let name = |p: &Parts| refusal(assemble, p);
         let mut p = parts();
         p.sensor_nodes = [3];
         assert_eq!(name(&p), "sensor_nodes");
@@ -1892,6 +1559,12 @@ mod tests {
         let mut p = parts();
         p.gain.period += 1;
         assert_eq!(name(&p), "gain.period");
+    }
+
+    #[test]
+    fn inconsistent_parts_are_refused_by_name() {
+        refuses_the_shared_inconsistencies(NetworkObserver::from_parts);
+        let name = |p: &Parts| refusal(NetworkObserver::from_parts, p);
         let mut p = parts();
         p.predictor.points_per_tick = 0;
         assert_eq!(name(&p), "points_per_tick");
@@ -1915,42 +1588,22 @@ mod tests {
         p.assembled.fingerprint ^= 1;
         assert_eq!(name(&p), "assembled");
         let mut p = parts();
-        p.assembled.q[0][0] *= 2.0;
+        p.assembled.kalman.q[0][0] *= 2.0;
         assert_eq!(name(&p), "assembled");
     }
 
     #[test]
     fn the_compilers_assembly_refuses_inconsistent_parts_by_name() {
-        let name = |p: &Parts| match NetworkObserver::from_assembled_parts(p) {
-            Err(BuildError::InvalidParameter { name }) => name,
-            other => panic!(
-                "expected a refusal, got {:?}",
-                other.map(|o| o.fingerprint())
-            ),
-        };
-        let mut p = parts();
-        p.sensor_nodes = [3];
-        assert_eq!(name(&p), "sensor_nodes");
-        let mut p = parts();
-        p.model.source_node = [7];
-        assert_eq!(name(&p), "source_node");
-        let mut p = parts();
-        p.model.ad[1][2] = f32::NAN;
-        assert_eq!(name(&p), "model");
-        let mut p = parts();
-        p.gain.prior[3][3] = f32::INFINITY;
-        assert_eq!(name(&p), "gain");
-        let mut p = parts();
-        p.gain.period += 1;
-        assert_eq!(name(&p), "gain.period");
+        refuses_the_shared_inconsistencies(NetworkObserver::from_assembled_parts);
+        let name = |p: &Parts| refusal(NetworkObserver::from_assembled_parts, p);
         let mut p = parts();
         p.predictor.winding_node = [3];
         assert_eq!(name(&p), "predictor");
         let mut p = parts();
-        p.shadow.constant_k[0] = f32::NAN;
+        p.shadow.step.constant_k[0] = f32::NAN;
         assert_eq!(name(&p), "shadow");
         let mut p = parts();
-        p.assembled.f[0][1] = f32::NAN;
+        p.assembled.kalman.f[0][1] = f32::NAN;
         assert_eq!(name(&p), "assembled");
         let mut p = parts();
         p.assembled.clock.step_us = 0;

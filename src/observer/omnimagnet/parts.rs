@@ -32,19 +32,25 @@
 //! checks that the generated configuration is `new`'s, fingerprint
 //! included, and runs both side by side.
 //!
+//! The filter's configuration, the sensor checks, the gain, the predictor
+//! and the protection are tables the network observer's parts share
+//! (`observer::tables`: each read, checked, copied and written once); the
+//! linear model of a step ([`MeanModelTables`], its inputs in one `G`) and
+//! the rest of the configuration are the Omnimagnet's own.
+//!
 //! The tick takes `&self`, so it runs on `&'static OmniObserver` in flash
 //! and only the [`OmniObserverState`](super::OmniObserverState) is in RAM.
 
 use core::fmt::{self, Write};
 
-use super::{check_refresh, OmniObserver, ALARM_NODES, PREDICTOR_POINTS};
+use super::{check_refresh, OmniObserver, ALARM_NODES};
 use crate::error::BuildError;
-use crate::filter::{GatePolicy, KalmanConfig};
 use crate::input::ScalarLimits;
-use crate::observer::consistency::{Band, BiasBound, RefreshWatchdog, StuckTest};
+use crate::observer::consistency::RefreshWatchdog;
 use crate::observer::tables::{
-    below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_clock,
-    write_limiter, AlarmTables, ClockTables, Fields, LimiterTables, Literal,
+    below, bound_rows, finite, finite_rows, invalid, upper_bound, write_alarm, write_checks,
+    write_clock, write_gain, write_kalman, write_limiter, write_predictor, AlarmTables,
+    ChecksTables, ClockTables, Fields, KalmanTables, LimiterTables, Literal,
 };
 use crate::observer::tables::{matrix, rows, vector, GainTables, PredictorTables};
 use crate::omnimagnet::observer::{
@@ -73,26 +79,10 @@ pub struct MeanModelTables {
 pub struct FilterTables {
     /// The settings it was solved with.
     pub settings: ObserverSettings,
-    /// `F` (dimensionless; \[K/W\] in the bias columns).
-    pub f: [[f32; STATES]; STATES],
+    /// The filter's configuration but for `G`.
+    pub kalman: KalmanTables<STATES, THERMOCOUPLES>,
     /// `G`: \[K/J\], dimensionless and \[K\] columns (see [`MeanModel`]).
     pub g: [[f32; INPUTS]; STATES],
-    /// `H^T` (dimensionless).
-    pub ht: [[f32; THERMOCOUPLES]; STATES],
-    /// Process noise `Q` \[K^2, W^2\].
-    pub q: [[f32; STATES]; STATES],
-    /// Measurement noise variances \[K^2\].
-    pub r: [f32; THERMOCOUPLES],
-    /// The gate's threshold on `nu^2 / S` (dimensionless; `+inf`: off).
-    pub gate_threshold: f32,
-    /// Consecutive rejections before a sensor is suspect.
-    pub suspect_after: u16,
-    /// Consecutive all-rejected corrections before the recovery.
-    pub recover_after: u16,
-    /// Variances added on recovery \[K^2, W^2\].
-    pub recovery_variance: [f32; STATES],
-    /// First state whose row of `F` is a unit row.
-    pub walk_from: usize,
     /// The steady-state gain and covariances.
     pub gain: GainTables<STATES, THERMOCOUPLES>,
     /// The build-time model of the predict.
@@ -156,20 +146,8 @@ pub struct OmniParts {
     pub predictor_elements_per_tick: u32,
     /// Model steps per shadow step.
     pub shadow_block_steps: u32,
-    /// The consistency band's fixed part \[K\] and share of the rise.
-    pub band: [f32; 2],
-    /// The band on the heat-input biases \[W\] (`+inf`: unbounded).
-    pub bias_offset_w: [f32; SOLENOIDS],
-    /// The bias bound's share of the Joule power (dimensionless).
-    pub bias_fraction: f32,
-    /// The stuck test's threshold \[K\].
-    pub stuck_threshold_k: f32,
-    /// The stuck test's tolerance for an unchanged reading \[K\].
-    pub stuck_tolerance_k: f32,
-    /// The stuck test's window (readings).
-    pub stuck_window: u32,
-    /// No reading for this long makes a thermocouple silent \[us\].
-    pub silent_after_us: u32,
+    /// The sensor checks.
+    pub checks: ChecksTables<SOLENOIDS>,
     /// The snapshot fingerprint of this configuration.
     pub fingerprint: u32,
     /// The fingerprint of the nonlinear model it was built from.
@@ -208,41 +186,6 @@ impl MeanModelTables {
     }
 }
 
-impl GainTables<STATES, THERMOCOUPLES> {
-    const fn is_finite(&self) -> bool {
-        finite_rows(&self.gain)
-            && finite_rows(&self.prior)
-            && finite_rows(&self.posterior)
-            && finite(&self.innovation_var)
-            && finite_rows(&self.prior_ht)
-            && finite_rows(&self.innovation_cov)
-    }
-}
-
-impl PredictorTables<NODES, 1, SOLENOIDS> {
-    const fn is_valid(&self) -> bool {
-        below(&self.winding_node, NODES)
-            && self.points_per_tick >= 1
-            && self.points_per_tick <= PREDICTOR_POINTS + 1
-            && finite(&self.grid_s)
-            && finite_rows(&self.decay)
-            && finite(&self.lambda_per_s)
-            && finite_rows(&self.v)
-            && finite_rows(&self.v_inv)
-            && finite_rows(&self.gain_power)
-            && finite_rows(&self.mode_gain_power)
-            && finite_rows(&self.gain_boundary)
-            && finite_rows(&self.mode_gain_boundary)
-            && finite(&self.offset_c)
-            && finite(&self.mode_offset)
-            && finite(&self.winding_r_at_0c_ohm)
-            && finite(&self.winding_slope_ohm_per_k)
-            && self.tick_s.is_finite()
-            && self.tick_s > 0.0
-            && self.slowest_time_constant_s.is_finite()
-    }
-}
-
 impl OmniObserver {
     /// Every table of this configuration as data (see the module docs):
     /// `from_parts(&self.parts())` is this observer, to the bit.
@@ -254,16 +197,8 @@ impl OmniObserver {
         OmniParts {
             filter: FilterTables {
                 settings: c.settings,
-                f: rows(&k.f),
+                kalman: KalmanTables::of(k),
                 g: rows(&k.g),
-                ht: rows(&k.ht),
-                q: rows(&k.q),
-                r: k.r.into(),
-                gate_threshold: k.gate.threshold,
-                suspect_after: k.gate.suspect_after,
-                recover_after: k.gate.recover_after,
-                recovery_variance: k.recovery_variance.into(),
-                walk_from: k.walk_from,
                 gain: GainTables::of(gain),
                 model: MeanModelTables::of(&c.model),
                 resistance: c.resistance.map(|(r0, slope)| [r0, slope]),
@@ -291,13 +226,12 @@ impl OmniObserver {
             predictor_elements_per_tick: u32::try_from(self.predictor.elements_per_tick)
                 .unwrap_or(u32::MAX),
             shadow_block_steps: self.shadow_block_steps,
-            band: [self.band.offset_k, self.band.fraction],
-            bias_offset_w: self.bias_bound.offset_w,
-            bias_fraction: self.bias_bound.fraction,
-            stuck_threshold_k: self.stuck_test.threshold_k,
-            stuck_tolerance_k: self.stuck_test.tolerance_k,
-            stuck_window: self.stuck_test.window,
-            silent_after_us: self.silent_after_us,
+            checks: ChecksTables::of(
+                &self.band,
+                &self.bias_bound,
+                &self.stuck_test,
+                self.silent_after_us,
+            ),
             fingerprint: self.fingerprint,
             plant_fingerprint: self.plant_fingerprint,
             model_stale_after_steps: self.refresh.bound_steps(),
@@ -311,16 +245,18 @@ impl OmniObserver {
     ///
     /// # Errors
     /// [`BuildError::InvalidParameter`] naming the first inconsistent part:
-    /// a non-finite table entry (`filter`, `filter.gain`, `filter.model`,
-    /// `protection`, `protection.predictor`, `shadow`), an index out of
-    /// range (`filter.solenoid_nodes`, `filter.walk_from`,
-    /// `predictor`), a clock the tick cannot run (`clock.step_us`,
-    /// `clock.max_steps_per_tick`, `clock.frozen_flag_ticks`,
-    /// `clock.frozen_loss_ticks`), a protection period below four
-    /// catch-ups of the clock or a phase beyond it
+    /// a non-finite table entry (`filter`, `filter.kalman`, `filter.gain`,
+    /// `filter.model`, `protection`, `protection.predictor`, `shadow`), an
+    /// index out of range (`filter.solenoid_nodes`, `filter.kalman`'s
+    /// `walk_from`, `protection.predictor`), a clock the tick cannot run
+    /// (`clock.step_us`, `clock.max_steps_per_tick`,
+    /// `clock.frozen_flag_ticks`, `clock.frozen_loss_ticks`), a protection
+    /// period below four catch-ups of the clock or a phase beyond it
     /// (`protect_period_us`, `protect_phase_us`), a zero shadow block
-    /// (`shadow_block_steps`), a NaN bias bound (`bias_offset_w`) or
-    /// input limit (`limits`), or a time-varying filter (`filter.settings`);
+    /// (`shadow_block_steps`), sensor checks with a non-finite band, a NaN
+    /// bias bound or stuck threshold or a negative tolerance (`checks`), a
+    /// non-finite input limit (`limits`), or a time-varying filter
+    /// (`filter.settings`);
     /// [`BuildError::ModelRefreshRequired`] for a sensor set that needs a
     /// model refresh the parts do not declare, as [`OmniObserver::new`].
     pub const fn from_parts(parts: &OmniParts) -> Result<Self, BuildError> {
@@ -328,24 +264,15 @@ impl OmniObserver {
         if !matches!(f.settings.mode, GainMode::SteadyState) || f.settings.warmup_corrections != 0 {
             return Err(invalid("filter.settings"));
         }
-        if !(finite_rows(&f.f)
-            && finite_rows(&f.g)
-            && finite_rows(&f.ht)
-            && finite_rows(&f.q)
-            && finite(&f.r)
-            && !f.gate_threshold.is_nan()
-            && finite(&f.recovery_variance)
-            && finite_rows(&f.resistance)
-            && f.dt_s.is_finite()
-            && f.dt_s > 0.0)
+        if !f.kalman.is_valid() {
+            return Err(invalid("filter.kalman"));
+        }
+        if !(finite_rows(&f.g) && finite_rows(&f.resistance) && f.dt_s.is_finite() && f.dt_s > 0.0)
         {
             return Err(invalid("filter"));
         }
         if !below(&f.solenoid_nodes, NODES) {
             return Err(invalid("filter.solenoid_nodes"));
-        }
-        if f.walk_from > STATES {
-            return Err(invalid("filter.walk_from"));
         }
         if !f.gain.is_finite() {
             return Err(invalid("filter.gain"));
@@ -353,22 +280,13 @@ impl OmniObserver {
         if !f.model.is_finite() {
             return Err(invalid("filter.model"));
         }
-        if !parts.shadow.is_finite() || !finite(&parts.band) {
+        if !parts.shadow.is_finite() {
             return Err(invalid("shadow"));
         }
-        // An unbounded bias is `+inf`; NaN would silently drop the bound.
-        let mut m = 0;
-        while m < SOLENOIDS {
-            if parts.bias_offset_w[m].is_nan() {
-                return Err(invalid("bias_offset_w"));
-            }
-            m += 1;
+        if !parts.checks.is_valid() {
+            return Err(invalid("checks"));
         }
-        if !(parts.bias_fraction.is_finite()
-            && !parts.stuck_threshold_k.is_nan()
-            && parts.stuck_tolerance_k.is_finite()
-            && parts.stuck_tolerance_k >= 0.0
-            && parts.max_current_a.is_finite()
+        if !(parts.max_current_a.is_finite()
             && parts.min_temp_c.is_finite()
             && parts.max_temp_c.is_finite())
         {
@@ -431,20 +349,7 @@ impl OmniObserver {
         Ok(Self {
             filter: ObserverConfig {
                 settings: f.settings,
-                kalman: KalmanConfig {
-                    f: matrix(&f.f),
-                    g: matrix(&f.g),
-                    ht: matrix(&f.ht),
-                    q: matrix(&f.q),
-                    r: vector(&f.r),
-                    gate: GatePolicy {
-                        threshold: f.gate_threshold,
-                        suspect_after: f.suspect_after,
-                        recover_after: f.recover_after,
-                    },
-                    recovery_variance: vector(&f.recovery_variance),
-                    walk_from: f.walk_from,
-                },
+                kalman: f.kalman.config(matrix(&f.g)),
                 gain: g.gain(),
                 model: f.model.model(),
                 resistance,
@@ -485,20 +390,10 @@ impl OmniObserver {
             plant_fingerprint: parts.plant_fingerprint,
             shadow: parts.shadow.model(),
             shadow_block_steps: parts.shadow_block_steps,
-            band: Band {
-                offset_k: parts.band[0],
-                fraction: parts.band[1],
-            },
-            bias_bound: BiasBound {
-                offset_w: parts.bias_offset_w,
-                fraction: parts.bias_fraction,
-            },
-            stuck_test: StuckTest {
-                threshold_k: parts.stuck_threshold_k,
-                window: parts.stuck_window,
-                tolerance_k: parts.stuck_tolerance_k,
-            },
-            silent_after_us: parts.silent_after_us,
+            band: parts.checks.band(),
+            bias_bound: parts.checks.bias_bound(),
+            stuck_test: parts.checks.stuck_test(),
+            silent_after_us: parts.checks.silent_after_us,
             refresh: RefreshWatchdog::from_steps(parts.model_stale_after_steps),
         })
     }
@@ -555,13 +450,7 @@ impl OmniParts {
             predictor_slice_us,
             predictor_elements_per_tick,
             shadow_block_steps,
-            band,
-            bias_offset_w,
-            bias_fraction,
-            stuck_threshold_k,
-            stuck_tolerance_k,
-            stuck_window,
-            silent_after_us,
+            checks,
             fingerprint,
             plant_fingerprint,
             model_stale_after_steps,
@@ -581,13 +470,7 @@ impl OmniParts {
         w.field("predictor_slice_us", predictor_slice_us)?;
         w.field("predictor_elements_per_tick", predictor_elements_per_tick)?;
         w.field("shadow_block_steps", shadow_block_steps)?;
-        w.field("band", band)?;
-        w.field("bias_offset_w", bias_offset_w)?;
-        w.field("bias_fraction", bias_fraction)?;
-        w.field("stuck_threshold_k", stuck_threshold_k)?;
-        w.field("stuck_tolerance_k", stuck_tolerance_k)?;
-        w.field("stuck_window", stuck_window)?;
-        w.field("silent_after_us", silent_after_us)?;
+        write_checks(&mut w, checks)?;
         w.field("fingerprint", fingerprint)?;
         w.field("plant_fingerprint", plant_fingerprint)?;
         w.field("model_stale_after_steps", model_stale_after_steps)?;
@@ -598,16 +481,8 @@ impl OmniParts {
 fn write_filter(out: &mut Fields<'_>, f: &FilterTables) -> fmt::Result {
     let FilterTables {
         settings,
-        f,
+        kalman,
         g,
-        ht,
-        q,
-        r,
-        gate_threshold,
-        suspect_after,
-        recover_after,
-        recovery_variance,
-        walk_from,
         gain,
         model,
         resistance,
@@ -618,16 +493,8 @@ fn write_filter(out: &mut Fields<'_>, f: &FilterTables) -> fmt::Result {
     } = f;
     let mut w = out.nested("filter", "observer::omnimagnet::FilterTables")?;
     write_settings(&mut w, settings)?;
-    w.table("f", f)?;
+    write_kalman(&mut w, "kalman", kalman)?;
     w.table("g", g)?;
-    w.table("ht", ht)?;
-    w.table("q", q)?;
-    w.field("r", r)?;
-    w.field("gate_threshold", gate_threshold)?;
-    w.field("suspect_after", suspect_after)?;
-    w.field("recover_after", recover_after)?;
-    w.field("recovery_variance", recovery_variance)?;
-    w.field("walk_from", walk_from)?;
     write_gain(&mut w, gain)?;
     write_model(&mut w, "model", model)?;
     w.field("resistance", resistance)?;
@@ -671,27 +538,6 @@ fn write_settings(out: &mut Fields<'_>, s: &ObserverSettings) -> fmt::Result {
     w.close(false)
 }
 
-fn write_gain(out: &mut Fields<'_>, g: &GainTables<STATES, THERMOCOUPLES>) -> fmt::Result {
-    let GainTables {
-        period,
-        gain,
-        prior,
-        posterior,
-        innovation_var,
-        prior_ht,
-        innovation_cov,
-    } = g;
-    let mut w = out.nested("gain", "observer::network::GainTables")?;
-    w.field("period", period)?;
-    w.table("gain", gain)?;
-    w.table("prior", prior)?;
-    w.table("posterior", posterior)?;
-    w.field("innovation_var", innovation_var)?;
-    w.table("prior_ht", prior_ht)?;
-    w.table("innovation_cov", innovation_cov)?;
-    w.close(false)
-}
-
 fn write_protection(out: &mut Fields<'_>, p: &ProtectionTables) -> fmt::Result {
     let ProtectionTables {
         alarm,
@@ -704,46 +550,5 @@ fn write_protection(out: &mut Fields<'_>, p: &ProtectionTables) -> fmt::Result {
     write_limiter(&mut w, "limiter", limiter)?;
     w.table("bound", bound)?;
     write_predictor(&mut w, predictor)?;
-    w.close(false)
-}
-
-fn write_predictor(out: &mut Fields<'_>, t: &PredictorTables<NODES, 1, SOLENOIDS>) -> fmt::Result {
-    let PredictorTables {
-        grid_s,
-        decay,
-        lambda_per_s,
-        v,
-        v_inv,
-        gain_power,
-        mode_gain_power,
-        gain_boundary,
-        mode_gain_boundary,
-        offset_c,
-        mode_offset,
-        winding_node,
-        winding_r_at_0c_ohm,
-        winding_slope_ohm_per_k,
-        tick_s,
-        points_per_tick,
-        slowest_time_constant_s,
-    } = t;
-    let mut w = out.nested("predictor", "observer::network::PredictorTables")?;
-    w.field("grid_s", grid_s)?;
-    w.table("decay", decay)?;
-    w.field("lambda_per_s", lambda_per_s)?;
-    w.table("v", v)?;
-    w.table("v_inv", v_inv)?;
-    w.table("gain_power", gain_power)?;
-    w.table("mode_gain_power", mode_gain_power)?;
-    w.table("gain_boundary", gain_boundary)?;
-    w.table("mode_gain_boundary", mode_gain_boundary)?;
-    w.field("offset_c", offset_c)?;
-    w.field("mode_offset", mode_offset)?;
-    w.field("winding_node", winding_node)?;
-    w.field("winding_r_at_0c_ohm", winding_r_at_0c_ohm)?;
-    w.field("winding_slope_ohm_per_k", winding_slope_ohm_per_k)?;
-    w.field("tick_s", tick_s)?;
-    w.field("points_per_tick", points_per_tick)?;
-    w.field("slowest_time_constant_s", slowest_time_constant_s)?;
     w.close(false)
 }
