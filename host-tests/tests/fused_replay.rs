@@ -73,24 +73,6 @@ fn refused(rec: &Path, out: &Path, args: &[&str], msg: &str) {
         .stderr(predicates::str::contains(msg));
 }
 
-#[test]
-fn bad_filter_flags_are_refused() {
-    let tmp = TempDir::new().unwrap();
-    let rec = recording(tmp.path());
-    let out = tmp.path().join("e.csv");
-    for (flag, value, msg) in [
-        ("--measurement-noise-k", "0", "--measurement-noise-k"),
-        ("--process-noise-k2-per-s", "-1", "--process-noise-k2-per-s"),
-    ] {
-        refused(
-            &rec,
-            &out,
-            &["--measure", "T_housing=housing", flag, value],
-            msg,
-        );
-    }
-}
-
 /// The firmware's filter (the library's default bias noise, 1e-3 W^2/s: the
 /// model file has no `[observer]` table) learns the coil's missing heat
 /// from the housing, fusing every reading: the unmeasured coil is far
@@ -236,11 +218,29 @@ fn biases_no_sensor_can_tell_apart_are_shared_or_named() {
 }
 
 #[test]
-fn bad_bias_noise_flags_are_refused() {
+fn bad_noise_flags_are_refused() {
     let tmp = TempDir::new().unwrap();
     let rec = recording(tmp.path());
     let out = tmp.path().join("e.csv");
     for (extra, msg) in [
+        (
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--measurement-noise-k",
+                "0",
+            ][..],
+            "--measurement-noise-k",
+        ),
+        (
+            &[
+                "--measure",
+                "T_housing=housing",
+                "--process-noise-k2-per-s",
+                "-1",
+            ][..],
+            "--process-noise-k2-per-s",
+        ),
         (
             &[
                 "--measure",
