@@ -1,26 +1,10 @@
 #!/usr/bin/env bash
 # The HUST thermocouple channel's shifts (docs/hust-trials.md, "The thermocouple
-# channel's shifts"), five tables from the replays `reproduce.sh` wrote
-# (target/hust/seven_fused_N.json and .csv; reproduce.sh runs this last).
+# channel's shifts"), four tables from the replays `reproduce.sh` wrote
+# (target/hust/seven_fused_N.csv, the flashed observer's estimates, and
+# seven_open_N.csv; reproduce.sh runs this after its table).
 #
-# 1. Where the seven-node fused filter's gate refuses `endwind_1` readings
-#    (their `rejected_at_s`), and what the other thermocouples do there.
-#
-# Rejections less than 4 s apart form one burst. For each burst starting at
-# row a (the trace is sampled every second, so row = second):
-#   transition: the speed moves by more than 300 rpm or the current by more
-#     than 80 A within rows a-10..a+5;
-#   jump of a column: mean of rows a+3..a+5 minus mean of rows a-6..a-4 [K];
-#   channel: outer_yoke and endcap jump by more than 0.25 and 0.2 K, both the
-#     way endwind_1 jumps. The end caps (3.4 kJ/K) cannot move that far in
-#     6-9 s on their own heat (0.2 K in 6 s is 110 W net, 14 K across their
-#     8 W/K of links), the yoke with them, and the water outlet, read by
-#     another instrument, does not move: the thermocouple channel shifted,
-#     not the motor.
-# The last column is the control: the share of all rows (every 5th, 10 s
-# from either end) that meet the channel test, bursts or not.
-#
-# 2. The fused estimates scored against the active-winding thermocouples as
+# 1. The fused estimates scored against the active-winding thermocouples as
 #    recorded and against the same readings with the channel's fast
 #    common-mode shift taken out.
 #
@@ -38,57 +22,6 @@ cd "$(dirname "$0")/../.."
 source host-tests/hust/common.sh
 PROFILES="$FIT_PROFILES $HELD_OUT"
 
-echo "The gate's rejection bursts (seven-node fused)"
-echo
-echo "| profile | rejected readings | bursts | at a speed or load step | with yoke and end cap jumping alike (channel) | of those, at a step | channel test at any row |"
-echo "|---|---|---|---|---|---|---|"
-for n in $PROFILES; do
-  json="$OUT/seven_fused_$n.json"
-  need "$json"
-  times=$(grep -o '"rejected_at_s":\[[^]]*\]' "$json" | sed 's/.*\[//; s/\]//')
-  awk -F, -v n="$n" -v times="$times" '
-    NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
-    {
-      k = NR - 2
-      sp[k] = $col["speed"]; cur[k] = sqrt($col["IdFbk"]^2 + $col["IqFbk"]^2)
-      ew[k] = $col["endwind_1"]; yk[k] = $col["outer_yoke"]; ec[k] = $col["endcap"]
-      rows = k + 1
-    }
-    function jump(a, x,   j, after, before) {
-      after = 0; before = 0
-      for (j = a + 3; j <= a + 5; j++) after += x[(j < rows) ? j : rows - 1]
-      for (j = a - 6; j <= a - 4; j++) before += x[(j > 0) ? j : 0]
-      return (after - before) / 3
-    }
-    function range(a, x,   j, lo, hi) {
-      lo = 1e9; hi = -1e9
-      for (j = a - 10; j <= a + 5; j++) if (j >= 0 && j < rows) { if (x[j] < lo) lo = x[j]; if (x[j] > hi) hi = x[j] }
-      return hi - lo
-    }
-    function shifted(a,   e, y, c) {
-      e = jump(a, ew); y = jump(a, yk); c = jump(a, ec)
-      return (y > 0.25 && c > 0.2 && e > 0) || (y < -0.25 && c < -0.2 && e < 0)
-    }
-    function burst(a,   step) {
-      bursts++
-      step = range(a, sp) > 300 || range(a, cur) > 80
-      steps += step
-      if (shifted(a)) { channel++; channel_steps += step }
-    }
-    END {
-      m = split(times, t, ",")
-      rejected = (times == "") ? 0 : m
-      last = -100
-      for (i = 1; i <= rejected; i++) {
-        r = int(t[i] + 0.5)
-        if (r - last >= 4) burst(r)
-        last = r
-      }
-      for (a = 10; a < rows - 10; a += 5) { tried++; base += shifted(a) }
-      printf "| %s | %d | %d | %d | %d | %d | %.1f %% |\n", n, rejected, bursts, steps, channel, channel_steps, 100 * base / tried
-    }' "$(trace "$n")"
-done
-echo
 echo "Seven-node fused against the readings with the channel's shift taken out"
 echo
 echo "| profile | sensor | as recorded: MSE [K^2] / max [K] | shift taken out: MSE [K^2] / max [K] |"
@@ -127,7 +60,7 @@ done
 echo
 echo "Profile 0 against its file as published (smoothed)"
 echo
-# 3. Profile 0's file holds every temperature through an exponential moving
+# 2. Profile 0's file holds every temperature through an exponential moving
 #    average (alpha 0.05 per row; ../shared/data/hust-ipmsm/README.md).
 #    The tables score against the readings with it inverted. Here the fused
 #    estimate goes through the same average and is scored against the
@@ -158,7 +91,7 @@ awk -F, '
 echo
 echo "The channel at rotor starts and stops"
 echo
-# 4. Every start (speed from below 50 rpm to above 500 rpm within 10 s) and
+# 3. Every start (speed from below 50 rpm to above 500 rpm within 10 s) and
 #    stop (the reverse) of the rotor: the jump of the yoke, end cap and
 #    water outlet readings (mean of rows k+3..k+8 minus mean of k-8..k-3,
 #    [K]). The stator thermocouples move together, the water outlet does
@@ -187,7 +120,7 @@ done
 echo
 echo "The instruments at rest"
 echo
-# 5. Rest: rows under 20 A and 100 rpm at least 1500 rows after the last
+# 4. Rest: rows under 20 A and 100 rpm at least 1500 rows after the last
 #    row over 30 A or 200 rpm. There the yoke carries no loss and is bound
 #    to the water by about 134 W/K (the fit), so its difference from the
 #    water outlet is mostly the instruments' (some is the rotor's stored

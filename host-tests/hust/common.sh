@@ -1,6 +1,6 @@
 # Sourced by the HUST scripts (reproduce.sh and the analyses it runs): where
 # the data and outputs are, and the seven-node model's start states, fit
-# and filter options, so that every script calibrates and replays it alike.
+# and fusion, so that every script calibrates and replays it alike.
 # Run from the repository root.
 DIR="${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}"
 OUT=target/hust
@@ -19,39 +19,10 @@ field() { grep -o "\"$2\":[-0-9.eE+]*" "$1" | sed -n "$(($3 + 1))p" | cut -d: -f
 INIT6=(--init endwind_1=end_winding --init 'mean(slotbottom,outer_yoke)=stator_teeth'
   --init outer_yoke=stator_yoke --init rotor=rotor --init endcap=endcap)
 INIT7=("${INIT6[@]}" --init activewind_2=slot_centre)
-# The seven-node filter: endwind_1 fused, one disturbance per loss
-# mechanism the model may have wrong: over the copper (at one density, as
-# the copper loss), and over the stator iron (teeth and yoke; the model's
-# iron losses follow the speed only, while a loaded machine's grow with
-# the current too, as the authors' 1151 i f W term of rest losses does).
-# Their noise is the same on every profile (not the replay default, which
-# scales the disturbance with each trace's peak power). Every node starts
-# at a measured reading, so the start is known to about 0.5 K (the teeth,
-# started at the mean of slot bottom and yoke, less well than the others),
-# not the default 2 K; and the filter learns the sensor's noise from its
-# readings (the scatter of each reading about the mean of the 10 rows
-# either side, over 600 rows), with the declared 0.2 K as the floor (the
-# model file's 0.5 K is the firmware's fixed noise, not this floor):
-# profile 0's thermocouples scatter by 0.4-0.6 K, the others' by 0.02-0.3
-# K. The disturbances never take heat away
-# (--disturbance-floor-share 0, the firmware's default for its heat
-# biases): a model that runs hot is corrected by the temperatures, not by
-# a negative copper loss that would cool the unmeasured copper too.
-# Beside them, an offset on the coolant the links see (first-order
-# Gauss-Markov, the flag's 2 K and 7200 s: a few K, hours), never below
-# the outlet's reading (--boundary-offset-floor-k 0): the bench's stator
-# thermocouples sit up to 3.7 K above the water outlet at rest, where no
-# heat explains it (docs/hust-trials.md, "A coolant offset that never cools"),
-# which the copper disturbance alone took for heat in the copper; an
-# offset may warm the model, like the disturbances, never cool it. The
-# temperatures' own process noise is the replay's default, 1e-4 K^2/s,
-# given explicitly: the model file's `[observer] node_noise_k2_per_s`
-# (1e-3, the firmware observer's, which has no disturbance states to
-# carry the model's error) would otherwise be taken as this filter's too.
-FUSE7=(--measure endwind_1=end_winding --measurement-noise-k 0.2 --process-noise-k2-per-s 1e-4 --disturbance active_winding,slot_centre,end_winding
-  --disturbance stator_teeth,stator_yoke --disturbance-std-w 50 --initial-std-k 0.5 --noise-half-window-rows 10
-  --disturbance-floor-share 0 --boundary-offset coolant --boundary-offset-std-k 2 --boundary-offset-tau-s 7200
-  --boundary-offset-floor-k 0)
+# The seven-node fusion: endwind_1 fused by the firmware's observer,
+# every setting the model file's `[observer]` table (what `codegen`
+# flashes; the file's comment gives each value's reason).
+FUSE7=(--measure endwind_1=end_winding)
 
 # Calibrates model file $1 within the bounds of params file $2 into fitted
 # file $3 (its log beside it, .txt) on the profiles listed in $4, against
@@ -89,21 +60,11 @@ replay_seven_with() {
 }
 
 # Replays seven-node model $1 on profile $2, open loop into $3.json and
-# with endwind_1 fused into $4.json; with a fifth argument `csv`, the
+# with endwind_1 fused (FUSE7) into $4.json; with a fifth argument `csv`, the
 # estimates too, into $3.csv and $4.csv.
 replay_seven() {
   local open=() fused=()
   if [ "${5:-}" = csv ]; then open=(--out "$3.csv"); fused=(--out "$4.csv"); fi
   replay_seven_with "$1" "$2" "$3" "${open[@]}"
   replay_seven_with "$1" "$2" "$4" "${FUSE7[@]}" "${fused[@]}"
-}
-
-# FUSE7 with option $1's value set to $2, into the array FUSE.
-fuse7_with() {
-  local i
-  FUSE=("${FUSE7[@]}")
-  for i in "${!FUSE[@]}"; do
-    if [ "${FUSE[$i]}" = "$1" ]; then FUSE[i + 1]=$2; return; fi
-  done
-  FUSE+=("$1" "$2")
 }

@@ -4,14 +4,14 @@
 # fused by the library's NetworkObserver, the firmware's packaged observer
 # (steady gain, f32, 1 ms ticks, one heat bias: the model file's
 # `[observer] bias_sources`, the copper's on the active winding, at the
-# library's default bias noise), not the row-rate Kalman filter of the
-# table. Scored like the table. The flashed column is the model file as
-# `codegen` builds it: 0.5 K of sensor noise (about profile 0's scatter,
-# what the row-rate filter learns there), 1.5e-3 K^2/s of node noise (the
-# model's own error growth on the fit profiles) and the coolant offset at
-# the row-rate filter's 2 K and 7200 s. The first column is the same file
-# at the table filter's declared 0.2 K, a probe: the firmware's observer
-# has one fixed noise and does not learn it.
+# library's default bias noise). Scored like reproduce.sh's table. The
+# flashed column is the model file as `codegen` builds it (the column
+# reproduce.sh scores): 0.5 K of sensor noise (about profile 0's
+# scatter), 1.5e-3 K^2/s of node noise (the model's own error growth on
+# the fit profiles) and the coolant offset at 2 K and 7200 s. The first
+# column is the same file at 0.2 K of sensor noise, a probe: the
+# firmware's observer has one fixed noise, and most of the bench's
+# channels scatter less than profile 0's.
 #
 # The other columns are variants of the committed file written under
 # target/hust/firmware/ (not flashed): as flashed before issue 34's item 3
@@ -19,9 +19,8 @@
 # K^2/s), the node noise alone, the coolant offset alone (at the default
 # node noise), and the offset with one copper heat bias shared by the
 # three copper sources in proportion to their Joule power, a Gauss-Markov
-# process of the row-rate filter's copper disturbance (50 W, 1800 s:
-# `bias_noise_w2_per_s = 2 x 50^2 / 1800`, `bias_tau_s = 1800`,
-# `shared_bias = true`), at the default node noise.
+# process of 50 W and 1800 s (`bias_noise_w2_per_s = 2 x 50^2 / 1800`,
+# `bias_tau_s = 1800`, `shared_bias = true`), at the default node noise.
 #
 # Run reproduce.sh first (it writes the inverted profile 0). Writes only
 # under target/hust/firmware/.

@@ -5,14 +5,14 @@
 # winding one conductor with the electrical copper loss shared by capacity,
 # the AC copper loss in the slots only, and the end caps' capacity set
 # from their materials), then scores on every profile the authors' full published
-# network (hust-published.toml) and each calibrated model open loop and
-# with endwind_1 fused by the Kalman filter; last, the gate's rejection
-# bursts and the fused scores against the readings with the thermocouple
-# channel's shifts taken out (channel_shifts.sh), the committed
-# seven-node model against its alternatives (variants.sh), each fit
-# profile left out of the fit in turn (cross_validation.sh), the fused
-# results with each filter setting moved down and up (filter_sensitivity.sh),
-# and the firmware's observer fusing the same sensor (firmware_observer.sh).
+# network (hust-published.toml), each calibrated model open loop, and the
+# seven-node one with endwind_1 fused by the flashed observer (the
+# library's NetworkObserver as `codegen` builds it from the model file's
+# `[observer]` table); last, the fused scores against the readings with
+# the thermocouple channel's shifts taken out (channel_shifts.sh), the
+# committed seven-node model against its alternatives (variants.sh), each
+# fit profile left out of the fit in turn (cross_validation.sh), and the
+# flashed observer beside variants of its settings (firmware_observer.sh).
 # Every run starts every node that has a sensor at its first reading.
 # Reads the data from ${COIL_THERMAL_HUST_DIR:-../shared/data/hust-ipmsm}
 # (relative to the repository root); writes only under target/hust/.
@@ -73,11 +73,6 @@ done
 
 fmt() { awk -v v="$1" 'BEGIN { printf "%.2f", v }'; }
 
-# The six-node filter: the same disturbance noise on every profile as the
-# seven-node one (FUSE7 in common.sh, which says why), the replay's other
-# defaults.
-FUSE=(--disturbance-std-w 50)
-
 row() {
   local n=$1 tag=$2 t
   t=$(trace "$n")
@@ -88,14 +83,10 @@ row() {
   "$CT" replay --model "$OUT/hust_motor_fitted.toml" --trace "$t" --sample-period-s 1 \
     --truth activewind_1=active_winding --truth activewind_2=active_winding "${INIT6[@]}" \
     --out "$OUT/six_open_$n.csv" --json > "$OUT/six_open_$n.json"
-  "$CT" replay --model "$OUT/hust_motor_fitted.toml" --trace "$t" --sample-period-s 1 \
-    --truth activewind_1=active_winding --truth activewind_2=active_winding "${INIT6[@]}" \
-    --measure endwind_1=end_winding --disturbance active_winding,end_winding "${FUSE[@]}" \
-    --out "$OUT/six_fused_$n.csv" --json > "$OUT/six_fused_$n.json"
   replay_seven "$OUT/hust_motor_slot_fitted.toml" "$n" "$OUT/seven_open_$n" "$OUT/seven_fused_$n" csv
   for s in 0 1; do
     local line="| $n | $tag | activewind_$((s + 1))"
-    for e in published six_open six_fused seven_open seven_fused; do
+    for e in published six_open seven_open seven_fused; do
       line="$line | $(fmt "$(field "$OUT/${e}_$n.json" mse_k2 "$s")") / $(fmt "$(field "$OUT/${e}_$n.json" max_abs_error_k "$s")")"
     done
     echo "$line |"
@@ -105,15 +96,15 @@ row() {
 echo
 echo "MSE [K^2] / max error [K] of the active-winding sensors"
 echo
-echo "| profile | role | sensor | published (full, open loop) | 6-node open loop | 6-node + endwind_1 fused | 7-node open loop | 7-node + endwind_1 fused |"
-echo "|---|---|---|---|---|---|---|---|"
+echo "| profile | role | sensor | published (full, open loop) | 6-node open loop | 7-node open loop | 7-node, flashed observer, endwind_1 fused |"
+echo "|---|---|---|---|---|---|---|"
 row 0 "fit (7-node; inverted EMA)"
 for n in 1 3 5 9 11; do row "$n" fit; done
 for n in $HELD_OUT; do row "$n" scored; done
 
-# Where the gate refuses endwind_1 and what the other thermocouples do
-# there, and the fused estimates against the readings with the channel's
-# shifts taken out (docs/hust-trials.md, "The thermocouple channel's shifts").
+# The fused estimates against the readings with the channel's shifts taken
+# out, and what the thermocouples do at starts, stops and rest
+# (docs/hust-trials.md, "The thermocouple channel's shifts").
 echo
 host-tests/hust/channel_shifts.sh
 
@@ -128,13 +119,7 @@ host-tests/hust/variants.sh
 echo
 host-tests/hust/cross_validation.sh
 
-# How much the fused results hang on the filter's settings, each moved
-# down and up (docs/hust-trials.md, "Filter settings").
-echo
-host-tests/hust/filter_sensitivity.sh
-
-# The firmware's observer (the library's NetworkObserver, as codegen
-# builds it) with endwind_1 fused (docs/hust-trials.md, "The firmware's
-# observer").
+# The flashed observer beside variants of its settings
+# (docs/hust-trials.md, "The firmware's observer").
 echo
 host-tests/hust/firmware_observer.sh

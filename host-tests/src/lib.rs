@@ -18,7 +18,6 @@
 //!   omnimagnet` through the observers the firmware flashes for them;
 //! * [`library_observer`]: the library's `NetworkObserver` at 1 ms ticks on
 //!   a model file (the replay's estimator);
-//! * [`kalman`]: the library's Kalman filter with disturbance states;
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;
@@ -43,7 +42,6 @@ pub mod faults;
 pub mod firmware;
 pub mod grid_firmware;
 pub mod grid_reference;
-pub mod kalman;
 pub mod library_observer;
 pub mod limits;
 pub mod margin;

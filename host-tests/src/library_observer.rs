@@ -50,7 +50,7 @@
 //! the model's heat as well as its temperatures: a housing thermocouple
 //! warms an unmeasured coil whose plant runs 40 % hotter than the model
 //! (coil MSE 1.09 K^2, against 5.46 with the biases frozen and 31.9 open
-//! loop; test `kalman_replay`).
+//! loop; test `fused_replay`).
 //!
 //! When the sensors cannot see every source's bias (e.g. three sources and
 //! one sensor; the HUST models, copper and speed losses, with one sensor),
@@ -64,10 +64,8 @@
 //! padding's). Or the
 //! firmware freezes every bias (`[observer] bias_noise_w2_per_s = 0`;
 //! `replay --bias-noise-w2-per-s 0` replays so without editing the file:
-//! temperatures corrected, no heat input estimated). A heat the model
-//! lacks is also what `--disturbance` estimates, with the library's
-//! time-varying filter ([`crate::kalman`]). Open loop (no sensor) there is
-//! nothing to fuse and no bias.
+//! temperatures corrected, no heat input estimated). Open loop (no sensor)
+//! there is nothing to fuse and no bias.
 //!
 //! # Voltage-driven sources
 //! A `[[source]]` driven by a PWM duty or a voltage (`drive = "pwm"` or
@@ -109,7 +107,6 @@ use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
 
 use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
-use crate::kalman::FusionStats;
 use crate::limits::{class_of, on_big_stack, padded_with, Padding};
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement, TickClock};
@@ -347,8 +344,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
                 ) {
                     Some(hint) => anyhow!(
                         "the observer of model `{name}` does not build: {e}; {hint} \
-                         (replay: --bias-noise-w2-per-s 0 freezes the biases without editing the file, \
-                         --disturbance estimates the missing heat with the host's row-rate filter)"
+                         (replay: --bias-noise-w2-per-s 0 freezes the biases without editing the file)"
                     ),
                     None => anyhow!("the observer of model `{name}` does not build: {e}"),
                 }
@@ -521,6 +517,37 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
                 e.element.and_then(|i| alarm.alarm_limit_c(i, ambient_c)),
                 alarm.warning_margin_k(),
             ));
+        }
+    }
+}
+
+/// Fusion statistics of one sensor over a replay, as the observer's
+/// sensor statuses count them.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FusionStats {
+    /// Node index.
+    pub node: usize,
+    /// Readings fused.
+    pub fused: usize,
+    /// Readings rejected by the gate.
+    pub rejected: usize,
+    /// Readings judged stuck against the physics (the observer's shadow
+    /// model).
+    pub stuck: usize,
+    /// Readings refused as colder than the physics (the observer's shadow
+    /// model).
+    pub colder_than_physics: usize,
+}
+
+impl FusionStats {
+    /// Nothing counted yet for the sensor on `node`.
+    pub fn new(node: usize) -> Self {
+        Self {
+            node,
+            fused: 0,
+            rejected: 0,
+            stuck: 0,
+            colder_than_physics: 0,
         }
     }
 }

@@ -1588,7 +1588,7 @@ impl Model {
     pub fn require_fixed_network(&self, what: &str) -> Result<()> {
         if self.has_varying_conductances() {
             bail!(
-                "model `{}` has speed-dependent conductances ([conductance.speed]); {what} needs a fixed network (replay it open loop without --measure, or fuse it with --disturbance: the row-rate Kalman filter follows the network row by row)",
+                "model `{}` has speed-dependent conductances ([conductance.speed]); {what} needs a fixed network (replay it open loop without --measure: the explicit stepper follows the network row by row)",
                 self.name
             );
         }

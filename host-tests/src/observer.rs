@@ -2,12 +2,13 @@
 //!
 //! Per trace row: *update* with the row's measurements, *check* the
 //! estimate, *predict* to the next row with the row's inputs. The
-//! estimators are the library's observer ticking at 1 ms
-//! ([`crate::library_observer`]) and the library's Kalman filter with
-//! disturbance states at the trace's rows ([`crate::kalman`]); the
-//! protection is
-//! [`LibraryAlarm`], the library's `coil_thermal::protect::alarm` with its
-//! derated limits, debounced warning, latched shutdown and event queue.
+//! estimators are the firmware's observers, which raise their own alarms
+//! (the library's `NetworkObserver` ticking at 1 ms,
+//! [`crate::library_observer`], and the devices' in [`crate::grid_firmware`]
+//! and [`crate::omni_firmware`]), and a model run open loop at the trace's
+//! rows, watched by the host's [`LibraryAlarm`]: the library's
+//! `coil_thermal::protect::alarm` with its derated limits, debounced
+//! warning, latched shutdown and event queue.
 //!
 //! # Size dispatch by padding
 //!

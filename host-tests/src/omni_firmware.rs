@@ -25,8 +25,7 @@ use coil_thermal::omnimagnet::{Omnimagnet, NODES, SOLENOIDS, THERMOCOUPLES, THER
 use coil_thermal::Reading;
 
 use crate::codegen::{omnimagnet_settings, OMNIMAGNET_AMBIENT_C};
-use crate::kalman::FusionStats;
-use crate::library_observer::{EventKindAt, Protected};
+use crate::library_observer::{EventKindAt, FusionStats, Protected};
 use crate::observer::{Estimator, Measurement, TickClock, TimeHistogram};
 use crate::sim::PlantInfo;
 

@@ -885,7 +885,6 @@ fn bad_models_and_arguments_are_refused() {
         // The host alarm's flags do not apply to the firmware's observer.
         ("--horizon-s", "60", "drop --horizon-s"),
         ("--debounce-rows", "3", "drop --debounce-rows"),
-        ("--gate", "nan", "drop --gate"),
         (
             "--current-scale",
             "-1",

@@ -560,3 +560,35 @@ fn faults_refuses_a_boundary_offset_it_cannot_run() {
         &["boundary_offset"],
     );
 }
+
+/// The host's row-rate filter is gone (the flashed `NetworkObserver` is
+/// what `replay --measure` runs): its flags are refused by the parser, by
+/// name, never taken and ignored.
+#[test]
+fn the_row_rate_filters_flags_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let model = models().join("two-node-coil.toml");
+    let trace = dir.path().join("rec.csv");
+    fs::write(&trace, "time_s,current,T_housing\n0,1,20\n1,1,20.1\n").unwrap();
+    for (flag, value) in [
+        ("--disturbance", "coil"),
+        ("--disturbance-std-w", "50"),
+        ("--disturbance-tau-s", "1800"),
+        ("--disturbance-floor-share", "0"),
+        ("--boundary-offset", "ambient"),
+        ("--boundary-offset-std-k", "2"),
+        ("--boundary-offset-tau-s", "7200"),
+        ("--boundary-offset-floor-k", "0"),
+        ("--gate", "10.83"),
+        ("--initial-std-k", "2"),
+        ("--noise-half-window-rows", "10"),
+        ("--noise-memory-rows", "600"),
+    ] {
+        refused(
+            ct().args(["replay", "--model", s(&model), "--trace", s(&trace)])
+                .args(["--measure", "T_housing=housing", flag, value])
+                .assert(),
+            &[&format!("unexpected argument '{flag}'")],
+        );
+    }
+}

@@ -442,33 +442,6 @@ fn replay_without_out_prints_only_the_summary() {
 }
 
 #[test]
-fn the_disturbance_default_scales_with_the_heating_power() {
-    // 3 A in 5.69 ohm (at the 20 degC boundary) is 51.21 W; the default
-    // disturbance is a tenth of it (the old fixed 50 W suited a 10 kW
-    // motor).
-    let dir = TempDir::new().unwrap();
-    let rec = recording(&dir, "rec", 3.0, 400, 20.0, false);
-    let j = json(
-        &ct()
-            .args(["replay", "--model", &model(), "--trace", s(&rec)])
-            .args(["--time-column", "time", "--current", "0:3,400:0=current"])
-            .args(["--measure", "housing_t=housing", "--disturbance", "coil"])
-            .args(["--truth", "temperature=coil", "--json"])
-            .assert()
-            .success(),
-    );
-    let w = j["disturbance_std_w"].as_f64().unwrap();
-    assert!((w - 5.121).abs() < 1e-9, "{j}");
-    let help = ct().args(["replay", "--help"]).assert().success();
-    let text = String::from_utf8(help.get_output().stdout.clone()).unwrap();
-    let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
-    assert!(
-        text.contains("10 % of the trace's peak heating power"),
-        "{text}"
-    );
-}
-
-#[test]
 fn a_closed_pipe_ends_the_tool_quietly() {
     // `coil-thermal ... | head -1` panicked with exit 101. Here the reader
     // is gone before the tool prints.

@@ -283,13 +283,11 @@ pub struct ReplayArgs {
     #[command(flatten)]
     trace_args: TraceArgs,
     /// A fused sensor: `COL=NODE` [degC], or a comma list of them; an
-    /// empty or `NaN` cell is a missing reading. Repeatable (at most 4 without
-    /// `--disturbance`). The library's `NetworkObserver` ticks every
-    /// `--tick-us` and fuses each row's reading as a thermocouple of NODE
-    /// (steady-state gain for the firmware's correction period; heat-input
-    /// biases as the firmware: see --bias-noise-w2-per-s); with
-    /// `--disturbance` the library's time-varying Kalman filter runs at the
-    /// trace's rows instead. With `--model omnimagnet` the flashed
+    /// empty or `NaN` cell is a missing reading. Repeatable (at most 4). The
+    /// library's `NetworkObserver` ticks every `--tick-us` and fuses each
+    /// row's reading as a thermocouple of NODE (steady-state gain for the
+    /// firmware's correction period; heat-input biases as the firmware: see
+    /// --bias-noise-w2-per-s). With `--model omnimagnet` the flashed
     /// `OmniObserver` fuses them: up to its six thermocouples, two on each
     /// solenoid node.
     #[arg(long = "measure", value_name = "COL=NODE")]
@@ -300,87 +298,24 @@ pub struct ReplayArgs {
     /// named in the output.
     #[arg(long, value_name = "US")]
     tick_us: Option<u32>,
-    /// The library observer's heat-input bias noise [W^2/s] with --measure
-    /// (not with --disturbance): overrides the model file's `[observer]
-    /// bias_noise_w2_per_s` (default: the file's, else 1e-3, as `codegen`
-    /// builds the firmware). 0 freezes the biases (temperatures corrected,
-    /// no heat estimated), for sensors that cannot see every source's bias.
+    /// The library observer's heat-input bias noise [W^2/s] with --measure:
+    /// overrides the model file's `[observer] bias_noise_w2_per_s`
+    /// (default: the file's, else 1e-3, as `codegen` builds the firmware).
+    /// 0 freezes the biases (temperatures corrected, no heat estimated),
+    /// for sensors that cannot see every source's bias.
     #[arg(long, value_name = "W2_PER_S", allow_negative_numbers = true)]
     bias_noise_w2_per_s: Option<f64>,
     /// Fusion: process noise of every temperature state [K^2/s] (white heat
-    /// flow; per step `Q = q dt`). Default: the library's 1e-4, which the
-    /// firmware runs; another value is an override, named in the output.
+    /// flow; per step `Q = q dt`). Default: the model file's `[observer]
+    /// node_noise_k2_per_s`, else the library's 1e-4, which the firmware
+    /// runs; another value is an override, named in the output.
     #[arg(long, value_name = "K2_PER_S", allow_negative_numbers = true)]
     process_noise_k2_per_s: Option<f64>,
     /// Fusion: standard deviation of every fused sensor [K]. Default: the
     /// model file's `[observer] sensor_sigma_k` (the noise `codegen` builds
-    /// the firmware with), else codegen's 0.25 (the row-rate filter's: 0.2).
+    /// the firmware with), else codegen's 0.25.
     #[arg(long, value_name = "K", allow_negative_numbers = true)]
     measurement_noise_k: Option<f64>,
-    /// Filter (row-rate filter only): standard deviation of the initial
-    /// temperatures [K] (default 2).
-    #[arg(long, value_name = "K", allow_negative_numbers = true)]
-    initial_std_k: Option<f64>,
-    /// Filter: a disturbance state, an unmodelled heat [W] shared by these
-    /// nodes in proportion to their capacities (comma separated); repeatable.
-    /// It lets one sensor correct the heat input of unmeasured nodes.
-    #[arg(long = "disturbance", value_name = "NODE[,NODE...]")]
-    disturbance: Vec<String>,
-    /// Filter: stationary standard deviation of each disturbance [W].
-    /// Default: 10 % of the trace's peak heating power (sum of I^2 R at the
-    /// first row's boundary temperature over the rows), at least 0.01 W.
-    /// Guidance: the heat the model may be missing, e.g. 5 to 20 % of the
-    /// drive's power; larger lets the sensors pull the estimate harder
-    /// (faster, noisier), smaller trusts the model.
-    #[arg(long, value_name = "W", allow_negative_numbers = true)]
-    disturbance_std_w: Option<f64>,
-    /// Filter: correlation time of each disturbance [s] (first-order
-    /// Gauss-Markov; default 1800).
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
-    disturbance_tau_s: Option<f64>,
-    /// Filter: a boundary offset state [K] on this boundary (repeatable):
-    /// the links see the measured boundary plus an estimated offset, for a
-    /// boundary sensor that reads off the temperature the model's links
-    /// see (a sensor offset; a coolant outlet that is not the jacket's
-    /// effective temperature). Runs the Kalman filter, as --disturbance
-    /// does.
-    #[arg(long = "boundary-offset", value_name = "BOUNDARY")]
-    boundary_offset: Vec<String>,
-    /// Filter: stationary standard deviation of each boundary offset [K]
-    /// (default 2).
-    #[arg(long, value_name = "K", allow_negative_numbers = true)]
-    boundary_offset_std_k: Option<f64>,
-    /// Filter: correlation time of each boundary offset [s] (first-order
-    /// Gauss-Markov; default 7200).
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
-    boundary_offset_tau_s: Option<f64>,
-    /// Filter: keep each boundary offset at or above K [K] (0: the links
-    /// never see a boundary colder than its reading; the offset explains a
-    /// sensor reading hot against the boundary but never cools the model);
-    /// without it no floor.
-    #[arg(long, value_name = "K", allow_negative_numbers = true)]
-    boundary_offset_floor_k: Option<f64>,
-    /// Filter (row-rate filter only; the firmware's gate is the library's):
-    /// chi-square gate (1 dof) on `nu^2 / S`, finite and > 0; readings above
-    /// it are rejected (default: 0.1 % false alarms).
-    #[arg(long, value_name = "CHI2", allow_negative_numbers = true)]
-    gate: Option<f64>,
-    /// Filter: learn each fused sensor's noise from its own readings, the
-    /// scatter of a reading about the mean of the N rows either side of it
-    /// (N = this value; 0: off, the noise is --measurement-noise-k), averaged
-    /// over --noise-memory-rows rows; --measurement-noise-k is the floor.
-    /// Runs the Kalman filter, as --disturbance does.
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    noise_half_window_rows: usize,
-    /// Filter: the rows the learned noise is averaged over (exponential
-    /// memory; with --noise-half-window-rows; default 600).
-    #[arg(long, value_name = "ROWS")]
-    noise_memory_rows: Option<usize>,
-    /// Filter: keep each --disturbance at or above -SHARE times the Joule
-    /// power of the sources on its nodes (0: no heat taken away, the
-    /// firmware's default for its heat biases); without it no floor.
-    #[arg(long, value_name = "SHARE", allow_negative_numbers = true)]
-    disturbance_floor_share: Option<f64>,
     /// A held-out sensor, only scored: `COL=NODE` [degC], or a comma list;
     /// rows with an empty or `NaN` cell are not scored. A column also
     /// fused by --measure is refused (its score would not be held out).
@@ -410,8 +345,8 @@ pub struct ReplayArgs {
     /// omnimagnet). Nodes without one are not watched.
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     critical_c: Option<f64>,
-    /// Host alarm (row-rate filter and explicit stepper only; refused with
-    /// the firmware's observer, whose own alarm runs): the warning rises
+    /// Host alarm (open loop on the explicit stepper only; refused with the
+    /// firmware's observer, whose own alarm runs): the warning rises
     /// this far below the alarm limit [K] (default 5).
     #[arg(long, value_name = "K", allow_negative_numbers = true)]
     warning_margin_k: Option<f64>,

@@ -9,8 +9,7 @@ use super::ReplayArgs;
 use crate::devices;
 use crate::firmware::{FirmwareConfig, Override};
 use crate::grid_firmware::{self, GridFirmwareEstimator};
-use crate::kalman::{KalmanEstimator, KalmanOptions, NoiseFromReadings};
-use crate::library_observer::ObserverEstimator;
+use crate::library_observer::{FusionStats, ObserverEstimator};
 use crate::limits::TimeToLimit;
 use crate::model_file::Model;
 use crate::observer::Measurement;
@@ -124,25 +123,12 @@ fn debounce_rows(a: &ReplayArgs, row_s: f64) -> Result<u16> {
     Ok(rows.clamp(1.0, f64::from(u16::MAX)) as u16)
 }
 
-/// The row-rate filter's defaults: the initial temperatures' standard
-/// deviation \[K\], the disturbances' correlation time \[s\], the boundary
-/// offsets' standard deviation \[K\] and correlation time \[s\], and the
-/// rows a learned noise is averaged over.
-const ROW_RATE_INITIAL_STD_K: f64 = 2.0;
-/// The row-rate filter's sensor noise when neither the flag nor the model
-/// file gives one \[K\].
-const ROW_RATE_SENSOR_SIGMA_K: f64 = 0.2;
-const ROW_RATE_DISTURBANCE_TAU_S: f64 = 1800.0;
-const ROW_RATE_BOUNDARY_OFFSET_STD_K: f64 = 2.0;
-const ROW_RATE_BOUNDARY_OFFSET_TAU_S: f64 = 7200.0;
-const ROW_RATE_NOISE_MEMORY_ROWS: usize = 600;
-
 /// The plausible-current limit of a model file without an `[observer]`
 /// table \[A\] (see [`firmware_config`]).
 pub const NO_TABLE_MAX_CURRENT_A: f64 = 1600.0;
 
-/// The host alarm's defaults (the row-rate filter and the explicit
-/// stepper; the firmware observer has its own alarm): the warning's margin
+/// The host alarm's defaults (the explicit stepper; the firmware observer
+/// has its own alarm): the warning's margin
 /// below the alarm limit \[K\], its hysteresis \[K\], the debounce \[s\]
 /// and the predictive horizon \[s\].
 const HOST_WARNING_MARGIN_K: f64 = 5.0;
@@ -221,24 +207,21 @@ const MAX_KEPT_EVENTS: usize = 10_000;
 
 /// What a replay's pass over the trace before the run found: the first
 /// row's inputs, each sensor's first reading, the rows inside the window
-/// and their median spacing, the peak heating power.
+/// and their median spacing.
 struct Survey {
     first: Option<InputRow>,
     first_readings: Vec<Option<f64>>,
     inside: usize,
     window_gaps: crate::trace::GapMedian,
-    peak_heating_w: f64,
 }
 
 /// The pass before the run: every row's channels and sensors evaluated
 /// (their errors kept for the checks), and what the run needs first.
 fn survey(
     drive: &mut TraceDrive,
-    model: &Model,
     sensors: &[(StreamSensor, bool)],
     until_s: Option<f64>,
     window: (f64, f64),
-    peak: bool,
     raw: &[crate::raw_sensors::RawColumn],
 ) -> Result<Survey> {
     let mut s = Survey {
@@ -246,11 +229,7 @@ fn survey(
         first_readings: vec![None; sensors.len()],
         inside: 0,
         window_gaps: crate::trace::GapMedian::default(),
-        peak_heating_w: 0.0,
     };
-    let net = &model.network;
-    let fixed_w: f64 = net.fixed_powers_w().iter().sum();
-    let mut effective = Vec::new();
     let mut last_inside: Option<f64> = None;
     let mut rows = drive.rows()?;
     let mut rows = crate::raw_sensors::ConvertedRows::new(&mut rows, raw.to_vec());
@@ -269,24 +248,7 @@ fn survey(
             }
             last_inside = Some(row.time_s);
         }
-        let first = s.first.get_or_insert_with(|| row.clone());
-        if peak {
-            // The sources' R I^2 at the first row's boundary temperature
-            // (20 degC without a boundary) plus the fixed powers.
-            let t_c = first.boundaries.first().copied().unwrap_or(20.0);
-            model.effective_currents(&row.currents, &row.signals, &mut effective);
-            model.currents_at(&mut effective, &vec![t_c; model.nodes.len()]);
-            let joule: f64 = net
-                .sources()
-                .iter()
-                .zip(&effective)
-                .map(|(src, i)| {
-                    let r = src.resistance.r_at_0c_ohm + src.resistance.slope_ohm_per_k * t_c;
-                    r.max(0.0) * i * i
-                })
-                .sum();
-            s.peak_heating_w = s.peak_heating_w.max(joule + fixed_w);
-        }
+        s.first.get_or_insert_with(|| row.clone());
     }
     Ok(s)
 }
@@ -349,10 +311,6 @@ impl Protection for Unwatched {
 enum Path {
     /// The firmware's `NetworkObserver` of the model file.
     Firmware,
-    /// The host's row-rate Kalman filter (`--disturbance`,
-    /// `--boundary-offset`, `--noise-half-window-rows`): a research tool,
-    /// not what any firmware runs.
-    RowRate,
     /// Open loop on the library's explicit stepper (a network that changes
     /// with a signal).
     Stepper,
@@ -361,23 +319,6 @@ enum Path {
 /// Refuses every flag given that does not apply to the estimator `path`
 /// runs, naming the flag and why (a flag is never ignored).
 fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
-    let row_rate_only: [(&str, bool); 9] = [
-        ("--gate", a.gate.is_some()),
-        ("--initial-std-k", a.initial_std_k.is_some()),
-        ("--disturbance-std-w", a.disturbance_std_w.is_some()),
-        ("--disturbance-tau-s", a.disturbance_tau_s.is_some()),
-        (
-            "--disturbance-floor-share",
-            a.disturbance_floor_share.is_some(),
-        ),
-        ("--boundary-offset-std-k", a.boundary_offset_std_k.is_some()),
-        ("--boundary-offset-tau-s", a.boundary_offset_tau_s.is_some()),
-        (
-            "--boundary-offset-floor-k",
-            a.boundary_offset_floor_k.is_some(),
-        ),
-        ("--noise-memory-rows", a.noise_memory_rows.is_some()),
-    ];
     let host_alarm_only: [(&str, bool); 6] = [
         ("--warning-margin-k", a.warning_margin_k.is_some()),
         ("--hysteresis-k", a.hysteresis_k.is_some()),
@@ -390,18 +331,6 @@ fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
         ("--tick-us", a.tick_us.is_some()),
         ("--bias-noise-w2-per-s", a.bias_noise_w2_per_s.is_some()),
     ];
-    if path != Path::RowRate {
-        if let Some((flag, _)) = row_rate_only.iter().find(|(_, given)| *given) {
-            bail!(
-                "{flag} sets the host's row-rate Kalman filter, which runs only with --disturbance, --boundary-offset or --noise-half-window-rows; \
-                 this replay runs {}: drop {flag}",
-                match path {
-                    Path::Firmware => "the firmware's NetworkObserver",
-                    _ => "the model open loop on the explicit stepper",
-                }
-            );
-        }
-    }
     if path == Path::Firmware {
         if let Some((flag, _)) = host_alarm_only.iter().find(|(_, given)| *given) {
             bail!(
@@ -411,17 +340,8 @@ fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
         }
     } else if let Some((flag, _)) = firmware_only.iter().find(|(_, given)| *given) {
         bail!(
-            "{flag} sets the firmware's NetworkObserver; this replay runs {}: drop {flag}",
-            match path {
-                Path::RowRate => "the host's row-rate Kalman filter (--disturbance, --boundary-offset or --noise-half-window-rows)",
-                _ => "the model open loop on the explicit stepper (its network changes with a signal)",
-            }
+            "{flag} sets the firmware's NetworkObserver; this replay runs the model open loop on the explicit stepper (its network changes with a signal): drop {flag}"
         );
-    }
-    if let Some(g) = a.gate {
-        if !(g.is_finite() && g > 0.0) {
-            bail!("--gate must be a finite chi-square threshold > 0, got {g}");
-        }
     }
     Ok(())
 }
@@ -601,7 +521,7 @@ impl ColdMisses {
 
 /// Each fused sensor's counts, as JSON.
 fn sensor_stats_json(
-    stats: &[crate::kalman::FusionStats],
+    stats: &[FusionStats],
     measured: &[StreamSensor],
     info: &PlantInfo,
 ) -> Vec<serde_json::Value> {
@@ -622,11 +542,7 @@ fn sensor_stats_json(
 }
 
 /// Each fused sensor's counts, one line each.
-fn print_sensor_stats(
-    stats: &[crate::kalman::FusionStats],
-    measured: &[StreamSensor],
-    info: &PlantInfo,
-) {
+fn print_sensor_stats(stats: &[FusionStats], measured: &[StreamSensor], info: &PlantInfo) {
     for (s, m) in stats.iter().zip(measured) {
         println!(
             "fused {} -> {}: {} readings fused, {} rejected by the gate, {} stuck, {} colder than the physics",
@@ -791,15 +707,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             }
         }
     }
-    let survey = survey(
-        &mut drive,
-        &model,
-        &all,
-        a.measure_until_s,
-        window,
-        !a.disturbance.is_empty() && a.disturbance_std_w.is_none(),
-        &raw,
-    )?;
+    let survey = survey(&mut drive, &all, a.measure_until_s, window, &raw)?;
     drive.check()?;
     measured.check(&drive)?;
     truth.check(&drive)?;
@@ -825,32 +733,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     let first_row = survey.first.as_ref().context("the trace has no row")?;
     let median_row_s = file.median_gap_s()?;
-    // The row-rate Kalman filter runs with a disturbance or a boundary
-    // offset state or a learned sensor noise; a network that changes with
-    // a signal runs open loop on the explicit stepper; otherwise the
-    // firmware's observer.
-    let kalman_filter =
-        !a.disturbance.is_empty() || !a.boundary_offset.is_empty() || a.noise_half_window_rows > 0;
-    let path = if kalman_filter {
-        Path::RowRate
-    } else if model.has_varying_conductances() && measured.is_empty() {
+    // A network that changes with a signal runs open loop on the explicit
+    // stepper (the firmware's observer holds one fixed network, and refuses
+    // such a model with sensors); otherwise the firmware's observer.
+    let path = if model.has_varying_conductances() && measured.is_empty() {
         Path::Stepper
     } else {
         Path::Firmware
     };
-    if a.bias_noise_w2_per_s.is_some() && path == Path::RowRate {
-        bail!("--bias-noise-w2-per-s is the firmware observer's: not with --disturbance or --boundary-offset (the row-rate filter has no heat-input bias)");
-    }
-    if a.boundary_offset_floor_k.is_some() && a.boundary_offset.is_empty() {
-        bail!(
-            "--boundary-offset-floor-k bounds the --boundary-offset states: give --boundary-offset BOUNDARY"
-        );
-    }
-    if a.disturbance_floor_share.is_some() && a.disturbance.is_empty() {
-        bail!(
-            "--disturbance-floor-share bounds the --disturbance states: give --disturbance NODES"
-        );
-    }
     if a.bias_noise_w2_per_s.is_some() && measured.is_empty() {
         bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
     }
@@ -858,11 +748,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
     let (config, mut overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
-    if path == Path::RowRate && config.has_resistance_sensor() && !measured.is_empty() {
-        bail!(
-            "the model file fuses a winding's resistance, with its own noise, which the host's row-rate filter (--disturbance, --boundary-offset, --noise-half-window-rows) has not: replay it without those flags (the firmware's observer)"
-        );
-    }
     // `--model omnimagnet` as flashed: the device's own observer.
     let flashed_omni = path == Path::Firmware && spec == common::ModelSpec::Omnimagnet;
     if flashed_omni {
@@ -875,16 +760,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         if ticks > MAX_TICKS {
             bail!(
                 "replay: the trace spans {span_s:.3e} s, {ticks:.3e} firmware ticks of {tick_us} us; at most {MAX_TICKS:.0e}: \
-                 raise --tick-us, or run the row-rate Kalman filter with --disturbance"
+                 raise --tick-us"
             );
         }
     }
-    // The row-rate filter's sensor noise: the flag, else the file's, else
-    // its own default (the firmware's is in `config`).
-    let measurement_noise_k = a
-        .measurement_noise_k
-        .or(model_file.observer.as_ref().and_then(|o| o.sensor_sigma_k))
-        .unwrap_or(ROW_RATE_SENSOR_SIGMA_K);
     let settings = alarm_settings(&a, &info, &first_row.boundaries, median_row_s)?;
     let settings = AlarmSettings {
         rule: if path == Path::Firmware {
@@ -914,8 +793,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         None => &mut unwatched,
     };
     let mut observer = None;
-    let mut kalman = None;
-    let mut disturbance_std = None;
     let mut stepped = (path == Path::Stepper)
         .then(|| FilePlant::new(model.clone()).map(PlantEstimator))
         .transpose()?;
@@ -955,84 +832,13 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 bias_noise_w2_per_s: a.bias_noise_w2_per_s,
             },
         )?)
-    } else if path == Path::Firmware {
+    } else {
         observer.insert(ObserverEstimator::firmware(
             model.clone(),
             tick_us,
             &config,
             &fused_nodes,
         )?)
-    } else {
-        if measured.is_empty() {
-            bail!("--disturbance and --boundary-offset need at least one --measure sensor");
-        }
-        let disturbances = a
-            .disturbance
-            .iter()
-            .map(|d| {
-                d.split(',')
-                    .map(|n| {
-                        let n = n.trim();
-                        info.nodes.iter().position(|x| x == n).with_context(|| {
-                            format!(
-                                "--disturbance `{d}`: model `{}` has no node `{n}` (nodes: {})",
-                                info.name,
-                                info.nodes.join(", ")
-                            )
-                        })
-                    })
-                    .collect::<Result<Vec<_>>>()
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let disturbance_std_w = match a.disturbance_std_w {
-            Some(w) => w,
-            None => (0.1 * survey.peak_heating_w).max(0.01),
-        };
-        disturbance_std = (!disturbances.is_empty()).then_some(disturbance_std_w);
-        let boundary_offsets = a
-            .boundary_offset
-            .iter()
-            .map(|b| {
-                let b = b.trim();
-                info.boundaries
-                    .iter()
-                    .position(|x| x.name == b)
-                    .with_context(|| {
-                        format!(
-                            "--boundary-offset: model `{}` has no boundary `{b}` (boundaries: {})",
-                            info.name,
-                            info.boundaries
-                                .iter()
-                                .map(|x| x.name.as_str())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        )
-                    })
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let opts = KalmanOptions {
-            process_noise_k2_per_s: config.settings.node_noise_k2_per_s,
-            measurement_noise_k,
-            initial_std_k: a.initial_std_k.unwrap_or(ROW_RATE_INITIAL_STD_K),
-            disturbances,
-            disturbance_std_w,
-            disturbance_tau_s: a.disturbance_tau_s.unwrap_or(ROW_RATE_DISTURBANCE_TAU_S),
-            boundary_offsets,
-            boundary_offset_std_k: a
-                .boundary_offset_std_k
-                .unwrap_or(ROW_RATE_BOUNDARY_OFFSET_STD_K),
-            boundary_offset_tau_s: a
-                .boundary_offset_tau_s
-                .unwrap_or(ROW_RATE_BOUNDARY_OFFSET_TAU_S),
-            boundary_offset_floor_k: a.boundary_offset_floor_k,
-            gate: a.gate.unwrap_or(coil_thermal::filter::CHI2_1DOF_999),
-            noise_from_readings: (a.noise_half_window_rows > 0).then_some(NoiseFromReadings {
-                half_window: a.noise_half_window_rows,
-                memory: a.noise_memory_rows.unwrap_or(ROW_RATE_NOISE_MEMORY_ROWS),
-            }),
-            disturbance_floor_share: a.disturbance_floor_share,
-        };
-        kalman.insert(KalmanEstimator::new(model.clone(), &fused_nodes, opts)?)
     };
     common::check_window(
         &a.window,
@@ -1281,25 +1087,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "shutdown": p.shutdown,
         })
     });
-    let fusion = kalman.as_ref().map(|k| {
-        json!({
-            "sensors": sensor_stats_json(k.stats(), &measured, &info)
-                .into_iter()
-                .zip(k.stats().iter().zip(k.noise_k()))
-                .map(|(mut v, (s, noise))| {
-                    v["noise_k"] = json!(noise);
-                    v["rejected_at_s"] = json!(s.rejected_at_s);
-                    v
-                })
-                .collect::<Vec<_>>(),
-            "sensor_sigma_k": measurement_noise_k,
-            "sensor_sigma_from": sensor_sigma_from,
-            "recoveries": k.recoveries(),
-            "final_disturbances_w": k.disturbances_w(),
-            "final_boundary_offsets_k": a.boundary_offset.iter().map(|b| b.trim()).zip(k.boundary_offsets_k())
-                .map(|(b, o)| json!({"boundary": b, "offset_k": o})).collect::<Vec<_>>(),
-        })
-    });
     if let (Some(path), Some(f)) = (&a.plot, figure) {
         let data = f.figure(&info, &a.trace, &events.kept, &settings);
         render(&data, path, 1200, 800)?;
@@ -1318,7 +1105,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "hot_spot": {"node": info.nodes[hot.0], "max_c": hot.1, "time_s": hot.2},
         "model": info.name,
         "estimator": kind,
-        "fusion": fusion.or(observer_fusion).or(omni_fusion),
+        "fusion": observer_fusion.or(omni_fusion),
         "trace": a.trace.display().to_string(),
         "rows": rows_inside,
         "truth": scores,
@@ -1339,7 +1126,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         "alarms": events.kept,
         "alarms_total": events.total,
         "step_time": times,
-        "disturbance_std_w": disturbance_std,
         "out": a.out.as_ref().map(|p| p.display().to_string()),
     });
     if a.json {
@@ -1528,34 +1314,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             }
         }
     }
-    if let Some(k) = &kalman {
-        for ((s, m), noise) in k.stats().iter().zip(&measured).zip(k.noise_k()) {
-            println!(
-                "fused {} -> {}: {} readings fused, {} rejected by the gate, noise {noise:.3} K{}",
-                m.column,
-                info.nodes[s.node],
-                s.fused,
-                s.rejected,
-                if a.noise_half_window_rows > 0 {
-                    " (learned from its readings)"
-                } else {
-                    ""
-                }
-            );
-        }
-        for (b, o) in a.boundary_offset.iter().zip(k.boundary_offsets_k()) {
-            println!("boundary offset {}: {o:.3} K at the end", b.trim());
-        }
-        if a.disturbance_std_w.is_none() && !a.disturbance.is_empty() {
-            println!(
-                "disturbance std {:.3} W: 10 % of the trace's peak heating power (--disturbance-std-w W to choose)",
-                disturbance_std.unwrap_or(0.0)
-            );
-        }
-        if k.recoveries() > 0 {
-            println!("covariance recoveries: {}", k.recoveries());
-        }
-    }
     println!(
         "alarm{}: {} watched nodes, derating product {:.4}, shutdown {}",
         if path == Path::Firmware {
@@ -1631,7 +1389,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             t.p99_over_budget
         ),
         None => println!(
-            "step time [us] per trace row of {:.3} s (the library filter's predict and update): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            "step time [us] per trace row of {:.3} s (the library's explicit stepper): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
             survey.window_gaps.median().unwrap_or(median_row_s),
             t.min_ns * 1e-3,
             t.p50_ns * 1e-3,
