@@ -592,3 +592,67 @@ fn the_row_rate_filters_flags_are_refused() {
         );
     }
 }
+
+/// A rotor whose conductance to the coolant changes with speed: `replay`
+/// runs it open loop on the explicit stepper (no filter).
+const SPEED_DEPENDENT: &str = r#"
+name = "speed-dependent"
+[[node]]
+name = "stator"
+capacity_j_per_k = 400.0
+[[node]]
+name = "rotor"
+capacity_j_per_k = 300.0
+[[boundary]]
+name = "coolant"
+value_c = 20.0
+[[conductance]]
+between = ["stator", "coolant"]
+g_w_per_k = 10.0
+[[conductance]]
+between = ["rotor", "coolant"]
+r_k_per_w = 0.05
+[conductance.speed]
+column = "speed"
+reference = 4000.0
+a1 = 0.5
+r_exp_k_per_w = 0.2
+exp_rate = 1.5
+[[source]]
+name = "winding"
+node = "stator"
+input = "current"
+r0_ohm = 0.5
+alpha_per_k = 0.0039
+t_ref_c = 20.0
+"#;
+
+/// The filter's noise flags set the firmware's observer; a model run open
+/// loop on the explicit stepper has no filter, so they are refused by name
+/// rather than dropped (and the same replay without them runs).
+#[test]
+fn noise_flags_are_refused_where_no_filter_runs() {
+    let dir = TempDir::new().unwrap();
+    let model = dir.path().join("speed.toml");
+    fs::write(&model, SPEED_DEPENDENT).unwrap();
+    let trace = dir.path().join("trace.csv");
+    let rows: String = (0..20)
+        .map(|t| format!("{t},2.0,{}\n", 1000 * (t % 4)))
+        .collect();
+    fs::write(&trace, format!("time_s,current,speed\n{rows}")).unwrap();
+    let replay = || {
+        let mut c = ct();
+        c.args(["replay", "--model", s(&model), "--trace", s(&trace)]);
+        c
+    };
+    replay().assert().success();
+    for (flag, value) in [
+        ("--measurement-noise-k", "0.5"),
+        ("--process-noise-k2-per-s", "1e-3"),
+    ] {
+        refused(
+            replay().args([flag, value]).assert(),
+            &[flag, "explicit stepper"],
+        );
+    }
+}

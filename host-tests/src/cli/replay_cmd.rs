@@ -327,9 +327,15 @@ fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
         ("--horizon-s", a.horizon_s.is_some()),
         ("--ambient-boundary", a.ambient_boundary.is_some()),
     ];
-    let firmware_only: [(&str, bool); 2] = [
+    // The stepper runs the model open loop: no filter, so no noise.
+    let firmware_only: [(&str, bool); 4] = [
         ("--tick-us", a.tick_us.is_some()),
         ("--bias-noise-w2-per-s", a.bias_noise_w2_per_s.is_some()),
+        ("--measurement-noise-k", a.measurement_noise_k.is_some()),
+        (
+            "--process-noise-k2-per-s",
+            a.process_noise_k2_per_s.is_some(),
+        ),
     ];
     if path == Path::Firmware {
         if let Some((flag, _)) = host_alarm_only.iter().find(|(_, given)| *given) {
