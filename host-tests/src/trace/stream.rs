@@ -621,8 +621,11 @@ impl CsvOut {
         Ok(out)
     }
 
-    /// Writes one row: the time \[s\] as Rust prints it, each value with 6
-    /// decimals.
+    /// Writes one row: the time \[s\] as Rust prints it; each value that is
+    /// an `f32` (what the firmware's observers compute, widened) as the
+    /// shortest decimal that reads back as that `f32`, so that a replay's
+    /// CSV holds the MCU's numbers to the bit; any other value, and zero,
+    /// with 6 decimals.
     pub fn row(&mut self, time_s: f64, values: impl IntoIterator<Item = f64>) -> Result<()> {
         use std::fmt::Write;
         // Reuse the cells' strings: no allocation per row once warm.
@@ -638,7 +641,14 @@ impl CsvOut {
         };
         put(&mut n, format_args!("{time_s}"));
         for v in values {
-            put(&mut n, format_args!("{v:.6}"));
+            // A value the firmware computed (an `f32`) is written exactly:
+            // its shortest decimal, which reads back as the same `f32`.
+            let narrow = v as f32;
+            if f64::from(narrow) == v && v != 0.0 {
+                put(&mut n, format_args!("{narrow}"));
+            } else {
+                put(&mut n, format_args!("{v:.6}"));
+            }
         }
         self.writer
             .as_mut()
@@ -781,6 +791,33 @@ mod tests {
         assert_eq!(file.median_gap_s().unwrap(), 0.5);
     }
 
+    /// An `f32` value is written so that it reads back to the bit; an
+    /// `f64` one that is not an `f32` keeps 6 decimals.
+    #[test]
+    fn f32_values_read_back_to_the_bit() {
+        let dir = tempfile::TempDir::new().unwrap();
+        let path = dir.path().join("o.csv");
+        let narrow = [
+            128.70001_f32,
+            1.0e-7,
+            -40.123_457,
+            3.4e38,
+            f32::MIN_POSITIVE,
+        ];
+        let mut out = CsvOut::create(&path, &["a".into(), "b".into()]).unwrap();
+        for v in narrow {
+            out.row(1.0, [f64::from(v), 1.0 / 3.0]).unwrap();
+        }
+        out.finish().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        for (line, v) in text.lines().skip(1).zip(narrow) {
+            let cells: Vec<&str> = line.split(',').collect();
+            let back: f64 = cells[1].parse().unwrap();
+            assert_eq!((back as f32).to_bits(), v.to_bits(), "{line}");
+            assert_eq!(cells[2], "0.333333");
+        }
+    }
+
     /// A result file appears whole on success and not at all on failure.
     #[test]
     fn a_result_appears_only_when_finished() {
@@ -793,10 +830,7 @@ mod tests {
         let mut out = CsvOut::create(&path, &["a".into()]).unwrap();
         out.row(0.5, [1.0]).unwrap();
         out.finish().unwrap();
-        assert_eq!(
-            std::fs::read_to_string(&path).unwrap(),
-            "time_s,a\n0.5,1.000000\n"
-        );
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "time_s,a\n0.5,1\n");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

@@ -53,6 +53,14 @@ pub fn json_events(json: &serde_json::Value) -> Vec<ListedEvent<String>> {
         .collect()
 }
 
+/// Whether a value `replay` wrote to its CSV (read as `f64`) is the `f32`
+/// `generated` to the bit: `replay` writes each `f32` the observer computed
+/// as the shortest decimal that reads back as that `f32`.
+#[allow(dead_code)]
+pub fn same_f32(replayed: f64, generated: f32) -> bool {
+    (replayed as f32).to_bits() == generated.to_bits()
+}
+
 /// One trace row as `replay` hands it to the firmware's observer: 1000
 /// ticks of 1 ms with the row's `currents_a` \[A\] and `boundary_c`
 /// \[degC\] held, `readings_at(now_us)` (the row's sensor readings, sampled
