@@ -11,18 +11,13 @@
 //!
 //! The trace asks for full duty on 20 V, then on 28 V (the coil would pass
 //! its limit: the duty limit acts and the warning rises), then a low duty.
-//! Not 24 V first: there the coil's steady state sits within a kelvin of
-//! its derated limit, where the predicted time to limit is so flat that
-//! the tables' last bits (solved at another size) move the predictive
-//! alarm by a sweep (48 ms); a bit-exact replay needs the model's own
-//! sizes on the host (issue 37, item 4).
 //! The housing column is the model's own simulation (`simulate` on a fine
 //! step), so the thermocouple agrees with the model as a healthy one would.
 //!
 //! As `replay_is_the_firmware.rs`: the replay's observer is the library's
-//! padded to a size class, its tables solved at that size, so values are
-//! compared within four `f32` steps (and the CSV's 6 decimals), the duty
-//! within 1e-5, events by level, kind and node within one tick.
+//! padded to a size class, whose padding adds exact zeros, so values and
+//! the duty limit are compared to the bit, the events by level, kind, node
+//! and tick (the predictive ones within 0.1 s: see the comparison).
 
 use std::path::{Path, PathBuf};
 
@@ -90,10 +85,11 @@ fn recording(dir: &Path) -> (PathBuf, Vec<[f32; 3]>) {
     for (line, sim_line) in trace.lines().skip(1).zip(sim_text.lines().skip(1)) {
         let tc: f32 = sim_line.split(',').nth(housing).unwrap().parse().unwrap();
         out.push_str(&format!("{line},{tc}\n"));
+        // As `replay` reads a cell: `f64`, rounded once to `f32`.
         let v: Vec<f32> = line
             .split(',')
             .skip(1)
-            .map(|f| f.parse().unwrap())
+            .map(|f| f.parse::<f64>().unwrap() as f32)
             .collect();
         rows.push([v[0], v[1], tc]);
     }
@@ -180,11 +176,6 @@ fn generated(rows: &[[f32; 3]]) -> (Vec<Row>, Vec<Event>, FlagTicks) {
     (out, events, flag_ticks)
 }
 
-/// Four `f32` steps at `e_c` and the CSV's 6 decimals \[K\].
-fn within_k(e_c: f64) -> f64 {
-    4.0 * f64::from(f32::EPSILON) * e_c.abs() + 1e-6
-}
-
 #[test]
 fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
     let tmp = TempDir::new().unwrap();
@@ -226,7 +217,6 @@ fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
         .collect();
     let (firmware, firmware_events, flag_ticks) = generated(&rows);
     assert_eq!(replayed.len(), firmware.len());
-    let (mut worst_k, mut worst_duty) = (0.0f64, 0.0f64);
     for (t, (r, g)) in replayed.iter().zip(&firmware).enumerate() {
         let expected = [
             g.temps_c[0],
@@ -237,33 +227,27 @@ fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
             g.alarm_limit_c[1],
         ];
         for (k, e) in expected.iter().enumerate() {
-            let e = f64::from(*e);
-            let d = (r[k + 1] - e).abs();
             assert!(
-                d <= within_k(e),
+                common::same_f32(r[k + 1], *e),
                 "second {t}, {}: replay {}, generated {e}",
                 header[k + 1],
                 r[k + 1]
             );
-            worst_k = worst_k.max(d);
         }
         if t == 0 {
             // Before the first tick: no supply seen, no duty limit.
             assert!(r[7].is_nan(), "{}", r[7]);
             continue;
         }
-        let d = (r[7] - f64::from(g.duty_limit)).abs();
         assert!(
-            d <= 1e-5,
+            common::same_f32(r[7], g.duty_limit),
             "second {t}: duty limit replay {}, generated {}",
             r[7],
             g.duty_limit
         );
-        worst_duty = worst_duty.max(d);
         let flags = [r[8], r[9], r[10]].map(|v| v == 1.0);
         assert_eq!(flags, g.flags, "second {t}");
     }
-    eprintln!("worst apart: {worst_k:.2e} K, duty {worst_duty:.2e}");
     // The trace makes the protection act (else the comparison is idle):
     // the duty limit falls below full on 28 V, and the dead supply gives
     // a duty limit of 0 for its seconds.
@@ -294,13 +278,14 @@ fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
     for (r, g) in replay_events.iter().zip(&firmware_events) {
         assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
         assert_eq!(r.3.as_deref(), g.3.map(|i| valve::NODE_NAMES[i]));
-        // A predictive event is published at the end of a predictor
-        // sweep, whose length depends on when each element resolves: a
-        // last-bit difference of the padded tables can shift the sweeps'
-        // phase, and the event, by up to a sweep (measured: 80 ms once,
-        // the coil's raise on 28 V; every other event within a tick).
-        let within_s = if r.1 == "predictive" { 0.1 } else { 1e-3 };
-        assert!((r.0 - g.0).abs() <= within_s + 1e-9, "{r:?} vs {g:?}");
+        // The same tick, but for three predictive events, which the
+        // replay publishes up to 80 ms (five protection cycles, a few
+        // points of the predictor's sweep) from the module though every
+        // second's values are equal to the bit: the sweeps' phase differs
+        // (cause not found; the drive-3node and HPPA replays' events are on
+        // the module's ticks).
+        let within_s = if r.1 == "predictive" { 0.1 } else { 1e-6 };
+        assert!((r.0 - g.0).abs() <= within_s, "{r:?} vs {g:?}");
     }
     let input = &json["protection"]["inputs"][0];
     assert_eq!(input["unit"], "duty", "{input}");

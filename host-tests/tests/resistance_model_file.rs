@@ -203,7 +203,6 @@ fn replay_is_the_generated_module_and_holds_the_winding_within_1_k() {
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let (rows, events, winding_tc) = generated();
     assert_eq!(replayed.len(), rows.len());
-    let mut worst_k = 0.0f64;
     for (t, (r, g)) in replayed.iter().zip(&rows).enumerate() {
         for (i, name) in model::NODE_NAMES.iter().enumerate() {
             for (column, value) in [
@@ -213,31 +212,26 @@ fn replay_is_the_generated_module_and_holds_the_winding_within_1_k() {
                 let Some(k) = header.iter().position(|h| *h == column) else {
                     continue;
                 };
-                let e = f64::from(value);
-                // Four `f32` steps (the padded tables may differ in their
-                // last bit) and the CSV's 6 decimals.
-                let d = (r[k] - e).abs();
                 assert!(
-                    d <= 4.0 * f64::from(f32::EPSILON) * e.abs() + 1e-6,
-                    "row {t}, {column}: replay {}, generated {e}",
+                    common::same_f32(r[k], value),
+                    "row {t}, {column}: replay {}, generated {value}",
                     r[k]
                 );
-                worst_k = worst_k.max(d);
             }
         }
         let limit = r[col("limit_a.current")];
         assert!(
-            (limit - f64::from(g.limit_a)).abs() <= 1e-4,
+            common::same_f32(limit, g.limit_a),
             "row {t}: {limit} A against {} A",
             g.limit_a
         );
     }
-    eprintln!("worst apart {worst_k:.2e} K");
     let replay_events = common::json_events(&json);
     assert_eq!(replay_events.len(), events.len(), "{json}");
     for (r, g) in replay_events.iter().zip(&events) {
         assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
-        assert!((r.0 - g.0).abs() <= 1e-3 + 1e-9, "{r:?} vs {g:?}");
+        // The same tick.
+        assert!((r.0 - g.0).abs() < 1e-6, "{r:?} vs {g:?}");
     }
     // The goal: the winding within 1 K of the bench's winding
     // thermocouple (read at the next row: both at the second's end),
