@@ -243,7 +243,15 @@ pub fn padded_with<const P: usize>(net: &DynNetwork, padding: Padding) -> Result
         };
         lib = lib.joule_source(m, s.node, r).map_err(lib_err("source"))?;
     }
-    let spare = if n < P { n } else { 0 };
+    // Padding sources (no current, ever) sit on a node that already holds
+    // a winding, so that padding makes no node a winding's node: the
+    // library's predictor skips a node without a limit unless a winding
+    // is on it, and the padded observer's sweeps are then the model's own.
+    let spare = match net.sources().first() {
+        Some(s) => s.node,
+        None if n < P => n,
+        None => 0,
+    };
     for m in net.sources().len()..P {
         lib = lib
             .joule_source(m, spare, Resistance::constant(1.0))

@@ -15,9 +15,10 @@
 //! step), so the thermocouple agrees with the model as a healthy one would.
 //!
 //! As `replay_is_the_firmware.rs`: the replay's observer is the library's
-//! padded to a size class, whose padding adds exact zeros, so values and
-//! the duty limit are compared to the bit, the events by level, kind, node
-//! and tick (the predictive ones within 0.1 s: see the comparison).
+//! padded to a size class, whose padding adds exact zeros (and whose
+//! padding nodes, without a limit or a winding, the predictor skips), so
+//! values and the duty limit are compared to the bit, the events by
+//! level, kind, node and tick.
 
 use std::path::{Path, PathBuf};
 
@@ -278,14 +279,8 @@ fn replay_of_a_voltage_driven_valve_is_the_generated_module() {
     for (r, g) in replay_events.iter().zip(&firmware_events) {
         assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
         assert_eq!(r.3.as_deref(), g.3.map(|i| valve::NODE_NAMES[i]));
-        // The same tick, but for three predictive events, which the
-        // replay publishes up to 80 ms (five protection cycles, a few
-        // points of the predictor's sweep) from the module though every
-        // second's values are equal to the bit: the sweeps' phase differs
-        // (cause not found; the drive-3node and HPPA replays' events are on
-        // the module's ticks).
-        let within_s = if r.1 == "predictive" { 0.1 } else { 1e-6 };
-        assert!((r.0 - g.0).abs() <= within_s, "{r:?} vs {g:?}");
+        // The same tick.
+        assert!((r.0 - g.0).abs() < 1e-6, "{r:?} vs {g:?}");
     }
     let input = &json["protection"]["inputs"][0];
     assert_eq!(input["unit"], "duty", "{input}");

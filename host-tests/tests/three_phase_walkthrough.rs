@@ -265,3 +265,121 @@ fn the_host_replay_prints_what_the_firmware_printed() {
     assert!(summary.worst_phase_error_k < 1.0, "{summary:?}");
     assert!(summary.worst_cold_miss_k < 0.0, "{summary:?}");
 }
+
+mod common;
+
+/// The currents of the held-out hour doubled (`replay --current-scale`), so
+/// that the phases pass their derated limits and the limiter and the
+/// alarm act.
+const CURRENT_SCALE: f64 = 2.0;
+
+/// What the protection acts on, `replay` of the fitted file against the
+/// generated module (one heat shared by the three phases, the housing
+/// thermocouple fused) ticked at 1 ms on the host as `replay` hands it the
+/// held-out hour: every node's estimate and upper bound, every limited
+/// node's derated alarm limit and every phase's current limit to the bit,
+/// every event on the same tick.
+#[test]
+fn the_replay_is_the_generated_module_to_the_bit() {
+    let trace = root().join("host-tests/traces/three-phase-validation.csv");
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("est.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .arg("replay")
+        .arg("--model")
+        .arg(root().join("host-tests/models/three-phase-1tc-fitted.toml"))
+        .arg("--trace")
+        .arg(&trace)
+        .args(["--measure", "housing_tc=housing", "--json", "--out"])
+        .arg(&out)
+        .args(["--current-scale", &CURRENT_SCALE.to_string()])
+        .assert()
+        .success();
+    let json: serde_json::Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    assert_eq!(
+        json["firmware_observer"]["overrides"],
+        serde_json::json!([])
+    );
+    let text = read(&out);
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let replayed: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // time_s, ia, ib, ic, ambient, ..., housing_tc: each cell as `replay`
+    // reads it, `f64` rounded once to `f32` (the currents after the scale).
+    let rows: Vec<Vec<f64>> = read(&trace)
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let observer = model::observer().expect("the generated parts assemble");
+    let mut state = model::initial_state(&observer, rows[0][4] as f32);
+    let (mut events, mut now_us, mut lowest_a) = (Vec::new(), 0u32, f32::INFINITY);
+    // The ambient the last ticks held (the derating follows it).
+    let mut held_ambient_c = rows[0][4] as f32;
+    assert_eq!(replayed.len(), rows.len());
+    for (t, (row, r)) in rows.iter().zip(&replayed).enumerate() {
+        let o = state.outputs();
+        for (i, name) in model::NODE_NAMES.iter().enumerate() {
+            let mut expected = vec![(name.to_string(), o.temps_c[i])];
+            expected.push((format!("upper_c.{name}"), o.upper_c[i]));
+            if let Some(limit_c) = observer.alarm().alarm_limit_c(i, held_ambient_c) {
+                expected.push((format!("alarm_limit_c.{name}"), limit_c));
+            }
+            for (column, e) in expected {
+                let v = r[col(&column)];
+                assert!(
+                    common::same_f32(v, e),
+                    "row {t}, {column}: replay {v}, generated {e}"
+                );
+            }
+        }
+        for (input, limit_a) in model::INPUT_NAMES
+            .iter()
+            .zip(model::input_limits_a(&o.limits))
+        {
+            let v = r[col(&format!("limit_a.{input}"))];
+            assert!(
+                common::same_f32(v, limit_a),
+                "row {t}, {input}: replay {v} A, generated {limit_a} A"
+            );
+            lowest_a = lowest_a.min(limit_a);
+        }
+        if t + 1 == rows.len() {
+            break;
+        }
+        held_ambient_c = row[4] as f32;
+        let currents = [1, 2, 3].map(|k| (row[k] * CURRENT_SCALE) as f32);
+        let reading = |now_us| {
+            [Some(coil_thermal::observer::TimedReading {
+                result: Ok(coil_thermal::Reading::new(row[8] as f32)),
+                sampled_at_us: now_us,
+            })]
+        };
+        common::tick_row(
+            &observer,
+            &mut state,
+            model::source_currents_a(&currents, &[]),
+            [held_ambient_c],
+            reading,
+            &mut now_us,
+            &mut events,
+        );
+    }
+    // The doubled currents make the protection act.
+    assert!(
+        f64::from(lowest_a) < model::PARTS.hardware_limit_a[0],
+        "lowest limit {lowest_a} A"
+    );
+    let replayed_events = common::json_events(&json);
+    eprintln!("{} events, lowest limit {lowest_a} A", events.len());
+    assert!(!events.is_empty());
+    assert_eq!(replayed_events.len(), events.len(), "{json}");
+    for (r, g) in replayed_events.iter().zip(&events) {
+        assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
+        assert_eq!(r.3.as_deref(), g.3.map(|i| model::NODE_NAMES[i]));
+        assert!((r.0 - g.0).abs() < 1e-6, "{r:?} vs {g:?}");
+    }
+}

@@ -1129,8 +1129,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         ambient_c: f32,
     ) -> Operating<f32, N, B, M> {
         let alarm_limits = self.alarm.alarm_limits_c(ambient_c);
+        let critical_c = self.alarm.critical_c();
         let limits_c = core::array::from_fn(|i| {
+            let unlimited = critical_c.get(i).is_some_and(|c| *c >= NO_LIMIT_C as f32);
             match (self.bound.element(i), alarm_limits.get(i)) {
+                // No limit and no winding (whose power is taken at its
+                // node's limit, which must be finite): "never" without a
+                // horizon, so that a sweep ends once the limited elements
+                // are resolved, however many unlimited nodes there are.
+                _ if unlimited && !self.source_node.contains(&i) => f32::INFINITY,
                 // The predictor follows the mean towards the temperature at
                 // which the upper bound reaches the alarm limit.
                 (Some(bound), Some(limit)) => bound.mean_limit_c(*limit, ambient_c),
