@@ -869,10 +869,17 @@ pub struct NetworkObserverState<
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
     silence: SilenceWatch<P>,
+    /// The time-varying warm-up's covariance, while it runs, if this
+    /// flavour holds one.
+    warm: W,
+    /// Corrections the warm-up has left (0 throughout in a flavour
+    /// without one).
+    warmup_left: u16,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
-    /// The time-varying warm-up, if this flavour holds one.
-    warm: W,
+    /// The warm-up ends once its covariance has settled (the start's, see
+    /// [`super::start`]), not after a count.
+    warmup_until_steady: bool,
     outputs: NetworkOutputs<N, M, P>,
 }
 
@@ -912,8 +919,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             drift,
             suspect,
             silence,
-            bias_steps,
             warm: _,
+            warmup_left,
+            bias_steps,
+            warmup_until_steady,
             outputs,
         } = self;
         NetworkObserverState {
@@ -932,8 +941,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             drift,
             suspect,
             silence,
-            bias_steps,
             warm,
+            warmup_left,
+            bias_steps,
+            warmup_until_steady,
             outputs,
         }
     }
@@ -1042,8 +1053,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             held_boundary_c,
             cycle: ProtectionCycle::new(),
             shadow: ShadowState::new(core::array::from_fn(|i| x[i])),
-            bias_steps: 0,
             warm: NoWarmUp,
+            warmup_left: 0,
+            bias_steps: 0,
+            warmup_until_steady: false,
             stuck: StuckWatch::new(),
             rewind: StuckRewind::new(),
             drift: DriftHold::new(),
@@ -1086,11 +1099,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for (i, v) in self.kalman.recovery_variance.iter().enumerate() {
             cov[(i, i)] += *v;
         }
-        state.flavoured(WarmUp {
-            cov,
-            left: self.warmup_corrections,
-            until_steady: false,
-        })
+        let mut state = state.flavoured(WarmUp { cov });
+        state.warmup_left = self.warmup_corrections;
+        state
     }
 
     /// The estimated temperature of every node \[degC\] now.
@@ -1167,8 +1178,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         {
             *xi = compensated_add(*xi, *inc, residual);
         }
-        if let Some(warm) = state.warm.running_mut() {
-            predict_cov(&self.kalman, &mut warm.cov);
+        if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov_mut()) {
+            predict_cov(&self.kalman, cov);
         }
     }
 
@@ -1302,7 +1313,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &mut state.events,
                 );
                 state.cycle.alarmed();
-                if state.warm.running().is_some() {
+                if state.warmup_left > 0 && state.warm.cov().is_some() {
                     self.publish_upper(state, ambient_c, true);
                 }
             }
@@ -1421,10 +1432,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
-        if let (true, Some(warm)) = (widen, state.warm.running()) {
+        if let (true, Some(cov)) = (widen && state.warmup_left > 0, state.warm.cov()) {
             // The covariance held, not the steady one (see `super::start`).
             for (i, (upper, sigma)) in out.upper_c.iter_mut().zip(&self.bound_sigma_k).enumerate() {
-                let variance = warm.cov.get((i, i)).copied().unwrap_or(f32::NAN);
+                let variance = cov.get((i, i)).copied().unwrap_or(f32::NAN);
                 *upper += start::bound_extra_k(variance, *sigma, self.k_sigma);
             }
         }
@@ -1583,26 +1594,26 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.note_doubt(state, present);
             return (false, flags);
         }
-        let warming = state.warm.running().is_some();
-        let report = if let Some(warm) = state.warm.running_mut() {
-            warm.left -= 1;
+        let warming = state.warmup_left > 0 && state.warm.cov().is_some();
+        let report = if let (true, Some(cov)) = (warming, state.warm.cov_mut()) {
+            state.warmup_left -= 1;
             let mut full = KalmanState {
                 x: state.estimate.x,
-                cov: warm.cov,
+                cov: *cov,
                 gate: state.estimate.gate,
             };
             let report = update(&self.kalman, &mut full, &z);
             state.estimate.x = full.x;
             state.estimate.gate = full.gate;
-            warm.cov = full.cov;
-            if warm.until_steady {
+            *cov = full.cov;
+            if state.warmup_until_steady {
                 // The start's shadow knows no more than the filter: it
                 // follows the filter until the start has settled.
                 state
                     .shadow
                     .reseed(core::array::from_fn(|i| state.estimate.x[i]));
-                if self.settled(&warm.cov) {
-                    warm.left = 0;
+                if self.settled(cov) {
+                    state.warmup_left = 0;
                 }
             }
             report
@@ -1630,11 +1641,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         j: usize,
     ) -> f32 {
         let steady = self.gain.innovation_var()[j];
-        let Some(warm) = state.warm.running() else {
+        let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov()) else {
             return steady;
         };
         let node = self.sensor_nodes[j];
-        let held = warm.cov.get((node, node)).copied().unwrap_or(f32::NAN);
+        let held = cov.get((node, node)).copied().unwrap_or(f32::NAN);
         held + self.kalman.r()[j]
     }
 
@@ -1712,8 +1723,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         warm: &'a W,
         warming: bool,
     ) -> &'a SMatrix<f32, X, X> {
-        match (warming, warm.held()) {
-            (true, Some(warm)) => &warm.cov,
+        match (warming, warm.cov()) {
+            (true, Some(cov)) => cov,
             _ => self.gain.posterior(),
         }
     }
@@ -2013,11 +2024,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
             }
         }
-        let mut state = state.flavoured(WarmUp {
-            cov,
-            left: start::MAX_START_CORRECTIONS,
-            until_steady: true,
-        });
+        let mut state = state.flavoured(WarmUp { cov });
+        state.warmup_left = start::MAX_START_CORRECTIONS;
+        state.warmup_until_steady = true;
         self.publish_upper(&mut state, ambient_c, true);
         self.limit(&mut state.outputs, ambient_c);
         state

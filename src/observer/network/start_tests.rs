@@ -62,7 +62,7 @@ fn drive<W: WarmUpKind<4>>(
         }
         current_a = out.limits[0].clamp_a(20.0);
         let t_s = f64::from(k + 1) * 1e-3;
-        if state.warm.running().is_none() && run.settled_s.is_none() {
+        if state.warmup_left == 0 && run.settled_s.is_none() {
             run.settled_s = Some(t_s);
         }
         if t_s >= score_from_s {
@@ -140,7 +140,7 @@ fn a_reset_without_history_is_safe_from_the_first_tick() {
             (run.late_current_a - reference.late_current_a).abs() < 0.05 * reference.late_current_a,
             "off {off_s} s: {run:?} against {reference:?}"
         );
-        assert!(state.warm.left == 0, "off {off_s} s: the warm-up settled");
+        assert!(state.warmup_left == 0, "off {off_s} s: the warm-up settled");
     }
 }
 
@@ -258,7 +258,7 @@ fn a_state_without_a_warm_up_ticks_as_one_whose_warm_up_never_runs() {
     let obs = observer();
     let lean = flavour_run(&obs, obs.state(&[20.0; 3], &[20.0]), 120_000);
     let full = obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]));
-    assert_eq!(full.warm.left, 0);
+    assert_eq!(full.warmup_left, 0);
     assert_eq!(lean, flavour_run(&obs, full, 120_000));
     let warming: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&device(), [1])
         .critical_c([Some(155.0), None, None])
@@ -270,7 +270,7 @@ fn a_state_without_a_warm_up_ticks_as_one_whose_warm_up_never_runs() {
         .build()
         .unwrap();
     let armed = warming.with_warm_up(warming.state(&[20.0; 3], &[20.0]));
-    assert_eq!((armed.warm.left, armed.warm.until_steady), (8, false));
+    assert_eq!((armed.warmup_left, armed.warmup_until_steady), (8, false));
     let steady = flavour_run(&warming, warming.state(&[20.0; 3], &[20.0]), 10_000);
     assert_ne!(steady, flavour_run(&warming, armed, 10_000));
 }

@@ -28,16 +28,11 @@ pub struct NoWarmUp;
 /// [`with_warm_up`](super::NetworkObserver::with_warm_up) return, and the
 /// default of [`NetworkObserverState`](super::NetworkObserverState) (so
 /// that a restore and its fallback, a start, are one type). Holds the
-/// warm-up's covariance (`X^2` floats) while it runs.
+/// warm-up's covariance (`X^2` floats).
 #[derive(Debug, Clone)]
 pub struct WarmUp<const X: usize> {
     /// The time-varying warm-up's covariance, while it runs.
     pub(super) cov: SMatrix<f32, X, X>,
-    /// Corrections the warm-up has left (0: the steady gain).
-    pub(super) left: u16,
-    /// The warm-up ends once its covariance has settled (the start's, see
-    /// [`super::super::start`]), not after a count.
-    pub(super) until_steady: bool,
 }
 
 /// A state's warm-up flavour: [`NoWarmUp`] or [`WarmUp`] (sealed).
@@ -48,46 +43,39 @@ impl<const X: usize> WarmUpKind<X> for WarmUp<X> {}
 
 pub(super) mod sealed {
     use super::{NoWarmUp, WarmUp};
+    use nalgebra::SMatrix;
 
-    /// The warm-up a flavour holds: always none for [`NoWarmUp`], a
-    /// constant the compiler folds, so that every branch of the warm-up
-    /// falls away from its tick.
+    /// The warm-up's covariance a flavour holds: always none for
+    /// [`NoWarmUp`], a constant the compiler folds, so that every branch
+    /// of the warm-up falls away from its tick. (Only the covariance: its
+    /// count and end stay in the state, where a single matrix field kept
+    /// the state's layout, and the start's tick, as they were.)
     pub trait Held<const X: usize> {
-        /// The warm-up held, running or done.
-        fn held(&self) -> Option<&WarmUp<X>>;
-        /// [`Self::held`], mutable.
-        fn held_mut(&mut self) -> Option<&mut WarmUp<X>>;
-        /// The warm-up while it runs (corrections left).
-        #[inline(always)]
-        fn running(&self) -> Option<&WarmUp<X>> {
-            self.held().filter(|w| w.left > 0)
-        }
-        /// [`Self::running`], mutable.
-        #[inline(always)]
-        fn running_mut(&mut self) -> Option<&mut WarmUp<X>> {
-            self.held_mut().filter(|w| w.left > 0)
-        }
+        /// The covariance held.
+        fn cov(&self) -> Option<&SMatrix<f32, X, X>>;
+        /// [`Self::cov`], mutable.
+        fn cov_mut(&mut self) -> Option<&mut SMatrix<f32, X, X>>;
     }
 
     impl<const X: usize> Held<X> for NoWarmUp {
         #[inline(always)]
-        fn held(&self) -> Option<&WarmUp<X>> {
+        fn cov(&self) -> Option<&SMatrix<f32, X, X>> {
             None
         }
         #[inline(always)]
-        fn held_mut(&mut self) -> Option<&mut WarmUp<X>> {
+        fn cov_mut(&mut self) -> Option<&mut SMatrix<f32, X, X>> {
             None
         }
     }
 
     impl<const X: usize> Held<X> for WarmUp<X> {
         #[inline(always)]
-        fn held(&self) -> Option<&WarmUp<X>> {
-            Some(self)
+        fn cov(&self) -> Option<&SMatrix<f32, X, X>> {
+            Some(&self.cov)
         }
         #[inline(always)]
-        fn held_mut(&mut self) -> Option<&mut WarmUp<X>> {
-            Some(self)
+        fn cov_mut(&mut self) -> Option<&mut SMatrix<f32, X, X>> {
+            Some(&mut self.cov)
         }
     }
 }
