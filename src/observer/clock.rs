@@ -232,8 +232,8 @@ impl StepClock {
         // division check (and no panic path) is left in the tick.
         let step_us = self.step_us.max(1);
         let (due, remainder) = whole_steps(state.debt_us, elapsed_us, step_us);
-        state.debt_us = remainder;
-        if due <= u64::from(max_steps) {
+        if due <= max_steps as u64 {
+            state.debt_us = remainder;
             TickSteps {
                 steps: due as u32,
                 dropped_us: 0,
@@ -241,15 +241,12 @@ impl StepClock {
                 clock_lost: false,
             }
         } else {
-            // `excess * step` saturated to `u32`, without a 64-bit product:
-            // an excess of 2^32 steps or more is past `u32` at any step.
-            let dropped_us = u32::try_from(due - u64::from(max_steps))
-                .ok()
-                .and_then(|excess| excess.checked_mul(self.step_us))
-                .unwrap_or(u32::MAX);
+            let excess_steps = due - max_steps as u64;
+            let dropped = excess_steps.saturating_mul(self.step_us as u64);
+            state.debt_us = remainder;
             TickSteps {
                 steps: max_steps,
-                dropped_us,
+                dropped_us: u32::try_from(dropped).unwrap_or(u32::MAX),
                 flags: InputFlags::ELAPSED_INVALID,
                 clock_lost: false,
             }
@@ -266,29 +263,21 @@ fn whole_steps(debt_us: u32, elapsed_us: u32, step_us: u32) -> (u64, u32) {
     match debt_us.checked_add(elapsed_us) {
         // Always, short of a 71-minute stall: one division.
         Some(total_us) => (u64::from(total_us / step_us), total_us % step_us),
-        None => whole_steps_past_u32(debt_us, elapsed_us, step_us),
+        None => {
+            // Each term in whole steps and a remainder below a step; the
+            // two remainders make at most one step more (compared against
+            // `step - r2`, since `r1 + r2` itself may pass `u32`).
+            let (q1, r1) = (elapsed_us / step_us, elapsed_us % step_us);
+            let (q2, r2) = (debt_us / step_us, debt_us % step_us);
+            let to_next_step = step_us - r2;
+            let (carry, remainder) = if r1 >= to_next_step {
+                (1, r1 - to_next_step)
+            } else {
+                (0, r1 + r2)
+            };
+            (u64::from(q1) + u64::from(q2) + carry, remainder)
+        }
     }
-}
-
-/// [`whole_steps`] of a sum past `u32`. Out of line: the tick's path
-/// keeps the shape it had with the library call it replaces.
-#[cold]
-#[inline(never)]
-fn whole_steps_past_u32(debt_us: u32, elapsed_us: u32, step_us: u32) -> (u64, u32) {
-    // `max(1)` as in `advance_time`, seen here too: no division check.
-    let step_us = step_us.max(1);
-    // Each term in whole steps and a remainder below a step; the two
-    // remainders make at most one step more (compared against `step - r2`,
-    // since `r1 + r2` itself may pass `u32`).
-    let (q1, r1) = (elapsed_us / step_us, elapsed_us % step_us);
-    let (q2, r2) = (debt_us / step_us, debt_us % step_us);
-    let to_next_step = step_us - r2;
-    let (carry, remainder) = if r1 >= to_next_step {
-        (1, r1 - to_next_step)
-    } else {
-        (0, r1 + r2)
-    };
-    (u64::from(q1) + u64::from(q2) + carry, remainder)
 }
 
 #[cfg(test)]
