@@ -55,6 +55,7 @@
 
 use coil_thermal::filter::{predict, update, update_virtual, KalmanConfig, KalmanState};
 use coil_thermal::grid::GridConfig;
+use coil_thermal::observer::network::{NetworkObserverState, WarmUpKind};
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{
     GridInputs, GridObserver, NetworkInputs, NetworkObserver, OmniInputs, OmniObserver,
@@ -127,13 +128,28 @@ fn network_config() -> Option<NetworkObserver<3, 1, 1, 4, 1>> {
     Some(black_box(unsafe { core::mem::zeroed() }))
 }
 
-/// The generic observer's tick with hostile inputs.
+/// The generic observer's tick with hostile inputs, on both state
+/// flavours: without the warm-up (`state`), and with it on an opaque
+/// state (`start`'s flavour, its count and its end unknown: the
+/// time-varying covariance, its correction and its widened bound).
 #[inline(never)]
 fn network_observer() -> bool {
     let Some(obs) = network_config() else {
         return false;
     };
-    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    network_ticks(&obs, obs.state(&[20.0; 3], &[20.0]));
+    network_ticks(
+        &obs,
+        black_box(obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]))),
+    );
+    true
+}
+
+#[inline(never)]
+fn network_ticks<W: WarmUpKind<4>>(
+    obs: &NetworkObserver<3, 1, 1, 4, 1>,
+    mut state: NetworkObserverState<3, 1, 1, 4, 1, W>,
+) {
     for k in 0..black_box(2000u32) {
         let current = black_box(if k % 7 == 0 { f32::NAN } else { 8.0 });
         let temp = black_box(if k % 11 == 0 { f32::INFINITY } else { 20.0 });
@@ -165,7 +181,6 @@ fn network_observer() -> bool {
             },
         ));
     }
-    true
 }
 
 /// A re-linearised model the optimiser knows nothing about, for

@@ -4,7 +4,9 @@
 //! second, each sensor's reading (if any) given to the second's first tick
 //! with that tick's time, every tick's outputs folded into the checksum.
 
-use coil_thermal::observer::network::{NetworkInputs, NetworkObserver, NetworkObserverState};
+use coil_thermal::observer::network::{
+    NetworkInputs, NetworkObserver, NetworkObserverState, WarmUpKind,
+};
 use coil_thermal::observer::TimedReading;
 use coil_thermal::Reading;
 
@@ -22,9 +24,16 @@ pub const TICKS: u32 = 1000;
 /// # Errors
 /// A tick that did not run.
 #[allow(clippy::too_many_arguments)]
-pub fn run<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+pub fn run<
+    const N: usize,
+    const B: usize,
+    const M: usize,
+    const X: usize,
+    const P: usize,
+    W: WarmUpKind<X>,
+>(
     observer: &NetworkObserver<N, B, M, X, P>,
-    state: &mut NetworkObserverState<N, B, M, X, P>,
+    state: &mut NetworkObserverState<N, B, M, X, P, W>,
     currents_a: [f32; M],
     boundary_c: [f32; B],
     readings_c: [Option<f32>; P],

@@ -354,7 +354,7 @@ impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
                 }
             })?;
         let origin = settings.origin_c as f32;
-        let state = observer.state(&[origin; C], &[origin; 2]);
+        let state = observer.with_warm_up(observer.state(&[origin; C], &[origin; 2]));
         Ok(Box::new(Self {
             observer,
             state,
@@ -381,7 +381,9 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         for (t, v) in temps.iter_mut().zip(temps_c) {
             *t = *v as f32;
         }
-        self.state = self.observer.state(&temps, &self.inputs.boundary_c);
+        self.state = self
+            .observer
+            .with_warm_up(self.observer.state(&temps, &self.inputs.boundary_c));
         self.inputs.now_us = 0;
     }
 

@@ -217,7 +217,8 @@ fn an_unknown_off_time_is_found_from_the_boot_readings() {
 #[test]
 fn a_latched_shutdown_outlives_the_restore() {
     let observer = observer().unwrap();
-    let latched = observer.conservative_state(&[Some(25.0)], &[AMBIENT_C]);
+    // The generated module's `State`: the start's flavour.
+    let latched = observer.with_warm_up(observer.conservative_state(&[Some(25.0)], &[AMBIENT_C]));
     assert!(latched.outputs().alarm.shutdown);
     let mut bytes = [0u8; SNAPSHOT_LEN];
     save_snapshot(&observer, &latched, 100, &mut bytes);

@@ -10,7 +10,9 @@
 use std::path::{Path, PathBuf};
 
 use assert_cmd::cargo::cargo_bin_cmd;
-use coil_thermal::observer::network::{NetworkInputs, NetworkObserver, NetworkObserverState};
+use coil_thermal::observer::network::{
+    NetworkInputs, NetworkObserver, NetworkObserverState, WarmUpKind,
+};
 use coil_thermal::observer::TimedReading;
 use coil_thermal::Reading;
 use coil_thermal_host::model_file::{Model, ModelFile};
@@ -65,9 +67,10 @@ fn tick_each_second<
     const M: usize,
     const X: usize,
     const P: usize,
+    W: WarmUpKind<X>,
 >(
     observer: &NetworkObserver<N, B, M, X, P>,
-    mut state: NetworkObserverState<N, B, M, X, P>,
+    mut state: NetworkObserverState<N, B, M, X, P, W>,
     rows: &[([f32; M], [f32; B], [Option<f32>; P])],
 ) -> (Vec<[f32; N]>, [f32; M]) {
     let mut out = vec![state.outputs().temps_c];

@@ -9,6 +9,7 @@
 
 use coil_thermal::observer::network::{
     BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
+    NoWarmUp,
 };
 use coil_thermal::observer::TimedReading;
 use coil_thermal::{BuildError, Network, Reading, Resistance};
@@ -90,7 +91,7 @@ struct Scores {
 /// (`readings`: false runs the observer open loop).
 fn run(obs: &Observer, readings: bool) -> Scores {
     let plant_net = motor(PLANT_R_FACTOR);
-    let mut state: NetworkObserverState<4, 1, 3, 7, 1> =
+    let mut state: NetworkObserverState<4, 1, 3, 7, 1, NoWarmUp> =
         obs.state(&[AMBIENT_C as f32; 4], &[AMBIENT_C as f32]);
     let mut plant = [AMBIENT_C; 4];
     let mut s = Scores {

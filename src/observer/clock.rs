@@ -231,17 +231,7 @@ impl StepClock {
         // `new` refuses a zero step; `max(1)` lets the compiler see it, so no
         // division check (and no panic path) is left in the tick.
         let step_us = self.step_us.max(1);
-        // In 32 bits whenever the sum fits (always, short of a 71-minute
-        // stall): one `udiv` on a Cortex-M4 where the 64-bit division is a
-        // library call of a hundred instructions or more.
-        let (due, remainder) = match state.debt_us.checked_add(elapsed_us) {
-            Some(total_us) => (u64::from(total_us / step_us), total_us % step_us),
-            None => {
-                let total_us = u64::from(state.debt_us) + u64::from(elapsed_us);
-                let step_us = u64::from(step_us);
-                (total_us / step_us, (total_us % step_us) as u32)
-            }
-        };
+        let (due, remainder) = whole_steps(state.debt_us, elapsed_us, step_us);
         if due <= max_steps as u64 {
             state.debt_us = remainder;
             TickSteps {
@@ -260,6 +250,32 @@ impl StepClock {
                 flags: InputFlags::ELAPSED_INVALID,
                 clock_lost: false,
             }
+        }
+    }
+}
+
+/// `(debt_us + elapsed_us) / step_us` and its remainder, the sum taken
+/// exactly (it may pass `u32`), with 32-bit divisions only: a Cortex-M0
+/// has no divider at all, and a 64-bit division would link
+/// `__aeabi_uldivmod` (about 900 B) for a 71-minute stall.
+#[inline(always)]
+fn whole_steps(debt_us: u32, elapsed_us: u32, step_us: u32) -> (u64, u32) {
+    match debt_us.checked_add(elapsed_us) {
+        // Always, short of a 71-minute stall: one division.
+        Some(total_us) => (u64::from(total_us / step_us), total_us % step_us),
+        None => {
+            // Each term in whole steps and a remainder below a step; the
+            // two remainders make at most one step more (compared against
+            // `step - r2`, since `r1 + r2` itself may pass `u32`).
+            let (q1, r1) = (elapsed_us / step_us, elapsed_us % step_us);
+            let (q2, r2) = (debt_us / step_us, debt_us % step_us);
+            let to_next_step = step_us - r2;
+            let (carry, remainder) = if r1 >= to_next_step {
+                (1, r1 - to_next_step)
+            } else {
+                (0, r1 + r2)
+            };
+            (u64::from(q1) + u64::from(q2) + carry, remainder)
         }
     }
 }
@@ -334,6 +350,78 @@ mod tests {
         // The bound is back to one step.
         let t = clock.advance_deferring(&mut state, &mut deferral, 10_000);
         assert_eq!((t.steps, t.dropped_us, state.debt_us), (1, 5000, 200));
+    }
+
+    /// `whole_steps` by the 64-bit division it replaces.
+    fn whole_steps_u64(debt_us: u32, elapsed_us: u32, step_us: u32) -> (u64, u32) {
+        let total_us = u64::from(debt_us) + u64::from(elapsed_us);
+        let step_us = u64::from(step_us);
+        (total_us / step_us, (total_us % step_us) as u32)
+    }
+
+    #[test]
+    fn whole_steps_past_u32_match_the_64_bit_division_at_the_extremes() {
+        let edges = [
+            0,
+            1,
+            2,
+            999,
+            1000,
+            1001,
+            0x7fff_ffff,
+            0x8000_0000,
+            0x8000_0001,
+            u32::MAX - 1,
+            u32::MAX,
+        ];
+        let mut past_u32 = 0;
+        for debt in edges {
+            for elapsed in edges {
+                for step in edges.iter().copied().filter(|s| *s > 0) {
+                    past_u32 += u32::from(debt.checked_add(elapsed).is_none());
+                    assert_eq!(
+                        whole_steps(debt, elapsed, step),
+                        whole_steps_u64(debt, elapsed, step),
+                        "debt {debt} us, elapsed {elapsed} us, step {step} us"
+                    );
+                }
+            }
+        }
+        // The halves' path was taken, not only the 32-bit sum's.
+        assert!(past_u32 > 100, "{past_u32}");
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn whole_steps_match_the_64_bit_division(
+            debt in proptest::prelude::any::<u32>(),
+            elapsed in proptest::prelude::any::<u32>(),
+            step in proptest::prop_oneof![1u32..5000, 1u32..],
+        ) {
+            proptest::prop_assert_eq!(
+                whole_steps(debt, elapsed, step),
+                whole_steps_u64(debt, elapsed, step)
+            );
+        }
+
+        #[test]
+        fn a_stall_drops_what_the_64_bit_arithmetic_drops(
+            debt in proptest::prelude::any::<u32>(),
+            elapsed in proptest::prelude::any::<u32>(),
+            step in proptest::prop_oneof![1u32..5000, 1u32..],
+            max_steps in proptest::prop_oneof![1u32..16, 1u32..],
+        ) {
+            let clock = StepClock::new(step, max_steps).unwrap();
+            let mut state = ClockState { debt_us: debt, frozen_ticks: 0 };
+            let t = clock.advance(&mut state, elapsed);
+            let (due, remainder) = whole_steps_u64(debt, elapsed, step);
+            let taken = due.min(u64::from(max_steps));
+            let dropped = (due - taken).saturating_mul(u64::from(step));
+            proptest::prop_assert_eq!(u64::from(t.steps), taken);
+            proptest::prop_assert_eq!(u64::from(t.dropped_us), dropped.min(u64::from(u32::MAX)));
+            proptest::prop_assert_eq!(state.debt_us, remainder);
+            proptest::prop_assert_eq!(t.flags.contains(InputFlags::ELAPSED_INVALID), due > taken);
+        }
     }
 
     #[test]

@@ -465,8 +465,10 @@ pub struct NetworkSettings {
     /// covariance (`(N + M)^3` multiply-adds) and each correction is a
     /// sequential Joseph update, so a start that is far off (a
     /// conservative start, an uncooled restore) is pulled in within a few
-    /// corrections rather than the steady gain's time constants. Restarts
-    /// with every new state. Default 0 (steady gain from the first
+    /// corrections rather than the steady gain's time constants. Armed in
+    /// a state by [`NetworkObserver::with_warm_up`] (a state of
+    /// [`NetworkObserver::state`] or a restore runs no warm-up until then:
+    /// see [`WarmUpKind`]). Default 0 (steady gain from the first
     /// correction).
     pub warmup_corrections: u16,
     /// Largest plausible current magnitude \[A\]: beyond it a current is
@@ -823,6 +825,14 @@ pub struct NetworkObserver<
 
 /// The per-device state.
 ///
+/// `W` says whether it can run the time-varying warm-up (see
+/// [`WarmUpKind`]): [`NoWarmUp`] for the states of
+/// [`NetworkObserver::state`], the `restore` methods and
+/// [`NetworkObserver::conservative_state`], whose ticks are compiled
+/// without the warm-up's code; [`WarmUp`] (the default) for those of
+/// [`NetworkObserver::start`] and [`NetworkObserver::with_warm_up`], the one
+/// type of a firmware that restores and falls back to a start.
+///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone)]
 pub struct NetworkObserverState<
@@ -831,6 +841,7 @@ pub struct NetworkObserverState<
     const M: usize,
     const X: usize,
     const P: usize,
+    W = WarmUp<X>,
 > {
     /// The filter's estimate (deviations from the origin \[K\], then the
     /// heat-input biases \[W\]) and gate memory.
@@ -858,9 +869,11 @@ pub struct NetworkObserverState<
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
     silence: SilenceWatch<P>,
-    /// The time-varying warm-up's covariance, while it runs.
-    warmup_cov: SMatrix<f32, X, X>,
-    /// Corrections the warm-up has left.
+    /// The time-varying warm-up's covariance, while it runs, if this
+    /// flavour holds one.
+    warm: W,
+    /// Corrections the warm-up has left (0 throughout in a flavour
+    /// without one).
     warmup_left: u16,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
@@ -870,8 +883,8 @@ pub struct NetworkObserverState<
     outputs: NetworkOutputs<N, M, P>,
 }
 
-impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
-    NetworkObserverState<N, B, M, X, P>
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
+    NetworkObserverState<N, B, M, X, P, W>
 {
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &NetworkOutputs<N, M, P> {
@@ -885,6 +898,54 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             events: &mut self.events,
             published: &mut self.outputs.alarm,
             limits: &mut self.outputs.limits,
+        }
+    }
+
+    /// This state in the flavour `V`, holding `warm`.
+    fn flavoured<V>(self, warm: V) -> NetworkObserverState<N, B, M, X, P, V> {
+        let Self {
+            estimate,
+            residual_k,
+            alarm,
+            predictor,
+            clock,
+            events,
+            held_currents_a,
+            held_boundary_c,
+            cycle,
+            shadow,
+            stuck,
+            rewind,
+            drift,
+            suspect,
+            silence,
+            warm: _,
+            warmup_left,
+            bias_steps,
+            warmup_until_steady,
+            outputs,
+        } = self;
+        NetworkObserverState {
+            estimate,
+            residual_k,
+            alarm,
+            predictor,
+            clock,
+            events,
+            held_currents_a,
+            held_boundary_c,
+            cycle,
+            shadow,
+            stuck,
+            rewind,
+            drift,
+            suspect,
+            silence,
+            warm,
+            warmup_left,
+            bias_steps,
+            warmup_until_steady,
+            outputs,
         }
     }
 }
@@ -961,12 +1022,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// A state with every node at `temps_c` \[degC\], zero biases, the
     /// boundaries at `boundary_c` \[degC\], no current, no alarm; limits
-    /// valid from the first tick.
+    /// valid from the first tick. It runs no warm-up ([`NoWarmUp`]): the
+    /// steady gain from the first correction, and its ticks link none of
+    /// the warm-up's code. [`Self::with_warm_up`] gives it the flavour of
+    /// [`Self::start`]'s states, with the configured warm-up
+    /// ([`NetworkSettings::warmup_corrections`]) if any.
     pub fn state(
         &self,
         temps_c: &[f32; N],
         boundary_c: &[f32; B],
-    ) -> NetworkObserverState<N, B, M, X, P> {
+    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
         let mut x = SVector::<f32, X>::zeros();
         for (i, t) in temps_c.iter().enumerate() {
             x[i] = *t - self.origin_c;
@@ -988,14 +1053,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             held_boundary_c,
             cycle: ProtectionCycle::new(),
             shadow: ShadowState::new(core::array::from_fn(|i| x[i])),
-            warmup_cov: {
-                let mut cov = *self.gain.prior();
-                for (i, v) in self.kalman.recovery_variance.iter().enumerate() {
-                    cov[(i, i)] += *v;
-                }
-                cov
-            },
-            warmup_left: self.warmup_corrections,
+            warm: NoWarmUp,
+            warmup_left: 0,
             bias_steps: 0,
             warmup_until_steady: false,
             stuck: StuckWatch::new(),
@@ -1026,21 +1085,49 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state
     }
 
+    /// `state` in the flavour that can run the time-varying warm-up
+    /// ([`WarmUp`], what [`Self::start`] returns: one type for a firmware
+    /// that restores a snapshot and falls back to a start), with the
+    /// configured warm-up armed: [`NetworkSettings::warmup_corrections`]
+    /// corrections from the steady prior widened by the recovery variances
+    /// (none at the default 0: it then ticks as `state` would, to the bit).
+    pub fn with_warm_up(
+        &self,
+        state: NetworkObserverState<N, B, M, X, P, NoWarmUp>,
+    ) -> NetworkObserverState<N, B, M, X, P> {
+        let mut cov = *self.gain.prior();
+        for (i, v) in self.kalman.recovery_variance.iter().enumerate() {
+            cov[(i, i)] += *v;
+        }
+        let mut state = state.flavoured(WarmUp { cov });
+        state.warmup_left = self.warmup_corrections;
+        state
+    }
+
     /// The estimated temperature of every node \[degC\] now.
-    pub fn temps_c(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [f32; N] {
+    pub fn temps_c<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+    ) -> [f32; N] {
         core::array::from_fn(|i| self.origin_c + state.estimate.x[i])
     }
 
     /// The estimated offset of the boundary with an offset state
     /// ([`NetworkSettings::boundary_offset`]) \[K\], `>= 0` after every
     /// correction; `None` without one.
-    pub fn boundary_offset_k(&self, state: &NetworkObserverState<N, B, M, X, P>) -> Option<f32> {
+    pub fn boundary_offset_k<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+    ) -> Option<f32> {
         self.offset_boundary
             .and_then(|_| state.estimate.x.get(N + M).copied())
     }
 
     /// The estimated heat-input bias of each current \[W\].
-    pub fn heat_bias_w(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [f32; M] {
+    pub fn heat_bias_w<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+    ) -> [f32; M] {
         core::array::from_fn(|m| state.estimate.x[N + m])
     }
 
@@ -1052,7 +1139,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// One mean predict with the held inputs (see "f32 without drift").
-    fn predict(&self, state: &mut NetworkObserverState<N, B, M, X, P>) {
+    fn predict<W: WarmUpKind<X>>(&self, state: &mut NetworkObserverState<N, B, M, X, P, W>) {
         let x = &mut state.estimate.x;
         let mut power = SVector::<f32, M>::zeros();
         for (m, ((node, r), i)) in self
@@ -1091,8 +1178,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         {
             *xi = compensated_add(*xi, *inc, residual);
         }
-        if state.warmup_left > 0 {
-            predict_cov(&self.kalman, &mut state.warmup_cov);
+        if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov_mut()) {
+            predict_cov(&self.kalman, cov);
         }
     }
 
@@ -1100,7 +1187,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// a correction period: `exp(-steps / (bias_tau_s / step))` in one
     /// factor, since a per-step factor `1 - 5.6e-7` (1 ms, 30 min) is held
     /// by `f32` to a few ulps only and would misstate the time constant.
-    fn decay_biases(&self, state: &mut NetworkObserverState<N, B, M, X, P>, steps: u32) {
+    fn decay_biases<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        steps: u32,
+    ) {
         if !self.decays {
             return;
         }
@@ -1156,9 +1247,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// predict), a correction if readings arrived, then at most one stage of
     /// the protection cycle. Bounded (`max_steps_per_tick` steps, one
     /// correction, one stage), allocation-free, panic-free.
-    pub fn tick<'s>(
+    pub fn tick<'s, W: WarmUpKind<X>>(
         &self,
-        state: &'s mut NetworkObserverState<N, B, M, X, P>,
+        state: &'s mut NetworkObserverState<N, B, M, X, P, W>,
         inputs: &NetworkInputs<B, M, P>,
     ) -> &'s NetworkOutputs<N, M, P> {
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
@@ -1229,7 +1320,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &mut state.events,
                 );
                 state.cycle.alarmed();
-                if state.warmup_left > 0 {
+                if state.warmup_left > 0 && state.warm.cov().is_some() {
                     self.publish_upper(state, ambient_c, true);
                 }
             }
@@ -1254,9 +1345,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// inputs take `inputs.currents_a` as measured. Bounded, allocation-free,
     /// panic-free: one square root and one division per driven input more
     /// than [`tick`](Self::tick), which it then calls.
-    pub fn tick_voltage<'s>(
+    pub fn tick_voltage<'s, W: WarmUpKind<X>>(
         &self,
-        state: &'s mut NetworkObserverState<N, B, M, X, P>,
+        state: &'s mut NetworkObserverState<N, B, M, X, P, W>,
         inputs: &NetworkInputs<B, M, P>,
         drives: &[Option<VoltageDrive>; M],
     ) -> (&'s NetworkOutputs<N, M, P>, DriveFlags) {
@@ -1289,9 +1380,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// [`crate::protect::limiter::drive_limit`]: an invalid supply gives
     /// duty zero, flagged). Call after a tick; `O(1)`, panic-free; an input
     /// out of range gets a zero limit.
-    pub fn drive_limit(
+    pub fn drive_limit<W: WarmUpKind<X>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P>,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
         input: usize,
         supply_v: f32,
     ) -> DriveLimit {
@@ -1309,7 +1400,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    fn age_time_to_limit(&self, state: &mut NetworkObserverState<N, B, M, X, P>) {
+    fn age_time_to_limit<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+    ) {
         let lag_s = state.cycle.lag_s();
         let ttl = state.predictor.time_to_limit_s();
         for ((time, answer), limited) in state
@@ -1336,19 +1430,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ///
     /// With `widen`, while a warm-up holds its own covariance, each bound
     /// is widened by it ([`start::bound_extra_k`]).
-    fn publish_upper(
+    fn publish_upper<W: WarmUpKind<X>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P>,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
         ambient_c: f32,
         widen: bool,
     ) {
         let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
-        if widen && state.warmup_left > 0 {
+        if let (true, Some(cov)) = (widen && state.warmup_left > 0, state.warm.cov()) {
             // The covariance held, not the steady one (see `super::start`).
             for (i, (upper, sigma)) in out.upper_c.iter_mut().zip(&self.bound_sigma_k).enumerate() {
-                let variance = state.warmup_cov.get((i, i)).copied().unwrap_or(f32::NAN);
+                let variance = cov.get((i, i)).copied().unwrap_or(f32::NAN);
                 *upper += start::bound_extra_k(variance, *sigma, self.k_sigma);
             }
         }
@@ -1395,9 +1489,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// Sorts the readings, holds each against the shadow model, and runs
     /// one steady-state correction if any is usable; returns whether it ran
     /// and the common-mode flag.
-    fn correct(
+    fn correct<W: WarmUpKind<X>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P>,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
         inputs: &NetworkInputs<B, M, P>,
     ) -> (bool, InputFlags) {
         if inputs.readings.iter().all(Option::is_none) {
@@ -1420,9 +1514,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// The correction of a tick that brought readings; out of line so that
     /// the ticks without one do not pay for its frame.
     #[inline(never)]
-    fn fuse_readings(
+    fn fuse_readings<W: WarmUpKind<X>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P>,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
         inputs: &NetworkInputs<B, M, P>,
     ) -> (bool, InputFlags) {
         let mut samples = sample_readings(
@@ -1507,25 +1601,25 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.note_doubt(state, present);
             return (false, flags);
         }
-        let warming = state.warmup_left > 0;
-        let report = if warming {
+        let warming = state.warmup_left > 0 && state.warm.cov().is_some();
+        let report = if let (true, Some(cov)) = (warming, state.warm.cov_mut()) {
             state.warmup_left -= 1;
             let mut full = KalmanState {
                 x: state.estimate.x,
-                cov: state.warmup_cov,
+                cov: *cov,
                 gate: state.estimate.gate,
             };
             let report = update(&self.kalman, &mut full, &z);
             state.estimate.x = full.x;
             state.estimate.gate = full.gate;
-            state.warmup_cov = full.cov;
+            *cov = full.cov;
             if state.warmup_until_steady {
                 // The start's shadow knows no more than the filter: it
                 // follows the filter until the start has settled.
                 state
                     .shadow
                     .reseed(core::array::from_fn(|i| state.estimate.x[i]));
-                if self.settled(&state.warmup_cov) {
+                if self.settled(cov) {
                     state.warmup_left = 0;
                 }
             }
@@ -1548,17 +1642,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// Sensor `j`'s innovation variance \[K^2\] against the covariance the
     /// filter holds: the warm-up's while it runs, else the steady one.
-    fn innovation_var_k2(&self, state: &NetworkObserverState<N, B, M, X, P>, j: usize) -> f32 {
+    fn innovation_var_k2<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+        j: usize,
+    ) -> f32 {
         let steady = self.gain.innovation_var()[j];
-        if state.warmup_left == 0 {
+        let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov()) else {
             return steady;
-        }
+        };
         let node = self.sensor_nodes[j];
-        let held = state
-            .warmup_cov
-            .get((node, node))
-            .copied()
-            .unwrap_or(f32::NAN);
+        let held = cov.get((node, node)).copied().unwrap_or(f32::NAN);
         held + self.kalman.r()[j]
     }
 
@@ -1573,7 +1667,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// [`Suspicion`](super::consistency::Suspicion)): at a correction (some
     /// reading arrived), every sensor's verdict counts; between them only
     /// a silent sensor renews its doubt.
-    fn note_doubt(&self, state: &mut NetworkObserverState<N, B, M, X, P>, correction: bool) {
+    fn note_doubt<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        correction: bool,
+    ) {
         let rejections = &state.estimate.gate.consecutive_rejections;
         let doubt: [bool; P] = core::array::from_fn(|j| {
             sensor_doubt(&state.outputs.sensors[j], rejections[j]).unwrap_or(false)
@@ -1589,9 +1687,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// ([`StuckRewind`], the rule the Omnimagnet observer shares), the
     /// shared heat's sum too, in the present shares. `events`: this
     /// correction's stuck screen.
-    fn rewind_stuck_biases(
+    fn rewind_stuck_biases<W: WarmUpKind<X>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P>,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
         events: &StuckEvents<P>,
     ) {
         let shared = &self.shared_bias;
@@ -1624,6 +1722,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         );
     }
 
+    /// The covariance the floors project with: the warm-up's when the
+    /// correction ran it (`warming`; held even when that correction ended
+    /// it), else the steady posterior.
+    fn floor_cov<'a, W: WarmUpKind<X>>(
+        &'a self,
+        warm: &'a W,
+        warming: bool,
+    ) -> &'a SMatrix<f32, X, X> {
+        match (warming, warm.cov()) {
+            (true, Some(cov)) => cov,
+            _ => self.gain.posterior(),
+        }
+    }
+
     /// Keeps every heat-input bias at or above its floor and the boundary
     /// offset at or above 0 \[K\] (the boundary the network sees is never
     /// colder than its reading), with the covariance the correction used.
@@ -1640,17 +1752,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// alone to lift the offset is no way out: given a sensor on the
     /// housing, a warmer coolant means a cooler winding, and those lifts
     /// left the winding 4.4 K cold.
-    fn keep_floors(&self, state: &mut NetworkObserverState<N, B, M, X, P>, warming: bool) {
+    fn keep_floors<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        warming: bool,
+    ) {
         if self.offset_boundary.is_none() {
             self.keep_bias_floors(state, warming);
             return;
         }
         for _ in 0..FLOOR_PASSES {
-            let cov = if warming {
-                &state.warmup_cov
-            } else {
-                self.gain.posterior()
-            };
+            let cov = self.floor_cov(&state.warm, warming);
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
             self.keep_bias_floors(state, warming);
         }
@@ -1664,13 +1776,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// back by its regression on that bias
     /// ([`project_onto_floor`](crate::filter::project_onto_floor)). Exact
     /// for one bias; several are projected in turn on the same covariance.
-    fn keep_bias_floors(&self, state: &mut NetworkObserverState<N, B, M, X, P>, warming: bool) {
+    fn keep_bias_floors<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        warming: bool,
+    ) {
         let powers_w = self.joule_powers_w(state);
-        let cov = if warming {
-            &state.warmup_cov
-        } else {
-            self.gain.posterior()
-        };
+        let cov = self.floor_cov(&state.warm, warming);
         for (m, power_w) in powers_w.iter().enumerate() {
             if self.shared_bias[m] {
                 continue;
@@ -1710,7 +1822,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// Which heat-input biases are beyond the model's uncertainty (see
     /// "Sensors against the physics"), at the Joule powers of the held
     /// currents at the estimate.
-    fn biases_beyond(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [bool; M] {
+    fn biases_beyond<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+    ) -> [bool; M] {
         let powers_w = self.joule_powers_w(state);
         self.shadow
             .bias_bound
@@ -1719,7 +1834,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// Each current's Joule power \[W\], the held current at the estimated
     /// temperature of the node it heats.
-    fn joule_powers_w(&self, state: &NetworkObserverState<N, B, M, X, P>) -> [f32; M] {
+    fn joule_powers_w<W: WarmUpKind<X>>(
+        &self,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
+    ) -> [f32; M] {
         let x = &state.estimate.x;
         let mut powers_w = [0.0f32; M];
         for (power, ((node, r), i)) in powers_w.iter_mut().zip(
@@ -1738,9 +1856,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// shutdown, stamped `now_s` \[s\]; returns its length
     /// ([`snapshot_len(N)`](super::snapshot::snapshot_len) bytes). The
     /// biases are not saved: a restored state starts them at zero.
-    pub fn save(
+    pub fn save<W: WarmUpKind<X>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P>,
+        state: &NetworkObserverState<N, B, M, X, P, W>,
         now_s: u32,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
@@ -1755,7 +1873,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// Restores a state saved by [`Self::save`] with this configuration at
     /// most `max_age_s` \[s\] before `now_s` \[s\], the boundaries at
-    /// `boundary_c` \[degC\]. A latched shutdown stays latched.
+    /// `boundary_c` \[degC\]. A latched shutdown stays latched. Like every
+    /// restore, a state without a warm-up ([`NoWarmUp`], as
+    /// [`Self::state`]'s); [`Self::with_warm_up`] makes it the type of
+    /// [`Self::start`]'s.
     ///
     /// # Errors
     /// Why the snapshot was refused; start from
@@ -1766,7 +1887,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         now_s: u32,
         max_age_s: u32,
         boundary_c: &[f32; B],
-    ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
+    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
         self.restore_after(bytes, now_s, max_age_s, boundary_c, None)
     }
 
@@ -1796,7 +1917,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         max_age_s: u32,
         boundary_c: &[f32; B],
         off_s: Option<f32>,
-    ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
+    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
         let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
         let off_s = snap.off_time_s(off_s);
         Ok(self.restored(&snap.saved_c, &snap.meta, boundary_c, off_s))
@@ -1828,7 +1949,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         max_age_s: u32,
         boundary_c: &[f32; B],
         readings_c: &[Option<f32>; P],
-    ) -> Result<NetworkObserverState<N, B, M, X, P>, SnapshotError> {
+    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
         let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
         let tolerance_k = start::restore_tolerance_k(self.k_sigma, self.kalman.r().iter().copied());
         let coldest_c = boundary_c.iter().fold(f32::INFINITY, |a, b| a.min(*b));
@@ -1851,7 +1972,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         meta: &SnapshotMeta,
         boundary_c: &[f32; B],
         off_s: f32,
-    ) -> NetworkObserverState<N, B, M, X, P> {
+    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
         let mut held_c = *boundary_c;
         let rejected = self.limits.accept_temperatures(boundary_c, &mut held_c);
         let temps_c = if off_s > 0.0 && rejected == InputFlags::NONE {
@@ -1875,7 +1996,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// it, the upper bound widens by it) until it has settled on the
     /// steady one. No shutdown is latched: the limiter starts in its taper
     /// band and opens as the sensors teach the filter. The boundaries at
-    /// `boundary_c` \[degC\].
+    /// `boundary_c` \[degC\]. The state is of the [`WarmUp`] flavour: a
+    /// firmware that calls `start` links the warm-up's code, one that never
+    /// does need not (see [`WarmUpKind`]).
     pub fn start(
         &self,
         readings_c: &[Option<f32>; P],
@@ -1885,7 +2008,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let _ = self.limits.accept_temperatures(boundary_c, &mut held_c);
         let ambient_c = self.ambient(&held_c);
         let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
-        let mut state = self.state(&temps, boundary_c);
+        let state = self.state(&temps, boundary_c);
         let mut read = [false; N];
         for (reading, node) in readings_c.iter().zip(&self.sensor_nodes) {
             if let (true, Some(r)) = (reading.is_some_and(f32::is_finite), read.get_mut(*node)) {
@@ -1908,7 +2031,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
             }
         }
-        state.warmup_cov = cov;
+        let mut state = state.flavoured(WarmUp { cov });
         state.warmup_left = start::MAX_START_CORRECTIONS;
         state.warmup_until_steady = true;
         self.publish_upper(&mut state, ambient_c, true);
@@ -1930,12 +2053,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// \[degC\], every other node no cooler than the hottest reading or the
     /// ambient, and the shutdown *latched* (published from the start, every
     /// current limit zero) until [`Self::clear_shutdown`]: nothing says the
-    /// device is not hotter than that start.
+    /// device is not hotter than that start. A state without a warm-up
+    /// ([`NoWarmUp`], as [`Self::state`]'s).
     pub fn conservative_state(
         &self,
         readings_c: &[Option<f32>; P],
         boundary_c: &[f32; B],
-    ) -> NetworkObserverState<N, B, M, X, P> {
+    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
         let ambient_c = self.ambient(boundary_c);
         let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
         let mut state = self.state(&temps, boundary_c);
@@ -1956,9 +2080,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// # Errors
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
-    pub fn clear_shutdown(
+    pub fn clear_shutdown<W: WarmUpKind<X>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P>,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
     ) -> Result<(), ResetError> {
         state.latch().clear(&self.alarm)
     }
@@ -2016,11 +2140,13 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 mod bias;
 mod parts;
 pub mod resistance;
+mod warm_up;
 pub use bias::BiasMode;
 pub use parts::{
     AssembledTables, GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables,
 };
 pub use resistance::{ResistanceSensor, SensorKind};
+pub use warm_up::{NoWarmUp, WarmUp, WarmUpKind};
 
 #[cfg(test)]
 #[path = "network_tests.rs"]

@@ -451,7 +451,7 @@ fn wrong_start_error_k(warmup: u16, minutes: u32) -> f64 {
         })
         .build()
         .unwrap();
-    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut state = obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]));
     let mut plant = [30.0f64; 3];
     for k in 0..minutes * 60_000 {
         let now_us = k.wrapping_mul(1000);
@@ -527,7 +527,7 @@ fn a_source_left_out_of_the_biases_keeps_its_bias_at_exactly_zero() {
     for row in &parts.gain.gain[6..] {
         assert_eq!(row, &[0.0]);
     }
-    let mut state = obs.state(&[20.0; 5], &[20.0]);
+    let mut state = obs.with_warm_up(obs.state(&[20.0; 5], &[20.0]));
     let mut plant = [20.0f64; 5];
     let (mut moved_w, mut recovered) = (0.0f32, false);
     for k in 0..(20 * 60_000u32) {
@@ -607,7 +607,7 @@ fn housing_sensor_run(
         })
         .build()
         .unwrap();
-    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut state = obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]));
     let mut plant = [20.0f64; 3];
     let mut worst = [0.0f64; 2];
     for k in 0..(seconds * 10) {
@@ -949,7 +949,7 @@ fn three_phase_housing_run(
         .build()
         .unwrap();
     assert_eq!(obs.shared_bias_sources(), [true; 3]);
-    let mut state = obs.state(&[20.0; 5], &[20.0]);
+    let mut state = obs.with_warm_up(obs.state(&[20.0; 5], &[20.0]));
     let mut plant = [20.0f64; 5];
     for k in 0..(seconds * 10) {
         let t_s = f64::from(k) * 0.1;

@@ -267,7 +267,8 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         }
     }
     fn state(&self, ambient_c: f32) -> Self::State {
-        self.observer.state(&[ambient_c; C], &[ambient_c; 2])
+        let state = self.observer.state(&[ambient_c; C], &[ambient_c; 2]);
+        self.observer.with_warm_up(state)
     }
     fn tick(&self, state: &mut Self::State, i: &TickInputs<'_>) -> TickView {
         let mut currents_a = [0.0; C];
@@ -372,6 +373,7 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
         self.observer
             .restore_with_readings(bytes, now_s, max_age_s, &[ambient_c; 2], &readings)
+            .map(|s| self.observer.with_warm_up(s))
             .map_err(|e| e.to_string())
     }
     fn save(&self, state: &Self::State, now_s: u32) -> Option<Vec<u8>> {
@@ -389,11 +391,13 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
     ) -> Result<Self::State, String> {
         self.observer
             .restore_after(bytes, now_s, max_age_s, &[ambient_c; 2], off_s)
+            .map(|s| self.observer.with_warm_up(s))
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
         let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
-        self.observer.conservative_state(&readings, &[ambient_c; 2])
+        let state = self.observer.conservative_state(&readings, &[ambient_c; 2]);
+        self.observer.with_warm_up(state)
     }
     fn latched(&self, state: &Self::State) -> bool {
         state.outputs().alarm.shutdown

@@ -67,9 +67,16 @@ pub fn same_f32(replayed: f64, generated: f32) -> bool {
 /// at that time \[us\]) given to the first tick only, `now_us` advanced;
 /// each event the ticks raise is pushed with its time \[s\].
 #[allow(dead_code)]
-pub fn tick_row<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+pub fn tick_row<
+    const N: usize,
+    const B: usize,
+    const M: usize,
+    const X: usize,
+    const P: usize,
+    W: coil_thermal::observer::network::WarmUpKind<X>,
+>(
     observer: &coil_thermal::observer::network::NetworkObserver<N, B, M, X, P>,
-    state: &mut coil_thermal::observer::network::NetworkObserverState<N, B, M, X, P>,
+    state: &mut coil_thermal::observer::network::NetworkObserverState<N, B, M, X, P, W>,
     currents_a: [f32; M],
     boundary_c: [f32; B],
     readings_at: impl Fn(u32) -> [Option<coil_thermal::observer::TimedReading>; P],

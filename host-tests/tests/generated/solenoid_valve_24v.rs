@@ -375,7 +375,7 @@ pub fn observer() -> Result<Observer, BuildError> {
 /// with [`start_state`] or [`restore_state`]: on a warm device this one
 /// reads cold.
 pub fn initial_state(observer: &Observer, ambient_c: f32) -> State {
-    observer.state(&[ambient_c; NODES], &[ambient_c; BOUNDARIES])
+    observer.with_warm_up(observer.state(&[ambient_c; NODES], &[ambient_c; BOUNDARIES]))
 }
 
 /// The safe start without a history (the first boot, a refused snapshot,
@@ -468,7 +468,7 @@ pub fn restore_state(
         }
     };
     match restored {
-        Ok(state) => (state, None),
+        Ok(state) => (observer.with_warm_up(state), None),
         Err(refused) => (start_state(observer, readings_c, ambient_c), Some(refused)),
     }
 }

@@ -32,9 +32,9 @@ struct Run {
     settled_s: Option<f64>,
 }
 
-fn drive(
+fn drive<W: WarmUpKind<4>>(
     obs: &NetworkObserver<3, 1, 1, 4, 1>,
-    state: &mut NetworkObserverState<3, 1, 1, 4, 1>,
+    state: &mut NetworkObserverState<3, 1, 1, 4, 1, W>,
     plant: &mut [f64; 3],
     start_ms: u32,
     seconds: u32,
@@ -83,7 +83,7 @@ fn drive(
 
 /// 30 min at what the observer allows of 20 A from a cold plant, then
 /// `off_s` with no current: the plant and the last state.
-fn warm_device(off_s: u32) -> ([f64; 3], NetworkObserverState<3, 1, 1, 4, 1>) {
+fn warm_device(off_s: u32) -> ([f64; 3], NetworkObserverState<3, 1, 1, 4, 1, NoWarmUp>) {
     let obs = observer();
     let mut state = obs.state(&[20.0; 3], &[20.0]);
     let mut plant = [20.0f64; 3];
@@ -222,4 +222,55 @@ fn k_sigma_is_what_keeps_a_reset_without_history_safe() {
     println!("k_sigma 0: {run:?}");
     assert!(run.under_bound_k[0] > 5.0, "{run:?}");
     assert!(run.winding_over_limit_k > 0.0, "{run:?}");
+}
+
+/// `ticks` ms of 20 A on the module docs' device from 20 degC, housing
+/// readings every 0.5 s 2 K above the plant: every tick's outputs and the
+/// estimate at the end, as text (`{:?}` of `f32` round-trips, so equal
+/// text is equal bits).
+fn flavour_run<W: WarmUpKind<4>>(
+    obs: &NetworkObserver<3, 1, 1, 4, 1>,
+    mut state: NetworkObserverState<3, 1, 1, 4, 1, W>,
+    ticks: u32,
+) -> std::vec::Vec<std::string::String> {
+    let mut plant = [20.0f64; 3];
+    let mut seen = std::vec::Vec::new();
+    for k in 0..ticks {
+        let now_us = k.wrapping_mul(1000);
+        let mut inp = inputs([20.0], [20.0], now_us);
+        if k % 500 == 0 {
+            inp.readings = [reading(plant[1] as f32 + 2.0, now_us)];
+        }
+        seen.push(std::format!("{:?}", obs.tick(&mut state, &inp)));
+        rk4(&device(), &mut plant, &[20.0], &[20.0], 1e-3);
+    }
+    seen.push(std::format!("{:?}", state.estimate.x));
+    seen
+}
+
+#[test]
+fn a_state_without_a_warm_up_ticks_as_one_whose_warm_up_never_runs() {
+    // The flavours differ in what the tick links, not in what it does:
+    // `state` (no warm-up) and the same state given the warm-up's flavour
+    // with none configured tick to the bit alike, through corrections,
+    // the alarm's and the limiter's stages. With a configured warm-up the
+    // same call arms it (and the run differs).
+    let obs = observer();
+    let lean = flavour_run(&obs, obs.state(&[20.0; 3], &[20.0]), 120_000);
+    let full = obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]));
+    assert_eq!(full.warmup_left, 0);
+    assert_eq!(lean, flavour_run(&obs, full, 120_000));
+    let warming: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&device(), [1])
+        .critical_c([Some(155.0), None, None])
+        .hardware_limit_a([20.0])
+        .settings(NetworkSettings {
+            warmup_corrections: 8,
+            ..NetworkSettings::DEFAULT
+        })
+        .build()
+        .unwrap();
+    let armed = warming.with_warm_up(warming.state(&[20.0; 3], &[20.0]));
+    assert_eq!((armed.warmup_left, armed.warmup_until_steady), (8, false));
+    let steady = flavour_run(&warming, warming.state(&[20.0; 3], &[20.0]), 10_000);
+    assert_ne!(steady, flavour_run(&warming, armed, 10_000));
 }
