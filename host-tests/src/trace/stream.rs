@@ -797,13 +797,7 @@ mod tests {
     fn f32_values_read_back_to_the_bit() {
         let dir = tempfile::TempDir::new().unwrap();
         let path = dir.path().join("o.csv");
-        let narrow = [
-            128.70001_f32,
-            1.0e-7,
-            -40.123_457,
-            3.4e38,
-            f32::MIN_POSITIVE,
-        ];
+        let narrow = [128.70001_f32, 1.0e-7, -40.123_46, 3.4e38, f32::MIN_POSITIVE];
         let mut out = CsvOut::create(&path, &["a".into(), "b".into()]).unwrap();
         for v in narrow {
             out.row(1.0, [f64::from(v), 1.0 / 3.0]).unwrap();
