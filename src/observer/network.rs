@@ -361,8 +361,11 @@ const FLOOR_PASSES: usize = 8;
 
 pub use super::tables::PREDICTOR_POINTS;
 /// The critical temperature given to elements without a limit \[degC\]
-/// (the alarm and the predictor need a finite one): never reached by a
-/// device that works.
+/// (the alarm needs a finite one, and so does the time-to-limit predictor
+/// on a winding's node, whose power it takes at the node's limit): never
+/// reached by a device that works. The predictor skips any other node
+/// without a limit (its answer is "never", at no cost), so that a sweep
+/// ends once the limited elements are resolved.
 pub const NO_LIMIT_C: f64 = 1000.0;
 
 /// Build settings, each with a default ([`NetworkSettings::DEFAULT`]).
