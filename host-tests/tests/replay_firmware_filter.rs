@@ -177,7 +177,8 @@ fn worst_apart<const N: usize>(
     let mut worst = 0.0f64;
     for (t, (r, g)) in replayed.iter().zip(generated).enumerate() {
         for (node, (r, g)) in r.iter().zip(g).enumerate() {
-            let d = (r - f64::from(*g)).abs();
+            // The CSV holds each `f32` as the decimal that reads back to it.
+            let d = (f64::from(*r as f32) - f64::from(*g)).abs();
             let agrees = match agreement {
                 Agreement::Exact => common::same_f32(*r, *g),
                 Agreement::EffectiveCurrents => d <= 2e-5,
