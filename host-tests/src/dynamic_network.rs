@@ -209,6 +209,18 @@ impl DynNetwork {
         Ok(self.sources.len() - 1)
     }
 
+    /// Multiplies source `source`'s resistance line by `factor` (a power
+    /// scale folded into the winding: `k R(T) I^2`); nothing for a source
+    /// it does not have.
+    pub fn scale_resistance(&mut self, source: usize, factor: f64) {
+        if let Some(s) = self.sources.get_mut(source) {
+            s.resistance = Resistance::linear_fit(
+                factor * s.resistance.slope_ohm_per_k,
+                factor * s.resistance.r_at_0c_ohm,
+            );
+        }
+    }
+
     /// Adds a constant power \[W\] at `node`.
     pub fn fixed_power(&mut self, node: usize, power_w: f64) -> Result<(), DynError> {
         if node >= self.nodes() {

@@ -93,11 +93,15 @@
 //! exactly (both factors are powers of two), for currents up to 1600 A.
 //!
 //! # Speed-dependent sources
-//! A model file's speed factors and speed losses
-//! ([`Model::effective_currents`]) are folded into effective currents on
-//! the host before each tick: a speed loss is a 1 ohm source carrying
-//! `sqrt(P)`, a speed factor scales its source's current by `sqrt(factor)`.
-//! The observer sees an ordinary network with currents.
+//! A model file's power scales, speed factors and losses enter as the
+//! generated module's `source_currents_a` computes them, in the same `f32`
+//! operations ([`FirmwareInputs`]), on the same network
+//! ([`Model::firmware_network`]: each power scale folded into its
+//! resistance): a speed factor multiplies its source's current by the
+//! `f32` root of `1 + a1 f + a2 f^2`, a speed or `[[loss]]` loss is a 1 ohm
+//! source carrying `sqrt(P)`. The observer sees an ordinary network with
+//! currents, and its estimates are the module's to the bit (test
+//! `replay_firmware_filter`).
 
 use std::time::Instant;
 
@@ -109,6 +113,7 @@ use coil_thermal::observer::network::{
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
 
+use crate::codegen::FirmwareInputs;
 use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
 use crate::limits::{class_of, on_big_stack, padded_with, Padding};
@@ -568,7 +573,15 @@ pub struct ObserverEstimator {
     /// The trace time asked for and the ticks done since the reset.
     clock: TickClock,
     temps: Vec<f64>,
-    effective: Vec<f64>,
+    /// The module's `source_currents_a` and `source_drives` (see
+    /// [`FirmwareInputs`]).
+    firmware_inputs: FirmwareInputs,
+    /// The row's inputs and signals, each rounded once to `f32` as the
+    /// MCU receives them, and the observer's currents from them.
+    input_f32: Vec<f32>,
+    signal_f32: Vec<f32>,
+    currents_f32: Vec<f32>,
+    currents: Vec<f64>,
     tick_ns: crate::observer::TimeHistogram,
     size_class: usize,
     sensors: Vec<usize>,
@@ -582,8 +595,8 @@ pub struct ObserverEstimator {
     protected: Protected,
     /// Alarm events since the last [`Self::take_events`].
     events: Vec<EventKindAt>,
-    /// Each source's voltage drive of the present row (see
-    /// [`Model::voltage_drive`]).
+    /// Each source's voltage drive `(duty, supply_v)` of the present row
+    /// (see [`FirmwareInputs::drive`]).
     drives: Vec<Option<(f64, f64)>>,
     /// Each voltage drive's `(duty, effective voltage)` limit.
     drive_limits: Vec<Option<(f64, f64)>>,
@@ -671,7 +684,7 @@ impl ObserverEstimator {
             );
         }
         let info = plant_info(&model);
-        let net = model.network.clone();
+        let net = model.firmware_network();
         if net.boundaries() == 0 {
             bail!(
                 "model `{}` has no boundary: the library observer needs one (the ambient)",
@@ -789,6 +802,7 @@ impl ObserverEstimator {
         )?;
         let n = model.nodes.len();
         let m = model.network.sources().len();
+        let firmware_inputs = FirmwareInputs::new(&model);
         Ok(Self {
             model,
             info,
@@ -796,7 +810,11 @@ impl ObserverEstimator {
             tick_us,
             clock: TickClock::default(),
             temps: vec![0.0; n],
-            effective: Vec::new(),
+            firmware_inputs,
+            input_f32: Vec::new(),
+            signal_f32: Vec::new(),
+            currents_f32: Vec::new(),
+            currents: Vec::new(),
             tick_ns: crate::observer::TimeHistogram::default(),
             size_class: class,
             statuses: vec![SensorStatus::NoReading; sensors.len()],
@@ -868,18 +886,26 @@ impl ObserverEstimator {
     /// Holds these inputs (per model input \[A\], boundary \[degC\],
     /// signal) for [`Self::tick_once`].
     pub fn hold_inputs(&mut self, currents_a: &[f64], boundary_c: &[f64], signals: &[f64]) {
-        self.model
-            .effective_currents(currents_a, signals, &mut self.effective);
-        self.observer.inputs(&self.effective, boundary_c);
-        self.hold_drives(currents_a, signals);
-    }
-
-    /// Hands the row's voltage drives to the observer (nothing for a
-    /// current-driven model).
-    fn hold_drives(&mut self, currents_a: &[f64], signals: &[f64]) {
+        let to_f32 = |from: &[f64], to: &mut Vec<f32>| {
+            to.clear();
+            to.extend(from.iter().map(|v| *v as f32));
+        };
+        to_f32(currents_a, &mut self.input_f32);
+        to_f32(signals, &mut self.signal_f32);
+        self.firmware_inputs
+            .currents_a(&self.input_f32, &self.signal_f32, &mut self.currents_f32);
+        self.currents.clear();
+        self.currents
+            .extend(self.currents_f32.iter().map(|&i| f64::from(i)));
+        self.observer.inputs(&self.currents, boundary_c);
+        // A voltage-driven winding's current is the library's
+        // (`tick_voltage`: `sqrt(D) V / R(T_est)`), as on the MCU.
         if self.model.has_voltage_drives() {
             for (m, d) in self.drives.iter_mut().enumerate() {
-                *d = self.model.voltage_drive(m, currents_a, signals);
+                *d = self
+                    .firmware_inputs
+                    .drive(m, &self.input_f32, &self.signal_f32)
+                    .map(|d| (f64::from(d.duty), f64::from(d.supply_v)));
             }
             self.observer.drives(&self.drives);
         }
@@ -893,8 +919,8 @@ impl ObserverEstimator {
 
     /// The protection after a tick, each voltage drive's limit in its
     /// input's unit: a `pwm` input's duty, a linear input's voltage (the
-    /// effective voltage over the source's `sqrt(scale)`), as the
-    /// generated module's `input_drive_limits`.
+    /// effective voltage over the source's power scale), as the generated
+    /// module's `input_drive_limits`.
     fn publish_protection(&mut self) {
         self.observer.protection(&mut self.protected);
         if !self.model.has_voltage_drives() {
@@ -913,12 +939,12 @@ impl ObserverEstimator {
             }
             // Before the first row's drive (the reset) the supply is not
             // known: no limit yet (NaN), never a current in a duty's place.
+            // Both are `f32`s widened (the padding's scale taken out
+            // exactly), so narrowing them back is exact.
             *out = Some(limit.map_or(f64::NAN, |(duty, voltage_v)| {
-                match self.model.linear_drive_scale(m) {
-                    Some(k) if k > 0.0 => voltage_v / k,
-                    Some(_) => 0.0,
-                    None => duty,
-                }
+                self.firmware_inputs
+                    .drive_limit(m, duty as f32, voltage_v as f32)
+                    .map_or(f64::NAN, f64::from)
             }));
         }
     }
@@ -953,12 +979,7 @@ impl Estimator for ObserverEstimator {
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return;
         }
-        self.model
-            .effective_currents(currents_a, signals, &mut self.effective);
-        self.observer.inputs(&self.effective, boundary_c);
-        // A voltage-driven winding's current is the library's
-        // (`tick_voltage`: `sqrt(D) V / R(T_est)`), as on the MCU.
-        self.hold_drives(currents_a, signals);
+        self.hold_inputs(currents_a, boundary_c, signals);
         self.clock.ask(dt_s);
         while self.clock.next_tick(self.tick_us) {
             let ns = self.observer.tick(self.tick_us);

@@ -1445,6 +1445,18 @@ impl Model {
         drives.chain(speed_losses).chain(losses)
     }
 
+    /// The network the firmware observer runs (`codegen` generates it,
+    /// `replay` ticks it): each `[[source]]`'s power scale folded into its
+    /// resistance, `k R(T) I^2`, so that its current is the input's own
+    /// (times its speed factor's root: see `codegen::FirmwareInputs`).
+    pub fn firmware_network(&self) -> DynNetwork {
+        let mut net = self.network.clone();
+        for (k, d) in self.drives.iter().enumerate() {
+            net.scale_resistance(k, d.scale);
+        }
+        net
+    }
+
     /// Effective current of every network source \[A\]: `sqrt(k (1 + a1 f +
     /// a2 f^2)) |I|`, so that the library's `R(T) I^2` gives the source's
     /// power. `currents_a` per input, `signals` per signal.
@@ -1493,45 +1505,10 @@ impl Model {
         self.drives.iter().any(|d| d.voltage.is_some())
     }
 
-    /// The drive of network source `source` at a row, as the library's
-    /// `VoltageDrive` takes it, `Some((duty, supply_v))` for a
-    /// voltage-driven source (`None` for any other): the row's duty as
-    /// recorded, on the supply times `sqrt(scale)` (a linear `voltage`
-    /// input: duty 1 on `sqrt(scale) |V|`), so that the library's `D V^2 /
-    /// R(T)` is the source's `scale D V_supply^2 / R(T)` with this model's
-    /// `R(T)`. The duty and supply are not cleaned here: the library's
-    /// rules flag, clamp or hold a bad one (`DriveFlags`), as on the MCU.
-    /// A supply column missing from `signals` gives a NaN supply.
-    pub fn voltage_drive(
-        &self,
-        source: usize,
-        currents_a: &[f64],
-        signals: &[f64],
-    ) -> Option<(f64, f64)> {
-        let d = self.drives.get(source)?;
-        let input = currents_a.get(d.input).copied().unwrap_or(f64::NAN);
-        let k = d.scale.max(0.0).sqrt();
-        match d.voltage? {
-            VoltageSource::PwmConstant(v) => Some((input, k * v)),
-            VoltageSource::PwmSignal(s) => {
-                Some((input, k * signals.get(s).copied().unwrap_or(f64::NAN)))
-            }
-            VoltageSource::Linear => Some((1.0, k * input.abs())),
-        }
-    }
-
     /// `true` when network source `source` is driven by a voltage (`drive
     /// = "pwm"` or `"voltage"`).
     pub fn is_voltage_driven(&self, source: usize) -> bool {
         self.drives.get(source).is_some_and(|d| d.voltage.is_some())
-    }
-
-    /// `Some(sqrt(scale))` when network source `source` is driven by a
-    /// linear voltage (its limit is a voltage: the effective voltage over
-    /// this), `None` for any other source.
-    pub fn linear_drive_scale(&self, source: usize) -> Option<f64> {
-        let d = self.drives.get(source)?;
-        matches!(d.voltage, Some(VoltageSource::Linear)).then(|| d.scale.max(0.0).sqrt())
     }
 
     /// Turns the effective voltage `V_eff` of every voltage-driven source in

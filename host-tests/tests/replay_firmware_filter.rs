@@ -4,8 +4,9 @@
 //! estimate is the one of the observer `coil-thermal codegen` generated
 //! from the same file (`examples/generated/drive_3node.rs`, from
 //! `drive-3node-fitted.toml`), ticked directly at 1 ms over the bench
-//! recording `host-tests/traces/drive-3node.csv`, to the bit (a model
-//! with speed terms within 2e-5 K: see [`Agreement`]).
+//! recording `host-tests/traces/drive-3node.csv`, to the bit; so are the
+//! real motor's and the every-term model's, whose speed factors and losses
+//! the host computes as the module's `source_currents_a` does, in `f32`.
 
 use std::path::{Path, PathBuf};
 
@@ -15,6 +16,7 @@ use coil_thermal::observer::network::{
 };
 use coil_thermal::observer::TimedReading;
 use coil_thermal::Reading;
+use coil_thermal_host::codegen::FirmwareInputs;
 use coil_thermal_host::model_file::{Model, ModelFile};
 use coil_thermal_host::sim::{simulate, Drive, FilePlant};
 use serde_json::Value;
@@ -152,46 +154,25 @@ fn estimate_rows(path: &Path) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// How `replay`'s estimates must agree with a generated observer's.
-#[derive(Clone, Copy, PartialEq)]
-enum Agreement {
-    /// To the bit: the inputs are the trace's cells, each rounded once to
-    /// `f32` as the module receives them.
-    Exact,
-    /// Within 2e-5 K: the host folds speed factors and losses into
-    /// effective currents in `f64`, where the generated module's
-    /// `source_currents_a` computes them in `f32`, so the observers' inputs
-    /// differ in their last bits.
-    EffectiveCurrents,
-}
-
-/// The largest gap \[K\] between `replay`'s estimates and a generated
-/// observer's, row by row, asserting each as `agreement` says.
-fn worst_apart<const N: usize>(
+/// Asserts that `replay`'s estimates are a generated observer's to the
+/// bit, row by row and node by node (the CSV holds each `f32` as the
+/// decimal that reads back to it).
+fn assert_bit_equal<const N: usize>(
     replayed: &[Vec<f64>],
     generated: &[[f32; N]],
     names: &[&str; N],
-    agreement: Agreement,
-) -> f64 {
+) {
     assert_eq!(replayed.len(), generated.len());
-    let mut worst = 0.0f64;
     for (t, (r, g)) in replayed.iter().zip(generated).enumerate() {
         for (node, (r, g)) in r.iter().zip(g).enumerate() {
-            // The CSV holds each `f32` as the decimal that reads back to it.
-            let d = (f64::from(*r as f32) - f64::from(*g)).abs();
-            let agrees = match agreement {
-                Agreement::Exact => common::same_f32(*r, *g),
-                Agreement::EffectiveCurrents => d <= 2e-5,
-            };
             assert!(
-                agrees,
-                "row {t}, node {}: replay {r} vs generated {g} (off by {d} K)",
-                names[node]
+                common::same_f32(*r, *g),
+                "row {t}, node {}: replay {r} vs generated {g} (off by {} K)",
+                names[node],
+                (f64::from(*r as f32) - f64::from(*g)).abs()
             );
-            worst = worst.max(d);
         }
     }
-    worst
 }
 
 #[test]
@@ -205,9 +186,9 @@ fn the_fused_replay_is_the_generated_firmware_observer() {
     assert_eq!(fusion["bias_noise_w2_per_s"], 1e-4);
     assert_eq!(fusion["bias_noise_from"], "model-file");
     assert_eq!(fusion["max_cooling_bias_fraction"], 0.0);
-    let worst = worst_apart(&replayed, &firmware, &model::NODE_NAMES, Agreement::Exact);
+    assert_bit_equal(&replayed, &firmware, &model::NODE_NAMES);
     eprintln!(
-        "replay vs the generated observer: worst {worst:.2e} K over {} rows",
+        "replay is the generated observer to the bit over {} rows",
         rows.len()
     );
     // The firmware's winding against the bench thermocouple it never saw
@@ -348,14 +329,9 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
     assert_eq!(json["fusion"]["sensor_sigma_from"], "model-file");
     assert_eq!(json["fusion"]["sensors"][0]["rejected"], 0, "{json}");
     let fused: Vec<_> = seconds.iter().map(|(f, _)| *f).collect();
-    let worst = worst_apart(
-        &estimate_rows(&out),
-        &fused,
-        &hust_motor::NODE_NAMES,
-        Agreement::EffectiveCurrents,
-    );
+    assert_bit_equal(&estimate_rows(&out), &fused, &hust_motor::NODE_NAMES);
     eprintln!(
-        "replay vs the generated motor observer: worst {worst:.2e} K over {} s; end winding {:.3} K from its thermocouple (open loop {:.3} K), copper bias {:.2} W",
+        "replay is the generated motor observer to the bit over {} s; end winding {:.3} K from its thermocouple (open loop {:.3} K), copper bias {:.2} W",
         SECONDS, summary.end_error_k, summary.open_error_k, summary.copper_bias_w
     );
     assert!(
@@ -433,6 +409,42 @@ proptest::proptest! {
         let bad = c.iter().any(|i| !i.is_finite() || i.abs() > 500.0);
         proptest::prop_assert!(!bad || !out.flags.is_clean(), "{:?} unflagged: {:?}", c, out.flags);
     }
+
+    /// The currents `replay` hands its observer (`FirmwareInputs`, the
+    /// host's twin of the generated `source_currents_a`) are the generated
+    /// modules' to the bit for any inputs and signals, NaN, infinities,
+    /// negative and extreme values included (a NaN as a NaN): the real motor's (an AC
+    /// factor, three speed losses) and the every-term model's (a power
+    /// scale, a split loss polynomial in current and speed, a constant
+    /// loss).
+    #[test]
+    fn replays_currents_are_the_generated_modules_to_the_bit(
+        input_a in proptest::array::uniform2(proptest::num::f32::ANY),
+        signal in proptest::array::uniform2(proptest::num::f32::ANY),
+    ) {
+        // A NaN is a NaN (the observer holds it, whatever its payload).
+        let same = |host: &[f32], module: &[f32]| {
+            host.len() == module.len()
+                && host
+                    .iter()
+                    .zip(module)
+                    .all(|(h, m)| h.to_bits() == m.to_bits() || (h.is_nan() && m.is_nan()))
+        };
+        let mut host = Vec::new();
+        let motor = FirmwareInputs::new(&load("hust_motor_slot_fitted.toml"));
+        motor.currents_a(&input_a[..1], &signal[..1], &mut host);
+        let module = hust_motor::source_currents_a(&[input_a[0]], &[signal[0]]);
+        proptest::prop_assert!(same(&host, &module), "{:?} vs {:?}", host, module);
+        let every = FirmwareInputs::new(&load("all-input-terms.toml"));
+        every.currents_a(&input_a, &signal, &mut host);
+        let module = all_input_terms::source_currents_a(&input_a, &signal);
+        proptest::prop_assert!(same(&host, &module), "{:?} vs {:?}", host, module);
+    }
+}
+
+/// A shipped model file, built.
+fn load(file: &str) -> Model {
+    Model::build(&ModelFile::load(&root().join("host-tests/models").join(file)).unwrap()).unwrap()
 }
 
 /// The generated observer of the test model with every kind of heat input
@@ -515,12 +527,7 @@ fn a_generated_observer_with_every_input_term_is_replays() {
         .arg(&out)
         .assert()
         .success();
-    let worst = worst_apart(
-        &estimate_rows(&out),
-        &fused,
-        &all_input_terms::NODE_NAMES,
-        Agreement::EffectiveCurrents,
-    );
+    assert_bit_equal(&estimate_rows(&out), &fused, &all_input_terms::NODE_NAMES);
     // The open loop against an independent integration of the model file:
     // the host's plant (`simulate`: its own network, explicit Euler
     // sub-steps, the file's effective currents in f64, R(T) per sub-step).
@@ -550,7 +557,7 @@ fn a_generated_observer_with_every_input_term_is_replays() {
         .flat_map(|(h, o)| h.iter().zip(o).map(|(h, o)| (h - f64::from(*o)).abs()))
         .fold(0.0, f64::max);
     let hottest = open.iter().map(|o| o[0]).fold(f32::MIN, f32::max);
-    eprintln!("replay vs the generated every-term observer: worst {worst:.2e} K over {ROWS} s; open loop vs the host's plant: worst {apart:.3} K, winding up to {hottest:.1} degC");
+    eprintln!("replay is the generated every-term observer to the bit over {ROWS} s; open loop vs the host's plant: worst {apart:.3} K, winding up to {hottest:.1} degC");
     assert!(hottest > 40.0, "the drive heats: {hottest}");
     assert!(apart < 0.01, "open loop {apart} K from the host's plant");
 }

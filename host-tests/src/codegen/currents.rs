@@ -20,6 +20,8 @@
 
 use std::fmt::Write as _;
 
+use coil_thermal::VoltageDrive;
+
 use crate::model_file::{LossTerm, Model, SourceKind, VoltageSource};
 
 /// What one current of the observer is made of.
@@ -350,4 +352,139 @@ pub(super) fn source_drives_fn(model: &Model) -> String {
     ));
     let _ = writeln!(o, "    [{}]\n}}\n", limits.join(", "));
     o
+}
+
+/// The generated module's `source_currents_a` and `source_drives`, evaluated
+/// on the host in the same `f32` operations, in the same order: what
+/// `replay` hands the firmware observer, so that its estimates are the
+/// module's to the bit (a speed factor's or a loss's `f32` root is not the
+/// `f64` one of [`Model::effective_currents`] rounded once). The network it
+/// drives is [`Model::firmware_network`]: each `[[source]]`'s power scale
+/// folded into its resistance, as the module's.
+#[derive(Debug, Clone)]
+pub struct FirmwareInputs {
+    model: Model,
+    currents: Vec<CurrentOf>,
+}
+
+impl FirmwareInputs {
+    /// The firmware inputs of `model`.
+    pub fn new(model: &Model) -> Self {
+        Self {
+            currents: currents_of(model),
+            model: model.clone(),
+        }
+    }
+
+    /// Each current of the observer \[A\] from the model's inputs `input_a`
+    /// \[A\] and `signal`s, as `source_currents_a` (a missing input or
+    /// signal reads NaN, as a NaN cell does).
+    pub fn currents_a(&self, input_a: &[f32], signal: &[f32], out: &mut Vec<f32>) {
+        let input = |k: usize| input_a.get(k).copied().unwrap_or(f32::NAN);
+        let unit = |s: usize, reference: f64| {
+            let v = signal.get(s).copied().unwrap_or(f32::NAN);
+            <f32 as coil_thermal::Scalar>::abs(v) / f32_of(reference)
+        };
+        out.clear();
+        out.extend(self.currents.iter().map(|c| match *c {
+            CurrentOf::Input {
+                input: k,
+                speed: None,
+            } => input(k),
+            CurrentOf::Input {
+                input: k,
+                speed: Some((s, reference, a1, a2)),
+            } => {
+                let u = unit(s, reference);
+                input(k) * root(1.0 + f32_of(a1) * u + f32_of(a2) * u * u)
+            }
+            CurrentOf::SpeedLoss(k) => {
+                let l = &self.model.speed_losses[k];
+                let u = unit(l.signal, l.reference);
+                root(f32_of(l.p1_w) * u + f32_of(l.p2_w) * u * u)
+            }
+            CurrentOf::Loss { k, second } => {
+                let l = &self.model.losses[k];
+                let i = l.current.map(|(s, r)| unit(s, r));
+                let f = l.speed.map(|(s, r)| unit(s, r));
+                let loss = polynomial_f32(&l.power, i, f);
+                let loss = if loss < 0.0 { 0.0 } else { loss };
+                if l.split.is_empty() {
+                    root(loss)
+                } else {
+                    let split = polynomial_f32(&l.split, i, f).clamp(0.0, 1.0);
+                    if second {
+                        root((1.0 - split) * loss)
+                    } else {
+                        root(split * loss)
+                    }
+                }
+            }
+        }));
+    }
+
+    /// The voltage drive of network source `m` as `source_drives` gives it
+    /// (`None`: a current drive), from the model's inputs (a duty or a
+    /// voltage) and signals (a measured supply \[V\]).
+    pub fn drive(&self, m: usize, input: &[f32], signal: &[f32]) -> Option<VoltageDrive> {
+        let d = self.model.drives.get(m)?;
+        let scale = f32_of(d.scale.max(0.0));
+        let duty = input.get(d.input).copied().unwrap_or(f32::NAN);
+        let signal = |s: usize| signal.get(s).copied().unwrap_or(f32::NAN);
+        Some(match d.voltage? {
+            VoltageSource::PwmConstant(v) => VoltageDrive::pwm(duty, scale * f32_of(v)),
+            VoltageSource::PwmSignal(s) => VoltageDrive::pwm(duty, scale * signal(s)),
+            VoltageSource::Linear => {
+                VoltageDrive::linear(scale * <f32 as coil_thermal::Scalar>::abs(duty))
+            }
+        })
+    }
+
+    /// A voltage-driven source's limit in its input's unit from the
+    /// library's drive limit at its drive, as `input_drive_limits`: a
+    /// `pwm` input's duty, a linear input's voltage \[V\] (the effective
+    /// voltage `voltage_v` over the source's power scale, in `f32`).
+    pub fn drive_limit(&self, m: usize, duty: f32, voltage_v: f32) -> Option<f32> {
+        let d = self.model.drives.get(m)?;
+        Some(match d.voltage? {
+            VoltageSource::Linear => voltage_v / f32_of(d.scale.max(0.0)),
+            _ => duty,
+        })
+    }
+}
+
+/// `v` rounded to `f32`, as [`lit`] writes it.
+#[allow(clippy::cast_possible_truncation)]
+fn f32_of(v: f64) -> f32 {
+    v as f32
+}
+
+/// The generated `root`: `sqrt`, NaN kept.
+fn root(x: f32) -> f32 {
+    if x.is_nan() {
+        x
+    } else {
+        <f32 as coil_thermal::Scalar>::sqrt(x)
+    }
+}
+
+/// [`polynomial`] evaluated as its Rust reads: each term `c * i * .. * f
+/// * ..` left to right, the terms summed left to right.
+fn polynomial_f32(terms: &[LossTerm], i: Option<f32>, f: Option<f32>) -> f32 {
+    let term = |t: &LossTerm| {
+        let mut p = f32_of(t.c);
+        for (var, power) in [(i, t.i), (f, t.f)] {
+            if let Some(v) = var {
+                for _ in 0..power {
+                    p *= v;
+                }
+            }
+        }
+        p
+    };
+    let mut terms = terms.iter();
+    match terms.next() {
+        None => 0.0,
+        Some(first) => terms.fold(term(first), |sum, t| sum + term(t)),
+    }
 }

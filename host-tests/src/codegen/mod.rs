@@ -59,6 +59,7 @@ mod currents;
 mod devices;
 mod sensors;
 
+pub use currents::FirmwareInputs;
 use currents::{
     check_f32_range, currents_of, input_limits_fn, source_currents_fn, source_drives_fn, CurrentOf,
 };
@@ -248,18 +249,14 @@ fn plan(req: &CodegenRequest) -> Result<Plan> {
     check_f32_range(&model).with_context(|| req.model.display().to_string())?;
     let currents = currents_of(&model);
     let sources = model
-        .network
+        .firmware_network()
         .sources()
         .iter()
-        .enumerate()
-        .map(|(k, s)| {
-            // A `[[source]]`'s power scale folded into its resistance (they
-            // come first; speed and `[[loss]]` sources are 1 ohm, scale 1).
-            let scale = model.drives.get(k).map_or(1.0, |d| d.scale);
+        .map(|s| {
             (
                 s.node,
-                scale * s.resistance.r_at_0c_ohm,
-                scale * s.resistance.slope_ohm_per_k,
+                s.resistance.r_at_0c_ohm,
+                s.resistance.slope_ohm_per_k,
             )
         })
         .collect();
