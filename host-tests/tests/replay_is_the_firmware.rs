@@ -16,7 +16,10 @@
 //! them to the module, and writes each `f32` it computed as the shortest
 //! decimal that reads back as that `f32`. Temperatures, upper bounds,
 //! alarm limits and the input's limit are compared bit for bit, the
-//! events by level, kind, node and tick.
+//! events by level, kind, node and tick. So are the HPPA grid's
+//! (`hppa_grid.rs`) and the Cortex-M0 footprint example's
+//! (`two_node_coil.rs`, generated with a sensor named on `codegen`'s
+//! command line: `replay --measure` names the same one).
 
 use std::path::{Path, PathBuf};
 
@@ -399,5 +402,151 @@ fn replay_of_hppa_is_the_flashed_grid_observer() {
             r["node"].as_str().map(String::from),
             element.map(|i| format!("coil_r{}_c{}", i / COLS, i % COLS))
         );
+    }
+}
+
+#[path = "../../examples/generated/two_node_coil.rs"]
+mod two_node_coil;
+
+/// The two-node coil's trace: an hour at 1 s of current steps that take
+/// the coil past its derated limit, and a housing thermocouple read from
+/// an independent integration of the coil with 10 % more resistance than
+/// the model (so the filter's heat bias has something to find): the
+/// columns `time_s,current,housing_tc`.
+fn two_node_trace() -> String {
+    let mut csv = String::from("time_s,current,housing_tc\n");
+    let (mut coil_c, mut housing_c) = (20.0f64, 20.0f64);
+    for t in 0..3600 {
+        let current_a = match t {
+            0..600 => 4.0,
+            600..1200 => 1.5,
+            1200..2700 => 4.5,
+            _ => 0.5,
+        };
+        csv.push_str(&format!("{t},{current_a},{housing_c:.3}\n"));
+        // Explicit Euler at 10 ms: the coil (200 J/K, 5.69 ohm x 1.1 at
+        // 20 degC, 0.0039/K) on the housing (900 J/K, 1.5 W/K) in air
+        // (0.5 W/K to 20 degC).
+        for _ in 0..100 {
+            let r = 1.1 * 5.69 * (1.0 + 0.0039 * (coil_c - 20.0));
+            let to_housing = 1.5 * (coil_c - housing_c);
+            coil_c += 0.01 * (r * current_a * current_a - to_housing) / 200.0;
+            housing_c += 0.01 * (to_housing - 0.5 * (housing_c - 20.0)) / 900.0;
+        }
+    }
+    csv
+}
+
+/// The footprint example's module (`examples/generated/two_node_coil.rs`:
+/// `codegen --model two-node-coil.toml --sensor housing`, a file with no
+/// `[observer]` table, so every setting is the defaults) is what `replay`
+/// of the same file with the same sensor runs, to the bit: temperatures,
+/// upper bounds, the derated alarm limit, the input's limit and the events,
+/// over an hour in which the coil passes its limit.
+#[test]
+fn replay_with_the_codegen_sensor_is_the_footprint_module() {
+    let tmp = TempDir::new().unwrap();
+    let trace = tmp.path().join("coil.csv");
+    std::fs::write(&trace, two_node_trace()).unwrap();
+    let out = tmp.path().join("est.csv");
+    let a = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(root().join("host-tests/models/two-node-coil.toml"))
+        .arg("--trace")
+        .arg(&trace)
+        .args(["--measure", "housing_tc=housing", "--json", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let json: Value = serde_json::from_slice(&a.get_output().stdout).unwrap();
+    assert_eq!(
+        json["firmware_observer"]["derating_product"].as_f64(),
+        Some(two_node_coil::PARTS.derating_product),
+        "{json}"
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let replayed: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+
+    // The module, ticked as `replay` ticks its observer.
+    let trace_text = two_node_trace();
+    let rows: Vec<[f32; 2]> = trace_text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').skip(1).map(|f| f.parse().unwrap()).collect();
+            [v[0] as f32, v[1] as f32]
+        })
+        .collect();
+    let observer = two_node_coil::observer().expect("the generated parts assemble");
+    let ambient_c = 20.0_f32;
+    let mut state = two_node_coil::initial_state(&observer, ambient_c);
+    let mut events = Vec::new();
+    let mut now_us: u32 = 0;
+    let mut lowest_limit_a = f32::INFINITY;
+    for (t, r) in replayed.iter().enumerate() {
+        let o = state.outputs();
+        let limit_a = two_node_coil::input_limits_a(&o.limits)[0];
+        lowest_limit_a = lowest_limit_a.min(limit_a);
+        let alarm_limit_c = observer.alarm().alarm_limit_c(0, ambient_c).unwrap();
+        for (name, value) in [
+            ("coil", o.temps_c[0]),
+            ("housing", o.temps_c[1]),
+            ("upper_c.coil", o.upper_c[0]),
+            ("alarm_limit_c.coil", alarm_limit_c),
+            ("limit_a.current", limit_a),
+        ] {
+            assert!(
+                common::same_f32(r[col(name)], value),
+                "row {t}, {name}: replay {}, generated {value}",
+                r[col(name)]
+            );
+        }
+        let Some([current_a, housing_tc]) = rows.get(t).copied() else {
+            break;
+        };
+        if t + 1 == replayed.len() {
+            break;
+        }
+        common::tick_row(
+            &observer,
+            &mut state,
+            two_node_coil::source_currents_a(&[current_a], &[]),
+            [ambient_c],
+            |now_us| {
+                [Some(TimedReading {
+                    result: Ok(Reading::new(housing_tc)),
+                    sampled_at_us: now_us,
+                })]
+            },
+            &mut now_us,
+            &mut events,
+        );
+    }
+    assert_eq!(replayed.len(), rows.len());
+    // The protection acted: the limiter cut the current and the alarm
+    // raised events, on the same ticks as the module's.
+    assert!(lowest_limit_a < 3.0, "lowest limit {lowest_limit_a} A");
+    assert!(events.iter().any(|e| e.1 == "shutdown"), "{events:?}");
+    eprintln!(
+        "{} rows to the bit; {} events, lowest limit {lowest_limit_a} A",
+        replayed.len(),
+        events.len()
+    );
+    let replay_events = common::json_events(&json);
+    assert_eq!(replay_events.len(), events.len(), "{json}");
+    for (r, g) in replay_events.iter().zip(&events) {
+        assert_eq!((&r.1, &r.2), (&g.1, &g.2), "{r:?} vs {g:?}");
+        assert_eq!(r.3.as_deref(), g.3.map(|i| two_node_coil::NODE_NAMES[i]));
+        assert!((r.0 - g.0).abs() < 1e-6, "{r:?} vs {g:?}");
     }
 }
