@@ -302,13 +302,11 @@ impl<S: Scalar> ScalarLimits<S> {
         }
     }
 
-    /// Applies the current rule to a whole array.
+    /// Applies the current rule to each current of `incoming_a`, pairwise
+    /// with `held_a` (of the same length: an array of the network's size,
+    /// or a slice of a runtime-sized one).
     #[inline]
-    pub fn accept_currents<const M: usize>(
-        &self,
-        incoming_a: &[S; M],
-        held_a: &mut [S; M],
-    ) -> InputFlags {
+    pub fn accept_currents(&self, incoming_a: &[S], held_a: &mut [S]) -> InputFlags {
         let mut flags = InputFlags::NONE;
         for (incoming, held) in incoming_a.iter().zip(held_a.iter_mut()) {
             flags |= self.accept_current(*incoming, held);
@@ -316,13 +314,10 @@ impl<S: Scalar> ScalarLimits<S> {
         flags
     }
 
-    /// Applies the temperature rule to a whole array.
+    /// Applies the temperature rule to each temperature of `incoming_c`,
+    /// pairwise with `held_c` (of the same length).
     #[inline]
-    pub fn accept_temperatures<const B: usize>(
-        &self,
-        incoming_c: &[S; B],
-        held_c: &mut [S; B],
-    ) -> InputFlags {
+    pub fn accept_temperatures(&self, incoming_c: &[S], held_c: &mut [S]) -> InputFlags {
         let mut flags = InputFlags::NONE;
         for (incoming, held) in incoming_c.iter().zip(held_c.iter_mut()) {
             flags |= self.accept_temperature(*incoming, held);

@@ -57,6 +57,9 @@
 #![deny(missing_docs)]
 // Index loops mirror the matrix algebra they implement (K_ij, G_ib).
 #![allow(clippy::needless_range_loop)]
+// Runtime-sized networks on a host (`RunTimeStepper`); never on an MCU.
+#[cfg(feature = "alloc")]
+extern crate alloc;
 
 pub mod discretize;
 pub mod error;

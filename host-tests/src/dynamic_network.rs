@@ -5,11 +5,14 @@
 //! description (capacities, pair conductances stored once, boundary
 //! conductances, Joule sources with the library's [`Resistance`], fixed
 //! powers) in `Vec`s, validated as the library validates it. It computes
-//! nothing: every step, exponential, predict and update runs in the library
-//! on the description copied into a padded `Network<P, 2, P>`
+//! nothing: the library steps it at its own size (it is a
+//! [`NetworkDescription`], which the library's `RunTimeStepper` takes), and
+//! every exponential, predict and update runs in the library on the
+//! description copied into a padded `Network<P, 2, P>`
 //! ([`crate::limits::padded_with`]).
 
-use coil_thermal::{Network, Resistance};
+use coil_thermal::network::{JouleSource, NetworkDescription};
+use coil_thermal::{Drive, Network, Resistance};
 
 /// A conductance between two state nodes `a < b` \[W/K\].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -314,5 +317,68 @@ impl DynNetwork {
             dyn_net.joule_source(s.node, s.resistance)?;
         }
         Ok(dyn_net)
+    }
+}
+
+impl NetworkDescription for DynNetwork {
+    fn node_count(&self) -> usize {
+        self.nodes()
+    }
+
+    fn boundary_count(&self) -> usize {
+        self.boundaries
+    }
+
+    fn input_count(&self) -> usize {
+        self.sources.len()
+    }
+
+    fn capacity_at_j_per_k(&self, node: usize) -> f64 {
+        self.capacity_j_per_k.get(node).copied().unwrap_or(f64::NAN)
+    }
+
+    fn later_pairs_w_per_k(&self, node: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        // Sorted by `(a, b)`: node `node`'s pairs are one run, in increasing `b`.
+        let start = self.pairs.partition_point(|p| p.a < node);
+        self.pairs[start..]
+            .iter()
+            .take_while(move |p| p.a == node)
+            .map(|p| (p.b, p.g_w_per_k))
+    }
+
+    fn boundary_link_w_per_k(&self, node: usize, boundary: usize) -> f64 {
+        self.links
+            .binary_search_by(|l| (l.node, l.boundary).cmp(&(node, boundary)))
+            .map_or(0.0, |k| self.links[k].g_w_per_k)
+    }
+
+    fn conductance_sum_w_per_k(&self, node: usize) -> f64 {
+        // As the library's `Network::total_conductance_w_per_k`: the pairs
+        // in the order of the other node, then the boundaries.
+        let pairs: f64 = self
+            .pairs
+            .iter()
+            .filter(|p| p.a == node || p.b == node)
+            .map(|p| p.g_w_per_k)
+            .sum();
+        let links: f64 = self
+            .links
+            .iter()
+            .filter(|l| l.node == node)
+            .map(|l| l.g_w_per_k)
+            .sum();
+        pairs + links
+    }
+
+    fn fixed_power_at_w(&self, node: usize) -> f64 {
+        self.fixed_power_w.get(node).copied().unwrap_or(0.0)
+    }
+
+    fn joule_source_of(&self, input: usize) -> Option<JouleSource> {
+        self.sources.get(input).map(|s| JouleSource {
+            node: s.node,
+            resistance: s.resistance,
+            drive: Drive::Current,
+        })
     }
 }

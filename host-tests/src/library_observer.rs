@@ -75,8 +75,9 @@
 //! A `[[source]]` driven by a PWM duty or a voltage (`drive = "pwm"` or
 //! `"voltage"`) ticks through the library's `tick_voltage`, as the
 //! generated module does: each row's duty and supply become a
-//! `VoltageDrive` ([`Model::voltage_drive`]), the winding draws `sqrt(D) V
-//! / R(T_est)` at the estimate, and the library's rules flag, clamp or hold
+//! `VoltageDrive` ([`FirmwareInputs::drive`], as the module's
+//! `source_drives`), the winding draws `sqrt(D) V / R(T_est)` at the
+//! estimate, and the library's rules flag, clamp or hold
 //! a bad duty or supply (counted per rule: [`DriveFlagTicks`]). Its limit
 //! is published in the input's own unit (a duty, or a voltage) from the
 //! library's `drive_limit` ([`Protected::drive_limit`]). Test

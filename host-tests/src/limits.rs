@@ -104,27 +104,10 @@ pub struct LimitsReport {
 
 /// The smallest size class that holds `nodes` nodes and `sources` sources.
 fn size_class(network: &DynNetwork, what: &str) -> Result<usize> {
-    let n = network.nodes();
-    let m = network.sources().len();
-    if network.boundaries() > 2 {
-        bail!(
-            "{what}: the model has {} boundaries; at most 2 are supported",
-            network.boundaries()
-        );
-    }
     if network.boundaries() == 0 {
         bail!("{what}: the model has no boundary, so no steady state");
     }
-    SIZE_CLASSES
-        .iter()
-        .copied()
-        .find(|&p| p >= n.max(m))
-        .with_context(|| {
-            format!(
-                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported",
-                SIZE_CLASSES[SIZE_CLASSES.len() - 1]
-            )
-        })
+    class_of(network, &SIZE_CLASSES, what)
 }
 
 /// Runs `job` on a thread with a large stack: the padded matrices of the
@@ -206,8 +189,10 @@ pub fn class_of(network: &DynNetwork, classes: &[usize], what: &str) -> Result<u
         .find(|&p| p >= n.max(m))
         .with_context(|| {
             format!(
-                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported",
-                classes[classes.len() - 1]
+                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported here \
+                 (its tables are solved at a padded const-generic size; `simulate` and `calibrate` \
+                 run a model of any size)",
+                classes.last().copied().unwrap_or(0)
             )
         })
 }

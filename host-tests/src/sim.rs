@@ -3,15 +3,15 @@
 //! A [`Plant`] is anything with named nodes that advances over an interval
 //! with currents, boundary temperatures and extra signals held (zero-order
 //! hold: row `k`'s inputs act over `[t_k, t_k+1)`). [`FilePlant`] runs a
-//! model file on the library's [`ExplicitStepper`] (the network padded to a
-//! size class, see [`crate::limits::padded_with`]); the Omnimagnet's
-//! nonlinear model is another `Plant` on the library's RK4.
+//! model file on the library's explicit step at the network's own size
+//! ([`RunTimeStepper`], the `alloc` twin of `ExplicitStepper`); the
+//! Omnimagnet's nonlinear model is another `Plant` on the library's RK4.
 
 use anyhow::{anyhow, bail, Context, Result};
-use coil_thermal::{ExplicitStepper, InputLimits, Network, NetworkState};
+use coil_thermal::network::{RunTimeState, RunTimeStepper};
+use coil_thermal::InputLimits;
 
 use crate::dynamic_network::DynNetwork;
-use crate::limits::{class_of, padded_with, Padding, SIZE_CLASSES};
 use crate::model_file::{InitialPolicy, InitialSpec, InputHold, Model};
 use crate::trace::{num, ColumnExpr, Trace};
 
@@ -95,58 +95,37 @@ pub const HOST_INPUT_LIMITS: InputLimits = InputLimits {
     max_temp_c: 1e6,
 };
 
-/// The size-independent face of a padded library [`ExplicitStepper`] with
-/// its state (see [`FilePlant`]).
-trait PaddedStepper: Send {
-    /// Sets the first `temps_c.len()` node temperatures, clears the carry.
-    fn reset(&mut self, temps_c: &[f64]);
-    /// Replaces the network (same sizes; speed-dependent conductances).
-    fn set_network(&mut self, net: &DynNetwork) -> Result<()>;
-    /// `substeps` library steps of `h_s` with these inputs held; the real
-    /// nodes' temperatures into `temps_c`.
-    fn step(
-        &mut self,
-        h_s: f64,
-        substeps: usize,
-        currents_a: &[f64],
-        boundary_c: &[f64],
-        temps_c: &mut [f64],
-    ) -> Result<()>;
+/// The library's [`RunTimeStepper`] of a model file's network at its own
+/// size, with its state (see [`FilePlant`]).
+struct Stepper {
+    /// The network stepped now (the model's, or with its speed-dependent
+    /// conductances at the last row's signals).
+    network: DynNetwork,
+    /// The network changed since the stepper was built.
+    rebuild: bool,
+    /// Built for the network in force and the last step length.
+    stepper: Option<RunTimeStepper<f64>>,
+    state: Option<RunTimeState<f64>>,
 }
 
-struct Stepper<const P: usize> {
-    network: Network<P, 2, P>,
-    /// Built for the last step length.
-    stepper: Option<ExplicitStepper<f64, P, 2, P>>,
-    state: NetworkState<f64, P, 2, P>,
-    currents_a: [f64; P],
-    boundary_c: [f64; 2],
-}
-
-impl<const P: usize> Stepper<P> {
-    fn build(net: &DynNetwork) -> Result<Box<dyn PaddedStepper>> {
-        Ok(Box::new(Self {
-            network: padded_with::<P>(net, Padding::ISOLATED)?,
-            stepper: None,
-            state: NetworkState::uniform(0.0),
-            currents_a: [0.0; P],
-            boundary_c: [0.0; 2],
-        }))
-    }
-}
-
-impl<const P: usize> PaddedStepper for Stepper<P> {
+impl Stepper {
+    /// Sets the node temperatures, clears the carry (the inputs held stay).
     fn reset(&mut self, temps_c: &[f64]) {
-        self.state.temps_c[..temps_c.len()].copy_from_slice(temps_c);
-        self.state.residual_c = [0.0; P];
+        if let Some(state) = &mut self.state {
+            state.temps_c.copy_from_slice(temps_c);
+            state.residual_c.fill(0.0);
+        }
     }
 
-    fn set_network(&mut self, net: &DynNetwork) -> Result<()> {
-        self.network = padded_with::<P>(net, Padding::ISOLATED)?;
-        self.stepper = None;
-        Ok(())
+    /// Steps `network` from now on (rebuilt at the next step).
+    fn set_network(&mut self, network: DynNetwork) {
+        self.network = network;
+        self.rebuild = true;
     }
 
+    /// `substeps` library steps of `h_s` with these inputs held; the
+    /// temperatures into `temps_c`. The stepper is rebuilt when the step
+    /// length or the network changed.
     fn step(
         &mut self,
         h_s: f64,
@@ -155,24 +134,27 @@ impl<const P: usize> PaddedStepper for Stepper<P> {
         boundary_c: &[f64],
         temps_c: &mut [f64],
     ) -> Result<()> {
-        if self.stepper.as_ref().is_none_or(|s| s.dt_s() != h_s) {
+        if self.rebuild || self.stepper.as_ref().is_none_or(|s| s.dt_s() != h_s) {
             self.stepper = Some(
-                ExplicitStepper::new(&self.network, h_s, HOST_INPUT_LIMITS)
+                RunTimeStepper::new(&self.network, h_s, HOST_INPUT_LIMITS)
                     .map_err(|e| anyhow!("explicit step of {h_s} s: {e}"))?,
             );
+            self.rebuild = false;
         }
         let Some(stepper) = &self.stepper else {
             unreachable!("built above")
         };
-        self.currents_a[..currents_a.len()].copy_from_slice(currents_a);
-        // A padding boundary has no links: any finite value serves.
-        let fill = boundary_c.first().copied().unwrap_or(0.0);
-        self.boundary_c = [fill; 2];
-        self.boundary_c[..boundary_c.len()].copy_from_slice(boundary_c);
+        let state = self.state.get_or_insert_with(|| {
+            let mut s = stepper.state(0.0);
+            s.temps_c.copy_from_slice(temps_c);
+            s
+        });
         for _ in 0..substeps {
-            stepper.step(&mut self.state, &self.currents_a, &self.boundary_c);
+            stepper
+                .step(state, currents_a, boundary_c)
+                .map_err(|e| anyhow!("explicit step: {e}"))?;
         }
-        temps_c.copy_from_slice(&self.state.temps_c[..temps_c.len()]);
+        temps_c.copy_from_slice(&state.temps_c);
         Ok(())
     }
 }
@@ -208,22 +190,20 @@ pub fn plant_info(model: &Model) -> PlantInfo {
 
 /// A model file run on the library's explicit stepper.
 ///
-/// The network is copied into `Network<P, 2, P>` for the smallest size
-/// class `P` of [`SIZE_CLASSES`] (padding nodes isolated, padding sources
-/// at zero current) and advanced by `ExplicitStepper<f64, P, 2, P>`. An
+/// The network is stepped at its own size by the library's
+/// [`RunTimeStepper`] (`f64`; the same checks, packing and kernel as the
+/// MCU's `ExplicitStepper`, so the same temperatures to the bit as a
+/// const-generic stepper of the network): no size class, no cap. An
 /// interval is split into equal steps so that `h sum(G_i) / C_i` stays at or
 /// below the model's `max_step_ratio` at every node (the library refuses a
 /// ratio of 1 or more); the stepper is rebuilt when the step length
 /// changes.
 pub struct FilePlant {
     model: Model,
-    /// The network stepped now (the model's, or with its speed-dependent
-    /// conductances at the last row's signals).
-    network: DynNetwork,
     info: PlantInfo,
     temps: Vec<f64>,
     effective: Vec<f64>,
-    stepper: Box<dyn PaddedStepper>,
+    stepper: Stepper,
 }
 
 impl std::fmt::Debug for FilePlant {
@@ -247,28 +227,27 @@ impl FilePlant {
     /// Wraps a validated model.
     ///
     /// # Errors
-    /// More nodes or sources than the largest size class, more than 2
-    /// boundaries, or a network the library refuses.
+    /// A network the library's stepper refuses (a voltage-driven source is
+    /// driven by the current it draws, so none is).
     pub fn new(model: Model) -> Result<Self> {
         let info = plant_info(&model);
-        let net = &model.network;
-        let stepper = match class_of(net, &SIZE_CLASSES, "simulation")? {
-            4 => Stepper::<4>::build(net),
-            8 => Stepper::<8>::build(net),
-            16 => Stepper::<16>::build(net),
-            32 => Stepper::<32>::build(net),
-            64 => Stepper::<64>::build(net),
-            _ => Stepper::<96>::build(net),
-        }
-        .with_context(|| format!("model `{}`", model.name))?;
+        // The library's checks now, not at the first row: a step of the
+        // fastest node's own time constant's ratio.
+        let h_s = model.max_step_ratio / model.network.max_rate_per_s().max(f64::MIN_POSITIVE);
+        RunTimeStepper::<f64>::new(&model.network, h_s.min(1.0), HOST_INPUT_LIMITS)
+            .map_err(|e| anyhow!("model `{}`: {e}", model.name))?;
         let n = model.nodes.len();
         Ok(Self {
-            network: model.network.clone(),
+            stepper: Stepper {
+                network: model.network.clone(),
+                rebuild: true,
+                stepper: None,
+                state: None,
+            },
             model,
             info,
             temps: vec![0.0; n],
             effective: Vec::new(),
-            stepper,
         })
     }
 
@@ -307,10 +286,8 @@ impl Plant for FilePlant {
             .effective_currents(currents_a, signals, &mut self.effective);
         // The conductances of this row, held over the interval like every
         // other input; the stepper is rebuilt only on a change.
-        if let Some(net) = self.model.changed_network(signals, &self.network) {
-            if self.stepper.set_network(&net).is_ok() {
-                self.network = net;
-            }
+        if let Some(net) = self.model.changed_network(signals, &self.stepper.network) {
+            self.stepper.set_network(net);
         }
         let n = self.substeps(dt_s);
         if self.model.has_voltage_drives() {
@@ -345,7 +322,7 @@ impl Plant for FilePlant {
 
     fn steps_for(&self, dt_s: f64) -> f64 {
         // The network in force: speed-dependent conductances swap it per row.
-        (dt_s * self.network.max_rate_per_s() / self.model.max_step_ratio)
+        (dt_s * self.stepper.network.max_rate_per_s() / self.model.max_step_ratio)
             .ceil()
             .max(1.0)
     }

@@ -11,10 +11,15 @@
 //! weight is positive: no oscillation, no overshoot of the boundary
 //! temperatures. [`ExplicitStepper::new`] refuses any `dt` that breaks this.
 
-use super::{Network, ScalarResistance};
+use super::{Network, NetworkDescription, ScalarResistance};
+
+#[cfg(feature = "alloc")]
+mod run_time;
 use crate::error::BuildError;
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
 use crate::scalar::Scalar;
+#[cfg(feature = "alloc")]
+pub use run_time::{RunTimeState, RunTimeStepper, SizeMismatch};
 
 /// A validated explicit stepper: immutable configuration, shareable.
 #[derive(Debug, Clone)]
@@ -84,35 +89,7 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
         limits: InputLimits,
     ) -> Result<Self, BuildError> {
         const { assert!(N <= 1 << 16, "node indices are stored as u16") };
-        if !(dt_s.is_finite() && dt_s > 0.0) {
-            return Err(BuildError::InvalidTimeStep);
-        }
-        network.check_sources()?;
-        if network
-            .sources
-            .iter()
-            .flatten()
-            .any(|s| s.drive == super::Drive::Voltage)
-        {
-            return Err(BuildError::InvalidParameter {
-                name: "voltage_source",
-            });
-        }
-        limits.validate()?;
-        let mut worst = (0, 0.0f64);
-        for i in 0..N {
-            let c = network.capacity_j_per_k[i];
-            let ratio = dt_s * network.total_conductance_w_per_k(i) / c;
-            if ratio > worst.1 {
-                worst = (i, ratio);
-            }
-        }
-        if worst.1 >= 1.0 {
-            return Err(BuildError::UnstableStep {
-                node: worst.0,
-                ratio: worst.1 as f32,
-            });
-        }
+        let stability_ratio = checked_step(network, dt_s, limits)?;
         let mut stepper = Self {
             dt_s,
             dt: S::from_f64(dt_s),
@@ -125,28 +102,26 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
             source_node: [0; M],
             resistance: [super::Resistance::constant(0.0).to_scalar(); M],
             limits: limits.to_scalar(),
-            stability_ratio: worst.1,
+            stability_ratio,
         };
         for i in 0..N {
             let mut count = 0;
-            for j in (i + 1)..N {
-                let g_dt = S::from_f64(network.pair_w_per_k[i][j] * dt_s);
-                // A coefficient that rounds to zero moves no heat.
-                if g_dt != S::ZERO {
-                    stepper.pair_g_dt[i][count] = g_dt;
-                    stepper.pair_node[i][count] = j as u16;
-                    count += 1;
-                }
+            for (g_dt, j) in packed_pairs::<S>(network, i, dt_s) {
+                // `N <= 2^16` (checked above) and `j < N`.
+                stepper.pair_g_dt[i][count] = g_dt;
+                stepper.pair_node[i][count] = j as u16;
+                count += 1;
             }
             stepper.pair_count[i] = count as u16;
             for b in 0..B {
-                stepper.boundary_g_dt[i][b] = S::from_f64(network.boundary_w_per_k[i][b] * dt_s);
+                stepper.boundary_g_dt[i][b] =
+                    S::from_f64(network.boundary_link_w_per_k(i, b) * dt_s);
             }
-            stepper.inverse_capacity[i] = S::from_f64(1.0 / network.capacity_j_per_k[i]);
-            stepper.fixed_energy_j[i] = S::from_f64(network.fixed_power_w[i] * dt_s);
+            stepper.inverse_capacity[i] = S::from_f64(1.0 / network.capacity_at_j_per_k(i));
+            stepper.fixed_energy_j[i] = S::from_f64(network.fixed_power_at_w(i) * dt_s);
         }
         for m in 0..M {
-            if let Some(source) = network.sources[m] {
+            if let Some(source) = network.joule_source_of(m) {
                 stepper.source_node[m] = source.node;
                 stepper.resistance[m] = source.resistance.to_scalar();
             }
@@ -181,59 +156,167 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
             | self
                 .limits
                 .accept_temperatures(boundary_c, &mut state.held_boundary_c);
-        let old = state.temps_c;
         let mut energy_j = self.fixed_energy_j;
-        let rows = old
+        let rows = self
+            .pair_g_dt
             .iter()
-            .zip(&self.pair_g_dt)
             .zip(&self.pair_node)
             .zip(&self.pair_count)
             .zip(&self.boundary_g_dt)
-            .enumerate();
-        for (i, ((((&t_i, g_row), node_row), &count), boundary_row)) in rows {
-            let count = usize::from(count);
-            let (Some(g_row), Some(node_row)) = (g_row.get(..count), node_row.get(..count)) else {
-                continue;
-            };
-            // Pairs in increasing `j`, as the full scan took them: the same
-            // sums to the bit.
-            for (&g_dt, &j) in g_row.iter().zip(node_row) {
-                let j = usize::from(j);
-                let Some(&t_j) = old.get(j) else { continue };
-                let flow = g_dt * (t_j - t_i);
-                if let Some(e_i) = energy_j.get_mut(i) {
-                    *e_i += flow;
+            .map(|(((g_row, node_row), &count), boundary_row)| {
+                let count = usize::from(count);
+                PackedRow {
+                    g_dt: g_row.get(..count).unwrap_or(&[]),
+                    node: node_row.get(..count).unwrap_or(&[]),
+                    boundary_g_dt: boundary_row,
                 }
-                if let Some(e_j) = energy_j.get_mut(j) {
-                    *e_j -= flow;
-                }
-            }
-            if let Some(e_i) = energy_j.get_mut(i) {
-                for (g_dt, t_b) in boundary_row.iter().zip(&state.held_boundary_c) {
-                    *e_i += *g_dt * (*t_b - t_i);
-                }
-            }
-        }
-        for ((node, r), current) in self
+            });
+        let sources = self
             .source_node
             .iter()
+            .copied()
             .zip(&self.resistance)
-            .zip(&state.held_currents_a)
-        {
-            if let (Some(t), Some(e)) = (old.get(*node), energy_j.get_mut(*node)) {
-                *e += r.joule_power_w(*t, *current) * self.dt;
+            .zip(state.held_currents_a.iter().copied());
+        gather_energy(
+            &state.temps_c,
+            rows,
+            &state.held_boundary_c,
+            sources,
+            self.dt,
+            &mut energy_j,
+        );
+        apply_energy(
+            &mut state.temps_c,
+            &mut state.residual_c,
+            &energy_j,
+            &self.inverse_capacity,
+        );
+        flags
+    }
+}
+
+/// Checks a network and a step `dt_s` \[s\] for an explicit stepper (see
+/// [`ExplicitStepper::new`] for the errors); returns the largest
+/// `dt * sum(G) / C` over the nodes.
+pub(super) fn checked_step<D: NetworkDescription>(
+    network: &D,
+    dt_s: f64,
+    limits: InputLimits,
+) -> Result<f64, BuildError> {
+    if !(dt_s.is_finite() && dt_s > 0.0) {
+        return Err(BuildError::InvalidTimeStep);
+    }
+    for input in 0..network.input_count() {
+        match network.joule_source_of(input) {
+            None => return Err(BuildError::MissingSource { input }),
+            Some(s) if s.drive == super::Drive::Voltage => {
+                return Err(BuildError::InvalidParameter {
+                    name: "voltage_source",
+                })
+            }
+            Some(_) => {}
+        }
+    }
+    limits.validate()?;
+    let mut worst = (0, 0.0f64);
+    for i in 0..network.node_count() {
+        let c = network.capacity_at_j_per_k(i);
+        let ratio = dt_s * network.conductance_sum_w_per_k(i) / c;
+        if ratio > worst.1 {
+            worst = (i, ratio);
+        }
+    }
+    if worst.1 >= 1.0 {
+        return Err(BuildError::UnstableStep {
+            node: worst.0,
+            ratio: worst.1 as f32,
+        });
+    }
+    Ok(worst.1)
+}
+
+/// Node `i`'s pairs with later nodes as `(G_ij dt, j)` in the stepper's
+/// scalar, in increasing `j`, without those that round to zero (they move
+/// no heat, and a step costs the connections, not `N^2`).
+pub(super) fn packed_pairs<S: Scalar>(
+    network: &impl NetworkDescription,
+    i: usize,
+    dt_s: f64,
+) -> impl Iterator<Item = (S, usize)> + '_ {
+    network
+        .later_pairs_w_per_k(i)
+        .map(move |(j, g)| (S::from_f64(g * dt_s), j))
+        .filter(|(g_dt, _)| *g_dt != S::ZERO)
+}
+
+/// One node's packed coefficients, as [`gather_energy`] reads them.
+pub(super) struct PackedRow<'a, S, I> {
+    /// `G_ij dt` \[J/K\] with each later node `j` it is connected to.
+    pub g_dt: &'a [S],
+    /// Those nodes `j`.
+    pub node: &'a [I],
+    /// `G_ib dt` \[J/K\] to each boundary.
+    pub boundary_g_dt: &'a [S],
+}
+
+/// The heat each node takes in over one step \[J\], added to `energy_j`
+/// (which holds the fixed powers' energy): each pair's flow `G dt (T_j -
+/// T_i)` once, into one node and out of the other (the step conserves
+/// energy as the network does), each boundary's flow, each source's `R(T)
+/// I^2 dt` at its node's temperature. Rows in node order; a node index out
+/// of range moves nothing (never a panic).
+#[inline]
+pub(super) fn gather_energy<'a, S: Scalar + 'a, I: Copy + Into<usize> + 'a>(
+    temps_c: &[S],
+    rows: impl Iterator<Item = PackedRow<'a, S, I>>,
+    held_boundary_c: &[S],
+    sources: impl Iterator<Item = ((usize, &'a ScalarResistance<S>), S)>,
+    dt: S,
+    energy_j: &mut [S],
+) {
+    for (i, (&t_i, row)) in temps_c.iter().zip(rows).enumerate() {
+        // Pairs in increasing `j`, as the full scan took them: the same
+        // sums to the bit.
+        for (&g_dt, &j) in row.g_dt.iter().zip(row.node) {
+            let j = j.into();
+            let Some(&t_j) = temps_c.get(j) else { continue };
+            let flow = g_dt * (t_j - t_i);
+            if let Some(e_i) = energy_j.get_mut(i) {
+                *e_i += flow;
+            }
+            if let Some(e_j) = energy_j.get_mut(j) {
+                *e_j -= flow;
             }
         }
-        for (((t, residual), e), inv_c) in state
-            .temps_c
-            .iter_mut()
-            .zip(state.residual_c.iter_mut())
-            .zip(&energy_j)
-            .zip(&self.inverse_capacity)
-        {
-            *t = compensated_add(*t, *e * *inv_c, residual);
+        if let Some(e_i) = energy_j.get_mut(i) {
+            for (g_dt, t_b) in row.boundary_g_dt.iter().zip(held_boundary_c) {
+                *e_i += *g_dt * (*t_b - t_i);
+            }
         }
-        flags
+    }
+    for ((node, r), current) in sources {
+        if let (Some(t), Some(e)) = (temps_c.get(node), energy_j.get_mut(node)) {
+            *e += r.joule_power_w(*t, current) * dt;
+        }
+    }
+}
+
+/// Each node's temperature raised by its energy over its capacity, the
+/// rounding carried ([`compensated_add`]).
+#[inline]
+pub(super) fn apply_energy<S: Scalar>(
+    temps_c: &mut [S],
+    residual_c: &mut [S],
+    energy_j: &[S],
+    inverse_capacity: &[S],
+) {
+    for (((t, residual), e), inv_c) in temps_c
+        .iter_mut()
+        .zip(residual_c.iter_mut())
+        .zip(energy_j)
+        .zip(inverse_capacity)
+    {
+        *t = compensated_add(*t, *e * *inv_c, residual);
     }
 }
 

@@ -22,15 +22,21 @@
 //!   `R(T)`, or [`BuildError::NoSteadyState`] when the winding would run away;
 //! * [`Network::energy_rates`]: the energy account `P_in = P_stored + P_out`;
 //! * [`ExplicitStepper`]: the hot-path fixed step in any [`Scalar`](crate::Scalar),
-//!   refused at build time when it would be unstable;
+//!   refused at build time when it would be unstable; with the `alloc`
+//!   feature (a host), `RunTimeStepper`, the same step of a network whose
+//!   sizes are known only at run time, from any [`NetworkDescription`];
 //! * the exact zero-order-hold step of [`crate::discretize`].
 
+mod description;
 mod explicit;
 pub mod motor;
 mod source;
 mod steady;
 
+pub use description::NetworkDescription;
 pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
+#[cfg(feature = "alloc")]
+pub use explicit::{RunTimeState, RunTimeStepper, SizeMismatch};
 pub use motor::{DqScaling, Motor, MotorBuilder, MotorDatasheet, MotorHeatCapacity, MotorSensor};
 pub use source::{Drive, JouleSource, Resistance, ScalarResistance};
 
