@@ -190,8 +190,8 @@ pub fn class_of(network: &DynNetwork, classes: &[usize], what: &str) -> Result<u
         .with_context(|| {
             format!(
                 "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported here \
-                 (its tables are solved at a padded const-generic size; `simulate` and `calibrate` \
-                 run a model of any size)",
+                 (its tables are solved at a padded const-generic size; `simulate`, `calibrate` \
+                 and an open-loop `replay` run a model of any size)",
                 classes.last().copied().unwrap_or(0)
             )
         })

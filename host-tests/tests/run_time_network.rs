@@ -1,8 +1,9 @@
 //! A model file at its own size (issue 37, item 4): the library's
 //! [`RunTimeStepper`] (the `alloc` twin of the MCU's `ExplicitStepper`) is
-//! the const-generic stepper to the bit, and `simulate` and `calibrate` run
-//! a 300-node, 72-source motor network through it (no size class, no cap)
-//! against an independent integration of the same equations.
+//! the const-generic stepper to the bit, and `simulate`, `calibrate` and an
+//! open-loop `replay` run a 300-node, 72-source motor network through it
+//! (no size class, no cap) against an independent integration of the same
+//! equations.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -432,4 +433,82 @@ fn calibrate_fits_a_300_node_motor_at_its_own_size() {
         "calibrate, 300 nodes x 1800 s: {calibrate_s:.2} s wall; jacket_0 {g:.4} W/K (truth 30)"
     );
     assert!((g - 30.0).abs() < 0.3, "{g} W/K");
+}
+
+/// Every row of a CSV after its header.
+fn rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+/// `replay` of a model larger than the firmware's observer is solved for
+/// on the host runs it open loop at its own size on the same stepper, and
+/// says so (no flag of the filter taken, no time to limit claimed): over a
+/// 30-min recording of the 300-node motor it gives `simulate`'s
+/// temperatures row for row, to the CSV's 6 decimals.
+#[test]
+fn replay_runs_a_300_node_motor_open_loop_at_its_own_size() {
+    let tmp = TempDir::new().unwrap();
+    let model = tmp.path().join("motor-300.toml");
+    std::fs::write(&model, motor_file(40.0)).unwrap();
+    let recording = tmp.path().join("bench.csv");
+    cargo_bin_cmd!("coil-thermal")
+        .args(["simulate", "--model"])
+        .arg(&model)
+        .args(["--current-a", "45", "--duration-s", "1800", "--dt-s", "10"])
+        .args(["--with-inputs", "--out"])
+        .arg(&recording)
+        .assert()
+        .success();
+    let out = tmp.path().join("replay.csv");
+    let start = Instant::now();
+    let run = cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(&model)
+        .arg("--trace")
+        .arg(&recording)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let replay_s = start.elapsed().as_secs_f64();
+    let text = String::from_utf8_lossy(&run.get_output().stdout).into_owned();
+    assert!(
+        text.contains("open loop, the firmware's observer: the model has 300 nodes and 72 sources"),
+        "{text}"
+    );
+    assert!(text.contains("time to limit: not computed"), "{text}");
+    // The filter's flags do not apply, and are refused by name.
+    cargo_bin_cmd!("coil-thermal")
+        .args(["replay", "--model"])
+        .arg(&model)
+        .arg("--trace")
+        .arg(&recording)
+        .args(["--measurement-noise-k", "0.5"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(
+            "--measurement-noise-k sets the firmware's NetworkObserver",
+        ));
+    let simulated = rows(&recording);
+    let replayed = rows(&out);
+    let (sim_header, _) = last_row(&recording);
+    let (replay_header, _) = last_row(&out);
+    assert_eq!(replayed.len(), simulated.len());
+    let mut worst = 0.0f64;
+    for (name, _) in motor().0 {
+        let s = sim_header.iter().position(|h| *h == name).unwrap();
+        let r = replay_header.iter().position(|h| *h == name).unwrap();
+        for (sim, rep) in simulated.iter().zip(&replayed) {
+            worst = worst.max((sim[s] - rep[r]).abs());
+        }
+    }
+    eprintln!(
+        "replay, 300 nodes x 1800 s: {replay_s:.2} s wall; worst {worst:.1e} K from simulate"
+    );
+    assert!(worst <= 1.5e-6, "{worst}");
 }

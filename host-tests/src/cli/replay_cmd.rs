@@ -317,8 +317,9 @@ enum Path {
 }
 
 /// Refuses every flag given that does not apply to the estimator `path`
-/// runs, naming the flag and why (a flag is never ignored).
-fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
+/// runs, naming the flag and why (a flag is never ignored; `why` says why
+/// the path is the stepper's).
+fn refuse_inapplicable(a: &ReplayArgs, path: Path, why: &str) -> Result<()> {
     let host_alarm_only: [(&str, bool); 6] = [
         ("--warning-margin-k", a.warning_margin_k.is_some()),
         ("--hysteresis-k", a.hysteresis_k.is_some()),
@@ -346,7 +347,7 @@ fn refuse_inapplicable(a: &ReplayArgs, path: Path) -> Result<()> {
         }
     } else if let Some((flag, _)) = firmware_only.iter().find(|(_, given)| *given) {
         bail!(
-            "{flag} sets the firmware's NetworkObserver; this replay runs the model open loop on the explicit stepper (its network changes with a signal): drop {flag}"
+            "{flag} sets the firmware's NetworkObserver; this replay runs the model open loop on the explicit stepper ({why}): drop {flag}"
         );
     }
     Ok(())
@@ -741,8 +742,24 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let median_row_s = file.median_gap_s()?;
     // A network that changes with a signal runs open loop on the explicit
     // stepper (the firmware's observer holds one fixed network, and refuses
-    // such a model with sensors); otherwise the firmware's observer.
-    let path = if model.has_varying_conductances() && measured.is_empty() {
+    // such a model with sensors), and so does one larger than the
+    // firmware's observer is solved for on the host (its tables are
+    // const-generic: `codegen` makes none of it either); otherwise the
+    // firmware's observer.
+    let too_large = crate::limits::class_of(
+        &model.network,
+        &crate::library_observer::OBSERVER_CLASSES,
+        "the firmware's observer",
+    )
+    .err();
+    let stepper_why = if model.has_varying_conductances() {
+        "its network changes with a signal".to_string()
+    } else {
+        too_large
+            .as_ref()
+            .map_or_else(String::new, |e| format!("{e:#}"))
+    };
+    let path = if (model.has_varying_conductances() || too_large.is_some()) && measured.is_empty() {
         Path::Stepper
     } else {
         Path::Firmware
@@ -750,7 +767,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     if a.bias_noise_w2_per_s.is_some() && measured.is_empty() {
         bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
     }
-    refuse_inapplicable(&a, path)?;
+    refuse_inapplicable(&a, path, &stepper_why)?;
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
     let (config, mut overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
@@ -783,14 +800,21 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let rule_product = settings.rule.product();
     // The host's alarm on the estimate, for the estimators without a
     // protection of their own (the firmware's observer has its own).
+    // A model too large for the library's predictor on the host (its modes
+    // are const-generic too) is watched without a time to limit, and the
+    // replay says so.
+    let mut no_time_to_limit = None;
     let mut host_alarm = (path != Path::Firmware)
         .then(|| -> Result<LibraryAlarm> {
-            let predictor = TimeToLimit::new(&model)?;
-            LibraryAlarm::new(&info, &settings)?.with_time_to_limit(
-                &info,
-                predictor,
-                settings.horizon_s,
-            )
+            let alarm = LibraryAlarm::new(&info, &settings)?;
+            match TimeToLimit::new(&model) {
+                Ok(predictor) => alarm.with_time_to_limit(&info, predictor, settings.horizon_s),
+                Err(e) if too_large.is_some() => {
+                    no_time_to_limit = Some(format!("{e:#}"));
+                    Ok(alarm)
+                }
+                Err(e) => Err(e),
+            }
         })
         .transpose()?;
     let mut unwatched = Unwatched;
@@ -1205,7 +1229,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     } else {
         println!(
-            "estimator: {kind}, a host-only estimator (not what any firmware runs); the alarm below is the host's, on its estimate"
+            "estimator: {kind}, a host-only estimator (not what any firmware runs): open loop, {stepper_why}; the alarm below is the host's, on its estimate"
         );
     }
     println!(
@@ -1362,6 +1386,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 t.unknown_rows
             );
         }
+    }
+    if let Some(why) = &no_time_to_limit {
+        println!("time to limit: not computed ({why})");
     }
     print_events(&events);
     let t = &times;
