@@ -150,12 +150,6 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
         currents_a: &[S; M],
         boundary_c: &[S; B],
     ) -> InputFlags {
-        let flags = self
-            .limits
-            .accept_currents(currents_a, &mut state.held_currents_a)
-            | self
-                .limits
-                .accept_temperatures(boundary_c, &mut state.held_boundary_c);
         let mut energy_j = self.fixed_energy_j;
         let rows = self
             .pair_g_dt
@@ -171,27 +165,25 @@ impl<S: Scalar, const N: usize, const B: usize, const M: usize> ExplicitStepper<
                     boundary_g_dt: boundary_row,
                 }
             });
-        let sources = self
-            .source_node
-            .iter()
-            .copied()
-            .zip(&self.resistance)
-            .zip(state.held_currents_a.iter().copied());
-        gather_energy(
-            &state.temps_c,
-            rows,
-            &state.held_boundary_c,
-            sources,
-            self.dt,
-            &mut energy_j,
-        );
-        apply_energy(
-            &mut state.temps_c,
-            &mut state.residual_c,
-            &energy_j,
-            &self.inverse_capacity,
-        );
-        flags
+        explicit_step(
+            &Coefficients {
+                rows,
+                source_node: &self.source_node,
+                resistance: &self.resistance,
+                inverse_capacity: &self.inverse_capacity,
+                limits: &self.limits,
+                dt: self.dt,
+            },
+            StateParts {
+                temps_c: &mut state.temps_c,
+                residual_c: &mut state.residual_c,
+                held_currents_a: &mut state.held_currents_a,
+                held_boundary_c: &mut state.held_boundary_c,
+                energy_j: &mut energy_j,
+            },
+            currents_a,
+            boundary_c,
+        )
     }
 }
 
@@ -247,6 +239,82 @@ pub(super) fn packed_pairs<S: Scalar>(
         .later_pairs_w_per_k(i)
         .map(move |(j, g)| (S::from_f64(g * dt_s), j))
         .filter(|(g_dt, _)| *g_dt != S::ZERO)
+}
+
+/// What one explicit step reads of a stepper, whatever holds it (arrays
+/// on the MCU, vectors on a host): the packed rows in node order, the
+/// sources, the inverse capacities, the input rules and the step.
+pub(super) struct Coefficients<'a, S, R> {
+    /// Each node's packed pairs and boundary links, in node order.
+    pub rows: R,
+    /// The node each source heats.
+    pub source_node: &'a [usize],
+    /// Each source's `R(T)`.
+    pub resistance: &'a [ScalarResistance<S>],
+    /// `1 / C_i` \[K/J\].
+    pub inverse_capacity: &'a [S],
+    /// The input rules.
+    pub limits: &'a ScalarLimits<S>,
+    /// The step \[s\].
+    pub dt: S,
+}
+
+/// What one explicit step writes of a state, whatever holds it.
+pub(super) struct StateParts<'s, S> {
+    /// Node temperatures \[degC\].
+    pub temps_c: &'s mut [S],
+    /// Their rounding carry \[K\].
+    pub residual_c: &'s mut [S],
+    /// The last valid currents \[A\].
+    pub held_currents_a: &'s mut [S],
+    /// The last valid boundary temperatures \[degC\].
+    pub held_boundary_c: &'s mut [S],
+    /// Each node's energy this step \[J\], holding the fixed powers'
+    /// energy on entry.
+    pub energy_j: &'s mut [S],
+}
+
+/// One explicit step: the input rules on `currents_a` \[A\] and
+/// `boundary_c` \[degC\] (a bad value held, flagged), the energy each node
+/// takes in ([`gather_energy`]), the temperatures raised
+/// ([`apply_energy`]). The one step of [`ExplicitStepper`] and of its
+/// run-time twin.
+#[inline]
+pub(super) fn explicit_step<'a, S, I, R>(
+    c: &Coefficients<'a, S, R>,
+    state: StateParts<'_, S>,
+    currents_a: &[S],
+    boundary_c: &[S],
+) -> InputFlags
+where
+    S: Scalar + 'a,
+    I: Copy + Into<usize> + 'a,
+    R: Iterator<Item = PackedRow<'a, S, I>> + Clone,
+{
+    let flags = c.limits.accept_currents(currents_a, state.held_currents_a)
+        | c.limits
+            .accept_temperatures(boundary_c, state.held_boundary_c);
+    let sources = c
+        .source_node
+        .iter()
+        .copied()
+        .zip(c.resistance)
+        .zip(state.held_currents_a.iter().copied());
+    gather_energy(
+        state.temps_c,
+        c.rows.clone(),
+        state.held_boundary_c,
+        sources,
+        c.dt,
+        state.energy_j,
+    );
+    apply_energy(
+        state.temps_c,
+        state.residual_c,
+        state.energy_j,
+        c.inverse_capacity,
+    );
+    flags
 }
 
 /// One node's packed coefficients, as [`gather_energy`] reads them.

@@ -11,7 +11,7 @@
 
 use alloc::vec::Vec;
 
-use super::{apply_energy, checked_step, gather_energy, packed_pairs, PackedRow};
+use super::{checked_step, explicit_step, packed_pairs, Coefficients, PackedRow, StateParts};
 use crate::error::BuildError;
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
 use crate::network::{NetworkDescription, Resistance, ScalarResistance};
@@ -180,12 +180,6 @@ impl<S: Scalar> RunTimeStepper<S> {
         {
             return Err(SizeMismatch);
         }
-        let flags = self
-            .limits
-            .accept_currents(currents_a, &mut state.held_currents_a)
-            | self
-                .limits
-                .accept_temperatures(boundary_c, &mut state.held_boundary_c);
         state.energy_j.copy_from_slice(&self.fixed_energy_j);
         let rows = self.row_start.windows(2).enumerate().map(|(i, w)| {
             let pairs = w[0]..w[1];
@@ -199,26 +193,24 @@ impl<S: Scalar> RunTimeStepper<S> {
                     .unwrap_or(&[]),
             }
         });
-        let sources = self
-            .source_node
-            .iter()
-            .copied()
-            .zip(&self.resistance)
-            .zip(state.held_currents_a.iter().copied());
-        gather_energy(
-            &state.temps_c,
-            rows,
-            &state.held_boundary_c,
-            sources,
-            self.dt,
-            &mut state.energy_j,
-        );
-        apply_energy(
-            &mut state.temps_c,
-            &mut state.residual_c,
-            &state.energy_j,
-            &self.inverse_capacity,
-        );
-        Ok(flags)
+        Ok(explicit_step(
+            &Coefficients {
+                rows,
+                source_node: &self.source_node,
+                resistance: &self.resistance,
+                inverse_capacity: &self.inverse_capacity,
+                limits: &self.limits,
+                dt: self.dt,
+            },
+            StateParts {
+                temps_c: &mut state.temps_c,
+                residual_c: &mut state.residual_c,
+                held_currents_a: &mut state.held_currents_a,
+                held_boundary_c: &mut state.held_boundary_c,
+                energy_j: &mut state.energy_j,
+            },
+            currents_a,
+            boundary_c,
+        ))
     }
 }
