@@ -1613,9 +1613,9 @@ impl OmniObserver {
     /// time it lags behind (never later than its own answer).
     fn age_time_to_limit<W: OmniWarmUpKind>(&self, state: &mut OmniObserverState<W>) {
         let lag_s = state.cycle.lag_s();
-        let ttl = state.predictor.time_to_limit_s();
+        let predictor = &state.predictor;
         for (time, node) in state.outputs.time_to_limit_s.iter_mut().zip(ALARM_NODES) {
-            *time = aged_time_to_limit(ttl.get(node).copied().flatten(), lag_s);
+            *time = aged_time_to_limit(predictor.time_to_limit_of(node), lag_s);
         }
     }
 

@@ -762,7 +762,10 @@ fn first_crossing<T: RealField + Copy>(
 }
 
 /// The sliced predictor's per-device state: a sweep in progress and the
-/// last published answers.
+/// last published answers (the crossings and their age: each time to the
+/// limit is made when asked, so that an observer that reads a few
+/// elements' keeps no copy of every element's; 128 B of the Omnimagnet's
+/// state).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PredictorState<T, const N: usize, const M: usize> {
     snapshot: Snapshot<T, N>,
@@ -777,7 +780,6 @@ pub struct PredictorState<T, const N: usize, const M: usize> {
     published: [Crossing<T>; N],
     published_age_s: T,
     peak_power_w: [T; M],
-    out: [Option<T>; N],
 }
 
 impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M> {
@@ -800,7 +802,6 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
             published: first,
             published_age_s: T::zero(),
             peak_power_w: powers,
-            out: first.map(|c| published(c, T::zero())),
         }
     }
 
@@ -817,7 +818,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
         &mut self,
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
-    ) -> &[Option<T>; N] {
+    ) -> [Option<T>; N] {
         let tick_s = predictor.tick_s;
         self.sweep_age_s += tick_s;
         self.published_age_s += tick_s;
@@ -871,16 +872,20 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
                 break;
             }
         }
-        let age = self.published_age_s;
-        for (out, crossing) in self.out.iter_mut().zip(&self.published) {
-            *out = published(*crossing, age);
-        }
-        &self.out
+        self.time_to_limit_s()
     }
 
     /// The answers of the last [`tick`](Self::tick) \[s\].
-    pub fn time_to_limit_s(&self) -> &[Option<T>; N] {
-        &self.out
+    pub fn time_to_limit_s(&self) -> [Option<T>; N] {
+        let age = self.published_age_s;
+        self.published.map(|crossing| published(crossing, age))
+    }
+
+    /// Element `i`'s answer of the last [`tick`](Self::tick) \[s\], as
+    /// [`Self::time_to_limit_s`] has it (`None` too for no such element).
+    pub fn time_to_limit_of(&self, i: usize) -> Option<T> {
+        let crossing = *self.published.get(i)?;
+        published(crossing, self.published_age_s)
     }
 }
 
