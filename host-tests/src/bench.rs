@@ -413,7 +413,7 @@ impl ProtectTick {
     pub fn tick(&mut self) -> (AlarmStatus, [CoilLimit<f32>; 3]) {
         let op = black_box(&self.op);
         let ambient_c = op.boundary_c[0];
-        let ttl = self.state.tick(&self.predictor, op);
+        let ttl = *self.state.tick(&self.predictor, op);
         let status =
             self.alarm_state
                 .tick(&self.alarm, &op.temps_c, ambient_c, &ttl, &mut self.events);

@@ -63,7 +63,7 @@ fn protection_ticks_allocate_nothing() {
         for k in 0..20_000 {
             op.temps_c[0] = 30.0 + k as f32 * 1e-3;
             op.currents_a[0] = if k % 97 == 0 { f32::NAN } else { 1.5 };
-            let ttl = state.tick(&predictor, std::hint::black_box(&op));
+            let ttl = *state.tick(&predictor, std::hint::black_box(&op));
             alarm_state.tick(&alarm, &op.temps_c, 20.0, &ttl, &mut events);
             limiter.apply(
                 &[op.temps_c[0], op.temps_c[1]],

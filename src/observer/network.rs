@@ -857,11 +857,6 @@ pub struct NetworkObserverState<
     pub alarm: AlarmState<f32, N>,
     /// The predictor's sweep.
     pub predictor: PredictorState<f32, N, M>,
-    /// The predictor's answers of its last tick \[s\] (what
-    /// [`PredictorState::tick`] returns): every tick ages them, and made
-    /// from the crossings each tick they cost a soft-float subtraction per
-    /// element on a Cortex-M0.
-    predictor_ttl_s: [Option<f32>; N],
     /// The time not yet simulated.
     pub clock: ClockState,
     /// Alarm events not yet drained.
@@ -917,7 +912,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             residual_k,
             alarm,
             predictor,
-            predictor_ttl_s,
             clock,
             events,
             held_currents_a,
@@ -940,7 +934,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             residual_k,
             alarm,
             predictor,
-            predictor_ttl_s,
             clock,
             events,
             held_currents_a,
@@ -1053,14 +1046,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .accept_temperatures(boundary_c, &mut held_boundary_c);
         let ambient_c = self.ambient(&held_boundary_c);
         let op = self.operating(temps_c, &[0.0; M], &held_boundary_c, ambient_c);
-        let predictor = PredictorState::new(&self.predictor, &op);
-        let predictor_ttl_s = predictor.time_to_limit_s();
         let mut state = NetworkObserverState {
             estimate: SteadyEstimate::new(x),
             residual_k: [0.0; N],
             alarm: AlarmState::new(&self.alarm),
-            predictor,
-            predictor_ttl_s,
+            predictor: PredictorState::new(&self.predictor, &op),
             clock: ClockState::default(),
             events: EventQueue::new(),
             held_currents_a: [0.0; M],
@@ -1314,7 +1304,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &state.held_boundary_c,
                     ambient_c,
                 );
-                state.predictor_ttl_s = state.predictor.tick(&self.predictor, &op);
+                state.predictor.tick(&self.predictor, &op);
                 state
                     .cycle
                     .predicted(self.protect_period_us, &state.held_currents_a);
@@ -1419,7 +1409,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
     ) {
         let lag_s = state.cycle.lag_s();
-        let ttl = &state.predictor_ttl_s;
+        let ttl = state.predictor.time_to_limit_s();
         for ((time, answer), limited) in state
             .outputs
             .time_to_limit_s

@@ -421,7 +421,9 @@ use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
-use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
+use crate::protect::predict::{
+    AnswersWhenAsked, LimitPredictor, Operating, PredictorBuilder, PredictorState,
+};
 
 mod parts;
 
@@ -746,7 +748,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     /// The alarm's state.
     pub alarm: AlarmState<f32, 6>,
     /// The predictor's sweep.
-    pub predictor: PredictorState<f32, NODES, SOLENOIDS>,
+    pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
     /// The time not yet simulated.
     pub clock: ClockState,
     /// Alarm events not yet drained.
@@ -1206,6 +1208,17 @@ impl OmniObserver {
     /// code. [`Self::with_warm_up`] gives it the flavour of
     /// [`Self::start`]'s states.
     pub fn state(&self, temps_c: &[f32; NODES], ambient_c: f32) -> OmniObserverState<NoWarmUp> {
+        self.state_holding(temps_c, ambient_c, NoWarmUp)
+    }
+
+    /// [`Self::state`] in the flavour `W`, holding `warm` (made in place:
+    /// a start's state is not moved from one flavour to the other).
+    fn state_holding<W: OmniWarmUpKind>(
+        &self,
+        temps_c: &[f32; NODES],
+        ambient_c: f32,
+        warm: W,
+    ) -> OmniObserverState<W> {
         let model = *self.filter.model();
         let mut x = SVector::<f32, STATES>::zeros();
         for (i, t) in temps_c.iter().enumerate() {
@@ -1225,7 +1238,7 @@ impl OmniObserver {
             model,
             input,
             alarm: AlarmState::new(&self.alarm),
-            predictor: PredictorState::new(&self.predictor, &op),
+            predictor: PredictorState::when_asked(&self.predictor, &op),
             clock: ClockState::default(),
             events: EventQueue::new(),
             held_currents_a: [0.0; SOLENOIDS],
@@ -1265,7 +1278,7 @@ impl OmniObserver {
             deferral: Deferral::default(),
             relinearised: false,
             model_age_steps: 0,
-            warm: NoWarmUp,
+            warm,
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -2353,7 +2366,13 @@ impl OmniObserver {
             _ => f32::NAN,
         });
         start::cap_unread_c(&mut temps, read, &limited, &ceiling_c);
-        let state = self.state(&temps, ambient_c);
+        let mut state = self.state_holding(
+            &temps,
+            ambient_c,
+            WarmUp {
+                held: OmniHeld::idle(),
+            },
+        );
         let mut steady_upper_c = [0.0; NODES];
         self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
         let prior = self.filter.gain().prior();
@@ -2389,16 +2408,11 @@ impl OmniObserver {
                 MEASURED_NODES.contains(&i) || limited.get(i) == Some(&true)
             }),
         };
-        let mut state = state.flavoured(WarmUp {
-            held: OmniHeld {
-                cov: StartCovariance::start(cov, layout),
-                extra_k: NO_EXTRA_K,
-            },
-        });
+        state.warm.held.cov = StartCovariance::start(cov, layout);
         self.publish_upper(&mut state);
         // The predictor's first sweep towards the held bound's limits.
         let op = self.operating(&temps, &[0.0; SOLENOIDS], ambient_c, state.held_extra_k());
-        state.predictor = PredictorState::new(&self.predictor, &op);
+        state.predictor = PredictorState::when_asked(&self.predictor, &op);
         self.limit(&mut state.outputs, ambient_c);
         state
     }
