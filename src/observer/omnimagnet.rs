@@ -221,8 +221,8 @@
 //! network observer would run the build-time linearisation for ever (3.7 K
 //! off a solenoid left to the model at 7 A) or carry the refresh: the
 //! model in the *state* (the [`MeanModel`], in RAM: the Omnimagnet state is
-//! 7 336 B where the network observer keeps its tables in flash), its
-//! install between ticks (3 372 instructions, QEMU `observer_m4`) and the
+//! 3 496 B where the network observer keeps its tables in flash), its
+//! install between ticks (3 060 instructions, QEMU `observer_m4`) and the
 //! watchdog's add and compare on every tick, work the linear network
 //! observer's tick (network_roundtrip 389 mean / 1 074 worst,
 //! motor_qemu 1 173 / 3 435, ticking their generated `static OBSERVER`)
@@ -308,10 +308,12 @@
 //!   the per-step time-varying filter in `f64` the held priors agree
 //!   within 1.3e-4 (relative) after 200 periods. Measured in
 //!   `examples/omni_start_m4.rs` (Cortex-M4F, `observer_m4`'s 5 ms
-//!   configuration): plain ticks 926 instructions mean, 3 377 worst (the
-//!   steady filter: 718 and 3 086), a correction 3 336 (2 647); the start
-//!   itself, once, 2.9 million; the state 7 264 B (3 552 B before: the
-//!   covariance and what the correction needs, 3.7 KiB);
+//!   configuration): plain ticks 837 instructions mean, 3 312 worst (the
+//!   steady filter's state: 671 and 3 022), a correction 3 023 (2 288);
+//!   the start itself, once, 2.9 million; the state 7 208 B (the
+//!   covariance and what the correction needs, 3.7 KiB; a state of the
+//!   [`NoWarmUp`] flavour, which [`OmniObserver::state`] and the restores
+//!   without readings return, 3 496 B: it holds none of it);
 //! * **the protection follows it**: the upper bound widens by `k` times the
 //!   held deviation, on the insulations no higher than
 //!   [`start::START_BELOW_LIMIT_K`] below the limit
