@@ -381,7 +381,7 @@ fn snapshots(
     grid: &Grid,
     gs: &coil_thermal::observer::GridObserverState<f32, 7, 12, 84>,
     omni: &OmniObserver,
-    os: &coil_thermal::observer::OmniObserverState,
+    os: &coil_thermal::observer::OmniObserverState<coil_thermal::observer::omnimagnet::NoWarmUp>,
 ) -> bool {
     let mut buf = [0u8; coil_thermal::observer::snapshot::snapshot_len(84)];
     let grid_back = grid

@@ -38,7 +38,7 @@ mod cost;
 mod omnimagnet_flash;
 
 use coil_thermal::observer::omnimagnet::{
-    OmniInputs, OmniObserver, OmniObserverState, SensorStatus, TimedReading,
+    OmniInputs, OmniObserver, OmniObserverState, OmniWarmUpKind, SensorStatus, TimedReading,
 };
 use coil_thermal::omnimagnet::{Linearization, Omnimagnet, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::Reading;
@@ -141,10 +141,10 @@ fn run(meter: &cost::Meter, omni: &'static OmniObserver) -> Result<(), &'static 
 
 /// 20 s of the 1 ms loop on `state`, the reference stepped with the model.
 #[inline(never)]
-fn ticks(
+fn ticks<W: OmniWarmUpKind>(
     meter: &cost::Meter,
     omni: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     lin: &Linearization,
     hot: &[f64; NODES],
 ) -> Measured {

@@ -43,6 +43,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use coil_thermal::observer::omnimagnet::NoWarmUp;
 use coil_thermal::observer::{
     GridInputs, GridObserver, GridObserverState, OmniInputs, OmniObserver, OmniObserverState,
     OmniSettings,
@@ -547,7 +548,7 @@ impl GridLoop {
 /// correction is timed on its own, `omnimagnet_correct_*`).
 pub struct OmniLoop {
     observer: OmniObserver,
-    state: OmniObserverState,
+    state: OmniObserverState<NoWarmUp>,
     demand_a: [f32; 3],
 }
 

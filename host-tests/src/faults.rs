@@ -956,7 +956,8 @@ impl Subject for OmniSubject {
         }
     }
     fn state(&self, ambient_c: f32) -> OmniObserverState {
-        self.observer.state(&[ambient_c; NODES], ambient_c)
+        self.observer
+            .with_warm_up(self.observer.state(&[ambient_c; NODES], ambient_c))
     }
     fn tick(&self, state: &mut OmniObserverState, i: &TickInputs<'_>) -> TickView {
         let inputs = OmniInputs {
@@ -1051,11 +1052,13 @@ impl Subject for OmniSubject {
                 ambient_c,
                 off_s,
             )
+            .map(|s| self.observer.with_warm_up(s))
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> OmniObserverState {
         let readings: [Option<f32>; THERMOCOUPLES] = sensor_slots(readings_c);
-        self.observer.conservative_state(&readings, ambient_c)
+        self.observer
+            .with_warm_up(self.observer.conservative_state(&readings, ambient_c))
     }
     fn latched(&self, state: &OmniObserverState) -> bool {
         state.outputs().alarm.shutdown

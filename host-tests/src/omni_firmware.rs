@@ -17,7 +17,7 @@
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use coil_thermal::observer::omnimagnet::{needs_model_refresh, ALARM_NODES};
+use coil_thermal::observer::omnimagnet::{needs_model_refresh, NoWarmUp, ALARM_NODES};
 use coil_thermal::observer::{
     OmniInputs, OmniObserver, OmniObserverState, OmniSettings, SensorStatus, TimedReading,
 };
@@ -69,7 +69,7 @@ pub struct OmniFirmwareEstimator {
     info: PlantInfo,
     observer: OmniObserver,
     settings: OmniSettings,
-    state: Box<OmniObserverState>,
+    state: Box<OmniObserverState<NoWarmUp>>,
     /// The thermocouple slot of each fused sensor, in `--measure` order.
     slots: Vec<usize>,
     currents_a: [f32; SOLENOIDS],

@@ -504,9 +504,9 @@ fn reading(temp_c: f32, sampled_at_us: u32) -> Option<TimedReading> {
     })
 }
 
-fn omni_tick(
+fn omni_tick<W: coil_thermal::observer::omnimagnet::OmniWarmUpKind>(
     omni: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     readings: [Option<TimedReading>; 6],
     now_us: u32,
 ) -> coil_thermal::observer::OmniOutputs {

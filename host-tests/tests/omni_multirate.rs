@@ -9,6 +9,7 @@
 //! ticks of ten, and every 5 ms step lands on an off tick, so a sampled
 //! step would see no heating at all and read cold by the whole rise.
 
+use coil_thermal::observer::omnimagnet::OmniWarmUpKind;
 use coil_thermal::observer::{OmniInputs, OmniObserver, OmniObserverState, OmniSettings};
 use coil_thermal::omnimagnet::{Omnimagnet, NODES, SOLENOIDS};
 
@@ -55,9 +56,9 @@ fn observer(step_us: u32) -> OmniObserver {
     .unwrap()
 }
 
-fn tick(
+fn tick<W: OmniWarmUpKind>(
     omni: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     currents_a: [f32; 3],
     now_us: u32,
     elapsed_us: u32,

@@ -29,9 +29,7 @@
 
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::omnimagnet::ALARM_NODES;
-use coil_thermal::observer::{
-    GridInputs, GridObserver, OmniInputs, OmniObserver, OmniObserverState, OmniSettings,
-};
+use coil_thermal::observer::{GridInputs, GridObserver, OmniInputs, OmniObserver, OmniSettings};
 use coil_thermal::omnimagnet::observer::ObserverSettings;
 use coil_thermal::omnimagnet::{Omnimagnet, CRITICAL_TEMPS_C, NODES, THERMOCOUPLE_NODES};
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -322,7 +320,7 @@ fn omni_run(protected: bool) -> Run {
         &settings,
     )
     .unwrap();
-    let mut state: OmniObserverState = observer.state(&[AMBIENT_C as f32; NODES], 20.0);
+    let mut state = observer.state(&[AMBIENT_C as f32; NODES], 20.0);
     let mut plant = OmnimagnetPlant::default();
     plant.reset(&[AMBIENT_C; NODES]);
     // The Omnimagnet rule: no magnet plate factor.

@@ -6,6 +6,7 @@
 //! stuck at their value from a given time. The observer must shut down no
 //! later than 1 s after the clean run does.
 
+use coil_thermal::observer::omnimagnet::NoWarmUp;
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{OmniInputs, OmniObserver, OmniObserverState, OmniSettings};
 use coil_thermal::omnimagnet::observer::ObserverSettings;
@@ -78,7 +79,8 @@ fn run_at(fault: Fault, current_a: f32, ticks: u32) -> Outcome {
         &settings,
     )
     .unwrap();
-    let mut state: OmniObserverState = observer.state(&[AMBIENT_C as f32; NODES], AMBIENT_C as f32);
+    let mut state: OmniObserverState<NoWarmUp> =
+        observer.state(&[AMBIENT_C as f32; NODES], AMBIENT_C as f32);
     let mut plant = OmnimagnetPlant::default();
     plant.reset(&[AMBIENT_C; NODES]);
     let dt_s = f64::from(STEP_US) * 1e-6;

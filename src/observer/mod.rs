@@ -38,6 +38,7 @@ pub mod snapshot;
 pub mod start;
 mod tables;
 pub mod vocabulary;
+pub mod warm_up;
 
 pub use clock::{
     ClockState, StepClock, TickSteps, DEFAULT_FROZEN_FLAG_TICKS, DEFAULT_FROZEN_LOSS_TICKS,

@@ -339,6 +339,7 @@ use super::start;
 use super::vocabulary::{
     FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
 };
+use super::warm_up::Flavour;
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -844,7 +845,7 @@ pub struct NetworkObserverState<
     const M: usize,
     const X: usize,
     const P: usize,
-    W = WarmUp<X>,
+    W = WarmUp<SMatrix<f32, X, X>>,
 > {
     /// The filter's estimate (deviations from the origin \[K\], then the
     /// heat-input biases \[W\]) and gate memory.
@@ -1102,7 +1103,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         for (i, v) in self.kalman.recovery_variance.iter().enumerate() {
             cov[(i, i)] += *v;
         }
-        let mut state = state.flavoured(WarmUp { cov });
+        let mut state = state.flavoured(WarmUp { held: cov });
         state.warmup_left = self.warmup_corrections;
         state
     }
@@ -1181,7 +1182,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         {
             *xi = compensated_add(*xi, *inc, residual);
         }
-        if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov_mut()) {
+        if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held_mut()) {
             predict_cov(&self.kalman, cov);
         }
     }
@@ -1323,7 +1324,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     &mut state.events,
                 );
                 state.cycle.alarmed();
-                if state.warmup_left > 0 && state.warm.cov().is_some() {
+                if state.warmup_left > 0 && state.warm.held().is_some() {
                     self.publish_upper(state, ambient_c, true);
                 }
             }
@@ -1442,7 +1443,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let out = &mut state.outputs;
         self.bound
             .upper_c(&out.temps_c, ambient_c, &mut out.upper_c);
-        if let (true, Some(cov)) = (widen && state.warmup_left > 0, state.warm.cov()) {
+        if let (true, Some(cov)) = (widen && state.warmup_left > 0, state.warm.held()) {
             // The covariance held, not the steady one (see `super::start`).
             for (i, (upper, sigma)) in out.upper_c.iter_mut().zip(&self.bound_sigma_k).enumerate() {
                 let variance = cov.get((i, i)).copied().unwrap_or(f32::NAN);
@@ -1604,8 +1605,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             self.note_doubt(state, present);
             return (false, flags);
         }
-        let warming = state.warmup_left > 0 && state.warm.cov().is_some();
-        let report = if let (true, Some(cov)) = (warming, state.warm.cov_mut()) {
+        let warming = state.warmup_left > 0 && state.warm.held().is_some();
+        let report = if let (true, Some(cov)) = (warming, state.warm.held_mut()) {
             state.warmup_left -= 1;
             let mut full = KalmanState {
                 x: state.estimate.x,
@@ -1651,7 +1652,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         j: usize,
     ) -> f32 {
         let steady = self.gain.innovation_var()[j];
-        let (true, Some(cov)) = (state.warmup_left > 0, state.warm.cov()) else {
+        let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held()) else {
             return steady;
         };
         let node = self.sensor_nodes[j];
@@ -1733,7 +1734,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         warm: &'a W,
         warming: bool,
     ) -> &'a SMatrix<f32, X, X> {
-        match (warming, warm.cov()) {
+        match (warming, warm.held()) {
             (true, Some(cov)) => cov,
             _ => self.gain.posterior(),
         }
@@ -2034,7 +2035,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
             }
         }
-        let mut state = state.flavoured(WarmUp { cov });
+        let mut state = state.flavoured(WarmUp { held: cov });
         state.warmup_left = start::MAX_START_CORRECTIONS;
         state.warmup_until_steady = true;
         self.publish_upper(&mut state, ambient_c, true);
@@ -2143,13 +2144,21 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 mod bias;
 mod parts;
 pub mod resistance;
-mod warm_up;
+pub use super::warm_up::{NoWarmUp, WarmUp};
 pub use bias::BiasMode;
 pub use parts::{
     AssembledTables, GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables,
 };
 pub use resistance::{ResistanceSensor, SensorKind};
-pub use warm_up::{NoWarmUp, WarmUp, WarmUpKind};
+
+/// A network state's warm-up flavour (see [`super::warm_up`]):
+/// [`NoWarmUp`], or [`WarmUp`] holding the time-varying warm-up's
+/// covariance (`X^2` floats) while it runs (the start's, and the
+/// configured one of [`NetworkSettings::warmup_corrections`]). Only the
+/// covariance: its count and end stay in the state.
+pub trait WarmUpKind<const X: usize>: Flavour<SMatrix<f32, X, X>> {}
+
+impl<const X: usize, W: Flavour<SMatrix<f32, X, X>>> WarmUpKind<X> for W {}
 
 #[cfg(test)]
 #[path = "network_tests.rs"]

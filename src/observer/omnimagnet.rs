@@ -221,8 +221,8 @@
 //! network observer would run the build-time linearisation for ever (3.7 K
 //! off a solenoid left to the model at 7 A) or carry the refresh: the
 //! model in the *state* (the [`MeanModel`], in RAM: the Omnimagnet state is
-//! 7 336 B where the network observer keeps its tables in flash), its
-//! install between ticks (3 372 instructions, QEMU `observer_m4`) and the
+//! 3 496 B where the network observer keeps its tables in flash), its
+//! install between ticks (3 060 instructions, QEMU `observer_m4`) and the
 //! watchdog's add and compare on every tick, work the linear network
 //! observer's tick (network_roundtrip 389 mean / 1 074 worst,
 //! motor_qemu 1 173 / 3 435, ticking their generated `static OBSERVER`)
@@ -308,10 +308,12 @@
 //!   the per-step time-varying filter in `f64` the held priors agree
 //!   within 1.3e-4 (relative) after 200 periods. Measured in
 //!   `examples/omni_start_m4.rs` (Cortex-M4F, `observer_m4`'s 5 ms
-//!   configuration): plain ticks 926 instructions mean, 3 377 worst (the
-//!   steady filter: 718 and 3 086), a correction 3 336 (2 647); the start
-//!   itself, once, 2.9 million; the state 7 264 B (3 552 B before: the
-//!   covariance and what the correction needs, 3.7 KiB);
+//!   configuration): plain ticks 837 instructions mean, 3 312 worst (the
+//!   steady filter's state: 671 and 3 022), a correction 3 023 (2 288);
+//!   the start itself, once, 2.9 million; the state 7 208 B (the
+//!   covariance and what the correction needs, 3.7 KiB; a state of the
+//!   [`NoWarmUp`] flavour, which [`OmniObserver::state`] and the restores
+//!   without readings return, 3 496 B: it holds none of it);
 //! * **the protection follows it**: the upper bound widens by `k` times the
 //!   held deviation, on the insulations no higher than
 //!   [`start::START_BELOW_LIMIT_K`] below the limit
@@ -404,6 +406,8 @@ use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
 use super::vocabulary::{FilteredOutputs, SensorChecks, EVENT_CAPACITY};
 pub use super::vocabulary::{SensorStatus, TimedReading};
+use super::warm_up::Flavour;
+pub use super::warm_up::{NoWarmUp, WarmUp};
 use crate::error::BuildError;
 use crate::filter::{update_against, update_steady, SteadyEstimate, UpdateReport};
 use crate::input::{InputFlags, InputLimits, ScalarLimits};
@@ -419,7 +423,9 @@ use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
-use crate::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
+use crate::protect::predict::{
+    AnswersWhenAsked, LimitPredictor, Operating, PredictorBuilder, PredictorState,
+};
 
 mod parts;
 
@@ -467,7 +473,44 @@ const SENSOR_MEASURED: [usize; THERMOCOUPLES] = {
     out
 };
 /// The start's covariance as the Omnimagnet holds it.
-type OmniHeld = HeldCovariance<STATES, SOLENOIDS, THERMOCOUPLES>;
+type StartCovariance = HeldCovariance<STATES, SOLENOIDS, THERMOCOUPLES>;
+
+/// What the Omnimagnet's warm-up holds (the `H` of its [`WarmUp`]
+/// flavour, opaque): the start's covariance while the warm-up of
+/// [`OmniObserver::start`] runs (about 3.7 KiB) and its widening of the
+/// alarm elements' bounds. A state of the [`NoWarmUp`] flavour carries
+/// neither.
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone)]
+pub struct OmniHeld {
+    /// The start's covariance while its warm-up runs; idle when the state
+    /// was given the flavour by [`OmniObserver::with_warm_up`].
+    cov: StartCovariance,
+    /// The start's widening of each [`ALARM_NODES`] element's bound at
+    /// the last protection stage \[K\] (the predictor's limits follow it).
+    extra_k: [f32; ALARM_NODES.len()],
+}
+
+impl OmniHeld {
+    /// Nothing held: the steady filter from the first tick.
+    fn idle() -> Self {
+        Self {
+            cov: StartCovariance::idle(),
+            extra_k: [0.0; ALARM_NODES.len()],
+        }
+    }
+}
+
+/// An Omnimagnet state's warm-up flavour (see [`super::warm_up`]):
+/// [`NoWarmUp`], or [`WarmUp`] holding [`OmniHeld`] (sealed).
+pub trait OmniWarmUpKind: Flavour<OmniHeld> {}
+
+impl<W: Flavour<OmniHeld>> OmniWarmUpKind for W {}
+
+/// No widening of the alarm elements' bounds (a state without a warm-up,
+/// or one whose warm-up has ended).
+const NO_EXTRA_K: [f32; ALARM_NODES.len()] = [0.0; ALARM_NODES.len()];
 
 /// A limit no Omnimagnet winding reaches \[degC\], for the predictor,
 /// which takes each winding's power at its node's limit (so it must be
@@ -683,9 +726,19 @@ pub struct OmniObserver {
 
 /// The per-device state.
 ///
+/// `W` says whether it can run the start's warm-up (see
+/// [`OmniWarmUpKind`]): [`NoWarmUp`] for the states of
+/// [`OmniObserver::state`], [`OmniObserver::restore`],
+/// [`OmniObserver::restore_after`] and [`OmniObserver::conservative_state`],
+/// which hold no start covariance and whose ticks are compiled without the
+/// warm-up's code; [`WarmUp`] (the default) for those of
+/// [`OmniObserver::start`], [`OmniObserver::restore_with_readings`] and
+/// [`OmniObserver::with_warm_up`], the one type of a firmware that
+/// restores and falls back to a start.
+///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone)]
-pub struct OmniObserverState {
+pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     /// The filter's estimate (deviations from `model`'s origin \[K\], then
     /// the heat-input biases \[W\]) and gate memory.
     pub estimate: SteadyEstimate<f32, STATES, THERMOCOUPLES>,
@@ -697,7 +750,7 @@ pub struct OmniObserverState {
     /// The alarm's state.
     pub alarm: AlarmState<f32, 6>,
     /// The predictor's sweep.
-    pub predictor: PredictorState<f32, NODES, SOLENOIDS>,
+    pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
     /// The time not yet simulated.
     pub clock: ClockState,
     /// Alarm events not yet drained.
@@ -739,15 +792,12 @@ pub struct OmniObserverState {
     /// Model steps since the state was made or a model was last
     /// installed (saturating), for the refresh watchdog.
     model_age_steps: u32,
-    /// The start's covariance while its warm-up runs (see
-    /// [`OmniObserver::start`]); idle for every other state.
-    held: OmniHeld,
-    /// The start's widening of each [`ALARM_NODES`] element's bound at
-    /// the last protection stage \[K\] (the predictor's limits follow it).
-    held_extra_k: [f32; ALARM_NODES.len()],
+    /// What the start's warm-up holds (see [`OmniObserver::start`]):
+    /// nothing in the [`NoWarmUp`] flavour.
+    warm: W,
 }
 
-impl OmniObserverState {
+impl<W: OmniWarmUpKind> OmniObserverState<W> {
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &OmniOutputs {
         &self.outputs
@@ -756,7 +806,73 @@ impl OmniObserverState {
     /// The start's warm-up runs: the filter holds the covariance of
     /// [`OmniObserver::start`] until it settles on the steady one.
     pub fn warming_up(&self) -> bool {
-        self.held.active()
+        self.warm.held().is_some_and(|held| held.cov.active())
+    }
+
+    /// The start's widening of each [`ALARM_NODES`] element's bound at
+    /// the last protection stage \[K\] (none without a warm-up).
+    fn held_extra_k(&self) -> &[f32; ALARM_NODES.len()] {
+        self.warm.held().map_or(&NO_EXTRA_K, |held| &held.extra_k)
+    }
+
+    /// This state in the flavour `V`, holding `warm`.
+    fn flavoured<V>(self, warm: V) -> OmniObserverState<V> {
+        let Self {
+            estimate,
+            model,
+            input,
+            alarm,
+            predictor,
+            clock,
+            events,
+            held_currents_a,
+            held_ambient_c,
+            cycle,
+            residual_k,
+            shadow_x,
+            shadow_residual_k,
+            stuck,
+            rewind,
+            silence,
+            shadow_block,
+            suspect,
+            outputs,
+            step_i2_a2_us,
+            step_mixed,
+            bias_check_due,
+            deferral,
+            relinearised,
+            model_age_steps,
+            warm: _,
+        } = self;
+        OmniObserverState {
+            estimate,
+            model,
+            input,
+            alarm,
+            predictor,
+            clock,
+            events,
+            held_currents_a,
+            held_ambient_c,
+            cycle,
+            residual_k,
+            shadow_x,
+            shadow_residual_k,
+            stuck,
+            rewind,
+            silence,
+            shadow_block,
+            suspect,
+            outputs,
+            step_i2_a2_us,
+            step_mixed,
+            bias_check_due,
+            deferral,
+            relinearised,
+            model_age_steps,
+            warm,
+        }
     }
 
     /// What the shutdown latch touches (its rules are every observer's).
@@ -1088,7 +1204,23 @@ impl OmniObserver {
     /// A state with every node at `temps_c` \[degC\], the build-time model,
     /// zero heat-input biases, the ambient at `ambient_c` \[degC\], no
     /// current, no alarm.
-    pub fn state(&self, temps_c: &[f32; NODES], ambient_c: f32) -> OmniObserverState {
+    ///
+    /// It runs no warm-up ([`NoWarmUp`]): it holds no start covariance, and
+    /// a firmware that ticks only such states links none of the warm-up's
+    /// code. [`Self::with_warm_up`] gives it the flavour of
+    /// [`Self::start`]'s states.
+    pub fn state(&self, temps_c: &[f32; NODES], ambient_c: f32) -> OmniObserverState<NoWarmUp> {
+        self.state_holding(temps_c, ambient_c, NoWarmUp)
+    }
+
+    /// [`Self::state`] in the flavour `W`, holding `warm` (made in place:
+    /// a start's state is not moved from one flavour to the other).
+    fn state_holding<W: OmniWarmUpKind>(
+        &self,
+        temps_c: &[f32; NODES],
+        ambient_c: f32,
+        warm: W,
+    ) -> OmniObserverState<W> {
         let model = *self.filter.model();
         let mut x = SVector::<f32, STATES>::zeros();
         for (i, t) in temps_c.iter().enumerate() {
@@ -1097,7 +1229,6 @@ impl OmniObserver {
         let mut input = SVector::<f32, INPUTS>::zeros();
         input[SOLENOIDS] = ambient_c;
         input[INPUTS - 1] = 1.0;
-        let held = OmniHeld::idle();
         let op = self.operating(
             temps_c,
             &[0.0; SOLENOIDS],
@@ -1109,7 +1240,7 @@ impl OmniObserver {
             model,
             input,
             alarm: AlarmState::new(&self.alarm),
-            predictor: PredictorState::new(&self.predictor, &op),
+            predictor: PredictorState::when_asked(&self.predictor, &op),
             clock: ClockState::default(),
             events: EventQueue::new(),
             held_currents_a: [0.0; SOLENOIDS],
@@ -1149,8 +1280,7 @@ impl OmniObserver {
             deferral: Deferral::default(),
             relinearised: false,
             model_age_steps: 0,
-            held,
-            held_extra_k: [0.0; ALARM_NODES.len()],
+            warm,
         };
         // Limits valid from the first tick: without this the first ticks
         // (until the cycle reaches the limiter) would clamp every command to
@@ -1159,16 +1289,26 @@ impl OmniObserver {
         state
     }
 
+    /// `state` in the flavour that can run the start's warm-up
+    /// ([`WarmUp`], the type [`Self::start`] returns), holding nothing yet:
+    /// it ticks as it would have, to the bit. For a firmware that keeps
+    /// one state type for a restore and its fallback, a start.
+    pub fn with_warm_up(&self, state: OmniObserverState<NoWarmUp>) -> OmniObserverState {
+        state.flavoured(WarmUp {
+            held: OmniHeld::idle(),
+        })
+    }
+
     /// The estimated temperature of every element \[degC\] now (the
     /// outputs carry the same after each tick).
-    pub fn temps_c(&self, state: &OmniObserverState) -> [f32; NODES] {
+    pub fn temps_c<W: OmniWarmUpKind>(&self, state: &OmniObserverState<W>) -> [f32; NODES] {
         let origin = state.model.origin_c();
         core::array::from_fn(|i| origin[i] + state.estimate.x[i])
     }
 
     /// The estimated heat-input bias of each solenoid \[W\]: what the
     /// model misses in its heat balance.
-    pub fn heat_bias_w(&self, state: &OmniObserverState) -> [f32; SOLENOIDS] {
+    pub fn heat_bias_w<W: OmniWarmUpKind>(&self, state: &OmniObserverState<W>) -> [f32; SOLENOIDS] {
         core::array::from_fn(|m| state.estimate.x[NODES + m])
     }
 
@@ -1204,9 +1344,9 @@ impl OmniObserver {
     ///
     /// # Errors
     /// As [`Self::prepare_model`]; nothing changes then.
-    pub fn install_model(
+    pub fn install_model<W: OmniWarmUpKind>(
         &self,
-        state: &mut OmniObserverState,
+        state: &mut OmniObserverState<W>,
         model: &MeanModel<f32>,
     ) -> Result<(), BuildError> {
         self.check_model(model)?;
@@ -1254,9 +1394,9 @@ impl OmniObserver {
     /// the protection cycle (see the module docs). Bounded
     /// (`max_steps_per_tick` steps, one correction, one stage),
     /// allocation-free, panic-free.
-    pub fn tick<'s>(
+    pub fn tick<'s, W: OmniWarmUpKind>(
         &self,
-        state: &'s mut OmniObserverState,
+        state: &'s mut OmniObserverState<W>,
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let debt_before_us = state.clock.debt_us;
@@ -1368,7 +1508,7 @@ impl OmniObserver {
                     &state.outputs.temps_c,
                     state.cycle.peak_currents_a(),
                     state.held_ambient_c,
-                    &state.held_extra_k,
+                    state.held_extra_k(),
                 );
                 state.predictor.tick(&self.predictor, &op);
                 state
@@ -1399,7 +1539,7 @@ impl OmniObserver {
         if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
             self.age_time_to_limit(state);
         }
-        if state.held.active() {
+        if state.warming_up() {
             // The start's covariance: slices on a light tick (no
             // correction, no protection stage, no step longer than the
             // loop's tick unless the tick lasted as long: a loop slower
@@ -1407,7 +1547,9 @@ impl OmniObserver {
             let owed_us = steps.steps.saturating_mul(self.step_us);
             let lasted = steps.steps <= 1 && owed_us <= inputs.elapsed_us;
             let light = stage == Stage::Idle && !corrected && (!busy || lasted);
-            self.hold_start(state, steps.steps, light, inputs.elapsed_us);
+            if let Some(held) = state.warm.held_mut() {
+                self.hold_start(&mut held.cov, steps.steps, light, inputs.elapsed_us);
+            }
         }
         state.outputs.finish_tick(flags, &steps);
         &state.outputs
@@ -1428,9 +1570,9 @@ impl OmniObserver {
     /// with the exact mean power of its ticks' currents at its start
     /// temperature, where the held current would sample (alias) a current
     /// that changes within the step, and could read cold.
-    fn step_mean_square(
+    fn step_mean_square<W: OmniWarmUpKind>(
         &self,
-        state: &mut OmniObserverState,
+        state: &mut OmniObserverState<W>,
         previous_a: &[f32; SOLENOIDS],
         debt_before_us: u32,
         elapsed_us: u32,
@@ -1484,11 +1626,11 @@ impl OmniObserver {
 
     /// The predictor's answers for the [`ALARM_NODES`], made older by the
     /// time it lags behind (never later than its own answer).
-    fn age_time_to_limit(&self, state: &mut OmniObserverState) {
+    fn age_time_to_limit<W: OmniWarmUpKind>(&self, state: &mut OmniObserverState<W>) {
         let lag_s = state.cycle.lag_s();
-        let ttl = state.predictor.time_to_limit_s();
+        let predictor = &state.predictor;
         for (time, node) in state.outputs.time_to_limit_s.iter_mut().zip(ALARM_NODES) {
-            *time = aged_time_to_limit(ttl.get(node).copied().flatten(), lag_s);
+            *time = aged_time_to_limit(predictor.time_to_limit_of(node), lag_s);
         }
     }
 
@@ -1499,16 +1641,18 @@ impl OmniObserver {
     /// lying sensor dragged on one is felt by the model of the others; and
     /// a placement that needs the refresh cannot be trusted on a model the
     /// refresh no longer follows.
-    fn publish_upper(&self, state: &mut OmniObserverState) {
+    fn publish_upper<W: OmniWarmUpKind>(&self, state: &mut OmniObserverState<W>) {
         let stale = self.refresh.stale(state.model_age_steps);
         let amb = state.held_ambient_c;
         let out = &mut state.outputs;
         self.bound.upper_c(&out.temps_c, amb, &mut out.upper_c);
-        if state.held.active() {
+        match state.warm.held_mut() {
             // The covariance held, not the steady one (see `super::start`).
-            self.widen_held(&state.held, &mut out.upper_c, &mut state.held_extra_k, amb);
-        } else {
-            state.held_extra_k = [0.0; ALARM_NODES.len()];
+            Some(held) if held.cov.active() => {
+                self.widen_held(&held.cov, &mut out.upper_c, &mut held.extra_k, amb);
+            }
+            Some(held) => held.extra_k = NO_EXTRA_K,
+            None => {}
         }
         if !state.suspect.any() && !stale {
             return;
@@ -1531,7 +1675,7 @@ impl OmniObserver {
     /// kept in `alarm_extra_k` \[K\] for the predictor).
     fn widen_held(
         &self,
-        held: &OmniHeld,
+        held: &StartCovariance,
         upper_c: &mut [f32; NODES],
         alarm_extra_k: &mut [f32; ALARM_NODES.len()],
         ambient_c: f32,
@@ -1619,7 +1763,11 @@ impl OmniObserver {
     /// network observer's "Sensors against the physics"), and runs one
     /// steady-state correction if any is usable; returns whether it ran and
     /// the common-mode flag.
-    fn correct(&self, state: &mut OmniObserverState, inputs: &OmniInputs) -> (bool, InputFlags) {
+    fn correct<W: OmniWarmUpKind>(
+        &self,
+        state: &mut OmniObserverState<W>,
+        inputs: &OmniInputs,
+    ) -> (bool, InputFlags) {
         if inputs.readings.iter().all(Option::is_none) {
             // Most ticks: nothing to sort, screen or fuse; only the silence
             // watch runs (the same statuses as the full path below).
@@ -1642,9 +1790,9 @@ impl OmniObserver {
     /// without a reading paid for its prologue (about 150 instructions
     /// in `observer_m4`).
     #[inline(never)]
-    fn fuse_readings(
+    fn fuse_readings<W: OmniWarmUpKind>(
         &self,
-        state: &mut OmniObserverState,
+        state: &mut OmniObserverState<W>,
         inputs: &OmniInputs,
     ) -> (bool, InputFlags) {
         let fitted = self.filter.settings().sensors;
@@ -1718,7 +1866,7 @@ impl OmniObserver {
             }
             return (false, flags);
         }
-        let report = if state.held.active() {
+        let report = if state.warming_up() {
             self.correct_held(state, &z)
         } else {
             update_steady(
@@ -1752,7 +1900,7 @@ impl OmniObserver {
     /// The heat-input biases against the band's image at the last step's
     /// Joule powers (at the estimate): [`InputFlags::HEAT_BIAS_BEYOND_MODEL`]
     /// when one is beyond it.
-    fn check_heat_bias(&self, state: &OmniObserverState) -> InputFlags {
+    fn check_heat_bias<W: OmniWarmUpKind>(&self, state: &OmniObserverState<W>) -> InputFlags {
         let powers_w = core::array::from_fn(|m| state.input[m]);
         let biases_w = state.estimate.x.iter().skip(NODES);
         if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
@@ -1768,7 +1916,11 @@ impl OmniObserver {
     /// The build-time linearisation at the ambient runs hot, and a healthy
     /// negative bias corrects it: dropping it put a stuck thermocouple's
     /// solenoid (one per solenoid, 3.1 A) 2.56 K off instead of 1.91 K.
-    fn drop_cold_biases(&self, state: &mut OmniObserverState, doubt: &[bool; SOLENOIDS]) {
+    fn drop_cold_biases<W: OmniWarmUpKind>(
+        &self,
+        state: &mut OmniObserverState<W>,
+        doubt: &[bool; SOLENOIDS],
+    ) {
         if state.relinearised {
             drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
         }
@@ -1783,13 +1935,16 @@ impl OmniObserver {
     /// subset update (`6 x 6` Cholesky, `19 x 6`) and its `19 x 6` and
     /// `6 x 6` inputs.
     #[inline(never)]
-    fn correct_held(
+    fn correct_held<W: OmniWarmUpKind>(
         &self,
-        state: &mut OmniObserverState,
+        state: &mut OmniObserverState<W>,
         z: &[Option<f32>; THERMOCOUPLES],
     ) -> UpdateReport<THERMOCOUPLES> {
         let kalman = self.filter.kalman();
-        let (gain, innovation_var, prior_ht, innovation_cov) = state.held.correction();
+        let Some(OmniHeld { cov: held, .. }) = state.warm.held_mut() else {
+            return update_steady(kalman, self.filter.gain(), &mut state.estimate, z);
+        };
+        let (gain, innovation_var, prior_ht, innovation_cov) = held.correction();
         let report = update_against(
             kalman,
             gain,
@@ -1800,8 +1955,8 @@ impl OmniObserver {
             z,
         );
         let recovery = report.recovered.then_some(&kalman.recovery_variance);
-        state.held.corrected(&report.verdicts, recovery);
-        if !state.held.forgotten() {
+        held.corrected(&report.verdicts, recovery);
+        if !held.forgotten() {
             // The shadow, started from the start's guesses, knows no more
             // than the filter: it follows the filter until the solenoids'
             // and the insulations' bounds have forgotten the start, then
@@ -1827,9 +1982,15 @@ impl OmniObserver {
     /// A light tick takes [`Self::held_slices_per_tick`] slices, times the
     /// loop's ticks it lasted (`elapsed_us` over the declared loop period:
     /// a loop slower than declared still propagates once a period).
+    ///
+    /// Not generic over the state's flavour (it takes what the warm-up
+    /// holds): compiled in this crate as before the flavours, its slices
+    /// keep their code; instantiated in the firmware's crate, the row
+    /// pairs took about 900 instructions more each (measured,
+    /// `omni_start_m4`).
     #[inline(never)]
-    fn hold_start(&self, state: &mut OmniObserverState, steps: u32, light: bool, elapsed_us: u32) {
-        state.held.stepped(steps);
+    fn hold_start(&self, held: &mut StartCovariance, steps: u32, light: bool, elapsed_us: u32) {
+        held.stepped(steps);
         if !light {
             return;
         }
@@ -1845,7 +2006,7 @@ impl OmniObserver {
                 .saturating_mul(ticks_lasted)
                 .min(start::period_slices(STATES, NODES));
         }
-        let settled = state.held.work_slices(
+        let settled = held.work_slices(
             slices,
             self.shadow_block_steps,
             &transition,
@@ -1854,7 +2015,7 @@ impl OmniObserver {
             &self.filter.kalman().recovery_variance,
         );
         if settled == Some(true) {
-            state.held.end();
+            held.end();
         }
     }
     /// Writes a snapshot of the node estimates \[degC\] and the latched
@@ -1862,9 +2023,9 @@ impl OmniObserver {
     /// (`snapshot_len(16)` bytes). The heat-input biases are not saved: a
     /// restored state starts them at zero with the build-time model, and the
     /// thermocouples bring them back within minutes.
-    pub fn save(
+    pub fn save<W: OmniWarmUpKind>(
         &self,
-        state: &OmniObserverState,
+        state: &OmniObserverState<W>,
         now_s: u32,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
@@ -1885,7 +2046,7 @@ impl OmniObserver {
         now_s: u32,
         max_age_s: u32,
         ambient_c: f32,
-    ) -> Result<OmniObserverState, SnapshotError> {
+    ) -> Result<OmniObserverState<NoWarmUp>, SnapshotError> {
         self.restore_cooled(bytes, now_s, max_age_s, ambient_c, None, |saved_c, _| {
             Ok(*saved_c)
         })
@@ -1920,7 +2081,7 @@ impl OmniObserver {
         max_age_s: u32,
         ambient_c: f32,
         off_s: Option<f32>,
-    ) -> Result<OmniObserverState, SnapshotError> {
+    ) -> Result<OmniObserverState<NoWarmUp>, SnapshotError> {
         self.restore_cooled(
             bytes,
             now_s,
@@ -1942,7 +2103,7 @@ impl OmniObserver {
         ambient_c: f32,
         off_s: Option<f32>,
         cool: impl FnOnce(&[f32; NODES], f32) -> Result<[f32; NODES], SnapshotError>,
-    ) -> Result<OmniObserverState, SnapshotError> {
+    ) -> Result<OmniObserverState<NoWarmUp>, SnapshotError> {
         let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
         let (saved_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut held_c = ambient_c;
@@ -1962,7 +2123,7 @@ impl OmniObserver {
         temps_c: &[f32; NODES],
         meta: &SnapshotMeta,
         ambient_c: f32,
-    ) -> OmniObserverState {
+    ) -> OmniObserverState<NoWarmUp> {
         let mut state = self.state(temps_c, ambient_c);
         state.latch().restore(meta);
         state
@@ -2028,7 +2189,7 @@ impl OmniObserver {
         let readings_c = start::restore_readings(readings_c, &fitted, ambient_c, tolerance_k);
         let usable = readings_c.iter().any(Option::is_some);
         if !(ambient_ok && usable) {
-            return Ok(self.restored(&saved_c, &meta, ambient_c));
+            return Ok(self.with_warm_up(self.restored(&saved_c, &meta, ambient_c)));
         }
         if plant_fingerprint(model) != self.plant_fingerprint {
             return Err(SnapshotError::CoolingModelMismatch);
@@ -2099,7 +2260,7 @@ impl OmniObserver {
         &self,
         readings_c: &[Option<f32>; THERMOCOUPLES],
         ambient_c: f32,
-    ) -> OmniObserverState {
+    ) -> OmniObserverState<NoWarmUp> {
         let temps = snapshot::conservative_start::<NODES, THERMOCOUPLES>(
             readings_c,
             &THERMOCOUPLE_NODES,
@@ -2207,7 +2368,13 @@ impl OmniObserver {
             _ => f32::NAN,
         });
         start::cap_unread_c(&mut temps, read, &limited, &ceiling_c);
-        let mut state = self.state(&temps, ambient_c);
+        let mut state = self.state_holding(
+            &temps,
+            ambient_c,
+            WarmUp {
+                held: OmniHeld::idle(),
+            },
+        );
         let mut steady_upper_c = [0.0; NODES];
         self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
         let prior = self.filter.gain().prior();
@@ -2243,11 +2410,11 @@ impl OmniObserver {
                 MEASURED_NODES.contains(&i) || limited.get(i) == Some(&true)
             }),
         };
-        state.held = OmniHeld::start(cov, layout);
+        state.warm.held.cov = StartCovariance::start(cov, layout);
         self.publish_upper(&mut state);
         // The predictor's first sweep towards the held bound's limits.
-        let op = self.operating(&temps, &[0.0; SOLENOIDS], ambient_c, &state.held_extra_k);
-        state.predictor = PredictorState::new(&self.predictor, &op);
+        let op = self.operating(&temps, &[0.0; SOLENOIDS], ambient_c, state.held_extra_k());
+        state.predictor = PredictorState::when_asked(&self.predictor, &op);
         self.limit(&mut state.outputs, ambient_c);
         state
     }
@@ -2326,7 +2493,10 @@ impl OmniObserver {
     /// # Errors
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
-    pub fn clear_shutdown(&self, state: &mut OmniObserverState) -> Result<(), ResetError> {
+    pub fn clear_shutdown<W: OmniWarmUpKind>(
+        &self,
+        state: &mut OmniObserverState<W>,
+    ) -> Result<(), ResetError> {
         state.latch().clear(&self.alarm)
     }
 }

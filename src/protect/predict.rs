@@ -594,7 +594,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 
     /// Evaluates grid point `k` for the open elements from `first` on, at
     /// most `budget` of them (elements without a limit are resolved at no
-    /// cost).
+    /// cost). Not inlined: inlined into the Omnimagnet's tick (since its
+    /// state's flavour made the tick generic, instantiated in the
+    /// firmware's crate) it made the predictor's stages about 200
+    /// instructions dearer (`observer_m4`: combined worst 6 914 -> 7 048).
+    #[inline(never)]
     fn evaluate_point(
         &self,
         snapshot: &Snapshot<T, N>,
@@ -761,10 +765,63 @@ fn first_crossing<T: RealField + Copy>(
     None
 }
 
+/// Where a [`PredictorState`] keeps its answers (sealed): every element's
+/// time to its limit made at each tick (`[Option<T>; N]`, the default: for
+/// an observer that reads them all on every tick, and
+/// [`PredictorState::tick`] hands them out), or none ([`AnswersWhenAsked`]).
+pub trait Answers<T, const N: usize>:
+    answers::Store<T, N> + Clone + core::fmt::Debug + PartialEq
+{
+}
+
+impl<T: Clone + core::fmt::Debug + PartialEq, const N: usize> Answers<T, N> for [Option<T>; N] {}
+impl<T, const N: usize> Answers<T, N> for AnswersWhenAsked {}
+
+/// The answers kept by no [`PredictorState`]: each element's time to its
+/// limit is made when asked ([`PredictorState::time_to_limit_of`]), from
+/// the crossings the state keeps anyway. For an observer that reads a few
+/// elements' (the Omnimagnet reads its six alarm elements' of 16: 128 B of
+/// its state not kept).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct AnswersWhenAsked;
+
+mod answers {
+    /// Keeps the answers made at each tick, or not.
+    pub trait Store<T, const N: usize> {
+        /// The answers, each element's `make` of its crossing `from`.
+        fn made<U: Copy>(from: &[U; N], make: impl FnMut(U) -> Option<T>) -> Self;
+        /// Makes them again.
+        fn remake<U: Copy>(&mut self, from: &[U; N], make: impl FnMut(U) -> Option<T>);
+    }
+
+    impl<T, const N: usize> Store<T, N> for [Option<T>; N] {
+        #[inline(always)]
+        fn made<U: Copy>(from: &[U; N], make: impl FnMut(U) -> Option<T>) -> Self {
+            from.map(make)
+        }
+        #[inline(always)]
+        fn remake<U: Copy>(&mut self, from: &[U; N], mut make: impl FnMut(U) -> Option<T>) {
+            for (out, crossing) in self.iter_mut().zip(from) {
+                *out = make(*crossing);
+            }
+        }
+    }
+
+    impl<T, const N: usize> Store<T, N> for super::AnswersWhenAsked {
+        #[inline(always)]
+        fn made<U: Copy>(_: &[U; N], _: impl FnMut(U) -> Option<T>) -> Self {
+            Self
+        }
+        #[inline(always)]
+        fn remake<U: Copy>(&mut self, _: &[U; N], _: impl FnMut(U) -> Option<T>) {}
+    }
+}
+
 /// The sliced predictor's per-device state: a sweep in progress and the
-/// last published answers.
+/// last published answers (as crossings and their age; each element's time
+/// to its limit kept too unless `A` is [`AnswersWhenAsked`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct PredictorState<T, const N: usize, const M: usize> {
+pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]> {
     snapshot: Snapshot<T, N>,
     prev: [Parts<T>; N],
     sweep: [Crossing<T>; N],
@@ -777,13 +834,15 @@ pub struct PredictorState<T, const N: usize, const M: usize> {
     published: [Crossing<T>; N],
     published_age_s: T,
     peak_power_w: [T; M],
-    out: [Option<T>; N],
+    out: A,
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M> {
-    /// A state whose first answers come from one full sweep at `op` (build
-    /// time cost, so the first ticks already publish valid times).
-    pub fn new<const B: usize, const K: usize>(
+impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
+    PredictorState<T, N, M, A>
+{
+    /// A state whose first answers come from one full sweep at `op` (see
+    /// [`PredictorState::new`]).
+    fn build<const B: usize, const K: usize>(
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
     ) -> Self {
@@ -800,24 +859,25 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
             published: first,
             published_age_s: T::zero(),
             peak_power_w: powers,
-            out: first.map(|c| published(c, T::zero())),
+            out: A::made(&first, |c| published(c, T::zero())),
         }
     }
 
-    /// One tick: ages the published answers by the predictor's `tick_s`,
-    /// evaluates `points_per_tick` horizons (or at most
-    /// `elements_per_tick` elements, or the snapshot alone, when split) of
-    /// the sweep in progress
-    /// (starting a new sweep from `op` when none is), and returns every
-    /// element's time to its alarm limit \[s\] (`None`: never), ready for
-    /// [`AlarmState::tick`](super::alarm::AlarmState::tick).
-    ///
-    /// Bounded (`points_per_tick` horizons), allocation-free, panic-free.
-    pub fn tick<const B: usize, const K: usize>(
+    /// Element `i`'s time to its alarm limit \[s\] of the last tick, as
+    /// `time_to_limit_s` has it (`None` too for no such element).
+    pub fn time_to_limit_of(&self, i: usize) -> Option<T> {
+        let crossing = *self.published.get(i)?;
+        published(crossing, self.published_age_s)
+    }
+
+    /// The tick of [`PredictorState::tick`], its answers kept as `A` keeps
+    /// them.
+    #[inline(always)]
+    fn advance<const B: usize, const K: usize>(
         &mut self,
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
-    ) -> &[Option<T>; N] {
+    ) {
         let tick_s = predictor.tick_s;
         self.sweep_age_s += tick_s;
         self.published_age_s += tick_s;
@@ -872,15 +932,75 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
             }
         }
         let age = self.published_age_s;
-        for (out, crossing) in self.out.iter_mut().zip(&self.published) {
-            *out = published(*crossing, age);
-        }
+        self.out
+            .remake(&self.published, |crossing| published(crossing, age));
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M> {
+    /// A state whose first answers come from one full sweep at `op` (build
+    /// time cost, so the first ticks already publish valid times).
+    pub fn new<const B: usize, const K: usize>(
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+    ) -> Self {
+        Self::build(predictor, op)
+    }
+
+    /// One tick: ages the published answers by the predictor's `tick_s`,
+    /// evaluates `points_per_tick` horizons (or at most
+    /// `elements_per_tick` elements, or the snapshot alone, when split) of
+    /// the sweep in progress
+    /// (starting a new sweep from `op` when none is), and returns every
+    /// element's time to its alarm limit \[s\] (`None`: never), ready for
+    /// [`AlarmState::tick`](super::alarm::AlarmState::tick).
+    ///
+    /// Bounded (`points_per_tick` horizons), allocation-free, panic-free.
+    pub fn tick<const B: usize, const K: usize>(
+        &mut self,
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+    ) -> &[Option<T>; N] {
+        self.advance(predictor, op);
         &self.out
     }
 
     /// The answers of the last [`tick`](Self::tick) \[s\].
     pub fn time_to_limit_s(&self) -> &[Option<T>; N] {
         &self.out
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const M: usize>
+    PredictorState<T, N, M, AnswersWhenAsked>
+{
+    /// [`PredictorState::new`] for a state that keeps no answers.
+    pub fn when_asked<const B: usize, const K: usize>(
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+    ) -> Self {
+        Self::build(predictor, op)
+    }
+
+    /// One tick, as [`PredictorState::tick`] of a state that keeps its
+    /// answers: they are made when asked
+    /// ([`time_to_limit_of`](Self::time_to_limit_of),
+    /// [`time_to_limit_s`](Self::time_to_limit_s)).
+    ///
+    /// Bounded (`points_per_tick` horizons), allocation-free, panic-free.
+    pub fn tick<const B: usize, const K: usize>(
+        &mut self,
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+    ) {
+        self.advance(predictor, op);
+    }
+
+    /// Every element's time to its alarm limit \[s\] of the last tick
+    /// (`None`: never), made now.
+    pub fn time_to_limit_s(&self) -> [Option<T>; N] {
+        let age = self.published_age_s;
+        self.published.map(|crossing| published(crossing, age))
     }
 }
 

@@ -311,10 +311,18 @@ fn sliced_answers_are_the_full_answers_aged() {
     predictor.predict(&op, &mut full);
     let mut state = PredictorState::new(&predictor, &op);
     assert_eq!(state.time_to_limit_s(), &full);
+    // The same state keeping no answers makes the same ones when asked.
+    let mut asked = PredictorState::when_asked(&predictor, &op);
+    let bits = |a: Option<f32>| a.map(f32::to_bits);
+    assert_eq!(asked.time_to_limit_s(), full);
+    assert_eq!(asked.time_to_limit_of(4), None);
     let tick = predictor.tick_s();
     for k in 1..=500 {
         let out = *state.tick(&predictor, &op);
+        asked.tick(&predictor, &op);
+        assert_eq!(asked.time_to_limit_s().map(bits), out.map(bits));
         for e in 0..4 {
+            assert_eq!(bits(asked.time_to_limit_of(e)), bits(out[e]));
             let (Some(f), Some(o)) = (full[e], out[e]) else {
                 assert_eq!(full[e], out[e]);
                 continue;

@@ -131,9 +131,9 @@ fn from_parts_refuses_what_new_refuses_and_the_fingerprint_covers_the_refresh() 
 }
 
 /// One tick of 1 ms at 7 A, with readings every 500 ms when given.
-fn tick(
+fn tick<W: OmniWarmUpKind>(
     observer: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     k: u32,
     readings_c: Option<[f32; THERMOCOUPLES]>,
 ) -> OmniOutputs {
@@ -188,7 +188,9 @@ fn a_refresh_that_stops_is_flagged_and_the_protection_takes_the_shadow_bound() {
     };
     let stale_after = 30_000;
     let mut k = 0;
-    let mut run_to = |state: &mut OmniObserverState, physics: &mut OmniObserverState, end: u32| {
+    let mut run_to = |state: &mut OmniObserverState<NoWarmUp>,
+                      physics: &mut OmniObserverState<NoWarmUp>,
+                      end: u32| {
         let mut last = None;
         while k < end {
             let p = tick(&observer, physics, k, None);

@@ -38,7 +38,13 @@ fn drive(
     current_a: f64,
     seconds: u32,
     mut tamper: impl FnMut(u32, &mut [f32; THERMOCOUPLES]),
-    mut after: impl FnMut(u32, &OmniObserver, &mut OmniObserverState, &OmniOutputs, &[f64; NODES]),
+    mut after: impl FnMut(
+        u32,
+        &OmniObserver,
+        &mut OmniObserverState<NoWarmUp>,
+        &OmniOutputs,
+        &[f64; NODES],
+    ),
 ) {
     let observer = OmniObserver::new(
         &Omnimagnet::PAPER,

@@ -113,9 +113,9 @@ struct Run {
 /// against the plant, for `seconds`; readings every 0.5 s; the model
 /// re-linearised at the estimate every 10 s from the first tick on.
 /// Scores the bound from `score_from_s`.
-fn drive(
+fn drive<W: OmniWarmUpKind>(
     obs: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     plant: &mut Plant,
     seconds: u32,
     score_from_s: f64,
@@ -125,9 +125,9 @@ fn drive(
 
 /// [`drive`] on a loop that ticks every `tick_ms` (a divisor of
 /// [`PLANT_MS`]).
-fn drive_ticking(
+fn drive_ticking<W: OmniWarmUpKind>(
     obs: &OmniObserver,
-    state: &mut OmniObserverState,
+    state: &mut OmniObserverState<W>,
     plant: &mut Plant,
     seconds: u32,
     score_from_s: f64,
@@ -194,7 +194,9 @@ fn drive_ticking(
         if !widened && run.protection_settled_s.is_none() {
             run.protection_settled_s = Some(t_s);
         }
-        if (!state.warming_up() || state.held.forgotten()) && run.shadow_free_s.is_none() {
+        if (!state.warming_up() || state.warm.held().is_some_and(|held| held.cov.forgotten()))
+            && run.shadow_free_s.is_none()
+        {
             run.shadow_free_s = Some(t_s);
         }
         if !state.warming_up() && run.settled_s.is_none() {
@@ -234,8 +236,8 @@ fn drive_ticking(
 /// The device at its hottest point: [`HEAT_S`] of what the observer
 /// allows of 8 A from a cold plant, and the observer's last state (shared
 /// by the tests: the run takes seconds).
-fn hot() -> &'static (Plant, OmniObserverState) {
-    static HOT: OnceLock<(Plant, OmniObserverState)> = OnceLock::new();
+fn hot() -> &'static (Plant, OmniObserverState<NoWarmUp>) {
+    static HOT: OnceLock<(Plant, OmniObserverState<NoWarmUp>)> = OnceLock::new();
     HOT.get_or_init(|| {
         let obs = observer();
         let amb = AMBIENT_C as f32;
@@ -562,7 +564,7 @@ fn the_held_covariance_is_the_period_riccati_recursion() {
     let (fk, qk) = k_step_model(kalman.f(), kalman.q(), exact.period());
     let mut reference = KalmanState::<f64, STATES, THERMOCOUPLES>::new(
         nalgebra::SVector::zeros(),
-        state.held.prior().unwrap().cast(),
+        state.warm.held.cov.prior().unwrap().cast(),
     );
     let fused = [crate::filter::SensorVerdict::Fused { nis: 0.0 }; THERMOCOUPLES];
     let gain = obs.filter.gain();
@@ -572,16 +574,16 @@ fn the_held_covariance_is_the_period_riccati_recursion() {
     };
     let mut slices = 0;
     for period in 1..=200 {
-        state.held.corrected(&fused, None);
+        state.warm.held.cov.corrected(&fused, None);
         reference.x = nalgebra::SVector::zeros();
         update(kalman, &mut reference, &[Some(0.0); THERMOCOUPLES]);
         let mut next = qk;
         next.quadform_tr(1.0, &fk, &reference.cov, 1.0);
         reference.cov = next.symmetric_part();
-        state.held.stepped(obs.shadow_block_steps);
+        state.warm.held.cov.stepped(obs.shadow_block_steps);
         let mut done = None;
         while done.is_none() {
-            done = state.held.work(
+            done = state.warm.held.cov.work(
                 obs.shadow_block_steps,
                 &transition,
                 gain.prior(),
@@ -591,7 +593,7 @@ fn the_held_covariance_is_the_period_riccati_recursion() {
             slices += 1;
         }
         if [1, 10, 200].contains(&period) {
-            let held = state.held.prior().unwrap();
+            let held = state.warm.held.cov.prior().unwrap();
             let worst = (0..STATES)
                 .map(|i| (f64::from(held[(i, i)]) / reference.cov[(i, i)] - 1.0).abs())
                 .fold(0.0, f64::max);
