@@ -893,6 +893,7 @@ impl ObserverEstimator {
         };
         to_f32(currents_a, &mut self.input_f32);
         to_f32(signals, &mut self.signal_f32);
+        self.currents_f32.resize(self.firmware_inputs.len(), 0.0);
         self.firmware_inputs
             .currents_a(&self.input_f32, &self.signal_f32, &mut self.currents_f32);
         self.currents.clear();

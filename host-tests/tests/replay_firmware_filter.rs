@@ -430,12 +430,13 @@ proptest::proptest! {
                     .zip(module)
                     .all(|(h, m)| h.to_bits() == m.to_bits() || (h.is_nan() && m.is_nan()))
         };
-        let mut host = Vec::new();
         let motor = FirmwareInputs::new(&load("hust_motor_slot_fitted.toml"));
+        let mut host = vec![0.0; motor.len()];
         motor.currents_a(&input_a[..1], &signal[..1], &mut host);
         let module = hust_motor::source_currents_a(&[input_a[0]], &[signal[0]]);
         proptest::prop_assert!(same(&host, &module), "{:?} vs {:?}", host, module);
         let every = FirmwareInputs::new(&load("all-input-terms.toml"));
+        let mut host = vec![0.0; every.len()];
         every.currents_a(&input_a, &signal, &mut host);
         let module = all_input_terms::source_currents_a(&input_a, &signal);
         proptest::prop_assert!(same(&host, &module), "{:?} vs {:?}", host, module);

@@ -376,17 +376,27 @@ impl FirmwareInputs {
         }
     }
 
+    /// Number of currents (the network's sources).
+    pub fn len(&self) -> usize {
+        self.currents.len()
+    }
+
+    /// `true` for a model without a current.
+    pub fn is_empty(&self) -> bool {
+        self.currents.is_empty()
+    }
+
     /// Each current of the observer \[A\] from the model's inputs `input_a`
-    /// \[A\] and `signal`s, as `source_currents_a` (a missing input or
-    /// signal reads NaN, as a NaN cell does).
-    pub fn currents_a(&self, input_a: &[f32], signal: &[f32], out: &mut Vec<f32>) {
+    /// \[A\] and `signal`s, as `source_currents_a`, into `out` (the first
+    /// [`Self::len`]; a missing input or signal reads NaN, as a NaN cell
+    /// does).
+    pub fn currents_a(&self, input_a: &[f32], signal: &[f32], out: &mut [f32]) {
         let input = |k: usize| input_a.get(k).copied().unwrap_or(f32::NAN);
         let unit = |s: usize, reference: f64| {
             let v = signal.get(s).copied().unwrap_or(f32::NAN);
             <f32 as coil_thermal::Scalar>::abs(v) / f32_of(reference)
         };
-        out.clear();
-        out.extend(self.currents.iter().map(|c| match *c {
+        let currents = self.currents.iter().map(|c| match *c {
             CurrentOf::Input {
                 input: k,
                 speed: None,
@@ -420,7 +430,10 @@ impl FirmwareInputs {
                     }
                 }
             }
-        }));
+        });
+        for (o, c) in out.iter_mut().zip(currents) {
+            *o = c;
+        }
     }
 
     /// The voltage drive of network source `m` as `source_drives` gives it
@@ -437,6 +450,20 @@ impl FirmwareInputs {
             VoltageSource::Linear => {
                 VoltageDrive::linear(scale * <f32 as coil_thermal::Scalar>::abs(duty))
             }
+        })
+    }
+
+    /// The supply \[V\] at which `input_drive_limits` asks the library for
+    /// network source `m`'s drive limit: a `pwm` source's supply times its
+    /// power scale, 1 V for a linear one (its voltage limit does not depend
+    /// on it); `None` for a current drive.
+    pub fn limit_supply_v(&self, m: usize, signal: &[f32]) -> Option<f32> {
+        let d = self.model.drives.get(m)?;
+        let scale = f32_of(d.scale.max(0.0));
+        Some(match d.voltage? {
+            VoltageSource::PwmConstant(v) => scale * f32_of(v),
+            VoltageSource::PwmSignal(s) => scale * signal.get(s).copied().unwrap_or(f32::NAN),
+            VoltageSource::Linear => 1.0,
         })
     }
 

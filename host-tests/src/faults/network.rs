@@ -33,6 +33,7 @@ use super::{
     frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
     Subject, TickInputs, TickView,
 };
+use crate::codegen::FirmwareInputs;
 use crate::codegen::ObserverSpec;
 use crate::firmware::FirmwareConfig;
 use crate::limits::{on_big_stack, padded_with, Padding};
@@ -59,14 +60,16 @@ struct NetSubject<const C: usize, const X: usize, const P: usize> {
     limited: Vec<bool>,
     sensor_nodes: Vec<usize>,
     alarm_nodes: Vec<usize>,
-    /// Per source: its input and the factor on that input's current (the
-    /// square root of the source's scale: the same power).
-    drives: Vec<(usize, f32)>,
-    /// Per source: the constant supply \[V\] of a `pwm` drive, or `0` for
-    /// a linear `voltage` drive; `None` for a current drive. The observer
-    /// takes them through `tick_voltage`, and their limits are duties (or
-    /// volts) from `drive_limit`.
-    supplies: Vec<Option<f32>>,
+    /// The generated module's currents and drives from the model's inputs
+    /// (each power scale folded into its resistance, as `codegen` builds
+    /// the network).
+    firmware_inputs: FirmwareInputs,
+    /// Per source: the model input it is driven by.
+    source_input: Vec<usize>,
+    /// Some source is driven by a voltage: the observer takes the drives
+    /// through `tick_voltage`, and their limits are duties (or volts) from
+    /// `drive_limit`.
+    voltage_driven: bool,
     /// Per sensor: a winding's resistance (read in ohms, see
     /// [`resistance_measured`]), or `None` for a temperature.
     resistances: Vec<Option<ResistanceSensor>>,
@@ -97,7 +100,9 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         cfg: &FaultConfig,
     ) -> Result<Self, FaultError> {
         let invalid = |e: anyhow::Error| FaultError::Invalid(format!("{e:#}"));
-        let network = padded_with::<C>(&model.network, Padding::DECAYING).map_err(invalid)?;
+        // The network `codegen` generates: each power scale in its resistance.
+        let network =
+            padded_with::<C>(&model.firmware_network(), Padding::DECAYING).map_err(invalid)?;
         let mut slots = [0; P];
         slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
         let mut critical = [None; C];
@@ -165,21 +170,17 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
                     None => FaultError::Build(e),
                 }
             })?;
-        let mut supplies = Vec::new();
-        for (k, d) in model.drives.iter().enumerate() {
-            supplies.push(match d.voltage {
-                None => None,
-                Some(VoltageSource::PwmConstant(v)) => Some(v as f32),
-                Some(VoltageSource::Linear) => Some(0.0),
-                Some(VoltageSource::PwmSignal(_)) => {
-                    return Err(FaultError::Invalid(format!(
-                        "model `{}`: [[source]] #{} takes its supply from a trace column, and the campaign has no signal columns; \
-                         give it a constant supply_v for the campaign",
-                        model.name,
-                        k + 1
-                    )))
-                }
-            });
+        if let Some(k) = model
+            .drives
+            .iter()
+            .position(|d| matches!(d.voltage, Some(VoltageSource::PwmSignal(_))))
+        {
+            return Err(FaultError::Invalid(format!(
+                "model `{}`: [[source]] #{} takes its supply from a trace column, and the campaign has no signal columns; \
+                 give it a constant supply_v for the campaign",
+                model.name,
+                k + 1
+            )));
         }
         let plant = FilePlant::new(model.clone()).map_err(invalid)?;
         let mut alarm_nodes: Vec<usize> = (0..model.nodes.len())
@@ -197,12 +198,9 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             limited: model.critical_c.iter().map(Option::is_some).collect(),
             sensor_nodes,
             alarm_nodes,
-            drives: model
-                .drives
-                .iter()
-                .map(|d| (d.input, d.scale.max(0.0).sqrt() as f32))
-                .collect(),
-            supplies,
+            firmware_inputs: FirmwareInputs::new(model),
+            source_input: model.drives.iter().map(|d| d.input).collect(),
+            voltage_driven: model.has_voltage_drives(),
             resistances: firmware
                 .sensor_kinds
                 .iter()
@@ -271,10 +269,11 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         self.observer.with_warm_up(state)
     }
     fn tick(&self, state: &mut Self::State, i: &TickInputs<'_>) -> TickView {
+        // As the generated `source_currents_a` (no signal: the campaign
+        // refuses speed terms).
         let mut currents_a = [0.0; C];
-        for (c, (input, k)) in currents_a.iter_mut().zip(&self.drives) {
-            *c = i.currents_a.get(*input).copied().unwrap_or(0.0) * k;
-        }
+        self.firmware_inputs
+            .currents_a(i.currents_a, &[], &mut currents_a);
         let mut readings = [None; P];
         for (j, (r, z)) in readings.iter_mut().zip(i.readings).enumerate() {
             *r = match (z, self.resistances.get(j).copied().flatten()) {
@@ -296,25 +295,13 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             now_us: i.now_us,
             elapsed_us: i.elapsed_us,
         };
-        if self.supplies.iter().any(Option::is_some) {
-            // `scale D V^2 / R` is the duty `D` on the supply `k V`, `k =
-            // sqrt(scale)` (a linear drive: the voltage `k V`), so the
-            // duty's own rules (flags, clamp) act on the trace's duty.
-            let mut drives = [None; C];
-            for ((d, supply), ((input, k), current)) in drives
-                .iter_mut()
-                .zip(&self.supplies)
-                .zip(self.drives.iter().zip(&currents_a))
-            {
-                *d = supply.map(|v| {
-                    let given = i.currents_a.get(*input).copied().unwrap_or(0.0);
-                    if v > 0.0 {
-                        VoltageDrive::pwm(given, v * k)
-                    } else {
-                        VoltageDrive::linear(current.abs())
-                    }
-                });
-            }
+        if self.voltage_driven {
+            // As the generated `source_drives`: the trace's duty on the
+            // supply times the power scale (folded into the resistance),
+            // so the duty's own rules (flags, clamp) act on the trace's
+            // duty.
+            let drives: [Option<VoltageDrive>; C] =
+                core::array::from_fn(|m| self.firmware_inputs.drive(m, i.currents_a, &[]));
             self.observer.tick_voltage(state, &inputs, &drives);
         } else {
             self.observer.tick(state, &inputs);
@@ -323,22 +310,22 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
     }
     fn view(&self, state: &Self::State) -> TickView {
         let out = state.outputs();
-        // An input's limit: the tightest of its sources', each in the
-        // input's amperes (a source carries the input's current times
-        // its factor).
+        // An input's limit: the tightest of its sources', as the
+        // generated `input_drive_limits` gives it (a source carries its
+        // input's current, its power scale in its resistance).
         let mut limits_a = vec![f32::INFINITY; self.inputs()];
-        for (m, ((input, k), limit)) in self.drives.iter().zip(&out.limits).enumerate() {
+        for (m, (input, limit)) in self.source_input.iter().zip(&out.limits).enumerate() {
             if let Some(l) = limits_a.get_mut(*input) {
                 // A voltage drive's limit in its own unit: the duty on
                 // its supply, or the voltage.
-                let supply = self.supplies.get(m).copied().flatten();
-                let per_input = match supply {
-                    Some(v) if v > 0.0 && *k > 0.0 => {
-                        self.observer.drive_limit(state, m, v * k).duty
+                let per_input = match self.firmware_inputs.limit_supply_v(m, &[]) {
+                    Some(supply_v) => {
+                        let d = self.observer.drive_limit(state, m, supply_v);
+                        self.firmware_inputs
+                            .drive_limit(m, d.duty, d.voltage_v)
+                            .unwrap_or(f32::INFINITY)
                     }
-                    Some(_) if *k > 0.0 => self.observer.drive_limit(state, m, 1.0).voltage_v / k,
-                    _ if *k > 0.0 => limit.current_a / k,
-                    _ => f32::INFINITY,
+                    None => limit.current_a,
                 };
                 *l = l.min(per_input);
             }
@@ -430,7 +417,7 @@ pub fn run_model(
         || model.drives.iter().any(|d| d.speed.is_some())
     {
         return Err(invalid(
-            "speed-dependent terms are not inputs of the library observer yet".into(),
+            "speed-dependent terms need a speed, and the campaign has no signal columns".into(),
         ));
     }
     let sensor_nodes = spec
@@ -470,4 +457,75 @@ pub fn run_model(
         })
     };
     on_big_stack("faults", job).map_err(|e| invalid(format!("{e:#}")))?
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faults::Subject;
+    use crate::model_file::ModelFile;
+    use coil_thermal::observer::TimedReading;
+    use coil_thermal::Reading;
+
+    /// The campaign's observer of `drive-3node-fitted.toml` with its
+    /// winding's `[[source]]` lines replaced by `source`.
+    fn subject(source: &str) -> NetSubject<8, 16, 1> {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/models/drive-3node-fitted.toml"
+        );
+        let text = std::fs::read_to_string(path)
+            .unwrap()
+            .replace("r0_ohm = 1.2\nalpha_per_k = 0.00393\n", source);
+        let file = ModelFile::parse(&text, "scaled.toml").unwrap();
+        let spec = file.observer.clone().unwrap();
+        let model = Model::build(&file).unwrap();
+        let nodes = vec![spec.sensors[0].node_index(&model).unwrap()];
+        NetSubject::build(&model, &spec, nodes, &FaultConfig::default()).unwrap()
+    }
+
+    /// A power scale (`scale = 1.5`, dq currents) is the winding's
+    /// resistance times 1.5 in the observer the campaign runs, as in the
+    /// one `codegen` flashes: the same estimate and the same limit on the
+    /// input's own current, over half an hour at 5 A that takes the
+    /// winding into the limiter's taper (where the scale used to enter as
+    /// the current times `sqrt(1.5)`, whose limit in input amperes was
+    /// the hardware limit over `sqrt(1.5)`).
+    #[test]
+    fn a_power_scale_is_the_windings_resistance_times_it() {
+        let scaled = subject("r0_ohm = 1.2\nalpha_per_k = 0.00393\nscale = 1.5\n");
+        let resistive = subject("r0_ohm = 1.8\nalpha_per_k = 0.00393\n");
+        let (mut a, mut b) = (scaled.state(25.0), resistive.state(25.0));
+        let mut lowest_a = f32::INFINITY;
+        for k in 0..1_800_000u32 {
+            let now_us = (k + 1) * 1000;
+            let readings = [(k % 1000 == 0).then_some(TimedReading {
+                result: Ok(Reading::new(25.0 + (k as f32) * 1e-5)),
+                sampled_at_us: now_us,
+            })];
+            let inputs = TickInputs {
+                currents_a: &[5.0],
+                ambient_c: 25.0,
+                readings: &readings,
+                now_us,
+                elapsed_us: 1000,
+            };
+            let (va, vb) = (
+                scaled.tick(&mut a, &inputs),
+                resistive.tick(&mut b, &inputs),
+            );
+            if k % 10_000 == 0 || k == 1_799_999 {
+                for (ta, tb) in va.temps_c.iter().zip(&vb.temps_c) {
+                    assert!((ta - tb).abs() < 1e-3, "tick {k}: {ta} vs {tb} degC");
+                }
+                let (la, lb) = (va.limits_a[0], vb.limits_a[0]);
+                assert!((la - lb).abs() < 1e-3, "tick {k}: {la} vs {lb} A");
+                lowest_a = lowest_a.min(la);
+            }
+        }
+        assert!(
+            lowest_a < 5.5,
+            "the limiter acted: lowest {lowest_a} A of 6 A"
+        );
+    }
 }
