@@ -8,6 +8,11 @@
 //! the same drive through the same module and must print the same lines
 //! (`motor_qemu.expected`, which CI compares with this firmware's output),
 //! and holds them against `coil-thermal replay`.
+//! On the Cortex-M0 (`thumbv6m-none-eabi`, QEMU `microbit`, with the
+//! library's `integer-step` feature) it ticks the same model with the
+//! integer model step (`examples/generated/hust_motor_integer.rs`, from
+//! `hust_motor_slot_integer.toml`), whose lines are
+//! `motor_qemu_m0.expected`.
 //!
 //! ```text
 //! cargo build --profile firmware --features firmware --example motor_qemu --target thumbv7em-none-eabihf
@@ -31,7 +36,10 @@ mod cost;
 mod host_out;
 use host_out::Host;
 
-#[path = "generated/hust_motor.rs"]
+// On a core without an FPU, the same model with the integer model step
+// (`hust_motor_slot_integer.toml`; its golden is `motor_qemu_m0.expected`).
+#[cfg_attr(target_abi = "eabihf", path = "generated/hust_motor.rs")]
+#[cfg_attr(not(target_abi = "eabihf"), path = "generated/hust_motor_integer.rs")]
 mod hust_motor;
 
 #[path = "support/motor_drive.rs"]

@@ -6,6 +6,11 @@
 //! (`support/roundtrip.rs`) through the same generated module and must
 //! print the same lines (`network_roundtrip.expected`, which CI compares
 //! with this firmware's output), checksum of every tick's outputs included.
+//! On the Cortex-M0 (`thumbv6m-none-eabi`, QEMU `microbit`) it ticks the
+//! same model with the integer model step
+//! (`examples/generated/drive_3node_integer.rs`, from
+//! `drive-3node-integer.toml`), whose lines are
+//! `network_roundtrip_m0.expected`.
 //!
 //! ```text
 //! cargo build --profile firmware --features firmware --example network_roundtrip --target thumbv7em-none-eabihf
@@ -31,7 +36,10 @@ mod cost;
 mod host_out;
 use host_out::Host;
 
-#[path = "generated/drive_3node.rs"]
+// On a core without an FPU, the same model with the integer model step
+// (`drive-3node-integer.toml`; its golden is `network_roundtrip_m0.expected`).
+#[cfg_attr(target_abi = "eabihf", path = "generated/drive_3node.rs")]
+#[cfg_attr(not(target_abi = "eabihf"), path = "generated/drive_3node_integer.rs")]
 mod model;
 
 #[path = "support/roundtrip.rs"]

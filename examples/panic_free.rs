@@ -34,7 +34,9 @@
 //!   `voltage_current_reading`);
 //! * the filters: the time-varying `predict` and `update` (`f32`) and
 //!   `update_virtual` (`f32`, `f64`);
-//! * the network steppers (`f32`, `Q32`), the protective upper bounds and
+//! * the network steppers (`f32`, `Q32`) and the integer step of
+//!   `discretize::fixed` (`FixedInputs::new`, `FixedStep::step`,
+//!   `f32_of_state`), the protective upper bounds and
 //!   mean limits of `protect::margin` (`f32`, `Q32`, parts out of range);
 //! * the sensor decoders `max31855::decode`, `max31856::decode` and the
 //!   plausibility `sensors::check`.
@@ -53,12 +55,13 @@
 // The Cortex-M0 build proves a subset (see `checks`).
 #![cfg_attr(not(target_abi = "eabihf"), allow(dead_code, unused_imports))]
 
+use coil_thermal::discretize::fixed::{f32_of_state, FixedInputs, FixedStep};
 use coil_thermal::filter::{predict, update, update_virtual, KalmanConfig, KalmanState};
 use coil_thermal::grid::GridConfig;
 use coil_thermal::observer::network::{NetworkObserverState, WarmUpKind};
 use coil_thermal::observer::omnimagnet::TimedReading;
 use coil_thermal::observer::{
-    GridInputs, GridObserver, NetworkInputs, NetworkObserver, OmniInputs, OmniObserver,
+    GridInputs, GridObserver, NetworkInputs, NetworkObserver, OmniInputs, OmniObserver, StepTables,
 };
 use coil_thermal::omnimagnet::observer::{MeanModel, OmnimagnetObserver};
 use coil_thermal::omnimagnet::NODES;
@@ -618,13 +621,42 @@ fn steppers() -> bool {
                     }
                     black_box(&state);
                     black_box(&fixed_state);
-                    true
+                    integer_step()
                 }
                 _ => false,
             }
         }
         Err(_) => false,
     }
+}
+
+/// `discretize::fixed`: the integer step on tables the optimiser cannot
+/// see into, with NaN, infinite and extreme inputs and states.
+#[inline(never)]
+fn integer_step() -> bool {
+    let tables: StepTables<3, 1, 1> = black_box(StepTables {
+        phi_minus_i: [
+            [-3.3e-5, 3.3e-5, 0.0],
+            [5e-6, -1.2e-5, 7e-6],
+            [0.0, 3e-6, -4.8e-6],
+        ],
+        bd_power: [[1.7e-5], [4e-11], [1e-16]],
+        gd_boundary: [[1e-15], [1e-9], [1.7e-6]],
+        constant_k: [0.0; 3],
+    });
+    let Some(step) = FixedStep::of(&tables) else {
+        return false;
+    };
+    let mut states = black_box([0i64, i64::MAX, i64::MIN]);
+    for k in 0..black_box(1000u32) {
+        let power_w = black_box(if k % 7 == 0 { f32::NAN } else { f32::MAX });
+        let boundary_k = black_box(if k % 11 == 0 { f32::INFINITY } else { -1e30 });
+        if let Some(inputs) = FixedInputs::new(&[power_w], &[boundary_k]) {
+            step.step(&mut states, &inputs);
+        }
+        black_box(states.map(f32_of_state));
+    }
+    true
 }
 
 #[panic_handler]

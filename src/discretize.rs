@@ -20,6 +20,8 @@
 //! Build-time code (`O(N^3 log ||A h||)`), `no_std`, no allocation. The step
 //! itself ([`Discrete::step`]) is a matrix-vector product and works in `f32`.
 
+pub mod fixed;
+
 use crate::error::BuildError;
 use crate::network::StateSpace;
 use nalgebra::{RealField, SMatrix, SVector};

@@ -153,6 +153,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             max_cooling_bias_fraction: 0.0,
             frozen_flag_ticks: 100,
             frozen_loss_ticks: 1000,
+            integer_model_step: false,
         },
         sensor_nodes: [1],
         critical_c: [Some(155.0), Some(80.0), None],

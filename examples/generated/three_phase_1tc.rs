@@ -169,6 +169,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             max_cooling_bias_fraction: 0.0,
             frozen_flag_ticks: 100,
             frozen_loss_ticks: 1000,
+            integer_model_step: false,
         },
         sensor_nodes: [3],
         critical_c: [Some(155.0), Some(155.0), Some(155.0), Some(90.0)],

@@ -26,6 +26,9 @@ use coil_thermal_host::model_file::{Model, ModelFile};
 #[path = "../../examples/generated/drive_3node.rs"]
 mod model;
 
+#[path = "../../examples/generated/drive_3node_integer.rs"]
+mod model_integer;
+
 #[path = "../../examples/support/roundtrip.rs"]
 mod roundtrip;
 
@@ -38,6 +41,28 @@ fn root() -> PathBuf {
 
 fn read(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The same model with the integer model step (`drive-3node-integer.toml`,
+/// `examples/generated/drive_3node_integer.rs`), which `network_roundtrip`
+/// ticks on the Cortex-M0: the host prints what QEMU printed there
+/// (`examples/network_roundtrip_m0.expected`), and those lines are the
+/// `f32` step's but for the checksum of every tick's outputs.
+#[test]
+fn the_host_replay_prints_what_the_cortex_m0_printed() {
+    let observer = model_integer::observer().expect("the generated parts assemble");
+    let mut text = String::new();
+    let summary = roundtrip::replay(&observer, &mut text, |tick| tick()).expect("replays");
+    let golden = read(&root().join("examples/network_roundtrip_m0.expected"));
+    assert_eq!(
+        text, golden,
+        "the host replay differs from the Cortex-M0's output"
+    );
+    let float = read(&root().join("examples/network_roundtrip.expected"));
+    let without_checksum = |t: &str| t.split(", checksum").next().unwrap_or_default().to_string();
+    assert_eq!(without_checksum(&golden), without_checksum(&float));
+    assert_ne!(golden, float, "the checksums tell the two steps apart");
+    assert!(summary.worst_winding_error_k < 1.0);
 }
 
 #[test]
@@ -206,6 +231,18 @@ fn codegen_reproduces_the_committed_speed_term_modules() {
             "host-tests/models/all-input-terms.toml",
             &[][..],
             "host-tests/tests/generated/all_input_terms.rs",
+        ),
+        // The Cortex-M0 runs of `network_roundtrip` and `motor_qemu`: the
+        // integer model step.
+        (
+            "host-tests/models/drive-3node-integer.toml",
+            &[][..],
+            "examples/generated/drive_3node_integer.rs",
+        ),
+        (
+            "host-tests/models/hust_motor_slot_integer.toml",
+            &[][..],
+            "examples/generated/hust_motor_integer.rs",
         ),
         // The Cortex-M0 footprint example's (`examples/footprint_m0.rs`).
         (

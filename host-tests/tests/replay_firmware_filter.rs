@@ -30,6 +30,9 @@ mod model;
 #[path = "../../examples/generated/hust_motor.rs"]
 mod hust_motor;
 
+#[path = "../../examples/generated/hust_motor_integer.rs"]
+mod hust_motor_integer;
+
 #[path = "../../examples/support/motor_drive.rs"]
 mod motor_drive;
 
@@ -283,12 +286,47 @@ fn the_model_files_sensor_noise_is_the_replays_default() {
 ///   12.12 W).
 #[test]
 fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
-    use motor_drive::{drive, AMBIENT_C, SECONDS};
     let observer = hust_motor::observer().expect("the generated parts assemble");
+    the_motor_module_is_replays(
+        &observer,
+        "examples/motor_qemu.expected",
+        "host-tests/models/hust_motor_slot_fitted.toml",
+    );
+}
+
+/// [`the_real_motors_generated_observer_with_speed_terms_is_replays`] for
+/// the same model with the integer model step
+/// (`hust_motor_slot_integer.toml`, `examples/generated/hust_motor_integer.rs`):
+/// the host prints what the Cortex-M0 printed in QEMU
+/// (`examples/motor_qemu_m0.expected`), `replay` of its file is it to the
+/// bit, and it reads as the `f32` step's module does (the printed lines
+/// but the checksum equal).
+#[test]
+fn the_real_motors_integer_step_module_is_replays() {
+    let observer = hust_motor_integer::observer().expect("the generated parts assemble");
+    the_motor_module_is_replays(
+        &observer,
+        "examples/motor_qemu_m0.expected",
+        "host-tests/models/hust_motor_slot_integer.toml",
+    );
+    let read = |f: &str| std::fs::read_to_string(root().join(f)).unwrap();
+    let (float, integer) = (
+        read("examples/motor_qemu.expected"),
+        read("examples/motor_qemu_m0.expected"),
+    );
+    let without_checksum = |t: &str| t.split(", checksum").next().unwrap_or_default().to_string();
+    assert_eq!(without_checksum(&float), without_checksum(&integer));
+    assert_ne!(float, integer, "the checksums tell the two steps apart");
+}
+
+/// The real motor's generated `observer` (either step): the host prints
+/// `expected`, and `replay --measure` of `model_file` is it to the bit.
+fn the_motor_module_is_replays(observer: &hust_motor::Observer, expected: &str, model_file: &str) {
+    use motor_drive::{drive, AMBIENT_C, SECONDS};
     let mut seconds = Vec::new();
     let mut text = String::new();
     let summary = motor_drive::replay(
-        &observer,
+        observer,
         &mut text,
         |tick| tick(),
         |s| seconds.push((*s.fused_c, s.reading_c)),
@@ -296,8 +334,8 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
     .expect("replays");
     assert_eq!(
         text,
-        std::fs::read_to_string(root().join("examples/motor_qemu.expected")).unwrap(),
-        "the host run differs from the firmware's golden output"
+        std::fs::read_to_string(root().join(expected)).unwrap(),
+        "the host run differs from the firmware's golden output {expected}"
     );
 
     // The same drive as a trace for `replay`.
@@ -316,7 +354,7 @@ fn the_real_motors_generated_observer_with_speed_terms_is_replays() {
     let out = tmp.path().join("est.csv");
     let a = cargo_bin_cmd!("coil-thermal")
         .args(["replay", "--model"])
-        .arg(root().join("host-tests/models/hust_motor_slot_fitted.toml"))
+        .arg(root().join(model_file))
         .arg("--trace")
         .arg(&trace)
         .args(["--measure", "endwind_1=end_winding", "--json", "--out"])

@@ -126,6 +126,88 @@ fn f32_does_not_drift() {
 }
 
 #[test]
+fn the_integer_step_does_not_drift_either() {
+    // `f32_does_not_drift` with `integer_model_step`: 2 h at 8 A open loop
+    // on the 3-node model against the f64 RK4 of the same network.
+    let net = device();
+    let settings = NetworkSettings {
+        integer_model_step: true,
+        ..NetworkSettings::DEFAULT
+    };
+    let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .settings(settings)
+        .build()
+        .unwrap();
+    let mut state = obs.state(&[20.0; 3], &[20.0]);
+    let mut exact = [20.0f64; 3];
+    let mut worst = 0.0f64;
+    for k in 0..7_200_000u32 {
+        obs.tick(&mut state, &inputs([8.0], [20.0], k.wrapping_mul(1000)));
+        rk4(&net, &mut exact, &[8.0], &[20.0], 1e-3);
+        if k % 1000 == 999 {
+            let t = obs.temps_c(&state);
+            for n in 0..3 {
+                worst = worst.max((f64::from(t[n]) - exact[n]).abs());
+            }
+        }
+    }
+    std::println!("2 h at 8 A, integer step: worst {worst:.3e} K");
+    assert!(exact[0] > 45.0, "the winding must heat: {}", exact[0]);
+    assert!(worst < 1e-5, "integer step drift {worst} K");
+}
+
+#[test]
+fn the_integer_step_fuses_readings_as_the_f32_step_does() {
+    // An hour at 6 A with the housing read every 0.5 s from a plant 10 %
+    // hotter than the model: a correction moves the estimate the integer
+    // step starts from as it moves the f32 step's, so both observers stay
+    // together, and the integer one reads the plant.
+    let net = device();
+    let plant = Network::new([60.0, 400.0, 900.0])
+        .and_then(|n| n.connect(0, 1, 2.0))
+        .and_then(|n| n.connect(1, 2, 3.0))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5))
+        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.33, 0.00393, 20.0)))
+        .unwrap();
+    let integer = NetworkSettings {
+        integer_model_step: true,
+        ..NetworkSettings::DEFAULT
+    };
+    let float: NetworkObserver<3, 1, 1, 4, 1> =
+        NetworkObserverBuilder::new(&net, [1]).build().unwrap();
+    let int: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .settings(integer)
+        .build()
+        .unwrap();
+    let mut fs = float.state(&[20.0; 3], &[20.0]);
+    let mut is = int.state(&[20.0; 3], &[20.0]);
+    let mut truth = [20.0f64; 3];
+    let (mut apart, mut off_plant) = (0.0f64, 0.0f64);
+    for k in 0..3_600_000u32 {
+        let now_us = k.wrapping_mul(1000);
+        rk4(&plant, &mut truth, &[6.0], &[20.0], 1e-3);
+        let mut i = inputs([6.0], [20.0], now_us);
+        if k % 500 == 499 {
+            i.readings = [reading(truth[1] as f32, now_us)];
+        }
+        float.tick(&mut fs, &i);
+        int.tick(&mut is, &i);
+        if k % 1000 == 999 {
+            let (a, b) = (float.temps_c(&fs), int.temps_c(&is));
+            for n in 0..3 {
+                apart = apart.max(f64::from((a[n] - b[n]).abs()));
+            }
+            if k > 1_800_000 {
+                off_plant = off_plant.max((f64::from(b[0]) - truth[0]).abs());
+            }
+        }
+    }
+    std::println!("integer vs f32 step with readings: {apart:.3e} K apart; winding {off_plant:.3} K off the plant");
+    assert!(apart < 5e-5, "{apart} K apart");
+    assert!(off_plant < 0.5, "{off_plant} K off the plant");
+}
+
+#[test]
 fn default_incidence_follows_the_heat() {
     let net = three_phase();
     let inc = default_incidence(&net, 0.1).unwrap();

@@ -51,6 +51,7 @@ use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
 };
+use crate::discretize::fixed::FixedStep;
 use crate::error::BuildError;
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
@@ -913,6 +914,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
         }
         let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
+        let integer_step = integer_step(s, &m.step)?;
         Ok(Self {
             phi_minus_i: matrix(&m.step.phi_minus_i),
             bd_power,
@@ -973,6 +975,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             step_us: s.step_us,
             protect_period_us: timing.protect_period_us,
             fingerprint: fingerprint.finish(),
+            integer_step,
         })
     }
 }
@@ -1087,6 +1090,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             Ok(clock) => clock,
             Err(e) => return Err(e),
         };
+        let integer_step = match integer_step(s, &m.step) {
+            Ok(step) => step,
+            Err(e) => return Err(e),
+        };
         if clock.step_us != s.step_us || a.protect_period_us == 0 {
             return Err(invalid("assembled"));
         }
@@ -1152,7 +1159,30 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             step_us: s.step_us,
             protect_period_us: a.protect_period_us,
             fingerprint: a.fingerprint,
+            integer_step,
         })
+    }
+}
+
+/// The integer model step the settings ask for (see "The model step in
+/// integer arithmetic" in [`super`]), if any; refused without the
+/// `integer-step` feature (whose absence keeps its code out of an `f32`
+/// firmware) or for tables it cannot hold.
+const fn integer_step<const N: usize, const B: usize, const M: usize>(
+    s: &NetworkSettings,
+    step: &StepTables<N, B, M>,
+) -> Result<Option<FixedStep<N, B, M>>, BuildError> {
+    if !s.integer_model_step {
+        return Ok(None);
+    }
+    if cfg!(not(feature = "integer-step")) {
+        return Err(invalid(
+            "integer_model_step (enable coil-thermal's integer-step feature)",
+        ));
+    }
+    match FixedStep::of(step) {
+        Some(step) => Ok(Some(step)),
+        None => Err(invalid("model")),
     }
 }
 
@@ -1333,6 +1363,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
             },
         max_cooling_bias_fraction,
         frozen_loss_ticks,
+        integer_model_step,
     } = s;
     let mut w = out.nested("settings", "observer::network::NetworkSettings")?;
     w.field("step_us", step_us)?;
@@ -1373,6 +1404,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
     w.field("max_cooling_bias_fraction", max_cooling_bias_fraction)?;
     w.field("frozen_flag_ticks", frozen_flag_ticks)?;
     w.field("frozen_loss_ticks", frozen_loss_ticks)?;
+    w.field("integer_model_step", integer_model_step)?;
     w.close(false)
 }
 
