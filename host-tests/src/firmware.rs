@@ -103,6 +103,9 @@ impl FirmwareConfig {
         if let Some(v) = table.integer_model_step {
             settings.integer_model_step = v;
         }
+        if let Some(v) = table.predictor_elements_per_stage {
+            settings.predictor_elements_per_stage = v;
+        }
         if table.unmeasured_margin.is_some() || table.unmeasured_margin_offset_k.is_some() {
             let default = settings.unmeasured_margin;
             let fraction = table.unmeasured_margin.unwrap_or(default.rise_fraction);

@@ -126,6 +126,26 @@ fn f32_does_not_drift() {
 }
 
 #[test]
+#[cfg(not(feature = "integer-step"))]
+fn the_integer_step_is_refused_without_its_feature() {
+    // The workspace's tests run with the feature (the host crate asks for
+    // it); `cargo test -p coil-thermal` alone runs this instead.
+    let settings = NetworkSettings {
+        integer_model_step: true,
+        ..NetworkSettings::DEFAULT
+    };
+    let built: Result<NetworkObserver<3, 1, 1, 4, 1>, _> =
+        NetworkObserverBuilder::new(&device(), [1])
+            .settings(settings)
+            .build();
+    assert!(
+        matches!(built, Err(BuildError::InvalidParameter { name }) if name.contains("integer-step")),
+        "{built:?}"
+    );
+}
+
+#[test]
+#[cfg(feature = "integer-step")]
 fn the_integer_step_does_not_drift_either() {
     // `f32_does_not_drift` with `integer_model_step`: 2 h at 8 A open loop
     // on the 3-node model against the f64 RK4 of the same network.
@@ -157,6 +177,7 @@ fn the_integer_step_does_not_drift_either() {
 }
 
 #[test]
+#[cfg(feature = "integer-step")]
 fn the_integer_step_fuses_readings_as_the_f32_step_does() {
     // An hour at 6 A with the housing read every 0.5 s from a plant 10 %
     // hotter than the model: a correction moves the estimate the integer
@@ -205,6 +226,60 @@ fn the_integer_step_fuses_readings_as_the_f32_step_does() {
     std::println!("integer vs f32 step with readings: {apart:.3e} K apart; winding {off_plant:.3} K off the plant");
     assert!(apart < 5e-5, "{apart} K apart");
     assert!(off_plant < 0.5, "{off_plant} K off the plant");
+}
+
+#[test]
+fn a_predictor_split_by_element_answers_alike_later() {
+    // `predictor_elements_per_stage = 1`: the sweep's snapshot and each
+    // limited element of a horizon take a stage of their own, so a sweep
+    // takes more stages; the winding's time to limit, once both sweeps
+    // have run under a steady current, is the same but for the older
+    // sweep's age (at most one sweep, under a second here).
+    let net = device();
+    let split = NetworkSettings {
+        predictor_elements_per_stage: 1,
+        ..NetworkSettings::DEFAULT
+    };
+    let critical = [Some(100.0), None, None];
+    let whole: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c(critical)
+        .build()
+        .unwrap();
+    let parted: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c(critical)
+        .settings(split)
+        .build()
+        .unwrap();
+    let (mut ws, mut ps) = (
+        whole.state(&[20.0; 3], &[20.0]),
+        parted.state(&[20.0; 3], &[20.0]),
+    );
+    let mut first_answer = [None::<u32>; 2];
+    for k in 0..120_000u32 {
+        let i = inputs([12.0], [20.0], k.wrapping_mul(1000));
+        let a = whole.tick(&mut ws, &i).time_to_limit_s[0];
+        let b = parted.tick(&mut ps, &i).time_to_limit_s[0];
+        for (first, ttl) in first_answer.iter_mut().zip([a, b]) {
+            if first.is_none() && ttl.is_some_and(f32::is_finite) {
+                *first = Some(k);
+            }
+        }
+    }
+    let (a, b) = (
+        ws.outputs().time_to_limit_s[0].unwrap(),
+        ps.outputs().time_to_limit_s[0].unwrap(),
+    );
+    std::println!("ttl {a} s / {b} s, first answers at tick {first_answer:?}");
+    assert!(
+        a.is_finite() && a > 0.0,
+        "12 A takes the winding to its limit: {a}"
+    );
+    assert!((a - b).abs() < 1.0, "{a} vs {b}");
+    let (Some(w), Some(p)) = (first_answer[0], first_answer[1]) else {
+        panic!("no answer: {first_answer:?}");
+    };
+    assert!(p > w, "the split sweep answers later ({p} vs {w})");
+    assert_eq!(ws.outputs().limits, ps.outputs().limits);
 }
 
 #[test]

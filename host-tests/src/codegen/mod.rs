@@ -126,6 +126,12 @@ pub struct ObserverSpec {
     /// file asks for, so it stays the firmware to the bit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub integer_model_step: Option<bool>,
+    /// At most this many element evaluations of the time-to-limit
+    /// predictor per protection stage (default 0: a whole horizon a stage;
+    /// see `NetworkSettings::predictor_elements_per_stage`): a lower worst
+    /// tick without an FPU, the same answers a little later.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub predictor_elements_per_stage: Option<u16>,
     /// Model-uncertainty margin of the nodes no sensor measures, as a share
     /// of their rise above the ambient (dimensionless, `>= 0`; default
     /// 0.05, the Omnimagnet's): the share by which the truth of such a node
@@ -524,6 +530,9 @@ impl Plan {
         if let Some(v) = s.integer_model_step {
             fields.push(format!("integer_model_step: {v}"));
         }
+        if let Some(v) = s.predictor_elements_per_stage {
+            fields.push(format!("predictor_elements_per_stage: {v}"));
+        }
         if let Some(v) = s.stuck_tolerance_k {
             fields.push(format!(
                 "checks: coil_thermal::observer::SensorChecks {{ stuck_tolerance_k: {v:?}, ..coil_thermal::observer::SensorChecks::DEFAULT }}"
@@ -696,8 +705,15 @@ fn solve(plan: &Plan, library: &Path, root: &Path, model: &Path) -> Result<Strin
     let dir = root.join(&name);
     std::fs::create_dir_all(dir.join("src"))
         .with_context(|| format!("{}: cannot create the generator crate", dir.display()))?;
+    // The integer model step's feature only where the file asks for it
+    // (the library refuses its settings without it).
+    let features = if plan.spec.integer_model_step == Some(true) {
+        ", features = [\"integer-step\"]"
+    } else {
+        ""
+    };
     let manifest = format!(
-        "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?}, features = [\"integer-step\"] }}\n\n[workspace]\n",
+        "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n[dependencies]\ncoil-thermal = {{ path = {:?}{features} }}\n\n[workspace]\n",
         library.display().to_string()
     );
     let write = |file: &str, text: &str| {

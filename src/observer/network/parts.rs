@@ -818,7 +818,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             solved_with(g, &parts.sensor_nodes, &sensor_var_k2),
             "sensor_kinds",
         )?;
-        let predictor = predictor_from(&parts.predictor)?;
+        let predictor = predictor_from(&parts.predictor, elements_per_stage(s))?;
         let input_limits = InputLimits {
             max_current_a: s.max_current_a,
             ..InputLimits::default()
@@ -1125,7 +1125,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             hardware_limit_a: a.hardware_limit_a,
             alarm: a.alarm.config(),
             limiter: a.limiter.config(),
-            predictor: t.predictor(usize::MAX),
+            predictor: t.predictor(elements_per_stage(s)),
             bound: crate::observer::tables::upper_bound(&a.bound),
             k_sigma: a.k_sigma,
             bound_sigma_k: a.bound_sigma_k,
@@ -1222,8 +1222,18 @@ fn solved_with<const X: usize, const P: usize>(
         })
 }
 
+/// The predictor's element evaluations per stage
+/// ([`NetworkSettings::predictor_elements_per_stage`]; 0: unbounded).
+const fn elements_per_stage(s: &NetworkSettings) -> usize {
+    match s.predictor_elements_per_stage {
+        0 => usize::MAX,
+        n => n as usize,
+    }
+}
+
 fn predictor_from<const N: usize, const B: usize, const M: usize>(
     t: &PredictorTables<N, B, M>,
+    elements_per_stage: usize,
 ) -> Result<LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>, BuildError> {
     check(t.winding_node.iter().all(|n| *n < N), "winding_node")?;
     check(
@@ -1233,7 +1243,7 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
     // The indices by their own names; `is_valid` checks them again with
     // every entry.
     check(t.is_valid(), "predictor")?;
-    Ok(t.predictor(usize::MAX))
+    Ok(t.predictor(elements_per_stage))
 }
 
 /// `k sigma` from the steady prior on every node, the model margin on the
@@ -1364,6 +1374,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
         max_cooling_bias_fraction,
         frozen_loss_ticks,
         integer_model_step,
+        predictor_elements_per_stage,
     } = s;
     let mut w = out.nested("settings", "observer::network::NetworkSettings")?;
     w.field("step_us", step_us)?;
@@ -1405,6 +1416,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
     w.field("frozen_flag_ticks", frozen_flag_ticks)?;
     w.field("frozen_loss_ticks", frozen_loss_ticks)?;
     w.field("integer_model_step", integer_model_step)?;
+    w.field("predictor_elements_per_stage", predictor_elements_per_stage)?;
     w.close(false)
 }
 
