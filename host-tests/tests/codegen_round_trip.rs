@@ -43,6 +43,47 @@ fn read(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
+/// The Cortex-M0 model files are their `f32` firmware's files with the
+/// integer model step and a one-element predictor stage, and nothing else:
+/// a new fit of the source file (`calibrate`) must be copied to them.
+#[test]
+fn the_cortex_m0_model_files_are_their_sources_but_two_keys() {
+    for (source, integer) in [
+        ("drive-3node-fitted.toml", "drive-3node-integer.toml"),
+        (
+            "hust_motor_slot_fitted.toml",
+            "hust_motor_slot_integer.toml",
+        ),
+    ] {
+        let table = |file: &str| -> toml::Table {
+            read(&root().join("host-tests/models").join(file))
+                .parse()
+                .unwrap_or_else(|e| panic!("{file}: {e}"))
+        };
+        let (mut from, mut to) = (table(source), table(integer));
+        let observer = to
+            .get_mut("observer")
+            .and_then(toml::Value::as_table_mut)
+            .expect("an [observer] table");
+        assert_eq!(
+            observer.remove("integer_model_step"),
+            Some(toml::Value::Boolean(true))
+        );
+        assert_eq!(
+            observer.remove("predictor_elements_per_stage"),
+            Some(toml::Value::Integer(1))
+        );
+        let name =
+            |t: &mut toml::Table| t.remove("name").and_then(|n| n.as_str().map(String::from));
+        let (a, b) = (name(&mut from).unwrap(), name(&mut to).unwrap());
+        assert_eq!(b, format!("{a}-integer"));
+        assert_eq!(
+            from, to,
+            "{integer} is no longer {source} with its two keys: copy it again"
+        );
+    }
+}
+
 /// The same model with the integer model step and one predictor element a
 /// stage (`drive-3node-integer.toml`,
 /// `examples/generated/drive_3node_integer.rs`), which `network_roundtrip`
