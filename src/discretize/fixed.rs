@@ -331,7 +331,12 @@ pub fn f32_of_state(q: i64) -> f32 {
     }
     // The leading bit's weight is 2^(top - 48): |q| < 2^63 keeps the
     // exponent within 2^15, and the smallest state, 2^-48, is normal.
-    let top = 63 - magnitude.leading_zeros() as i32;
+    let upper = (magnitude >> 32) as u32;
+    let top = if upper != 0 {
+        63 - upper.leading_zeros() as i32
+    } else {
+        31 - (magnitude as u32).leading_zeros() as i32
+    };
     let mut biased = top - STATE_FRACTION_BITS as i32 + 127;
     let mut mantissa = if top > 23 {
         let shift = top - 23;
