@@ -338,7 +338,19 @@ pub const fn state_of_f32(v: f32) -> i64 {
 /// saturating.
 #[inline(always)]
 pub const fn input_of_f32(v: f32) -> i32 {
-    let q = fixed_of_f32(v, INPUT_FRACTION_BITS as i32);
+    saturate_i32(fixed_of_f32(v, INPUT_FRACTION_BITS as i32))
+}
+
+/// A state (Q16.48) as an input (Q12.20), rounded to nearest, saturating.
+#[inline(always)]
+pub fn input_of_state(q: i64) -> i32 {
+    const DROP: u32 = STATE_FRACTION_BITS - INPUT_FRACTION_BITS;
+    saturate_i32(q.saturating_add(1 << (DROP - 1)) >> DROP)
+}
+
+/// `q` saturated to the `i32` range.
+#[inline(always)]
+const fn saturate_i32(q: i64) -> i32 {
     if q > i32::MAX as i64 {
         i32::MAX
     } else if q < i32::MIN as i64 {
@@ -346,14 +358,6 @@ pub const fn input_of_f32(v: f32) -> i32 {
     } else {
         q as i32
     }
-}
-
-/// A state (Q16.48) as an input (Q12.20), rounded to nearest, saturating.
-#[inline(always)]
-pub fn input_of_state(q: i64) -> i32 {
-    const DROP: u32 = STATE_FRACTION_BITS - INPUT_FRACTION_BITS;
-    let rounded = q.saturating_add(1 << (DROP - 1)) >> DROP;
-    rounded.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
 /// A state (Q16.48) \[K\] as `f32`, rounded to nearest (half away from
