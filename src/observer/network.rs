@@ -141,13 +141,15 @@
 //! routine, about 200 instructions a multiply-add on a Cortex-M0. With
 //! [`NetworkSettings::integer_model_step`] (and the `integer-step`
 //! feature) the step runs in integer arithmetic instead ([`FixedStep`]):
-//! each node's deviation and its carry, `x + residual_k`, are read as one
-//! Q16.48 state (3.6e-15 K), the increment is formed from the same `f32`
-//! tables as `i32` rows scaled by powers of two, 32 x 32 -> 64-bit
-//! products, and added exactly; the state goes back as the `f32` estimate
-//! and what that does not hold. So the state, the filter, the bound and
-//! the protection are as with the `f32` step, and a correction moves the
-//! estimate the next step starts from. The same bits on every core, so
+//! each node has a Q16.48 state (3.6e-15 K) in the observer state, the
+//! increment is formed from the same `f32` tables as `i32` rows scaled by
+//! powers of two, 32 x 32 -> 64-bit products, and added exactly; the
+//! `f32` estimate is the state's image. A deviation moved since the step
+//! wrote it (a correction, the common-mode rule, a start) moves the
+//! integer state by the same amount, exactly, before the next step
+//! (`network/integer.rs`). So the filter, the bound and the protection
+//! see the estimate as with the `f32` step, and a correction moves what
+//! the next step starts from. The same bits on every core, so
 //! the host's replay of a model file that asks for it is the firmware to
 //! the bit. Tested: 2 h at 8 A open loop within 1e-5 K of the `f64` RK4
 //! (`the_integer_step_does_not_drift_either`, 5.8e-6 K), an hour of
@@ -362,7 +364,6 @@ use super::vocabulary::{
     FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
 };
 use super::warm_up::Flavour;
-use crate::discretize::fixed::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
 use crate::discretize::zoh;
 use crate::error::BuildError;
 use crate::filter::{
@@ -378,6 +379,8 @@ use crate::protect::limiter::{drive_limit, DriveLimit};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
+#[cfg(feature = "integer-step")]
+use integer::{integer_predict, IntegerStates};
 
 /// Alternating projections of the heat biases' and the boundary offset's
 /// floors after a correction (see [`NetworkSettings::boundary_offset`]).
@@ -814,10 +817,11 @@ pub struct NetworkObserver<
     /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
     constant_k: SVector<f32, N>,
     /// The model step in integer arithmetic, if the settings ask for it
-    /// (see "The model step in integer arithmetic"; always `None` without
-    /// the `integer-step` feature).
-    #[cfg_attr(not(feature = "integer-step"), allow(dead_code))]
-    integer_step: Option<FixedStep<N, B, M>>,
+    /// (see "The model step in integer arithmetic"; the field exists with
+    /// the `integer-step` feature only, so an `f32` firmware's observer is
+    /// laid out as before it).
+    #[cfg(feature = "integer-step")]
+    integer_step: Option<crate::discretize::fixed::FixedStep<N, B, M>>,
     origin_c: f32,
     source_node: [usize; M],
     resistance: [ScalarResistance<f32>; M],
@@ -898,9 +902,12 @@ pub struct NetworkObserverState<
     /// heat-input biases \[W\]) and gate memory.
     pub estimate: SteadyEstimate<f32, X, P>,
     /// What each node's `f32` deviation could not hold \[K\] (the carry of
-    /// [`compensated_add`], or of the integer step: see "The model step in
-    /// integer arithmetic").
+    /// [`compensated_add`]). Zero with the integer step, whose states carry
+    /// it (see "The model step in integer arithmetic").
     pub residual_k: [f32; N],
+    /// The integer step's own states (with the `integer-step` feature).
+    #[cfg(feature = "integer-step")]
+    integer: IntegerStates<N>,
     /// The alarm's state.
     pub alarm: AlarmState<f32, N>,
     /// The predictor's sweep.
@@ -958,6 +965,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let Self {
             estimate,
             residual_k,
+            #[cfg(feature = "integer-step")]
+            integer,
             alarm,
             predictor,
             clock,
@@ -980,6 +989,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         NetworkObserverState {
             estimate,
             residual_k,
+            #[cfg(feature = "integer-step")]
+            integer,
             alarm,
             predictor,
             clock,
@@ -1000,39 +1011,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             outputs,
         }
     }
-}
-
-/// The integer model step (see "The model step in integer arithmetic"):
-/// each node's state is its deviation and carry, `x + residual`, in Q16.48;
-/// stepped, it goes back as its `f32` image and what that does not hold.
-/// Out of line, so that the `f32` step's tick keeps its registers. False,
-/// and nothing stepped, for a non-finite input or state (only a corrupted
-/// state), as the `f32` step.
-#[inline(never)]
-fn integer_predict<const N: usize, const B: usize, const M: usize, const X: usize>(
-    step: &FixedStep<N, B, M>,
-    x: &mut SVector<f32, X>,
-    residual_k: &mut [f32; N],
-    power: &SVector<f32, M>,
-    boundary: &SVector<f32, B>,
-) -> bool {
-    let Some(inputs) = FixedInputs::new(&(*power).into(), &(*boundary).into()) else {
-        return false;
-    };
-    let mut states = [0i64; N];
-    for ((q, xi), r) in states.iter_mut().zip(x.iter()).zip(residual_k.iter()) {
-        if !(finite_bits(*xi) && finite_bits(*r)) {
-            return false;
-        }
-        *q = state_of_f32(*xi).saturating_add(state_of_f32(*r));
-    }
-    step.step(&mut states, &inputs);
-    for ((xi, r), q) in x.iter_mut().zip(residual_k.iter_mut()).zip(&states) {
-        let image = f32_of_state(*q);
-        *xi = image;
-        *r = f32_of_state(q.saturating_sub(state_of_f32(image)));
-    }
-    true
 }
 
 fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
@@ -1130,6 +1108,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let mut state = NetworkObserverState {
             estimate: SteadyEstimate::new(x),
             residual_k: [0.0; N],
+            #[cfg(feature = "integer-step")]
+            integer: IntegerStates::new(),
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             clock: ClockState::default(),
@@ -1225,7 +1205,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// One mean predict with the held inputs (see "f32 without drift").
     fn predict<W: WarmUpKind<X>>(&self, state: &mut NetworkObserverState<N, B, M, X, P, W>) {
-        let x = &mut state.estimate.x;
+        let x = &state.estimate.x;
         let mut power = SVector::<f32, M>::zeros();
         for (m, ((node, r), i)) in self
             .source_node
@@ -1246,15 +1226,12 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 *y += *offset_k;
             }
         }
-        #[cfg(feature = "integer-step")]
-        let integer = self.integer_step.as_ref();
-        #[cfg(not(feature = "integer-step"))]
-        let integer: Option<&FixedStep<N, B, M>> = None;
-        if let Some(step) = integer {
-            if !integer_predict(step, x, &mut state.residual_k, &power, &boundary) {
-                return;
-            }
-        } else {
+        let integer = self.integer_model_step(state, &power, &boundary);
+        if integer == Some(false) {
+            return;
+        }
+        if integer.is_none() {
+            let x = &mut state.estimate.x;
             let temps = x.fixed_rows::<N>(0).into_owned();
             let mut increment = self.constant_k;
             increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
@@ -1276,6 +1253,38 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held_mut()) {
             predict_cov(&self.kalman, cov);
         }
+    }
+
+    /// The model step in integer arithmetic, if the settings ask for it:
+    /// `Some(stepped)`, `None` for the `f32` step.
+    #[cfg(feature = "integer-step")]
+    fn integer_model_step<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        power: &SVector<f32, M>,
+        boundary: &SVector<f32, B>,
+    ) -> Option<bool> {
+        let step = self.integer_step.as_ref()?;
+        Some(integer_predict(
+            step,
+            &mut state.integer,
+            &mut state.estimate.x,
+            &state.residual_k,
+            power,
+            boundary,
+        ))
+    }
+
+    /// Without the `integer-step` feature the step is `f32`'s.
+    #[cfg(not(feature = "integer-step"))]
+    #[inline(always)]
+    fn integer_model_step<W: WarmUpKind<X>>(
+        &self,
+        _state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        _power: &SVector<f32, M>,
+        _boundary: &SVector<f32, B>,
+    ) -> Option<bool> {
+        None
     }
 
     /// The biases' mean decay (see [`NetworkSettings::bias_tau_s`]), once
@@ -2233,6 +2242,8 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 }
 
 mod bias;
+#[cfg(feature = "integer-step")]
+mod integer;
 mod parts;
 pub mod resistance;
 pub use super::warm_up::{NoWarmUp, WarmUp};

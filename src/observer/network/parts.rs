@@ -915,6 +915,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
         let integer_step = integer_step(s, &m.step)?;
+        // Refused above without the feature, so always `None` here then.
+        #[cfg(not(feature = "integer-step"))]
+        let _ = integer_step;
         Ok(Self {
             phi_minus_i: matrix(&m.step.phi_minus_i),
             bd_power,
@@ -975,6 +978,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             step_us: s.step_us,
             protect_period_us: timing.protect_period_us,
             fingerprint: fingerprint.finish(),
+            #[cfg(feature = "integer-step")]
             integer_step,
         })
     }
@@ -1094,6 +1098,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             Ok(step) => step,
             Err(e) => return Err(e),
         };
+        // Refused above without the feature, so always `None` here then.
+        #[cfg(not(feature = "integer-step"))]
+        let _ = integer_step;
         if clock.step_us != s.step_us || a.protect_period_us == 0 {
             return Err(invalid("assembled"));
         }
@@ -1159,6 +1166,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             step_us: s.step_us,
             protect_period_us: a.protect_period_us,
             fingerprint: a.fingerprint,
+            #[cfg(feature = "integer-step")]
             integer_step,
         })
     }
