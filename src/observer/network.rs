@@ -140,11 +140,12 @@
 //! Without an FPU every `f32` operation of the step above is a software
 //! routine, about 200 instructions a multiply-add on a Cortex-M0. With
 //! [`NetworkSettings::integer_model_step`] (and the `integer-step`
-//! feature) the step runs in integer arithmetic instead ([`FixedStep`]):
-//! each node has a Q16.48 state (3.6e-15 K) in the observer state, the
-//! increment is formed from the same `f32` tables as `i32` rows scaled by
-//! powers of two, 32 x 32 -> 64-bit products, and added exactly; the
-//! `f32` estimate is the state's image. A deviation moved since the step
+//! feature) the step runs in integer arithmetic instead
+//! ([`FixedStep`](crate::discretize::fixed::FixedStep)): each node has a
+//! Q16.48 state (3.6e-15 K) in the observer state, the increment is
+//! formed from the same `f32` tables as `i32` rows scaled by powers of
+//! two, 32 x 32 -> 64-bit products, and added exactly; the `f32` estimate
+//! is the state's image. A deviation moved since the step
 //! wrote it (a correction, the common-mode rule, a start) moves the
 //! integer state by the same amount, exactly, before the next step
 //! (`network/integer.rs`). So the filter, the bound and the protection
@@ -528,8 +529,9 @@ pub struct NetworkSettings {
     /// [`ClockFrozen`](crate::protect::events::EventKind::ClockFrozen)
     /// event. At least `frozen_flag_ticks`. Default 1000 (1 s).
     pub frozen_loss_ticks: u32,
-    /// The model step in integer arithmetic ([`FixedStep`], see "The
-    /// model step in integer arithmetic" in [`super::network`]): for a core
+    /// The model step in integer arithmetic
+    /// ([`FixedStep`](crate::discretize::fixed::FixedStep), see "The model
+    /// step in integer arithmetic" in [`super::network`]): for a core
     /// without an FPU, where each `f32` multiply-add of the step is a
     /// software routine. Needs the `integer-step` feature (refused
     /// without). Default `false`: the `f32` step, cheaper with an FPU. The
