@@ -1864,21 +1864,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// projections converge on), and the powers, a soft-float routine per
     /// source on a core without an FPU, are not formed again per pass
     /// (the real motor's reading tick on the Cortex-M0: 7 of its 8 power
-    /// sets, some 19 000 instructions).
+    /// sets, some 20 000 instructions). Without an offset state the floors
+    /// are taken as before, in [`Self::keep_bias_floors`] (that shape kept
+    /// the M4F's `three_phase_qemu` worst tick at 2 475: with the powers
+    /// passed in from here it was 2 522).
     fn keep_floors<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
     ) {
-        let powers_w = self.joule_powers_w(state);
         if self.offset_boundary.is_none() {
-            self.keep_bias_floors(state, warming, &powers_w);
+            self.keep_bias_floors(state, warming);
             return;
         }
+        let powers_w = self.joule_powers_w(state);
         for _ in 0..FLOOR_PASSES {
             let cov = self.floor_cov(&state.warm, warming);
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
-            self.keep_bias_floors(state, warming, &powers_w);
+            self.keep_bias_floors_at(state, warming, &powers_w);
         }
     }
 
@@ -1890,9 +1893,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// back by its regression on that bias
     /// ([`project_onto_floor`](crate::filter::project_onto_floor)). Exact
     /// for one bias; several are projected in turn on the same covariance.
-    /// `powers_w` \[W\]: each source's Joule power, whose fraction is its
-    /// floor.
+    /// The floors are at the Joule powers of the estimate.
     fn keep_bias_floors<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        warming: bool,
+    ) {
+        let powers_w = self.joule_powers_w(state);
+        self.keep_bias_floors_at(state, warming, &powers_w);
+    }
+
+    /// [`Self::keep_bias_floors`] at the Joule powers `powers_w` \[W\].
+    #[inline(always)]
+    fn keep_bias_floors_at<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
