@@ -1865,9 +1865,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// source on a core without an FPU, are not formed again per pass
     /// (the real motor's reading tick on the Cortex-M0: 7 of its 8 power
     /// sets, some 20 000 instructions). Without an offset state the floors
-    /// are taken as before, in [`Self::keep_bias_floors`] (that shape kept
-    /// the M4F's `three_phase_qemu` worst tick at 2 475: with the powers
-    /// passed in from here it was 2 522).
+    /// are taken as before, in [`Self::keep_bias_floors`] (with the powers
+    /// passed in from here, the M4F's `three_phase_qemu` worst tick was
+    /// 2 522; with this shape 2 511, against 2 490 before; the body inlined
+    /// in both places gave 2 475 but 1.3 KB more flash, beyond the
+    /// Cortex-M0 footprint's goal).
     fn keep_floors<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
@@ -1904,7 +1906,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// [`Self::keep_bias_floors`] at the Joule powers `powers_w` \[W\].
-    #[inline(always)]
+    #[inline(never)]
     fn keep_bias_floors_at<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
