@@ -1863,13 +1863,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// estimate: the passes project onto fixed sets (what alternating
     /// projections converge on), and the powers, a soft-float routine per
     /// source on a core without an FPU, are not formed again per pass
-    /// (the real motor's reading tick on the Cortex-M0: 7 of its 8 power
-    /// sets, some 20 000 instructions). Without an offset state the floors
-    /// are taken as before, in [`Self::keep_bias_floors`] (with the powers
-    /// passed in from here, the M4F's `three_phase_qemu` worst tick was
-    /// 2 522; with this shape 2 511, against 2 490 before; the body inlined
-    /// in both places gave 2 475 but 1.3 KB more flash, beyond the
-    /// Cortex-M0 footprint's goal).
+    /// (the real motor's reading tick on the Cortex-M0: some 20 000
+    /// instructions). Without an offset state the floors are taken in
+    /// [`Self::keep_bias_floors`] as before: the shape that kept the M4F's
+    /// ticks and the M0 footprint within their ceilings (docs/cost.md).
     fn keep_floors<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
