@@ -142,6 +142,8 @@ def main():
     ap.add_argument("--by", choices=("function", "line"), default="function")
     ap.add_argument("--tick-entry", help="the function whose entry starts a tick (a suffix of its path)")
     ap.add_argument("--ticks-calling", help="only the ticks that enter this function (a suffix of its path)")
+    ap.add_argument("--ticks-without", action="append", default=[],
+                    help="only the ticks that do not enter this function (repeatable)")
     ap.add_argument("--heaviest", type=int, help="only the N heaviest ticks")
     ap.add_argument("--rows", type=int, default=30)
     args = ap.parse_args()
@@ -168,6 +170,9 @@ def main():
     if args.ticks_calling:
         marks = image.entries(args.ticks_calling)
         ticks = [t for t in ticks if any(pc in marks for pc in t)]
+    for name in args.ticks_without:
+        marks = image.entries(name)
+        ticks = [t for t in ticks if not any(pc in marks for pc in t)]
     cost = lambda tick: sum(len(image.block(pc)) for pc in tick)
     if args.heaviest:
         ticks = sorted(ticks, key=cost, reverse=True)[:args.heaviest]
