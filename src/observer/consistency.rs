@@ -874,9 +874,18 @@ impl<const M: usize> BlockMean<M> {
         if steps == 0 {
             return None;
         }
-        let n = steps as f32;
-        for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
-            *sum += i * i * n;
+        if steps == 1 {
+            // Most ticks: `i * i * 1.0` without the multiply (the same
+            // bits; a soft-float routine per current on a core without an
+            // FPU).
+            for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
+                *sum += i * i;
+            }
+        } else {
+            let n = steps as f32;
+            for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
+                *sum += i * i * n;
+            }
         }
         self.steps = self.steps.saturating_add(steps);
         if self.steps < block_steps.max(1) {

@@ -284,6 +284,41 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
     }
 }
 
+/// The predictor's limits \[degC\] of `N` elements, kept with the ambient
+/// \[degC\] they were formed at: they depend on nothing else, and the
+/// ambient moves far less often than a predictor stage runs (each formed
+/// limit is a derating and a bound's shift, a dozen soft-float routines an
+/// element on a core without an FPU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct MeanLimits<const N: usize> {
+    /// The bits of the ambient the limits were formed at; `None` before
+    /// the first.
+    ambient_bits: Option<u32>,
+    limits_c: [f32; N],
+}
+
+impl<const N: usize> MeanLimits<N> {
+    /// No limits formed yet.
+    pub(crate) const fn new() -> Self {
+        Self {
+            ambient_bits: None,
+            limits_c: [0.0; N],
+        }
+    }
+
+    /// The limits at `ambient_c` \[degC\]: the kept ones when it has the
+    /// same bits, else `form(ambient_c)`, kept. The same bits as forming
+    /// them every time (`form` is a function of the ambient alone).
+    pub(crate) fn at(&mut self, ambient_c: f32, form: impl FnOnce(f32) -> [f32; N]) -> &[f32; N] {
+        let bits = ambient_c.to_bits();
+        if self.ambient_bits != Some(bits) {
+            self.limits_c = form(ambient_c);
+            self.ambient_bits = Some(bits);
+        }
+        &self.limits_c
+    }
+}
+
 /// A predictor's answer `time_s` \[s\] made older by `lag_s` \[s\] (the
 /// real time it lags behind), never below zero; NaN ("unknown") and `None`
 /// ("never") pass through. Shared by the observers.
@@ -357,5 +392,28 @@ mod tests {
         let (sliced, lag) = stages_sliced(40_000, 9_000, 2, 140);
         assert_eq!(sliced, [0, 1, 50, 51, 90, 91, 130, 131]);
         assert_eq!(lag, 49_000);
+    }
+
+    /// The kept limits are formed again exactly when the ambient's bits
+    /// move (`-0` after `+0` too, whose limits can differ in sign).
+    #[test]
+    fn mean_limits_are_formed_again_when_the_ambient_moves() {
+        let mut formed = 0;
+        let mut limits = MeanLimits::<2>::new();
+        let mut at = |limits: &mut MeanLimits<2>, ambient_c: f32| {
+            *limits.at(ambient_c, |a| {
+                formed += 1;
+                [a + 100.0, a + 50.0]
+            })
+        };
+        assert_eq!(at(&mut limits, 20.0), [120.0, 70.0]);
+        assert_eq!(at(&mut limits, 20.0), [120.0, 70.0]);
+        assert_eq!(at(&mut limits, 25.0), [125.0, 75.0]);
+        assert_eq!(at(&mut limits, 20.0), [120.0, 70.0]);
+        at(&mut limits, 0.0);
+        at(&mut limits, -0.0);
+        assert!(at(&mut limits, f32::NAN)[0].is_nan());
+        assert_eq!(at(&mut limits, 30.0), [130.0, 80.0]);
+        assert_eq!(formed, 7);
     }
 }

@@ -283,6 +283,50 @@ fn a_predictor_split_by_element_answers_alike_later() {
 }
 
 #[test]
+fn the_time_to_limit_follows_a_moved_ambient() {
+    // The predictor's limits are kept between stages and formed again only
+    // when the ambient moves: after the ambient rises, the sliced answer
+    // is the full sweep's at the new ambient's derated limit (to the
+    // sweep's age), not at the old one's.
+    let net = device();
+    let observer: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c([Some(100.0), None, None])
+        .build()
+        .unwrap();
+    let mut state = observer.state(&[20.0; 3], &[20.0]);
+    let (before_s, after_s) = (120_000u32, 20_000u32);
+    for k in 0..before_s + after_s {
+        let ambient_c = if k < before_s { 20.0 } else { 35.0 };
+        observer.tick(
+            &mut state,
+            &inputs([9.0], [ambient_c], k.wrapping_mul(1000)),
+        );
+    }
+    let published = state.outputs().time_to_limit_s[0].expect("9 A reaches the limit");
+    let full_sweep = |ambient_c: f32| {
+        let op = observer.operating(
+            &mut MeanLimits::new(),
+            &state.outputs().temps_c,
+            &[9.0],
+            &[35.0],
+            ambient_c,
+        );
+        let mut out = [None; 3];
+        observer.predictor.predict(&op, &mut out);
+        out[0].expect("a crossing")
+    };
+    let (now, stale) = (full_sweep(35.0), full_sweep(20.0));
+    std::println!(
+        "published {published} s, full sweep {now} s, at the old ambient's limit {stale} s"
+    );
+    assert!(
+        (stale - now).abs() > 10.0,
+        "the ambient must move the answer: {stale} vs {now}"
+    );
+    assert!((published - now).abs() < 2.0, "{published} vs {now}");
+}
+
+#[test]
 fn default_incidence_follows_the_heat() {
     let net = three_phase();
     let inc = default_incidence(&net, 0.1).unwrap();

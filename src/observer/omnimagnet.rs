@@ -738,60 +738,64 @@ pub struct OmniObserver {
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone)]
+#[repr(C)]
 pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
-    /// The filter's estimate (deviations from `model`'s origin \[K\], then
-    /// the heat-input biases \[W\]) and gate memory.
-    pub estimate: SteadyEstimate<f32, STATES, THERMOCOUPLES>,
-    /// The linear model the predict runs on (see
-    /// [`OmniObserver::install_model`]).
-    pub model: MeanModel<f32>,
-    /// The filter input of the last step (powers \[W\], ambient \[degC\], 1).
-    input: SVector<f32, INPUTS>,
-    /// The alarm's state.
-    pub alarm: AlarmState<f32, 6>,
-    /// The predictor's sweep.
-    pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
+    // Laid out as declared (`repr(C)`), the fields every tick reads
+    // first (see `NetworkObserverState`: a Cortex-M4F float load reaches
+    // 1 020 bytes from its base).
     /// The time not yet simulated.
     pub clock: ClockState,
-    /// Alarm events not yet drained.
-    pub events: EventQueue<EVENT_CAPACITY>,
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
-    cycle: ProtectionCycle<SOLENOIDS>,
-    /// What each node's deviation could not hold \[K\] (the carry of
-    /// [`MeanModel::predict`]).
-    residual_k: [f32; NODES],
-    /// The shadow's deviations from its origin \[K\] (biases zero).
-    shadow_x: SVector<f32, STATES>,
-    shadow_residual_k: [f32; NODES],
-    stuck: StuckWatch<THERMOCOUPLES>,
-    /// The heat-input biases when each thermocouple's reading last
-    /// changed: where a stuck one's biases go back to.
-    rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
-    silence: SilenceWatch<THERMOCOUPLES>,
-    shadow_block: BlockMean<SOLENOIDS>,
-    /// The solenoids whose measurement is in doubt.
-    suspect: Suspicion<SOLENOIDS>,
-    outputs: OmniOutputs,
     /// The step in progress: each solenoid's `I^2` times the time it was
     /// held \[A^2 us\], over the clock's debt (the part of the step the
     /// ticks so far covered).
     step_i2_a2_us: [f32; SOLENOIDS],
+    /// Model steps since the state was made or a model was last
+    /// installed (saturating), for the refresh watchdog.
+    model_age_steps: u32,
+    cycle: ProtectionCycle<SOLENOIDS>,
+    /// Model steps handed to the next tick (see [`StepClock::defer`]).
+    deferral: Deferral,
+    shadow_block: BlockMean<SOLENOIDS>,
+    silence: SilenceWatch<THERMOCOUPLES>,
+    outputs: OmniOutputs,
+    /// The filter's estimate (deviations from `model`'s origin \[K\], then
+    /// the heat-input biases \[W\]) and gate memory.
+    pub estimate: SteadyEstimate<f32, STATES, THERMOCOUPLES>,
+    /// What each node's deviation could not hold \[K\] (the carry of
+    /// [`MeanModel::predict`]).
+    residual_k: [f32; NODES],
+    /// The filter input of the last step (powers \[W\], ambient \[degC\], 1).
+    input: SVector<f32, INPUTS>,
+    /// The linear model the predict runs on (see
+    /// [`OmniObserver::install_model`]).
+    pub model: MeanModel<f32>,
+    /// The shadow's deviations from its origin \[K\] (biases zero).
+    shadow_x: SVector<f32, STATES>,
+    shadow_residual_k: [f32; NODES],
+    /// The predictor's sweep.
+    pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
+    /// The alarm's state.
+    pub alarm: AlarmState<f32, 6>,
+    /// Alarm events not yet drained.
+    pub events: EventQueue<EVENT_CAPACITY>,
+    stuck: StuckWatch<THERMOCOUPLES>,
+    /// The heat-input biases when each thermocouple's reading last
+    /// changed: where a stuck one's biases go back to.
+    rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
+    /// The solenoids whose measurement is in doubt.
+    suspect: Suspicion<SOLENOIDS>,
     /// The held currents changed within the step in progress: its power
     /// takes the mean `I^2`, not the held current.
     step_mixed: bool,
     /// The last tick corrected with a multi-rate model: the heat-bias
     /// check is this tick's (see [`OmniObserver::tick`]).
     bias_check_due: bool,
-    /// Model steps handed to the next tick (see [`StepClock::defer`]).
-    deferral: Deferral,
     /// A model re-linearised at the estimate has been installed
     /// ([`OmniObserver::install_model`]): it needs no heat bias, so a
     /// doubted solenoid's negative one is dropped.
     relinearised: bool,
-    /// Model steps since the state was made or a model was last
-    /// installed (saturating), for the refresh watchdog.
-    model_age_steps: u32,
     /// What the start's warm-up holds (see [`OmniObserver::start`]):
     /// nothing in the [`NoWarmUp`] flavour.
     warm: W,
