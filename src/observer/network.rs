@@ -1246,28 +1246,29 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 *y += *offset_k;
             }
         }
-        let integer = self.integer_model_step(state, &power, &boundary);
-        if integer == Some(false) {
-            return;
-        }
-        if integer.is_none() {
-            let x = &mut state.estimate.x;
-            let temps = x.fixed_rows::<N>(0).into_owned();
-            let mut increment = self.constant_k;
-            increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
-            increment.gemv(1.0, &self.bd_power, &power, 1.0);
-            increment.gemv(1.0, &self.gd_boundary, &boundary, 1.0);
-            if !increment.iter().all(|v| v.is_finite()) {
-                // Only a corrupted state gets here (held inputs are finite):
-                // keep the estimate rather than spread NaN.
-                return;
-            }
-            for ((xi, residual), inc) in x
-                .iter_mut()
-                .zip(state.residual_k.iter_mut())
-                .zip(increment.iter())
-            {
-                *xi = compensated_add(*xi, *inc, residual);
+        match self.integer_model_step(state, &power, &boundary) {
+            // A non-finite input or deviation: the estimate is kept.
+            Some(false) => return,
+            Some(true) => {}
+            None => {
+                let x = &mut state.estimate.x;
+                let temps = x.fixed_rows::<N>(0).into_owned();
+                let mut increment = self.constant_k;
+                increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
+                increment.gemv(1.0, &self.bd_power, &power, 1.0);
+                increment.gemv(1.0, &self.gd_boundary, &boundary, 1.0);
+                if !increment.iter().all(|v| v.is_finite()) {
+                    // Only a corrupted state gets here (held inputs are finite):
+                    // keep the estimate rather than spread NaN.
+                    return;
+                }
+                for ((xi, residual), inc) in x
+                    .iter_mut()
+                    .zip(state.residual_k.iter_mut())
+                    .zip(increment.iter())
+                {
+                    *xi = compensated_add(*xi, *inc, residual);
+                }
             }
         }
         if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held_mut()) {
@@ -1275,35 +1276,29 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    /// The model step in integer arithmetic, if the settings ask for it:
-    /// `Some(stepped)`, `None` for the `f32` step.
-    #[cfg(feature = "integer-step")]
+    /// The model step in integer arithmetic, if the settings ask for it
+    /// (only with the `integer-step` feature): `Some(stepped)`, `None` for
+    /// the `f32` step.
+    #[inline(always)]
     fn integer_model_step<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         power: &SVector<f32, M>,
         boundary: &SVector<f32, B>,
     ) -> Option<bool> {
-        let step = self.integer_step.as_ref()?;
-        Some(integer_predict(
-            step,
-            &mut state.integer,
-            &mut state.estimate.x,
-            &state.residual_k,
-            power,
-            boundary,
-        ))
-    }
-
-    /// Without the `integer-step` feature the step is `f32`'s.
-    #[cfg(not(feature = "integer-step"))]
-    #[inline(always)]
-    fn integer_model_step<W: WarmUpKind<X>>(
-        &self,
-        _state: &mut NetworkObserverState<N, B, M, X, P, W>,
-        _power: &SVector<f32, M>,
-        _boundary: &SVector<f32, B>,
-    ) -> Option<bool> {
+        #[cfg(feature = "integer-step")]
+        if let Some(step) = &self.integer_step {
+            return Some(integer_predict(
+                step,
+                &mut state.integer,
+                &mut state.estimate.x,
+                &state.residual_k,
+                power,
+                boundary,
+            ));
+        }
+        #[cfg(not(feature = "integer-step"))]
+        let _ = (state, power, boundary);
         None
     }
 
