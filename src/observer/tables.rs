@@ -355,7 +355,8 @@ pub struct PredictorTables<const N: usize, const B: usize, const M: usize> {
     pub v_inv: [[f32; N]; N],
     /// Steady rise per watt of each source \[K/W\].
     pub gain_power: [[f32; M]; N],
-    /// The same in modal coordinates.
+    /// The same in modal coordinates (not read by the predictor since its
+    /// amplitudes come from `V^-1 (T_0 - T_ss)`; kept in the format).
     pub mode_gain_power: [[f32; M]; N],
     /// Steady temperature per degree of each boundary (dimensionless).
     pub gain_boundary: [[f32; B]; N],

@@ -389,6 +389,10 @@ pub struct LimitPredictor<
     pub(crate) v_inv: [[T; N]; N],
     /// Steady rise per watt of each winding \[K/W\].
     pub(crate) gain_power: [[T; M]; N],
+    /// The steady gains in modal coordinates (`V^-1` times them): not
+    /// read by the sweep, whose amplitudes come from `V^-1 (T_0 - T_ss)`
+    /// (see [`Self::steady_and_modes`]); kept in the tables' format, which
+    /// the generated modules share.
     pub(crate) mode_gain_power: [[T; M]; N],
     /// Steady temperature per degree of each boundary (dimensionless).
     pub(crate) gain_boundary: [[T; B]; N],
@@ -507,7 +511,14 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 
     /// Steady state \[degC\] and modal amplitudes for initial temperatures
     /// `temps_c`, winding powers `powers_w` and boundaries `boundary_c`:
-    /// `T_ss = Kp p + Kb T_b + k_d`, `z = V^-1 T_0 - V^-1 T_ss`.
+    /// `T_ss = Kp p + Kb T_b + k_d`, `z = V^-1 (T_0 - T_ss)`.
+    ///
+    /// The amplitudes from the difference, not as `V^-1 T_0` less the
+    /// modal gains' `V^-1 T_ss`: the two terms are each far larger than
+    /// their difference (`V^-1`'s rows sum to a hundred in magnitude for
+    /// the real motor, thousands of kelvin at the operating point) and
+    /// cancel in `f32`; and it is `N` multiply-adds a row where the gains
+    /// took `N + M + B`.
     pub(super) fn steady_and_modes(
         &self,
         temps_c: &[T; N],
@@ -515,31 +526,32 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         boundary_c: &[T; B],
         with_fixed: bool,
     ) -> ([T; N], [T; N]) {
-        let fixed = if with_fixed { T::one() } else { T::zero() };
         let mut steady = [T::zero(); N];
-        let mut modes = [T::zero(); N];
         let rows = steady
             .iter_mut()
-            .zip(modes.iter_mut())
-            .zip(self.gain_power.iter().zip(&self.mode_gain_power))
-            .zip(self.gain_boundary.iter().zip(&self.mode_gain_boundary))
-            .zip(self.offset_c.iter().zip(&self.mode_offset))
-            .zip(&self.v_inv);
-        for (((((ss, z), (gp, zp)), (gb, zb)), (off, zoff)), v_inv_row) in rows {
-            let mut s = *off * fixed;
-            let mut m = -*zoff * fixed;
-            for ((g, gz), p) in gp.iter().zip(zp).zip(powers_w) {
+            .zip(&self.gain_power)
+            .zip(&self.gain_boundary)
+            .zip(&self.offset_c);
+        for (((ss, gp), gb), off) in rows {
+            let mut s = if with_fixed { *off } else { T::zero() };
+            for (g, p) in gp.iter().zip(powers_w) {
                 s += *g * *p;
-                m -= *gz * *p;
             }
-            for ((g, gz), tb) in gb.iter().zip(zb).zip(boundary_c) {
+            for (g, tb) in gb.iter().zip(boundary_c) {
                 s += *g * *tb;
-                m -= *gz * *tb;
-            }
-            for (vi, t) in v_inv_row.iter().zip(temps_c) {
-                m += *vi * *t;
             }
             *ss = s;
+        }
+        let mut rise = [T::zero(); N];
+        for ((d, t), ss) in rise.iter_mut().zip(temps_c).zip(&steady) {
+            *d = *t - *ss;
+        }
+        let mut modes = [T::zero(); N];
+        for (z, v_inv_row) in modes.iter_mut().zip(&self.v_inv) {
+            let mut m = T::zero();
+            for (vi, d) in v_inv_row.iter().zip(&rise) {
+                m += *vi * *d;
+            }
             *z = m;
         }
         (steady, modes)
