@@ -116,6 +116,16 @@ pub enum BuildError {
     },
 }
 
+/// `Ok` when `ok`, else [`BuildError::InvalidParameter`] naming `name`:
+/// every builder's parameter check.
+pub(crate) const fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(BuildError::InvalidParameter { name })
+    }
+}
+
 impl fmt::Display for BuildError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {

@@ -205,7 +205,7 @@
 //! ```
 
 use super::{Network, Resistance};
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 
 /// The node of each phase winding (A, B, C); current input `m` heats node `m`.
 pub const PHASE_NODES: [usize; 3] = [0, 1, 2];
@@ -330,13 +330,6 @@ impl MotorBuilder {
         let positive = |v: f64, name: &'static str| {
             if v.is_finite() && v > 0.0 {
                 Ok(v)
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
             } else {
                 Err(BuildError::InvalidParameter { name })
             }

@@ -366,7 +366,7 @@ use super::vocabulary::{
 };
 use super::warm_up::Flavour;
 use crate::discretize::zoh;
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::filter::{
     predict_cov, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
 };
@@ -1022,14 +1022,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_until_steady,
             outputs,
         }
-    }
-}
-
-fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(BuildError::InvalidParameter { name })
     }
 }
 

@@ -6,7 +6,7 @@
 
 use super::clock::TickSteps;
 use super::consistency::{stuck_window, Band, StuckTest};
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::input::InputFlags;
 use crate::protect::alarm::AlarmStatus;
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
@@ -153,13 +153,6 @@ impl SensorChecks {
 
     /// Refuses a setting out of its range, naming it.
     pub(crate) fn validate(&self) -> Result<(), BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
         check(
             !self.consistency_offset_k.is_nan() && self.consistency_offset_k >= 0.0,

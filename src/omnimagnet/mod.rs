@@ -207,7 +207,7 @@ pub use nonlinear::{natural_convection_h_w_per_m2_k, AirProperties, Conductances
 pub use presets::Preset;
 pub use relinearize::{RelinearizeConfig, RelinearizePoll, Relinearizer, MATMULS_PER_SLICE};
 
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use nalgebra::SMatrix;
 
 /// Stable node names, in node order (used by the CLI).
@@ -313,14 +313,6 @@ pub struct Omnimagnet {
 
 fn finite_nonneg(v: f64) -> bool {
     v.is_finite() && v >= 0.0
-}
-
-fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(BuildError::InvalidParameter { name })
-    }
 }
 
 impl Omnimagnet {

@@ -139,7 +139,7 @@ use super::data::{NODES, SOLENOIDS};
 use super::linearize::Linearization;
 use super::relinearize::{RelinearizePoll, Relinearizer};
 use super::{measurement_matrix, Omnimagnet, THERMOCOUPLES, THERMOCOUPLE_NODES};
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::filter::{
     self, InputStatus, KalmanConfig, KalmanState, Observability, SensorVerdict, SteadyEstimate,
     SteadyStateGain, CHI2_1DOF_999,
@@ -496,14 +496,6 @@ pub struct OmnimagnetObserver<T: RealField + Copy> {
 
 fn cast<T: RealField + Copy>(v: f64) -> T {
     nalgebra::convert(v)
-}
-
-fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(BuildError::InvalidParameter { name })
-    }
 }
 
 impl ObserverSettings {

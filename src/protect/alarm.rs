@@ -65,7 +65,7 @@ use core::ops::Range;
 
 use super::derating::{derated_limit_c, DeratingRule};
 use super::events::{AlarmEvent, EventKind, EventQueue};
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::scalar::Scalar;
 
 /// Where one sample lies relative to an alarm's raise and clear levels.
@@ -312,13 +312,6 @@ impl<const N: usize> AlarmBuilder<N> {
     /// [`BuildError::InvalidParameter`] naming the first parameter that is not
     /// finite or out of its range (`critical_c` for any element).
     pub fn build<S: Scalar>(&self) -> Result<AlarmConfig<S, N>, BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
         check(self.critical_c.iter().all(|c| c.is_finite()), "critical_c")?;
         check(non_negative(self.warning_margin_k), "warning_margin_k")?;

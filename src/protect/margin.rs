@@ -107,7 +107,7 @@
 
 use core::ops::Range;
 
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::scalar::Scalar;
 
 /// The model-uncertainty margin of an element: how much hotter than the
@@ -383,13 +383,6 @@ impl<const N: usize> UpperBoundBuilder<N> {
     /// [`BuildError::InvalidParameter`] naming the parameter: a fraction, an
     /// offset, `k` or a `sigma_k` that is not finite or is negative.
     pub fn build<S: Scalar>(&self) -> Result<UpperBound<S, N>, BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
         check(nonneg(self.k_sigma), "k_sigma")?;
         let mut elements = [ElementBound::ZERO; N];

@@ -44,7 +44,7 @@
 //!
 //! Everything here is `f32`, O(1), allocation-free and panic-free.
 
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::network::Resistance;
 
 /// The winding's mean temperature, from its resistance.
@@ -85,13 +85,6 @@ impl ResistanceSensor {
         current_std_a: f64,
         min_current_a: f64,
     ) -> Result<Self, BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         check(
             resistance.r_at_0c_ohm.is_finite()
                 && resistance.slope_ohm_per_k.is_finite()
@@ -173,13 +166,6 @@ impl DriftConfig {
         threshold_k: f64,
         hold_s: f64,
     ) -> Result<Self, BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         check(
             reading_period_s.is_finite() && reading_period_s > 0.0,
             "reading_period_s",

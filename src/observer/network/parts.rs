@@ -52,7 +52,7 @@ use super::{
     PREDICTOR_POINTS,
 };
 use crate::discretize::fixed::FixedStep;
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::input::ScalarLimits;
@@ -293,14 +293,6 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
             && finite(&self.hardware_limit_a)
             && finite(&self.nominal_power_w)
             && finite(&self.noise_allowance_k)
-    }
-}
-
-fn check(ok: bool, name: &'static str) -> Result<(), BuildError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(BuildError::InvalidParameter { name })
     }
 }
 

@@ -78,7 +78,7 @@
 //! generated module of a thermocouple-only model calls, its tables
 //! unchanged), and refuses tables solved with another sensor noise.
 
-use crate::error::BuildError;
+use crate::error::{check, BuildError};
 use crate::network::{Network, Resistance};
 use crate::observer::vocabulary::TimedReading;
 use crate::sensors::{Reading, SensorFault, SensorResult};
@@ -237,13 +237,6 @@ impl ResistanceSensor {
     /// # Errors
     /// [`BuildError::InvalidParameter`] naming the field.
     pub fn checked(self) -> Result<Self, BuildError> {
-        let check = |ok: bool, name: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(BuildError::InvalidParameter { name })
-            }
-        };
         let positive = |v: f64| v.is_finite() && v > 0.0;
         check(
             self.r_at_0c_ohm.is_finite() && positive(self.slope_ohm_per_k),
