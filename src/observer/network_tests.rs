@@ -294,9 +294,10 @@ fn the_time_to_limit_follows_a_moved_ambient() {
         .build()
         .unwrap();
     let mut state = observer.state(&[20.0; 3], &[20.0]);
-    let (before_s, after_s) = (120_000u32, 20_000u32);
-    for k in 0..before_s + after_s {
-        let ambient_c = if k < before_s { 20.0 } else { 35.0 };
+    // 120 s at 20 degC, then 20 s at 35 degC, in 1 ms ticks.
+    let (ticks_before, ticks_after) = (120_000u32, 20_000u32);
+    for k in 0..ticks_before + ticks_after {
+        let ambient_c = if k < ticks_before { 20.0 } else { 35.0 };
         observer.tick(
             &mut state,
             &inputs([9.0], [ambient_c], k.wrapping_mul(1000)),

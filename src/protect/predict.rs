@@ -518,7 +518,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// their difference (`V^-1`'s rows sum to a hundred in magnitude for
     /// the real motor, thousands of kelvin at the operating point) and
     /// cancel in `f32`; and it is `N` multiply-adds a row where the gains
-    /// took `N + M + B`.
+    /// took `N + M + B + 1`.
     pub(super) fn steady_and_modes(
         &self,
         temps_c: &[T; N],
@@ -542,14 +542,14 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             }
             *ss = s;
         }
-        let mut rise = [T::zero(); N];
-        for ((d, t), ss) in rise.iter_mut().zip(temps_c).zip(&steady) {
+        let mut from_steady = [T::zero(); N];
+        for ((d, t), ss) in from_steady.iter_mut().zip(temps_c).zip(&steady) {
             *d = *t - *ss;
         }
         let mut modes = [T::zero(); N];
         for (z, v_inv_row) in modes.iter_mut().zip(&self.v_inv) {
             let mut m = T::zero();
-            for (vi, d) in v_inv_row.iter().zip(&rise) {
+            for (vi, d) in v_inv_row.iter().zip(&from_steady) {
                 m += *vi * *d;
             }
             *z = m;
