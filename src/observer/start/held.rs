@@ -57,6 +57,18 @@ enum Phase {
     Finish,
 }
 
+impl Phase {
+    /// The phase after slice `k` of `count` in `phase`: its next slice,
+    /// or `then` after the last.
+    fn after(k: usize, count: usize, phase: fn(u16) -> Self, then: Self) -> Self {
+        if k + 1 < count {
+            phase((k + 1) as u16)
+        } else {
+            then
+        }
+    }
+}
+
 /// One correction period's transition `F = [[I + Phi', Gamma], [0, I]]`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PeriodTransition<'a, const T: usize, const G: usize> {
@@ -590,11 +602,7 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
             Phase::Columns(j) => {
                 let j = usize::from(j);
                 self.column_slice(j, transition, steady_posterior);
-                self.phase = if j + 1 < X {
-                    Phase::Columns((j + 1) as u16)
-                } else {
-                    Phase::Rows(0)
-                };
+                self.phase = Phase::after(j, X, Phase::Columns, Phase::Rows(0));
                 None
             }
             Phase::Rows(p) => {
@@ -603,21 +611,13 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
                 if let Some(other) = T.checked_sub(p + 1).filter(|o| *o > p) {
                     self.row_slice(other, transition);
                 }
-                self.phase = if p + 1 < T.div_ceil(2) {
-                    Phase::Rows((p + 1) as u16)
-                } else {
-                    Phase::Mirror(0)
-                };
+                self.phase = Phase::after(p, T.div_ceil(2), Phase::Rows, Phase::Mirror(0));
                 None
             }
             Phase::Mirror(j) => {
                 let j = usize::from(j);
                 self.mirror_slice::<T>(j, steady_prior, recovery);
-                self.phase = if j + 1 < X {
-                    Phase::Mirror((j + 1) as u16)
-                } else {
-                    Phase::Finish
-                };
+                self.phase = Phase::after(j, X, Phase::Mirror, Phase::Finish);
                 None
             }
             Phase::Finish => {
