@@ -355,17 +355,10 @@ pub struct PredictorTables<const N: usize, const B: usize, const M: usize> {
     pub v_inv: [[f32; N]; N],
     /// Steady rise per watt of each source \[K/W\].
     pub gain_power: [[f32; M]; N],
-    /// The same in modal coordinates (not read by the predictor since its
-    /// amplitudes come from `V^-1 (T_0 - T_ss)`; kept in the format).
-    pub mode_gain_power: [[f32; M]; N],
     /// Steady temperature per degree of each boundary (dimensionless).
     pub gain_boundary: [[f32; B]; N],
-    /// The same in modal coordinates.
-    pub mode_gain_boundary: [[f32; B]; N],
     /// Steady rise from the fixed powers \[K\].
     pub offset_c: [f32; N],
-    /// The same in modal coordinates.
-    pub mode_offset: [f32; N],
     /// The node of each winding.
     pub winding_node: [usize; M],
     /// Each winding's resistance extrapolated to 0 degC \[ohm\].
@@ -391,11 +384,8 @@ impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
             v: predictor.v,
             v_inv: predictor.v_inv,
             gain_power: predictor.gain_power,
-            mode_gain_power: predictor.mode_gain_power,
             gain_boundary: predictor.gain_boundary,
-            mode_gain_boundary: predictor.mode_gain_boundary,
             offset_c: predictor.offset_c,
-            mode_offset: predictor.mode_offset,
             winding_node: predictor.windings.map(|w| w.node),
             winding_r_at_0c_ohm: predictor.windings.map(|w| w.r_at_0c_ohm),
             winding_slope_ohm_per_k: predictor.windings.map(|w| w.slope_ohm_per_k),
@@ -434,11 +424,8 @@ impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
             v: self.v,
             v_inv: self.v_inv,
             gain_power: self.gain_power,
-            mode_gain_power: self.mode_gain_power,
             gain_boundary: self.gain_boundary,
-            mode_gain_boundary: self.mode_gain_boundary,
             offset_c: self.offset_c,
-            mode_offset: self.mode_offset,
             windings,
             tick_s: self.tick_s,
             points_per_tick: self.points_per_tick,
@@ -462,11 +449,8 @@ impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
             && finite_rows(&self.v)
             && finite_rows(&self.v_inv)
             && finite_rows(&self.gain_power)
-            && finite_rows(&self.mode_gain_power)
             && finite_rows(&self.gain_boundary)
-            && finite_rows(&self.mode_gain_boundary)
             && finite(&self.offset_c)
-            && finite(&self.mode_offset)
             && finite(&self.winding_r_at_0c_ohm)
             && finite(&self.winding_slope_ohm_per_k)
             && self.tick_s.is_finite()
@@ -958,11 +942,8 @@ pub(crate) fn write_predictor<const N: usize, const B: usize, const M: usize>(
         v,
         v_inv,
         gain_power,
-        mode_gain_power,
         gain_boundary,
-        mode_gain_boundary,
         offset_c,
-        mode_offset,
         winding_node,
         winding_r_at_0c_ohm,
         winding_slope_ohm_per_k,
@@ -977,11 +958,8 @@ pub(crate) fn write_predictor<const N: usize, const B: usize, const M: usize>(
     w.table("v", v)?;
     w.table("v_inv", v_inv)?;
     w.table("gain_power", gain_power)?;
-    w.table("mode_gain_power", mode_gain_power)?;
     w.table("gain_boundary", gain_boundary)?;
-    w.table("mode_gain_boundary", mode_gain_boundary)?;
     w.field("offset_c", offset_c)?;
-    w.field("mode_offset", mode_offset)?;
     w.field("winding_node", winding_node)?;
     w.field("winding_r_at_0c_ohm", winding_r_at_0c_ohm)?;
     w.field("winding_slope_ohm_per_k", winding_slope_ohm_per_k)?;

@@ -230,16 +230,15 @@ impl PredictorBuilder {
         // -A^-1 x = V diag(-1/lambda) V^-1 x, for a vector of rates x [K/s].
         let inverse_rate = modal.lambda_per_s.map(|l| -1.0 / l);
         let ones = [1.0; N];
-        let steady_gain = |rates: &[f64; N]| -> ([f64; N], [f64; N]) {
+        let steady_gain = |rates: &[f64; N]| -> [f64; N] {
             let mut modes = modal.to_modes(rates);
             for (z, w) in modes.iter_mut().zip(&inverse_rate) {
                 *z *= w;
             }
-            (modal.node_values(&modes, &ones), modes)
+            modal.node_values(&modes, &ones)
         };
 
         let mut gain_power = [[T::zero(); M]; N];
-        let mut mode_gain_power = [[T::zero(); M]; N];
         let mut windings = [Winding::default(); M];
         for (m, winding) in windings.iter_mut().enumerate() {
             let source = network
@@ -247,10 +246,9 @@ impl PredictorBuilder {
                 .ok_or(BuildError::MissingSource { input: m })?;
             let mut rates = [0.0; N];
             rates[source.node] = 1.0 / cap(source.node);
-            let (gain, modes) = steady_gain(&rates);
+            let gain = steady_gain(&rates);
             for i in 0..N {
                 gain_power[i][m] = to_t(gain[i]);
-                mode_gain_power[i][m] = to_t(modes[i]);
             }
             *winding = Winding {
                 node: source.node,
@@ -259,23 +257,21 @@ impl PredictorBuilder {
             };
         }
         let mut gain_boundary = [[T::zero(); B]; N];
-        let mut mode_gain_boundary = [[T::zero(); B]; N];
         for b in 0..B {
             let mut rates = [0.0; N];
             for (i, r) in rates.iter_mut().enumerate() {
                 *r = network.boundary_conductance_w_per_k(i, b) / cap(i);
             }
-            let (gain, modes) = steady_gain(&rates);
+            let gain = steady_gain(&rates);
             for i in 0..N {
                 gain_boundary[i][b] = to_t(gain[i]);
-                mode_gain_boundary[i][b] = to_t(modes[i]);
             }
         }
         let mut rates = [0.0; N];
         for (i, r) in rates.iter_mut().enumerate() {
             *r = network.fixed_power_w(i) / cap(i);
         }
-        let (offset, mode_offset) = steady_gain(&rates);
+        let offset = steady_gain(&rates);
 
         let ratio = libm::pow(self.last_s / self.first_s, 1.0 / (K - 1) as f64);
         let mut grid_s = [T::zero(); K];
@@ -302,11 +298,8 @@ impl PredictorBuilder {
             v: modal.v.map(|row| row.map(to_t)),
             v_inv: modal.v_inv.map(|row| row.map(to_t)),
             gain_power,
-            mode_gain_power,
             gain_boundary,
-            mode_gain_boundary,
             offset_c: offset.map(to_t),
-            mode_offset: mode_offset.map(to_t),
             windings,
             tick_s: to_t(self.tick_s),
             points_per_tick: self.points_per_tick,
@@ -389,17 +382,10 @@ pub struct LimitPredictor<
     pub(crate) v_inv: [[T; N]; N],
     /// Steady rise per watt of each winding \[K/W\].
     pub(crate) gain_power: [[T; M]; N],
-    /// The steady gains in modal coordinates (`V^-1` times them): not
-    /// read by the sweep, whose amplitudes come from `V^-1 (T_0 - T_ss)`
-    /// (see [`Self::steady_and_modes`]); kept in the tables' format, which
-    /// the generated modules share.
-    pub(crate) mode_gain_power: [[T; M]; N],
     /// Steady temperature per degree of each boundary (dimensionless).
     pub(crate) gain_boundary: [[T; B]; N],
-    pub(crate) mode_gain_boundary: [[T; B]; N],
     /// Steady rise from the fixed powers \[K\].
     pub(crate) offset_c: [T; N],
-    pub(crate) mode_offset: [T; N],
     pub(crate) windings: [Winding<T>; M],
     pub(crate) tick_s: T,
     pub(crate) points_per_tick: usize,

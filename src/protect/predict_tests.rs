@@ -734,14 +734,19 @@ fn modal_amplitudes_hold_f64s_in_f32_on_a_stiff_network() {
             .fold(0.0f64, f64::max)
             / scale
     };
+    // The form before: `V^-1 T_0` less the modal gains (`V^-1` times the
+    // steady gains, in `f64`, then held in `f32` as its tables were).
+    let modal = |i: usize, column: &dyn Fn(usize) -> f64| -> f32 {
+        (0..5).map(|j| p64.v_inv[i][j] * column(j)).sum::<f64>() as f32
+    };
     let mut before = [0.0f32; 5];
     for (i, z) in before.iter_mut().enumerate() {
-        let mut m = -p32.mode_offset[i];
+        let mut m = -modal(i, &|j| p64.offset_c[j]);
         for k in 0..3 {
-            m -= p32.mode_gain_power[i][k] * powers[k] as f32;
+            m -= modal(i, &|j| p64.gain_power[j][k]) * powers[k] as f32;
         }
         for k in 0..2 {
-            m -= p32.mode_gain_boundary[i][k] * boundary[k] as f32;
+            m -= modal(i, &|j| p64.gain_boundary[j][k]) * boundary[k] as f32;
         }
         for k in 0..5 {
             m += p32.v_inv[i][k] * temps[k] as f32;

@@ -1719,7 +1719,7 @@ mod tests {
             "sensor_nodes: [1]",
             "phi_minus_i:",
             "innovation_cov:",
-            "mode_gain_boundary:",
+            "gain_boundary:",
             "slowest_time_constant_s:",
         ] {
             assert!(text.contains(field), "{field} missing");
