@@ -67,6 +67,9 @@ impl FirmwareConfig {
         if let Some(v) = table.step_us {
             settings.step_us = v;
         }
+        if let Some(v) = table.loop_period_us {
+            settings.loop_period_us = v;
+        }
         if let Some(v) = table.sensor_sigma_k {
             settings.sensor_sigma_k = v;
         }

@@ -651,6 +651,7 @@ impl ObserverEstimator {
     pub fn new(model: Model, tick_us: u32) -> Result<Self> {
         let mut config = FirmwareConfig::of(&model, None)?;
         config.settings.step_us = tick_us;
+        config.settings.loop_period_us = tick_us;
         // Not a firmware's: currents up to the scaled default (see the
         // module docs), as a motor's 400 A need.
         config.settings.max_current_a = 100.0 * CURRENT_SCALE;

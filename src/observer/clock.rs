@@ -254,6 +254,130 @@ impl StepClock {
     }
 }
 
+/// The energy account of the model step in progress, for a step several
+/// ticks long (the multi-rate model of both filtered observers): each
+/// current's `I^2` times the time it was held \[A^2 us\] over the ticks
+/// the clock's debt covers, and whether the held currents changed within
+/// the step (per-device state).
+///
+/// Each tick's held current heats for the tick's elapsed time, so the
+/// steps taken on a tick (and any time dropped with them) get the energy
+/// of the whole interval they cover, `sum(I^2 dt) / (steps step_us +
+/// dropped_us)`, and the time carried past them starts the next step's
+/// account at the held current. A step several ticks long then heats with
+/// the exact mean power of its ticks' currents at its start temperature,
+/// where the held current of the tick it lands on would sample (alias) a
+/// current that changes within the step, and could read cold (0.74 K cold
+/// after 30 s of a 2 ms square wave at 5 ms steps on the Omnimagnet,
+/// `host-tests/tests/omni_multirate.rs`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StepAccount<const M: usize> {
+    /// Each current's `I^2` times the time it was held \[A^2 us\], over
+    /// the clock's debt.
+    i2_a2_us: [f32; M],
+    /// The held currents changed within the step in progress: its power
+    /// takes the mean `I^2`, not the held current.
+    mixed: bool,
+}
+
+impl<const M: usize> StepAccount<M> {
+    /// An empty account (a new state: no debt).
+    pub(crate) const fn new() -> Self {
+        Self {
+            i2_a2_us: [0.0; M],
+            mixed: false,
+        }
+    }
+
+    /// Whether a tick's `incoming` currents \[A\] may move the `held`
+    /// ones while a step is in progress (`debt_before_us` \[us\] of it
+    /// covered): asked before the input rules take them, so a current they
+    /// refuse counts as moved too, which only costs the mean of a step
+    /// whose current stayed (the same energy). Bits, not values: an
+    /// integer compare on a core without an FPU.
+    #[inline(always)]
+    pub(crate) fn moves(debt_before_us: u32, incoming: &[f32; M], held: &[f32; M]) -> bool {
+        debt_before_us > 0
+            && incoming
+                .iter()
+                .zip(held)
+                .any(|(a, b)| a.to_bits() != b.to_bits())
+    }
+
+    /// Accounts for a tick of `elapsed_us` \[us\] at `held_a` \[A\]
+    /// (`moved`: [`Self::moves`] of its currents; `debt_before_us` the
+    /// clock's debt before it and `debt_after_us` after, `steps` of
+    /// `step_us` taken on it). Returns the mean square current \[A^2\] of
+    /// this tick's steps when the held currents changed within them;
+    /// `None` when they did not, and the steps take the held currents, to
+    /// the bit as a model without the account.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn account(
+        &mut self,
+        held_a: &[f32; M],
+        moved: bool,
+        debt_before_us: u32,
+        debt_after_us: u32,
+        elapsed_us: u32,
+        steps: &TickSteps,
+        step_us: u32,
+    ) -> Option<[f32; M]> {
+        if debt_before_us == 0 && debt_after_us == 0 {
+            // Ticks on the steps' boundaries (the usual loop): a step
+            // ended with the tick before, so the account is empty, and
+            // this tick's steps end with it.
+            return None;
+        }
+        let mixed = self.mixed || moved;
+        let sum = &mut self.i2_a2_us;
+        if steps.steps == 0 {
+            let dt_us = elapsed_us as f32;
+            for (s, i) in sum.iter_mut().zip(held_a) {
+                *s += i * i * dt_us;
+            }
+            self.mixed = mixed;
+            return None;
+        }
+        let mean = mixed.then(|| {
+            // The steps and the dropped time cover the debt before this
+            // tick and this tick's time up to the new debt.
+            let covered_us = steps
+                .steps
+                .saturating_mul(step_us)
+                .saturating_add(steps.dropped_us);
+            // This tick's time up to the new debt (negative after a
+            // deferral, whose carried time this tick's current is charged
+            // for: the energy stays whole).
+            let now_us = if covered_us >= debt_before_us {
+                (covered_us - debt_before_us) as f32
+            } else {
+                -((debt_before_us - covered_us) as f32)
+            };
+            let per_us = 1.0 / covered_us.max(1) as f32;
+            let mut mean = [0.0; M];
+            for ((mean, s), i) in mean.iter_mut().zip(sum.iter()).zip(held_a) {
+                let energy = s + i * i * now_us;
+                // Not below zero (only a deferral's redistribution could
+                // get there, and the carry then holds more than its share).
+                *mean = if energy > 0.0 { energy * per_us } else { 0.0 };
+            }
+            mean
+        });
+        if debt_after_us == 0 {
+            // Ticks on the step's boundaries (the usual loop): nothing
+            // carried, and no multiply on a core without an FPU.
+            *sum = [0.0; M];
+        } else {
+            let carried = debt_after_us as f32;
+            for (s, i) in sum.iter_mut().zip(held_a) {
+                *s = i * i * carried;
+            }
+        }
+        self.mixed = false;
+        mean
+    }
+}
+
 /// `(debt_us + elapsed_us) / step_us` and its remainder, the sum taken
 /// exactly (it may pass `u32`), with 32-bit divisions only: a Cortex-M0
 /// has no divider at all, and a 64-bit division would link

@@ -17,6 +17,7 @@
 //! (`with_phase`) makes every slice after the first due that much after
 //! its period's boundary; the lag stays the real one.
 
+use super::clock::TickSteps;
 use super::snapshot::SnapshotMeta;
 use super::vocabulary::{SensorStatus, TimedReading};
 use crate::filter::SensorVerdict;
@@ -92,28 +93,29 @@ impl<const M: usize> ProtectionCycle<M> {
         self
     }
 
-    /// Accounts for a tick's model steps (`steps` of `step_us`, and
-    /// `dropped_us` the clock could not simulate) at the held currents.
+    /// Accounts for a tick of `elapsed_us` \[us\] and its model steps
+    /// (`steps` of `step_us`, with the time the clock could not simulate)
+    /// at the held currents \[A\]: the peaks take them when the tick took a
+    /// step or lasted some time (a tick between the steps of a model step
+    /// several ticks long heats all the same).
     pub(crate) fn stepped(
         &mut self,
-        steps: u32,
+        steps: &TickSteps,
         step_us: u32,
-        dropped_us: u32,
+        elapsed_us: u32,
         held_currents_a: &[f32; M],
     ) {
-        if steps > 0 {
+        if steps.steps > 0 || elapsed_us > 0 {
             self.held(held_currents_a);
         }
         self.lag_us = self
             .lag_us
-            .saturating_add(steps.saturating_mul(step_us))
-            .saturating_add(dropped_us);
+            .saturating_add(steps.steps.saturating_mul(step_us))
+            .saturating_add(steps.dropped_us);
     }
 
-    /// Accounts for a tick that took no model step but held `currents_a`
-    /// \[A\] for some time (a model step several ticks long): the peaks
-    /// take them, as they take every step's.
-    pub(crate) fn held(&mut self, currents_a: &[f32; M]) {
+    /// The peaks take `currents_a` \[A\].
+    fn held(&mut self, currents_a: &[f32; M]) {
         for (peak, i) in self.peak_currents_a.iter_mut().zip(currents_a) {
             // As `max` (a NaN current leaves the peak), without its call.
             if i.abs() > *peak {
@@ -351,7 +353,13 @@ mod tests {
             .with_slices(per_cycle);
         let (mut slices, mut n, mut worst_lag) = ([0; 8], 0, 0);
         for tick in 0..ticks {
-            cycle.stepped(1, 1000, 0, &[1.0]);
+            let one = TickSteps {
+                steps: 1,
+                dropped_us: 0,
+                flags: crate::input::InputFlags::NONE,
+                clock_lost: false,
+            };
+            cycle.stepped(&one, 1000, 1000, &[1.0]);
             match cycle.due(false, period_us) {
                 Stage::Predict => {
                     worst_lag = worst_lag.max(cycle.lag_us);

@@ -40,7 +40,7 @@ fn three_phase_r(r_ohm: f64) -> Network<5, 1, 3> {
 }
 
 /// One RK4 step of `h` \[s\] of the network with currents held.
-fn rk4<const N: usize, const B: usize, const M: usize>(
+pub(super) fn rk4<const N: usize, const B: usize, const M: usize>(
     net: &Network<N, B, M>,
     t: &mut [f64; N],
     i: &[f64; M],

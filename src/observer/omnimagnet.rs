@@ -394,7 +394,7 @@
 
 use nalgebra::SVector;
 
-use super::clock::{ClockState, Deferral, StepClock, TickSteps};
+use super::clock::{ClockState, Deferral, StepAccount, StepClock};
 use super::consistency::{
     drop_cold_biases, protect_on_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
     RefreshWatchdog, SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
@@ -747,10 +747,9 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     pub clock: ClockState,
     held_currents_a: [f32; SOLENOIDS],
     held_ambient_c: f32,
-    /// The step in progress: each solenoid's `I^2` times the time it was
-    /// held \[A^2 us\], over the clock's debt (the part of the step the
-    /// ticks so far covered).
-    step_i2_a2_us: [f32; SOLENOIDS],
+    /// The energy account of the step in progress (see "Model step and
+    /// ticks" in the module docs).
+    step_account: StepAccount<SOLENOIDS>,
     /// Model steps since the state was made or a model was last
     /// installed (saturating), for the refresh watchdog.
     model_age_steps: u32,
@@ -786,9 +785,6 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
     /// The solenoids whose measurement is in doubt.
     suspect: Suspicion<SOLENOIDS>,
-    /// The held currents changed within the step in progress: its power
-    /// takes the mean `I^2`, not the held current.
-    step_mixed: bool,
     /// The last tick corrected with a multi-rate model: the heat-bias
     /// check is this tick's (see [`OmniObserver::tick`]).
     bias_check_due: bool,
@@ -843,8 +839,7 @@ impl<W: OmniWarmUpKind> OmniObserverState<W> {
             shadow_block: self.shadow_block,
             suspect: self.suspect,
             outputs: self.outputs,
-            step_i2_a2_us: self.step_i2_a2_us,
-            step_mixed: self.step_mixed,
+            step_account: self.step_account,
             bias_check_due: self.bias_check_due,
             deferral: self.deferral,
             relinearised: self.relinearised,
@@ -1252,8 +1247,7 @@ impl OmniObserver {
                 dropped_us: 0,
                 tick: 0,
             },
-            step_i2_a2_us: [0.0; SOLENOIDS],
-            step_mixed: false,
+            step_account: StepAccount::new(),
             bias_check_due: false,
             deferral: Deferral::default(),
             relinearised: false,
@@ -1396,19 +1390,21 @@ impl OmniObserver {
         if self.refresh.aged(&mut state.model_age_steps, steps.steps) {
             flags |= InputFlags::MODEL_STALE;
         }
-        let previous_a = state.held_currents_a;
+        let moved = StepAccount::moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
         flags |= self
             .limits
             .accept_currents(&inputs.currents_a, &mut state.held_currents_a);
         flags |= self
             .limits
             .accept_temperature(inputs.ambient_c, &mut state.held_ambient_c);
-        let mean_sq_a2 = self.step_mean_square(
-            state,
-            &previous_a,
+        let mean_sq_a2 = state.step_account.account(
+            &state.held_currents_a,
+            moved,
             debt_before_us,
+            state.clock.debt_us,
             inputs.elapsed_us,
             &steps,
+            self.step_us,
         );
         for _ in 0..steps.steps {
             // The held inputs are finite, so the input is always renewed.
@@ -1433,16 +1429,11 @@ impl OmniObserver {
                 .predict(&mut state.estimate.x, &state.input, &mut state.residual_k);
         }
         state.cycle.stepped(
-            steps.steps,
+            &steps,
             self.step_us,
-            steps.dropped_us,
+            inputs.elapsed_us,
             &state.held_currents_a,
         );
-        if steps.steps == 0 && inputs.elapsed_us > 0 {
-            // A tick between model steps: its current heats all the same,
-            // so the predictor's peak takes it.
-            state.cycle.held(&state.held_currents_a);
-        }
         // The shadow's blocks take each step's RMS current.
         let step_rms_a = match &mean_sq_a2 {
             None => state.held_currents_a,
@@ -1531,75 +1522,6 @@ impl OmniObserver {
         }
         state.outputs.finish_tick(flags, &steps);
         &state.outputs
-    }
-
-    /// The mean square current \[A^2\] of this tick's model steps when the
-    /// held currents changed within them (`None`: they did not, and the
-    /// steps take the held currents, to the bit as a model without the
-    /// account), and the account of the step in progress carried on.
-    ///
-    /// Each tick's held current heats for the tick's elapsed time
-    /// (`elapsed_us`, on top of the clock's debt `debt_before_us` that the
-    /// ticks before covered at `previous_a` and earlier currents), so the
-    /// steps taken now (and any time dropped with them) get the energy of
-    /// the whole interval they cover, `sum(I^2 dt) / (steps step_us +
-    /// dropped_us)`, and the time carried past them starts the next step's
-    /// account at the held current. A step several ticks long then heats
-    /// with the exact mean power of its ticks' currents at its start
-    /// temperature, where the held current would sample (alias) a current
-    /// that changes within the step, and could read cold.
-    fn step_mean_square<W: OmniWarmUpKind>(
-        &self,
-        state: &mut OmniObserverState<W>,
-        previous_a: &[f32; SOLENOIDS],
-        debt_before_us: u32,
-        elapsed_us: u32,
-        steps: &TickSteps,
-    ) -> Option<[f32; SOLENOIDS]> {
-        let held_a = &state.held_currents_a;
-        let changed = held_a.iter().zip(previous_a).any(|(a, b)| a != b);
-        let mixed = state.step_mixed || (changed && debt_before_us > 0);
-        let sum = &mut state.step_i2_a2_us;
-        if steps.steps == 0 {
-            let dt_us = elapsed_us as f32;
-            for (s, i) in sum.iter_mut().zip(held_a) {
-                *s += i * i * dt_us;
-            }
-            state.step_mixed = mixed;
-            return None;
-        }
-        let carried_us = state.clock.debt_us;
-        let mean = mixed.then(|| {
-            // The steps and the dropped time cover the debt before this
-            // tick and this tick's time up to the new debt.
-            let covered_us = steps
-                .steps
-                .saturating_mul(self.step_us)
-                .saturating_add(steps.dropped_us);
-            // This tick's time up to the new debt (negative after a
-            // deferral, whose carried time this tick's current is charged
-            // for: the energy stays whole).
-            let now_us = if covered_us >= debt_before_us {
-                (covered_us - debt_before_us) as f32
-            } else {
-                -((debt_before_us - covered_us) as f32)
-            };
-            let per_us = 1.0 / covered_us.max(1) as f32;
-            let mut mean = [0.0; SOLENOIDS];
-            for ((mean, s), i) in mean.iter_mut().zip(sum.iter()).zip(held_a) {
-                let energy = s + i * i * now_us;
-                // Not below zero (only a deferral's redistribution could
-                // get there, and the carry then holds more than its share).
-                *mean = if energy > 0.0 { energy * per_us } else { 0.0 };
-            }
-            mean
-        });
-        let carried = carried_us as f32;
-        for (s, i) in sum.iter_mut().zip(held_a) {
-            *s = i * i * carried;
-        }
-        state.step_mixed = false;
-        mean
     }
 
     /// The predictor's answers for the [`ALARM_NODES`], made older by the

@@ -463,15 +463,16 @@ fn firmware_config(
         if t == 0 {
             bail!("--tick-us must be at least 1");
         }
-        if t != settings.step_us {
+        if t != settings.step_us || t != settings.loop_period_us {
             overrides.push(Override {
                 flag: "--tick-us",
                 what: format!(
-                    "ticks and model steps of {t} us instead of {} us",
-                    settings.step_us
+                    "ticks and model steps of {t} us instead of model steps of {} us on ticks of {} us",
+                    settings.step_us, settings.loop_period_us
                 ),
             });
             settings.step_us = t;
+            settings.loop_period_us = t;
         }
     }
     if config.from_table && !fused_nodes.is_empty() && fused_nodes != config.sensor_nodes.as_slice()
@@ -776,7 +777,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     if flashed_omni {
         overrides = omni_overrides(&a)?;
     }
-    let tick_us = config.settings.step_us;
+    // The firmware's loop: its model steps may span several ticks.
+    let tick_us = config.settings.loop_period_us;
     if path == Path::Firmware {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(tick_us.max(1));
@@ -1088,6 +1090,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "hardware_limit_a": c.hardware_limit_a,
             "max_current_a": c.settings.max_current_a,
             "step_us": c.settings.step_us,
+            "loop_period_us": c.settings.loop_period_us,
             "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
         })
     });
@@ -1259,6 +1262,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "model-file" => "the model file's [observer]",
             _ => "the library's default",
         };
+        if s.step_us != s.loop_period_us {
+            println!(
+                "model step {} us on ticks of {} us: each step heats with the mean I^2 of the ticks it covers (the firmware's multi-rate model)",
+                s.step_us, s.loop_period_us
+            );
+        }
         if measured.is_empty() {
             println!("observer: open loop (no --measure): the firmware's model step and protection, no sensor");
         } else if s.bias_noise_w2_per_s > 0.0 {

@@ -85,9 +85,15 @@ pub struct ObserverSpec {
     /// the HPPA rule without its magnet-plate factor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub derating: Option<f64>,
-    /// Model step \[us\] (default 1000).
+    /// Model step \[us\] (default 1000). Longer than the loop's tick
+    /// (`loop_period_us`), the steps take the mean `I^2` of their ticks
+    /// (see `NetworkSettings::loop_period_us`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub step_us: Option<u32>,
+    /// The control loop's tick \[us\] (default 1000): what `replay` ticks
+    /// at, and the firmware's loop.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loop_period_us: Option<u32>,
     /// Thermocouple noise standard deviation \[K\] (default 0.25).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_sigma_k: Option<f64>,
@@ -496,6 +502,9 @@ impl Plan {
         let mut fields = Vec::new();
         if let Some(v) = s.step_us {
             fields.push(format!("step_us: {v}"));
+        }
+        if let Some(v) = s.loop_period_us {
+            fields.push(format!("loop_period_us: {v}"));
         }
         if let Some(v) = s.sensor_sigma_k {
             fields.push(format!("sensor_sigma_k: {v:?}"));

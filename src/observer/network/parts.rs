@@ -338,6 +338,7 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
         nonneg(s.max_cooling_bias_fraction),
         "max_cooling_bias_fraction",
     )?;
+    check(s.loop_period_us >= 1, "loop_period_us")?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -968,6 +969,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_boundary: s.ambient_boundary,
             max_reading_age_us: s.max_reading_age_us,
             step_us: s.step_us,
+            loop_period_us: s.loop_period_us,
             protect_period_us: timing.protect_period_us,
             fingerprint: fingerprint.finish(),
             #[cfg(feature = "integer-step")]
@@ -1093,7 +1095,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // Refused above without the feature, so always `None` here then.
         #[cfg(not(feature = "integer-step"))]
         let _ = integer_step;
-        if clock.step_us != s.step_us || a.protect_period_us == 0 {
+        if clock.step_us != s.step_us || s.loop_period_us == 0 || a.protect_period_us == 0 {
             return Err(invalid("assembled"));
         }
         let mut resistance_sensors = [None; P];
@@ -1156,6 +1158,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_boundary: s.ambient_boundary,
             max_reading_age_us: s.max_reading_age_us,
             step_us: s.step_us,
+            loop_period_us: s.loop_period_us,
             protect_period_us: a.protect_period_us,
             fingerprint: a.fingerprint,
             #[cfg(feature = "integer-step")]
@@ -1334,6 +1337,7 @@ impl Literal for ScalarResistance<f32> {
 fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
     let NetworkSettings {
         step_us,
+        loop_period_us,
         max_steps_per_tick,
         sensor_sigma_k,
         node_noise_k2_per_s,
@@ -1378,6 +1382,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
     } = s;
     let mut w = out.nested("settings", "observer::network::NetworkSettings")?;
     w.field("step_us", step_us)?;
+    w.field("loop_period_us", loop_period_us)?;
     w.field("max_steps_per_tick", max_steps_per_tick)?;
     w.field("sensor_sigma_k", sensor_sigma_k)?;
     w.field("node_noise_k2_per_s", node_noise_k2_per_s)?;
