@@ -200,6 +200,25 @@ impl StepClock {
         steps
     }
 
+    /// [`Self::advance_deferring`], then this tick's steps handed to the
+    /// next tick ([`Self::defer`]) when `reading`: the filtered observers'
+    /// rule for a model step several ticks long, whose step waits a tick
+    /// for a correction's (the two together would make the heaviest tick).
+    #[inline(always)]
+    pub(crate) fn advance_around_readings(
+        &self,
+        state: &mut ClockState,
+        deferral: &mut Deferral,
+        elapsed_us: u32,
+        reading: bool,
+    ) -> TickSteps {
+        let mut steps = self.advance_deferring(state, deferral, elapsed_us);
+        if reading {
+            self.defer(state, deferral, &mut steps);
+        }
+        steps
+    }
+
     /// Hands this tick's steps back (`steps.steps` becomes 0): the next
     /// tick takes them, beyond its catch-up bound, so no time is dropped
     /// for them. For a tick that already carries other heavy work (a

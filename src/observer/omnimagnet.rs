@@ -1372,15 +1372,12 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> &'s OmniOutputs {
         let debt_before_us = state.clock.debt_us;
-        let mut steps =
-            self.clock
-                .advance_deferring(&mut state.clock, &mut state.deferral, inputs.elapsed_us);
-        if self.step_us > self.loop_period_us && inputs.readings.iter().any(Option::is_some) {
-            // A step several ticks long waits a tick for a correction's:
-            // the two together would make the heaviest tick.
-            self.clock
-                .defer(&mut state.clock, &mut state.deferral, &mut steps);
-        }
+        let steps = self.clock.advance_around_readings(
+            &mut state.clock,
+            &mut state.deferral,
+            inputs.elapsed_us,
+            self.step_us > self.loop_period_us && inputs.readings.iter().any(Option::is_some),
+        );
         if steps.clock_lost {
             // The model stands still: latched until the deliberate clear.
             state.latch().clock_lost();
