@@ -118,7 +118,7 @@ pub fn network() -> Result<Network<NODES, BOUNDARIES, CURRENTS>, BuildError> {
 pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
     coil_thermal::observer::network::NetworkParts {
         settings: coil_thermal::observer::network::NetworkSettings {
-            step_us: 1000,
+            step_us: 10000,
             loop_period_us: 1000,
             max_steps_per_tick: 4,
             sensor_sigma_k: 0.25,
@@ -167,19 +167,19 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
         incidence: [[true], [true], [true]],
         model: coil_thermal::observer::network::ModelTables {
             ad: [
-                [0.9999868, 1.31918105e-5, 4.1563863e-11],
-                [2.4978822e-6, 0.9999912, 6.3014104e-6],
-                [3.1489874e-12, 2.521304e-6, 0.9999963],
+                [0.9998681, 0.00013190505, 4.1560666e-9],
+                [2.4976349e-5, 0.999912, 6.3010564e-5],
+                [3.148745e-10, 2.5211624e-5, 0.9999632],
             ],
             step: coil_thermal::observer::StepTables {
                 phi_minus_i: [
-                    [-1.3191852e-5, 1.31918105e-5, 4.1563863e-11],
-                    [2.4978822e-6, -8.799296e-6, 6.3014104e-6],
-                    [3.1489874e-12, 2.521304e-6, -3.6795889e-6],
+                    [-0.00013190921, 0.00013190505, 4.1560666e-9],
+                    [2.4976349e-5, -8.7987275e-5, 6.3010564e-5],
+                    [3.148745e-10, 2.5211624e-5, -3.6794565e-5],
                 ],
-                bd_power: [[1.4465685e-5], [1.8066973e-11], [1.5184219e-17]],
-                gd_boundary: [[1.6047618e-17], [3.6494184e-12], [1.1582817e-6]],
-                constant_k: [1.2074838e-16, -7.16904e-17, -1.0454419e-15],
+                bd_power: [[0.00014464826], [1.8065781e-9], [1.5183342e-14]],
+                gd_boundary: [[1.6046692e-14], [3.6492817e-10], [1.1582625e-5]],
+                constant_k: [-1.4241044e-15, 9.522885e-16, 9.773812e-16],
             },
             source_node: [0],
             resistance: [coil_thermal::network::ScalarResistance {
@@ -188,28 +188,28 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             }],
         },
         gain: coil_thermal::observer::network::GainTables {
-            period: 1000,
-            gain: [[0.052071434], [0.036965568], [0.01687869], [0.039253727]],
+            period: 100,
+            gain: [[0.052070178], [0.03696677], [0.016878363], [0.039253704]],
             prior: [
-                [0.079111286, 0.0033793855, -0.010566292, 0.07173189],
-                [0.0033793855, 0.0023990294, 0.0010954107, 0.0025475288],
-                [-0.010566292, 0.0010954107, 0.011822064, -0.009950896],
-                [0.07173189, 0.0025475288, -0.009950896, 0.07229471],
+                [0.07911273, 0.0033793084, -0.01056599, 0.07173259],
+                [0.0033793084, 0.0023991107, 0.0010953906, 0.0025475305],
+                [-0.01056599, 0.0010953906, 0.011822595, -0.009950676],
+                [0.07173259, 0.0025475305, -0.009950676, 0.072295584],
             ],
             posterior: [
-                [0.07893532, 0.0032544646, -0.010623332, 0.07159924],
-                [0.0032544646, 0.002310348, 0.0010549182, 0.002453358],
-                [-0.010623332, 0.0010549182, 0.011803575, -0.009993895],
-                [0.07159924, 0.002453358, -0.009993895, 0.07219471],
+                [0.07893677, 0.0032543861, -0.010623027, 0.07159994],
+                [0.0032543861, 0.0023104232, 0.0010548977, 0.0024533565],
+                [-0.010623027, 0.0010548977, 0.011804107, -0.009993674],
+                [0.07159994, 0.0024533565, -0.009993674, 0.07219558],
             ],
-            innovation_var: [0.06489903],
+            innovation_var: [0.06489911],
             prior_ht: [
-                [0.0033793855],
-                [0.0023990294],
-                [0.0010954107],
-                [0.0025475288],
+                [0.0033793084],
+                [0.0023991107],
+                [0.0010953906],
+                [0.0025475305],
             ],
-            innovation_cov: [[0.06489903]],
+            innovation_cov: [[0.06489911]],
         },
         predictor: coil_thermal::observer::network::PredictorTables {
             grid_s: [
@@ -270,12 +270,12 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             winding_node: [0],
             winding_r_at_0c_ohm: [1.10568],
             winding_slope_ohm_per_k: [0.004716],
-            tick_s: 0.016,
+            tick_s: 0.16,
             points_per_tick: 1,
             slowest_time_constant_s: 1346.4623479899872,
         },
         shadow: coil_thermal::observer::network::ShadowTables {
-            block_steps: 1000,
+            block_steps: 100,
             step: coil_thermal::observer::StepTables {
                 phi_minus_i: [
                     [-0.013089038, 0.0130478125, 4.1210318e-5],
@@ -290,17 +290,17 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
         assembled: coil_thermal::observer::network::AssembledTables {
             kalman: coil_thermal::observer::KalmanTables {
                 f: [
-                    [0.9999868, 1.31918105e-5, 4.1563863e-11, 1.4465685e-5],
-                    [2.4978822e-6, 0.9999912, 6.3014104e-6, 1.8066973e-11],
-                    [3.1489874e-12, 2.521304e-6, 0.9999963, 1.5184219e-17],
+                    [0.9998681, 0.00013190505, 4.1560666e-9, 0.00014464826],
+                    [2.4976349e-5, 0.999912, 6.3010564e-5, 1.8065781e-9],
+                    [3.148745e-10, 2.5211624e-5, 0.9999632, 1.5183342e-14],
                     [0.0, 0.0, 0.0, 1.0],
                 ],
                 ht: [[0.0], [1.0], [0.0], [0.0]],
                 q: [
-                    [1e-7, 0.0, 0.0, 0.0],
-                    [0.0, 1e-7, 0.0, 0.0],
-                    [0.0, 0.0, 1e-7, 0.0],
-                    [0.0, 0.0, 0.0, 1e-7],
+                    [1e-6, 0.0, 0.0, 0.0],
+                    [0.0, 1e-6, 0.0, 0.0],
+                    [0.0, 0.0, 1e-6, 0.0],
+                    [0.0, 0.0, 0.0, 1e-6],
                 ],
                 r: [0.0625],
                 gate_threshold: 10.828,
@@ -326,12 +326,12 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
                 floor_a: 0.0,
             },
             bound: [
-                [0.05, 0.04761905, 0.84380186],
-                [0.0, 0.0, 0.14693967],
-                [0.05, 0.04761905, 0.32618794],
+                [0.05, 0.04761905, 0.84380955],
+                [0.0, 0.0, 0.14694215],
+                [0.05, 0.04761905, 0.32619527],
             ],
             k_sigma: 3.0,
-            bound_sigma_k: [0.2812673, 0.04897989, 0.10872932],
+            bound_sigma_k: [0.28126985, 0.048980717, 0.10873176],
             checks: coil_thermal::observer::ChecksTables {
                 band: [3.0, 0.25],
                 bias_offset_w: [1.2109284],
@@ -353,13 +353,13 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             resistance_sensors: [None],
             noise_allowance_k: [0.0],
             clock: coil_thermal::observer::ClockTables {
-                step_us: 1000,
+                step_us: 10000,
                 max_steps_per_tick: 4,
                 frozen_flag_ticks: 100,
                 frozen_loss_ticks: 1000,
             },
-            protect_period_us: 16000,
-            fingerprint: 841640581,
+            protect_period_us: 160000,
+            fingerprint: 1179776562,
         },
     };
 

@@ -47,7 +47,11 @@ pub(crate) struct ProtectionCycle<const M: usize> {
     /// Simulated time minus the predictor's own ageing \[us\].
     lag_us: u32,
     stage: Stage,
-    slice_put_off: bool,
+    /// Busy ticks the due stage has waited.
+    put_off: u8,
+    /// Busy ticks every stage may wait (see [`Self::with_busy_waits`]; 0:
+    /// a predictor slice waits one, the alarm and the limiter none).
+    busy_waits: u8,
     /// How much later than a whole period each slice after the first is
     /// due \[us\] (see [`Self::with_phase`]).
     phase_us: u32,
@@ -65,7 +69,8 @@ impl<const M: usize> ProtectionCycle<M> {
             peak_currents_a: [0.0; M],
             lag_us: 0,
             stage: Stage::Predict,
-            slice_put_off: false,
+            put_off: 0,
+            busy_waits: 0,
             phase_us: 0,
             slices: 1,
             slices_left: 1,
@@ -80,6 +85,16 @@ impl<const M: usize> ProtectionCycle<M> {
     pub(crate) fn with_slices(mut self, slices: u32) -> Self {
         self.slices = slices.max(1);
         self.slices_left = self.slices;
+        self
+    }
+
+    /// The same cycle with every stage (the predictor's slices, the alarm,
+    /// the limiter) waiting up to `waits` busy ticks in a row before it
+    /// runs all the same: for a model step several ticks long, whose step
+    /// ticks are busy and may come next to a reading's, so that a stage
+    /// lands on a light tick (at most `waits` ticks later).
+    pub(crate) fn with_busy_waits(mut self, waits: u8) -> Self {
+        self.busy_waits = waits;
         self
     }
 
@@ -130,16 +145,20 @@ impl<const M: usize> ProtectionCycle<M> {
         if self.stage == Stage::Idle && self.lag_us >= period_us.saturating_add(self.phase_us) {
             self.stage = Stage::Predict;
         }
+        let waits = match (self.busy_waits, self.stage) {
+            (0, Stage::Predict) => 1,
+            (waits, _) => waits,
+        };
         match self.stage {
-            Stage::Predict if busy && !self.slice_put_off => {
-                self.slice_put_off = true;
+            Stage::Idle => Stage::Idle,
+            _ if busy && self.put_off < waits => {
+                self.put_off += 1;
                 Stage::Idle
             }
-            Stage::Predict => {
-                self.slice_put_off = false;
-                Stage::Predict
+            stage => {
+                self.put_off = 0;
+                stage
             }
-            stage => stage,
         }
     }
 
@@ -404,6 +423,80 @@ mod tests {
 
     /// The kept limits are formed again exactly when the ambient's bits
     /// move (`-0` after `+0` too, whose limits can differ in sign).
+    /// The stages the cycle runs on ticks `0..ticks`, with every tick in
+    /// `busy` busy.
+    fn run(mut cycle: ProtectionCycle<1>, busy: &[u32], ticks: u32) -> [(u32, Stage); 6] {
+        let one = TickSteps {
+            steps: 1,
+            dropped_us: 0,
+            flags: crate::input::InputFlags::NONE,
+            clock_lost: false,
+        };
+        let (mut ran, mut n) = ([(0, Stage::Idle); 6], 0);
+        for tick in 0..ticks {
+            cycle.stepped(&one, 1000, 1000, &[1.0]);
+            let stage = cycle.due(busy.contains(&tick), 10_000);
+            match stage {
+                Stage::Idle => continue,
+                Stage::Predict => cycle.predicted(10_000, &[1.0]),
+                Stage::Alarm => cycle.alarmed(),
+                Stage::Limit => cycle.limited(),
+            }
+            if let Some(r) = ran.get_mut(n) {
+                *r = (tick, stage);
+            }
+            n += 1;
+        }
+        ran
+    }
+
+    #[test]
+    fn with_busy_waits_every_stage_waits_out_busy_ticks_a_bounded_number_of_times() {
+        use Stage::*;
+        // A period of 10 ticks (a slice is due at 0, then 10 ticks after
+        // the one before); ticks 0-3 and 11-14 busy.
+        let busy = [0, 1, 2, 3, 11, 12, 13, 14];
+        // Without: only the slice waits, once; the alarm and the limiter
+        // run on busy ticks (2 and 3, 13 and 14).
+        assert_eq!(
+            run(ProtectionCycle::new(), &busy, 16),
+            [
+                (1, Predict),
+                (2, Alarm),
+                (3, Limit),
+                (12, Predict),
+                (13, Alarm),
+                (14, Limit)
+            ]
+        );
+        // With two waits: the slice due at 0 waits 0 and 1 and runs on 2
+        // all the same (busy); the alarm waits 3 and runs on 4, the
+        // limiter on 5; the slice due at 12 waits 12 and 13 and runs on 14.
+        assert_eq!(
+            run(ProtectionCycle::new().with_busy_waits(2), &busy, 20),
+            [
+                (2, Predict),
+                (4, Alarm),
+                (5, Limit),
+                (14, Predict),
+                (15, Alarm),
+                (16, Limit)
+            ]
+        );
+        // Lone busy ticks: each stage on the light tick after one.
+        assert_eq!(
+            run(ProtectionCycle::new().with_busy_waits(2), &[0, 11, 13], 18),
+            [
+                (1, Predict),
+                (2, Alarm),
+                (3, Limit),
+                (12, Predict),
+                (14, Alarm),
+                (15, Limit)
+            ]
+        );
+    }
+
     #[test]
     fn mean_limits_are_formed_again_when_the_ambient_moves() {
         let mut formed = 0;
