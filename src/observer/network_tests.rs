@@ -9,7 +9,7 @@ use crate::sensors::{Reading, SensorFault};
 
 /// Winding (0), housing (1), heatsink (2), ambient (boundary 0), one
 /// current: the module docs' device with a winding that takes 8 A.
-fn device() -> Network<3, 1, 1> {
+pub(super) fn device() -> Network<3, 1, 1> {
     Network::new([60.0, 400.0, 900.0])
         .and_then(|n| n.connect(0, 1, 2.0))
         .and_then(|n| n.connect(1, 2, 3.0))

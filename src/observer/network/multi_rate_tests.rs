@@ -8,19 +8,8 @@
 //! 5 ms step lands on an off tick (a sampled step would not heat at all).
 //! With jittering ticks even a 1 ms step spans two ticks' currents.
 
+use super::tests::{device, rk4};
 use super::*;
-use crate::network::Resistance;
-
-/// Winding (0), housing (1), heatsink (2), ambient (boundary 0), one
-/// current (the module tests' device).
-fn device() -> Network<3, 1, 1> {
-    Network::new([60.0, 400.0, 900.0])
-        .and_then(|n| n.connect(0, 1, 2.0))
-        .and_then(|n| n.connect(1, 2, 3.0))
-        .and_then(|n| n.connect_boundary(2, 0, 1.5))
-        .and_then(|n| n.joule_source(0, 0, Resistance::with_alpha(0.3, 0.00393, 20.0)))
-        .unwrap()
-}
 
 const AMBIENT_C: f64 = 20.0;
 /// The run \[s\]: the winding rises by some kelvin.
@@ -109,7 +98,7 @@ fn run(pattern: Pattern, jitter: bool, step_us: u32, loop_us: u32) -> Errors {
         let dt_s = f64::from(elapsed_us) * 1e-6;
         let n = (dt_s / TRUTH_DT_S).ceil() as usize;
         for _ in 0..n {
-            super::tests::rk4(
+            rk4(
                 &net,
                 &mut truth,
                 &[f64::from(current_a)],
