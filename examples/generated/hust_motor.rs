@@ -196,7 +196,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
     coil_thermal::observer::network::NetworkParts {
         settings: coil_thermal::observer::network::NetworkSettings {
             step_us: 1000,
-            loop_period_us: 1000,
+            loop_period_us: 0,
             max_steps_per_tick: 4,
             sensor_sigma_k: 0.5,
             node_noise_k2_per_s: 0.0015,

@@ -441,11 +441,12 @@ pub struct NetworkSettings {
     /// take the mean `I^2` of their ticks (see "Model step and ticks" in
     /// the module docs); set [`Self::loop_period_us`] to the loop's tick.
     pub step_us: u32,
-    /// The control loop's nominal tick \[us\] (at least 1). Default 1000.
-    /// A model step longer than it (the multi-rate model) makes the tick
-    /// account each current's `I^2` and every tick that runs a step busy,
-    /// as a catch-up is (the protection's stage waits a tick). With
-    /// `step_us` equal to it nothing changes.
+    /// The control loop's nominal tick \[us\]. Default 0: the loop ticks at
+    /// the model step ([`Self::loop_tick_us`]). A model step longer than
+    /// it (the multi-rate model) makes every tick that runs a step busy, as
+    /// a catch-up is, and the protection's stages wait out busy ticks (see
+    /// "Model step and ticks" in the module docs). With `step_us` equal to
+    /// it nothing changes.
     pub loop_period_us: u32,
     /// Catch-up bound, model steps per tick. Default 4.
     pub max_steps_per_tick: u32,
@@ -595,10 +596,20 @@ pub struct NetworkSettings {
 }
 
 impl NetworkSettings {
+    /// The loop's tick \[us\]: [`Self::loop_period_us`], or the model
+    /// step where it is 0.
+    pub const fn loop_tick_us(&self) -> u32 {
+        if self.loop_period_us == 0 {
+            self.step_us
+        } else {
+            self.loop_period_us
+        }
+    }
+
     /// The defaults (see each field).
     pub const DEFAULT: Self = Self {
         step_us: 1000,
-        loop_period_us: 1000,
+        loop_period_us: 0,
         max_steps_per_tick: 4,
         sensor_sigma_k: 0.25,
         node_noise_k2_per_s: 1e-4,

@@ -629,13 +629,6 @@ fn the_builder_names_bad_parameters() {
         }),
         param("ambient_boundary")
     );
-    assert_eq!(
-        settings(NetworkSettings {
-            loop_period_us: 0,
-            ..NetworkSettings::DEFAULT
-        }),
-        param("loop_period_us")
-    );
 }
 
 #[test]

@@ -494,7 +494,7 @@ fn mean_limits(
             let sensors = config.sensor_nodes.clone();
             let observer = crate::library_observer::ObserverEstimator::firmware(
                 model.clone(),
-                config.settings.loop_period_us,
+                config.settings.loop_tick_us(),
                 &config,
                 &sensors,
             )

@@ -463,12 +463,13 @@ fn firmware_config(
         if t == 0 {
             bail!("--tick-us must be at least 1");
         }
-        if t != settings.step_us || t != settings.loop_period_us {
+        if t != settings.step_us || t != settings.loop_tick_us() {
             overrides.push(Override {
                 flag: "--tick-us",
                 what: format!(
                     "ticks and model steps of {t} us instead of model steps of {} us on ticks of {} us",
-                    settings.step_us, settings.loop_period_us
+                    settings.step_us,
+                    settings.loop_tick_us()
                 ),
             });
             settings.step_us = t;
@@ -778,7 +779,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         overrides = omni_overrides(&a)?;
     }
     // The firmware's loop: its model steps may span several ticks.
-    let tick_us = config.settings.loop_period_us;
+    let tick_us = config.settings.loop_tick_us();
     if path == Path::Firmware {
         let span_s = file.last_time_s() - file.first_time_s();
         let ticks = span_s * 1e6 / f64::from(tick_us.max(1));
@@ -1090,7 +1091,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "hardware_limit_a": c.hardware_limit_a,
             "max_current_a": c.settings.max_current_a,
             "step_us": c.settings.step_us,
-            "loop_period_us": c.settings.loop_period_us,
+            "loop_period_us": c.settings.loop_tick_us(),
             "overrides": overrides.iter().map(|o| json!({"flag": o.flag, "what": o.what})).collect::<Vec<_>>(),
         })
     });
@@ -1262,10 +1263,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
             "model-file" => "the model file's [observer]",
             _ => "the library's default",
         };
-        if s.step_us != s.loop_period_us {
+        if s.step_us != s.loop_tick_us() {
             println!(
                 "model step {} us on ticks of {} us: each step heats with the mean I^2 of the ticks it covers (the firmware's multi-rate model)",
-                s.step_us, s.loop_period_us
+                s.step_us,
+                s.loop_tick_us()
             );
         }
         if measured.is_empty() {

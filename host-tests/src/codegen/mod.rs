@@ -90,8 +90,8 @@ pub struct ObserverSpec {
     /// (see `NetworkSettings::loop_period_us`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub step_us: Option<u32>,
-    /// The control loop's tick \[us\] (default 1000): what `replay` ticks
-    /// at, and the firmware's loop.
+    /// The control loop's tick \[us\] (default: the model step): what
+    /// `replay` ticks at, and the firmware's loop.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loop_period_us: Option<u32>,
     /// Thermocouple noise standard deviation \[K\] (default 0.25).

@@ -338,7 +338,6 @@ fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
         nonneg(s.max_cooling_bias_fraction),
         "max_cooling_bias_fraction",
     )?;
-    check(s.loop_period_us >= 1, "loop_period_us")?;
     let clock = StepClock::new(s.step_us, s.max_steps_per_tick)?
         .with_frozen_limits(s.frozen_flag_ticks, s.frozen_loss_ticks)?;
     let period = s.protect_period_steps;
@@ -969,7 +968,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_boundary: s.ambient_boundary,
             max_reading_age_us: s.max_reading_age_us,
             step_us: s.step_us,
-            loop_period_us: s.loop_period_us,
+            loop_period_us: s.loop_tick_us(),
             protect_period_us: timing.protect_period_us,
             fingerprint: fingerprint.finish(),
             #[cfg(feature = "integer-step")]
@@ -1095,7 +1094,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // Refused above without the feature, so always `None` here then.
         #[cfg(not(feature = "integer-step"))]
         let _ = integer_step;
-        if clock.step_us != s.step_us || s.loop_period_us == 0 || a.protect_period_us == 0 {
+        if clock.step_us != s.step_us || a.protect_period_us == 0 {
             return Err(invalid("assembled"));
         }
         let mut resistance_sensors = [None; P];
@@ -1158,7 +1157,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_boundary: s.ambient_boundary,
             max_reading_age_us: s.max_reading_age_us,
             step_us: s.step_us,
-            loop_period_us: s.loop_period_us,
+            loop_period_us: s.loop_tick_us(),
             protect_period_us: a.protect_period_us,
             fingerprint: a.fingerprint,
             #[cfg(feature = "integer-step")]
