@@ -201,9 +201,11 @@ impl StepClock {
     }
 
     /// [`Self::advance_deferring`], then this tick's steps handed to the
-    /// next tick ([`Self::defer`]) when `reading`: the filtered observers'
-    /// rule for a model step several ticks long, whose step waits a tick
-    /// for a correction's (the two together would make the heaviest tick).
+    /// next tick ([`Self::defer`]) when `reading`: the Omnimagnet
+    /// observer's rule for a model step several ticks long, whose step
+    /// waits a tick for a correction's (the two together would make the
+    /// heaviest tick). The network observer does not defer (its module
+    /// docs, "Model step and ticks", say why).
     #[inline(always)]
     pub(crate) fn advance_around_readings(
         &self,
