@@ -197,6 +197,69 @@ impl<const M: usize> ProtectionCycle<M> {
     }
 }
 
+/// A filtered observer with its state, borrowed for one tick's protection
+/// stage: the receiver of [`ProtectionStages`].
+pub(crate) struct Protecting<'a, O, S> {
+    /// The observer's configuration.
+    pub observer: &'a O,
+    /// Its per-device state.
+    pub state: &'a mut S,
+}
+
+/// What a filtered observer (the network, the Omnimagnet) does in each
+/// stage of its protection cycle. The cycle's rules, which stage a tick
+/// runs, the bookkeeping after it and the ageing of the answers, are the
+/// provided [`Self::run_due`], the same for every observer.
+pub(crate) trait ProtectionStages<const M: usize> {
+    /// The state's cycle and the currents it holds now \[A\].
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<M>, &[f32; M]);
+    /// Model time one predictor stage catches up \[us\] (the period over
+    /// the slices per cycle).
+    fn predictor_slice_us(&self) -> u32;
+    /// A time-to-limit predictor slice on the cycle's peak currents.
+    fn predict(&mut self);
+    /// The derated alarm on the published upper bounds (the answers are
+    /// aged just before).
+    fn alarm(&mut self);
+    /// The current limiter on the published upper bounds.
+    fn limit(&mut self);
+    /// Publishes the predictor's answers made older by the cycle's lag.
+    fn age_time_to_limit(&mut self);
+
+    /// Runs the stage due this tick, if any (`busy`: a correction or a
+    /// step longer than the loop's tick already ran; `period_us`: the
+    /// protection period \[us\]), and ages the published times to limit
+    /// when the model's time (`model_moved`: steps taken or time dropped)
+    /// or the predictor moved. Returns the stage run.
+    #[inline(always)]
+    fn run_due(&mut self, busy: bool, period_us: u32, model_moved: bool) -> Stage {
+        let stage = self.cycle_and_held().0.due(busy, period_us);
+        match stage {
+            Stage::Idle => {}
+            Stage::Predict => {
+                self.predict();
+                let slice_us = self.predictor_slice_us();
+                let (cycle, held_a) = self.cycle_and_held();
+                cycle.predicted(slice_us, held_a);
+            }
+            Stage::Alarm => {
+                self.age_time_to_limit();
+                self.alarm();
+                self.cycle_and_held().0.alarmed();
+            }
+            Stage::Limit => {
+                self.limit();
+                self.cycle_and_held().0.limited();
+            }
+        }
+        // The lag moves with the model's time and the predictor's stages.
+        if model_moved || stage != Stage::Idle {
+            self.age_time_to_limit();
+        }
+        stage
+    }
+}
+
 /// Sorts the fresh readings: each usable one's temperature \[degC\], and
 /// the status of each that is not (too old, from the future, a sensor
 /// fault); sensors without a reading get `NoReading`.

@@ -395,7 +395,10 @@ use super::consistency::{
     SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::aged_time_to_limit;
-use super::cycle::{record_verdicts, sample_readings, Latch, MeanLimits, ProtectionCycle, Stage};
+use super::cycle::{
+    record_verdicts, sample_readings, Latch, MeanLimits, Protecting, ProtectionCycle,
+    ProtectionStages,
+};
 use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
 use super::vocabulary::{
@@ -1498,55 +1501,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             state.outputs.temps_c = self.temps_c(state);
         }
         state.outputs.corrected = corrected;
-        let ambient_c = self.ambient(&state.held_boundary_c);
-
         // A catch-up, or a step longer than the loop's tick.
         let busy = corrected || steps.steps.saturating_mul(self.step_us) > self.loop_period_us;
-        let stage = state.cycle.due(busy, self.protect_period_us);
-        match stage {
-            Stage::Idle => {}
-            Stage::Predict => {
-                let op = self.operating(
-                    &mut state.mean_limits,
-                    &state.outputs.temps_c,
-                    state.cycle.peak_currents_a(),
-                    &state.held_boundary_c,
-                    ambient_c,
-                );
-                state.predictor.tick(&self.predictor, &op);
-                state
-                    .cycle
-                    .predicted(self.protect_period_us, &state.held_currents_a);
-            }
-            Stage::Alarm => {
-                self.age_time_to_limit(state);
-                // The alarm judges the evidence: the steady bound, also
-                // while a warm-up's wider covariance is held (its doubt is
-                // the limiter's; see `super::start`).
-                self.publish_upper(state, ambient_c, false);
-                let out = &mut state.outputs;
-                out.alarm = state.alarm.tick(
-                    &self.alarm,
-                    &out.upper_c,
-                    ambient_c,
-                    &out.time_to_limit_s,
-                    &mut state.events,
-                );
-                state.cycle.alarmed();
-                if state.warmup_left > 0 && state.warm.held().is_some() {
-                    self.publish_upper(state, ambient_c, true);
-                }
-            }
-            Stage::Limit => {
-                self.publish_upper(state, ambient_c, true);
-                self.limit(&mut state.outputs, ambient_c);
-                state.cycle.limited();
-            }
+        Protecting {
+            observer: self,
+            state: &mut *state,
         }
-        // The lag moves with the model's time and the predictor's stages.
-        if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
-            self.age_time_to_limit(state);
-        }
+        .run_due(
+            busy,
+            self.protect_period_us,
+            steps.steps > 0 || steps.dropped_us > 0,
+        );
         state.outputs.finish_tick(flags, &steps);
         &state.outputs
     }
@@ -2338,6 +2303,72 @@ struct Model<const N: usize, const B: usize, const M: usize> {
     constant_k: SVector<f32, N>,
     source_node: [usize; M],
     resistance: [ScalarResistance<f32>; M],
+}
+
+/// The network observer's protection stages; the cycle's rules are
+/// [`ProtectionStages::run_due`]'s.
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
+    ProtectionStages<M>
+    for Protecting<'_, NetworkObserver<N, B, M, X, P>, NetworkObserverState<N, B, M, X, P, W>>
+where
+    W: WarmUpKind<X>,
+{
+    #[inline(always)]
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<M>, &[f32; M]) {
+        (&mut self.state.cycle, &self.state.held_currents_a)
+    }
+
+    #[inline(always)]
+    fn predictor_slice_us(&self) -> u32 {
+        self.observer.protect_period_us
+    }
+
+    #[inline(always)]
+    fn predict(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        let op = observer.operating(
+            &mut state.mean_limits,
+            &state.outputs.temps_c,
+            state.cycle.peak_currents_a(),
+            &state.held_boundary_c,
+            observer.ambient(&state.held_boundary_c),
+        );
+        state.predictor.tick(&observer.predictor, &op);
+    }
+
+    #[inline(always)]
+    fn alarm(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        let ambient_c = observer.ambient(&state.held_boundary_c);
+        // The alarm judges the evidence: the steady bound, also while a
+        // warm-up's wider covariance is held (its doubt is the limiter's;
+        // see `super::start`).
+        observer.publish_upper(state, ambient_c, false);
+        let out = &mut state.outputs;
+        out.alarm = state.alarm.tick(
+            &observer.alarm,
+            &out.upper_c,
+            ambient_c,
+            &out.time_to_limit_s,
+            &mut state.events,
+        );
+        if state.warmup_left > 0 && state.warm.held().is_some() {
+            observer.publish_upper(state, ambient_c, true);
+        }
+    }
+
+    #[inline(always)]
+    fn limit(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        let ambient_c = observer.ambient(&state.held_boundary_c);
+        observer.publish_upper(state, ambient_c, true);
+        observer.limit(&mut state.outputs, ambient_c);
+    }
+
+    #[inline(always)]
+    fn age_time_to_limit(&mut self) {
+        self.observer.age_time_to_limit(self.state);
+    }
 }
 
 impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {

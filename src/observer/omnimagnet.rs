@@ -400,7 +400,8 @@ use super::consistency::{
     RefreshWatchdog, SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::{
-    aged_time_to_limit, record_verdicts, sample_readings, Latch, ProtectionCycle, Stage,
+    aged_time_to_limit, record_verdicts, sample_readings, Latch, Protecting, ProtectionCycle,
+    ProtectionStages, Stage,
 };
 use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
@@ -1466,45 +1467,15 @@ impl OmniObserver {
 
         // A catch-up, or a step longer than the loop's tick.
         let busy = corrected || steps.steps.saturating_mul(self.step_us) > self.loop_period_us;
-        let stage = state.cycle.due(busy, self.protect_period_us);
-        match stage {
-            Stage::Idle => {}
-            Stage::Predict => {
-                let op = self.operating(
-                    &state.outputs.temps_c,
-                    state.cycle.peak_currents_a(),
-                    state.held_ambient_c,
-                    state.held_extra_k(),
-                );
-                state.predictor.tick(&self.predictor, &op);
-                state
-                    .cycle
-                    .predicted(self.predictor_slice_us, &state.held_currents_a);
-            }
-            Stage::Alarm => {
-                self.age_time_to_limit(state);
-                self.publish_upper(state);
-                let out = &mut state.outputs;
-                let temps = alarm_temps(&out.upper_c);
-                out.alarm = state.alarm.tick(
-                    &self.alarm,
-                    &temps,
-                    state.held_ambient_c,
-                    &out.time_to_limit_s,
-                    &mut state.events,
-                );
-                state.cycle.alarmed();
-            }
-            Stage::Limit => {
-                self.publish_upper(state);
-                self.limit(&mut state.outputs, state.held_ambient_c);
-                state.cycle.limited();
-            }
+        let stage = Protecting {
+            observer: self,
+            state: &mut *state,
         }
-        // The lag moves with the model's time and the predictor's slices.
-        if steps.steps > 0 || steps.dropped_us > 0 || stage != Stage::Idle {
-            self.age_time_to_limit(state);
-        }
+        .run_due(
+            busy,
+            self.protect_period_us,
+            steps.steps > 0 || steps.dropped_us > 0,
+        );
         if state.warming_up() {
             // The start's covariance: slices on a light tick (no
             // correction, no protection stage, no step longer than the
@@ -2395,6 +2366,61 @@ impl OmniObserver {
         state: &mut OmniObserverState<W>,
     ) -> Result<(), ResetError> {
         state.latch().clear(&self.alarm)
+    }
+}
+
+/// The Omnimagnet observer's protection stages; the cycle's rules are
+/// [`ProtectionStages::run_due`]'s.
+impl<W: OmniWarmUpKind> ProtectionStages<SOLENOIDS>
+    for Protecting<'_, OmniObserver, OmniObserverState<W>>
+{
+    #[inline(always)]
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<SOLENOIDS>, &[f32; SOLENOIDS]) {
+        (&mut self.state.cycle, &self.state.held_currents_a)
+    }
+
+    #[inline(always)]
+    fn predictor_slice_us(&self) -> u32 {
+        self.observer.predictor_slice_us
+    }
+
+    #[inline(always)]
+    fn predict(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        let op = observer.operating(
+            &state.outputs.temps_c,
+            state.cycle.peak_currents_a(),
+            state.held_ambient_c,
+            state.held_extra_k(),
+        );
+        state.predictor.tick(&observer.predictor, &op);
+    }
+
+    #[inline(always)]
+    fn alarm(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        observer.publish_upper(state);
+        let out = &mut state.outputs;
+        let temps = alarm_temps(&out.upper_c);
+        out.alarm = state.alarm.tick(
+            &observer.alarm,
+            &temps,
+            state.held_ambient_c,
+            &out.time_to_limit_s,
+            &mut state.events,
+        );
+    }
+
+    #[inline(always)]
+    fn limit(&mut self) {
+        let (observer, state) = (self.observer, &mut *self.state);
+        observer.publish_upper(state);
+        observer.limit(&mut state.outputs, state.held_ambient_c);
+    }
+
+    #[inline(always)]
+    fn age_time_to_limit(&mut self) {
+        self.observer.age_time_to_limit(self.state);
     }
 }
 
