@@ -913,6 +913,9 @@ pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     pub constant_k: SVector<f32, N>,
     /// Model steps per block.
     pub block_steps: u32,
+    /// A complete block waits for a tick without a step or a reading (a
+    /// model step several ticks long; see [`Self::stepped`]).
+    pub waits_for_light_tick: bool,
     /// The consistency band.
     pub band: Band,
     /// The band's image on the heat-input biases.
@@ -961,9 +964,16 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
 
 impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     /// Accounts for `steps` model steps at the held currents \[A\] and
-    /// advances the shadow by a block when one is complete (at most one
-    /// per call: bounded). `boundary_k` are the held boundaries' deviations
-    /// from the origin, `origin_c` the origin \[degC\].
+    /// advances the shadow by a complete block: at once, or with
+    /// [`Self::waits_for_light_tick`] on the first later tick without a
+    /// step or a reading (`reading`: this tick brought one), so that the
+    /// block's step, the shadow's heaviest piece, lands beside neither (a
+    /// second block completing first makes the waiting one step at once:
+    /// bounded, one block step per call). Returns whether a block that
+    /// waited stepped (the tick is busy then). `waiting_a` holds the RMS
+    /// currents \[A\] of the block that waits (kept apart from `state`,
+    /// out of the tick's hot fields); `boundary_c` are the held
+    /// boundaries, `origin_c` the origin \[degC\].
     #[allow(clippy::too_many_arguments)]
     // Inlined into the tick on a core with an FPU (its call and prologue
     // are a tenth of the three-phase plain tick there); not on one
@@ -972,22 +982,60 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     pub(crate) fn stepped(
         &self,
         state: &mut ShadowState<N, M>,
+        waiting_a: &mut Option<[f32; M]>,
         steps: u32,
         held_currents_a: &[f32; M],
-        boundary_k: &[f32; B],
+        boundary_c: &[f32; B],
+        source_node: &[usize; M],
+        resistance: &[ScalarResistance<f32>; M],
+        origin_c: f32,
+        reading: impl FnOnce() -> bool,
+    ) -> bool {
+        if steps == 0 {
+            // Between steps: the waiting block's turn, without a reading.
+            return match *waiting_a {
+                Some(rms_a) if !reading() => {
+                    *waiting_a = None;
+                    self.block_step(state, &rms_a, boundary_c, source_node, resistance, origin_c);
+                    true
+                }
+                _ => false,
+            };
+        }
+        let Some(rms_a) = state.block.add(steps, held_currents_a, self.block_steps) else {
+            return false;
+        };
+        let (rms_a, waited) = if !self.waits_for_light_tick {
+            (rms_a, false)
+        } else {
+            // It waits; one still waiting steps now (a whole block without
+            // a light tick).
+            match waiting_a.replace(rms_a) {
+                Some(earlier_a) => (earlier_a, true),
+                None => return false,
+            }
+        };
+        self.block_step(state, &rms_a, boundary_c, source_node, resistance, origin_c);
+        waited
+    }
+
+    /// One block's exact step at its RMS currents `rms_a` \[A\].
+    #[cfg_attr(target_abi = "eabihf", inline(always))]
+    fn block_step(
+        &self,
+        state: &mut ShadowState<N, M>,
+        rms_a: &[f32; M],
+        boundary_c: &[f32; B],
         source_node: &[usize; M],
         resistance: &[ScalarResistance<f32>; M],
         origin_c: f32,
     ) {
-        let Some(rms_a) = state.block.add(steps, held_currents_a, self.block_steps) else {
-            return;
-        };
         let mut power = SVector::<f32, M>::zeros();
-        for (m, ((node, r), i)) in source_node.iter().zip(resistance).zip(&rms_a).enumerate() {
+        for (m, ((node, r), i)) in source_node.iter().zip(resistance).zip(rms_a).enumerate() {
             power[m] = r.joule_power_w(origin_c + state.dev_k(*node), *i);
         }
         let temps = SVector::<f32, N>::from(state.dev_k);
-        let boundary = SVector::<f32, B>::from(*boundary_k);
+        let boundary = SVector::<f32, B>::from(boundary_c.map(|t| t - origin_c));
         let mut increment = self.constant_k;
         increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
         increment.gemv(1.0, &self.bd_power, &power, 1.0);
@@ -1046,6 +1094,110 @@ mod tests {
         };
         let bound = BiasBound::<1>::new(&off, &phi_minus_i, &bd);
         assert_eq!(bound.beyond([-1e6f32].iter(), &[20.0]), [false]);
+    }
+
+    /// One node, capacity 400 J/K, 0.8 W/K to a 20 degC ambient, a
+    /// 2 ohm winding (no slope), blocks of 4 steps of 0.5 s, exact over a
+    /// block; `waits` as a model step several ticks long sets it.
+    fn one_node_shadow(waits: bool) -> Shadow<1, 1, 1> {
+        let (c, g, block_s) = (400.0f64, 0.8f64, 2.0f64);
+        let ad = libm::exp(-g * block_s / c);
+        let phi_minus_i = SMatrix::<f32, 1, 1>::new((ad - 1.0) as f32);
+        let bd_power = SMatrix::<f32, 1, 1>::new(((1.0 - ad) / g) as f32);
+        Shadow {
+            phi_minus_i,
+            bd_power,
+            gd_boundary: SMatrix::<f32, 1, 1>::new((1.0 - ad) as f32),
+            constant_k: SVector::<f32, 1>::zeros(),
+            block_steps: 4,
+            waits_for_light_tick: waits,
+            band: BAND,
+            bias_bound: BiasBound::new(&BAND, &phi_minus_i, &bd_power),
+        }
+    }
+
+    const WINDING: [ScalarResistance<f32>; 1] = [ScalarResistance {
+        r_at_0c_ohm: 2.0,
+        slope_ohm_per_k: 0.0,
+    }];
+
+    /// Steps `steps` at `current_a` on a tick with or without a reading;
+    /// says whether a block that waited stepped.
+    fn tick_shadow(
+        shadow: &Shadow<1, 1, 1>,
+        state: &mut ShadowState<1, 1>,
+        waiting_a: &mut Option<[f32; 1]>,
+        steps: u32,
+        current_a: f32,
+        reading: bool,
+    ) -> bool {
+        shadow.stepped(
+            state,
+            waiting_a,
+            steps,
+            &[current_a],
+            &[20.0],
+            &[0],
+            &WINDING,
+            20.0,
+            || reading,
+        )
+    }
+
+    /// A model stepping each tick steps the shadow's block on the tick
+    /// that completes it; one whose step is several ticks long steps it on
+    /// the first later tick without a step or a reading, to the same
+    /// temperature (the block's RMS current kept, the boundary held).
+    #[test]
+    fn a_complete_block_waits_for_a_light_tick_and_steps_the_same() {
+        // At once: 4 steps at 5 A (50 W for 2 s).
+        let at_once = one_node_shadow(false);
+        let mut now = ShadowState::<1, 1>::new([0.0]);
+        let mut none = None;
+        for _ in 0..3 {
+            assert!(!tick_shadow(&at_once, &mut now, &mut none, 1, 5.0, false));
+            assert_eq!(now.devs_k(), &[0.0]);
+        }
+        assert!(!tick_shadow(&at_once, &mut now, &mut none, 1, 5.0, true));
+        let expected_k = now.dev_k(0);
+        // The exact rise of one block: 50 W over 2 s of a 500 s mode.
+        let exact_k = 50.0 / 0.8 * (1.0 - libm::exp(-0.8 * 2.0 / 400.0));
+        assert!(
+            (f64::from(expected_k) - exact_k).abs() < 1e-5,
+            "{expected_k} vs {exact_k}"
+        );
+        assert_eq!(none, None);
+
+        // Waiting: the completing step tick and a reading's tick pass.
+        let waiting = one_node_shadow(true);
+        let mut later = ShadowState::<1, 1>::new([0.0]);
+        let mut held = None;
+        for _ in 0..4 {
+            assert!(!tick_shadow(&waiting, &mut later, &mut held, 1, 5.0, false));
+        }
+        assert_eq!(held, Some([5.0]));
+        assert!(!tick_shadow(&waiting, &mut later, &mut held, 0, 0.0, true));
+        assert_eq!(later.devs_k(), &[0.0]);
+        // The first light tick: the block steps at its own current.
+        assert!(tick_shadow(&waiting, &mut later, &mut held, 0, 0.0, false));
+        assert_eq!(later.devs_k(), &[expected_k]);
+        assert_eq!(held, None);
+        assert!(!tick_shadow(&waiting, &mut later, &mut held, 0, 0.0, false));
+        assert_eq!(later.devs_k(), &[expected_k]);
+
+        // No light tick for a whole block: the waiting one steps when the
+        // next completes (never two behind), and that one waits.
+        let mut starved = ShadowState::<1, 1>::new([0.0]);
+        let mut queue = None;
+        let stepped: Vec<bool> = (0..8)
+            .map(|_| tick_shadow(&waiting, &mut starved, &mut queue, 1, 5.0, true))
+            .collect();
+        assert_eq!(
+            stepped,
+            [false, false, false, false, false, false, false, true]
+        );
+        assert_eq!(starved.devs_k(), &[expected_k]);
+        assert_eq!(queue, Some([5.0]));
     }
 
     /// The stuck test of the campaigns: 1 K, the band's 25 %, a 240-reading

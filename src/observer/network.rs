@@ -144,33 +144,39 @@
 //! instead of once per tick (the rule the Omnimagnet observer has kept
 //! since its multi-rate model). Every tick accounts each current's `I^2`
 //! times its elapsed time (one account, in `observer::clock`, shared with
-//! the Omnimagnet's), and a step heats with the mean `I^2` of the time it covers, each current
-//! at the root of that mean, `R(T)` at its start estimate: the exact mean
-//! power for a current that changes from tick to tick (PWM, commutation),
-//! where the held current of the tick the step lands on would sample it.
-//! The same holds for a 1 ms step on a loop whose ticks jitter, since a
-//! step then spans two ticks' currents: a 2 ms square wave on 1.1 / 0.9 ms
-//! ticks, whose long ticks carry the current, read 0.40 K cold of a 4.4 K
-//! rise (9 %) before the account and 4e-5 K off an `f64` RK4 of the
-//! nonlinear network with it (`multi_rate_tests.rs`; a 5 ms step on a 1 ms
-//! loop under a PWM whose steps all land on off ticks: 2.8e-3 K, the
-//! heating of the time not yet stepped). When the held currents did not
-//! change within a step, or the ticks land on the steps' boundaries, the
-//! step takes the held currents as they are: to the bit the model without
-//! the account. Only a step or a reading moves the estimate, so the
-//! temperatures and the times to limit are published on those ticks (and
-//! the times on a protection stage's). A tick that runs a step longer than
-//! the loop's tick is busy, as a catch-up is, and every protection stage
-//! (the predictor's, the alarm, the limiter) waits out up to two busy ticks
-//! in a row (a step's and a reading's) before it runs all the same, so that
-//! it lands on a light tick. Unlike the Omnimagnet's, a step here does not
-//! wait a tick for a reading's correction ([`StepClock::defer`]): on the
-//! Cortex-M0 its clock code cost the 2-node footprint 280 B and the M4F
-//! ticks up to 8 %, for a worst tick the stages' waiting lowered instead.
-//! The Cortex-M0 run of `network_roundtrip` steps every 10 ms on its 1 ms
-//! loop (`drive-3node-integer.toml`): 1 151 instructions a tick on
-//! average, against 4 880 at 1 ms, every printed figure within 10 mK of
-//! the 1 ms `f32` firmware's (docs/cost.md).
+//! the Omnimagnet's), and a step heats with the mean `I^2` of the time it
+//! covers, each current at the root of that mean, `R(T)` at its start
+//! estimate: the exact mean power for a current that changes from tick to
+//! tick (PWM, commutation), where the held current of the tick the step
+//! lands on would sample it. The same holds for a 1 ms step on a loop whose
+//! ticks jitter, since a step then spans two ticks' currents: a 2 ms square
+//! wave on 1.1 / 0.9 ms ticks, whose long ticks carry the current, read
+//! 0.40 K cold of a 4.4 K rise (9 %) before the account and 4e-5 K off an
+//! `f64` RK4 of the nonlinear network with it (`multi_rate_tests.rs`; a 5
+//! ms step on a 1 ms loop under a PWM whose steps all land on off ticks:
+//! 2.8e-3 K, the heating of the time not yet stepped). When the held
+//! currents did not change within a step, or the ticks land on the steps'
+//! boundaries, the step takes the held currents as they are: to the bit the
+//! model without the account. Only a step or a reading moves the estimate,
+//! so the temperatures and the times to limit are published on those ticks
+//! (and the times on a protection stage's). A tick that runs a step longer
+//! than the loop's tick is busy, as a catch-up is. The shadow's block (see
+//! "Sensors against the physics" below) that such a step completes waits
+//! for the first tick without a step or a reading, which it makes busy (its
+//! exact step of a whole block is the shadow's heaviest piece: about 5 900
+//! instructions in soft-float; at most one block waits). Every protection
+//! stage (the predictor's, the alarm, the limiter) waits out up to three
+//! busy ticks in a row (a step's, its block's and a reading's) before it
+//! runs all the same, so that it lands on a light tick. Unlike the
+//! Omnimagnet's, a step here does not wait a tick for a reading's
+//! correction ([`StepClock::defer`]): on the Cortex-M0 its clock code cost
+//! the 2-node footprint 280 B and the M4F ticks up to 8 %, for a worst tick
+//! the stages' waiting lowered instead. The Cortex-M0 run of
+//! `network_roundtrip` steps every 10 ms on its 1 ms loop
+//! (`drive-3node-integer.toml`): 1 015 instructions a tick on average,
+//! against 4 880 at 1 ms, every printed figure within 10 mK of the 1 ms
+//! `f32` firmware's (docs/cost.md); its worst tick is a reading's (7 548),
+//! where a step's that completed a block was 10 587.
 //!
 //! # The model step in integer arithmetic
 //!
@@ -1015,6 +1021,9 @@ pub struct NetworkObserverState<
     /// The energy account of the model step in progress (see "Model step
     /// and ticks" in the module docs).
     step_account: StepAccount<M>,
+    /// The shadow's complete block that waits for a light tick (see
+    /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
+    shadow_waiting_a: Option<[f32; M]>,
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
@@ -1064,6 +1073,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_until_steady: self.warmup_until_steady,
             outputs: self.outputs,
             step_account: self.step_account,
+            shadow_waiting_a: self.shadow_waiting_a,
         }
     }
 }
@@ -1172,9 +1182,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             held_currents_a: [0.0; M],
             held_boundary_c,
             // With a step several ticks long, the stages wait out a step's
-            // tick and a reading's (see "Model step and ticks").
+            // tick, its shadow block's and a reading's (see "Model step
+            // and ticks").
             cycle: ProtectionCycle::new().with_busy_waits(if self.step_us > self.loop_period_us {
-                2
+                3
             } else {
                 0
             }),
@@ -1184,6 +1195,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bias_steps: 0,
             warmup_until_steady: false,
             step_account: StepAccount::new(),
+            shadow_waiting_a: None,
             stuck: StuckWatch::new(),
             rewind: StuckRewind::new(),
             drift: DriftHold::new(),
@@ -1266,26 +1278,29 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// `steps` model steps at the held inputs: the estimate's and the
-    /// shadow's.
+    /// shadow's (see [`Shadow::stepped`]; `readings`: this tick's).
+    /// Returns whether a shadow block that waited stepped.
     #[inline(always)]
     fn step_model<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         steps: u32,
-    ) {
+        readings: &[Option<TimedReading>; P],
+    ) -> bool {
         for _ in 0..steps {
             self.predict(state);
         }
-        let boundary_k = state.held_boundary_c.map(|t| t - self.origin_c);
         self.shadow.stepped(
             &mut state.shadow,
+            &mut state.shadow_waiting_a,
             steps,
             &state.held_currents_a,
-            &boundary_k,
+            &state.held_boundary_c,
             &self.source_node,
             &self.resistance,
             self.origin_c,
-        );
+            || readings.iter().any(Option::is_some),
+        )
     }
 
     /// One mean predict with the held inputs (see "f32 without drift").
@@ -1483,7 +1498,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let held_a = mean_sq_a2.map(|mean_sq_a2| {
             core::mem::replace(&mut state.held_currents_a, mean_sq_a2.map(libm::sqrtf))
         });
-        self.step_model(state, steps.steps);
+        let shadow_waited = self.step_model(state, steps.steps, &inputs.readings);
         if let Some(held_a) = held_a {
             state.held_currents_a = held_a;
         }
@@ -1501,8 +1516,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             state.outputs.temps_c = self.temps_c(state);
         }
         state.outputs.corrected = corrected;
-        // A catch-up, or a step longer than the loop's tick.
-        let busy = corrected || steps.steps.saturating_mul(self.step_us) > self.loop_period_us;
+        // A catch-up, a step longer than the loop's tick, or the shadow's
+        // block that such a step put off.
+        let busy = corrected
+            || steps.steps.saturating_mul(self.step_us) > self.loop_period_us
+            || shadow_waited;
         Protecting {
             observer: self,
             state: &mut *state,
@@ -1800,6 +1818,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 state
                     .shadow
                     .reseed(core::array::from_fn(|i| state.estimate.x[i]));
+                // The filter's estimate is of now: a waiting block would
+                // take the shadow past it.
+                state.shadow_waiting_a = None;
                 if self.settled(cov) {
                     state.warmup_left = 0;
                 }

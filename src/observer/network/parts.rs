@@ -834,6 +834,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             gd_boundary: matrix(&sh.step.gd_boundary),
             constant_k: SVector::from(sh.step.constant_k),
             block_steps: sh.block_steps,
+            waits_for_light_tick: s.step_us > s.loop_tick_us(),
             band,
             bias_bound: BiasBound::new(&band, &phi_minus_i, &bd_power),
         };
@@ -1135,6 +1136,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 gd_boundary: matrix(&sh.step.gd_boundary),
                 constant_k: vector(&sh.step.constant_k),
                 block_steps: sh.block_steps,
+                waits_for_light_tick: s.step_us > s.loop_tick_us(),
                 band: a.checks.band(),
                 bias_bound: a.checks.bias_bound(),
             },
