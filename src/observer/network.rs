@@ -1834,8 +1834,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        self.keep_floors(state, warming);
-        if self.biases_beyond(state).contains(&true) {
+        let powers_w = self.keep_floors(state, warming);
+        if self.biases_beyond(state, &powers_w).contains(&true) {
             flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
         }
         self.note_doubt(state, true);
@@ -1963,14 +1963,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// instructions). Without an offset state the floors are taken in
     /// [`Self::keep_bias_floors`] as before: the shape that kept the M4F's
     /// ticks and the M0 footprint within their ceilings (docs/cost.md).
+    ///
+    /// Returns the Joule powers \[W\] the floors were taken at.
     fn keep_floors<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
-    ) {
+    ) -> [f32; M] {
         if self.offset_boundary.is_none() {
-            self.keep_bias_floors(state, warming);
-            return;
+            return self.keep_bias_floors(state, warming);
         }
         let powers_w = self.joule_powers_w(state);
         for _ in 0..FLOOR_PASSES {
@@ -1978,6 +1979,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
             self.keep_bias_floors_at(state, warming, &powers_w);
         }
+        powers_w
     }
 
     /// Projects the estimate onto every heat-input bias's floor,
@@ -1988,14 +1990,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// back by its regression on that bias
     /// ([`project_onto_floor`](crate::filter::project_onto_floor)). Exact
     /// for one bias; several are projected in turn on the same covariance.
-    /// The floors are at the Joule powers of the estimate.
+    /// The floors are at the Joule powers of the estimate, which it
+    /// returns \[W\].
     fn keep_bias_floors<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
-    ) {
+    ) -> [f32; M] {
         let powers_w = self.joule_powers_w(state);
         self.keep_bias_floors_at(state, warming, &powers_w);
+        powers_w
     }
 
     /// [`Self::keep_bias_floors`] at the Joule powers `powers_w` \[W\].
@@ -2044,16 +2048,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// Which heat-input biases are beyond the model's uncertainty (see
-    /// "Sensors against the physics"), at the Joule powers of the held
-    /// currents at the estimate.
+    /// "Sensors against the physics"), at the Joule powers `powers_w`
+    /// \[W\] the floors were taken at: the held currents' at the estimate
+    /// before the floors moved it (by a bias's regression, a change of
+    /// `R(T)` far below the band's fraction of the power; forming them
+    /// again cost a soft-float routine per source on a core without an
+    /// FPU).
     fn biases_beyond<W: WarmUpKind<X>>(
         &self,
         state: &NetworkObserverState<N, B, M, X, P, W>,
+        powers_w: &[f32; M],
     ) -> [bool; M] {
-        let powers_w = self.joule_powers_w(state);
         self.shadow
             .bias_bound
-            .beyond(state.estimate.x.iter().skip(N).take(M), &powers_w)
+            .beyond(state.estimate.x.iter().skip(N).take(M), powers_w)
     }
 
     /// Each current's Joule power \[W\], the held current at the estimated
