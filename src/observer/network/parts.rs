@@ -835,6 +835,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             constant_k: SVector::from(sh.step.constant_k),
             block_steps: sh.block_steps,
             waits_for_light_tick: s.step_us > s.loop_tick_us(),
+            #[cfg(feature = "integer-step")]
+            integer_block: integer_block(s, &sh.step),
             band,
             bias_bound: BiasBound::new(&band, &phi_minus_i, &bd_power),
         };
@@ -1137,6 +1139,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 constant_k: vector(&sh.step.constant_k),
                 block_steps: sh.block_steps,
                 waits_for_light_tick: s.step_us > s.loop_tick_us(),
+                #[cfg(feature = "integer-step")]
+                integer_block: integer_block(s, &sh.step),
                 band: a.checks.band(),
                 bias_bound: a.checks.bias_bound(),
             },
@@ -1187,6 +1191,22 @@ const fn integer_step<const N: usize, const B: usize, const M: usize>(
     match FixedStep::of(step) {
         Some(step) => Ok(Some(step)),
         None => Err(invalid("model")),
+    }
+}
+
+/// The shadow's block step in integer arithmetic when the model steps in
+/// it; `None` (the block steps in `f32`, as accurate) where the block's
+/// tables do not fit the integer step's scales: a longer step's
+/// conductances are larger, and the shadow is no reason to refuse a model.
+#[cfg(feature = "integer-step")]
+const fn integer_block<const N: usize, const B: usize, const M: usize>(
+    s: &NetworkSettings,
+    block: &StepTables<N, B, M>,
+) -> Option<FixedStep<N, B, M>> {
+    if s.integer_model_step {
+        FixedStep::of(block)
+    } else {
+        None
     }
 }
 
