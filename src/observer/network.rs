@@ -175,41 +175,40 @@
 //! `network_roundtrip` steps every 10 ms on its 1 ms loop
 //! (`drive-3node-integer.toml`): 1 015 instructions a tick on average,
 //! against 4 880 at 1 ms, every printed figure within 10 mK of the 1 ms
-//! `f32` firmware's (docs/cost.md); its worst tick is a reading's (7 548),
-//! where a step's that completed a block was 10 587.
+//! `f32` firmware's (docs/cost.md); its worst tick, 7 245, is a
+//! predictor stage's (a step's tick that completed a block was 10 587).
 //!
 //! # The model step in integer arithmetic
 //!
 //! Without an FPU every `f32` operation of the step above is a software
 //! routine, about 200 instructions a multiply-add on a Cortex-M0. With
-//! [`NetworkSettings::integer_model_step`] (and the `integer-step`
-//! feature) the step runs in integer arithmetic instead
+//! [`NetworkSettings::integer_model_step`] (and the `integer-step` feature)
+//! the step runs in integer arithmetic instead
 //! ([`FixedStep`](crate::discretize::fixed::FixedStep)): each node has a
-//! Q16.48 state (3.6e-15 K) in the observer state, the increment is
-//! formed from the same `f32` tables as `i32` rows scaled by powers of
-//! two, 32 x 32 -> 64-bit products, and added exactly; the `f32` estimate
-//! is the state's image. A deviation moved since the step
-//! wrote it (a correction, the common-mode rule, a start) moves the
-//! integer state by the same amount, exactly, before the next step
-//! (`network/integer.rs`). So the filter, the bound and the protection
-//! see the estimate as with the `f32` step, and a correction moves what
-//! the next step starts from. The same bits on every core, so
-//! the host's replay of a model file that asks for it is the firmware to
-//! the bit. Tested: 2 h at 8 A open loop within 1e-5 K of the `f64` RK4
-//! (`the_integer_step_does_not_drift_either`, 5.8e-6 K), an hour of
-//! readings beside the `f32` step (1.2e-5 K apart), and the step against
-//! the `f64` recursion of its tables. The shadow's block (see "Sensors
-//! against the physics") steps in the same integer form where its tables
-//! fit its scales (else in `f32`), its deviation and carry taken as one
-//! Q16.48 state per node for the block: within 1e-5 K of the exact
+//! Q16.48 state (3.6e-15 K) in the observer state, the increment is formed
+//! from the same `f32` tables as `i32` rows scaled by powers of two, 32 x
+//! 32 -> 64-bit products, and added exactly; the `f32` estimate is the
+//! state's image. A deviation moved since the step wrote it (a correction,
+//! the common-mode rule, a start) moves the integer state by the same
+//! amount, exactly, before the next step (`network/integer.rs`). So the
+//! filter, the bound and the protection see the estimate as with the `f32`
+//! step, and a correction moves what the next step starts from. The same
+//! bits on every core, so the host's replay of a model file that asks for
+//! it is the firmware to the bit. Tested: 2 h at 8 A open loop within
+//! 1e-5 K of the `f64` RK4 (`the_integer_step_does_not_drift_either`,
+//! 5.8e-6 K), an hour of readings beside the `f32` step (1.2e-5 K
+//! apart), and the step
+//! against the `f64` recursion of its tables. The shadow's block (see
+//! "Sensors against the physics") steps in the same integer form where its
+//! tables fit its scales (else in `f32`), its deviation and carry taken as
+//! one Q16.48 state per node for the block: within 1e-5 K of the exact
 //! solution over 1 600 s of heating and cooling
-//! (`the_integer_block_step_follows_the_exact_solution`); on the
-//! Cortex-M0 the real motor's heaviest tick, which carries a block, fell
-//! from 48 195 to 42 590 instructions with it. A
-//! setting, so the host replays either from one observer type; the
-//! feature keeps the integer step's code out of an `f32` firmware, whose
-//! generated observer never asks for it (without the feature such
-//! settings are refused).
+//! (`the_integer_block_step_follows_the_exact_solution`); on the Cortex-M0
+//! the real motor's heaviest tick, which carries a block, fell from 48 195
+//! to 42 590 instructions with it. A setting, so the host replays either
+//! from one observer type; the feature keeps the integer step's code out of
+//! an `f32` firmware, whose generated observer never asks for it (without
+//! the feature such settings are refused).
 //!
 //! # No model refresh, no single-sensor rule
 //!
