@@ -13,7 +13,11 @@
 //! A tick that already ran a correction or a catch-up of several model
 //! steps puts the predictor slice off to the next tick, once. The limits
 //! therefore lag the model by at most a cycle and three ticks, and the
-//! predictor's answers are aged by the time it lags (`lag_s`). A phase
+//! predictor's answers are aged by the time it lags (`lag_s`). With
+//! `with_busy_waits(n)` every stage may wait out `n` busy ticks: at most a
+//! cycle and `3 (n + 1)` ticks (12 ms for the network observer's 3 at a
+//! 1 ms loop). Which stage a tick runs, the bookkeeping after it and the
+//! ageing are [`ProtectionStages::run_due`], every filtered observer's. A phase
 //! (`with_phase`) makes every slice after the first due that much after
 //! its period's boundary; the lag stays the real one.
 
