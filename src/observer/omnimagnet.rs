@@ -188,7 +188,11 @@
 //! (`consistency::protect_on_shadow`), the model refresh's watchdog
 //! (`consistency::RefreshWatchdog`, [`MODEL_STALE_PERIODS`]), the latch
 //! (`cycle::Latch`: latched, restored, clock lost, cleared; the grid's
-//! too), the snapshot writer (`snapshot::save_state`), the gain's tables
+//! too), the protection cycle and its stage dispatch
+//! (`cycle::ProtectionStages::run_due`: which stage a tick runs, the
+//! bookkeeping after it, the ageing of the answers; each observer says
+//! only what its stages do), the step's `I^2` account
+//! (`clock::StepAccount`), the snapshot writer (`snapshot::save_state`), the gain's tables
 //! ([`GainTables`](super::network::GainTables)), the start's rules
 //! ([`super::start`]) and the outputs ([`FilteredOutputs`]).
 //!
