@@ -1313,6 +1313,34 @@ fn the_heat_bias_alarm_sees_a_shared_bias_beyond_the_model() {
 }
 
 #[test]
+fn a_heat_bias_within_the_models_share_of_the_power_is_not_flagged() {
+    // The plant's phases 20 % above the model's resistance: the missing
+    // heat is a fifth of the Joule power, within the band's share of it
+    // (`consistency_fraction`, 25 %), so the biases carry it unflagged.
+    // The share is of the powers the floors were taken at: without them
+    // (the band's offset alone) the same run is flagged.
+    let mut flagged_s = None;
+    three_phase_housing_run(
+        NetworkSettings::DEFAULT,
+        0.6,
+        3600,
+        |_| [8.0, 4.0, 4.0],
+        |_, truth| truth as f32,
+        |t_s, _, state, _| {
+            if flagged_s.is_none()
+                && state
+                    .outputs()
+                    .flags
+                    .contains(InputFlags::HEAT_BIAS_BEYOND_MODEL)
+            {
+                flagged_s = Some(t_s);
+            }
+        },
+    );
+    assert_eq!(flagged_s, None, "flagged");
+}
+
+#[test]
 fn a_shared_bias_warms_up_and_finds_the_heat_where_the_power_is() {
     // The time-varying warm-up (40 corrections from the widened prior,
     // the shared bias's noise rank one) then the steady gain: the plant's
