@@ -256,8 +256,10 @@ pub(crate) trait ProtectionStages<const M: usize> {
                 self.cycle_and_held().0.limited();
             }
         }
-        // The lag moves with the model's time and the predictor's stages.
-        if model_moved || stage != Stage::Idle {
+        // The lag moves with the model's time and the predictor's stages;
+        // the alarm's stage aged the answers just before it, and nothing
+        // has moved them since.
+        if stage != Stage::Alarm && (model_moved || stage != Stage::Idle) {
             self.age_time_to_limit();
         }
         stage
@@ -515,6 +517,61 @@ mod tests {
             n += 1;
         }
         ran
+    }
+
+    /// An observer that logs what `run_due` asks of it.
+    struct Logged {
+        cycle: ProtectionCycle<1>,
+        held_a: [f32; 1],
+        log: Vec<&'static str>,
+    }
+
+    impl ProtectionStages<1> for Logged {
+        fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<1>, &[f32; 1]) {
+            (&mut self.cycle, &self.held_a)
+        }
+        fn predictor_slice_us(&self) -> u32 {
+            1000
+        }
+        fn predict(&mut self) {
+            self.log.push("predict");
+        }
+        fn alarm(&mut self) {
+            self.log.push("alarm");
+        }
+        fn limit(&mut self) {
+            self.log.push("limit");
+        }
+        fn age_time_to_limit(&mut self) {
+            self.log.push("age");
+        }
+    }
+
+    /// The answers are aged after a stage that moved them (the
+    /// predictor's), before the alarm judges them (once: nothing moves
+    /// them in between), and whenever the model's time moved; a tick
+    /// without either ages nothing.
+    #[test]
+    fn run_due_ages_the_answers_where_they_moved_and_before_the_alarm() {
+        let mut o = Logged {
+            cycle: ProtectionCycle::new(),
+            held_a: [2.0],
+            log: Vec::new(),
+        };
+        let tick = |o: &mut Logged, model_moved: bool| {
+            o.log.clear();
+            let stage = o.run_due(false, 1000, model_moved);
+            (stage, o.log.clone())
+        };
+        assert_eq!(
+            tick(&mut o, false),
+            (Stage::Predict, vec!["predict", "age"])
+        );
+        assert_eq!(o.cycle.peak_currents_a(), &[2.0]);
+        assert_eq!(tick(&mut o, false), (Stage::Alarm, vec!["age", "alarm"]));
+        assert_eq!(tick(&mut o, true), (Stage::Limit, vec!["limit", "age"]));
+        assert_eq!(tick(&mut o, true), (Stage::Idle, vec!["age"]));
+        assert_eq!(tick(&mut o, false), (Stage::Idle, vec![]));
     }
 
     #[test]

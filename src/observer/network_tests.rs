@@ -1291,25 +1291,35 @@ fn the_shared_bias_gives_back_what_a_stuck_sensor_taught() {
     );
 }
 
+/// The first time \[s\] the three-phase housing run at `plant_r_ohm`
+/// (the model's 0.5 ohm) and [8, 4, 4] A for `seconds` is flagged
+/// `HEAT_BIAS_BEYOND_MODEL`, if ever.
+fn heat_bias_flagged_s(plant_r_ohm: f64, seconds: u32) -> Option<f64> {
+    let mut flagged_s = None;
+    three_phase_housing_run(
+        NetworkSettings::DEFAULT,
+        plant_r_ohm,
+        seconds,
+        |_| [8.0, 4.0, 4.0],
+        |_, truth| truth as f32,
+        |t_s, _, state, _| {
+            let flagged = state
+                .outputs()
+                .flags
+                .contains(InputFlags::HEAT_BIAS_BEYOND_MODEL);
+            if flagged && flagged_s.is_none() {
+                flagged_s = Some(t_s);
+            }
+        },
+    );
+    flagged_s
+}
+
 #[test]
 fn the_heat_bias_alarm_sees_a_shared_bias_beyond_the_model() {
     // The plant's phases at three times the model's resistance: the shared
     // heat is beyond the model's uncertainty, per source, and flagged.
-    let mut flagged = false;
-    three_phase_housing_run(
-        NetworkSettings::DEFAULT,
-        1.5,
-        1800,
-        |_| [8.0, 4.0, 4.0],
-        |_, truth| truth as f32,
-        |_, _, state, _| {
-            flagged |= state
-                .outputs()
-                .flags
-                .contains(InputFlags::HEAT_BIAS_BEYOND_MODEL);
-        },
-    );
-    assert!(flagged, "never flagged");
+    assert!(heat_bias_flagged_s(1.5, 1800).is_some(), "never flagged");
 }
 
 #[test]
@@ -1319,25 +1329,7 @@ fn a_heat_bias_within_the_models_share_of_the_power_is_not_flagged() {
     // (`consistency_fraction`, 25 %), so the biases carry it unflagged.
     // The share is of the powers the floors were taken at: without them
     // (the band's offset alone) the same run is flagged.
-    let mut flagged_s = None;
-    three_phase_housing_run(
-        NetworkSettings::DEFAULT,
-        0.6,
-        3600,
-        |_| [8.0, 4.0, 4.0],
-        |_, truth| truth as f32,
-        |t_s, _, state, _| {
-            if flagged_s.is_none()
-                && state
-                    .outputs()
-                    .flags
-                    .contains(InputFlags::HEAT_BIAS_BEYOND_MODEL)
-            {
-                flagged_s = Some(t_s);
-            }
-        },
-    );
-    assert_eq!(flagged_s, None, "flagged");
+    assert_eq!(heat_bias_flagged_s(0.6, 3600), None, "flagged");
 }
 
 #[test]
