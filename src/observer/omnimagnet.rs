@@ -123,7 +123,8 @@
 //! stage per tick so that no tick carries more than one: a predictor slice
 //! (one horizon; or, with [`OmniSettings::predictor_slices_per_cycle`] and
 //! [`OmniSettings::predictor_nodes_per_slice`], several smaller slices on
-//! consecutive ticks: the snapshot alone, then at most that many nodes of
+//! consecutive ticks: the snapshot alone in two (its steady state, then
+//! its modal amplitudes), then at most that many nodes of
 //! a horizon each), then the alarm, then the limiter. Between cycles the
 //! outputs stand, except the times to limit, which are aged every tick. The
 //! slice is put off by one tick when that tick also corrects or catches up
@@ -607,7 +608,7 @@ pub struct OmniSettings {
     /// cheaper ticks.
     pub predictor_slices_per_cycle: u32,
     /// At most this many nodes' horizons per predictor slice, at least 1
-    /// (the snapshot that starts a sweep then takes a slice of its own;
+    /// (the snapshot that starts a sweep then takes two slices of its own;
     /// see [`PredictorBuilder::elements_per_tick`]). Default `u32::MAX`:
     /// a whole horizon, the snapshot with the first.
     pub predictor_nodes_per_slice: u32,

@@ -90,11 +90,15 @@
 //!
 //! Where one horizon is more than a tick's budget,
 //! [`PredictorBuilder::elements_per_tick`] splits it: at most that many
-//! elements per call, the snapshot in a call of its own, the same answers
+//! elements per call, the snapshot in two calls of its own (the steady
+//! state and `T_0 - T_ss`, then the modal amplitudes), the same answers
 //! to the bit (the Omnimagnet's nine limited nodes in slices of five on a
 //! Cortex-M4F: 2 250 to 2 500 instructions a slice instead of about
 //! 3 600 for a horizon, the snapshot alone about 2 050 instead of 5 200
-//! with the first horizon; `docs/cost.md`).
+//! with the first horizon, before its halves took a call each; on a
+//! Cortex-M0 in soft-float the real motor's whole snapshot was its worst
+//! tick, 32 000 instructions, its halves about 21 400 at worst;
+//! `docs/cost.md`).
 //!
 //! # Cost per call (`N` elements, `M` windings, `B` boundaries)
 //!
@@ -172,7 +176,9 @@ impl PredictorBuilder {
     /// At most `elements` element evaluations per [`PredictorState::tick`]
     /// (at least 1; default unbounded): a horizon whose open elements are
     /// more is split over several ticks, and the snapshot that starts a
-    /// sweep takes a tick of its own. For a tick budget below one
+    /// sweep takes two ticks of its own (the steady state, then the modal
+    /// amplitudes: each about half the snapshot's multiply-adds). For a
+    /// tick budget below one
     /// horizon's cost (the Omnimagnet's nine limited nodes on a
     /// Cortex-M4F); `points_per_tick` then only bounds the ticks that fit.
     /// The answers are the same to the bit; a sweep takes more ticks.
@@ -512,6 +518,20 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         boundary_c: &[T; B],
         with_fixed: bool,
     ) -> ([T; N], [T; N]) {
+        let (steady, from_steady) =
+            self.steady_and_offset(temps_c, powers_w, boundary_c, with_fixed);
+        (steady, self.modes_of(&from_steady))
+    }
+
+    /// The first half of [`Self::steady_and_modes`]: the steady state
+    /// \[degC\] and `T_0 - T_ss` \[K\].
+    fn steady_and_offset(
+        &self,
+        temps_c: &[T; N],
+        powers_w: &[T; M],
+        boundary_c: &[T; B],
+        with_fixed: bool,
+    ) -> ([T; N], [T; N]) {
         let mut steady = [T::zero(); N];
         let rows = steady
             .iter_mut()
@@ -532,15 +552,29 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         for ((d, t), ss) in from_steady.iter_mut().zip(temps_c).zip(&steady) {
             *d = *t - *ss;
         }
-        let mut modes = [T::zero(); N];
-        for (z, v_inv_row) in modes.iter_mut().zip(&self.v_inv) {
+        (steady, from_steady)
+    }
+
+    /// The second half of [`Self::steady_and_modes`]: the modal
+    /// amplitudes `V^-1 (T_0 - T_ss)` \[K\] of `from_steady`.
+    fn modes_of(&self, from_steady: &[T; N]) -> [T; N] {
+        let mut modes = *from_steady;
+        self.to_modes(&mut modes);
+        modes
+    }
+
+    /// [`Self::modes_of`] in place: `T_0 - T_ss` \[K\] in, the modal
+    /// amplitudes out.
+    #[inline(always)]
+    fn to_modes(&self, values: &mut [T; N]) {
+        let from_steady = *values;
+        for (z, v_inv_row) in values.iter_mut().zip(&self.v_inv) {
             let mut m = T::zero();
             for (vi, d) in v_inv_row.iter().zip(&from_steady) {
                 m += *vi * *d;
             }
             *z = m;
         }
-        (steady, modes)
     }
 
     /// `P`, `Q`, `Q'` of element `row` (a row of `V`) for modal amplitudes
@@ -577,15 +611,25 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     }
 
     fn snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
+        let mut snapshot = self.steady_snapshot(op, powers_w);
+        self.to_modes(&mut snapshot.modes);
+        snapshot
+    }
+
+    /// A snapshot's first half (a split sweep's first stage): the headroom,
+    /// and `T_0 - T_ss` where the modal amplitudes go, for
+    /// [`Self::modes_of`] to turn into them.
+    fn steady_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
         let valid = op.is_finite() && powers_w.iter().all(|p| p.is_finite());
-        let (steady, modes) = self.steady_and_modes(&op.temps_c, powers_w, &op.boundary_c, true);
+        let (steady, from_steady) =
+            self.steady_and_offset(&op.temps_c, powers_w, &op.boundary_c, true);
         let mut headroom_k = [T::zero(); N];
         for ((h, l), s) in headroom_k.iter_mut().zip(&op.limits_c).zip(&steady) {
             *h = *l - *s;
         }
         Snapshot {
             headroom_k,
-            modes,
+            modes: from_steady,
             valid,
         }
     }
@@ -826,13 +870,25 @@ pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]>
     next_point: usize,
     /// Where the point in progress resumes (split points).
     next_element: usize,
-    /// The sweep in progress has its snapshot.
-    started: bool,
+    /// How much of its snapshot the sweep in progress has.
+    phase: SweepPhase,
     sweep_age_s: T,
     published: [Crossing<T>; N],
     published_age_s: T,
     peak_power_w: [T; M],
     out: A,
+}
+
+/// How much of its snapshot a [`PredictorState`]'s sweep has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SweepPhase {
+    /// No sweep runs: the next stage takes a snapshot.
+    Idle,
+    /// A split sweep has the first half of its snapshot: the next stage
+    /// forms its modal amplitudes.
+    Steady,
+    /// The snapshot is whole: the stages evaluate horizons.
+    Sweeping,
 }
 
 impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
@@ -852,7 +908,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
             sweep: [Crossing::Open; N],
             next_point: 0,
             next_element: 0,
-            started: false,
+            phase: SweepPhase::Idle,
             sweep_age_s: T::zero(),
             published: first,
             published_age_s: T::zero(),
@@ -892,14 +948,22 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         let split = predictor.elements_per_tick < N;
         let mut budget = predictor.elements_per_tick;
         for _ in 0..predictor.points_per_tick {
-            if !self.started {
-                self.snapshot = predictor.snapshot(op, &self.peak_power_w);
-                self.peak_power_w = powers;
-                self.sweep = [Crossing::Open; N];
-                self.sweep_age_s = T::zero();
-                self.started = true;
+            if self.phase != SweepPhase::Sweeping {
+                if self.phase == SweepPhase::Idle {
+                    self.snapshot = predictor.steady_snapshot(op, &self.peak_power_w);
+                    self.peak_power_w = powers;
+                    self.sweep = [Crossing::Open; N];
+                    self.sweep_age_s = T::zero();
+                    self.phase = SweepPhase::Steady;
+                    if split {
+                        // The snapshot is two stages' work of their own:
+                        // the steady state, then the modal amplitudes.
+                        break;
+                    }
+                }
+                predictor.to_modes(&mut self.snapshot.modes);
+                self.phase = SweepPhase::Sweeping;
                 if split {
-                    // The snapshot is a tick's work of its own.
                     break;
                 }
             }
@@ -922,7 +986,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 self.published = self.sweep;
                 self.published_age_s = self.sweep_age_s;
                 self.next_point = 0;
-                self.started = false;
+                self.phase = SweepPhase::Idle;
                 break;
             }
             if budget == 0 {

@@ -340,7 +340,7 @@ fn sliced_answers_are_the_full_answers_aged() {
 #[test]
 fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
     // The same sweep with at most 1, 2 or 3 element evaluations per tick
-    // (and the snapshot in a tick of its own): every sweep it completes
+    // (and the snapshot in two ticks of its own): every sweep it completes
     // publishes the whole sweep's answers to the bit, in more ticks than
     // one horizon per tick takes.
     let network = four_node();
@@ -356,7 +356,7 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
         while sweeps < 3 {
             state.tick(predictor, &op);
             ticks += 1;
-            if !state.started {
+            if state.phase == SweepPhase::Idle {
                 assert_eq!(state.published, expected, "sweep {sweeps}");
                 sweeps += 1;
                 if first_sweep_ticks == 0 {
@@ -374,6 +374,15 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
             .elements_per_tick(elements)
             .build::<f32, 4, 1, 1, 48>(&network)
             .unwrap();
+        // The snapshot is two stages of their own, the steady state then
+        // the modal amplitudes, and is the whole snapshot to the bit.
+        let mut state = PredictorState::new(&split, &op);
+        state.tick(&split, &op);
+        assert_eq!(state.phase, SweepPhase::Steady);
+        state.tick(&split, &op);
+        assert_eq!(state.phase, SweepPhase::Sweeping);
+        assert_eq!((state.next_point, state.next_element), (0, 0));
+        assert_eq!(state.snapshot, split.snapshot(&op, &powers));
         let ticks = ticks_per_sweep(&split);
         assert!(
             ticks > last,
