@@ -1481,7 +1481,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             state.latch().clock_lost();
         }
         let mut flags = steps.flags;
-        let moved = StepAccount::moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
+        let moved =
+            state
+                .step_account
+                .moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
         flags |= self
             .limits
             .accept_currents(&inputs.currents_a, &mut state.held_currents_a);

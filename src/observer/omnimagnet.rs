@@ -1393,7 +1393,10 @@ impl OmniObserver {
         if self.refresh.aged(&mut state.model_age_steps, steps.steps) {
             flags |= InputFlags::MODEL_STALE;
         }
-        let moved = StepAccount::moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
+        let moved =
+            state
+                .step_account
+                .moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
         flags |= self
             .limits
             .accept_currents(&inputs.currents_a, &mut state.held_currents_a);
