@@ -401,7 +401,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{ClockState, StepAccount, StepClock};
-use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w};
+use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w, BiasFloors};
 
 use super::consistency::{
     protect_on_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
@@ -1985,10 +1985,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             return self.keep_bias_floors(state, warming);
         }
         let powers_w = self.joule_powers_w(state);
+        let floors = self.bias_floors(&powers_w);
         for _ in 0..FLOOR_PASSES {
             let cov = self.floor_cov(&state.warm, warming);
             crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
-            self.keep_bias_floors_at(state, warming, &powers_w);
+            self.keep_bias_floors_at(state, warming, &floors);
         }
         powers_w
     }
@@ -2009,25 +2010,38 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         warming: bool,
     ) -> [f32; M] {
         let powers_w = self.joule_powers_w(state);
-        self.keep_bias_floors_at(state, warming, &powers_w);
+        let floors = self.bias_floors(&powers_w);
+        self.keep_bias_floors_at(state, warming, &floors);
         powers_w
     }
 
-    /// [`Self::keep_bias_floors`] at the Joule powers `powers_w` \[W\].
+    /// The heat-input biases' floors at the Joule powers `powers_w` \[W\]:
+    /// formed once for every pass of [`Self::keep_floors`] (eight of them
+    /// formed each source's floor again: about 2 600 soft-float
+    /// instructions of the real motor's reading tick on a Cortex-M0).
+    fn bias_floors(&self, powers_w: &[f32; M]) -> BiasFloors<M> {
+        BiasFloors::at(
+            powers_w,
+            self.cooling_bias_fraction,
+            &self.shared_bias,
+            &self.nominal_power_w,
+        )
+    }
+
+    /// [`Self::keep_bias_floors`] onto the floors `floors`.
     #[inline(never)]
     fn keep_bias_floors_at<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
-        powers_w: &[f32; M],
+        floors: &BiasFloors<M>,
     ) {
         let cov = self.floor_cov(&state.warm, warming);
-        for (m, power_w) in powers_w.iter().enumerate() {
+        for (m, floor_w) in floors.own_w.iter().enumerate() {
             if self.shared_bias[m] {
                 continue;
             }
-            let floor_w = -self.cooling_bias_fraction * power_w.abs();
-            crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, floor_w);
+            crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, *floor_w);
         }
         if !self.shared_bias.contains(&true) {
             return;
@@ -2038,17 +2052,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // with the nominal powers: 1e-4 of them), and it goes back to the
         // sources in proportion to their present power.
         let shared = &self.shared_bias;
-        let shares = present_shares(shared, powers_w, &self.nominal_power_w);
-        let floor_w: f32 = -self.cooling_bias_fraction
-            * (0..M)
-                .filter(|m| shared[*m])
-                .map(|m| powers_w[m].abs())
-                .sum::<f32>();
         let sum_w = shared_sum_w::<N, M, X>(&state.estimate.x, shared);
-        if sum_w < floor_w {
-            condition_shared_sum::<N, M, X>(&mut state.estimate.x, cov, shared, &shares, floor_w);
+        if sum_w < floors.shared_w {
+            condition_shared_sum::<N, M, X>(
+                &mut state.estimate.x,
+                cov,
+                shared,
+                &floors.shares,
+                floors.shared_w,
+            );
         } else {
-            set_shared::<N, M, X>(&mut state.estimate.x, shared, &shares, sum_w);
+            set_shared::<N, M, X>(&mut state.estimate.x, shared, &floors.shares, sum_w);
         }
     }
 

@@ -271,3 +271,52 @@ pub(crate) fn present_shares<const M: usize>(
         }
     })
 }
+
+/// The heat-input biases' floors at one set of Joule powers, formed once
+/// for the projections that keep them (see
+/// [`NetworkObserver::keep_floors`](super::NetworkObserver)): each own
+/// bias's floor, the shared bias's and the shares it goes back to the
+/// sources in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BiasFloors<const M: usize> {
+    /// `-fraction |P_m|` \[W\] of each source with a bias of its own
+    /// (unread for a shared one).
+    pub own_w: [f32; M],
+    /// The shared bias's floor \[W\]: the sum of its sources' (unread
+    /// without a shared bias).
+    pub shared_w: f32,
+    /// The shared heat's present shares ([`present_shares`]); all zero
+    /// without a shared bias.
+    pub shares: [f32; M],
+}
+
+impl<const M: usize> BiasFloors<M> {
+    /// The floors at the Joule powers `powers_w` \[W\], taking away at most
+    /// `cooling_fraction` of each source's power; `shared` and
+    /// `nominal_w` \[W\] as [`present_shares`] takes them.
+    pub(crate) fn at(
+        powers_w: &[f32; M],
+        cooling_fraction: f32,
+        shared: &[bool; M],
+        nominal_w: &[f32; M],
+    ) -> Self {
+        let any_shared = shared.contains(&true);
+        Self {
+            own_w: powers_w.map(|p| -cooling_fraction * p.abs()),
+            shared_w: if any_shared {
+                -cooling_fraction
+                    * (0..M)
+                        .filter(|m| shared[*m])
+                        .map(|m| powers_w[m].abs())
+                        .sum::<f32>()
+            } else {
+                0.0
+            },
+            shares: if any_shared {
+                present_shares(shared, powers_w, nominal_w)
+            } else {
+                [0.0; M]
+            },
+        }
+    }
+}
