@@ -472,16 +472,23 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 
     /// Each winding's Joule power \[W\] at the resistance it would have at the
     /// alarm limit of its node (or its present temperature, if higher): the
-    /// conservative powers of the module docs, times `duty`.
-    pub(super) fn conservative_powers_w(&self, op: &Operating<T, N, B, M>, duty: T) -> [T; M] {
+    /// conservative powers of the module docs.
+    pub(super) fn conservative_powers_w(&self, op: &Operating<T, N, B, M>) -> [T; M] {
         let mut powers = [T::zero(); M];
         for ((p, w), i) in powers.iter_mut().zip(&self.windings).zip(&op.currents_a) {
-            *p = self.conservative_resistance_ohm(w, op) * *i * *i * duty;
+            *p = self.conservative_resistance_ohm(w, op) * *i * *i;
         }
         powers
     }
 
     /// `max(R(T_node), R(L_node))`, floored at zero \[ohm\].
+    ///
+    /// Taken as `R` of the warmer (or, for a negative slope, the cooler)
+    /// of the two temperatures: a rounded multiply-add is monotone, so
+    /// that is the larger `R` to the bit, for one `R(T)` instead of two
+    /// (a soft-float multiply-add per winding on every predictor stage
+    /// of a core without an FPU); both where it is not finite, and on a
+    /// core with an FPU.
     pub(super) fn conservative_resistance_ohm(
         &self,
         w: &Winding<T>,
@@ -490,8 +497,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         let nan = T::from_subset(&f64::NAN);
         let temp = op.temps_c.get(w.node).copied().unwrap_or(nan);
         let limit = op.limits_c.get(w.node).copied().unwrap_or(nan);
-        let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
-        let r = at(temp).max(at(limit));
+        let r = larger_resistance_ohm(w, temp, limit);
         if r > T::zero() {
             r
         } else if r.is_finite() {
@@ -727,7 +733,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// was not finite), written to `out`. One full sweep: see the module docs
     /// for the cost.
     pub fn predict(&self, op: &Operating<T, N, B, M>, out: &mut [Option<T>; N]) {
-        let powers = self.conservative_powers_w(op, T::one());
+        let powers = self.conservative_powers_w(op);
         let sweep = self.full_sweep(op, &powers);
         *out = sweep.map(|s| published(s, T::zero()));
     }
@@ -744,6 +750,57 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         }
         sweep
     }
+}
+
+/// The larger of a winding's `R` at `temp` and at `limit` \[ohm\] (see
+/// [`LimitPredictor::conservative_resistance_ohm`]): `R` of the warmer
+/// temperature (the cooler for a negative slope), both `R`s where that is
+/// not finite.
+#[cfg(not(target_abi = "eabihf"))]
+#[inline(always)]
+fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
+    // A NaN temperature is dropped (a NaN `limit` compares with nothing),
+    // as `max` of the two `R`s drops its NaN `R`: compares, not `fmaxf`
+    // and `fminf` (the M0 footprint).
+    let temp_is_warmer = if w.slope_ohm_per_k >= T::zero() {
+        temp > limit
+    } else {
+        temp < limit
+    };
+    let warmer = if temp_is_warmer || limit.partial_cmp(&limit).is_none() {
+        temp
+    } else {
+        limit
+    };
+    let r = w.r_at_0c_ohm + w.slope_ohm_per_k * warmer;
+    if r.is_finite() {
+        r
+    } else {
+        // An infinity: a zero slope times an infinite temperature is NaN
+        // where the other `R` is not.
+        both_resistances_ohm(w, temp, limit)
+    }
+}
+
+/// [`larger_resistance_ohm`] on a core with an FPU, where the two
+/// multiply-adds and a `max` cost less than the choice and its test
+/// (the real motor's M4F worst tick 20 instructions more): both `R`s.
+#[cfg(target_abi = "eabihf")]
+#[inline(always)]
+fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
+    let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
+    at(temp).max(at(limit))
+}
+
+/// Both of a winding's `R`s, at `temp` and at `limit`, the larger kept
+/// \[ohm\]: [`larger_resistance_ohm`]'s way where an infinity is involved
+/// (out of line: never on a finite operating point).
+#[cfg(not(target_abi = "eabihf"))]
+#[cold]
+#[inline(never)]
+fn both_resistances_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
+    let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
+    at(temp).max(at(limit))
 }
 
 /// The aged answer: `t - age`, floored at zero; NaN stays NaN.
@@ -900,7 +957,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
     ) -> Self {
-        let powers = predictor.conservative_powers_w(op, T::one());
+        let powers = predictor.conservative_powers_w(op);
         let first = predictor.full_sweep(op, &powers);
         Self {
             snapshot: predictor.snapshot(op, &powers),
@@ -935,7 +992,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         let tick_s = predictor.tick_s;
         self.sweep_age_s += tick_s;
         self.published_age_s += tick_s;
-        let powers = predictor.conservative_powers_w(op, T::one());
+        let powers = predictor.conservative_powers_w(op);
         for (peak, p) in self.peak_power_w.iter_mut().zip(&powers) {
             // NaN must win here: it marks the snapshot invalid.
             if matches!(

@@ -348,7 +348,7 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
     let whole = PredictorBuilder::new()
         .build::<f32, 4, 1, 1, 48>(&network)
         .unwrap();
-    let powers = whole.conservative_powers_w(&op, 1.0);
+    let powers = whole.conservative_powers_w(&op);
     let expected = whole.full_sweep(&op, &powers);
     let ticks_per_sweep = |predictor: &LimitPredictor<f32, 4, 1, 1, 48>| {
         let mut state = PredictorState::new(predictor, &op);
@@ -774,4 +774,48 @@ fn modal_amplitudes_hold_f64s_in_f32_on_a_stiff_network() {
     );
     // The form before is 6.9e-7 off here: the bound tells the two apart.
     assert!(error(&z32) < 4e-7, "{:e}", error(&z32));
+}
+
+/// Any `f32`: finite values of every size, both zeros, the infinities and
+/// NaN.
+fn any_f32() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        8 => -1e4f32..1e4,
+        1 => proptest::num::f32::ANY,
+        1 => prop::sample::select(vec![0.0, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN]),
+    ]
+}
+
+proptest! {
+    /// The conservative resistance, `R` of the warmer temperature (the
+    /// cooler for a negative slope), is the larger of the two `R`s to the
+    /// bit, NaN where that is NaN, for any inputs.
+    #[test]
+    fn the_conservative_resistance_is_the_larger_of_the_two_to_the_bit(
+        temp in any_f32(), limit in any_f32(), r0 in any_f32(), slope in any_f32(),
+        edge in 0usize..4,
+    ) {
+        // A zero slope against an infinite temperature, half the time.
+        let (temp, slope) = match edge {
+            0 => (f32::INFINITY, 0.0),
+            1 => (f32::NEG_INFINITY, -0.0),
+            _ => (temp, slope),
+        };
+        let predictor = PredictorBuilder::new()
+            .build::<f32, 4, 1, 1, 48>(&four_node())
+            .unwrap();
+        let winding = Winding { node: 0, r_at_0c_ohm: r0, slope_ohm_per_k: slope };
+        let mut operating = op::<f32, 4, 1, 1>([20.0; 4], [1.0], [20.0], [100.0; 4]);
+        operating.temps_c[0] = temp;
+        operating.limits_c[0] = limit;
+        let got = predictor.conservative_resistance_ohm(&winding, &operating);
+        // The two `R`s, the larger kept (`max` drops a NaN operand).
+        let at = |t: f32| r0 + slope * t;
+        let r = at(temp).max(at(limit));
+        let want = if r > 0.0 { r } else if r.is_finite() { 0.0 } else { f32::NAN };
+        prop_assert!(
+            got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+            "{got} against {want}"
+        );
+    }
 }

@@ -111,7 +111,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         horizon: Horizon<T>,
         duty: T,
     ) -> SafeLimit<T> {
-        let load = self.conservative_powers_w(op, duty);
+        let load = self.conservative_powers_w(op).map(|p| p * duty);
         let limit = self.max_load_factor(op, &[T::zero(); M], &load, horizon, duty);
         SafeLimit {
             value: limit.value.sqrt(),
@@ -133,7 +133,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         let Some(winding) = self.windings.get(coil) else {
             return SafeLimit::invalid();
         };
-        let mut others = self.conservative_powers_w(op, T::one());
+        let mut others = self.conservative_powers_w(op);
         let mut unit = [T::zero(); M];
         if let (Some(o), Some(u)) = (others.get_mut(coil), unit.get_mut(coil)) {
             *o = T::zero();
