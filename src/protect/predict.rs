@@ -624,7 +624,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 
     /// A snapshot's first half (a split sweep's first stage): the headroom,
     /// and `T_0 - T_ss` where the modal amplitudes go, for
-    /// [`Self::modes_of`] to turn into them.
+    /// [`Self::to_modes`] to turn into them.
     fn steady_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
         let valid = op.is_finite() && powers_w.iter().all(|p| p.is_finite());
         let (steady, from_steady) =
