@@ -376,7 +376,7 @@ impl<const M: usize> StepAccount<M> {
         }
         let mixed = self.mixed || moved;
         if steps.steps == 0 {
-            // The debt (below a step) bounds the open segment.
+            // The open segment is part of the clock's debt, so bounded.
             self.held_us = self.held_us.saturating_add(elapsed_us);
             self.mixed = mixed;
             return None;

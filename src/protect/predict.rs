@@ -524,9 +524,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         boundary_c: &[T; B],
         with_fixed: bool,
     ) -> ([T; N], [T; N]) {
-        let (steady, from_steady) =
-            self.steady_and_offset(temps_c, powers_w, boundary_c, with_fixed);
-        (steady, self.modes_of(&from_steady))
+        let (steady, mut modes) = self.steady_and_offset(temps_c, powers_w, boundary_c, with_fixed);
+        self.to_modes(&mut modes);
+        (steady, modes)
     }
 
     /// The first half of [`Self::steady_and_modes`]: the steady state
@@ -561,16 +561,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         (steady, from_steady)
     }
 
-    /// The second half of [`Self::steady_and_modes`]: the modal
-    /// amplitudes `V^-1 (T_0 - T_ss)` \[K\] of `from_steady`.
-    fn modes_of(&self, from_steady: &[T; N]) -> [T; N] {
-        let mut modes = *from_steady;
-        self.to_modes(&mut modes);
-        modes
-    }
-
-    /// [`Self::modes_of`] in place: `T_0 - T_ss` \[K\] in, the modal
-    /// amplitudes out.
+    /// The second half of [`Self::steady_and_modes`], in place:
+    /// `T_0 - T_ss` \[K\] in, the modal amplitudes `V^-1 (T_0 - T_ss)`
+    /// \[K\] out.
     #[inline(always)]
     fn to_modes(&self, values: &mut [T; N]) {
         let from_steady = *values;
@@ -788,16 +781,14 @@ fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T)
 #[cfg(target_abi = "eabihf")]
 #[inline(always)]
 fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
-    let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
-    at(temp).max(at(limit))
+    both_resistances_ohm(w, temp, limit)
 }
 
 /// Both of a winding's `R`s, at `temp` and at `limit`, the larger kept
-/// \[ohm\]: [`larger_resistance_ohm`]'s way where an infinity is involved
-/// (out of line: never on a finite operating point).
-#[cfg(not(target_abi = "eabihf"))]
-#[cold]
-#[inline(never)]
+/// \[ohm\]: on a core with an FPU always, elsewhere where an infinity is
+/// involved (out of line there: never on a finite operating point).
+#[cfg_attr(not(target_abi = "eabihf"), cold, inline(never))]
+#[cfg_attr(target_abi = "eabihf", inline(always))]
 fn both_resistances_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
     let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
     at(temp).max(at(limit))
