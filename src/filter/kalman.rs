@@ -26,6 +26,104 @@ pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, con
     /// First of the trailing states whose row of `F` is a unit row (random
     /// walks, such as bias states): `N` when there are none.
     pub(crate) walk_from: usize,
+    /// The states each sensor's row of `H` reads.
+    pub(crate) reads: [Reads<N>; P],
+}
+
+/// The states one sensor's row of `H` reads: the indices of its entries
+/// that are not zero, ascending. A thermocouple reads one node (and a
+/// boundary offset), so the correction's `H x` takes those terms alone: the
+/// rest are multiply-adds by zero, one instruction each on an FPU but a
+/// soft-float pair on a core without one (the real motor's reading tick on
+/// a Cortex-M0: 14 states, one or two read).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Reads<const N: usize> {
+    states: [u16; N],
+    count: u16,
+}
+
+impl<const N: usize> Reads<N> {
+    /// Nothing read.
+    const NONE: Self = Self {
+        states: [0; N],
+        count: 0,
+    };
+
+    /// The states whose `is_read` holds, in order.
+    #[inline(always)]
+    const fn push(mut self, state: usize) -> Self {
+        if (self.count as usize) < N {
+            self.states[self.count as usize] = state as u16;
+            self.count += 1;
+        }
+        self
+    }
+
+    /// Sensor `j`'s reads from the rows of `H^T` (the tables' layout).
+    const fn of_rows<const P: usize>(ht: &[[f32; P]; N], j: usize) -> Self {
+        let mut reads = Self::NONE;
+        let mut i = 0;
+        while i < N {
+            if ht[i][j] != 0.0 {
+                reads = reads.push(i);
+            }
+            i += 1;
+        }
+        reads
+    }
+
+    /// Sensor `j`'s reads from `H^T`.
+    fn of<T: RealField + Copy, const P: usize>(ht: &SMatrix<T, N, P>, j: usize) -> Self {
+        (0..N)
+            .filter(|i| ht.get((*i, j)).is_some_and(|h| *h != T::zero()))
+            .fold(Self::NONE, Self::push)
+    }
+
+    /// `h . x` for sensor `j`'s column `h` of `H^T`, over the states read.
+    /// For a finite `x` and at most two states read (a thermocouple reads
+    /// its node, and a boundary offset) it is the dense dot product's value
+    /// to the bit (a zero may differ in sign only: nalgebra's sum begins at
+    /// its first term, this one at `+0`); with more, the same terms summed
+    /// in another order.
+    #[inline(always)]
+    pub(crate) fn dot<T: RealField + Copy, const P: usize>(
+        &self,
+        ht: &SMatrix<T, N, P>,
+        j: usize,
+        x: &SVector<T, N>,
+    ) -> T {
+        let Some(h) = ht.as_slice().get(j * N..(j + 1) * N) else {
+            return T::zero();
+        };
+        let mut sum = T::zero();
+        for &i in self.states.iter().take(self.count as usize) {
+            if let (Some(h), Some(x)) = (h.get(i as usize), x.get(i as usize)) {
+                sum += *h * *x;
+            }
+        }
+        sum
+    }
+}
+
+/// Every sensor's [`Reads`] from the rows of `H^T` (the tables' layout),
+/// in a `const fn`.
+pub(crate) const fn reads_of_rows<const N: usize, const P: usize>(
+    ht: &[[f32; P]; N],
+) -> [Reads<N>; P] {
+    let mut reads = [Reads::NONE; P];
+    let mut j = 0;
+    while j < P {
+        reads[j] = Reads::of_rows(ht, j);
+        j += 1;
+    }
+    reads
+}
+
+/// Every sensor's [`Reads`] from `H^T`.
+fn reads_of<T: RealField + Copy, const N: usize, const P: usize>(
+    ht: &SMatrix<T, N, P>,
+) -> [Reads<N>; P] {
+    core::array::from_fn(|j| Reads::of(ht, j))
 }
 
 /// Input handling of one predict step.
@@ -162,10 +260,12 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
         let unit_row =
             |i: usize| (0..N).all(|k| f[(i, k)] == if k == i { T::one() } else { T::zero() });
         let walk_from = (0..N).rev().take_while(|i| unit_row(*i)).fold(N, |_, i| i);
+        let ht = h.transpose();
         Ok(Self {
             f,
             g,
-            ht: h.transpose(),
+            reads: reads_of(&ht),
+            ht,
             q,
             r,
             gate: GatePolicy {
@@ -518,10 +618,12 @@ impl<const N: usize, const M: usize, const P: usize> KalmanConfig<f64, N, M, P> 
     /// The same filter in another float type: matrices built and checked in
     /// `f64`, run in `f32` on an MCU with an FPU.
     pub fn cast<U: RealField + Copy>(&self) -> KalmanConfig<U, N, M, P> {
+        let ht = self.ht.cast();
         KalmanConfig {
             f: self.f.cast(),
             g: self.g.cast(),
-            ht: self.ht.cast(),
+            reads: reads_of(&ht),
+            ht,
             q: self.q.cast(),
             r: self.r.cast(),
             gate: GatePolicy {
@@ -922,7 +1024,49 @@ mod tests {
         ]
     }
 
+    /// An `f32` entry of `H` or `x`: zeros of both signs (as a selection
+    /// matrix has), ones, and any finite value.
+    fn sparse_entry() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            4 => Just(0.0f32),
+            1 => Just(-0.0f32),
+            2 => Just(1.0f32),
+            3 => -1e3f32..1e3,
+        ]
+    }
+
     proptest! {
+        /// The correction's `H x` over the states a sensor reads is the
+        /// dense dot product's value to the bit when it reads at most two
+        /// (zeros of either sign in both), within the rounding of a
+        /// reordered sum when it reads three; the flash tables' `const`
+        /// form finds the same states as the builder's.
+        #[test]
+        fn the_reads_dot_is_the_dense_dot_to_the_bit(
+            ht in proptest::array::uniform3(proptest::array::uniform2(sparse_entry())),
+            x in proptest::array::uniform3(sparse_entry()),
+        ) {
+            let ht_m = SMatrix::<f32, 3, 2>::from_fn(|i, j| ht[i][j]);
+            let x = SVector::<f32, 3>::from(x);
+            let reads = reads_of(&ht_m);
+            prop_assert_eq!(reads, reads_of_rows(&ht));
+            for (j, reads) in reads.iter().enumerate() {
+                let dense = ht_m.column(j).dot(&x);
+                let sparse = reads.dot(&ht_m, j, &x);
+                let read = (0..3).filter(|i| ht[*i][j] != 0.0).count();
+                prop_assert_eq!(reads.count as usize, read);
+                if read <= 2 {
+                    prop_assert!(
+                        sparse == dense && (dense == 0.0 || sparse.to_bits() == dense.to_bits()),
+                        "sensor {}: {} vs {}", j, sparse, dense
+                    );
+                } else {
+                    let scale: f32 = (0..3).map(|i| (ht[i][j] * x[i]).abs()).sum();
+                    prop_assert!((sparse - dense).abs() <= 4.0 * f32::EPSILON * scale);
+                }
+            }
+        }
+
         /// Joseph updates keep P symmetric PSD on random stable systems, with
         /// any mix of present, missing and outlying readings.
         #[test]

@@ -126,6 +126,7 @@ pub mod virtual_sensor;
 pub use constraint::{condition_on, project_onto_floor};
 pub use gate::{GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999};
 pub(crate) use kalman::predict_cov;
+pub(crate) use kalman::reads_of_rows;
 pub use kalman::{predict, predict_mean, update, InputStatus, KalmanConfig, KalmanState};
 pub use observability::{observability, Observability};
 pub(crate) use riccati::update_against;

@@ -370,9 +370,9 @@ pub(crate) fn update_against<
 ) -> UpdateReport<P> {
     let mut verdicts = [SensorVerdict::Missing; P];
     let mut nu = SVector::<T, P>::zeros();
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+    for (j, ((verdict, zj), reads)) in verdicts.iter_mut().zip(z).zip(&cfg.reads).enumerate() {
         let Some(zj) = usable(*zj) else { continue };
-        nu[j] = zj - cfg.ht.column(j).dot(&est.x);
+        nu[j] = zj - reads.dot(&cfg.ht, j, &est.x);
         *verdict = judge(nu[j], innovation_var[j], cfg.gate.threshold);
     }
     let recovered = est.gate.record_gate(&verdicts, cfg.gate.recover_after);

@@ -173,6 +173,7 @@ impl<const X: usize, const P: usize> KalmanTables<X, P> {
             },
             recovery_variance: vector(&self.recovery_variance),
             walk_from: self.walk_from,
+            reads: crate::filter::reads_of_rows(&self.ht),
         }
     }
 
