@@ -64,9 +64,9 @@ fn main() -> ! {
         observer,
         &mut Host,
         |tick| {
-            let ((), n) = meter.measure(&mut *tick);
+            let (steps, n) = meter.measure(&mut *tick);
             // The drive fuses a reading on the first tick of every second.
-            split.add(n, ticks.count() % 1000 == 0);
+            split.add(n, ticks.count() % 1000 == 0, steps);
             ticks.add(n);
         },
         |_| {},

@@ -61,9 +61,9 @@ fn main() -> ! {
     let mut ticks = cost::Stats::default();
     let mut split = cost::Split::default();
     let summary = roundtrip::replay(observer, &mut Host, |tick| {
-        let ((), n) = meter.measure(&mut *tick);
+        let (steps, n) = meter.measure(&mut *tick);
         // The replay fuses a reading on the first tick of every second.
-        split.add(n, ticks.count() % 1000 == 0);
+        split.add(n, ticks.count() % 1000 == 0, steps);
         ticks.add(n);
     });
     let Ok(summary) = summary else { fail("replay") };

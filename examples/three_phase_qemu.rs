@@ -51,7 +51,7 @@ fn main() -> ! {
     let observer = &model::OBSERVER;
     let mut ticks = cost::Stats::default();
     let summary = three_phase::replay(observer, &mut Host, |tick| {
-        let ((), n) = meter.measure(&mut *tick);
+        let (_steps, n) = meter.measure(&mut *tick);
         ticks.add(n);
     });
     let Ok(summary) = summary else { fail("replay") };

@@ -112,17 +112,28 @@ pub struct Split {
     pub corrected: Stats,
     /// The others.
     pub plain: Stats,
+    /// Of the others, those that took a model step.
+    pub stepped: Stats,
+    /// Of the others, those without a model step (a protection stage, a
+    /// waiting block, or nothing).
+    pub between: Stats,
     /// The cheapest of the others.
     pub least: u32,
 }
 
 #[allow(dead_code)]
 impl Split {
-    /// Adds one tick's count.
-    pub fn add(&mut self, value: u32, corrected: bool) {
+    /// Adds one tick's count: a tick that brought a reading, or one that
+    /// took `steps` model steps.
+    pub fn add(&mut self, value: u32, corrected: bool, steps: u32) {
         if corrected {
             self.corrected.add(value);
         } else {
+            if steps > 0 {
+                self.stepped.add(value);
+            } else {
+                self.between.add(value);
+            }
             self.least = if self.plain.count() == 0 {
                 value
             } else {
@@ -135,10 +146,14 @@ impl Split {
     /// Prints the split as a `cost:` line.
     pub fn print(&self) {
         cortex_m_semihosting::hprintln!(
-            "cost: split: plain tick (model step, no stage) {} instructions; ticks without a reading mean {} worst {}; with a reading mean {} worst {}",
+            "cost: split: cheapest tick {} instructions; ticks without a reading mean {} worst {} (with a model step mean {} worst {}, without one mean {} worst {}); with a reading mean {} worst {}",
             self.least,
             self.plain.mean(),
             self.plain.worst(),
+            self.stepped.mean(),
+            self.stepped.worst(),
+            self.between.mean(),
+            self.between.worst(),
             self.corrected.mean(),
             self.corrected.worst()
         );

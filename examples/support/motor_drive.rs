@@ -87,7 +87,7 @@ pub struct Summary {
 pub fn replay<W: Write>(
     observer: &model::Observer,
     out: &mut W,
-    mut tick: impl FnMut(&mut dyn FnMut()),
+    mut tick: impl FnMut(&mut dyn FnMut() -> u32),
     mut each_second: impl FnMut(&Second),
 ) -> Result<Summary, core::fmt::Error> {
     let mut open = model::initial_state(observer, AMBIENT_C);
@@ -141,7 +141,12 @@ pub fn replay<W: Write>(
                 sampled_at_us: now_us,
             })];
             let mut published = None;
-            tick(&mut || published = Some(*observer.tick(&mut fused, &inputs)));
+            tick(&mut || {
+                let o = observer.tick(&mut fused, &inputs);
+                let steps = o.steps;
+                published = Some(*o);
+                steps
+            });
             if let Some(o) = published {
                 summary.corrections += u32::from(o.corrected);
                 summary.checksum = checksum::fold(summary.checksum, &o);

@@ -74,7 +74,7 @@ fn row(line: &str) -> Option<(f32, f32, f32, f32)> {
 pub fn replay<W: Write>(
     observer: &model::Observer,
     out: &mut W,
-    mut tick: impl FnMut(&mut dyn FnMut()),
+    mut tick: impl FnMut(&mut dyn FnMut() -> u32),
 ) -> Result<Summary, &'static str> {
     let mut state = model::initial_state(observer, 22.0);
     let mut summary = Summary {

@@ -19,7 +19,8 @@ pub const TICKS: u32 = 1000;
 
 /// Runs one second: [`TICKS`] ticks of 1 ms from `now_us` \[us\] (advanced,
 /// wrapping), each run by `tick` (the firmware counts its instructions
-/// there); returns the ticks that made a correction.
+/// there; the tick returns the model steps it took); returns the ticks that
+/// made a correction.
 ///
 /// # Errors
 /// A tick that did not run.
@@ -39,7 +40,7 @@ pub fn run<
     readings_c: [Option<f32>; P],
     now_us: &mut u32,
     checksum: &mut u32,
-    tick: &mut impl FnMut(&mut dyn FnMut()),
+    tick: &mut impl FnMut(&mut dyn FnMut() -> u32),
 ) -> Result<u32, &'static str> {
     let mut corrections = 0;
     for k in 0..TICKS {
@@ -57,7 +58,12 @@ pub fn run<
             elapsed_us: 1000,
         };
         let mut out_copy = None;
-        tick(&mut || out_copy = Some(*observer.tick(state, &inputs)));
+        tick(&mut || {
+            let o = observer.tick(state, &inputs);
+            let steps = o.steps;
+            out_copy = Some(*o);
+            steps
+        });
         let o = out_copy.ok_or("tick")?;
         corrections += u32::from(o.corrected);
         *checksum = checksum::fold(*checksum, &o);

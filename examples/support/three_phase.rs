@@ -67,7 +67,7 @@ fn row(line: &str) -> Option<([f32; 3], f32, [f32; 3], f32)> {
 pub fn replay<W: Write>(
     observer: &model::Observer,
     out: &mut W,
-    mut tick: impl FnMut(&mut dyn FnMut()),
+    mut tick: impl FnMut(&mut dyn FnMut() -> u32),
 ) -> Result<Summary, &'static str> {
     let first = TRACE_CSV.lines().nth(1).and_then(row).ok_or("trace row")?;
     // Known cold at the start (the bench's first row): every node at the

@@ -106,7 +106,10 @@ fn the_cortex_m0_model_files_are_their_sources_but_their_cost_keys() {
 fn the_host_replay_prints_what_the_cortex_m0_printed() {
     let observer = model_integer::observer().expect("the generated parts assemble");
     let mut text = String::new();
-    let summary = roundtrip::replay(&observer, &mut text, |tick| tick()).expect("replays");
+    let summary = roundtrip::replay(&observer, &mut text, |tick| {
+        tick();
+    })
+    .expect("replays");
     let golden = read(&root().join("examples/network_roundtrip_m0.expected"));
     assert_eq!(
         text, golden,
@@ -151,7 +154,10 @@ fn the_host_replay_prints_what_the_cortex_m0_printed() {
 fn the_host_replay_prints_what_the_firmware_printed() {
     let observer = model::observer().expect("the generated parts assemble");
     let mut text = String::new();
-    let summary = roundtrip::replay(&observer, &mut text, |tick| tick()).expect("replays");
+    let summary = roundtrip::replay(&observer, &mut text, |tick| {
+        tick();
+    })
+    .expect("replays");
     assert_eq!(
         text,
         read(&root().join("examples/network_roundtrip.expected")),

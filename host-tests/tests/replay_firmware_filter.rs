@@ -328,7 +328,9 @@ fn the_motor_module_is_replays(observer: &hust_motor::Observer, expected: &str, 
     let summary = motor_drive::replay(
         observer,
         &mut text,
-        |tick| tick(),
+        |tick| {
+            tick();
+        },
         |s| seconds.push((*s.fused_c, s.reading_c)),
     )
     .expect("replays");

@@ -256,7 +256,10 @@ fn replay_scores_the_phases_the_product_does_not_measure() {
 fn the_host_replay_prints_what_the_firmware_printed() {
     let observer = model::observer().expect("the generated parts assemble");
     let mut text = String::new();
-    let summary = three_phase::replay(&observer, &mut text, |tick| tick()).expect("replays");
+    let summary = three_phase::replay(&observer, &mut text, |tick| {
+        tick();
+    })
+    .expect("replays");
     assert_eq!(
         text,
         read(&root().join("examples/three_phase_qemu.expected")),

@@ -85,7 +85,7 @@ impl<const N: usize> Reads<N> {
     /// to the bit (a zero may differ in sign only: nalgebra's sum begins at
     /// its first term, this one at `+0`); with more, the same terms summed
     /// in another order.
-    #[inline(always)]
+    #[inline]
     pub(crate) fn dot<T: RealField + Copy, const P: usize>(
         &self,
         ht: &SMatrix<T, N, P>,
