@@ -26,7 +26,8 @@ pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, con
     /// First of the trailing states whose row of `F` is a unit row (random
     /// walks, such as bias states): `N` when there are none.
     pub(crate) walk_from: usize,
-    /// The states each sensor's row of `H` reads.
+    /// The states each sensor's row of `H` reads: derived from `ht` by
+    /// every constructor (nothing changes `ht` after).
     pub(crate) reads: [Reads<N>; P],
 }
 
@@ -43,13 +44,16 @@ pub(crate) struct Reads<const N: usize> {
 }
 
 impl<const N: usize> Reads<N> {
-    /// Nothing read.
-    const NONE: Self = Self {
-        states: [0; N],
-        count: 0,
+    /// Nothing read (and a filter's state indices fit the `u16`s).
+    const NONE: Self = {
+        assert!(N <= 1 << 16, "at most 65 536 filter states");
+        Self {
+            states: [0; N],
+            count: 0,
+        }
     };
 
-    /// The states whose `is_read` holds, in order.
+    /// These states and `state` after them (at most `N`).
     #[inline(always)]
     const fn push(mut self, state: usize) -> Self {
         if (self.count as usize) < N {
