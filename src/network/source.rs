@@ -171,8 +171,16 @@ impl<S: Scalar> ScalarResistance<S> {
     /// make a coil a heat sink.
     #[inline]
     pub fn joule_power_w(&self, temp_c: S, current_a: S) -> S {
-        let r = (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(S::ZERO);
-        r * current_a * current_a
+        self.resistance_ohm(temp_c) * current_a * current_a
+    }
+
+    /// The resistance `R(T)` \[ohm\] at winding temperature `temp_c`
+    /// \[degC\], floored at zero as in [`joule_power_w`](Self::joule_power_w):
+    /// times a mean square current \[A^2\], the mean Joule power of a
+    /// step whose current varied.
+    #[inline]
+    pub fn resistance_ohm(&self, temp_c: S) -> S {
+        (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(S::ZERO)
     }
 }
 

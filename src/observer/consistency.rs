@@ -863,41 +863,44 @@ impl<const M: usize> BlockMean<M> {
         }
     }
 
-    /// Accounts for `steps` model steps at the held currents \[A\];
-    /// returns each current's block RMS \[A\] when a block of
-    /// `block_steps` is complete (the steps past it start the next block
-    /// at that mean).
+    /// Accounts for `steps` model steps at the square currents `sq_a2`
+    /// \[A^2\] (each step's mean `I^2`); returns each current's mean `I^2`
+    /// over the block \[A^2\] when a block of `block_steps` is complete
+    /// (the steps past it start the next block at that mean). Square
+    /// currents throughout, not RMS currents: a block's power is `R(T)`
+    /// times its mean `I^2`, and no root is taken (on a core without an
+    /// FPU, a soft-float `sqrtf` per current).
     pub(crate) fn add(
         &mut self,
         steps: u32,
-        held_currents_a: &[f32; M],
+        sq_a2: &[f32; M],
         block_steps: u32,
     ) -> Option<[f32; M]> {
         if steps == 0 {
             return None;
         }
         if steps == 1 {
-            // Most ticks: `i * i * 1.0` without the multiply (the same
-            // bits; a soft-float routine per current on a core without an
-            // FPU).
-            for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
-                *sum += i * i;
+            // Most ticks: without the multiply by one step.
+            for (sum, i2) in self.i2_sum_a2.iter_mut().zip(sq_a2) {
+                *sum += i2;
             }
         } else {
             let n = steps as f32;
-            for (sum, i) in self.i2_sum_a2.iter_mut().zip(held_currents_a) {
-                *sum += i * i * n;
+            for (sum, i2) in self.i2_sum_a2.iter_mut().zip(sq_a2) {
+                *sum += i2 * n;
             }
         }
         self.steps = self.steps.saturating_add(steps);
         if self.steps < block_steps.max(1) {
             return None;
         }
-        let mean_i2 = self.i2_sum_a2.map(|s| s / self.steps as f32);
+        // One division, then a multiply per current.
+        let per_step = 1.0 / self.steps as f32;
+        let mean_i2 = self.i2_sum_a2.map(|s| s * per_step);
         self.steps -= block_steps.max(1);
         let rest = self.steps as f32;
         self.i2_sum_a2 = mean_i2.map(|i2| i2 * rest);
-        Some(mean_i2.map(libm::sqrtf))
+        Some(mean_i2)
     }
 }
 
@@ -970,16 +973,17 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
 }
 
 impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
-    /// Accounts for `steps` model steps at the held currents \[A\] and
-    /// advances the shadow by a complete block: at once, or with
+    /// Accounts for `steps` (at least one) model steps at the square
+    /// currents `sq_a2` \[A^2\] (each step's mean `I^2`) and advances the
+    /// shadow by a complete block: at once, or with
     /// [`Self::waits_for_light_tick`] on the first later tick without a
-    /// step or a reading (`reading`: this tick brought one), so that the
-    /// block's step, the shadow's heaviest piece, lands beside neither (a
-    /// second block completing first makes the waiting one step at once:
-    /// bounded, one block step per call). Returns whether a block that
-    /// waited stepped (the tick is busy then). `waiting_a` holds the RMS
-    /// currents \[A\] of the block that waits (kept apart from `state`,
-    /// out of the tick's hot fields); `boundary_c` are the held
+    /// step or a reading ([`Self::between_steps`]), so that the block's
+    /// step, the shadow's heaviest piece, lands beside neither (a second
+    /// block completing first makes the waiting one step at once: bounded,
+    /// one block step per call). Returns whether a block that waited
+    /// stepped (the tick is busy then). `waiting_sq_a2` holds the mean
+    /// square currents \[A^2\] of the block that waits (kept apart from
+    /// `state`, out of the tick's hot fields); `boundary_c` are the held
     /// boundaries, `origin_c` the origin \[degC\].
     #[allow(clippy::too_many_arguments)]
     // Inlined into the tick on a core with an FPU (its call and prologue
@@ -989,57 +993,90 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     pub(crate) fn stepped(
         &self,
         state: &mut ShadowState<N, M>,
-        waiting_a: &mut Option<[f32; M]>,
+        waiting_sq_a2: &mut Option<[f32; M]>,
         steps: u32,
-        held_currents_a: &[f32; M],
+        sq_a2: &[f32; M],
+        boundary_c: &[f32; B],
+        source_node: &[usize; M],
+        resistance: &[ScalarResistance<f32>; M],
+        origin_c: f32,
+    ) -> bool {
+        let Some(mean_sq_a2) = state.block.add(steps, sq_a2, self.block_steps) else {
+            return false;
+        };
+        let (mean_sq_a2, waited) = if !self.waits_for_light_tick {
+            (mean_sq_a2, false)
+        } else {
+            // It waits; one still waiting steps now (a whole block without
+            // a light tick).
+            match waiting_sq_a2.replace(mean_sq_a2) {
+                Some(earlier_sq_a2) => (earlier_sq_a2, true),
+                None => return false,
+            }
+        };
+        self.block_step(
+            state,
+            &mean_sq_a2,
+            boundary_c,
+            source_node,
+            resistance,
+            origin_c,
+        );
+        waited
+    }
+
+    /// A tick without a model step: the waiting block's turn (see
+    /// [`Self::stepped`]) unless it brought a reading (`reading`).
+    /// Returns whether the waiting block stepped.
+    #[allow(clippy::too_many_arguments)]
+    #[cfg_attr(target_abi = "eabihf", inline(always))]
+    pub(crate) fn between_steps(
+        &self,
+        state: &mut ShadowState<N, M>,
+        waiting_sq_a2: &mut Option<[f32; M]>,
         boundary_c: &[f32; B],
         source_node: &[usize; M],
         resistance: &[ScalarResistance<f32>; M],
         origin_c: f32,
         reading: impl FnOnce() -> bool,
     ) -> bool {
-        if steps == 0 {
-            // Between steps: the waiting block's turn, without a reading.
-            return match *waiting_a {
-                Some(rms_a) if !reading() => {
-                    *waiting_a = None;
-                    self.block_step(state, &rms_a, boundary_c, source_node, resistance, origin_c);
-                    true
-                }
-                _ => false,
-            };
-        }
-        let Some(rms_a) = state.block.add(steps, held_currents_a, self.block_steps) else {
-            return false;
-        };
-        let (rms_a, waited) = if !self.waits_for_light_tick {
-            (rms_a, false)
-        } else {
-            // It waits; one still waiting steps now (a whole block without
-            // a light tick).
-            match waiting_a.replace(rms_a) {
-                Some(earlier_a) => (earlier_a, true),
-                None => return false,
+        match *waiting_sq_a2 {
+            Some(mean_sq_a2) if !reading() => {
+                *waiting_sq_a2 = None;
+                self.block_step(
+                    state,
+                    &mean_sq_a2,
+                    boundary_c,
+                    source_node,
+                    resistance,
+                    origin_c,
+                );
+                true
             }
-        };
-        self.block_step(state, &rms_a, boundary_c, source_node, resistance, origin_c);
-        waited
+            _ => false,
+        }
     }
 
-    /// One block's exact step at its RMS currents `rms_a` \[A\].
+    /// One block's exact step at its mean square currents `mean_sq_a2`
+    /// \[A^2\].
     #[cfg_attr(target_abi = "eabihf", inline(always))]
     fn block_step(
         &self,
         state: &mut ShadowState<N, M>,
-        rms_a: &[f32; M],
+        mean_sq_a2: &[f32; M],
         boundary_c: &[f32; B],
         source_node: &[usize; M],
         resistance: &[ScalarResistance<f32>; M],
         origin_c: f32,
     ) {
         let mut power = SVector::<f32, M>::zeros();
-        for (m, ((node, r), i)) in source_node.iter().zip(resistance).zip(rms_a).enumerate() {
-            power[m] = r.joule_power_w(origin_c + state.dev_k(*node), *i);
+        for (m, ((node, r), i2)) in source_node
+            .iter()
+            .zip(resistance)
+            .zip(mean_sq_a2)
+            .enumerate()
+        {
+            power[m] = r.resistance_ohm(origin_c + state.dev_k(*node)) * i2;
         }
         let boundary_k = boundary_c.map(|t| t - origin_c);
         #[cfg(feature = "integer-step")]
@@ -1172,33 +1209,46 @@ mod tests {
         slope_ohm_per_k: 0.0,
     }];
 
-    /// Steps `steps` at `current_a` on a tick with or without a reading;
-    /// says whether a block that waited stepped.
+    /// Steps `steps` at `current_a` (its square, as the observers pass
+    /// it) on a tick with or without a reading; says whether a block that
+    /// waited stepped.
     fn tick_shadow(
         shadow: &Shadow<1, 1, 1>,
         state: &mut ShadowState<1, 1>,
-        waiting_a: &mut Option<[f32; 1]>,
+        waiting_sq_a2: &mut Option<[f32; 1]>,
         steps: u32,
         current_a: f32,
         reading: bool,
     ) -> bool {
+        let (boundary_c, node, origin_c) = (&[20.0], &[0], 20.0);
+        if steps == 0 {
+            return shadow.between_steps(
+                state,
+                waiting_sq_a2,
+                boundary_c,
+                node,
+                &WINDING,
+                origin_c,
+                || reading,
+            );
+        }
+        let sq_a2 = [current_a * current_a];
         shadow.stepped(
             state,
-            waiting_a,
+            waiting_sq_a2,
             steps,
-            &[current_a],
-            &[20.0],
-            &[0],
+            &sq_a2,
+            boundary_c,
+            node,
             &WINDING,
-            20.0,
-            || reading,
+            origin_c,
         )
     }
 
     /// A model stepping each tick steps the shadow's block on the tick
     /// that completes it; one whose step is several ticks long steps it on
     /// the first later tick without a step or a reading, to the same
-    /// temperature (the block's RMS current kept, the boundary held).
+    /// temperature (the block's mean `I^2` kept, the boundary held).
     #[test]
     fn a_complete_block_waits_for_a_light_tick_and_steps_the_same() {
         // At once: 4 steps at 5 A (50 W for 2 s).
@@ -1226,7 +1276,7 @@ mod tests {
         for _ in 0..4 {
             assert!(!tick_shadow(&waiting, &mut later, &mut held, 1, 5.0, false));
         }
-        assert_eq!(held, Some([5.0]));
+        assert_eq!(held, Some([25.0]));
         assert!(!tick_shadow(&waiting, &mut later, &mut held, 0, 0.0, true));
         assert_eq!(later.devs_k(), &[0.0]);
         // The first light tick: the block steps at its own current.
@@ -1248,7 +1298,7 @@ mod tests {
             [false, false, false, false, false, false, false, true]
         );
         assert_eq!(starved.devs_k(), &[expected_k]);
-        assert_eq!(queue, Some([5.0]));
+        assert_eq!(queue, Some([25.0]));
     }
 
     /// The shadow's block in integer arithmetic (a model that steps in
@@ -1292,12 +1342,11 @@ mod tests {
                         &mut state,
                         &mut none,
                         1,
-                        &[current_a],
+                        &[current_a * current_a],
                         &[21.0],
                         &[0],
                         &WINDING,
                         20.0,
-                        || false,
                     );
                 }
                 let t_s = 2.0 * f64::from(block);

@@ -145,8 +145,9 @@
 //! since its multi-rate model). Every tick accounts each current's `I^2`
 //! times its elapsed time (one account, in `observer::clock`, shared with
 //! the Omnimagnet's), and a step heats with the mean `I^2` of the time it
-//! covers, each current at the root of that mean, `R(T)` at its start
-//! estimate: the exact mean power for a current that changes from tick to
+//! covers, `R(T)` at its start estimate times that mean (no root is
+//! taken: a soft-float `sqrtf` per current on a core without an FPU): the
+//! exact mean power for a current that changes from tick to
 //! tick (PWM, commutation), where the held current of the tick the step
 //! lands on would sample it. The same holds for a 1 ms step on a loop whose
 //! ticks jitter, since a step then spans two ticks' currents: a 2 ms square
@@ -1031,7 +1032,7 @@ pub struct NetworkObserverState<
     step_account: StepAccount<M>,
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
-    shadow_waiting_a: Option<[f32; M]>,
+    shadow_waiting_sq_a2: Option<[f32; M]>,
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
@@ -1081,7 +1082,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_until_steady: self.warmup_until_steady,
             outputs: self.outputs,
             step_account: self.step_account,
-            shadow_waiting_a: self.shadow_waiting_a,
+            shadow_waiting_sq_a2: self.shadow_waiting_sq_a2,
         }
     }
 }
@@ -1203,7 +1204,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bias_steps: 0,
             warmup_until_steady: false,
             step_account: StepAccount::new(),
-            shadow_waiting_a: None,
+            shadow_waiting_sq_a2: None,
             stuck: StuckWatch::new(),
             rewind: StuckRewind::new(),
             drift: DriftHold::new(),
@@ -1285,50 +1286,77 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .unwrap_or(self.origin_c)
     }
 
-    /// `steps` model steps at the held inputs: the estimate's and the
-    /// shadow's (see [`Shadow::stepped`]; `readings`: this tick's).
-    /// Returns whether a shadow block that waited stepped.
+    /// `steps` model steps at the held boundaries and the square currents
+    /// of the step: `mean_sq_a2` \[A^2\], the account's mean `I^2` when
+    /// the held currents changed within the steps, else the held currents
+    /// squared. The estimate's and the shadow's (see [`Shadow::stepped`];
+    /// `readings`: this tick's). Returns whether a shadow block that
+    /// waited stepped.
     #[inline(always)]
     fn step_model<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         steps: u32,
+        mean_sq_a2: Option<[f32; M]>,
         readings: &[Option<TimedReading>; P],
     ) -> bool {
-        for _ in 0..steps {
-            self.predict(state);
+        if steps == 0 {
+            return self.shadow.between_steps(
+                &mut state.shadow,
+                &mut state.shadow_waiting_sq_a2,
+                &state.held_boundary_c,
+                &self.source_node,
+                &self.resistance,
+                self.origin_c,
+                || readings.iter().any(Option::is_some),
+            );
+        }
+        let sq_a2 = mean_sq_a2.unwrap_or_else(|| state.held_currents_a.map(|i| i * i));
+        // The usual tick's one step out of the catch-up's loop: in it, the
+        // step's operands were loaded before the loop and spilled (+57
+        // instructions on the M4F network's tick, measured).
+        self.predict(state, &sq_a2);
+        for _ in 1..steps {
+            self.predict(state, &sq_a2);
         }
         self.shadow.stepped(
             &mut state.shadow,
-            &mut state.shadow_waiting_a,
+            &mut state.shadow_waiting_sq_a2,
             steps,
-            &state.held_currents_a,
+            &sq_a2,
             &state.held_boundary_c,
             &self.source_node,
             &self.resistance,
             self.origin_c,
-            || readings.iter().any(Option::is_some),
         )
     }
 
-    /// One mean predict with the held inputs (see "f32 without drift").
+    /// One mean predict with the held boundaries and the step's square
+    /// currents `sq_a2` \[A^2\] (see "f32 without drift").
     // Inlined on a core with an FPU, where its call costs a tenth of the
     // plain tick; on one without, its soft-float work dwarfs the call
-    // and the copy would cost the M0 footprint half a kilobyte.
+    // and the copy would cost the M0 footprint half a kilobyte (and, in
+    // the tick, every tick's registers and stack: +540 instructions on
+    // the M0 network's tick without a step, measured).
     #[cfg_attr(target_abi = "eabihf", inline(always))]
-    fn predict<W: WarmUpKind<X>>(&self, state: &mut NetworkObserverState<N, B, M, X, P, W>) {
+    #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
+    fn predict<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        sq_a2: &[f32; M],
+    ) {
         let x = &state.estimate.x;
         let mut power = SVector::<f32, M>::zeros();
-        for (m, ((node, r), i)) in self
+        for (m, ((node, r), i2)) in self
             .source_node
             .iter()
             .zip(&self.resistance)
-            .zip(&state.held_currents_a)
+            .zip(sq_a2)
             .enumerate()
         {
             let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
             // The bias adds to the power; `R(T)` at the estimate.
-            power[m] = r.joule_power_w(t, *i) + x[N + m];
+            power[m] = r.resistance_ohm(t) * i2 + x[N + m];
         }
         let mut boundary =
             SVector::<f32, B>::from_fn(|k, _| state.held_boundary_c[k] - self.origin_c);
@@ -1504,15 +1532,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &steps,
             self.step_us,
         );
-        // Such steps take each current at its RMS, the root of the mean,
-        // in the held currents' place for the steps.
-        let held_a = mean_sq_a2.map(|mean_sq_a2| {
-            core::mem::replace(&mut state.held_currents_a, mean_sq_a2.map(libm::sqrtf))
-        });
-        let shadow_waited = self.step_model(state, steps.steps, &inputs.readings);
-        if let Some(held_a) = held_a {
-            state.held_currents_a = held_a;
-        }
+        let shadow_waited = self.step_model(state, steps.steps, mean_sq_a2, &inputs.readings);
         self.decay_biases(state, steps.steps);
         state.cycle.stepped(
             &steps,
@@ -1831,7 +1851,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     .reseed(core::array::from_fn(|i| state.estimate.x[i]));
                 // The filter's estimate is of now: a waiting block would
                 // take the shadow past it.
-                state.shadow_waiting_a = None;
+                state.shadow_waiting_sq_a2 = None;
                 if self.settled(cov) {
                     state.warmup_left = 0;
                 }

@@ -1440,21 +1440,20 @@ impl OmniObserver {
             inputs.elapsed_us,
             &state.held_currents_a,
         );
-        // The shadow's blocks take each step's RMS current.
-        let step_rms_a = match &mean_sq_a2 {
-            None => state.held_currents_a,
-            Some(mean_sq_a2) => mean_sq_a2.map(libm::sqrtf),
-        };
-        if let Some(rms_a) =
-            state
-                .shadow_block
-                .add(steps.steps, &step_rms_a, self.shadow_block_steps)
-        {
+        // The shadow's blocks take each step's mean `I^2`.
+        let block_sq_a2 = (steps.steps > 0)
+            .then(|| mean_sq_a2.unwrap_or_else(|| state.held_currents_a.map(|i| i * i)))
+            .and_then(|step_sq_a2| {
+                state
+                    .shadow_block
+                    .add(steps.steps, &step_sq_a2, self.shadow_block_steps)
+            });
+        if let Some(block_sq_a2) = block_sq_a2 {
             let mut u = SVector::<f32, INPUTS>::zeros();
-            self.filter.joule_input(
+            self.filter.joule_input_mean_sq(
                 &self.shadow,
                 &state.shadow_x,
-                &rms_a,
+                &block_sq_a2,
                 state.held_ambient_c,
                 &mut u,
             );
