@@ -604,8 +604,9 @@ pub struct NetworkSettings {
     /// predictor per protection stage (0, the default: a whole horizon,
     /// every limited element, per stage). With a bound, a horizon whose
     /// elements are more is split over stages and the sweep's snapshot
-    /// takes two stages of its own (the steady state, then the modal
-    /// amplitudes): the answers are the same, a sweep takes more stages
+    /// takes three stages of its own (the windings' part of the steady
+    /// state, its boundaries' part, then the modal amplitudes): the
+    /// answers are the same, a sweep takes more stages
     /// (`elements` of them a horizon instead of one). For a
     /// core where one horizon's soft-float work is the worst tick (a
     /// Cortex-M0: 1 takes the real motor's worst tick from 86 493 to

@@ -90,15 +90,21 @@
 //!
 //! Where one horizon is more than a tick's budget,
 //! [`PredictorBuilder::elements_per_tick`] splits it: at most that many
-//! elements per call, the snapshot in two calls of its own (the steady
-//! state and `T_0 - T_ss`, then the modal amplitudes), the same answers
-//! to the bit (the Omnimagnet's nine limited nodes in slices of five on a
-//! Cortex-M4F: 2 250 to 2 500 instructions a slice instead of about
-//! 3 600 for a horizon, the snapshot alone about 2 050 instead of 5 200
-//! with the first horizon, before its halves took a call each; on a
-//! Cortex-M0 in soft-float the real motor's whole snapshot was its worst
-//! tick, 32 000 instructions, its halves about 21 400 at worst;
-//! `docs/cost.md`).
+//! elements per call, the snapshot in three calls of its own (the
+//! windings' part of the steady state, `k_d + Kp p`; its boundaries'
+//! part `Kb T_b` with the headroom and `T_0 - T_ss`; the modal
+//! amplitudes), the same answers to the bit (the Omnimagnet's nine
+//! limited nodes in slices of five on a Cortex-M4F: 2 250 to 2 500
+//! instructions a slice instead of about 3 600 for a horizon; its
+//! snapshot alone was about 2 050 instead of 5 200 with the first
+//! horizon, and `observer_m4`'s combined worst fell 6 756 -> 6 551 when
+//! the steady state took two calls; on a Cortex-M0 in soft-float the real
+//! motor's whole snapshot was its worst tick, 32 000 instructions, in two
+//! calls 18 600 at worst, in three within its model-step ticks' 16 000;
+//! `docs/cost.md`). The windings' part takes their peak powers at its
+//! call; the boundaries, `T_0` and the limits are those of the next
+//! call's operating point (a tick later), and the answers age from the
+//! first: a tick older than they are, so earlier (conservative).
 //!
 //! # Cost per call (`N` elements, `M` windings, `B` boundaries)
 //!
@@ -176,8 +182,8 @@ impl PredictorBuilder {
     /// At most `elements` element evaluations per [`PredictorState::tick`]
     /// (at least 1; default unbounded): a horizon whose open elements are
     /// more is split over several ticks, and the snapshot that starts a
-    /// sweep takes two ticks of its own (the steady state, then the modal
-    /// amplitudes: each about half the snapshot's multiply-adds). For a
+    /// sweep takes three ticks of its own (the windings' part of the
+    /// steady state, its boundaries' part, then the modal amplitudes). For a
     /// tick budget below one
     /// horizon's cost (the Omnimagnet's nine limited nodes on a
     /// Cortex-M4F); `points_per_tick` then only bounds the ticks that fit.
@@ -401,6 +407,16 @@ pub struct LimitPredictor<
     pub(crate) elements_per_tick: usize,
 }
 
+/// `start + sum(gains * inputs)`, summed in order.
+#[inline(always)]
+fn dot_onto<T: RealField + Copy, const C: usize>(start: T, gains: &[T; C], inputs: &[T; C]) -> T {
+    let mut sum = start;
+    for (g, x) in gains.iter().zip(inputs) {
+        sum += *g * *x;
+    }
+    sum
+}
+
 /// The `P`, `Q` and `Q'` of the module docs for one element at one time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Parts<T> {
@@ -544,15 +560,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             .zip(&self.gain_power)
             .zip(&self.gain_boundary)
             .zip(&self.offset_c);
-        for (((ss, gp), gb), off) in rows {
-            let mut s = if with_fixed { *off } else { T::zero() };
-            for (g, p) in gp.iter().zip(powers_w) {
-                s += *g * *p;
-            }
-            for (g, tb) in gb.iter().zip(boundary_c) {
-                s += *g * *tb;
-            }
-            *ss = s;
+        for (((ss, gp), gb), k) in rows {
+            let start = if with_fixed { *k } else { T::zero() };
+            *ss = dot_onto(dot_onto(start, gp, powers_w), gb, boundary_c);
         }
         let mut from_steady = [T::zero(); N];
         for ((d, t), ss) in from_steady.iter_mut().zip(temps_c).zip(&steady) {
@@ -615,21 +625,86 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         snapshot
     }
 
-    /// A snapshot's first half (a split sweep's first stage): the headroom,
-    /// and `T_0 - T_ss` where the modal amplitudes go, for
-    /// [`Self::to_modes`] to turn into them.
+    /// A snapshot's first half in one stage: the headroom, and `T_0 -
+    /// T_ss` where the modal amplitudes go, for [`Self::to_modes`] to turn
+    /// into them. A split sweep takes it in two stages
+    /// ([`Self::start_snapshot`], [`Self::finish_steady`]); so does this
+    /// one on a core without an FPU (one piece of code: its soft-float
+    /// sums dwarf a second pass, and the M0 footprint has no room for
+    /// two). On one with an FPU, the rows in one pass with each sum in a
+    /// register ([`Self::fused_snapshot`]): in two, the M4F motor's
+    /// snapshot tick cost some 50 instructions more (measured). The
+    /// three forms are the same to the bit (tested).
     fn steady_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
-        let valid = op.is_finite() && powers_w.iter().all(|p| p.is_finite());
-        let (steady, from_steady) =
-            self.steady_and_offset(&op.temps_c, powers_w, &op.boundary_c, true);
-        let mut headroom_k = [T::zero(); N];
-        for ((h, l), s) in headroom_k.iter_mut().zip(&op.limits_c).zip(&steady) {
-            *h = *l - *s;
+        if cfg!(target_abi = "eabihf") {
+            return self.fused_snapshot(op, powers_w);
         }
-        Snapshot {
-            headroom_k,
-            modes: from_steady,
-            valid,
+        let mut snapshot = Snapshot {
+            headroom_k: [T::zero(); N],
+            modes: [T::zero(); N],
+            valid: true,
+        };
+        self.start_snapshot(&mut snapshot, powers_w);
+        self.finish_steady(&mut snapshot, op);
+        snapshot
+    }
+
+    /// [`Self::steady_snapshot`] in one pass over the rows.
+    fn fused_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
+        let mut snapshot = Snapshot {
+            headroom_k: [T::zero(); N],
+            modes: [T::zero(); N],
+            valid: op.is_finite() && powers_w.iter().all(|p| p.is_finite()),
+        };
+        let rows = snapshot
+            .headroom_k
+            .iter_mut()
+            .zip(&mut snapshot.modes)
+            .zip(self.gain_power.iter().zip(&self.gain_boundary))
+            .zip(self.offset_c.iter().zip(&op.temps_c).zip(&op.limits_c));
+        for (((h, d), (gp, gb)), ((k, t), l)) in rows {
+            let steady = dot_onto(dot_onto(*k, gp, powers_w), gb, &op.boundary_c);
+            *d = *t - steady;
+            *h = *l - steady;
+        }
+        snapshot
+    }
+
+    /// A snapshot's first part (a split sweep's first stage): `headroom_k`
+    /// takes the steady state's sum over the fixed powers and the
+    /// windings' `powers_w` \[W\] (valid if they are finite), for
+    /// [`Self::finish_steady`] to complete.
+    fn start_snapshot(&self, snapshot: &mut Snapshot<T, N>, powers_w: &[T; M]) {
+        snapshot.valid = powers_w.iter().all(|p| p.is_finite());
+        let rows = snapshot
+            .headroom_k
+            .iter_mut()
+            .zip(&self.gain_power)
+            .zip(&self.offset_c);
+        for ((sum, gp), k) in rows {
+            *sum = dot_onto(*k, gp, powers_w);
+        }
+    }
+
+    /// A snapshot's second part (a split sweep's second stage): the
+    /// steady state completed with `op`'s boundaries, each row summed as
+    /// `k_d + Kp p + Kb T_b` in one pass would be, to the bit; the
+    /// headroom to `op`'s limits; and `T_0 - T_ss` from `op`'s
+    /// temperatures, where the modal amplitudes go, for [`Self::to_modes`]
+    /// to turn into them (valid if `op` is finite too).
+    fn finish_steady(&self, snapshot: &mut Snapshot<T, N>, op: &Operating<T, N, B, M>) {
+        snapshot.valid &= op.is_finite();
+        let rows = snapshot
+            .headroom_k
+            .iter_mut()
+            .zip(&mut snapshot.modes)
+            .zip(&self.gain_boundary)
+            .zip(&op.temps_c)
+            .zip(&op.limits_c);
+        for ((((h, d), gb), t), l) in rows {
+            let steady = dot_onto(*h, gb, &op.boundary_c);
+            *d = *t - steady;
+            *h = *l - steady;
         }
     }
 
@@ -932,8 +1007,12 @@ pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]>
 enum SweepPhase {
     /// No sweep runs: the next stage takes a snapshot.
     Idle,
-    /// A split sweep has the first half of its snapshot: the next stage
-    /// forms its modal amplitudes.
+    /// A split sweep has the windings' part of its steady state: the
+    /// next stage completes it with the boundaries, the headroom and `T_0
+    /// - T_ss` ([`LimitPredictor::finish_steady`]).
+    Powers,
+    /// A split sweep has its steady state and `T_0 - T_ss`: the next
+    /// stage forms its modal amplitudes.
     Steady,
     /// The snapshot is whole: the stages evaluate horizons.
     Sweeping,
@@ -997,23 +1076,17 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         let mut budget = predictor.elements_per_tick;
         for _ in 0..predictor.points_per_tick {
             if self.phase != SweepPhase::Sweeping {
-                if self.phase == SweepPhase::Idle {
-                    self.snapshot = predictor.steady_snapshot(op, &self.peak_power_w);
-                    self.peak_power_w = powers;
-                    self.sweep = [Crossing::Open; N];
-                    self.sweep_age_s = T::zero();
-                    self.phase = SweepPhase::Steady;
-                    if split {
-                        // The snapshot is two stages' work of their own:
-                        // the steady state, then the modal amplitudes.
-                        break;
-                    }
-                }
-                predictor.to_modes(&mut self.snapshot.modes);
-                self.phase = SweepPhase::Sweeping;
                 if split {
+                    // The snapshot is stages of its own.
+                    self.snapshot_stage(predictor, op, &powers);
                     break;
                 }
+                self.snapshot = predictor.steady_snapshot(op, &self.peak_power_w);
+                self.peak_power_w = powers;
+                self.sweep = [Crossing::Open; N];
+                self.sweep_age_s = T::zero();
+                predictor.to_modes(&mut self.snapshot.modes);
+                self.phase = SweepPhase::Sweeping;
             }
             let progress = predictor.evaluate_point(
                 &self.snapshot,
@@ -1044,6 +1117,45 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         let age = self.published_age_s;
         self.out
             .remake(&self.published, |crossing| published(crossing, age));
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
+    PredictorState<T, N, M, A>
+{
+    /// One stage of a split sweep's snapshot (at this tick's `op` and
+    /// conservative `powers_w` \[W\]), three stages of their own: the
+    /// windings' part of the steady state at their peak powers; its
+    /// boundaries' part, the headroom and `T_0 - T_ss` at that stage's
+    /// `op` (the answers age from the first stage: conservative); the
+    /// modal amplitudes. The same snapshot as one stage's, to the bit, for
+    /// the same inputs. Not inlined: a sweep that is not split never runs
+    /// it, and inlined it moved the M4F's worst ticks by up to 50
+    /// instructions (measured).
+    #[inline(never)]
+    fn snapshot_stage<const B: usize, const K: usize>(
+        &mut self,
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+        powers_w: &[T; M],
+    ) {
+        match self.phase {
+            SweepPhase::Idle => {
+                predictor.start_snapshot(&mut self.snapshot, &self.peak_power_w);
+                self.peak_power_w = *powers_w;
+                self.sweep = [Crossing::Open; N];
+                self.sweep_age_s = T::zero();
+                self.phase = SweepPhase::Powers;
+            }
+            SweepPhase::Powers => {
+                predictor.finish_steady(&mut self.snapshot, op);
+                self.phase = SweepPhase::Steady;
+            }
+            SweepPhase::Steady | SweepPhase::Sweeping => {
+                predictor.to_modes(&mut self.snapshot.modes);
+                self.phase = SweepPhase::Sweeping;
+            }
+        }
     }
 }
 

@@ -340,7 +340,7 @@ fn sliced_answers_are_the_full_answers_aged() {
 #[test]
 fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
     // The same sweep with at most 1, 2 or 3 element evaluations per tick
-    // (and the snapshot in two ticks of its own): every sweep it completes
+    // (and the snapshot in three ticks of its own): every sweep it completes
     // publishes the whole sweep's answers to the bit, in more ticks than
     // one horizon per tick takes.
     let network = four_node();
@@ -374,9 +374,13 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
             .elements_per_tick(elements)
             .build::<f32, 4, 1, 1, 48>(&network)
             .unwrap();
-        // The snapshot is two stages of their own, the steady state then
-        // the modal amplitudes, and is the whole snapshot to the bit.
+        // The snapshot is three stages of their own, the windings' part
+        // of the steady state, its boundaries' part with the headroom and
+        // `T_0 - T_ss`, then the modal amplitudes, and is the whole
+        // snapshot to the bit.
         let mut state = PredictorState::new(&split, &op);
+        state.tick(&split, &op);
+        assert_eq!(state.phase, SweepPhase::Powers);
         state.tick(&split, &op);
         assert_eq!(state.phase, SweepPhase::Steady);
         state.tick(&split, &op);
@@ -817,5 +821,70 @@ proptest! {
             got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
             "{got} against {want}"
         );
+    }
+}
+
+proptest! {
+    /// The snapshot's three forms are one: in one pass over the rows (a
+    /// core with an FPU), in the two parts a split sweep takes in stages
+    /// of their own, and as the steady state and `T_0 - T_ss` of
+    /// `steady_and_offset`; the same bits for any inputs (a NaN where
+    /// the other has one), the same validity.
+    #[test]
+    fn the_snapshot_is_the_same_in_one_pass_and_in_two(
+        temps in prop::array::uniform4(any_f32()),
+        limits in prop::array::uniform4(any_f32()),
+        currents in prop::array::uniform2(any_f32()),
+        boundary in prop::array::uniform2(any_f32()),
+    ) {
+        // Every column of the steady state in use: a fixed power, two
+        // windings and two boundaries (a sum in another order rounds
+        // apart).
+        let network = Network::<4, 2, 2>::new([68.7, 20.0, 400.0, 2.0])
+            .unwrap()
+            .connect(0, 1, 0.8)
+            .unwrap()
+            .connect(1, 2, 0.5)
+            .unwrap()
+            .connect(0, 3, 0.3)
+            .unwrap()
+            .connect_boundary(2, 0, 1.5)
+            .unwrap()
+            .connect_boundary(3, 1, 0.07)
+            .unwrap()
+            .joule_source(0, 0, Resistance::HPPA_COIL)
+            .unwrap()
+            .joule_source(1, 1, Resistance::HPPA_COIL)
+            .unwrap()
+            .fixed_power(2, 3.3)
+            .unwrap();
+        let predictor = PredictorBuilder::new()
+            .build::<f32, 4, 2, 2, 48>(&network)
+            .unwrap();
+        let operating = Operating {
+            temps_c: temps,
+            currents_a: currents,
+            boundary_c: boundary,
+            limits_c: limits,
+        };
+        let powers = predictor.conservative_powers_w(&operating);
+        let fused = predictor.fused_snapshot(&operating, &powers);
+        let mut parts = Snapshot {
+            headroom_k: [f32::NAN; 4],
+            modes: [f32::NAN; 4],
+            valid: false,
+        };
+        predictor.start_snapshot(&mut parts, &powers);
+        predictor.finish_steady(&mut parts, &operating);
+        let (steady, from_steady) =
+            predictor.steady_and_offset(&temps, &powers, &boundary, true);
+        let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        prop_assert_eq!(fused.valid, parts.valid);
+        for i in 0..4 {
+            prop_assert!(same(fused.headroom_k[i], parts.headroom_k[i]), "headroom {}", i);
+            prop_assert!(same(fused.modes[i], parts.modes[i]), "modes {}", i);
+            prop_assert!(same(fused.modes[i], from_steady[i]), "T_0 - T_ss {}", i);
+            prop_assert!(same(fused.headroom_k[i], limits[i] - steady[i]), "steady {}", i);
+        }
     }
 }
