@@ -180,7 +180,18 @@ impl<S: Scalar> ScalarResistance<S> {
     /// step whose current varied.
     #[inline]
     pub fn resistance_ohm(&self, temp_c: S) -> S {
-        (self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c).max(S::ZERO)
+        floor_at_zero(self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c)
+    }
+}
+
+/// `r` floored at zero, NaN to zero as `max(r, 0)` does: a compare, not a
+/// call (on a core without an FPU, `fmaxf` is one per winding and step).
+#[inline(always)]
+fn floor_at_zero<S: Scalar>(r: S) -> S {
+    if r > S::ZERO {
+        r
+    } else {
+        S::ZERO
     }
 }
 
@@ -243,7 +254,10 @@ mod tests {
             .to_f64();
         assert!((f - want).abs() < 1e-5);
         assert!((q - want).abs() < 1e-7);
-        // Never a heat sink, however cold the estimate.
+        // Never a heat sink, however cold the estimate; a NaN estimate
+        // floors to zero as `max(R, 0)` would.
         assert_eq!(r.to_scalar::<f64>().joule_power_w(-1000.0, 1.0), 0.0);
+        assert_eq!(r.to_scalar::<f32>().resistance_ohm(f32::NAN), 0.0);
+        assert_eq!(r.to_scalar::<f32>().resistance_ohm(-1000.0), 0.0);
     }
 }
