@@ -1004,7 +1004,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         let Some(mean_sq_a2) = state.block.add(steps, sq_a2, self.block_steps) else {
             return false;
         };
-        let (mean_sq_a2, waited) = if !self.waits_for_light_tick {
+        let (mean, waited) = if !self.waits_for_light_tick {
             (mean_sq_a2, false)
         } else {
             // It waits; one still waiting steps now (a whole block without
@@ -1014,14 +1014,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
                 None => return false,
             }
         };
-        self.block_step(
-            state,
-            &mean_sq_a2,
-            boundary_c,
-            source_node,
-            resistance,
-            origin_c,
-        );
+        self.block_step(state, &mean, boundary_c, source_node, resistance, origin_c);
         waited
     }
 
@@ -1041,16 +1034,9 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         reading: impl FnOnce() -> bool,
     ) -> bool {
         match *waiting_sq_a2 {
-            Some(mean_sq_a2) if !reading() => {
+            Some(mean) if !reading() => {
                 *waiting_sq_a2 = None;
-                self.block_step(
-                    state,
-                    &mean_sq_a2,
-                    boundary_c,
-                    source_node,
-                    resistance,
-                    origin_c,
-                );
+                self.block_step(state, &mean, boundary_c, source_node, resistance, origin_c);
                 true
             }
             _ => false,
