@@ -100,11 +100,12 @@
 //! horizon, and `observer_m4`'s combined worst fell 6 756 -> 6 551 when
 //! the steady state took two calls; on a Cortex-M0 in soft-float the real
 //! motor's whole snapshot was its worst tick, 32 000 instructions, in two
-//! calls 18 600 at worst, in three within its model-step ticks' 16 000;
-//! `docs/cost.md`). The windings' part takes their peak powers at its
-//! call; the boundaries, `T_0` and the limits are those of the next
-//! call's operating point (a tick later), and the answers age from the
-//! first: a tick older than they are, so earlier (conservative).
+//! calls 18 600 at worst, in three 15 979 (its modal amplitudes), level
+//! with its model-step ticks' worst; `docs/cost.md`). The windings' part
+//! takes their peak powers at its call; the boundaries, `T_0` and the
+//! limits are those of the next call's operating point, and the answers
+//! age from the first call: older than they are by the time between the
+//! two, so earlier (conservative).
 //!
 //! # Cost per call (`N` elements, `M` windings, `B` boundaries)
 //!
