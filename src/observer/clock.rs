@@ -420,6 +420,18 @@ impl<const M: usize> StepAccount<M> {
     }
 }
 
+/// The square currents \[A^2\] a step heats with: the account's mean
+/// `I^2` when the held currents changed within it (`mean_sq_a2`, from
+/// [`StepAccount::account`]), else the held currents `held_a` \[A\]
+/// squared. Powers are `R(T)` times these: no root is taken.
+#[inline(always)]
+pub(crate) fn step_square_currents<const M: usize>(
+    mean_sq_a2: Option<[f32; M]>,
+    held_a: &[f32; M],
+) -> [f32; M] {
+    mean_sq_a2.unwrap_or_else(|| held_a.map(|i| i * i))
+}
+
 /// `(debt_us + elapsed_us) / step_us` and its remainder, the sum taken
 /// exactly (it may pass `u32`), with 32-bit divisions only: a Cortex-M0
 /// has no divider at all, and a 64-bit division would link

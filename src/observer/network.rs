@@ -401,7 +401,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::clock::{ClockState, StepAccount, StepClock};
+use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
 use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w, BiasFloors};
 
 use super::consistency::{
@@ -1312,7 +1312,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 || readings.iter().any(Option::is_some),
             );
         }
-        let sq_a2 = mean_sq_a2.unwrap_or_else(|| state.held_currents_a.map(|i| i * i));
+        let sq_a2 = step_square_currents(mean_sq_a2, &state.held_currents_a);
         // The usual tick's one step out of the catch-up's loop: in it, the
         // step's operands were loaded before the loop and spilled (+57
         // instructions on the M4F network's tick, measured).

@@ -399,7 +399,7 @@
 
 use nalgebra::SVector;
 
-use super::clock::{ClockState, Deferral, StepAccount, StepClock};
+use super::clock::{step_square_currents, ClockState, Deferral, StepAccount, StepClock};
 use super::consistency::{
     drop_cold_biases, protect_on_shadow, screen_readings, sensor_doubt, Band, BiasBound, BlockMean,
     RefreshWatchdog, SilenceWatch, StuckRewind, StuckTest, StuckWatch, Suspicion,
@@ -1442,7 +1442,7 @@ impl OmniObserver {
         );
         // The shadow's blocks take each step's mean `I^2`.
         let block_sq_a2 = (steps.steps > 0)
-            .then(|| mean_sq_a2.unwrap_or_else(|| state.held_currents_a.map(|i| i * i)))
+            .then(|| step_square_currents(mean_sq_a2, &state.held_currents_a))
             .and_then(|step_sq_a2| {
                 state
                     .shadow_block
