@@ -402,7 +402,9 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
-use bias::{condition_shared_sum, present_shares, set_shared, shared_sum_w, BiasFloors};
+use bias::{
+    condition_shared_sum, present_shares, set_shared, shared_sum_w, BiasFloors, SharedColumn,
+};
 
 use super::consistency::{
     protect_on_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
@@ -1946,7 +1948,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     let sum_w: f32 = (0..M).filter(|m| shared[*m]).map(|m| at_change[m]).sum();
                     condition_shared_sum::<N, M, X>(
                         x,
-                        self.gain.posterior(),
+                        &SharedColumn::of::<N, M>(self.gain.posterior(), shared),
                         shared,
                         &shares,
                         sum_w,
@@ -2007,10 +2009,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         let powers_w = self.joule_powers_w(state);
         let floors = self.bias_floors(&powers_w);
+        let mut column = None;
         for _ in 0..FLOOR_PASSES {
             let cov = self.floor_cov(&state.warm, warming);
-            crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
-            self.keep_bias_floors_at(state, warming, &floors);
+            let offset_moved =
+                crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + M, 0.0);
+            let bias_moved = self.keep_bias_floors_at(state, warming, &floors, &mut column);
+            // A pass that moved nothing leaves every later pass the same
+            // state, covariance and floors: they would move nothing either.
+            if !(offset_moved || bias_moved) {
+                break;
+            }
         }
         powers_w
     }
@@ -2032,7 +2041,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ) -> [f32; M] {
         let powers_w = self.joule_powers_w(state);
         let floors = self.bias_floors(&powers_w);
-        self.keep_bias_floors_at(state, warming, &floors);
+        let _ = self.keep_bias_floors_at(state, warming, &floors, &mut None);
         powers_w
     }
 
@@ -2049,23 +2058,30 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         )
     }
 
-    /// [`Self::keep_bias_floors`] onto the floors `floors`.
+    /// [`Self::keep_bias_floors`] onto the floors `floors`; whether a
+    /// bias was below its floor (the shared heat's proportions, set again
+    /// each time, do not count: they move the estimate by its rounding).
+    /// `column` is the shared heat's regression column under the floors'
+    /// covariance, formed here when first needed and kept for the next
+    /// pass.
     #[inline(never)]
     fn keep_bias_floors_at<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
         warming: bool,
         floors: &BiasFloors<M>,
-    ) {
+        column: &mut Option<SharedColumn<X>>,
+    ) -> bool {
         let cov = self.floor_cov(&state.warm, warming);
+        let mut moved = false;
         for (m, floor_w) in floors.own_w.iter().enumerate() {
             if self.shared_bias[m] {
                 continue;
             }
-            crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, *floor_w);
+            moved |= crate::filter::project_onto_floor(&mut state.estimate.x, cov, N + m, *floor_w);
         }
         if !self.shared_bias.contains(&true) {
-            return;
+            return moved;
         }
         // The shared heat: its floor is the sum of the sources' floors
         // (with the biases in proportion to the present powers, each
@@ -2075,15 +2091,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let shared = &self.shared_bias;
         let sum_w = shared_sum_w::<N, M, X>(&state.estimate.x, shared);
         if sum_w < floors.shared_w {
+            let column = column.get_or_insert_with(|| SharedColumn::of::<N, M>(cov, shared));
             condition_shared_sum::<N, M, X>(
                 &mut state.estimate.x,
-                cov,
+                column,
                 shared,
                 &floors.shares,
                 floors.shared_w,
             );
+            true
         } else {
             set_shared::<N, M, X>(&mut state.estimate.x, shared, &floors.shares, sum_w);
+            moved
         }
     }
 

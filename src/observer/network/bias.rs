@@ -178,16 +178,57 @@ pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
     })
 }
 
+/// The shared heat's regression column under a covariance: `Cov(x_i, S)`
+/// of every state with the sum `S` of the shared biases, and `Var(S)`
+/// \[W^2\]. Formed once for every pass of the floors, whose covariance
+/// does not change between passes (each pass formed it again: `X M + M^2`
+/// adds, about 1 000 instructions of the three-phase reading tick on the
+/// M4F).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SharedColumn<const X: usize> {
+    /// `Cov(x_i, S)` (in each state's unit times W).
+    cov_with_sum: SVector<f32, X>,
+    /// `Var(S)` \[W^2\].
+    var_w2: f32,
+}
+
+impl<const X: usize> SharedColumn<X> {
+    /// The column of the shared biases `shared` (at `N + m`) under `cov`.
+    pub(crate) fn of<const N: usize, const M: usize>(
+        cov: &SMatrix<f32, X, X>,
+        shared: &[bool; M],
+    ) -> Self {
+        let mut var_w2 = 0.0f32;
+        for a in (0..M).filter(|a| shared[*a]) {
+            for b in (0..M).filter(|b| shared[*b]) {
+                var_w2 += cov.get((N + a, N + b)).copied().unwrap_or(0.0);
+            }
+        }
+        let cov_with_sum = SVector::<f32, X>::from_fn(|i, _| {
+            let mut c = 0.0f32;
+            for m in (0..M).filter(|m| shared[*m]) {
+                c += cov.get((i, N + m)).copied().unwrap_or(0.0);
+            }
+            c
+        });
+        Self {
+            cov_with_sum,
+            var_w2,
+        }
+    }
+}
+
 /// Moves `x` to the most probable state whose shared biases (`shared`, at
-/// `N + m`) sum to `value_w` \[W\] under `N(x, cov)`: every state by its
-/// regression on the sum (`x -= Cov(x, S) (S - value) / Var(S)`), then the
-/// shared biases set to `value_w` in the proportions `shares` (summing to
-/// 1). [`condition_on`](crate::filter::condition_on) on the sum of the
-/// shared biases, which the sensors see as one heat. A non-finite value or
-/// sum leaves `x` as it is. Cost: `X M + M^2` multiply-adds.
+/// `N + m`) sum to `value_w` \[W\] under the covariance whose shared
+/// column is `column`: every state by its regression on the sum
+/// (`x -= Cov(x, S) (S - value) / Var(S)`), then the shared biases set to
+/// `value_w` in the proportions `shares` (summing to 1).
+/// [`condition_on`](crate::filter::condition_on) on the sum of the shared
+/// biases, which the sensors see as one heat. A non-finite value or sum
+/// leaves `x` as it is. Cost: `X + M` multiply-adds.
 pub(crate) fn condition_shared_sum<const N: usize, const M: usize, const X: usize>(
     x: &mut SVector<f32, X>,
-    cov: &SMatrix<f32, X, X>,
+    column: &SharedColumn<X>,
     shared: &[bool; M],
     shares: &[f32; M],
     value_w: f32,
@@ -196,19 +237,9 @@ pub(crate) fn condition_shared_sum<const N: usize, const M: usize, const X: usiz
     if !(sum_w.is_finite() && value_w.is_finite()) {
         return;
     }
-    let mut var_w2 = 0.0f32;
-    for a in (0..M).filter(|a| shared[*a]) {
-        for b in (0..M).filter(|b| shared[*b]) {
-            var_w2 += cov.get((N + a, N + b)).copied().unwrap_or(0.0);
-        }
-    }
-    if var_w2 > 0.0 && sum_w != value_w {
-        let shift = (sum_w - value_w) / var_w2;
-        for (i, xi) in x.iter_mut().enumerate() {
-            let mut c = 0.0f32;
-            for m in (0..M).filter(|m| shared[*m]) {
-                c += cov.get((i, N + m)).copied().unwrap_or(0.0);
-            }
+    if column.var_w2 > 0.0 && sum_w != value_w {
+        let shift = (sum_w - value_w) / column.var_w2;
+        for (xi, c) in x.iter_mut().zip(column.cov_with_sum.iter()) {
             *xi -= c * shift;
         }
     }
