@@ -38,7 +38,7 @@ pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
 #[cfg(feature = "alloc")]
 pub use explicit::{RunTimeState, RunTimeStepper, SizeMismatch};
 pub use motor::{DqScaling, Motor, MotorBuilder, MotorDatasheet, MotorHeatCapacity, MotorSensor};
-pub use source::{Drive, JouleSource, Resistance, ScalarResistance};
+pub use source::{DeviationResistance, Drive, JouleSource, Resistance, ScalarResistance};
 
 use crate::error::BuildError;
 use nalgebra::{SMatrix, SVector};

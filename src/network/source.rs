@@ -195,15 +195,51 @@ fn floor_at_zero<S: Scalar>(r: S) -> S {
     }
 }
 
-impl ScalarResistance<f32> {
-    /// The current \[A\] a winding at `temp_c` \[degC\] draws under the
-    /// effective voltage `v_eff` \[V\]: `V_eff / R(T)`, so that
-    /// [`joule_power_w`](Self::joule_power_w) of it is `V_eff^2 / R(T)`.
-    /// NaN where `R(T) <= 0` or the result is not finite (the observer then
-    /// holds its last valid current).
+/// A winding's `R(T)` in an observer's deviation coordinates: the line
+/// taken in `x = T - T_0` \[K\] about the origin `T_0` \[degC\] its state
+/// is kept about, `R = R(T_0) + slope x`. `R(T_0)` is formed once, when
+/// the observer is built, which spares a soft-float add per winding and
+/// use (the Joule powers of every model step and correction) on a core
+/// without an FPU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviationResistance {
+    /// Resistance at the origin `T_0` \[ohm\].
+    pub r_at_origin_ohm: f32,
+    /// Slope dR/dT \[ohm/K\].
+    pub slope_ohm_per_k: f32,
+}
+
+impl DeviationResistance {
+    /// The line `resistance` taken about the origin `origin_c` \[degC\].
+    pub const fn about(resistance: &ScalarResistance<f32>, origin_c: f32) -> Self {
+        Self {
+            r_at_origin_ohm: resistance.r_at_0c_ohm + resistance.slope_ohm_per_k * origin_c,
+            slope_ohm_per_k: resistance.slope_ohm_per_k,
+        }
+    }
+
+    /// The line's value \[ohm\] at the deviation `dev_k` \[K\] from the
+    /// origin, not floored (NaN in, NaN out).
     #[inline]
-    pub fn current_for_voltage_a(&self, temp_c: f32, v_eff: f32) -> f32 {
-        let r = self.r_at_0c_ohm + self.slope_ohm_per_k * temp_c;
+    pub fn line_ohm(&self, dev_k: f32) -> f32 {
+        self.r_at_origin_ohm + self.slope_ohm_per_k * dev_k
+    }
+
+    /// `R` \[ohm\] at the deviation `dev_k` \[K\], floored at zero as
+    /// [`ScalarResistance::resistance_ohm`] is (NaN to zero): times a
+    /// mean square current \[A^2\], a step's mean Joule power \[W\].
+    #[inline]
+    pub fn resistance_ohm(&self, dev_k: f32) -> f32 {
+        floor_at_zero(self.line_ohm(dev_k))
+    }
+
+    /// The current \[A\] a winding at the deviation `dev_k` \[K\] draws
+    /// under the effective voltage `v_eff` \[V\]: `V_eff / R`, so that
+    /// its Joule power is `V_eff^2 / R`. NaN where `R <= 0` or the result
+    /// is not finite (the observer then holds its last valid current).
+    #[inline]
+    pub fn current_for_voltage_a(&self, dev_k: f32, v_eff: f32) -> f32 {
+        let r = self.line_ohm(dev_k);
         let i = v_eff / r;
         if r > 0.0 && i.is_finite() {
             i
@@ -259,5 +295,30 @@ mod tests {
         assert_eq!(r.to_scalar::<f64>().joule_power_w(-1000.0, 1.0), 0.0);
         assert_eq!(r.to_scalar::<f32>().resistance_ohm(f32::NAN), 0.0);
         assert_eq!(r.to_scalar::<f32>().resistance_ohm(-1000.0), 0.0);
+    }
+
+    /// About an origin, the line gives the `f64` line's `R` at `origin +
+    /// deviation` (to `f32` rounding), floored at zero (NaN too), and
+    /// the voltage drive's current `V / R` where `R > 0` only.
+    #[test]
+    fn a_line_about_an_origin_is_the_same_line() {
+        let r = Resistance::with_alpha(3.2, 0.0039, 20.0);
+        for origin_c in [-20.0f32, 20.0, 61.5] {
+            let about = DeviationResistance::about(&r.to_scalar::<f32>(), origin_c);
+            for dev_k in [-40.0f32, 0.0, 0.37, 150.0] {
+                let want = r.at_c(f64::from(origin_c) + f64::from(dev_k));
+                let got = f64::from(about.resistance_ohm(dev_k));
+                assert!((got - want).abs() < 2e-6 * want, "{origin_c} {dev_k}");
+                let i = f64::from(about.current_for_voltage_a(dev_k, 12.0));
+                assert!((i - 12.0 / want).abs() < 2e-6 * i, "{origin_c} {dev_k}");
+            }
+            // Below the line's zero: no resistance, no current.
+            assert_eq!(about.resistance_ohm(-1000.0 - origin_c), 0.0);
+            assert!(about
+                .current_for_voltage_a(-1000.0 - origin_c, 12.0)
+                .is_nan());
+            assert_eq!(about.resistance_ohm(f32::NAN), 0.0);
+            assert!(about.current_for_voltage_a(f32::NAN, 12.0).is_nan());
+        }
     }
 }

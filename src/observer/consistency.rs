@@ -40,7 +40,7 @@ use super::vocabulary::SensorStatus;
 #[cfg(feature = "integer-step")]
 use crate::discretize::fixed::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
 use crate::error::BuildError;
-use crate::network::{compensated_add, ScalarResistance};
+use crate::network::{compensated_add, DeviationResistance};
 use crate::protect::margin::UpperBound;
 use crate::scalar::Scalar;
 
@@ -998,7 +998,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         sq_a2: &[f32; M],
         boundary_c: &[f32; B],
         source_node: &[usize; M],
-        resistance: &[ScalarResistance<f32>; M],
+        resistance: &[DeviationResistance; M],
         origin_c: f32,
     ) -> bool {
         let Some(mean_sq_a2) = state.block.add(steps, sq_a2, self.block_steps) else {
@@ -1029,7 +1029,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         waiting_sq_a2: &mut Option<[f32; M]>,
         boundary_c: &[f32; B],
         source_node: &[usize; M],
-        resistance: &[ScalarResistance<f32>; M],
+        resistance: &[DeviationResistance; M],
         origin_c: f32,
         reading: impl FnOnce() -> bool,
     ) -> bool {
@@ -1052,7 +1052,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         mean_sq_a2: &[f32; M],
         boundary_c: &[f32; B],
         source_node: &[usize; M],
-        resistance: &[ScalarResistance<f32>; M],
+        resistance: &[DeviationResistance; M],
         origin_c: f32,
     ) {
         let mut power = SVector::<f32, M>::zeros();
@@ -1062,7 +1062,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
             .zip(mean_sq_a2)
             .enumerate()
         {
-            power[m] = r.resistance_ohm(origin_c + state.dev_k(*node)) * i2;
+            power[m] = r.resistance_ohm(state.dev_k(*node)) * i2;
         }
         let boundary_k = boundary_c.map(|t| t - origin_c);
         #[cfg(feature = "integer-step")]
@@ -1190,8 +1190,8 @@ mod tests {
         }
     }
 
-    const WINDING: [ScalarResistance<f32>; 1] = [ScalarResistance {
-        r_at_0c_ohm: 2.0,
+    const WINDING: [DeviationResistance; 1] = [DeviationResistance {
+        r_at_origin_ohm: 2.0,
         slope_ohm_per_k: 0.0,
     }];
 

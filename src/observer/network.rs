@@ -428,7 +428,7 @@ use crate::filter::{
 };
 use crate::input::{DriveFlags, VoltageDrive};
 use crate::input::{InputFlags, ScalarLimits};
-use crate::network::{compensated_add, Network, ScalarResistance};
+use crate::network::{compensated_add, DeviationResistance, Network, ScalarResistance};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
@@ -904,7 +904,8 @@ pub struct NetworkObserver<
     integer_step: Option<crate::discretize::fixed::FixedStep<N, B, M>>,
     origin_c: f32,
     source_node: [usize; M],
-    resistance: [ScalarResistance<f32>; M],
+    /// Each winding's `R` in the state's deviations from `origin_c`.
+    resistance: [DeviationResistance; M],
     kalman: KalmanConfig<f32, X, 1, P>,
     gain: SteadyStateGain<f32, X, P>,
     sensor_nodes: [usize; P],
@@ -1357,9 +1358,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .zip(sq_a2)
             .enumerate()
         {
-            let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
+            let dev_k = x.get(*node).copied().unwrap_or(0.0);
             // The bias adds to the power; `R(T)` at the estimate.
-            power[m] = r.resistance_ohm(t) * i2 + x[N + m];
+            power[m] = r.resistance_ohm(dev_k) * i2 + x[N + m];
         }
         let mut boundary =
             SVector::<f32, B>::from_fn(|k, _| state.held_boundary_c[k] - self.origin_c);
@@ -1596,8 +1597,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             if let Some(drive) = drive {
                 let (v_eff, f) = drive.effective_v();
                 flags |= f;
-                let t = self.origin_c + state.estimate.x.get(*node).copied().unwrap_or(f32::NAN);
-                *current = r.current_for_voltage_a(t, v_eff);
+                let dev_k = state.estimate.x.get(*node).copied().unwrap_or(f32::NAN);
+                *current = r.current_for_voltage_a(dev_k, v_eff);
                 if f.is_clean() && current.is_nan() {
                     flags |= DriveFlags::RESISTANCE_INVALID;
                 }
@@ -1627,7 +1628,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         ) {
             (Some(limit), Some(r), Some(node)) => {
                 let t = out.temps_c.get(*node).copied().unwrap_or(f32::NAN);
-                drive_limit(limit, r, t, supply_v)
+                drive_limit(limit, r.line_ohm(t - self.origin_c), supply_v)
             }
             _ => DriveLimit::default(),
         }
@@ -2143,8 +2144,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 .zip(&self.resistance)
                 .zip(&state.held_currents_a),
         ) {
-            let t = self.origin_c + x.get(*node).copied().unwrap_or(0.0);
-            *power = r.joule_power_w(t, *i);
+            let r_ohm = r.resistance_ohm(x.get(*node).copied().unwrap_or(0.0));
+            *power = r_ohm * *i * *i;
         }
         powers_w
     }

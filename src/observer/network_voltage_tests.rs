@@ -215,20 +215,21 @@ fn duty_applied(duty: f32) -> f32 {
 #[test]
 fn the_duty_limit_is_the_current_limit_in_the_drives_unit() {
     let r = Resistance::with_alpha(R0_OHM, ALPHA_PER_K, T_REF_C).to_scalar::<f32>();
+    let r_ohm = |temp_c: f32| r.r_at_0c_ohm + r.slope_ohm_per_k * temp_c;
     let limit = CoilLimit {
         current_a: 0.5,
         weight: 1.0,
         invalid: false,
     };
     // 0.5 A through 30 ohm (20 degC) on 24 V: (15 / 24)^2.
-    let l = drive_limit(&limit, &r, 20.0, 24.0);
+    let l = drive_limit(&limit, r_ohm(20.0), 24.0);
     assert!((l.duty - (15.0f32 / 24.0).powi(2)).abs() < 1e-6, "{l:?}");
     assert!((l.voltage_v - 15.0).abs() < 1e-5 && l.flags.is_clean());
     // More than the supply gives: full on, never above 1.
-    assert_eq!(drive_limit(&limit, &r, 20.0, 10.0).duty, 1.0);
+    assert_eq!(drive_limit(&limit, r_ohm(20.0), 10.0).duty, 1.0);
     // A missing supply: duty zero, flagged; the voltage limit stays.
     for supply in [f32::NAN, 0.0, -24.0, f32::INFINITY] {
-        let l = drive_limit(&limit, &r, 20.0, supply);
+        let l = drive_limit(&limit, r_ohm(20.0), supply);
         assert_eq!(l.duty, 0.0, "{supply}");
         assert!(l.flags.contains(DriveFlags::SUPPLY_INVALID));
         assert!((l.voltage_v - 15.0).abs() < 1e-5);
@@ -238,8 +239,8 @@ fn the_duty_limit_is_the_current_limit_in_the_drives_unit() {
         invalid: true,
         ..limit
     };
-    assert_eq!(drive_limit(&bad, &r, 20.0, 24.0).duty, 0.0);
-    let l = drive_limit(&limit, &r, f32::NAN, 24.0);
+    assert_eq!(drive_limit(&bad, r_ohm(20.0), 24.0).duty, 0.0);
+    let l = drive_limit(&limit, r_ohm(f32::NAN), 24.0);
     assert_eq!((l.duty, l.voltage_v), (0.0, 0.0));
     assert!(l.flags.contains(DriveFlags::RESISTANCE_INVALID));
 }

@@ -76,7 +76,6 @@ use core::ops::Range;
 
 use crate::error::BuildError;
 use crate::input::DriveFlags;
-use crate::network::ScalarResistance;
 use crate::scalar::Scalar;
 
 /// A voltage-driven winding's limit in its drive's units (see "A limit in
@@ -96,18 +95,13 @@ pub struct DriveLimit {
 }
 
 /// The duty and effective-voltage limits of a voltage-driven winding with
-/// current limit `limit`, resistance `resistance` at its estimated
-/// temperature `temp_c` \[degC\], on a supply measured at `supply_v` \[V\]
-/// (see "A limit in the drive's own unit"). Panic-free for any input; a
-/// NaN anywhere gives a zero limit, never a NaN one.
-pub fn drive_limit(
-    limit: &CoilLimit<f32>,
-    resistance: &ScalarResistance<f32>,
-    temp_c: f32,
-    supply_v: f32,
-) -> DriveLimit {
+/// current limit `limit` and resistance `resistance_ohm` \[ohm\] (its
+/// `R(T)` at its estimated temperature), on a supply measured at
+/// `supply_v` \[V\] (see "A limit in the drive's own unit"). Panic-free
+/// for any input; a NaN anywhere gives a zero limit, never a NaN one.
+pub fn drive_limit(limit: &CoilLimit<f32>, resistance_ohm: f32, supply_v: f32) -> DriveLimit {
     let mut flags = DriveFlags::NONE;
-    let r = resistance.r_at_0c_ohm + resistance.slope_ohm_per_k * temp_c;
+    let r = resistance_ohm;
     if !(r.is_finite() && r > 0.0) {
         flags |= DriveFlags::RESISTANCE_INVALID;
     }

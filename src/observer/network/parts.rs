@@ -56,7 +56,7 @@ use crate::error::{check, BuildError};
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
 use crate::input::ScalarLimits;
-use crate::network::ScalarResistance;
+use crate::network::{DeviationResistance, ScalarResistance};
 use crate::observer::clock::StepClock;
 use crate::observer::consistency::{BiasBound, Shadow};
 use crate::observer::snapshot::Fingerprint;
@@ -920,7 +920,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             constant_k: SVector::from(m.step.constant_k),
             origin_c: s.origin_c as f32,
             source_node: m.source_node,
-            resistance: m.resistance,
+            resistance: about_origin(&m.resistance, s.origin_c as f32),
             kalman,
             gain,
             sensor_nodes: parts.sensor_nodes,
@@ -1115,7 +1115,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             constant_k: vector(&m.step.constant_k),
             origin_c: a.origin_c,
             source_node: m.source_node,
-            resistance: m.resistance,
+            resistance: about_origin(&m.resistance, a.origin_c),
             kalman: a.kalman.config(nalgebra::SMatrix::from_array_storage(
                 nalgebra::ArrayStorage([[0.0; X]; 1]),
             )),
@@ -1211,6 +1211,24 @@ const fn integer_block<const N: usize, const B: usize, const M: usize>(
 }
 
 /// Which elements have a limit (`Some` critical temperature).
+/// Each winding's line `resistance` taken about the observer's origin
+/// `origin_c` \[degC\] (see [`DeviationResistance`]).
+const fn about_origin<const M: usize>(
+    resistance: &[ScalarResistance<f32>; M],
+    origin_c: f32,
+) -> [DeviationResistance; M] {
+    let mut out = [DeviationResistance {
+        r_at_origin_ohm: 0.0,
+        slope_ohm_per_k: 0.0,
+    }; M];
+    let mut m = 0;
+    while m < M {
+        out[m] = DeviationResistance::about(&resistance[m], origin_c);
+        m += 1;
+    }
+    out
+}
+
 const fn limited_of<const N: usize>(critical_c: &[Option<f64>; N]) -> [bool; N] {
     let mut limited = [false; N];
     let mut i = 0;
