@@ -147,13 +147,10 @@ impl<const M: usize> BiasBound<M> {
     /// Which of the biases `biases_w` \[W\] are beyond the bound at the
     /// inputs' Joule powers `powers_w` \[W\] (see the type's docs). NaN
     /// passes unflagged (no verdict).
-    pub(crate) fn beyond<'b>(
-        &self,
-        biases_w: impl Iterator<Item = &'b f32>,
-        powers_w: &[f32; M],
-    ) -> [bool; M] {
+    pub(crate) fn beyond(&self, biases_w: &[f32], powers_w: &[f32; M]) -> [bool; M] {
         let mut beyond = [false; M];
         for (((bias, offset), power), beyond) in biases_w
+            .iter()
             .zip(&self.offset_w)
             .zip(powers_w)
             .zip(beyond.iter_mut())
@@ -1157,7 +1154,7 @@ mod tests {
             (-57.0, true),
             (f32::NAN, false),
         ] {
-            assert_eq!(bound.beyond([bias].iter(), &[20.0]), [beyond], "{bias}");
+            assert_eq!(bound.beyond(&[bias], &[20.0]), [beyond], "{bias}");
         }
         // The test switched off (an infinite band) never flags.
         let off = Band {
@@ -1165,7 +1162,7 @@ mod tests {
             fraction: 0.25,
         };
         let bound = BiasBound::<1>::new(&off, &phi_minus_i, &bd);
-        assert_eq!(bound.beyond([-1e6f32].iter(), &[20.0]), [false]);
+        assert_eq!(bound.beyond(&[-1e6f32], &[20.0]), [false]);
     }
 
     /// One node, capacity 400 J/K, 0.8 W/K to a 20 degC ambient, a

@@ -1446,7 +1446,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state.bias_steps = 0;
         if self.bias_decay_per_step > 0.0 {
             let factor = libm::expf(-self.bias_decay_per_step * elapsed);
-            for bias in state.estimate.x.iter_mut().skip(N).take(M) {
+            let biases = state.estimate.x.as_mut_slice().get_mut(N..N + M);
+            for bias in biases.unwrap_or_default() {
                 *bias *= factor;
             }
         }
@@ -2125,9 +2126,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &NetworkObserverState<N, B, M, X, P, W>,
         powers_w: &[f32; M],
     ) -> [bool; M] {
-        self.shadow
-            .bias_bound
-            .beyond(state.estimate.x.iter().skip(N).take(M), powers_w)
+        self.shadow.bias_bound.beyond(
+            state
+                .estimate
+                .x
+                .as_slice()
+                .get(N..N + M)
+                .unwrap_or_default(),
+            powers_w,
+        )
     }
 
     /// Each current's Joule power \[W\], the held current at the estimated

@@ -1777,7 +1777,7 @@ impl OmniObserver {
     /// when one is beyond it.
     fn check_heat_bias<W: OmniWarmUpKind>(&self, state: &OmniObserverState<W>) -> InputFlags {
         let powers_w = core::array::from_fn(|m| state.input[m]);
-        let biases_w = state.estimate.x.iter().skip(NODES);
+        let biases_w = state.estimate.x.as_slice().get(NODES..).unwrap_or_default();
         if self.bias_bound.beyond(biases_w, &powers_w).contains(&true) {
             InputFlags::HEAT_BIAS_BEYOND_MODEL
         } else {

@@ -741,13 +741,14 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             0 | 1 => T::zero(),
             _ => self.grid_s.get(k - 2).copied().unwrap_or(T::zero()),
         };
-        let elements = sweep
-            .iter_mut()
-            .zip(prev.iter_mut())
-            .zip(&self.v)
-            .zip(&snapshot.headroom_k);
+        // From `first` on by slicing, not `skip`: its `nth` walked the
+        // skipped elements (and cost the M0 footprint its code).
+        let elements = (sweep.get_mut(first..).unwrap_or_default().iter_mut())
+            .zip(prev.get_mut(first..).unwrap_or_default().iter_mut())
+            .zip(self.v.get(first..).unwrap_or_default())
+            .zip(snapshot.headroom_k.get(first..).unwrap_or_default());
         let mut evaluated = 0;
-        for (e, (((state, prev), row), &headroom)) in elements.enumerate().skip(first) {
+        for (e, (((state, prev), row), &headroom)) in (first..).zip(elements) {
             if *state != Crossing::Open {
                 continue;
             }
