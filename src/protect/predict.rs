@@ -90,18 +90,19 @@
 //!
 //! Where one horizon is more than a tick's budget,
 //! [`PredictorBuilder::elements_per_tick`] splits it: at most that many
-//! elements per call, the snapshot in three calls of its own (the
-//! windings' part of the steady state, `k_d + Kp p`; its boundaries'
-//! part `Kb T_b` with the headroom and `T_0 - T_ss`; the modal
-//! amplitudes), the same answers to the bit (the Omnimagnet's nine
+//! elements per call, the snapshot in calls of its own (the windings'
+//! part of the steady state, `k_d + Kp p`; its boundaries' part `Kb T_b`
+//! with the headroom and `T_0 - T_ss`; the modal amplitudes, that many
+//! at a call), the same answers to the bit (the Omnimagnet's nine
 //! limited nodes in slices of five on a Cortex-M4F: 2 250 to 2 500
 //! instructions a slice instead of about 3 600 for a horizon; its
 //! snapshot alone was about 2 050 instead of 5 200 with the first
 //! horizon, and `observer_m4`'s combined worst fell 6 756 -> 6 551 when
 //! the steady state took two calls; on a Cortex-M0 in soft-float the real
 //! motor's whole snapshot was its worst tick, 32 000 instructions, in two
-//! calls 18 600 at worst, in three 15 979 (its modal amplitudes), level
-//! with its model-step ticks' worst; `docs/cost.md`). The windings' part
+//! calls 18 600 at worst, in three 15 979 (its modal amplitudes), with
+//! one amplitude a call 13 257, below its model-step ticks' worst;
+//! `docs/cost.md`). The windings' part
 //! takes their peak powers at its call; the boundaries, `T_0` and the
 //! limits are those of the next call's operating point, and the answers
 //! age from the first call: older than they are by the time between the
@@ -579,11 +580,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     fn to_modes(&self, values: &mut [T; N]) {
         let from_steady = *values;
         for (z, v_inv_row) in values.iter_mut().zip(&self.v_inv) {
-            let mut m = T::zero();
-            for (vi, d) in v_inv_row.iter().zip(&from_steady) {
-                m += *vi * *d;
-            }
-            *z = m;
+            *z = mode(v_inv_row, &from_steady);
         }
     }
 
@@ -822,6 +819,20 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     }
 }
 
+/// One modal amplitude \[K\]: the row `v_inv_row` of `V^-1` times
+/// `T_0 - T_ss` (`from_steady`, \[K\]). Not inlined on a core without an
+/// FPU, where its soft-float sums dwarf the call and its two callers'
+/// copies cost the M0 footprint 400 B.
+#[cfg_attr(target_abi = "eabihf", inline(always))]
+#[cfg_attr(not(target_abi = "eabihf"), inline(never))]
+fn mode<T: RealField + Copy, const N: usize>(v_inv_row: &[T; N], from_steady: &[T; N]) -> T {
+    let mut m = T::zero();
+    for (vi, d) in v_inv_row.iter().zip(from_steady) {
+        m += *vi * *d;
+    }
+    m
+}
+
 /// The larger of a winding's `R` at `temp` and at `limit` \[ohm\] (see
 /// [`LimitPredictor::conservative_resistance_ohm`]): `R` of the warmer
 /// temperature (the cooler for a negative slope), both `R`s where that is
@@ -1014,7 +1025,8 @@ enum SweepPhase {
     /// - T_ss` ([`LimitPredictor::finish_steady`]).
     Powers,
     /// A split sweep has its steady state and `T_0 - T_ss`: the next
-    /// stage forms its modal amplitudes.
+    /// stages form its modal amplitudes (from `next_element` on, into
+    /// `prev`, until the last moves them into the snapshot).
     Steady,
     /// The snapshot is whole: the stages evaluate horizons.
     Sweeping,
@@ -1126,11 +1138,12 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
     PredictorState<T, N, M, A>
 {
     /// One stage of a split sweep's snapshot (at this tick's `op` and
-    /// conservative `powers_w` \[W\]), three stages of their own: the
-    /// windings' part of the steady state at their peak powers; its
-    /// boundaries' part, the headroom and `T_0 - T_ss` at that stage's
-    /// `op` (the answers age from the first stage: conservative); the
-    /// modal amplitudes. The same snapshot as one stage's, to the bit, for
+    /// conservative `powers_w` \[W\]), stages of their own: the windings'
+    /// part of the steady state at their peak powers; its boundaries'
+    /// part, the headroom and `T_0 - T_ss` at that stage's `op` (the
+    /// answers age from the first stage: conservative); the modal
+    /// amplitudes, `elements_per_tick` a stage. The same snapshot as one
+    /// stage's, to the bit, for
     /// the same inputs. Not inlined: a sweep that is not split never runs
     /// it, and inlined it moved the M4F's worst ticks by up to 50
     /// instructions (measured).
@@ -1154,7 +1167,25 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 self.phase = SweepPhase::Steady;
             }
             SweepPhase::Steady | SweepPhase::Sweeping => {
-                predictor.to_modes(&mut self.snapshot.modes);
+                // `elements_per_tick` amplitudes a stage (each a row of
+                // `V^-1`, cheaper than an element's horizon), kept in
+                // `prev` (its first point sets it before reading it) so
+                // that `T_0 - T_ss` stays whole until the last.
+                let first = self.next_element;
+                let end = first.saturating_add(predictor.elements_per_tick).min(N);
+                let rows = self.prev.get_mut(first..end).unwrap_or_default();
+                let v_inv = predictor.v_inv.get(first..end).unwrap_or_default();
+                for (slot, v_inv_row) in rows.iter_mut().zip(v_inv) {
+                    slot.p = mode(v_inv_row, &self.snapshot.modes);
+                }
+                if end < N {
+                    self.next_element = end;
+                    return;
+                }
+                for (z, slot) in self.snapshot.modes.iter_mut().zip(&self.prev) {
+                    *z = slot.p;
+                }
+                self.next_element = 0;
                 self.phase = SweepPhase::Sweeping;
             }
         }

@@ -374,16 +374,18 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
             .elements_per_tick(elements)
             .build::<f32, 4, 1, 1, 48>(&network)
             .unwrap();
-        // The snapshot is three stages of their own, the windings' part
-        // of the steady state, its boundaries' part with the headroom and
-        // `T_0 - T_ss`, then the modal amplitudes, and is the whole
-        // snapshot to the bit.
+        // The snapshot is stages of their own, the windings' part of the
+        // steady state, its boundaries' part with the headroom and
+        // `T_0 - T_ss`, then the modal amplitudes `elements` at a time,
+        // and is the whole snapshot to the bit.
         let mut state = PredictorState::new(&split, &op);
         state.tick(&split, &op);
         assert_eq!(state.phase, SweepPhase::Powers);
         state.tick(&split, &op);
-        assert_eq!(state.phase, SweepPhase::Steady);
-        state.tick(&split, &op);
+        for stage in 0..4usize.div_ceil(elements) {
+            assert_eq!(state.phase, SweepPhase::Steady, "amplitudes' stage {stage}");
+            state.tick(&split, &op);
+        }
         assert_eq!(state.phase, SweepPhase::Sweeping);
         assert_eq!((state.next_point, state.next_element), (0, 0));
         assert_eq!(state.snapshot, split.snapshot(&op, &powers));
