@@ -1881,14 +1881,14 @@ impl OmniObserver {
                 .saturating_mul(ticks_lasted)
                 .min(start::period_slices(STATES, NODES));
         }
-        let settled = held.work_slices(
-            slices,
-            self.shadow_block_steps,
-            &transition,
-            gain.prior(),
-            gain.posterior(),
-            &self.filter.kalman().recovery_variance,
-        );
+        let propagation = start::Propagation {
+            period: self.shadow_block_steps,
+            transition,
+            steady_prior: gain.prior(),
+            steady_posterior: gain.posterior(),
+            recovery: &self.filter.kalman().recovery_variance,
+        };
+        let settled = held.work_slices(slices, &propagation);
         if settled == Some(true) {
             held.end();
         }

@@ -109,7 +109,7 @@
 mod held;
 
 pub(crate) use held::{
-    period_slices, slices_per_tick, HeldCovariance, HeldLayout, PeriodTransition,
+    period_slices, slices_per_tick, HeldCovariance, HeldLayout, PeriodTransition, Propagation,
 };
 
 use nalgebra::{SMatrix, SVector};

@@ -13,6 +13,7 @@ use std::sync::OnceLock;
 
 use super::*;
 use crate::filter::{k_step_model, update, KalmanState};
+use crate::observer::start::Propagation;
 use crate::omnimagnet::observer::ObserverConfig;
 
 const AMBIENT_C: f64 = 22.0;
@@ -583,13 +584,13 @@ fn the_held_covariance_is_the_period_riccati_recursion() {
         state.warm.held.cov.stepped(obs.shadow_block_steps);
         let mut done = None;
         while done.is_none() {
-            done = state.warm.held.cov.work(
-                obs.shadow_block_steps,
-                &transition,
-                gain.prior(),
-                gain.posterior(),
-                &obs.filter.kalman().recovery_variance,
-            );
+            done = state.warm.held.cov.work(&Propagation {
+                period: obs.shadow_block_steps,
+                transition,
+                steady_prior: gain.prior(),
+                steady_posterior: gain.posterior(),
+                recovery: &obs.filter.kalman().recovery_variance,
+            });
             slices += 1;
         }
         if [1, 10, 200].contains(&period) {

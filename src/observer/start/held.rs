@@ -79,6 +79,23 @@ pub(crate) struct PeriodTransition<'a, const T: usize, const G: usize> {
     pub(crate) gamma: &'a SMatrix<f32, T, G>,
 }
 
+/// What a slice of the propagation reads: the correction period's model
+/// steps and transition, and the steady solution's covariances and its
+/// recovery variances.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Propagation<'a, const T: usize, const G: usize, const X: usize> {
+    /// Model steps per correction period.
+    pub(crate) period: u32,
+    /// The period's transition.
+    pub(crate) transition: PeriodTransition<'a, T, G>,
+    /// The steady solution's prior covariance.
+    pub(crate) steady_prior: &'a SMatrix<f32, X, X>,
+    /// The steady solution's posterior covariance.
+    pub(crate) steady_posterior: &'a SMatrix<f32, X, X>,
+    /// The filter's recovery variances.
+    pub(crate) recovery: &'a SVector<f32, X>,
+}
+
 /// What the held covariance knows of its observer: `X` states, `K` of
 /// them measured by `P` sensors.
 #[derive(Debug, Clone, Copy)]
@@ -537,16 +554,12 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
     pub(crate) fn work_slices<const T: usize, const G: usize>(
         &mut self,
         slices: u32,
-        period: u32,
-        transition: &PeriodTransition<'_, T, G>,
-        steady_prior: &SMatrix<f32, X, X>,
-        steady_posterior: &SMatrix<f32, X, X>,
-        recovery: &SVector<f32, X>,
+        propagation: &Propagation<'_, T, G, X>,
     ) -> Option<bool> {
-        let mut done = self.work(period, transition, steady_prior, steady_posterior, recovery);
+        let mut done = self.work(propagation);
         let mut left = slices.saturating_sub(1);
-        while done.is_none() && left > 0 && !self.waiting(period) {
-            done = self.work(period, transition, steady_prior, steady_posterior, recovery);
+        while done.is_none() && left > 0 && !self.waiting(propagation.period) {
+            done = self.work(propagation);
             left -= 1;
         }
         done
@@ -562,10 +575,8 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
         self.steps = self.steps.saturating_add(steps);
     }
 
-    /// One slice of the propagation (call it on light ticks): with
-    /// `period` model steps per correction period, `transition` the
-    /// period's transition and `steady_prior`, `steady_posterior` the
-    /// steady solution's covariances. `Some(settled)` when a new prior is
+    /// One slice of the propagation (call it on light ticks) with what
+    /// `propagation` holds. `Some(settled)` when a new prior is
     /// ready: `settled` when the posterior it came from had information
     /// and every variance within [`SETTLED_FRACTION`] of the steady
     /// posterior's (the warm-up may end). At most `(T + 1) X + K X`
@@ -575,12 +586,15 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
     /// period.
     pub(crate) fn work<const T: usize, const G: usize>(
         &mut self,
-        period: u32,
-        transition: &PeriodTransition<'_, T, G>,
-        steady_prior: &SMatrix<f32, X, X>,
-        steady_posterior: &SMatrix<f32, X, X>,
-        recovery: &SVector<f32, X>,
+        propagation: &Propagation<'_, T, G, X>,
     ) -> Option<bool> {
+        let Propagation {
+            period,
+            ref transition,
+            steady_prior,
+            steady_posterior,
+            recovery,
+        } = *propagation;
         if self.stale > 0 {
             self.refresh();
             return None;
@@ -856,13 +870,13 @@ mod tests {
             held.stepped(1);
             let mut done = None;
             while done.is_none() {
-                done = held.work(
-                    1,
-                    &transition,
-                    steady.prior(),
-                    steady.posterior(),
-                    &recovery,
-                );
+                done = held.work(&Propagation {
+                    period: 1,
+                    transition,
+                    steady_prior: steady.prior(),
+                    steady_posterior: steady.posterior(),
+                    recovery: &recovery,
+                });
             }
             if done == Some(true) && settled.is_none() {
                 settled = Some(period);
