@@ -201,12 +201,14 @@ fn a_boundary_offset_is_refused_where_it_does_not_fit() {
 }
 
 /// A heat bias with a correlation time decays as `exp(-t / tau)` when
-/// nothing is read (the reference: the exponential itself); without one
-/// it is a random walk and keeps its value.
+/// nothing is read (the reference: the exponential itself), also when
+/// ticks of several steps pass the correction period's end (its decay
+/// then formed for the steps it took, not the period's); without one it
+/// is a random walk and keeps its value.
 #[test]
 fn a_heat_bias_with_a_correlation_time_decays_towards_zero() {
     let net = device();
-    let bias_after = |tau_s: f64, t_s: u32| {
+    let bias_after = |tau_s: f64, t_s: u32, steps_per_tick: u32| {
         let mut s = settings(false);
         s.bias_noise_w2_per_s = 1.0;
         s.bias_tau_s = tau_s;
@@ -215,24 +217,26 @@ fn a_heat_bias_with_a_correlation_time_decays_towards_zero() {
         let boundary = [COOLANT_C as f32, AMBIENT_C as f32];
         let mut state = observer.state(&[COOLANT_C as f32; 2], &boundary);
         state.estimate.x[2] = 10.0;
-        let ticks_per_s = 1_000_000 / STEP_US;
-        for tick in 0..t_s * ticks_per_s {
+        let tick_us = STEP_US * steps_per_tick;
+        for tick in 0..t_s * 1_000_000 / tick_us {
             let inputs = NetworkInputs {
                 currents_a: [0.0],
                 boundary_c: boundary,
                 readings: [None],
-                now_us: tick.wrapping_mul(STEP_US),
-                elapsed_us: STEP_US,
+                now_us: tick.wrapping_mul(tick_us),
+                elapsed_us: tick_us,
             };
             observer.tick(&mut state, &inputs);
         }
         f64::from(observer.heat_bias_w(&state)[0])
     };
-    let decayed = bias_after(1800.0, 1800);
     let expected = 10.0 * (-1.0f64).exp();
-    assert!(
-        (decayed - expected).abs() < 1e-3 * expected,
-        "{decayed} W against {expected} W"
-    );
-    assert_eq!(bias_after(0.0, 1800), 10.0);
+    for steps_per_tick in [1, 3] {
+        let decayed = bias_after(1800.0, 1800, steps_per_tick);
+        assert!(
+            (decayed - expected).abs() < 1e-3 * expected,
+            "{steps_per_tick} steps a tick: {decayed} W against {expected} W"
+        );
+    }
+    assert_eq!(bias_after(0.0, 1800, 1), 10.0);
 }

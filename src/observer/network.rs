@@ -1005,6 +1005,11 @@ pub struct NetworkObserverState<
     shadow: ShadowState<N, M>,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
+    /// The heat biases' and the boundary offset's decay factors over one
+    /// correction period (dimensionless), formed with the state: the
+    /// period's two `expf` cost the model step's tick that closes it some
+    /// 1 500 instructions on a core without an FPU.
+    period_decay: [f32; 2],
     outputs: NetworkOutputs<N, M, P>,
     silence: SilenceWatch<P>,
     /// The predictor's sweep.
@@ -1083,6 +1088,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warm,
             warmup_left: self.warmup_left,
             bias_steps: self.bias_steps,
+            period_decay: self.period_decay,
             warmup_until_steady: self.warmup_until_steady,
             outputs: self.outputs,
             step_account: self.step_account,
@@ -1206,6 +1212,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warm: NoWarmUp,
             warmup_left: 0,
             bias_steps: 0,
+            period_decay: self.decay_factors(self.gain.period),
             warmup_until_steady: false,
             step_account: StepAccount::new(),
             shadow_waiting_sq_a2: None,
@@ -1442,18 +1449,31 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if state.bias_steps < self.gain.period {
             return;
         }
-        let elapsed = state.bias_steps as f32;
+        let [bias_factor, offset_factor] = if state.bias_steps == self.gain.period {
+            state.period_decay
+        } else {
+            self.decay_factors(state.bias_steps)
+        };
         state.bias_steps = 0;
         if self.bias_decay_per_step > 0.0 {
-            let factor = libm::expf(-self.bias_decay_per_step * elapsed);
             let biases = state.estimate.x.as_mut_slice().get_mut(N..N + M);
             for bias in biases.unwrap_or_default() {
-                *bias *= factor;
+                *bias *= bias_factor;
             }
         }
         if let Some(offset_k) = state.estimate.x.get_mut(N + M) {
-            *offset_k *= libm::expf(-self.offset_decay_per_step * elapsed);
+            *offset_k *= offset_factor;
         }
+    }
+
+    /// The heat biases' and the boundary offset's decay factors over
+    /// `steps` model steps (dimensionless).
+    fn decay_factors(&self, steps: u32) -> [f32; 2] {
+        let elapsed = steps as f32;
+        [
+            libm::expf(-self.bias_decay_per_step * elapsed),
+            libm::expf(-self.offset_decay_per_step * elapsed),
+        ]
     }
 
     /// The predictor's operating point; its limits from `mean_limits`,
