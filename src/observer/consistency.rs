@@ -861,18 +861,15 @@ impl<const M: usize> BlockMean<M> {
     }
 
     /// Accounts for `steps` model steps at the square currents `sq_a2`
-    /// \[A^2\] (each step's mean `I^2`); returns each current's mean `I^2`
-    /// over the block \[A^2\] when a block of `block_steps` is complete
-    /// (the steps past it start the next block at that mean). Square
+    /// \[A^2\] (each step's mean `I^2`); returns the block when a block of
+    /// `block_steps` is complete (the steps past it start the next block
+    /// at its mean). Its mean ([`Self::mean_sq_a2`]) is left to whoever
+    /// steps the block: a block that waits for a light tick takes its
+    /// division and multiplies there, not on the model step's tick. Square
     /// currents throughout, not RMS currents: a block's power is `R(T)`
     /// times its mean `I^2`, and no root is taken (on a core without an
     /// FPU, a soft-float `sqrtf` per current).
-    pub(crate) fn add(
-        &mut self,
-        steps: u32,
-        sq_a2: &[f32; M],
-        block_steps: u32,
-    ) -> Option<[f32; M]> {
+    pub(crate) fn add(&mut self, steps: u32, sq_a2: &[f32; M], block_steps: u32) -> Option<Self> {
         if steps == 0 {
             return None;
         }
@@ -888,16 +885,27 @@ impl<const M: usize> BlockMean<M> {
             }
         }
         self.steps = self.steps.saturating_add(steps);
-        if self.steps < block_steps.max(1) {
+        let block_steps = block_steps.max(1);
+        if self.steps < block_steps {
             return None;
         }
-        // One division, then a multiply per current.
-        let per_step = 1.0 / self.steps as f32;
-        let mean_i2 = self.i2_sum_a2.map(|s| s * per_step);
-        self.steps -= block_steps.max(1);
-        let rest = self.steps as f32;
-        self.i2_sum_a2 = mean_i2.map(|i2| i2 * rest);
-        Some(mean_i2)
+        let complete = core::mem::replace(self, Self::new());
+        let rest = complete.steps - block_steps;
+        if rest > 0 {
+            // Only a catch-up runs past the block: its steps past it open
+            // the next block at the complete one's mean.
+            let rest_steps = rest as f32;
+            self.i2_sum_a2 = complete.mean_sq_a2().map(|i2| i2 * rest_steps);
+            self.steps = rest;
+        }
+        Some(complete)
+    }
+
+    /// Each current's mean `I^2` over the block's steps \[A^2\] (one
+    /// division, then a multiply per current).
+    pub(crate) fn mean_sq_a2(&self) -> [f32; M] {
+        let per_step = 1.0 / self.steps.max(1) as f32;
+        self.i2_sum_a2.map(|s| s * per_step)
     }
 }
 
@@ -978,9 +986,9 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     /// step, the shadow's heaviest piece, lands beside neither (a second
     /// block completing first makes the waiting one step at once: bounded,
     /// one block step per call). Returns whether a block that waited
-    /// stepped (the tick is busy then). `waiting_sq_a2` holds the mean
-    /// square currents \[A^2\] of the block that waits (kept apart from
-    /// `state`, out of the tick's hot fields); `boundary_c` are the held
+    /// stepped (the tick is busy then). `waiting` holds the block that
+    /// waits, its sums of square currents (kept apart from `state`, out of
+    /// the tick's hot fields; its mean is formed when it steps); `boundary_c` are the held
     /// boundaries, `origin_c` the origin \[degC\].
     #[allow(clippy::too_many_arguments)]
     // Inlined into the tick on a core with an FPU (its call and prologue
@@ -990,7 +998,7 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     pub(crate) fn stepped(
         &self,
         state: &mut ShadowState<N, M>,
-        waiting_sq_a2: &mut Option<[f32; M]>,
+        waiting: &mut Option<BlockMean<M>>,
         steps: u32,
         sq_a2: &[f32; M],
         boundary_c: &[f32; B],
@@ -998,20 +1006,20 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
         resistance: &[DeviationResistance; M],
         origin_c: f32,
     ) -> bool {
-        let Some(mean_sq_a2) = state.block.add(steps, sq_a2, self.block_steps) else {
+        let Some(complete) = state.block.add(steps, sq_a2, self.block_steps) else {
             return false;
         };
-        let (mean, waited) = if !self.waits_for_light_tick {
-            (mean_sq_a2, false)
+        let (block, waited) = if !self.waits_for_light_tick {
+            (complete, false)
         } else {
             // It waits; one still waiting steps now (a whole block without
             // a light tick).
-            match waiting_sq_a2.replace(mean_sq_a2) {
-                Some(earlier_sq_a2) => (earlier_sq_a2, true),
+            match waiting.replace(complete) {
+                Some(earlier) => (earlier, true),
                 None => return false,
             }
         };
-        self.block_step(state, &mean, boundary_c, source_node, resistance, origin_c);
+        self.block_step(state, &block, boundary_c, source_node, resistance, origin_c);
         waited
     }
 
@@ -1023,40 +1031,40 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     pub(crate) fn between_steps(
         &self,
         state: &mut ShadowState<N, M>,
-        waiting_sq_a2: &mut Option<[f32; M]>,
+        waiting: &mut Option<BlockMean<M>>,
         boundary_c: &[f32; B],
         source_node: &[usize; M],
         resistance: &[DeviationResistance; M],
         origin_c: f32,
         reading: impl FnOnce() -> bool,
     ) -> bool {
-        match *waiting_sq_a2 {
-            Some(mean) if !reading() => {
-                *waiting_sq_a2 = None;
-                self.block_step(state, &mean, boundary_c, source_node, resistance, origin_c);
+        match *waiting {
+            Some(block) if !reading() => {
+                *waiting = None;
+                self.block_step(state, &block, boundary_c, source_node, resistance, origin_c);
                 true
             }
             _ => false,
         }
     }
 
-    /// One block's exact step at its mean square currents `mean_sq_a2`
-    /// \[A^2\].
+    /// One block's exact step at its mean square currents \[A^2\].
     #[cfg_attr(target_abi = "eabihf", inline(always))]
     fn block_step(
         &self,
         state: &mut ShadowState<N, M>,
-        mean_sq_a2: &[f32; M],
+        block: &BlockMean<M>,
         boundary_c: &[f32; B],
         source_node: &[usize; M],
         resistance: &[DeviationResistance; M],
         origin_c: f32,
     ) {
+        let mean_sq_a2 = block.mean_sq_a2();
         let mut power = SVector::<f32, M>::zeros();
         for (m, ((node, r), i2)) in source_node
             .iter()
             .zip(resistance)
-            .zip(mean_sq_a2)
+            .zip(&mean_sq_a2)
             .enumerate()
         {
             power[m] = r.resistance_ohm(state.dev_k(*node)) * i2;
@@ -1198,7 +1206,7 @@ mod tests {
     fn tick_shadow(
         shadow: &Shadow<1, 1, 1>,
         state: &mut ShadowState<1, 1>,
-        waiting_sq_a2: &mut Option<[f32; 1]>,
+        waiting: &mut Option<BlockMean<1>>,
         steps: u32,
         current_a: f32,
         reading: bool,
@@ -1207,7 +1215,7 @@ mod tests {
         if steps == 0 {
             return shadow.between_steps(
                 state,
-                waiting_sq_a2,
+                waiting,
                 boundary_c,
                 node,
                 &WINDING,
@@ -1217,15 +1225,31 @@ mod tests {
         }
         let sq_a2 = [current_a * current_a];
         shadow.stepped(
-            state,
-            waiting_sq_a2,
-            steps,
-            &sq_a2,
-            boundary_c,
-            node,
-            &WINDING,
-            origin_c,
+            state, waiting, steps, &sq_a2, boundary_c, node, &WINDING, origin_c,
         )
+    }
+
+    /// A block's mean `I^2` is its steps' sum over their count, formed
+    /// when it is asked for; a catch-up's steps past the block open the
+    /// next one at the complete block's mean, and a block that ends on its
+    /// last step leaves the next one empty.
+    #[test]
+    fn a_block_is_the_mean_of_its_steps_and_a_catch_up_opens_the_next() {
+        let mut block = BlockMean::<2>::new();
+        assert_eq!(block.add(1, &[4.0, 1.0], 4), None);
+        assert_eq!(block.add(1, &[4.0, 1.0], 4), None);
+        // 3 steps at [1, 7]: 5 steps in all, one past the block.
+        let complete = block.add(3, &[1.0, 7.0], 4).expect("a complete block");
+        // (4 + 4 + 3 * 1) / 5 and (1 + 1 + 3 * 7) / 5.
+        assert_eq!(complete.mean_sq_a2(), [11.0 / 5.0, 23.0 / 5.0]);
+        // The next block holds its one step at that mean, then 3 at [1, 1].
+        let next = block.add(3, &[1.0, 1.0], 4).expect("a complete block");
+        let expected = [(11.0 / 5.0 + 3.0) / 4.0, (23.0 / 5.0 + 3.0) / 4.0];
+        for (got, want) in next.mean_sq_a2().iter().zip(expected) {
+            assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+        }
+        // Ended on its last step: the next block is empty.
+        assert_eq!(block, BlockMean::new());
     }
 
     /// A model stepping each tick steps the shadow's block on the tick
@@ -1259,7 +1283,7 @@ mod tests {
         for _ in 0..4 {
             assert!(!tick_shadow(&waiting, &mut later, &mut held, 1, 5.0, false));
         }
-        assert_eq!(held, Some([25.0]));
+        assert_eq!(held.map(|b| b.mean_sq_a2()), Some([25.0]));
         assert!(!tick_shadow(&waiting, &mut later, &mut held, 0, 0.0, true));
         assert_eq!(later.devs_k(), &[0.0]);
         // The first light tick: the block steps at its own current.
@@ -1281,7 +1305,7 @@ mod tests {
             [false, false, false, false, false, false, false, true]
         );
         assert_eq!(starved.devs_k(), &[expected_k]);
-        assert_eq!(queue, Some([25.0]));
+        assert_eq!(queue.map(|b| b.mean_sq_a2()), Some([25.0]));
     }
 
     /// The shadow's block in integer arithmetic (a model that steps in

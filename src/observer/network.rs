@@ -165,11 +165,15 @@
 //! "Sensors against the physics" below) that such a step completes waits
 //! for the first tick without a step or a reading, which it makes busy (its
 //! exact step of a whole block is the shadow's heaviest piece: about 5 900
-//! instructions in soft-float; at most one block waits). Every protection
+//! instructions in soft-float; at most one block waits). With the model
+//! step in integer arithmetic, a correction's move of the estimate is
+//! read into the step's states on the next such tick as well (one piece
+//! a tick; see "The model step in integer arithmetic"), which it makes
+//! busy, so that the next step's tick does not carry it. Every protection
 //! stage (the predictor's, the alarm, the limiter) waits out up to three
-//! busy ticks in a row (a step's, its block's and a reading's) before it
-//! runs all the same, so that it lands on a light tick. Unlike the
-//! Omnimagnet's, a step here does not wait a tick for a reading's
+//! busy ticks in a row (a step's, its block's and a reading's; four with
+//! the integer step's read) before it runs all the same, so that it lands
+//! on a light tick. Unlike the Omnimagnet's, a step here does not wait a tick for a reading's
 //! correction ([`StepClock::defer`]): on the Cortex-M0 its clock code cost
 //! the 2-node footprint 280 B and the M4F ticks up to 8 %, for a worst tick
 //! the stages' waiting lowered instead. The Cortex-M0 run of
@@ -407,8 +411,8 @@ use bias::{
 };
 
 use super::consistency::{
-    protect_on_shadow, screen_readings, sensor_doubt, DriftHold, GateView, Shadow, ShadowState,
-    SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
+    protect_on_shadow, screen_readings, sensor_doubt, BlockMean, DriftHold, GateView, Shadow,
+    ShadowState, SilenceWatch, StuckEvents, StuckRewind, StuckTest, StuckWatch, Suspicion,
 };
 use super::cycle::aged_time_to_limit;
 use super::cycle::{
@@ -1041,7 +1045,7 @@ pub struct NetworkObserverState<
     step_account: StepAccount<M>,
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
-    shadow_waiting_sq_a2: Option<[f32; M]>,
+    shadow_waiting_block: Option<BlockMean<M>>,
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
@@ -1092,7 +1096,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_until_steady: self.warmup_until_steady,
             outputs: self.outputs,
             step_account: self.step_account,
-            shadow_waiting_sq_a2: self.shadow_waiting_sq_a2,
+            shadow_waiting_block: self.shadow_waiting_block,
         }
     }
 }
@@ -1201,10 +1205,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             held_currents_a: [0.0; M],
             held_boundary_c,
             // With a step several ticks long, the stages wait out a step's
-            // tick, its shadow block's and a reading's (see "Model step
-            // and ticks").
+            // tick, its shadow block's, a reading's and (with the integer
+            // step) the reading's move into its states (see "Model step and
+            // ticks").
             cycle: ProtectionCycle::new().with_busy_waits(if self.step_us > self.loop_period_us {
-                3
+                3 + u8::from(self.steps_in_integers())
             } else {
                 0
             }),
@@ -1215,7 +1220,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             period_decay: self.decay_factors(self.gain.period),
             warmup_until_steady: false,
             step_account: StepAccount::new(),
-            shadow_waiting_sq_a2: None,
+            shadow_waiting_block: None,
             stuck: StuckWatch::new(),
             rewind: StuckRewind::new(),
             drift: DriftHold::new(),
@@ -1301,8 +1306,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// of the step: `mean_sq_a2` \[A^2\], the account's mean `I^2` when
     /// the held currents changed within the steps, else the held currents
     /// squared. The estimate's and the shadow's (see [`Shadow::stepped`];
-    /// `readings`: this tick's). Returns whether a shadow block that
-    /// waited stepped.
+    /// `readings`: this tick's). Returns whether a piece put off to a tick
+    /// without a step or a reading ran (the shadow's waiting block, or a
+    /// correction's move read into the integer step's states): the tick is
+    /// busy then.
     #[inline(always)]
     fn step_model<W: WarmUpKind<X>>(
         &self,
@@ -1312,15 +1319,25 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         readings: &[Option<TimedReading>; P],
     ) -> bool {
         if steps == 0 {
-            return self.shadow.between_steps(
+            let block_stepped = self.shadow.between_steps(
                 &mut state.shadow,
-                &mut state.shadow_waiting_sq_a2,
+                &mut state.shadow_waiting_block,
                 &state.held_boundary_c,
                 &self.source_node,
                 &self.resistance,
                 self.origin_c,
                 || readings.iter().any(Option::is_some),
             );
+            // One put-off piece a light tick: a correction's move waits
+            // for the next one when the block took this one.
+            #[cfg(feature = "integer-step")]
+            if !block_stepped
+                && state.integer.correction_due()
+                && readings.iter().all(Option::is_none)
+            {
+                return state.integer.read_moves_between_steps(&state.estimate.x);
+            }
+            return block_stepped;
         }
         let sq_a2 = step_square_currents(mean_sq_a2, &state.held_currents_a);
         // The usual tick's one step out of the catch-up's loop: in it, the
@@ -1332,7 +1349,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         self.shadow.stepped(
             &mut state.shadow,
-            &mut state.shadow_waiting_sq_a2,
+            &mut state.shadow_waiting_block,
             steps,
             &sq_a2,
             &state.held_boundary_c,
@@ -1405,6 +1422,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held_mut()) {
             predict_cov(&self.kalman, cov);
         }
+    }
+
+    /// Whether the model steps in integer arithmetic.
+    const fn steps_in_integers(&self) -> bool {
+        #[cfg(feature = "integer-step")]
+        if self.integer_step.is_some() {
+            return true;
+        }
+        false
     }
 
     /// The model step in integer arithmetic, if the settings ask for it
@@ -1557,7 +1583,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &steps,
             self.step_us,
         );
-        let shadow_waited = self.step_model(state, steps.steps, mean_sq_a2, &inputs.readings);
+        let put_off_ran = self.step_model(state, steps.steps, mean_sq_a2, &inputs.readings);
         self.decay_biases(state, steps.steps);
         state.cycle.stepped(
             &steps,
@@ -1567,6 +1593,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         );
         let (corrected, disagree) = self.correct(state, inputs);
         flags |= disagree;
+        #[cfg(feature = "integer-step")]
+        if corrected {
+            state.integer.corrected();
+        }
         // Only a step or a reading (a correction) moves the estimate.
         if steps.steps > 0 || inputs.readings.iter().any(Option::is_some) {
             state.outputs.temps_c = self.temps_c(state);
@@ -1576,7 +1606,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // block that such a step put off.
         let busy = corrected
             || steps.steps.saturating_mul(self.step_us) > self.loop_period_us
-            || shadow_waited;
+            || put_off_ran;
         Protecting {
             observer: self,
             state: &mut *state,
@@ -1876,7 +1906,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     .reseed(core::array::from_fn(|i| state.estimate.x[i]));
                 // The filter's estimate is of now: a waiting block would
                 // take the shadow past it.
-                state.shadow_waiting_sq_a2 = None;
+                state.shadow_waiting_block = None;
                 if self.settled(cov) {
                     state.warmup_left = 0;
                 }

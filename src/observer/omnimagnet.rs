@@ -1447,7 +1447,8 @@ impl OmniObserver {
                 state
                     .shadow_block
                     .add(steps.steps, &step_sq_a2, self.shadow_block_steps)
-            });
+            })
+            .map(|block| block.mean_sq_a2());
         if let Some(block_sq_a2) = block_sq_a2 {
             let mut u = SVector::<f32, INPUTS>::zeros();
             self.filter.joule_input_mean_sq(

@@ -13,7 +13,10 @@
 //! is then added to the integer state exactly (both are whole multiples of
 //! 2^-48 K within the state's range), so a correction moves what the next
 //! step starts from, and nothing the integer state held below the image's
-//! last bit is lost.
+//! last bit is lost. A correction's move is read on the first tick without
+//! a step or a reading after it ([`IntegerStates::read_moves_between_steps`]),
+//! where a step several ticks long leaves room, rather than by the next
+//! step: the same states to the bit, off the step's tick.
 
 use nalgebra::SVector;
 
@@ -30,6 +33,9 @@ pub(crate) struct IntegerStates<const N: usize> {
     /// `false` until the first step: the states are then read from the
     /// estimate and its residual.
     valid: bool,
+    /// A correction moved the estimate since the states last read it (see
+    /// [`Self::read_moves_between_steps`]).
+    correction_due: bool,
 }
 
 impl<const N: usize> IntegerStates<N> {
@@ -39,7 +45,75 @@ impl<const N: usize> IntegerStates<N> {
             states: [0; N],
             written: [0; N],
             valid: false,
+            correction_due: false,
         }
+    }
+
+    /// Whether a correction's move waits to be read in.
+    pub(crate) const fn correction_due(&self) -> bool {
+        self.correction_due
+    }
+
+    /// A correction moved the estimate: its move is read in on the next
+    /// tick without a step ([`Self::read_moves_between_steps`]), or by the
+    /// next step.
+    pub(crate) fn corrected(&mut self) {
+        self.correction_due = self.valid;
+    }
+
+    /// On a tick without a model step or a reading: reads a correction's
+    /// move of the estimate `x` into the states now, so that the next
+    /// step's tick does not pay for it as well as for the step (on a
+    /// Cortex-M0, two soft conversions per node; the heaviest of the real
+    /// motor's step ticks). The same states to the bit as the step's own
+    /// read (the moves are exact). Returns whether it read them (the tick
+    /// is busy then); a non-finite deviation is left to the step, which
+    /// keeps the estimate.
+    pub(crate) fn read_moves_between_steps<const X: usize>(&mut self, x: &SVector<f32, X>) -> bool {
+        if !core::mem::take(&mut self.correction_due) {
+            return false;
+        }
+        let Some(states) = self.read_moves(x, &[0.0; N]) else {
+            return false;
+        };
+        self.states = states;
+        for (written, xi) in self.written.iter_mut().zip(x.iter()) {
+            *written = xi.to_bits();
+        }
+        true
+    }
+
+    /// The states with the moves of `x` since the last write read in (all
+    /// of `x` and its residual `residual_k` before the first step);
+    /// `None` for a non-finite deviation or residual.
+    #[inline(always)]
+    fn read_moves<const X: usize>(
+        &self,
+        x: &SVector<f32, X>,
+        residual_k: &[f32; N],
+    ) -> Option<[i64; N]> {
+        let mut states = self.states;
+        for (i, (q, xi)) in states.iter_mut().zip(x.iter()).enumerate() {
+            let bits = xi.to_bits();
+            if self.valid && bits == self.written[i] {
+                continue;
+            }
+            if !finite_bits(*xi) {
+                return None;
+            }
+            *q = if self.valid {
+                // Moved since the last step: the move, exactly.
+                let before = f32::from_bits(self.written[i]);
+                q.saturating_add(state_of_f32(*xi).saturating_sub(state_of_f32(before)))
+            } else {
+                let r = residual_k.get(i).copied().unwrap_or(0.0);
+                if !finite_bits(r) {
+                    return None;
+                }
+                state_of_f32(*xi).saturating_add(state_of_f32(r))
+            };
+        }
+        Some(states)
     }
 }
 
@@ -61,27 +135,9 @@ pub(crate) fn integer_predict<const N: usize, const B: usize, const M: usize, co
     let Some(inputs) = FixedInputs::new(&(*power).into(), &(*boundary).into()) else {
         return false;
     };
-    let mut states = memory.states;
-    for (i, (q, xi)) in states.iter_mut().zip(x.iter()).enumerate() {
-        let bits = xi.to_bits();
-        if memory.valid && bits == memory.written[i] {
-            continue;
-        }
-        if !finite_bits(*xi) {
-            return false;
-        }
-        *q = if memory.valid {
-            // Moved since the last step: the move, exactly.
-            let before = f32::from_bits(memory.written[i]);
-            q.saturating_add(state_of_f32(*xi).saturating_sub(state_of_f32(before)))
-        } else {
-            let r = residual_k.get(i).copied().unwrap_or(0.0);
-            if !finite_bits(r) {
-                return false;
-            }
-            state_of_f32(*xi).saturating_add(state_of_f32(r))
-        };
-    }
+    let Some(mut states) = memory.read_moves(x, residual_k) else {
+        return false;
+    };
     step.step(&mut states, &inputs);
     for ((xi, written), q) in x.iter_mut().zip(memory.written.iter_mut()).zip(&states) {
         *xi = f32_of_state(*q);
@@ -89,5 +145,83 @@ pub(crate) fn integer_predict<const N: usize, const B: usize, const M: usize, co
     }
     memory.states = states;
     memory.valid = true;
+    memory.correction_due = false;
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observer::tables::StepTables;
+
+    /// A 2-node step (a winding on a housing tied to the boundary).
+    fn two_nodes() -> FixedStep<2, 1, 1> {
+        FixedStep::of(&StepTables::<2, 1, 1> {
+            phi_minus_i: [[-2e-3, 2e-3], [5e-4, -8e-4]],
+            bd_power: [[1.6e-4], [1e-7]],
+            gd_boundary: [[0.0], [3e-4]],
+            constant_k: [0.0, 0.0],
+        })
+        .expect("tables within the step's scales")
+    }
+
+    /// A correction's move read in on a tick between steps leaves the
+    /// states, and so every later step, the same to the bit as the step's
+    /// own read would; the move is read once (a second light tick reads
+    /// nothing), and not at all before the first step or without a
+    /// correction.
+    #[test]
+    fn a_move_read_between_steps_is_the_steps_own_read() {
+        let step = two_nodes();
+        let (power, boundary) = (SVector::from([40.0]), SVector::from([0.5]));
+        let mut x = SVector::<f32, 3>::from([3.0, 1.0, 0.25]);
+        let mut early = IntegerStates::<2>::new();
+        early.corrected();
+        assert!(!early.correction_due(), "nothing to read before a step");
+        let mut late = early;
+        let mut x_late = x;
+        for _ in 0..5 {
+            assert!(integer_predict(
+                &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
+            ));
+            assert!(integer_predict(
+                &step,
+                &mut late,
+                &mut x_late,
+                &[0.0; 2],
+                &power,
+                &boundary
+            ));
+            // The correction: a move of each deviation, the bias untouched.
+            for xs in [&mut x, &mut x_late] {
+                xs[0] -= 0.3125e-2;
+                xs[1] += 1.7e-3;
+            }
+            early.corrected();
+            late.corrected();
+            assert!(early.read_moves_between_steps(&x));
+            assert!(!early.read_moves_between_steps(&x), "read once");
+        }
+        assert!(integer_predict(
+            &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
+        ));
+        assert!(integer_predict(
+            &step,
+            &mut late,
+            &mut x_late,
+            &[0.0; 2],
+            &power,
+            &boundary
+        ));
+        assert_eq!(early.states, late.states);
+        assert_eq!(x, x_late);
+        assert!(!late.correction_due(), "the step read it");
+        // A non-finite deviation is left to the step, which keeps the
+        // estimate.
+        x[1] = f32::NAN;
+        early.corrected();
+        let before = early.states;
+        assert!(!early.read_moves_between_steps(&x));
+        assert_eq!(early.states, before);
+    }
 }
