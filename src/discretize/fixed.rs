@@ -60,6 +60,11 @@
 
 use crate::observer::StepTables;
 
+#[cfg(feature = "integer-step")]
+mod memory;
+#[cfg(feature = "integer-step")]
+pub(crate) use memory::{step_in_memory, StepMemory};
+
 /// Fractional bits of a node's state: Q16.48 in an `i64`.
 pub const STATE_FRACTION_BITS: u32 = 48;
 /// Fractional bits of a temperature the step multiplies: Q12.20 in an `i32`.

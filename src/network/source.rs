@@ -219,9 +219,16 @@ impl DeviationResistance {
     }
 
     /// The line's value \[ohm\] at the deviation `dev_k` \[K\] from the
-    /// origin, not floored (NaN in, NaN out).
+    /// origin, not floored (NaN in, NaN out), but for a constant
+    /// resistance (a zero slope: a resistor, a loss carried through 1 ohm),
+    /// which is `R(T_0)` at any deviation.
     #[inline]
     pub fn line_ohm(&self, dev_k: f32) -> f32 {
+        // A zero slope (either sign), tested on its bits: on a core without
+        // an FPU the multiply-add it spares is two soft-float calls.
+        if self.slope_ohm_per_k.to_bits() << 1 == 0 {
+            return self.r_at_origin_ohm;
+        }
         self.r_at_origin_ohm + self.slope_ohm_per_k * dev_k
     }
 
@@ -319,6 +326,13 @@ mod tests {
                 .is_nan());
             assert_eq!(about.resistance_ohm(f32::NAN), 0.0);
             assert!(about.current_for_voltage_a(f32::NAN, 12.0).is_nan());
+        }
+        // A constant resistance (a loss carried through 1 ohm) is 1 ohm at
+        // any deviation, even one no temperature has.
+        let loss = DeviationResistance::about(&Resistance::constant(1.0).to_scalar::<f32>(), 40.0);
+        for dev_k in [-1e4f32, 0.0, 37.5, f32::INFINITY, f32::NAN] {
+            assert_eq!(loss.resistance_ohm(dev_k), 1.0, "{dev_k}");
+            assert_eq!(loss.current_for_voltage_a(dev_k, 3.0), 3.0, "{dev_k}");
         }
     }
 }

@@ -38,7 +38,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::vocabulary::SensorStatus;
 #[cfg(feature = "integer-step")]
-use crate::discretize::fixed::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
+use crate::discretize::fixed::{step_in_memory, FixedStep, StepMemory};
 use crate::error::BuildError;
 use crate::network::{compensated_add, DeviationResistance};
 use crate::protect::margin::UpperBound;
@@ -944,6 +944,10 @@ pub(crate) struct ShadowState<const N: usize, const M: usize> {
     dev_k: [f32; N],
     residual_k: [f32; N],
     block: BlockMean<M>,
+    /// The integer block step's own states, whose image `dev_k` is (see
+    /// [`StepMemory`]); unused by the `f32` block step.
+    #[cfg(feature = "integer-step")]
+    integer: StepMemory<N>,
 }
 
 impl<const N: usize, const M: usize> ShadowState<N, M> {
@@ -953,6 +957,8 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
             dev_k,
             residual_k: [0.0; N],
             block: BlockMean::new(),
+            #[cfg(feature = "integer-step")]
+            integer: StepMemory::new(),
         }
     }
 
@@ -974,6 +980,8 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
     pub(crate) fn reseed(&mut self, dev_k: [f32; N]) {
         self.dev_k = dev_k;
         self.residual_k = [0.0; N];
+        #[cfg(feature = "integer-step")]
+        self.integer.forget();
     }
 }
 
@@ -1094,13 +1102,12 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     }
 }
 
-/// A shadow block's step in integer arithmetic: the deviation and its
-/// carry as one Q16.48 state per node, the model's integer step
-/// ([`FixedStep`], the block's tables), the result split back into the
-/// deviation and its carry. Once a block, so the conversions cost little
-/// against the block's products in soft-float (about 5 900 instructions
-/// for 3 nodes on a Cortex-M0). A non-finite input or deviation (only a
-/// corrupted state) keeps the shadow where it is, as the `f32` step does.
+/// A shadow block's step in integer arithmetic: the block's tables
+/// ([`FixedStep`]) on the shadow's own Q16.48 states, kept between blocks
+/// ([`StepMemory`]; read from the deviation and its carry before the first
+/// block and after a reseed), the deviations their image. A non-finite
+/// input or deviation (only a corrupted state) keeps the shadow where it
+/// is, as the `f32` step does.
 #[cfg(feature = "integer-step")]
 fn integer_block_step<const N: usize, const B: usize, const M: usize>(
     step: &FixedStep<N, B, M>,
@@ -1108,26 +1115,14 @@ fn integer_block_step<const N: usize, const B: usize, const M: usize>(
     powers_w: &[f32; M],
     boundary_k: &[f32; B],
 ) {
-    let Some(inputs) = FixedInputs::new(powers_w, boundary_k) else {
-        return;
-    };
-    let mut states = [0i64; N];
-    for ((q, x), r) in states.iter_mut().zip(&state.dev_k).zip(&state.residual_k) {
-        if !finite_bits(*x) || !finite_bits(*r) {
-            return;
-        }
-        *q = state_of_f32(*x).saturating_add(state_of_f32(*r));
-    }
-    step.step(&mut states, &inputs);
-    for ((x, r), q) in state
-        .dev_k
-        .iter_mut()
-        .zip(state.residual_k.iter_mut())
-        .zip(&states)
-    {
-        *x = f32_of_state(*q);
-        *r = f32_of_state(q.saturating_sub(state_of_f32(*x)));
-    }
+    step_in_memory(
+        step,
+        &mut state.integer,
+        &mut state.dev_k,
+        &state.residual_k,
+        powers_w,
+        boundary_k,
+    );
 }
 
 #[cfg(test)]

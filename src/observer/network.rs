@@ -425,6 +425,8 @@ use super::vocabulary::{
     FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
 };
 use super::warm_up::Flavour;
+#[cfg(feature = "integer-step")]
+use crate::discretize::fixed::{step_in_memory, StepMemory};
 use crate::discretize::zoh;
 use crate::error::{check, BuildError};
 use crate::filter::{
@@ -440,8 +442,6 @@ use crate::protect::limiter::{drive_limit, DriveLimit};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
 use crate::protect::predict::{LimitPredictor, Operating, PredictorState};
-#[cfg(feature = "integer-step")]
-use integer::{integer_predict, IntegerStates};
 
 /// Alternating projections of the heat biases' and the boundary offset's
 /// floors after a correction (see [`NetworkSettings::boundary_offset`]).
@@ -1000,7 +1000,7 @@ pub struct NetworkObserverState<
     pub residual_k: [f32; N],
     /// The integer step's own states (with the `integer-step` feature).
     #[cfg(feature = "integer-step")]
-    integer: IntegerStates<N>,
+    integer: StepMemory<N>,
     held_currents_a: [f32; M],
     held_boundary_c: [f32; B],
     /// The time not yet simulated.
@@ -1196,7 +1196,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             estimate: SteadyEstimate::new(x),
             residual_k: [0.0; N],
             #[cfg(feature = "integer-step")]
-            integer: IntegerStates::new(),
+            integer: StepMemory::new(),
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             mean_limits,
@@ -1335,7 +1335,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 && state.integer.correction_due()
                 && readings.iter().all(Option::is_none)
             {
-                return state.integer.read_moves_between_steps(&state.estimate.x);
+                return state
+                    .integer
+                    .read_moves_between_steps(state.estimate.x.as_slice());
             }
             return block_stepped;
         }
@@ -1445,13 +1447,13 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ) -> Option<bool> {
         #[cfg(feature = "integer-step")]
         if let Some(step) = &self.integer_step {
-            return Some(integer_predict(
+            return Some(step_in_memory(
                 step,
                 &mut state.integer,
-                &mut state.estimate.x,
+                state.estimate.x.as_mut_slice(),
                 &state.residual_k,
-                power,
-                boundary,
+                &(*power).into(),
+                &(*boundary).into(),
             ));
         }
         #[cfg(not(feature = "integer-step"))]
@@ -1743,7 +1745,15 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// limited element, each current held at its hardware limit times the
     /// smallest factor of the elements it heats.
     fn limit(&self, out: &mut NetworkOutputs<N, M, P>, ambient_c: f32) {
-        let limits_c = self.alarm.alarm_limits_c(ambient_c);
+        let mut limits_c = self.alarm.alarm_limits_c(ambient_c);
+        // Only the limited elements' factors are read below: an infinite
+        // limit makes the limiter pass the others over at the cost of a
+        // test (their taper, root and weight are soft-float on an M0).
+        for (limit_c, limited) in limits_c.iter_mut().zip(&self.limited) {
+            if !limited {
+                *limit_c = f32::INFINITY;
+            }
+        }
         let mut factors = [CoilLimit::<f32>::default(); N];
         self.limiter
             .apply(&out.upper_c, &limits_c, ambient_c, &mut factors);
@@ -2559,8 +2569,6 @@ impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
 }
 
 mod bias;
-#[cfg(feature = "integer-step")]
-mod integer;
 mod parts;
 pub mod resistance;
 pub use super::warm_up::{NoWarmUp, WarmUp};

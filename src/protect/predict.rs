@@ -120,6 +120,8 @@
 //! inputs give `Some(NaN)` for every element ("unknown"), which the alarm
 //! counts as below the horizon.
 
+use core::ops::Range;
+
 use nalgebra::RealField;
 
 use super::modal::Modal;
@@ -642,7 +644,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             modes: [T::zero(); N],
             valid: true,
         };
-        self.start_snapshot(&mut snapshot, powers_w);
+        self.start_snapshot(&mut snapshot, powers_w, 0..N);
         self.finish_steady(&mut snapshot, op);
         snapshot
     }
@@ -668,20 +670,33 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         snapshot
     }
 
-    /// A snapshot's first part (a split sweep's first stage): `headroom_k`
+    /// A snapshot's first part (a split sweep's first stages): `headroom_k`
     /// takes the steady state's sum over the fixed powers and the
-    /// windings' `powers_w` \[W\] (valid if they are finite), for
+    /// windings' `powers_w` \[W\] for the rows in `rows` (the snapshot is
+    /// valid if the powers are finite, set with the first row), for
     /// [`Self::finish_steady`] to complete.
-    fn start_snapshot(&self, snapshot: &mut Snapshot<T, N>, powers_w: &[T; M]) {
-        snapshot.valid = powers_w.iter().all(|p| p.is_finite());
-        let rows = snapshot
+    #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
+    fn start_snapshot(&self, snapshot: &mut Snapshot<T, N>, powers_w: &[T; M], rows: Range<usize>) {
+        if rows.start == 0 {
+            snapshot.valid = powers_w.iter().all(|p| p.is_finite());
+        }
+        let all = snapshot
             .headroom_k
             .iter_mut()
             .zip(&self.gain_power)
             .zip(&self.offset_c);
-        for ((sum, gp), k) in rows {
-            *sum = dot_onto(*k, gp, powers_w);
+        for (r, ((sum, gp), k)) in all.enumerate() {
+            if rows.contains(&r) {
+                *sum = dot_onto(*k, gp, powers_w);
+            }
         }
+    }
+
+    /// Rows of [`Self::start_snapshot`] a split sweep's stage forms: as
+    /// many products as an amplitude stage's `elements_per_tick` rows of
+    /// `N` (each row is `M` products), at least one.
+    fn windings_rows_per_stage(&self) -> usize {
+        self.elements_per_tick.saturating_mul((N / M.max(1)).max(1))
     }
 
     /// A snapshot's second part (a split sweep's second stage): the
@@ -840,6 +855,12 @@ fn mode<T: RealField + Copy, const N: usize>(v_inv_row: &[T; N], from_steady: &[
 #[cfg(not(target_abi = "eabihf"))]
 #[inline(always)]
 fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
+    if w.slope_ohm_per_k == T::zero() {
+        // A constant resistance (a resistor, a loss carried through 1
+        // ohm): its `R` at any temperature, with no choice to make (an
+        // infinite temperature marks the snapshot invalid all the same).
+        return w.r_at_0c_ohm;
+    }
     // A NaN temperature is dropped (a NaN `limit` compares with nothing),
     // as `max` of the two `R`s drops its NaN `R`: compares, not `fmaxf`
     // and `fminf` (the M0 footprint).
@@ -878,6 +899,10 @@ fn larger_resistance_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T)
 #[cfg_attr(not(target_abi = "eabihf"), cold, inline(never))]
 #[cfg_attr(target_abi = "eabihf", inline(always))]
 fn both_resistances_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) -> T {
+    if w.slope_ohm_per_k == T::zero() {
+        // A constant resistance, as [`larger_resistance_ohm`] takes it.
+        return w.r_at_0c_ohm;
+    }
     let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
     at(temp).max(at(limit))
 }
@@ -1012,6 +1037,10 @@ pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]>
     published: [Crossing<T>; N],
     published_age_s: T,
     peak_power_w: [T; M],
+    /// The peak powers the sweep in progress took at its start \[W\]
+    /// (the peak starts over then), kept while its stages form the
+    /// windings' part of its steady state.
+    snapshot_power_w: [T; M],
     out: A,
 }
 
@@ -1020,6 +1049,10 @@ pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]>
 enum SweepPhase {
     /// No sweep runs: the next stage takes a snapshot.
     Idle,
+    /// A split sweep forms the windings' part of its steady state, some
+    /// rows a stage from `next_element` on
+    /// ([`LimitPredictor::start_snapshot`]).
+    Windings,
     /// A split sweep has the windings' part of its steady state: the
     /// next stage completes it with the boundaries, the headroom and `T_0
     /// - T_ss` ([`LimitPredictor::finish_steady`]).
@@ -1054,6 +1087,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
             published: first,
             published_age_s: T::zero(),
             peak_power_w: powers,
+            snapshot_power_w: powers,
             out: A::made(&first, |c| published(c, T::zero())),
         }
     }
@@ -1155,12 +1189,30 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         powers_w: &[T; M],
     ) {
         match self.phase {
-            SweepPhase::Idle => {
-                predictor.start_snapshot(&mut self.snapshot, &self.peak_power_w);
-                self.peak_power_w = *powers_w;
-                self.sweep = [Crossing::Open; N];
-                self.sweep_age_s = T::zero();
-                self.phase = SweepPhase::Powers;
+            SweepPhase::Idle | SweepPhase::Windings => {
+                if self.phase == SweepPhase::Idle {
+                    // The sweep starts at the peak so far; the next peak
+                    // starts over.
+                    self.snapshot_power_w = self.peak_power_w;
+                    self.peak_power_w = *powers_w;
+                    self.sweep = [Crossing::Open; N];
+                    self.sweep_age_s = T::zero();
+                    self.next_element = 0;
+                }
+                // The windings' part, some rows a stage, at the powers
+                // frozen at the start.
+                let first = self.next_element;
+                let end = first
+                    .saturating_add(predictor.windings_rows_per_stage())
+                    .min(N);
+                predictor.start_snapshot(&mut self.snapshot, &self.snapshot_power_w, first..end);
+                if end < N {
+                    self.next_element = end;
+                    self.phase = SweepPhase::Windings;
+                } else {
+                    self.next_element = 0;
+                    self.phase = SweepPhase::Powers;
+                }
             }
             SweepPhase::Powers => {
                 predictor.finish_steady(&mut self.snapshot, op);

@@ -795,7 +795,9 @@ fn any_f32() -> impl Strategy<Value = f32> {
 proptest! {
     /// The conservative resistance, `R` of the warmer temperature (the
     /// cooler for a negative slope), is the larger of the two `R`s to the
-    /// bit, NaN where that is NaN, for any inputs.
+    /// bit, NaN where that is NaN, for any inputs; a constant resistance
+    /// (a zero slope) is `R(0 degC)` at any temperature, an infinite one
+    /// too.
     #[test]
     fn the_conservative_resistance_is_the_larger_of_the_two_to_the_bit(
         temp in any_f32(), limit in any_f32(), r0 in any_f32(), slope in any_f32(),
@@ -816,7 +818,7 @@ proptest! {
         operating.limits_c[0] = limit;
         let got = predictor.conservative_resistance_ohm(&winding, &operating);
         // The two `R`s, the larger kept (`max` drops a NaN operand).
-        let at = |t: f32| r0 + slope * t;
+        let at = |t: f32| if slope == 0.0 { r0 } else { r0 + slope * t };
         let r = at(temp).max(at(limit));
         let want = if r > 0.0 { r } else if r.is_finite() { 0.0 } else { f32::NAN };
         prop_assert!(
@@ -868,7 +870,11 @@ proptest! {
             modes: [f32::NAN; 4],
             valid: false,
         };
-        predictor.start_snapshot(&mut parts, &powers);
+        // The windings' part in stages of rows (a split sweep's), as one
+        // pass over them would form it.
+        for rows in [0..1, 1..3, 3..4] {
+            predictor.start_snapshot(&mut parts, &powers, rows);
+        }
         predictor.finish_steady(&mut parts, &operating);
         let (steady, from_steady) =
             predictor.steady_and_offset(&temps, &powers, &boundary, true);

@@ -1,9 +1,10 @@
-//! The network observer's model step in integer arithmetic (the
-//! `integer-step` feature; see "The model step in integer arithmetic" in
-//! the parent module).
+//! The integer step's memory between steps, for an observer whose `f32`
+//! estimate is the image of the step's own states: the network observer's
+//! estimate and its shadow's (see "The model step in integer arithmetic"
+//! in [`crate::observer::network`]).
 //!
 //! The step's own state, one Q16.48 temperature per node, stays in the
-//! observer state between steps ([`IntegerStates`]), and the `f32`
+//! observer state between steps ([`StepMemory`]), and the `f32`
 //! estimate is its image. Reading the estimate back into the integer state
 //! every step (two `f32` conversions per node) and writing what the image
 //! does not hold into a residual (two more) cost more on a Cortex-M0 than
@@ -14,18 +15,16 @@
 //! 2^-48 K within the state's range), so a correction moves what the next
 //! step starts from, and nothing the integer state held below the image's
 //! last bit is lost. A correction's move is read on the first tick without
-//! a step or a reading after it ([`IntegerStates::read_moves_between_steps`]),
+//! a step or a reading after it ([`StepMemory::read_moves_between_steps`]),
 //! where a step several ticks long leaves room, rather than by the next
 //! step: the same states to the bit, off the step's tick.
 
-use nalgebra::SVector;
-
-use crate::discretize::fixed::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
+use super::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
 
 /// The integer step's memory in an observer state: each node's Q16.48
 /// deviation \[K\] and the bits of the `f32` estimate it last wrote.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct IntegerStates<const N: usize> {
+pub(crate) struct StepMemory<const N: usize> {
     /// Q16.48 deviations from the origin \[K\].
     states: [i64; N],
     /// The `f32` bits the last step wrote to each deviation.
@@ -38,7 +37,7 @@ pub(crate) struct IntegerStates<const N: usize> {
     correction_due: bool,
 }
 
-impl<const N: usize> IntegerStates<N> {
+impl<const N: usize> StepMemory<N> {
     /// No step taken yet.
     pub(crate) const fn new() -> Self {
         Self {
@@ -47,6 +46,13 @@ impl<const N: usize> IntegerStates<N> {
             valid: false,
             correction_due: false,
         }
+    }
+
+    /// The estimate was set anew, its carry with it (a shadow reseeded):
+    /// the next step reads it whole, as before the first step.
+    pub(crate) fn forget(&mut self) {
+        self.valid = false;
+        self.correction_due = false;
     }
 
     /// Whether a correction's move waits to be read in.
@@ -69,7 +75,7 @@ impl<const N: usize> IntegerStates<N> {
     /// read (the moves are exact). Returns whether it read them (the tick
     /// is busy then); a non-finite deviation is left to the step, which
     /// keeps the estimate.
-    pub(crate) fn read_moves_between_steps<const X: usize>(&mut self, x: &SVector<f32, X>) -> bool {
+    pub(crate) fn read_moves_between_steps(&mut self, x: &[f32]) -> bool {
         if !core::mem::take(&mut self.correction_due) {
             return false;
         }
@@ -87,11 +93,7 @@ impl<const N: usize> IntegerStates<N> {
     /// of `x` and its residual `residual_k` before the first step);
     /// `None` for a non-finite deviation or residual.
     #[inline(always)]
-    fn read_moves<const X: usize>(
-        &self,
-        x: &SVector<f32, X>,
-        residual_k: &[f32; N],
-    ) -> Option<[i64; N]> {
+    fn read_moves(&self, x: &[f32], residual_k: &[f32; N]) -> Option<[i64; N]> {
         let mut states = self.states;
         for (i, (q, xi)) in states.iter_mut().zip(x.iter()).enumerate() {
             let bits = xi.to_bits();
@@ -117,22 +119,23 @@ impl<const N: usize> IntegerStates<N> {
     }
 }
 
-/// One model step of the deviations `x` (their first `N` entries) with
-/// the Joule powers `power` \[W\] and boundary deviations `boundary` \[K\].
-/// `false` (nothing changed) for a non-finite input or deviation (only a
-/// corrupted state gets one): the caller keeps its estimate, as the `f32`
-/// step does. Out of line, so that the tick around it keeps its
-/// registers.
+/// One model step of the deviations `x` \[K\] (their first `N` entries;
+/// a `f32` estimate whose image the memory keeps, `residual_k` its carry
+/// \[K\], read before the first step only) with the Joule powers
+/// `powers_w` \[W\] and boundary deviations `boundary_k` \[K\]. `false`
+/// (nothing changed) for a non-finite input or deviation (only a corrupted
+/// state gets one): the caller keeps its estimate, as the `f32` step does.
+/// Out of line, so that the tick around it keeps its registers.
 #[inline(never)]
-pub(crate) fn integer_predict<const N: usize, const B: usize, const M: usize, const X: usize>(
+pub(crate) fn step_in_memory<const N: usize, const B: usize, const M: usize>(
     step: &FixedStep<N, B, M>,
-    memory: &mut IntegerStates<N>,
-    x: &mut SVector<f32, X>,
+    memory: &mut StepMemory<N>,
+    x: &mut [f32],
     residual_k: &[f32; N],
-    power: &SVector<f32, M>,
-    boundary: &SVector<f32, B>,
+    powers_w: &[f32; M],
+    boundary_k: &[f32; B],
 ) -> bool {
-    let Some(inputs) = FixedInputs::new(&(*power).into(), &(*boundary).into()) else {
+    let Some(inputs) = FixedInputs::new(powers_w, boundary_k) else {
         return false;
     };
     let Some(mut states) = memory.read_moves(x, residual_k) else {
@@ -152,7 +155,7 @@ pub(crate) fn integer_predict<const N: usize, const B: usize, const M: usize, co
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::observer::tables::StepTables;
+    use crate::observer::StepTables;
 
     /// A 2-node step (a winding on a housing tied to the boundary).
     fn two_nodes() -> FixedStep<2, 1, 1> {
@@ -173,18 +176,18 @@ mod tests {
     #[test]
     fn a_move_read_between_steps_is_the_steps_own_read() {
         let step = two_nodes();
-        let (power, boundary) = (SVector::from([40.0]), SVector::from([0.5]));
-        let mut x = SVector::<f32, 3>::from([3.0, 1.0, 0.25]);
-        let mut early = IntegerStates::<2>::new();
+        let (power, boundary) = ([40.0], [0.5]);
+        let mut x = [3.0f32, 1.0, 0.25];
+        let mut early = StepMemory::<2>::new();
         early.corrected();
         assert!(!early.correction_due(), "nothing to read before a step");
         let mut late = early;
         let mut x_late = x;
         for _ in 0..5 {
-            assert!(integer_predict(
+            assert!(step_in_memory(
                 &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
             ));
-            assert!(integer_predict(
+            assert!(step_in_memory(
                 &step,
                 &mut late,
                 &mut x_late,
@@ -202,10 +205,10 @@ mod tests {
             assert!(early.read_moves_between_steps(&x));
             assert!(!early.read_moves_between_steps(&x), "read once");
         }
-        assert!(integer_predict(
+        assert!(step_in_memory(
             &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
         ));
-        assert!(integer_predict(
+        assert!(step_in_memory(
             &step,
             &mut late,
             &mut x_late,
