@@ -183,18 +183,20 @@ mod tests {
         assert!(!early.correction_due(), "nothing to read before a step");
         let mut late = early;
         let mut x_late = x;
+        // Both step; `early` alone reads the correction between steps.
+        let step_both = |x: &mut [f32; 3],
+                         x_late: &mut [f32; 3],
+                         early: &mut StepMemory<2>,
+                         late: &mut StepMemory<2>| {
+            assert!(step_in_memory(
+                &step, early, x, &[0.0; 2], &power, &boundary
+            ));
+            assert!(step_in_memory(
+                &step, late, x_late, &[0.0; 2], &power, &boundary
+            ));
+        };
         for _ in 0..5 {
-            assert!(step_in_memory(
-                &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
-            ));
-            assert!(step_in_memory(
-                &step,
-                &mut late,
-                &mut x_late,
-                &[0.0; 2],
-                &power,
-                &boundary
-            ));
+            step_both(&mut x, &mut x_late, &mut early, &mut late);
             // The correction: a move of each deviation, the bias untouched.
             for xs in [&mut x, &mut x_late] {
                 xs[0] -= 0.3125e-2;
@@ -205,17 +207,7 @@ mod tests {
             assert!(early.read_moves_between_steps(&x));
             assert!(!early.read_moves_between_steps(&x), "read once");
         }
-        assert!(step_in_memory(
-            &step, &mut early, &mut x, &[0.0; 2], &power, &boundary
-        ));
-        assert!(step_in_memory(
-            &step,
-            &mut late,
-            &mut x_late,
-            &[0.0; 2],
-            &power,
-            &boundary
-        ));
+        step_both(&mut x, &mut x_late, &mut early, &mut late);
         assert_eq!(early.states, late.states);
         assert_eq!(x, x_late);
         assert!(!late.correction_due(), "the step read it");
