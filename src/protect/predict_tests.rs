@@ -337,6 +337,46 @@ fn sliced_answers_are_the_full_answers_aged() {
     }
 }
 
+/// With more windings than a stage's budget (`elements_per_tick * N / M`
+/// rows: one element, four nodes and two windings make two rows a stage),
+/// the windings' part of the steady state takes stages of its own, all at
+/// the peak powers of the sweep's start: a current that rises during them
+/// counts in the next sweep, not in half of this one's rows. The snapshot
+/// is the one of the start's powers to the bit.
+#[test]
+fn a_split_sweeps_windings_rows_take_the_powers_of_its_start() {
+    let network = Network::<4, 1, 2>::new([40.0, 55.0, 300.0, 9.0])
+        .and_then(|n| n.joule_source(0, 0, Resistance::HPPA_COIL))
+        .and_then(|n| n.joule_source(1, 1, Resistance::HPPA_COIL))
+        .and_then(|n| n.connect(0, 2, 0.6))
+        .and_then(|n| n.connect(1, 2, 0.9))
+        .and_then(|n| n.connect(2, 3, 0.2))
+        .and_then(|n| n.connect_boundary(2, 0, 1.5))
+        .unwrap();
+    let split = PredictorBuilder::new()
+        .elements_per_tick(1)
+        .build::<f32, 4, 1, 2, 48>(&network)
+        .unwrap();
+    let limits = [90.0; 4];
+    let start = op::<f32, 4, 1, 2>([35.0, 30.0, 25.0, 24.0], [1.6, 0.8], [20.0], limits);
+    let rising = op::<f32, 4, 1, 2>([35.0, 30.0, 25.0, 24.0], [3.0, 2.5], [20.0], limits);
+    let mut state = PredictorState::new(&split, &start);
+    // The first stage freezes the start's peak and forms two rows; the
+    // second, under a higher current, the other two at the same powers.
+    state.tick(&split, &start);
+    assert_eq!((state.phase, state.next_element), (SweepPhase::Windings, 2));
+    state.tick(&split, &rising);
+    assert_eq!((state.phase, state.next_element), (SweepPhase::Powers, 0));
+    state.tick(&split, &start);
+    while state.phase != SweepPhase::Sweeping {
+        state.tick(&split, &start);
+    }
+    let powers = split.conservative_powers_w(&start);
+    assert_eq!(state.snapshot, split.snapshot(&start, &powers));
+    // The rise is the next sweep's peak.
+    assert_eq!(state.peak_power_w, split.conservative_powers_w(&rising));
+}
+
 #[test]
 fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
     // The same sweep with at most 1, 2 or 3 element evaluations per tick
