@@ -996,8 +996,9 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     /// one block step per call). Returns whether a block that waited
     /// stepped (the tick is busy then). `waiting` holds the block that
     /// waits, its sums of square currents (kept apart from `state`, out of
-    /// the tick's hot fields; its mean is formed when it steps); `boundary_c` are the held
-    /// boundaries, `origin_c` the origin \[degC\].
+    /// the tick's hot fields; its mean is formed when it steps);
+    /// `boundary_c` are the held boundaries, `origin_c` the origin
+    /// \[degC\].
     #[allow(clippy::too_many_arguments)]
     // Inlined into the tick on a core with an FPU (its call and prologue
     // are a tenth of the three-phase plain tick there); not on one

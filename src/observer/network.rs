@@ -173,10 +173,10 @@
 //! stage (the predictor's, the alarm, the limiter) waits out up to three
 //! busy ticks in a row (a step's, its block's and a reading's; four with
 //! the integer step's read) before it runs all the same, so that it lands
-//! on a light tick. Unlike the Omnimagnet's, a step here does not wait a tick for a reading's
-//! correction ([`StepClock::defer`]): on the Cortex-M0 its clock code cost
-//! the 2-node footprint 280 B and the M4F ticks up to 8 %, for a worst tick
-//! the stages' waiting lowered instead. The Cortex-M0 run of
+//! on a light tick. Unlike the Omnimagnet's, a step here does not wait a
+//! tick for a reading's correction ([`StepClock::defer`]): on the
+//! Cortex-M0 its clock code cost the 2-node footprint 280 B and the M4F
+//! ticks up to 8 %, for a worst tick the stages' waiting lowered instead. The Cortex-M0 run of
 //! `network_roundtrip` steps every 10 ms on its 1 ms loop
 //! (`drive-3node-integer.toml`): 1 015 instructions a tick on average,
 //! against 4 880 at 1 ms, every printed figure within 10 mK of the 1 ms
