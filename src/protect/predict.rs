@@ -931,10 +931,11 @@ fn first_crossing<T: RealField + Copy>(
     headroom: T,
 ) -> Option<T> {
     let h = b - a;
+    let rise_b = at_b.dq * h;
     // Kink of max(tangent of Q at a, tangent of Q at b), as an offset from a.
     let denominator = at_a.dq - at_b.dq;
     let kink = if denominator < T::zero() {
-        let s = (at_b.q - at_a.q - at_b.dq * h) / denominator;
+        let s = (at_b.q - at_a.q - rise_b) / denominator;
         if s > T::zero() {
             if s < h {
                 s
@@ -948,22 +949,30 @@ fn first_crossing<T: RealField + Copy>(
         h
     };
     let chord = (at_b.p - at_a.p) / h;
-    // Segment 1 on [0, kink]: chord_P - tangent_a; segment 2 on [kink, h].
-    let segments = [
-        (at_a.p - at_a.q, chord - at_a.dq, T::zero(), kink),
-        (at_a.p - at_b.q + at_b.dq * h, chord - at_b.dq, kink, h),
-    ];
-    for (intercept, slope, start, end) in segments {
-        let at_start = intercept + slope * start;
-        if at_start >= headroom {
-            return Some(a + start);
-        }
-        if slope > T::zero() && intercept + slope * end >= headroom {
-            let s = start + (headroom - at_start) / slope;
-            // Rounding can push the root past the segment; the bound reaches
-            // the headroom by `end` in any case.
-            return Some(a + if s < end { s } else { end });
-        }
+    // Segment 1 on [0, kink]: chord_P - tangent_a, from the bound at `a`
+    // itself (not `intercept + slope * 0`: the same bits for a finite slope,
+    // and two soft-float operations fewer on a core without an FPU).
+    let at_start = at_a.p - at_a.q;
+    if at_start >= headroom {
+        return Some(a);
+    }
+    let slope = chord - at_a.dq;
+    if slope > T::zero() && at_start + slope * kink >= headroom {
+        let s = (headroom - at_start) / slope;
+        // Rounding can push the root past the segment; the bound reaches
+        // the headroom by its end in any case.
+        return Some(a + if s < kink { s } else { kink });
+    }
+    // Segment 2 on [kink, h]: chord_P - tangent_b.
+    let intercept = at_a.p - at_b.q + rise_b;
+    let slope = chord - at_b.dq;
+    let at_start = intercept + slope * kink;
+    if at_start >= headroom {
+        return Some(a + kink);
+    }
+    if slope > T::zero() && intercept + slope * h >= headroom {
+        let s = kink + (headroom - at_start) / slope;
+        return Some(a + if s < h { s } else { h });
     }
     None
 }
