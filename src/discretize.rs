@@ -26,6 +26,24 @@ use crate::error::BuildError;
 use crate::network::StateSpace;
 use nalgebra::{RealField, SMatrix, SVector};
 
+/// One step of a network's exact zero-order hold in the network
+/// observer's deviation coordinates (see "f32 without drift" in
+/// [`network`](crate::observer::network)): the model's step
+/// ([`ModelTables`](crate::observer::network::ModelTables)) or the shadow's block of
+/// a correction period ([`ShadowTables`](crate::observer::network::ShadowTables)),
+/// every entry solved in `f64` and rounded once to `f32`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepTables<const N: usize, const B: usize, const M: usize> {
+    /// `Ad - I`, formed in `f64` (dimensionless).
+    pub phi_minus_i: [[f32; N]; N],
+    /// `Bd` of the Joule powers over the step \[K/W\].
+    pub bd_power: [[f32; M]; N],
+    /// `Gd` of the boundaries (dimensionless).
+    pub gd_boundary: [[f32; B]; N],
+    /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
+    pub constant_k: [f32; N],
+}
+
 /// Taylor terms kept at the scaled step.
 const TAYLOR_TERMS: usize = 16;
 /// Most halvings of the step (bounds the loop; `||A h|| < 2^58` always fits).

@@ -58,7 +58,7 @@
 //! every core doubled the ticks there), so it is the file's choice
 //! (docs/cost.md, "The model step in integer arithmetic").
 
-use crate::observer::StepTables;
+use super::StepTables;
 
 #[cfg(feature = "integer-step")]
 mod memory;

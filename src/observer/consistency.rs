@@ -36,7 +36,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::vocabulary::SensorStatus;
+use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
 use crate::discretize::fixed::{step_in_memory, FixedStep, StepMemory};
 use crate::error::BuildError;
@@ -402,6 +402,29 @@ pub(crate) fn stuck_window(correction_period_s: f64) -> u32 {
         n.min(f64::from(u32::MAX)) as u32
     } else {
         2
+    }
+}
+
+/// The checks' settings as the tick's screens take them. Here, not with
+/// the settings in [`super::vocabulary`]: the vocabulary names the
+/// settings, the screens that read them are this module's (and the
+/// vocabulary imports nothing from it).
+impl SensorChecks {
+    /// The consistency band, in the tick's `f32`.
+    pub(crate) fn band(&self) -> Band {
+        Band {
+            offset_k: self.consistency_offset_k as f32,
+            fraction: self.consistency_fraction as f32,
+        }
+    }
+
+    /// The stuck test for readings every `correction_period_s` \[s\].
+    pub(crate) fn stuck_test(&self, correction_period_s: f64) -> StuckTest {
+        StuckTest {
+            threshold_k: self.stuck_threshold_k as f32,
+            tolerance_k: self.stuck_tolerance_k as f32,
+            window: stuck_window(correction_period_s),
+        }
     }
 }
 
@@ -1312,7 +1335,7 @@ mod tests {
     #[cfg(feature = "integer-step")]
     #[test]
     fn the_integer_block_step_follows_the_exact_solution() {
-        use crate::observer::tables::StepTables;
+        use crate::discretize::StepTables;
         let f32_block = one_node_shadow(false);
         let tables = StepTables::<1, 1, 1> {
             phi_minus_i: [[f32_block.phi_minus_i[0]]],

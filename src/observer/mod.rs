@@ -26,6 +26,13 @@
 //! * [`start`]: safe from the first tick without a history (the start's
 //!   covariance, held by the filter and by the upper bound until it
 //!   settles) and the restore whose off time only the sensors know.
+//!
+//! The modules import each other in layers, with no cycle: the
+//! vocabulary and the clock below the shared rules (the consistency
+//! screens, the protection cycle, the tables), those below the three
+//! observers; and nothing here is imported by the layers under the
+//! observers (`discretize`, `filter`, `protect`, ...). The host test
+//! `module_layers` reads the source and holds this.
 
 pub mod clock;
 mod consistency;

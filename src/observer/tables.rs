@@ -27,6 +27,7 @@ use core::fmt::{self, Write};
 
 use super::clock::StepClock;
 use super::consistency::{Band, BiasBound, StuckTest};
+pub use crate::discretize::StepTables;
 use crate::error::BuildError;
 use crate::filter::{GatePolicy, KalmanConfig};
 use crate::protect::alarm::AlarmConfig;
@@ -282,24 +283,9 @@ impl<const M: usize> ChecksTables<M> {
     }
 }
 
-/// One step of a network's exact zero-order hold in the network
-/// observer's deviation coordinates (see "f32 without drift" in
-/// [`network`](super::network)): the model's step
-/// ([`ModelTables`](super::network::ModelTables)) or the shadow's block of
-/// a correction period ([`ShadowTables`](super::network::ShadowTables)),
-/// every entry solved in `f64` and rounded once to `f32`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepTables<const N: usize, const B: usize, const M: usize> {
-    /// `Ad - I`, formed in `f64` (dimensionless).
-    pub phi_minus_i: [[f32; N]; N],
-    /// `Bd` of the Joule powers over the step \[K/W\].
-    pub bd_power: [[f32; M]; N],
-    /// `Gd` of the boundaries (dimensionless).
-    pub gd_boundary: [[f32; B]; N],
-    /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
-    pub constant_k: [f32; N],
-}
-
+/// Its checks live with the other tables' (the struct is
+/// [`crate::discretize::StepTables`]: the discretisation's, which its
+/// integer step reads without importing the observer).
 impl<const N: usize, const B: usize, const M: usize> StepTables<N, B, M> {
     /// Every entry finite.
     pub(crate) const fn is_finite(&self) -> bool {

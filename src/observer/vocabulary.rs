@@ -5,7 +5,6 @@
 //! the consistency screen and the protection cycle all use them).
 
 use super::clock::TickSteps;
-use super::consistency::{stuck_window, Band, StuckTest};
 use crate::error::{check, BuildError};
 use crate::input::InputFlags;
 use crate::protect::alarm::AlarmStatus;
@@ -168,23 +167,6 @@ impl SensorChecks {
             !self.max_element_sigma_k.is_nan() && self.max_element_sigma_k > 0.0,
             "max_element_sigma_k",
         )
-    }
-
-    /// The consistency band, in the tick's `f32`.
-    pub(crate) fn band(&self) -> Band {
-        Band {
-            offset_k: self.consistency_offset_k as f32,
-            fraction: self.consistency_fraction as f32,
-        }
-    }
-
-    /// The stuck test for readings every `correction_period_s` \[s\].
-    pub(crate) fn stuck_test(&self, correction_period_s: f64) -> StuckTest {
-        StuckTest {
-            threshold_k: self.stuck_threshold_k as f32,
-            tolerance_k: self.stuck_tolerance_k as f32,
-            window: stuck_window(correction_period_s),
-        }
     }
 
     /// Refuses an element with a limit (`limited`) whose steady standard

@@ -155,7 +155,7 @@ pub(crate) fn step_in_memory<const N: usize, const B: usize, const M: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::observer::StepTables;
+    use crate::discretize::StepTables;
 
     /// A 2-node step (a winding on a housing tied to the boundary).
     fn two_nodes() -> FixedStep<2, 1, 1> {
