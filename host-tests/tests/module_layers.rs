@@ -2,7 +2,8 @@
 //! between its files (issue 37 item 1: vocabulary every observer uses is
 //! defined once, in a module no device owns, and `src/observer/` has no
 //! import cycle; nor does the crate: `discretize` does not reach back
-//! into `observer`).
+//! into `observer`), and README's "Layers" table lists the top-level
+//! modules bottom up: each imports only those above it (and `error`).
 //!
 //! Read from the source as text: each file of `src/` (the test modules,
 //! files whose name ends in `tests`, and each file's own `mod tests`
@@ -282,6 +283,51 @@ fn the_librarys_modules_import_each_other_without_a_cycle() {
     assert!(graph["observer::consistency"].contains("discretize::fixed"));
     if let Some(cycle) = find_cycle(&graph) {
         panic!("an import cycle: {}", cycle.join(" -> "));
+    }
+}
+
+/// The modules of README's "Layers" table, in its order (bottom up).
+fn readme_layers() -> Vec<String> {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../README.md"))
+            .expect("read README.md");
+    let section = readme
+        .split("\n## Layers\n")
+        .nth(1)
+        .expect("README has a Layers section");
+    let section = section.split("\n## ").next().unwrap_or(section);
+    section
+        .lines()
+        .filter_map(|line| line.strip_prefix("| `"))
+        .filter_map(|row| row.split('`').next())
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn each_layer_of_readme_imports_only_the_layers_below_it() {
+    let layers = readme_layers();
+    let graph = library_graph();
+    let top = |module: &str| module.split("::").next().unwrap_or("").to_string();
+    // Every top-level module is in the table, but `error`, which all use.
+    let tops: BTreeSet<String> = graph.keys().map(|m| top(m)).collect();
+    for module in &tops {
+        assert!(
+            module == "error" || layers.contains(module),
+            "module `{module}` is missing from README's Layers table {layers:?}"
+        );
+    }
+    for (module, targets) in &graph {
+        let Some(at) = layers.iter().position(|l| *l == top(module)) else {
+            continue;
+        };
+        for target in targets.iter().map(|t| top(t)) {
+            let below = target == "error" || layers[..at].contains(&target);
+            assert!(
+                below || target == top(module),
+                "`{module}` imports `{target}`, which README's Layers table puts above it"
+            );
+        }
     }
 }
 
