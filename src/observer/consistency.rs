@@ -744,21 +744,22 @@ impl<const P: usize> DriftHold<P> {
             ) else {
                 continue;
             };
-            let nu = t - g.estimate_c;
-            let nis = nu * nu / g.innovation_var_k2;
-            // NaN refuses: no verdict is no admission.
-            let refused = nis.is_nan() || nis > threshold;
             if g.rejections == 0 {
                 *spent = false;
             }
             let colder = t < *shadow && t < g.estimate_c;
+            if !*held && (*spent || suspect_after == 0 || g.rejections < suspect_after || !colder) {
+                // Not in question (a healthy sensor's every reading): its
+                // innovation's NIS is not formed (a soft-float multiply
+                // and division fewer on a core without an FPU).
+                continue;
+            }
+            let nu = t - g.estimate_c;
+            let nis = nu * nu / g.innovation_var_k2;
+            // NaN refuses: no verdict is no admission.
+            let refused = nis.is_nan() || nis > threshold;
             if !*held {
-                if *spent
-                    || suspect_after == 0
-                    || g.rejections < suspect_after
-                    || !colder
-                    || !refused
-                {
+                if !refused {
                     continue;
                 }
                 *held = true;
@@ -1564,6 +1565,12 @@ mod tests {
     /// test 1 K within 10 readings): whether each reading of `readings`
     /// is held, the gate refusing every reading it is offered.
     fn holds(readings: impl Iterator<Item = f32>) -> Vec<bool> {
+        holds_against(readings, 50.0)
+    }
+
+    /// [`holds`] with the estimate at `estimate_c` \[degC\] (the shadow
+    /// at 50 degC).
+    fn holds_against(readings: impl Iterator<Item = f32>, estimate_c: f32) -> Vec<bool> {
         let mut hold = DriftHold::<1>::new();
         let stuck = StuckTest {
             tolerance_k: 0.0,
@@ -1576,7 +1583,7 @@ mod tests {
                 let mut samples = [Some(t)];
                 let mut statuses = [SensorStatus::NoReading];
                 let gate = [GateView {
-                    estimate_c: 50.0,
+                    estimate_c,
                     innovation_var_k2: 0.1,
                     rejections,
                 }];
@@ -1591,7 +1598,7 @@ mod tests {
                 );
                 assert_eq!(held, samples[0].is_none());
                 if !held {
-                    let nis = (t - 50.0) * (t - 50.0) / 0.1;
+                    let nis = (t - estimate_c) * (t - estimate_c) / 0.1;
                     rejections = if nis > 10.83 { rejections + 1 } else { 0 };
                 }
                 held
@@ -1625,6 +1632,20 @@ mod tests {
         assert!(held[2..11].iter().all(|h| *h), "{held:?}");
         assert!(held[11..].iter().all(|h| !*h), "{held:?}");
         assert!(holds(core::iter::repeat_n(52.0, 40)).iter().all(|h| !*h));
+    }
+
+    /// A reading below the shadow but above the estimate is not held,
+    /// however often the gate refuses it: it is not colder than the
+    /// physics, the estimate is (the gate's own business).
+    #[test]
+    fn a_reading_between_the_estimate_and_the_shadow_is_not_held() {
+        // 3 K above the estimate: NIS 90 against the gate's 10.83.
+        let held = holds_against(core::iter::repeat_n(48.0, 40), 45.0);
+        assert!(held.iter().all(|h| !*h), "{held:?}");
+        // The same reading against an estimate at the shadow is held.
+        assert!(holds(core::iter::repeat_n(48.0, 40))[2..11]
+            .iter()
+            .all(|h| *h));
     }
 
     #[test]
