@@ -1196,7 +1196,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             estimate: SteadyEstimate::new(x),
             residual_k: [0.0; N],
             #[cfg(feature = "integer-step")]
-            integer: StepMemory::new(),
+            integer: if self.integer_step.is_some() {
+                StepMemory::unread()
+            } else {
+                StepMemory::new()
+            },
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             mean_limits,
@@ -1328,16 +1332,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 self.origin_c,
                 || readings.iter().any(Option::is_some),
             );
-            // One put-off piece a light tick: a correction's move waits
-            // for the next one when the block took this one.
+            // One put-off piece a light tick: a correction's move (or,
+            // before the first step, the whole estimate) waits for the
+            // next one when the block took this one.
             #[cfg(feature = "integer-step")]
-            if !block_stepped
-                && state.integer.correction_due()
-                && readings.iter().all(Option::is_none)
-            {
+            if !block_stepped && state.integer.read_due() && readings.iter().all(Option::is_none) {
                 return state
                     .integer
-                    .read_moves_between_steps(state.estimate.x.as_slice());
+                    .read_between_steps(state.estimate.x.as_slice(), &state.residual_k);
             }
             return block_stepped;
         }

@@ -15,7 +15,7 @@
 //! 2^-48 K within the state's range), so a correction moves what the next
 //! step starts from, and nothing the integer state held below the image's
 //! last bit is lost. A correction's move is read on the first tick without
-//! a step or a reading after it ([`StepMemory::read_moves_between_steps`]),
+//! a step or a reading after it ([`StepMemory::read_between_steps`]),
 //! where a step several ticks long leaves room, rather than by the next
 //! step: the same states to the bit, off the step's tick.
 
@@ -32,19 +32,31 @@ pub(crate) struct StepMemory<const N: usize> {
     /// `false` until the first step: the states are then read from the
     /// estimate and its residual.
     valid: bool,
-    /// A correction moved the estimate since the states last read it (see
-    /// [`Self::read_moves_between_steps`]).
-    correction_due: bool,
+    /// The estimate waits to be read in on a tick between steps (see
+    /// [`Self::read_between_steps`]): a correction's move, or, in an
+    /// observer state's memory before its first step, all of it.
+    read_due: bool,
 }
 
 impl<const N: usize> StepMemory<N> {
-    /// No step taken yet.
+    /// No step taken yet; the first step reads the estimate (a shadow's
+    /// memory, which no tick between steps reads).
     pub(crate) const fn new() -> Self {
         Self {
             states: [0; N],
             written: [0; N],
             valid: false,
-            correction_due: false,
+            read_due: false,
+        }
+    }
+
+    /// No step taken yet, the estimate to be read in on the first tick
+    /// between steps (an observer state's memory: a start or a restore
+    /// reads its estimate off the first step's tick).
+    pub(crate) const fn unread() -> Self {
+        Self {
+            read_due: true,
+            ..Self::new()
         }
     }
 
@@ -52,40 +64,44 @@ impl<const N: usize> StepMemory<N> {
     /// the next step reads it whole, as before the first step.
     pub(crate) fn forget(&mut self) {
         self.valid = false;
-        self.correction_due = false;
+        self.read_due = false;
     }
 
-    /// Whether a correction's move waits to be read in.
-    pub(crate) const fn correction_due(&self) -> bool {
-        self.correction_due
+    /// Whether the estimate waits to be read in between steps: a
+    /// correction's move, or ([`Self::unread`]) all of it.
+    pub(crate) const fn read_due(&self) -> bool {
+        self.read_due
     }
 
     /// A correction moved the estimate: its move is read in on the next
-    /// tick without a step ([`Self::read_moves_between_steps`]), or by the
-    /// next step.
+    /// tick without a step ([`Self::read_between_steps`]), or by the
+    /// next step (before the first step, with the rest of the estimate).
     pub(crate) fn corrected(&mut self) {
-        self.correction_due = self.valid;
+        self.read_due |= self.valid;
     }
 
     /// On a tick without a model step or a reading: reads a correction's
-    /// move of the estimate `x` into the states now, so that the next
-    /// step's tick does not pay for it as well as for the step (on a
-    /// Cortex-M0, two soft conversions per node; the heaviest of the real
-    /// motor's step ticks). The same states to the bit as the step's own
-    /// read (the moves are exact). Returns whether it read them (the tick
-    /// is busy then); a non-finite deviation is left to the step, which
-    /// keeps the estimate.
-    pub(crate) fn read_moves_between_steps(&mut self, x: &[f32]) -> bool {
-        if !core::mem::take(&mut self.correction_due) {
+    /// move of the estimate `x` into the states now, or before the first
+    /// step the whole estimate with its carry `residual_k` \[K\], so that
+    /// the next step's tick does not pay for it as well as for the step
+    /// (on a Cortex-M0, two soft conversions per node; the heaviest of the
+    /// real motor's step ticks after a correction, and the network's first
+    /// step). The same states to the bit as the step's own read (the
+    /// moves are exact). Returns whether it read them (the tick is busy
+    /// then); a non-finite deviation is left to the step, which keeps the
+    /// estimate.
+    pub(crate) fn read_between_steps(&mut self, x: &[f32], residual_k: &[f32; N]) -> bool {
+        if !core::mem::take(&mut self.read_due) {
             return false;
         }
-        let Some(states) = self.read_moves(x, &[0.0; N]) else {
+        let Some(states) = self.read_moves(x, residual_k) else {
             return false;
         };
         self.states = states;
         for (written, xi) in self.written.iter_mut().zip(x.iter()) {
             *written = xi.to_bits();
         }
+        self.valid = true;
         true
     }
 
@@ -148,7 +164,7 @@ pub(crate) fn step_in_memory<const N: usize, const B: usize, const M: usize>(
     }
     memory.states = states;
     memory.valid = true;
-    memory.correction_due = false;
+    memory.read_due = false;
     true
 }
 
@@ -168,35 +184,43 @@ mod tests {
         .expect("tables within the step's scales")
     }
 
-    /// A correction's move read in on a tick between steps leaves the
-    /// states, and so every later step, the same to the bit as the step's
-    /// own read would; the move is read once (a second light tick reads
-    /// nothing), and not at all before the first step or without a
-    /// correction.
+    /// The estimate read in on a tick between steps, the whole of it
+    /// with its carry before the first step and a correction's move
+    /// later, leaves the states, and so every later step, the same to
+    /// the bit as the step's own read would; each is read once (a second
+    /// light tick reads nothing).
     #[test]
-    fn a_move_read_between_steps_is_the_steps_own_read() {
+    fn a_read_between_steps_is_the_steps_own_read() {
         let step = two_nodes();
         let (power, boundary) = ([40.0], [0.5]);
+        let residual = [1.5e-6f32, -2.5e-7];
         let mut x = [3.0f32, 1.0, 0.25];
-        let mut early = StepMemory::<2>::new();
-        early.corrected();
-        assert!(!early.correction_due(), "nothing to read before a step");
+        let mut early = StepMemory::<2>::unread();
         let mut late = early;
+        assert!(early.read_due(), "the whole estimate before the first step");
+        assert!(
+            !StepMemory::<2>::new().read_due(),
+            "a shadow's: its step reads"
+        );
         let mut x_late = x;
-        // Both step; `early` alone reads the correction between steps.
+        // `early` reads the start between steps, `late` by its first step.
+        assert!(early.read_between_steps(&x, &residual));
+        assert!(!early.read_between_steps(&x, &residual), "read once");
+        assert!(!early.read_due());
         let step_both = |x: &mut [f32; 3],
                          x_late: &mut [f32; 3],
                          early: &mut StepMemory<2>,
                          late: &mut StepMemory<2>| {
             assert!(step_in_memory(
-                &step, early, x, &[0.0; 2], &power, &boundary
+                &step, early, x, &residual, &power, &boundary
             ));
             assert!(step_in_memory(
-                &step, late, x_late, &[0.0; 2], &power, &boundary
+                &step, late, x_late, &residual, &power, &boundary
             ));
         };
         for _ in 0..5 {
             step_both(&mut x, &mut x_late, &mut early, &mut late);
+            assert_eq!(early.states, late.states);
             // The correction: a move of each deviation, the bias untouched.
             for xs in [&mut x, &mut x_late] {
                 xs[0] -= 0.3125e-2;
@@ -204,19 +228,19 @@ mod tests {
             }
             early.corrected();
             late.corrected();
-            assert!(early.read_moves_between_steps(&x));
-            assert!(!early.read_moves_between_steps(&x), "read once");
+            assert!(early.read_between_steps(&x, &residual));
+            assert!(!early.read_between_steps(&x, &residual), "read once");
         }
         step_both(&mut x, &mut x_late, &mut early, &mut late);
         assert_eq!(early.states, late.states);
         assert_eq!(x, x_late);
-        assert!(!late.correction_due(), "the step read it");
+        assert!(!late.read_due(), "the step read it");
         // A non-finite deviation is left to the step, which keeps the
         // estimate.
         x[1] = f32::NAN;
         early.corrected();
         let before = early.states;
-        assert!(!early.read_moves_between_steps(&x));
+        assert!(!early.read_between_steps(&x, &residual));
         assert_eq!(early.states, before);
     }
 }
