@@ -29,9 +29,10 @@ use nalgebra::{RealField, SMatrix, SVector};
 /// One step of a network's exact zero-order hold in the network
 /// observer's deviation coordinates (see "f32 without drift" in
 /// [`network`](crate::observer::network)): the model's step
-/// ([`ModelTables`](crate::observer::network::ModelTables)) or the shadow's block of
-/// a correction period ([`ShadowTables`](crate::observer::network::ShadowTables)),
-/// every entry solved in `f64` and rounded once to `f32`.
+/// ([`ModelTables`](crate::observer::network::ModelTables)) or the
+/// shadow's block of a correction period
+/// ([`ShadowTables`](crate::observer::network::ShadowTables)), every entry
+/// solved in `f64` and rounded once to `f32`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepTables<const N: usize, const B: usize, const M: usize> {
     /// `Ad - I`, formed in `f64` (dimensionless).

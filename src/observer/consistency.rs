@@ -1103,9 +1103,22 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
             power[m] = r.resistance_ohm(state.dev_k(*node)) * i2;
         }
         let boundary_k = boundary_c.map(|t| t - origin_c);
+        // In integer arithmetic when the model steps in it: the block's
+        // tables on the shadow's own Q16.48 states, kept between blocks
+        // (read from the deviation and its carry before the first block
+        // and after a reseed), the deviations their image. A non-finite
+        // input or deviation (only a corrupted state) keeps the shadow
+        // where it is, as the `f32` step does.
         #[cfg(feature = "integer-step")]
         if let Some(step) = &self.integer_block {
-            integer_block_step(step, state, &power.into(), &boundary_k);
+            step_in_memory(
+                step,
+                &mut state.integer,
+                &mut state.dev_k,
+                &state.residual_k,
+                &power.into(),
+                &boundary_k,
+            );
             return;
         }
         let temps = SVector::<f32, N>::from(state.dev_k);
@@ -1125,29 +1138,6 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
             }
         }
     }
-}
-
-/// A shadow block's step in integer arithmetic: the block's tables
-/// ([`FixedStep`]) on the shadow's own Q16.48 states, kept between blocks
-/// ([`StepMemory`]; read from the deviation and its carry before the first
-/// block and after a reseed), the deviations their image. A non-finite
-/// input or deviation (only a corrupted state) keeps the shadow where it
-/// is, as the `f32` step does.
-#[cfg(feature = "integer-step")]
-fn integer_block_step<const N: usize, const B: usize, const M: usize>(
-    step: &FixedStep<N, B, M>,
-    state: &mut ShadowState<N, M>,
-    powers_w: &[f32; M],
-    boundary_k: &[f32; B],
-) {
-    step_in_memory(
-        step,
-        &mut state.integer,
-        &mut state.dev_k,
-        &state.residual_k,
-        powers_w,
-        boundary_k,
-    );
 }
 
 #[cfg(test)]
