@@ -40,6 +40,7 @@ use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
 use crate::discretize::fixed::{step_in_memory, FixedStep, StepMemory};
 use crate::error::BuildError;
+use crate::filter::GatePolicy;
 use crate::network::{compensated_add, DeviationResistance};
 use crate::protect::margin::UpperBound;
 use crate::scalar::Scalar;
@@ -680,104 +681,139 @@ impl<const P: usize, const M: usize> StuckRewind<P, M> {
 /// not held again before it is fused once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct DriftHold<const P: usize> {
-    held: [bool; P],
     /// `reading - shadow` when the hold began \[K\].
     offset_at_hold_k: [f32; P],
     /// Readings since the hold began.
     since: [u32; P],
-    /// Moved colder than the shadow by the threshold while held.
-    drifting: [bool; P],
-    /// Released after a steady window; not held again until fused.
-    spent: [bool; P],
+    /// [`HoldFlags`] of each sensor: a byte, not three `bool`s (the
+    /// Omnimagnet's six sensors: 12 B of RAM fewer).
+    flags: [u8; P],
 }
 
-/// What [`DriftHold::screen`] needs of the filter for one sensor.
+/// The bits of a sensor's [`DriftHold`] flags.
+struct HoldFlags;
+
+impl HoldFlags {
+    /// Held out of the gate.
+    const HELD: u8 = 1;
+    /// Moved colder than the shadow by the threshold while held.
+    const DRIFTING: u8 = 2;
+    /// Released after a steady window; not held again until fused.
+    const SPENT: u8 = 4;
+}
+
+/// What [`DriftHold::screen`] needs of the filter for a sensor in
+/// question.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct GateView {
     /// The estimate at the sensor's node \[degC\].
     pub estimate_c: f32,
     /// The gate's innovation variance \[K^2\].
     pub innovation_var_k2: f32,
-    /// The gate's consecutive rejections of this sensor.
-    pub rejections: u16,
 }
 
 impl<const P: usize> DriftHold<P> {
     /// Nothing held.
     pub(crate) const fn new() -> Self {
         Self {
-            held: [false; P],
             offset_at_hold_k: [0.0; P],
             since: [0; P],
-            drifting: [false; P],
-            spent: [false; P],
+            flags: [0; P],
         }
     }
 
+    /// Whether any sensor is held, spent, or refused `suspect_after` times
+    /// in a row (`rejections`): when none is (a healthy correction's every
+    /// time), [`Self::screen`] has nothing to do, and this one pass of
+    /// compares is its cost (the Omnimagnet's six thermocouples: its loop
+    /// cost their correction tick about 250 instructions on a
+    /// Cortex-M4F).
+    #[inline(always)]
+    fn in_question(&self, rejections: &[u16; P], suspect_after: u16) -> bool {
+        suspect_after != 0
+            && (self.flags.iter().any(|f| *f != 0)
+                || rejections.iter().any(|r| *r >= suspect_after))
+    }
+
     /// Takes the held samples out of the correction (see the type's docs),
-    /// marking them [`SensorStatus::Rejected`]; `gate[j]` is the filter's
-    /// view of sensor `j`, `threshold` the gate's, `suspect_after` its
-    /// consecutive rejections that make a sensor suspect, `move_k` \[K\] and
-    /// `window` (readings) the stuck test's. Returns whether any was held.
+    /// marking them [`SensorStatus::Rejected`]; `rejections[j]` is the
+    /// gate's consecutive refusals of sensor `j`, `gate` its policy (a
+    /// sensor is in question from `suspect_after` refusals on), `stuck`
+    /// the stuck test's settings, and `view(j)` the filter's view of
+    /// sensor `j`, formed only for a sensor in question (a healthy
+    /// sensor's every reading forms none). Returns whether any was held.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn screen(
         &mut self,
         samples: &mut [Option<f32>; P],
         statuses: &mut [SensorStatus; P],
         shadow_c: &[f32; P],
-        gate: &[GateView; P],
-        threshold: f32,
-        suspect_after: u16,
+        rejections: &[u16; P],
+        gate: &GatePolicy<f32>,
         stuck: &StuckTest,
+        mut view: impl FnMut(usize) -> GateView,
     ) -> bool {
+        let suspect_after = gate.suspect_after;
+        if !self.in_question(rejections, suspect_after) {
+            return false;
+        }
         let mut any = false;
         for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
-            let (Some(t), Some(shadow), Some(g)) = (*sample, shadow_c.get(j), gate.get(j)) else {
+            let (Some(t), Some(shadow), Some(&rejections)) =
+                (*sample, shadow_c.get(j), rejections.get(j))
+            else {
                 continue;
             };
-            let (Some(held), Some(at), Some(since), Some(drifting), Some(spent)) = (
-                self.held.get_mut(j),
+            let (Some(at), Some(since), Some(flags)) = (
                 self.offset_at_hold_k.get_mut(j),
                 self.since.get_mut(j),
-                self.drifting.get_mut(j),
-                self.spent.get_mut(j),
+                self.flags.get_mut(j),
             ) else {
                 continue;
             };
-            if g.rejections == 0 {
-                *spent = false;
+            if rejections == 0 {
+                *flags &= !HoldFlags::SPENT;
             }
-            let colder = t < *shadow && t < g.estimate_c;
-            if !*held && (*spent || suspect_after == 0 || g.rejections < suspect_after || !colder) {
-                // Not in question (a healthy sensor's every reading): its
-                // innovation's NIS is not formed (a soft-float multiply
-                // and division fewer on a core without an FPU).
+            let held = *flags & HoldFlags::HELD != 0;
+            let spent = *flags & HoldFlags::SPENT != 0;
+            if !held && (spent || rejections < suspect_after) {
+                // Not in question (a healthy sensor's every reading): no
+                // view, no NIS (on a core without an FPU, soft-float
+                // operations fewer).
+                continue;
+            }
+            let g = view(j);
+            let colder = || t < *shadow && t < g.estimate_c;
+            if !held && !colder() {
+                // Not colder than the physics and the estimate.
                 continue;
             }
             let nu = t - g.estimate_c;
             let nis = nu * nu / g.innovation_var_k2;
             // NaN refuses: no verdict is no admission.
-            let refused = nis.is_nan() || nis > threshold;
-            if !*held {
+            let refused = nis.is_nan() || nis > gate.threshold;
+            if !held {
                 if !refused {
                     continue;
                 }
-                *held = true;
+                *flags = HoldFlags::HELD;
                 *at = t - shadow;
                 *since = 0;
-                *drifting = false;
             }
             if !refused || t >= *shadow {
-                // The gate takes it again against the estimate.
-                *held = false;
+                // The gate takes it again against the estimate (nothing
+                // flagged: its drift counts from the next hold, and the
+                // screen's first pass finds no sensor in question).
+                *flags = 0;
                 continue;
             }
             *since = since.saturating_add(1);
-            *drifting |= *at - (t - shadow) > stuck.threshold_k;
-            if !*drifting && *since >= stuck.window {
+            if *at - (t - shadow) > stuck.threshold_k {
+                *flags |= HoldFlags::DRIFTING;
+            }
+            if *flags & HoldFlags::DRIFTING == 0 && *since >= stuck.window {
                 // A steady offset: the model's error, for the recovery.
-                *held = false;
-                *spent = true;
+                *flags = HoldFlags::SPENT;
                 continue;
             }
             *sample = None;
@@ -829,14 +865,20 @@ pub(crate) fn screen_readings<const P: usize>(
 /// watch began).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SilenceWatch<const P: usize> {
-    last_heard_us: [Option<u32>; P],
+    /// When each sensor was last heard \[us\] (or the watch began).
+    last_heard_us: [u32; P],
+    /// The watch has begun: its first tick notes every sensor as heard
+    /// (one flag, not an `Option` per sensor: the Omnimagnet's six
+    /// sensors, 20 B of RAM fewer).
+    begun: bool,
 }
 
 impl<const P: usize> SilenceWatch<P> {
     /// Nothing heard yet.
     pub(crate) const fn new() -> Self {
         Self {
-            last_heard_us: [None; P],
+            last_heard_us: [0; P],
+            begun: false,
         }
     }
 
@@ -850,18 +892,21 @@ impl<const P: usize> SilenceWatch<P> {
         silent_after_us: u32,
         statuses: &mut [SensorStatus; P],
     ) {
+        if !self.begun {
+            self.last_heard_us = [now_us; P];
+            self.begun = true;
+            return;
+        }
         for ((last, heard), status) in self.last_heard_us.iter_mut().zip(heard).zip(statuses) {
-            match last {
-                _ if *heard => *last = Some(now_us),
-                None => *last = Some(now_us),
-                Some(at) => {
-                    let quiet_us = now_us.wrapping_sub(*at);
-                    if quiet_us > silent_after_us && *status == SensorStatus::NoReading {
-                        *status = SensorStatus::Silent {
-                            for_ms: quiet_us / 1000,
-                        };
-                    }
-                }
+            if *heard {
+                *last = now_us;
+                continue;
+            }
+            let quiet_us = now_us.wrapping_sub(*last);
+            if quiet_us > silent_after_us && *status == SensorStatus::NoReading {
+                *status = SensorStatus::Silent {
+                    for_ms: quiet_us / 1000,
+                };
             }
         }
     }
@@ -1567,24 +1612,28 @@ mod tests {
             threshold_k: 1.0,
             window: 10,
         };
+        let gate = GatePolicy {
+            threshold: 10.83,
+            suspect_after: 2,
+            recover_after: 5,
+        };
         let mut rejections = 0u16;
         readings
             .map(|t| {
                 let mut samples = [Some(t)];
                 let mut statuses = [SensorStatus::NoReading];
-                let gate = [GateView {
+                let view = |_| GateView {
                     estimate_c,
                     innovation_var_k2: 0.1,
-                    rejections,
-                }];
+                };
                 let held = hold.screen(
                     &mut samples,
                     &mut statuses,
                     &[50.0],
+                    &[rejections],
                     &gate,
-                    10.83,
-                    2,
                     &stuck,
+                    view,
                 );
                 assert_eq!(held, samples[0].is_none());
                 if !held {
@@ -1622,6 +1671,20 @@ mod tests {
         assert!(held[2..11].iter().all(|h| *h), "{held:?}");
         assert!(held[11..].iter().all(|h| !*h), "{held:?}");
         assert!(holds(core::iter::repeat_n(52.0, 40)).iter().all(|h| !*h));
+    }
+
+    /// A sensor released after a steady window is held again once the
+    /// gate has fused one of its readings: the release lasts until then,
+    /// not for ever.
+    #[test]
+    fn a_released_sensor_is_held_again_after_a_fused_reading() {
+        let readings = core::iter::repeat_n(48.5, 40)
+            .chain([50.0])
+            .chain((0..20).map(|k| 48.5 - 0.2 * k as f32));
+        let held = holds(readings);
+        assert!(held[11..41].iter().all(|h| !*h), "{held:?}");
+        assert_eq!(held[41..43], [false, false]);
+        assert!(held[43..].iter().all(|h| *h), "{held:?}");
     }
 
     /// A reading below the shadow but above the estimate is not held,

@@ -1849,26 +1849,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_c,
         );
         self.rewind_stuck_biases(state, &stuck_events);
-        let gate_view: [GateView; P] = core::array::from_fn(|j| GateView {
-            estimate_c: self.origin_c
-                + state
-                    .estimate
-                    .x
-                    .get(self.sensor_nodes[j])
-                    .copied()
-                    .unwrap_or(f32::NAN),
-            innovation_var_k2: self.innovation_var_k2(state, j),
-            rejections: state.estimate.gate.consecutive_rejections[j],
-        });
-        let gate = self.kalman.gate();
+        let warm_cov = if state.warmup_left > 0 {
+            state.warm.held()
+        } else {
+            None
+        };
+        let x = &state.estimate.x;
         let held = state.drift.screen(
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
-            &gate_view,
-            gate.threshold,
-            gate.suspect_after,
+            &state.estimate.gate.consecutive_rejections,
+            self.kalman.gate(),
             &self.stuck_test,
+            |j| GateView {
+                estimate_c: self.origin_c
+                    + x.get(self.sensor_nodes[j]).copied().unwrap_or(f32::NAN),
+                innovation_var_k2: self.innovation_var_k2(warm_cov, j),
+            },
         );
         // Every reading refused, one held as drifting colder than the
         // physics: the estimate goes back to the model, as for a
@@ -1940,16 +1938,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         (true, flags)
     }
 
-    /// Sensor `j`'s innovation variance \[K^2\] against the covariance the
-    /// filter holds: the warm-up's while it runs, else the steady one.
-    fn innovation_var_k2<W: WarmUpKind<X>>(
-        &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
-        j: usize,
-    ) -> f32 {
-        let steady = self.gain.innovation_var()[j];
-        let (true, Some(cov)) = (state.warmup_left > 0, state.warm.held()) else {
-            return steady;
+    /// The gate's innovation variance of sensor `j` \[K^2\]: the steady
+    /// gain's, or from `held`, the warm-up's covariance while it runs.
+    fn innovation_var_k2(&self, held: Option<&SMatrix<f32, X, X>>, j: usize) -> f32 {
+        let Some(cov) = held else {
+            return self.gain.innovation_var()[j];
         };
         let node = self.sensor_nodes[j];
         let held = cov.get((node, node)).copied().unwrap_or(f32::NAN);
