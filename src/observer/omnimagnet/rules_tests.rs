@@ -38,6 +38,27 @@ fn noisy(seed: &mut u64, temp_c: f64) -> f32 {
 fn drive(
     current_a: f64,
     seconds: u32,
+    tamper: impl FnMut(u32, &mut [f32; THERMOCOUPLES]),
+    after: impl FnMut(u32, &OmniObserver, &mut OmniObserverState<NoWarmUp>, &OmniOutputs, &[f64; NODES]),
+) {
+    let all = [true; THERMOCOUPLES];
+    drive_with(
+        &OmniSettings::default(),
+        all,
+        current_a,
+        seconds,
+        tamper,
+        after,
+    );
+}
+
+/// [`drive`] with `settings`, only the thermocouples `reading` bringing
+/// their readings (the others open: no reading).
+fn drive_with(
+    settings: &OmniSettings,
+    reading: [bool; THERMOCOUPLES],
+    current_a: f64,
+    seconds: u32,
     mut tamper: impl FnMut(u32, &mut [f32; THERMOCOUPLES]),
     mut after: impl FnMut(
         u32,
@@ -47,13 +68,8 @@ fn drive(
         &[f64; NODES],
     ),
 ) {
-    let observer = OmniObserver::new(
-        &Omnimagnet::PAPER,
-        &[AMBIENT_C; NODES],
-        AMBIENT_C,
-        &OmniSettings::default(),
-    )
-    .unwrap();
+    let observer =
+        OmniObserver::new(&Omnimagnet::PAPER, &[AMBIENT_C; NODES], AMBIENT_C, settings).unwrap();
     let amb = AMBIENT_C as f32;
     let mut state = observer.state(&[amb; NODES], amb);
     let mut plant = [AMBIENT_C; NODES];
@@ -66,7 +82,13 @@ fn drive(
         let readings = if k % 500 == 0 {
             let mut r = THERMOCOUPLE_NODES.map(|n| noisy(&mut seed, plant[n]));
             tamper(k, &mut r);
-            TimedReading::all_at(r, now_us)
+            let mut r = TimedReading::all_at(r, now_us);
+            for (r, reading) in r.iter_mut().zip(reading) {
+                if !reading {
+                    *r = None;
+                }
+            }
+            r
         } else {
             [None; THERMOCOUPLES]
         };
@@ -223,6 +245,7 @@ fn the_omnimagnets_healthy_heat_bias_is_negative_and_a_floor_would_cost_accuracy
 /// readings of thermocouple 0 reported `Rejected`.
 fn lone_thermocouple_run(offset_k: impl Fn(f64) -> f64) -> ([f64; NODES], usize) {
     const ONE_PER_SOLENOID: [bool; THERMOCOUPLES] = [true, false, true, false, true, false];
+    const READING: [bool; THERMOCOUPLES] = [true, false, false, false, false, false];
     let defaults = OmniSettings::default();
     let settings = OmniSettings {
         filter: ObserverSettings {
@@ -232,63 +255,43 @@ fn lone_thermocouple_run(offset_k: impl Fn(f64) -> f64) -> ([f64; NODES], usize)
         model_refresh_s: Some(10.0),
         ..defaults
     };
-    let model = Omnimagnet::PAPER;
-    let observer = OmniObserver::new(&model, &[AMBIENT_C; NODES], AMBIENT_C, &settings).unwrap();
     let mut refresh = Relinearizer::new(
-        model,
+        Omnimagnet::PAPER,
         RelinearizeConfig::default(),
         &[AMBIENT_C; NODES],
         AMBIENT_C,
     )
     .unwrap();
-    let amb = AMBIENT_C as f32;
-    let mut state = observer.state(&[amb; NODES], amb);
-    let mut plant = [AMBIENT_C; NODES];
-    let mut seed = 0x2545_F491_4F6C_DD1Du64;
-    let current_a = 4.0;
     let (mut shortfall_k, mut rejected) = ([0.0f64; NODES], 0);
-    for k in 0..300_000u32 {
-        if k % 10 == 0 {
-            model.step_rk4(&mut plant, &[current_a; SOLENOIDS], AMBIENT_C, 0.01);
-        }
-        let now_us = (k + 1) * 1000;
-        let readings = if k % 500 == 0 {
-            let mut r = THERMOCOUPLE_NODES.map(|n| noisy(&mut seed, plant[n]));
-            r[0] += offset_k(f64::from(k) / 1000.0) as f32;
-            let mut r = TimedReading::all_at(r, now_us);
-            (r[2], r[4]) = (None, None);
-            r
-        } else {
-            [None; THERMOCOUPLES]
-        };
-        let inputs = OmniInputs {
-            currents_a: [current_a as f32; SOLENOIDS],
-            ambient_c: amb,
-            readings,
-            now_us,
-            elapsed_us: 1000,
-        };
-        let out = *observer.tick(&mut state, &inputs);
-        if readings[0].is_some() && matches!(out.sensors[0], SensorStatus::Rejected { .. }) {
-            rejected += 1;
-        }
-        if k >= 60_000 {
-            for (worst, (truth, upper)) in shortfall_k.iter_mut().zip(plant.iter().zip(out.upper_c))
-            {
-                *worst = worst.max(truth - f64::from(upper));
+    drive_with(
+        &settings,
+        READING,
+        4.0,
+        300,
+        |k, readings_c| readings_c[0] += offset_k(f64::from(k) / 1000.0) as f32,
+        |k, observer, state, out, plant| {
+            if k % 500 == 0 && matches!(out.sensors[0], SensorStatus::Rejected { .. }) {
+                rejected += 1;
             }
-        }
-        if k % 10_000 == 9_999 {
-            // The declared refresh, as a background task would run it.
-            let estimate_c = observer.temps_c(&state).map(f64::from);
-            while matches!(
-                refresh.poll(&estimate_c, AMBIENT_C),
-                RelinearizePoll::Started | RelinearizePoll::Working
-            ) {}
-            let next = observer.prepare_model(refresh.active()).unwrap();
-            observer.install_model(&mut state, &next).unwrap();
-        }
-    }
+            if k >= 60_000 {
+                for (worst, (truth, upper)) in
+                    shortfall_k.iter_mut().zip(plant.iter().zip(out.upper_c))
+                {
+                    *worst = worst.max(truth - f64::from(upper));
+                }
+            }
+            if k % 10_000 == 9_999 {
+                // The declared refresh, as a background task would run it.
+                let estimate_c = observer.temps_c(state).map(f64::from);
+                while matches!(
+                    refresh.poll(&estimate_c, AMBIENT_C),
+                    RelinearizePoll::Started | RelinearizePoll::Working
+                ) {}
+                let next = observer.prepare_model(refresh.active()).unwrap();
+                observer.install_model(state, &next).unwrap();
+            }
+        },
+    );
     (shortfall_k, rejected)
 }
 
