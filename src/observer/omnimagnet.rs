@@ -2547,6 +2547,8 @@ fn alarm_temps(temps_c: &[f32; NODES]) -> [f32; ALARM_NODES.len()] {
 }
 
 #[cfg(test)]
+mod fuzz_tests;
+#[cfg(test)]
 mod refresh_tests;
 #[cfg(test)]
 mod rules_tests;
