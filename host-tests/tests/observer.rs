@@ -1022,3 +1022,57 @@ fn waiting_for_rows_moves_the_stages_never_what_they_publish() {
         .with_protection_plan(plan)
         .is_err());
 }
+
+/// Any `f32` for an input: the whole range, NaN, the infinities and the
+/// extremes weighted in.
+fn any_input() -> impl proptest::strategy::Strategy<Value = f32> {
+    use proptest::prelude::*;
+    prop_oneof![
+        proptest::num::f32::ANY,
+        Just(f32::NAN),
+        Just(f32::INFINITY),
+        Just(f32::NEG_INFINITY),
+        Just(f32::MAX),
+        -200.0f32..600.0,
+    ]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+    /// Arbitrary inputs at the grid observer's tick (a coil's current,
+    /// the coolant and the ambient of any `f32`, the other coils at a
+    /// running current, 0 to 20 ms elapsed): nothing panics, the estimate
+    /// stays finite, every limit stays within `[0, 3 A]` (the limiter's
+    /// hardware limit), and a current, coolant or ambient that is not
+    /// finite is flagged on the tick that brought it.
+    #[test]
+    fn any_grid_tick_sequence_stays_finite_and_flags_what_it_drops(
+        ticks in proptest::collection::vec(
+            (any_input(), any_input(), any_input(), 0usize..84, 0u32..20_000),
+            1..120,
+        )
+    ) {
+        let grid = grid();
+        let mut state = grid.state(20.0);
+        let mut currents = hot_currents();
+        for (current_a, coolant_c, ambient_c, coil, elapsed_us) in ticks {
+            currents[coil / 12][coil % 12] = current_a;
+            let out = *grid.tick(
+                &mut state,
+                &GridInputs { currents_a: &currents, coolant_c, ambient_c, elapsed_us },
+            );
+            proptest::prop_assert!(out.temps_c.as_flattened().iter().all(|t| t.is_finite()));
+            proptest::prop_assert!(
+                out.limits.iter().all(|l| (0.0..=3.0).contains(&l.current_a)),
+                "{:?}",
+                out.limits.iter().map(|l| l.current_a).collect::<Vec<_>>()
+            );
+            if currents.as_flattened().iter().any(|i| !i.is_finite()) {
+                proptest::prop_assert!(out.flags.contains(InputFlags::CURRENT_NOT_FINITE));
+            }
+            if !(coolant_c.is_finite() && ambient_c.is_finite()) {
+                proptest::prop_assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+            }
+        }
+    }
+}
