@@ -557,6 +557,13 @@ proptest::proptest! {
             proptest::prop_assert!(out.temps_c.iter().all(|t| t.is_finite()));
             proptest::prop_assert!(out.upper_c.iter().all(|t| !t.is_nan() || out.tick < 4));
             proptest::prop_assert!(out.limits[0].current_a >= 0.0 && out.limits[0].current_a <= 8.0);
+            // What it cannot use is flagged on the tick that brought it.
+            if !current.is_finite() {
+                proptest::prop_assert!(out.flags.contains(InputFlags::CURRENT_NOT_FINITE));
+            }
+            if !ambient.is_finite() {
+                proptest::prop_assert!(out.flags.contains(InputFlags::TEMPERATURE_INVALID));
+            }
         }
     }
 }
