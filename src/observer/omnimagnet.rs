@@ -242,7 +242,8 @@
 //! compares: about 80 instructions (QEMU `observer_m4`, 2 479 -> 2 563
 //! mean), and 40 B of state. (Fewer than three thermocouples the
 //! Omnimagnet does not take at all: every set of one or two is refused at
-//! build time, unobservable or without a steady gain.)
+//! build time, unobservable or without a steady gain; test
+//! `every_set_of_one_or_two_thermocouples_is_refused`.)
 //!
 //! The Omnimagnet cannot be the network observer over its own network at
 //! no cost. Its conductances move with temperature

@@ -268,3 +268,29 @@ fn no_declared_refresh_never_goes_stale() {
     }
     assert_eq!(state.model_age_steps, u32::MAX);
 }
+
+/// Fewer than three thermocouples the Omnimagnet does not take: with one
+/// or two, the biases of the solenoids they do not read are unobservable,
+/// and every such set is refused at build time (docs/omnimagnet.md,
+/// "Observability"), refresh declared or not.
+#[test]
+fn every_set_of_one_or_two_thermocouples_is_refused() {
+    let mut sets = 0;
+    for mask in 1u32..64 {
+        if mask.count_ones() > 2 {
+            continue;
+        }
+        sets += 1;
+        let sensors = core::array::from_fn(|j| mask & (1 << j) != 0);
+        let result = build(sensors, Some(10.0));
+        assert!(
+            matches!(
+                result,
+                Err(BuildError::Unobservable { .. } | BuildError::NotConverged { .. })
+            ),
+            "{sensors:?}: {:?}",
+            result.map(|_| ())
+        );
+    }
+    assert_eq!(sets, 21);
+}
