@@ -217,9 +217,9 @@
 //!   Without a refresh the share keeps growing: after 1 h, 60 % on
 //!   solenoid 3 at 3.1 and 4 A (a scratch run of the same drive at 1 to
 //!   8 A, not kept as a test), so a declared share that spares the
-//!   healthy run would bound little. So negative biases are dropped only once the model is re-linearised, on
-//!   the solenoids in doubt (`drop_cold_biases`), where the model needs no
-//!   bias;
+//!   healthy run would bound little. So negative biases are dropped only
+//!   once the model is re-linearised, on the solenoids in doubt
+//!   (`drop_cold_biases`), where the model needs no bias;
 //! * **the model refresh** (above): the network observer has none, because
 //!   its network is linear; the watchdog is written for any observer that
 //!   declares one.
@@ -1745,9 +1745,8 @@ impl OmniObserver {
         );
         // A reading the gate keeps refusing as colder than the estimate
         // and the physics is held out of its recovery (the network
-        // observer's rule; see `DriftHold`).
-        // (A held reading was present: every one refused is then every
-        // present one.)
+        // observer's rule; see `DriftHold`). A held reading was present,
+        // so none left means every present one was refused.
         let held = self.hold_drifting(state, &mut samples, &shadow_c);
         common_mode |= held && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;

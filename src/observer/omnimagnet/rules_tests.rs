@@ -309,7 +309,10 @@ fn lone_thermocouple_run(offset_k: impl Fn(f64) -> f64) -> ([f64; NODES], usize)
 fn a_lone_thermocouple_drifting_cold_is_held_out_of_the_gates_recovery() {
     let (healthy_k, healthy_rejected) = lone_thermocouple_run(|_| 0.0);
     let (drift_k, rejected) = lone_thermocouple_run(|t_s| -0.05 * (t_s - 60.0).max(0.0));
-    println!("shortfall below the plant: healthy {healthy_k:.3?} K, drifting {drift_k:.3?} K; held readings {rejected}");
+    println!(
+        "shortfall below the plant: healthy {healthy_k:.3?} K, \
+         drifting {drift_k:.3?} K; held readings {rejected}"
+    );
     assert_eq!(healthy_rejected, 0);
     assert!(healthy_k.iter().all(|k| *k <= 0.0), "{healthy_k:?}");
     assert!(rejected > 10, "{rejected}");
