@@ -239,7 +239,7 @@
 //! caught the reading; held, 0.92 K (test
 //! `a_lone_thermocouple_drifting_cold_is_held_out_of_the_gates_recovery`).
 //! Its cost on a correction tick with no sensor in question, one pass of
-//! compares: about 80 instructions (QEMU `observer_m4`, 2 479 -> 2 563
+//! compares: about 60 instructions (QEMU `observer_m4`, 2 479 -> 2 537
 //! mean), and 40 B of state. (Fewer than three thermocouples the
 //! Omnimagnet does not take at all: every set of one or two is refused at
 //! build time, unobservable or without a steady gain; test
