@@ -742,7 +742,12 @@ impl<const P: usize> DriftHold<P> {
     /// sensor is in question from `suspect_after` refusals on), `stuck`
     /// the stuck test's settings, and `view(j)` the filter's view of
     /// sensor `j`, formed only for a sensor in question (a healthy
-    /// sensor's every reading forms none). Returns whether any was held.
+    /// sensor's every reading forms none).
+    ///
+    /// Returns whether a reading was held and none is left to fuse: every
+    /// present reading refused, one as drifting colder than the physics.
+    /// The caller then takes the estimate back to the shadow, as for a
+    /// common-mode fault (both filtered observers' rule).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn screen(
         &mut self,
@@ -758,7 +763,7 @@ impl<const P: usize> DriftHold<P> {
         if !self.in_question(rejections, suspect_after) {
             return false;
         }
-        let mut any = false;
+        let mut any_held = false;
         for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
             let (Some(t), Some(shadow), Some(&rejections)) =
                 (*sample, shadow_c.get(j), rejections.get(j))
@@ -784,6 +789,8 @@ impl<const P: usize> DriftHold<P> {
                 continue;
             }
             let g = view(j);
+            // A closure keeps the compares behind `held` (computed ahead,
+            // they cost the M0 footprint 56 B).
             let colder = || t < *shadow && t < g.estimate_c;
             if !held && !colder() {
                 // Not colder than the physics and the estimate.
@@ -819,9 +826,9 @@ impl<const P: usize> DriftHold<P> {
             }
             *sample = None;
             *status = SensorStatus::Rejected { nis };
-            any = true;
+            any_held = true;
         }
-        any
+        any_held && samples.iter().all(Option::is_none)
     }
 }
 
@@ -1672,6 +1679,46 @@ mod tests {
         assert!(held[2..11].iter().all(|h| *h), "{held:?}");
         assert!(held[11..].iter().all(|h| !*h), "{held:?}");
         assert!(holds(core::iter::repeat_n(52.0, 40)).iter().all(|h| !*h));
+    }
+
+    /// The screen reports a common-mode case only when the held reading
+    /// was all there was to fuse: with another reading present it holds
+    /// the cold one and leaves the other to the gate.
+    #[test]
+    fn a_hold_is_common_mode_only_when_nothing_else_is_left() {
+        let stuck = StuckTest {
+            tolerance_k: 0.0,
+            threshold_k: 1.0,
+            window: 10,
+        };
+        let gate = GatePolicy {
+            threshold: 10.83,
+            suspect_after: 2,
+            recover_after: 5,
+        };
+        let view = |_| GateView {
+            estimate_c: 50.0,
+            innovation_var_k2: 0.1,
+        };
+        // Sensor 0 refused twice already, 2 K colder than the shadow and
+        // the estimate (NIS 40); sensor 1 healthy.
+        let screen = |other: Option<f32>| {
+            let mut hold = DriftHold::<2>::new();
+            let mut samples = [Some(48.0), other];
+            let mut statuses = [SensorStatus::NoReading; 2];
+            let common = hold.screen(
+                &mut samples,
+                &mut statuses,
+                &[50.0; 2],
+                &[2, 0],
+                &gate,
+                &stuck,
+                view,
+            );
+            (common, samples)
+        };
+        assert_eq!(screen(Some(50.0)), (false, [None, Some(50.0)]));
+        assert_eq!(screen(None), (true, [None, None]));
     }
 
     /// A sensor released after a steady window is held again once the

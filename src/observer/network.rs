@@ -1855,7 +1855,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             None
         };
         let x = &state.estimate.x;
-        let held = state.drift.screen(
+        // Every reading refused, one held as drifting colder than the
+        // physics: the estimate goes back to the model, as for a
+        // common-mode fault.
+        common_mode |= state.drift.screen(
             &mut samples,
             &mut state.outputs.sensors,
             &shadow_c,
@@ -1868,10 +1871,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 innovation_var_k2: self.innovation_var_k2(warm_cov, j),
             },
         );
-        // Every reading refused, one held as drifting colder than the
-        // physics: the estimate goes back to the model, as for a
-        // common-mode fault.
-        common_mode |= held && present && samples.iter().all(Option::is_none);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.

@@ -239,7 +239,7 @@
 //! caught the reading; held, 0.92 K (test
 //! `a_lone_thermocouple_drifting_cold_is_held_out_of_the_gates_recovery`).
 //! Its cost on a correction tick with no sensor in question, one pass of
-//! compares: about 60 instructions (QEMU `observer_m4`, 2 479 -> 2 537
+//! compares: about 65 instructions (QEMU `observer_m4`, 2 479 -> 2 544
 //! mean), and 40 B of state. (Fewer than three thermocouples the
 //! Omnimagnet does not take at all: every set of one or two is refused at
 //! build time, unobservable or without a steady gain; test
@@ -1745,10 +1745,9 @@ impl OmniObserver {
         );
         // A reading the gate keeps refusing as colder than the estimate
         // and the physics is held out of its recovery (the network
-        // observer's rule; see `DriftHold`). A held reading was present,
-        // so none left means every present one was refused.
-        let held = self.hold_drifting(state, &mut samples, &shadow_c);
-        common_mode |= held && samples.iter().all(Option::is_none);
+        // observer's rule; see `DriftHold`); none left to fuse is a
+        // common-mode fault.
+        common_mode |= self.hold_drifting(state, &mut samples, &shadow_c);
         let mut flags = InputFlags::NONE;
         if common_mode {
             // A common-mode fault: what the sensors dragged comes back.
@@ -1814,7 +1813,8 @@ impl OmniObserver {
     /// each thermocouple `shadow_c` \[degC\]), with the gate's view of each
     /// thermocouple: the estimate at its node and its innovation variance
     /// (the warm-up's while it runs, as its correction gates with; else
-    /// the steady gain's). Returns whether a reading was held.
+    /// the steady gain's). Returns whether a reading was held and none is
+    /// left to fuse ([`DriftHold::screen`]).
     fn hold_drifting<W: OmniWarmUpKind>(
         &self,
         state: &mut OmniObserverState<W>,
