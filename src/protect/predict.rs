@@ -922,6 +922,16 @@ fn published<T: RealField + Copy>(crossing: Crossing<T>, age_s: T) -> Option<T> 
 
 /// First `t` in `[a, b]` where the bound of the module docs reaches
 /// `headroom` (limit minus steady state), from the parts at `a` and `b`.
+///
+/// The bound is `min(L1, L2)`: `chord_P` minus each tangent of `Q` is a
+/// line above `T_e - T_ss,e` of its own (`L1` from the tangent at `a`, `L2`
+/// from the one at `b`), and the larger tangent is the smaller line. So
+/// the bound is at or above the headroom exactly where both lines are: the
+/// intersection of two intervals of `[a, b]`, whose left end is the answer.
+/// Written without the kink: the lines' values at the bracket's ends decide
+/// the case, and only a bracket the bound reaches the headroom in takes a
+/// division (one or two; the kink's form took two in every bracket, each a
+/// software routine on a core without an FPU).
 #[inline]
 fn first_crossing<T: RealField + Copy>(
     a: T,
@@ -931,50 +941,92 @@ fn first_crossing<T: RealField + Copy>(
     headroom: T,
 ) -> Option<T> {
     let h = b - a;
+    let rise_a = at_a.dq * h;
     let rise_b = at_b.dq * h;
-    // Kink of max(tangent of Q at a, tangent of Q at b), as an offset from a.
-    let denominator = at_a.dq - at_b.dq;
-    let kink = if denominator < T::zero() {
-        let s = (at_b.q - at_a.q - rise_b) / denominator;
-        if s > T::zero() {
-            if s < h {
-                s
-            } else {
-                h
-            }
-        } else {
-            T::zero()
-        }
-    } else {
-        h
+    // Each line at `a` (`start`) and at `b` (`end`).
+    let l1 = Line {
+        start: at_a.p - at_a.q,
+        end: at_b.p - at_a.q - rise_a,
     };
-    let chord = (at_b.p - at_a.p) / h;
-    // Segment 1 on [0, kink]: chord_P - tangent_a, from the bound at `a`
-    // itself (not `intercept + slope * 0`: the same bits for a finite slope,
-    // and two soft-float operations fewer on a core without an FPU).
-    let at_start = at_a.p - at_a.q;
-    if at_start >= headroom {
-        return Some(a);
+    let l2 = Line {
+        start: at_a.p - at_b.q + rise_b,
+        end: at_b.p - at_b.q,
+    };
+    // A line below the headroom over the whole bracket keeps the bound
+    // below it (NaN compares false here: no answer from NaN parts).
+    if !(l1.reaches(headroom) && l2.reaches(headroom)) {
+        return None;
     }
-    let slope = chord - at_a.dq;
-    if slope > T::zero() && at_start + slope * kink >= headroom {
-        let s = (headroom - at_start) / slope;
-        // Rounding can push the root past the segment; the bound reaches
-        // the headroom by its end in any case.
-        return Some(a + if s < kink { s } else { kink });
+    // Each line's part of `[a, b]` at or above the headroom is `[0, 1]`,
+    // `[u, 1]` (rising through it) or `[0, u]` (falling through it), in
+    // `u = (t - a) / h`; the answer is the largest lower end if no upper
+    // end lies before it.
+    let u = match (l1.rises_through(headroom), l2.rises_through(headroom)) {
+        (false, false) => return Some(a),
+        (true, true) => {
+            let (u1, u2) = (l1.crossing(headroom), l2.crossing(headroom));
+            if u1 > u2 {
+                u1
+            } else {
+                u2
+            }
+        }
+        (l1_rises, _) => {
+            let (rising, other) = if l1_rises { (l1, l2) } else { (l2, l1) };
+            let u = rising.crossing(headroom);
+            if other.falls_through(headroom) && u > other.crossing(headroom) {
+                // The other line falls below the headroom before this
+                // one rises to it.
+                return None;
+            }
+            u
+        }
+    };
+    Some(in_bracket(a, h, u))
+}
+
+/// `a + u h` for a share `u` of the bracket `[a, a + h]` \[s\], `u` taken
+/// into `[0, 1]`: rounding can push a root out of the bracket, and the
+/// bound reaches the headroom within it in any case.
+#[inline(always)]
+fn in_bracket<T: RealField + Copy>(a: T, h: T, u: T) -> T {
+    let u = if u < T::one() { u } else { T::one() };
+    a + if u > T::zero() { u * h } else { T::zero() }
+}
+
+/// One of the bound's two lines over a bracket, by its values at the
+/// bracket's ends \[K\].
+struct Line<T> {
+    start: T,
+    end: T,
+}
+
+impl<T: RealField + Copy> Line<T> {
+    /// At or above `headroom` somewhere in the bracket.
+    #[inline(always)]
+    fn reaches(&self, headroom: T) -> bool {
+        self.start >= headroom || self.end >= headroom
     }
-    // Segment 2 on [kink, h]: chord_P - tangent_b.
-    let intercept = at_a.p - at_b.q + rise_b;
-    let slope = chord - at_b.dq;
-    let at_start = intercept + slope * kink;
-    if at_start >= headroom {
-        return Some(a + kink);
+
+    /// Below `headroom` at the start (so rising through it, given
+    /// [`Self::reaches`]).
+    #[inline(always)]
+    fn rises_through(&self, headroom: T) -> bool {
+        self.start < headroom
     }
-    if slope > T::zero() && intercept + slope * h >= headroom {
-        let s = kink + (headroom - at_start) / slope;
-        return Some(a + if s < h { s } else { h });
+
+    /// Below `headroom` at the end.
+    #[inline(always)]
+    fn falls_through(&self, headroom: T) -> bool {
+        self.end < headroom
     }
-    None
+
+    /// Where it equals `headroom`, as a share of the bracket (finite for
+    /// a line through it: its ends straddle the headroom).
+    #[inline(always)]
+    fn crossing(&self, headroom: T) -> T {
+        (headroom - self.start) / (self.end - self.start)
+    }
 }
 
 /// Where a [`PredictorState`] keeps its answers (sealed): every element's

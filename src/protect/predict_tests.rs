@@ -928,3 +928,78 @@ proptest! {
         }
     }
 }
+
+/// A bracket `[a, a + h]` of an element whose `P` and `Q` are two decaying
+/// modes each (`c e^(lambda t)`, `c > 0`): the parts at both ends.
+fn bracket_parts() -> impl Strategy<Value = (f64, f64, Parts<f64>, Parts<f64>)> {
+    let mode = (0.01f64..50.0, -0.5f64..-1e-4);
+    (
+        0.0f64..500.0,
+        0.1f64..300.0,
+        [mode.clone(), mode.clone()],
+        [mode.clone(), mode],
+    )
+        .prop_map(|(a, h, p_modes, q_modes)| {
+            let at = |t: f64| Parts {
+                p: p_modes.iter().map(|(c, l)| c * (l * t).exp()).sum(),
+                q: q_modes.iter().map(|(c, l)| c * (l * t).exp()).sum(),
+                dq: q_modes.iter().map(|(c, l)| c * l * (l * t).exp()).sum(),
+            };
+            (a, a + h, at(a), at(a + h))
+        })
+}
+
+/// The bound of the module docs at `t` in `[a, b]`, from its definition:
+/// the chord of `P` minus the larger of `Q`'s tangents at `a` and `b`.
+fn bound_at(a: f64, b: f64, at_a: &Parts<f64>, at_b: &Parts<f64>, t: f64) -> f64 {
+    let chord = at_a.p + (at_b.p - at_a.p) * (t - a) / (b - a);
+    let tangent_a = at_a.q + at_a.dq * (t - a);
+    let tangent_b = at_b.q + at_b.dq * (t - b);
+    chord - tangent_a.max(tangent_b)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// The closed-form first crossing is the brute-force one: the bound
+    /// sampled at 20 000 points of the bracket, the first sample at or
+    /// above the headroom refined by bisection (the bound is concave, so
+    /// below it before, and at or above it from there to the sample). A
+    /// headroom within the sampling's reach of the bound's peak is skipped
+    /// (a crossing between two samples could hide there).
+    #[test]
+    fn the_first_crossing_is_the_brute_force_one(
+        (a, b, at_a, at_b) in bracket_parts(),
+        share in -0.2f64..1.2,
+    ) {
+        const SAMPLES: usize = 20_000;
+        let bound = |t: f64| bound_at(a, b, &at_a, &at_b, t);
+        let t_of = |i: usize| a + (b - a) * i as f64 / SAMPLES as f64;
+        let values: std::vec::Vec<f64> = (0..=SAMPLES).map(|i| bound(t_of(i))).collect();
+        let (low, high) = values.iter().fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(*v), h.max(*v)));
+        let headroom = low + share * (high - low);
+        // The bound's largest slope times a sample's width.
+        let step = values.windows(2).map(|w| (w[1] - w[0]).abs()).fold(0.0, f64::max);
+        prop_assume!((headroom - high).abs() > 2.0 * step + 1e-9 * high.abs());
+        let truth = values.iter().position(|v| *v >= headroom).map(|i| {
+            if i == 0 {
+                return a;
+            }
+            let (mut below, mut above) = (t_of(i - 1), t_of(i));
+            for _ in 0..100 {
+                let mid = 0.5 * (below + above);
+                if bound(mid) >= headroom { above = mid } else { below = mid }
+            }
+            above
+        });
+        let found = first_crossing(a, b, &at_a, &at_b, headroom);
+        match (found, truth) {
+            (None, None) => {}
+            (Some(t), Some(truth)) => prop_assert!(
+                (t - truth).abs() <= 1e-9 * (b - a) + 1e-12 * b,
+                "found {t}, brute force {truth} in [{a}, {b}]"
+            ),
+            _ => prop_assert!(false, "found {found:?}, brute force {truth:?} in [{a}, {b}]"),
+        }
+    }
+}
