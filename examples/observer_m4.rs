@@ -12,7 +12,7 @@
 //! Configuration: the grid accounts Joule energy every 1 ms tick and
 //! updates its temperatures every 20 ms; the Omnimagnet accounts each
 //! solenoid's `I^2` every tick, steps its model every 5 ms on the mean,
-//! and refreshes its limits and times to limit every 40 ms, 10 ms after a
+//! and refreshes its limits and times to limit every 40 ms, 5 ms after a
 //! grid update, its predictor in two slices of at most five nodes
 //! (`docs/cost.md` gives the figures). Both configurations are generated
 //! on the host (`examples/generated/`, by `coil-thermal codegen --device

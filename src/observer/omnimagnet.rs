@@ -112,7 +112,7 @@
 //! younger than the model, which the steady gain takes as it takes a
 //! reading a few milliseconds old. `protect_period_steps`,
 //! `protect_phase_steps` and the correction period are in model steps or
-//! seconds: at 5 ms, 8 and 2 steps keep the 40 ms cycle and put it 10 ms
+//! seconds: at 5 ms, 8 and 1 steps keep the 40 ms cycle and put it 5 ms
 //! after a 20 ms grid update (`examples/observer_m4.rs`).
 //!
 //! # Protection cycle

@@ -32,9 +32,12 @@ pub const OMNIMAGNET_AMBIENT_C: f64 = 22.0;
 /// is 0.25 s, the solenoids' minutes) on the mean `I^2` of its ticks, one
 /// step of catch-up per tick (5 ms of late time), and limits and times to
 /// limit every 40 ms (8 steps, a multiple of the grid's 20 ms update),
-/// 10 ms (2 steps) after its boundary: the two predictor slices, the alarm
-/// and the limiter then run on ticks 11 to 14 after a grid update (the step
-/// tick at 10 is busy), which the grid's protection stages leave light.
+/// 5 ms (1 step) after its boundary: the two predictor slices, the alarm
+/// and the limiter then run about 5 ms after a grid update, among the
+/// ticks where the grid prepares the next update's rows (1 to 7 after
+/// one) and runs no protection stage. At 2 steps (10 ms) the slices met
+/// the grid's protection stages (from tick 8): `observer_m4`'s combined
+/// worst was 6 361 instructions, 5 648 at 1 step.
 /// Five nodes per slice keep every slice under 4 000 instructions
 /// (`docs/cost.md`).
 pub fn omnimagnet_settings() -> coil_thermal::observer::omnimagnet::OmniSettings {
@@ -42,7 +45,7 @@ pub fn omnimagnet_settings() -> coil_thermal::observer::omnimagnet::OmniSettings
         step_us: 5_000,
         max_steps_per_tick: 1,
         protect_period_steps: 8,
-        protect_phase_steps: 2,
+        protect_phase_steps: 1,
         predictor_slices_per_cycle: 2,
         predictor_nodes_per_slice: 5,
         ..Default::default()
