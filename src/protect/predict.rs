@@ -599,7 +599,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         for (((v, z), lambda), d) in terms {
             let c = *v * *z;
             let term = c * *d;
-            if c > T::zero() {
+            // The sign bit, not `c > 0` (a software compare on a core
+            // without an FPU): a zero `c` adds nothing either way.
+            if c.is_sign_positive() {
                 parts.p += term;
             } else {
                 parts.q -= term;
