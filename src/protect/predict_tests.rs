@@ -1003,3 +1003,23 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    /// Any parts and headroom, NaN, the infinities and extremes among
+    /// them: the first crossing is `None` or a time in its bracket `[a, b]`
+    /// (never NaN: a NaN share of the bracket is taken as all of it), and
+    /// never panics.
+    #[test]
+    fn a_first_crossing_stays_in_its_bracket_for_any_input(
+        (a, h) in (0.0f32..1e4, 1e-3f32..1e4),
+        at_a in (any_f32(), any_f32(), any_f32()),
+        at_b in (any_f32(), any_f32(), any_f32()),
+        headroom in any_f32(),
+    ) {
+        let b = a + h;
+        let parts = |(p, q, dq): (f32, f32, f32)| Parts { p, q, dq };
+        if let Some(t) = first_crossing(a, b, &parts(at_a), &parts(at_b), headroom) {
+            prop_assert!((a..=b).contains(&t), "{t} outside [{a}, {b}]");
+        }
+    }
+}
