@@ -60,7 +60,9 @@ impl Band {
     /// `shadow_c` \[degC\] may have at the ambient `ambient_c` \[degC\]
     /// (NaN, so no verdict, when either is NaN).
     pub(crate) fn lowest_c(&self, shadow_c: f32, ambient_c: f32) -> f32 {
-        let rise = (shadow_c - ambient_c).max(0.0);
+        // `Scalar::max`, a comparison (NaN to zero as `f32::max`): the
+        // inherent `max` is a call to `fmaxf` where there is no VMAXNM.
+        let rise = Scalar::max(shadow_c - ambient_c, 0.0);
         shadow_c - (self.offset_k + self.fraction * rise)
     }
 
