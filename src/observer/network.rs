@@ -1770,8 +1770,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             let mut invalid = false;
             for ((f, row), limited) in factors.iter().zip(&self.incidence).zip(&self.limited) {
                 if *limited && row.get(m).copied().unwrap_or(false) {
-                    factor = factor.min(f.current_a);
-                    weight = weight.min(f.weight);
+                    // Comparisons (a NaN loses, as in `f32::min`): without
+                    // VMAXNM `f32::min` is a call to `fminf`.
+                    if f.current_a < factor {
+                        factor = f.current_a;
+                    }
+                    if f.weight < weight {
+                        weight = f.weight;
+                    }
                     invalid |= f.invalid;
                 }
             }

@@ -1655,7 +1655,13 @@ impl OmniObserver {
             // NaN must reach the limiter (which then gives the floor), so no
             // `min`, which would let it lose.
             let headroom = if hw.is_finite() && hc.is_finite() {
-                hw.min(hc)
+                // A comparison: `f32::min` is a call to `fminf` without
+                // VMAXNM.
+                if hc < hw {
+                    hc
+                } else {
+                    hw
+                }
             } else {
                 f32::NAN
             };

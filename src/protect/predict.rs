@@ -906,7 +906,14 @@ fn both_resistances_ohm<T: RealField + Copy>(w: &Winding<T>, temp: T, limit: T) 
         return w.r_at_0c_ohm;
     }
     let at = |t: T| w.r_at_0c_ohm + w.slope_ohm_per_k * t;
-    at(temp).max(at(limit))
+    let (at_temp, at_limit) = (at(temp), at(limit));
+    // `max` as a comparison (a NaN loses, as in `f32::max`): without
+    // VMAXNM (ARMv7E-M) `f32::max` is a call to `fmaxf`.
+    if at_temp < at_limit || at_temp.partial_cmp(&at_temp).is_none() {
+        at_limit
+    } else {
+        at_temp
+    }
 }
 
 /// The aged answer: `t - age`, floored at zero; NaN stays NaN.
