@@ -1613,10 +1613,9 @@ mod tests {
         holds_against(readings, 50.0)
     }
 
-    /// [`holds`] with the estimate at `estimate_c` \[degC\] (the shadow
-    /// at 50 degC).
-    fn holds_against(readings: impl Iterator<Item = f32>, estimate_c: f32) -> Vec<bool> {
-        let mut hold = DriftHold::<1>::new();
+    /// The stuck test (1 K within 10 readings) and the gate (NIS 10.83,
+    /// recovery after 5 refusals) the drift hold's tests screen with.
+    fn hold_policies() -> (StuckTest, GatePolicy<f32>) {
         let stuck = StuckTest {
             tolerance_k: 0.0,
             threshold_k: 1.0,
@@ -1627,6 +1626,14 @@ mod tests {
             suspect_after: 2,
             recover_after: 5,
         };
+        (stuck, gate)
+    }
+
+    /// [`holds`] with the estimate at `estimate_c` \[degC\] (the shadow
+    /// at 50 degC).
+    fn holds_against(readings: impl Iterator<Item = f32>, estimate_c: f32) -> Vec<bool> {
+        let mut hold = DriftHold::<1>::new();
+        let (stuck, gate) = hold_policies();
         let mut rejections = 0u16;
         readings
             .map(|t| {
@@ -1688,16 +1695,7 @@ mod tests {
     /// the cold one and leaves the other to the gate.
     #[test]
     fn a_hold_is_common_mode_only_when_nothing_else_is_left() {
-        let stuck = StuckTest {
-            tolerance_k: 0.0,
-            threshold_k: 1.0,
-            window: 10,
-        };
-        let gate = GatePolicy {
-            threshold: 10.83,
-            suspect_after: 2,
-            recover_after: 5,
-        };
+        let (stuck, gate) = hold_policies();
         let view = |_| GateView {
             estimate_c: 50.0,
             innovation_var_k2: 0.1,
