@@ -72,6 +72,7 @@ pub mod omnimagnet;
 pub mod protect;
 pub mod scalar;
 pub mod sensors;
+pub mod sizes;
 pub mod solenoid;
 
 /// The linear algebra crate this one is built on, re-exported so that a

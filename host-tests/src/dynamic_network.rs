@@ -12,6 +12,7 @@
 //! ([`crate::limits::padded_with`]).
 
 use coil_thermal::network::{JouleSource, NetworkDescription};
+use coil_thermal::sizes::RunTimeSizes;
 use coil_thermal::{Drive, Network, Resistance};
 
 /// A conductance between two state nodes `a < b` \[W/K\].
@@ -321,6 +322,16 @@ impl DynNetwork {
 }
 
 impl NetworkDescription for DynNetwork {
+    type Sizes = RunTimeSizes;
+
+    fn sizes(&self) -> RunTimeSizes {
+        RunTimeSizes {
+            nodes: self.nodes(),
+            boundaries: self.boundaries,
+            inputs: self.sources.len(),
+        }
+    }
+
     fn node_count(&self) -> usize {
         self.nodes()
     }

@@ -10,12 +10,34 @@
 //! `alloc` feature, `RunTimeStepper` on a host), not through a copy of it.
 
 use super::{JouleSource, Network};
+use crate::sizes::{ConstSizes, Sizes};
+
+/// A value per state node of network `W`: an array for a [`Network`], a
+/// `Vec` for one read at run time.
+pub type Nodes<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Nodes<U>;
+
+/// A value per boundary of network `W`.
+pub type Boundaries<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Boundaries<U>;
+
+/// A value per input (current source) of network `W`.
+pub type Inputs<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Inputs<U>;
 
 /// A thermal network as a stepper reads it: sizes, capacities, the
 /// conductances of each node to its later neighbours and to the
 /// boundaries, fixed powers and Joule sources (every quantity in SI units,
 /// temperatures in degC).
 pub trait NetworkDescription {
+    /// The sizes of the vectors over this network's nodes, boundaries and
+    /// inputs: arrays for a [`Network`] ([`ConstSizes`]), `Vec`s of its
+    /// lengths for one read at run time
+    /// (`RunTimeSizes`). What the analyses
+    /// written over [`Sizes`] (the steady state, the time-to-limit
+    /// predictor, the runaway currents) take and return for it.
+    type Sizes: Sizes;
+
+    /// This network's [`Self::Sizes`].
+    fn sizes(&self) -> Self::Sizes;
+
     /// Number of state nodes.
     fn node_count(&self) -> usize;
 
@@ -48,6 +70,12 @@ pub trait NetworkDescription {
 }
 
 impl<const N: usize, const B: usize, const M: usize> NetworkDescription for Network<N, B, M> {
+    type Sizes = ConstSizes<N, B, M>;
+
+    fn sizes(&self) -> ConstSizes<N, B, M> {
+        ConstSizes
+    }
+
     fn node_count(&self) -> usize {
         N
     }

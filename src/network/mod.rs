@@ -32,8 +32,9 @@ mod explicit;
 pub mod motor;
 mod source;
 mod steady;
+pub use steady::steady_state_of;
 
-pub use description::NetworkDescription;
+pub use description::{Boundaries, Inputs, NetworkDescription, Nodes};
 pub use explicit::{compensated_add, ExplicitStepper, NetworkState};
 #[cfg(feature = "alloc")]
 pub use explicit::{RunTimeState, RunTimeStepper, SizeMismatch};

@@ -27,8 +27,10 @@
 //! Build-time code: `O(N^3)` work and `N^2` `f64` on the stack (56 KiB for
 //! N = 84), meant for the host or for small networks on target.
 
-use super::{Drive, Network};
+use super::description::{Boundaries, Inputs, Nodes};
+use super::{Drive, Network, NetworkDescription};
 use crate::error::BuildError;
+use crate::sizes::Sizes;
 
 /// Newton iterations at most for voltage-driven sources.
 const MAX_NEWTON: usize = 100;
@@ -50,128 +52,167 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
         currents_a: &[f64; M],
         boundary_c: &[f64; B],
     ) -> Result<[f64; N], BuildError> {
-        if !currents_a.iter().chain(boundary_c).all(|v| v.is_finite()) {
-            return Err(BuildError::InvalidParameter {
-                name: "currents_a/boundary_c",
-            });
-        }
-        // Voltage-driven sources are linearised at the warmest boundary
-        // first (or 0 degC without one), then at each iterate.
-        let start = boundary_c.iter().copied().fold(0.0f64, f64::max);
-        let mut at = [start; N];
-        let voltage = self
-            .sources
-            .iter()
-            .flatten()
-            .any(|s| s.drive == Drive::Voltage);
-        for _ in 0..MAX_NEWTON {
-            let (k, q) = self.steady_system(currents_a, boundary_c, true, &at);
-            let t = match solve_m_matrix(k, q) {
-                Ok(t) => t,
-                Err(()) => {
-                    // Tell runaway apart from a node with no way out.
-                    let (k0, q0) = self.steady_system(currents_a, boundary_c, false, &at);
-                    return match solve_m_matrix(k0, q0) {
-                        Ok(_) => Err(BuildError::NoSteadyState),
-                        Err(()) => Err(BuildError::Singular),
-                    };
-                }
-            };
-            let moved = t
-                .iter()
-                .zip(&at)
-                .fold(0.0f64, |acc, (a, b)| acc.max((a - b).abs()));
-            if !voltage || moved < NEWTON_TOLERANCE_K {
-                return Ok(t);
-            }
-            at = t;
-        }
-        Err(BuildError::NotConverged {
-            name: "steady_state",
-        })
-    }
-
-    /// `K` and `q` of the module docs; `with_feedback = false` drops the
-    /// `s I^2` terms (constant resistance at 0 degC, used to classify failure).
-    /// Voltage-driven sources are linearised at `at` \[degC\].
-    fn steady_system(
-        &self,
-        currents_a: &[f64; M],
-        boundary_c: &[f64; B],
-        with_feedback: bool,
-        at: &[f64; N],
-    ) -> ([[f64; N]; N], [f64; N]) {
-        let mut k = [[0.0; N]; N];
-        let mut q = self.fixed_power_w;
-        for i in 0..N {
-            for j in 0..N {
-                if j != i {
-                    let g = self.conductance_w_per_k(i, j);
-                    k[i][j] = -g;
-                    k[i][i] += g;
-                }
-            }
-            for (g, tb) in self.boundary_w_per_k[i].iter().zip(boundary_c) {
-                k[i][i] += g;
-                q[i] += g * tb;
-            }
-        }
-        for (source, current) in self.sources.iter().zip(currents_a) {
-            if let Some(s) = source.filter(|s| s.drive == Drive::Voltage) {
-                // P(T) ~ P(T_k) + P'(T_k) (T - T_k), P' = -s u / R^2.
-                let u = current * current;
-                let r = s.resistance.at_c(at[s.node]);
-                if r > 0.0 {
-                    let p = u / r;
-                    let dp = -s.resistance.slope_ohm_per_k * u / (r * r);
-                    q[s.node] += p - dp * at[s.node];
-                    k[s.node][s.node] -= dp;
-                }
-            } else if let Some(s) = source {
-                let i2 = current * current;
-                q[s.node] += s.resistance.r_at_0c_ohm * i2;
-                if with_feedback {
-                    k[s.node][s.node] -= s.resistance.slope_ohm_per_k * i2;
-                }
-            }
-        }
-        (k, q)
+        steady_state_of(self, currents_a, boundary_c)
     }
 }
 
-/// Solves `K x = q` for a Z-matrix `K` by elimination without pivoting;
-/// `Err(())` when a pivot is not positive (K is not a non-singular M-matrix).
-pub(crate) fn solve_m_matrix<const N: usize>(
-    mut k: [[f64; N]; N],
-    mut q: [f64; N],
-) -> Result<[f64; N], ()> {
-    let scale = k
-        .iter()
-        .enumerate()
-        .map(|(i, row)| row[i].abs())
-        .fold(0.0, f64::max);
-    for p in 0..N {
-        let pivot = k[p][p];
-        if pivot.partial_cmp(&(PIVOT_EPSILON * scale)) != Some(core::cmp::Ordering::Greater) {
-            return Err(());
+/// [`Network::steady_state`] of any network description (a model file's
+/// network on a host, at its own size). Build-time code: `O(N^3)` work,
+/// `N^2` numbers.
+///
+/// # Errors
+/// As [`Network::steady_state`]; [`BuildError::InvalidParameter`] too for
+/// currents or boundaries of another length than the network's.
+pub fn steady_state_of<W: NetworkDescription>(
+    network: &W,
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+) -> Result<Nodes<W, f64>, BuildError> {
+    let sizes = network.sizes();
+    let (currents, boundary) = (currents_a.as_ref(), boundary_c.as_ref());
+    let finite = currents.iter().chain(boundary).all(|v| v.is_finite());
+    if !finite || currents.len() != sizes.inputs() || boundary.len() != sizes.boundaries() {
+        return Err(BuildError::InvalidParameter {
+            name: "currents_a/boundary_c",
+        });
+    }
+    // Voltage-driven sources are linearised at the warmest boundary
+    // first (or 0 degC without one), then at each iterate.
+    let start = boundary.iter().copied().fold(0.0f64, f64::max);
+    let mut at = sizes.nodes_of(start);
+    let voltage = (0..sizes.inputs())
+        .filter_map(|m| network.joule_source_of(m))
+        .any(|s| s.drive == Drive::Voltage);
+    for _ in 0..MAX_NEWTON {
+        let (k, q) = steady_system(sizes, network, currents, boundary, true, at.as_ref());
+        let t = match solve_m_matrix(k, q) {
+            Ok(t) => t,
+            Err(()) => {
+                // Tell runaway apart from a node with no way out.
+                let (k0, q0) =
+                    steady_system(sizes, network, currents, boundary, false, at.as_ref());
+                return match solve_m_matrix(k0, q0) {
+                    Ok(_) => Err(BuildError::NoSteadyState),
+                    Err(()) => Err(BuildError::Singular),
+                };
+            }
+        };
+        let moved = t
+            .as_ref()
+            .iter()
+            .zip(at.as_ref())
+            .fold(0.0f64, |acc, (a, b)| acc.max((a - b).abs()));
+        if !voltage || moved < NEWTON_TOLERANCE_K {
+            return Ok(t);
         }
-        for r in (p + 1)..N {
-            let factor = k[r][p] / pivot;
-            if factor != 0.0 {
-                for c in p..N {
-                    k[r][c] -= factor * k[p][c];
-                }
-                q[r] -= factor * q[p];
+        at = t;
+    }
+    Err(BuildError::NotConverged {
+        name: "steady_state",
+    })
+}
+
+/// `K` and `q` of the module docs; with `with_feedback` false, without
+/// the `R(T)` feedback on the diagonal; voltage-driven sources
+/// linearised at `at` \[degC\].
+fn steady_system<S: Sizes>(
+    sizes: S,
+    network: &impl NetworkDescription,
+    currents_a: &[f64],
+    boundary_c: &[f64],
+    with_feedback: bool,
+    at: &[f64],
+) -> (S::Nodes<S::Nodes<f64>>, S::Nodes<f64>) {
+    let n = sizes.nodes();
+    let mut k = sizes.rows_of(sizes.nodes_of(0.0));
+    let mut q = sizes.nodes_of(0.0);
+    let rows = k.as_mut();
+    let q_rows = q.as_mut();
+    // Each pair is stored once: its conductance goes both ways.
+    for i in 0..n {
+        for (j, g) in network.later_pairs_w_per_k(i) {
+            rows[i].as_mut()[j] = -g;
+            rows[j].as_mut()[i] = -g;
+        }
+    }
+    for i in 0..n {
+        let row = rows[i].as_mut();
+        for j in 0..n {
+            if j != i {
+                row[i] -= row[j];
+            }
+        }
+        q_rows[i] = network.fixed_power_at_w(i);
+        for (b, tb) in boundary_c.iter().enumerate() {
+            let g = network.boundary_link_w_per_k(i, b);
+            row[i] += g;
+            q_rows[i] += g * tb;
+        }
+    }
+    for (m, current) in currents_a.iter().enumerate() {
+        let Some(s) = network.joule_source_of(m) else {
+            continue;
+        };
+        let (node, u) = (s.node, current * current);
+        if s.drive == Drive::Voltage {
+            // P(T) ~ P(T_k) + P'(T_k) (T - T_k), P' = -s u / R^2.
+            let r = s.resistance.at_c(at[node]);
+            if r > 0.0 {
+                let p = u / r;
+                let dp = -s.resistance.slope_ohm_per_k * u / (r * r);
+                q_rows[node] += p - dp * at[node];
+                rows[node].as_mut()[node] -= dp;
+            }
+        } else {
+            q_rows[node] += s.resistance.r_at_0c_ohm * u;
+            if with_feedback {
+                rows[node].as_mut()[node] -= s.resistance.slope_ohm_per_k * u;
             }
         }
     }
-    let mut x = [0.0; N];
-    for r in (0..N).rev() {
-        let mut acc = q[r];
-        for c in (r + 1)..N {
-            acc -= k[r][c] * x[c];
+    (k, q)
+}
+
+/// Gaussian elimination without pivoting of `k x = q`; `Err` at a pivot
+/// that is not positive (`k` is then no non-singular M-matrix).
+pub(crate) fn solve_m_matrix<V: AsRef<[f64]> + AsMut<[f64]> + Clone>(
+    mut k: impl AsMut<[V]>,
+    mut q: V,
+) -> Result<V, ()> {
+    let k = k.as_mut();
+    let n = k.len();
+    let scale = k
+        .iter()
+        .enumerate()
+        .map(|(i, row)| row.as_ref()[i].abs())
+        .fold(0.0, f64::max);
+    for p in 0..n {
+        let pivot = k[p].as_ref()[p];
+        if pivot.partial_cmp(&(PIVOT_EPSILON * scale)) != Some(core::cmp::Ordering::Greater) {
+            return Err(());
         }
-        x[r] = acc / k[r][r];
+        let (above, below) = k.split_at_mut(p + 1);
+        let pivot_row = above[p].as_ref();
+        for (r, row) in below.iter_mut().enumerate() {
+            let row = row.as_mut();
+            let factor = row[p] / pivot;
+            if factor != 0.0 {
+                for c in p..n {
+                    row[c] -= factor * pivot_row[c];
+                }
+                let qp = q.as_ref()[p];
+                q.as_mut()[p + 1 + r] -= factor * qp;
+            }
+        }
+    }
+    let mut x = q.clone();
+    let xs = x.as_mut();
+    for r in (0..n).rev() {
+        let mut acc = q.as_ref()[r];
+        for c in (r + 1)..n {
+            acc -= k[r].as_ref()[c] * xs[c];
+        }
+        xs[r] = acc / k[r].as_ref()[r];
     }
     Ok(x)
 }

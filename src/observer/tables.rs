@@ -414,6 +414,7 @@ impl<const N: usize, const B: usize, const M: usize> PredictorTables<N, B, M> {
             gain_boundary: self.gain_boundary,
             offset_c: self.offset_c,
             windings,
+            sizes: crate::sizes::ConstSizes,
             tick_s: self.tick_s,
             points_per_tick: self.points_per_tick,
             slowest_time_constant_s: self.slowest_time_constant_s,

@@ -119,6 +119,18 @@
 //! for a full sweep. Bounded loops only, no allocation, no panic: non-finite
 //! inputs give `Some(NaN)` for every element ("unknown"), which the alarm
 //! counts as below the horizon.
+//!
+//! # Any size: [`ModalPredictor`]
+//!
+//! The configuration and every function of a sweep are written over the
+//! network's [`Sizes`]: [`LimitPredictor`] and [`Operating`] are
+//! [`ModalPredictor`] and [`OperatingPoint`] with arrays
+//! ([`ConstSizes`]), what an MCU flashes; with the `alloc` feature,
+//! [`PredictorBuilder::build_from`] a model file's network on a host gives
+//! the same predictor with `Vec`s of the model's lengths
+//! (`RunTimeSizes`), so the host's time to
+//! limit and safe currents of a 300-node motor are this code's. The staged
+//! [`PredictorState`] stays const-generic: it is the MCU's.
 
 use core::ops::Range;
 
@@ -126,7 +138,8 @@ use nalgebra::RealField;
 
 use super::modal::Modal;
 use crate::error::BuildError;
-use crate::network::Network;
+use crate::network::{Network, NetworkDescription};
+use crate::sizes::{ConstSizes, Element, Sizes};
 
 /// The default number of positive horizons `K` in the grid.
 pub const DEFAULT_GRID_POINTS: usize = 48;
@@ -214,7 +227,21 @@ impl PredictorBuilder {
         &self,
         network: &Network<N, B, M>,
     ) -> Result<LimitPredictor<T, N, B, M, K>, BuildError> {
+        self.build_from(network)
+    }
+
+    /// [`Self::build`] for any network description: a [`Network`], or a
+    /// model file's network at its own size on a host (a
+    /// [`ModalPredictor`] whose vectors are `Vec`s, the same code).
+    ///
+    /// # Errors
+    /// As [`Self::build`].
+    pub fn build_from<T: RealField + Copy, W: NetworkDescription, const K: usize>(
+        &self,
+        network: &W,
+    ) -> Result<ModalPredictor<T, W::Sizes, K>, BuildError> {
         const { assert!(K >= 2, "the grid needs at least two horizons") };
+        let sizes = network.sizes();
         let param = |ok: bool, name: &'static str| {
             if ok {
                 Ok(())
@@ -235,36 +262,59 @@ impl PredictorBuilder {
             "points_per_tick",
         )?;
         param(self.elements_per_tick >= 1, "elements_per_tick")?;
-        network.check_sources()?;
-        let modal = Modal::new(network, &[0.0; N])?;
-        if !modal.lambda_per_s.iter().all(|&l| l < 0.0) {
+        if let Some(input) = (0..sizes.inputs()).find(|&m| network.joule_source_of(m).is_none()) {
+            return Err(BuildError::MissingSource { input });
+        }
+        let modal = Modal::new(network, &sizes.nodes_of(0.0))?;
+        let lambda_per_s = modal.lambda_per_s.as_ref();
+        if !lambda_per_s.iter().all(|&l| l < 0.0) {
             return Err(BuildError::Singular);
         }
         let to_t = |x: f64| T::from_subset(&x);
-        let cap = |i: usize| network.capacity_j_per_k(i).unwrap_or(1.0);
+        // A network's capacities are finite and positive.
+        let cap = |i: usize| network.capacity_at_j_per_k(i);
+        let node_rates = |rate: &dyn Fn(usize) -> f64| {
+            let mut rates = sizes.nodes_of(0.0);
+            for (i, r) in rates.as_mut().iter_mut().enumerate() {
+                *r = rate(i);
+            }
+            rates
+        };
 
         // -A^-1 x = V diag(-1/lambda) V^-1 x, for a vector of rates x [K/s].
-        let inverse_rate = modal.lambda_per_s.map(|l| -1.0 / l);
-        let ones = [1.0; N];
-        let steady_gain = |rates: &[f64; N]| -> [f64; N] {
+        let inverse_rate = node_rates(&|j| -1.0 / lambda_per_s[j]);
+        let ones = sizes.nodes_of(1.0);
+        let steady_gain = |rates: &<W::Sizes as Sizes>::Nodes<f64>| {
             let mut modes = modal.to_modes(rates);
-            for (z, w) in modes.iter_mut().zip(&inverse_rate) {
+            for (z, w) in modes.as_mut().iter_mut().zip(inverse_rate.as_ref()) {
                 *z *= w;
             }
             modal.node_values(&modes, &ones)
         };
+        // Row `i` of a table, each entry of `T`.
+        let rows_of = |row: &<W::Sizes as Sizes>::Nodes<f64>| {
+            let mut out = sizes.nodes_of(T::zero());
+            for (o, x) in out.as_mut().iter_mut().zip(row.as_ref()) {
+                *o = to_t(*x);
+            }
+            out
+        };
 
-        let mut gain_power = [[T::zero(); M]; N];
-        let mut windings = [Winding::default(); M];
-        for (m, winding) in windings.iter_mut().enumerate() {
+        let mut gain_power = sizes.rows_of(sizes.inputs_of(T::zero()));
+        let mut windings = sizes.inputs_of(Winding::default());
+        for (m, winding) in windings.as_mut().iter_mut().enumerate() {
             let source = network
-                .source(m)
+                .joule_source_of(m)
                 .ok_or(BuildError::MissingSource { input: m })?;
-            let mut rates = [0.0; N];
-            rates[source.node] = 1.0 / cap(source.node);
-            let gain = steady_gain(&rates);
-            for i in 0..N {
-                gain_power[i][m] = to_t(gain[i]);
+            let gain = steady_gain(&node_rates(&|i| {
+                if i == source.node {
+                    1.0 / cap(i)
+                } else {
+                    0.0
+                }
+            }));
+            for (row, g) in gain_power.as_mut().iter_mut().zip(gain.as_ref()) {
+                row.as_mut()[m] = to_t(*g);
             }
             *winding = Winding {
                 node: source.node,
@@ -272,51 +322,52 @@ impl PredictorBuilder {
                 slope_ohm_per_k: to_t(source.resistance.slope_ohm_per_k),
             };
         }
-        let mut gain_boundary = [[T::zero(); B]; N];
-        for b in 0..B {
-            let mut rates = [0.0; N];
-            for (i, r) in rates.iter_mut().enumerate() {
-                *r = network.boundary_conductance_w_per_k(i, b) / cap(i);
-            }
-            let gain = steady_gain(&rates);
-            for i in 0..N {
-                gain_boundary[i][b] = to_t(gain[i]);
+        let mut gain_boundary = sizes.rows_of(sizes.boundaries_of(T::zero()));
+        for b in 0..sizes.boundaries() {
+            let gain = steady_gain(&node_rates(&|i| {
+                network.boundary_link_w_per_k(i, b) / cap(i)
+            }));
+            for (row, g) in gain_boundary.as_mut().iter_mut().zip(gain.as_ref()) {
+                row.as_mut()[b] = to_t(*g);
             }
         }
-        let mut rates = [0.0; N];
-        for (i, r) in rates.iter_mut().enumerate() {
-            *r = network.fixed_power_w(i) / cap(i);
-        }
-        let offset = steady_gain(&rates);
+        let offset = steady_gain(&node_rates(&|i| network.fixed_power_at_w(i) / cap(i)));
 
         let ratio = libm::pow(self.last_s / self.first_s, 1.0 / (K - 1) as f64);
         let mut grid_s = [T::zero(); K];
-        let mut decay = [[T::zero(); N]; K];
-        for k in 0..K {
+        let mut decay: [_; K] = core::array::from_fn(|_| sizes.nodes_of(T::zero()));
+        for (k, (t_k, row)) in grid_s.iter_mut().zip(&mut decay).enumerate() {
             let t = if k + 1 == K {
                 self.last_s
             } else {
                 self.first_s * libm::pow(ratio, k as f64)
             };
-            grid_s[k] = to_t(t);
-            for j in 0..N {
-                decay[k][j] = to_t(libm::exp(modal.lambda_per_s[j] * t));
+            *t_k = to_t(t);
+            for (d, l) in row.as_mut().iter_mut().zip(lambda_per_s) {
+                *d = to_t(libm::exp(l * t));
             }
         }
-        let slowest = modal
-            .lambda_per_s
+        let slowest = lambda_per_s
             .iter()
             .fold(0.0f64, |acc, &l| acc.max(-1.0 / l));
-        Ok(LimitPredictor {
+        let matrix_of = |m: &crate::protect::modal::NodeMatrix<W::Sizes>| {
+            let mut out = sizes.rows_of(sizes.nodes_of(T::zero()));
+            for (o, row) in out.as_mut().iter_mut().zip(m.as_ref()) {
+                *o = rows_of(row);
+            }
+            out
+        };
+        Ok(ModalPredictor {
             grid_s,
             decay,
-            lambda_per_s: modal.lambda_per_s.map(to_t),
-            v: modal.v.map(|row| row.map(to_t)),
-            v_inv: modal.v_inv.map(|row| row.map(to_t)),
+            lambda_per_s: rows_of(&modal.lambda_per_s),
+            v: matrix_of(&modal.v),
+            v_inv: matrix_of(&modal.v_inv),
             gain_power,
             gain_boundary,
-            offset_c: offset.map(to_t),
+            offset_c: rows_of(&offset),
             windings,
+            sizes,
             tick_s: to_t(self.tick_s),
             points_per_tick: self.points_per_tick,
             elements_per_tick: self.elements_per_tick,
@@ -343,66 +394,84 @@ impl<T: RealField + Copy> Default for Winding<T> {
     }
 }
 
-/// The present operating point, in the predictor's float type.
+/// The present operating point of a network of `N` nodes, `B` boundaries
+/// and `M` windings (arrays: an MCU's), in the predictor's float type.
+pub type Operating<T, const N: usize, const B: usize, const M: usize> =
+    OperatingPoint<T, ConstSizes<N, B, M>>;
+
+/// The present operating point, in the predictor's float type, with
+/// vectors of the sizes `S` ([`Operating`] on an MCU).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Operating<T, const N: usize, const B: usize, const M: usize> {
+pub struct OperatingPoint<T: Element, S: Sizes> {
     /// Element temperatures \[degC\] (a model's or filter's estimate).
-    pub temps_c: [T; N],
+    pub temps_c: S::Nodes<T>,
     /// Winding currents \[A\] (sign is irrelevant: power goes with `I^2`).
-    pub currents_a: [T; M],
+    pub currents_a: S::Inputs<T>,
     /// Boundary temperatures \[degC\], assumed held over the horizon.
-    pub boundary_c: [T; B],
+    pub boundary_c: S::Boundaries<T>,
     /// Each element's alarm limit \[degC\], finite (e.g. from
     /// [`AlarmConfig::alarm_limits_c`](super::alarm::AlarmConfig::alarm_limits_c)),
     /// or `+inf` for an element without one that is not a winding's node
     /// (its answer is "never" and its horizons are skipped; a winding's
     /// power is taken at its node's limit, which must be finite).
-    pub limits_c: [T; N],
+    pub limits_c: S::Nodes<T>,
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize> Operating<T, N, B, M> {
+impl<T: RealField + Copy, S: Sizes> OperatingPoint<T, S> {
     /// `true` when every input is finite (a limit may also be `+inf`: an
     /// element that has none).
     pub fn is_finite(&self) -> bool {
         self.temps_c
+            .as_ref()
             .iter()
-            .chain(&self.currents_a)
-            .chain(&self.boundary_c)
+            .chain(self.currents_a.as_ref())
+            .chain(self.boundary_c.as_ref())
             .all(|v| v.is_finite())
             && self
                 .limits_c
+                .as_ref()
                 .iter()
                 .all(|l| l.is_finite() || *l > T::zero())
     }
 }
 
 /// The time-to-limit predictor's configuration for `N` elements, `B`
-/// boundaries, `M` windings and `K` horizons, in `T` (`f32` on target).
+/// boundaries, `M` windings and `K` horizons, in `T` (`f32` on target):
+/// a [`ModalPredictor`] whose vectors are arrays.
 ///
 /// Built once by [`PredictorBuilder::build`], then only read. See the module
 /// docs for the method and its guarantee.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LimitPredictor<
+pub type LimitPredictor<
     T,
     const N: usize,
     const B: usize,
     const M: usize,
     const K: usize = DEFAULT_GRID_POINTS,
-> {
+> = ModalPredictor<T, ConstSizes<N, B, M>, K>;
+
+/// The time-to-limit predictor's configuration for a network of sizes `S`
+/// and `K` horizons, in `T`: [`LimitPredictor`] on an MCU (arrays), or a
+/// model file's network at its own size on a host
+/// ([`PredictorBuilder::build_from`] with the `alloc` feature's
+/// `RunTimeSizes`). One code: see the
+/// module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalPredictor<T: Element, S: Sizes, const K: usize = DEFAULT_GRID_POINTS> {
     /// Positive horizons `t_1 .. t_K` \[s\].
     pub(crate) grid_s: [T; K],
     /// `exp(lambda_j t_k)`, row `k` for `t_{k+1}`.
-    pub(crate) decay: [[T; N]; K],
-    pub(crate) lambda_per_s: [T; N],
-    pub(crate) v: [[T; N]; N],
-    pub(crate) v_inv: [[T; N]; N],
+    pub(crate) decay: [S::Nodes<T>; K],
+    pub(crate) lambda_per_s: S::Nodes<T>,
+    pub(crate) v: S::Nodes<S::Nodes<T>>,
+    pub(crate) v_inv: S::Nodes<S::Nodes<T>>,
     /// Steady rise per watt of each winding \[K/W\].
-    pub(crate) gain_power: [[T; M]; N],
+    pub(crate) gain_power: S::Nodes<S::Inputs<T>>,
     /// Steady temperature per degree of each boundary (dimensionless).
-    pub(crate) gain_boundary: [[T; B]; N],
+    pub(crate) gain_boundary: S::Nodes<S::Boundaries<T>>,
     /// Steady rise from the fixed powers \[K\].
-    pub(crate) offset_c: [T; N],
-    pub(crate) windings: [Winding<T>; M],
+    pub(crate) offset_c: S::Nodes<T>,
+    pub(crate) windings: S::Inputs<Winding<T>>,
+    pub(crate) sizes: S,
     pub(crate) tick_s: T,
     pub(crate) points_per_tick: usize,
     pub(crate) slowest_time_constant_s: f64,
@@ -413,9 +482,9 @@ pub struct LimitPredictor<
 
 /// `start + sum(gains * inputs)`, summed in order.
 #[inline(always)]
-fn dot_onto<T: RealField + Copy, const C: usize>(start: T, gains: &[T; C], inputs: &[T; C]) -> T {
+fn dot_onto<T: RealField + Copy, V: AsRef<[T]>>(start: T, gains: &V, inputs: &V) -> T {
     let mut sum = start;
-    for (g, x) in gains.iter().zip(inputs) {
+    for (g, x) in gains.as_ref().iter().zip(inputs.as_ref()) {
         sum += *g * *x;
     }
     sum
@@ -442,13 +511,14 @@ impl<T: RealField + Copy> Default for Parts<T> {
     }
 }
 
-/// A snapshot: steady state, modes and limits at the sweep's start.
+/// A snapshot: steady state, modes and limits at the sweep's start (`V`
+/// a vector over the nodes).
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Snapshot<T, const N: usize> {
+struct Snapshot<V> {
     /// Limit minus steady state \[K\].
-    headroom_k: [T; N],
+    headroom_k: V,
     /// Modal amplitudes `V^-1 (T_0 - T_ss)`.
-    modes: [T; N],
+    modes: V,
     valid: bool,
 }
 
@@ -471,9 +541,7 @@ enum Crossing<T> {
     Never,
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const K: usize>
-    LimitPredictor<T, N, B, M, K>
-{
+impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// The positive horizons of the grid \[s\].
     pub fn grid_s(&self) -> &[T; K] {
         &self.grid_s
@@ -493,9 +561,10 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// Each winding's Joule power \[W\] at the resistance it would have at the
     /// alarm limit of its node (or its present temperature, if higher): the
     /// conservative powers of the module docs.
-    pub(super) fn conservative_powers_w(&self, op: &Operating<T, N, B, M>) -> [T; M] {
-        let mut powers = [T::zero(); M];
-        for ((p, w), i) in powers.iter_mut().zip(&self.windings).zip(&op.currents_a) {
+    pub(super) fn conservative_powers_w(&self, op: &OperatingPoint<T, S>) -> S::Inputs<T> {
+        let mut powers = self.sizes.inputs_of(T::zero());
+        let windings = powers.as_mut().iter_mut().zip(self.windings.as_ref());
+        for ((p, w), i) in windings.zip(op.currents_a.as_ref()) {
             *p = self.conservative_resistance_ohm(w, op) * *i * *i;
         }
         powers
@@ -512,11 +581,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     pub(super) fn conservative_resistance_ohm(
         &self,
         w: &Winding<T>,
-        op: &Operating<T, N, B, M>,
+        op: &OperatingPoint<T, S>,
     ) -> T {
         let nan = T::from_subset(&f64::NAN);
-        let temp = op.temps_c.get(w.node).copied().unwrap_or(nan);
-        let limit = op.limits_c.get(w.node).copied().unwrap_or(nan);
+        let temp = op.temps_c.as_ref().get(w.node).copied().unwrap_or(nan);
+        let limit = op.limits_c.as_ref().get(w.node).copied().unwrap_or(nan);
         let r = larger_resistance_ohm(w, temp, limit);
         if r > T::zero() {
             r
@@ -539,11 +608,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// took `N + M + B + 1`.
     pub(super) fn steady_and_modes(
         &self,
-        temps_c: &[T; N],
-        powers_w: &[T; M],
-        boundary_c: &[T; B],
+        temps_c: &S::Nodes<T>,
+        powers_w: &S::Inputs<T>,
+        boundary_c: &S::Boundaries<T>,
         with_fixed: bool,
-    ) -> ([T; N], [T; N]) {
+    ) -> (S::Nodes<T>, S::Nodes<T>) {
         let (steady, mut modes) = self.steady_and_offset(temps_c, powers_w, boundary_c, with_fixed);
         self.to_modes(&mut modes);
         (steady, modes)
@@ -553,23 +622,25 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// \[degC\] and `T_0 - T_ss` \[K\].
     fn steady_and_offset(
         &self,
-        temps_c: &[T; N],
-        powers_w: &[T; M],
-        boundary_c: &[T; B],
+        temps_c: &S::Nodes<T>,
+        powers_w: &S::Inputs<T>,
+        boundary_c: &S::Boundaries<T>,
         with_fixed: bool,
-    ) -> ([T; N], [T; N]) {
-        let mut steady = [T::zero(); N];
+    ) -> (S::Nodes<T>, S::Nodes<T>) {
+        let mut steady = self.sizes.nodes_of(T::zero());
         let rows = steady
+            .as_mut()
             .iter_mut()
-            .zip(&self.gain_power)
-            .zip(&self.gain_boundary)
-            .zip(&self.offset_c);
+            .zip(self.gain_power.as_ref())
+            .zip(self.gain_boundary.as_ref())
+            .zip(self.offset_c.as_ref());
         for (((ss, gp), gb), k) in rows {
             let start = if with_fixed { *k } else { T::zero() };
             *ss = dot_onto(dot_onto(start, gp, powers_w), gb, boundary_c);
         }
-        let mut from_steady = [T::zero(); N];
-        for ((d, t), ss) in from_steady.iter_mut().zip(temps_c).zip(&steady) {
+        let mut from_steady = self.sizes.nodes_of(T::zero());
+        let pairs = temps_c.as_ref().iter().zip(steady.as_ref());
+        for (d, (t, ss)) in from_steady.as_mut().iter_mut().zip(pairs) {
             *d = *t - *ss;
         }
         (steady, from_steady)
@@ -579,23 +650,27 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// `T_0 - T_ss` \[K\] in, the modal amplitudes `V^-1 (T_0 - T_ss)`
     /// \[K\] out.
     #[inline(always)]
-    fn to_modes(&self, values: &mut [T; N]) {
-        let from_steady = *values;
-        for (z, v_inv_row) in values.iter_mut().zip(&self.v_inv) {
+    fn to_modes(&self, values: &mut S::Nodes<T>) {
+        let from_steady = values.clone();
+        for (z, v_inv_row) in values.as_mut().iter_mut().zip(self.v_inv.as_ref()) {
             *z = mode(v_inv_row, &from_steady);
         }
     }
 
     /// `P`, `Q`, `Q'` of element `row` (a row of `V`) for modal amplitudes
-    /// `modes` at the time whose `exp(lambda t)` is `decay` (`None`: t = 0).
-    #[inline]
-    pub(super) fn parts(&self, row: &[T; N], modes: &[T; N], decay: Option<&[T; N]>) -> Parts<T> {
-        // `c * 1 == c` to the bit: one loop for both, without a branch on
-        // `decay` per mode.
-        let ones = [T::one(); N];
-        let decay = decay.unwrap_or(&ones);
+    /// `modes` at the time whose `exp(lambda t)` is `decay` (all ones: t =
+    /// 0, as `c * 1 == c` to the bit).
+    #[inline(always)]
+    pub(super) fn parts(
+        &self,
+        row: &S::Nodes<T>,
+        modes: &S::Nodes<T>,
+        decay: &S::Nodes<T>,
+    ) -> Parts<T> {
         let mut parts = Parts::default();
-        let terms = row.iter().zip(modes).zip(&self.lambda_per_s).zip(decay);
+        let terms = (row.as_ref().iter().zip(modes.as_ref()))
+            .zip(self.lambda_per_s.as_ref())
+            .zip(decay.as_ref());
         for (((v, z), lambda), d) in terms {
             let c = *v * *z;
             let term = c * *d;
@@ -604,6 +679,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             if c.is_sign_positive() {
                 parts.p += term;
             } else {
+                cold_path();
                 parts.q -= term;
                 parts.dq -= term * *lambda;
             }
@@ -613,7 +689,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 
     /// Time \[s\] of grid point `k` (0 is `t = 0`) and its decay row.
     #[inline]
-    pub(super) fn point(&self, k: usize) -> Option<(T, Option<&[T; N]>)> {
+    pub(super) fn point(&self, k: usize) -> Option<(T, Option<&S::Nodes<T>>)> {
         if k == 0 {
             return Some((T::zero(), None));
         }
@@ -621,7 +697,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         Some((t, Some(self.decay.get(k - 1)?)))
     }
 
-    fn snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
+    fn snapshot(
+        &self,
+        op: &OperatingPoint<T, S>,
+        powers_w: &S::Inputs<T>,
+    ) -> Snapshot<S::Nodes<T>> {
         let mut snapshot = self.steady_snapshot(op, powers_w);
         self.to_modes(&mut snapshot.modes);
         snapshot
@@ -637,33 +717,50 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// register ([`Self::fused_snapshot`]): in two, the M4F motor's
     /// snapshot tick cost some 50 instructions more (measured). The
     /// three forms are the same to the bit (tested).
-    fn steady_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
+    fn steady_snapshot(
+        &self,
+        op: &OperatingPoint<T, S>,
+        powers_w: &S::Inputs<T>,
+    ) -> Snapshot<S::Nodes<T>> {
         if cfg!(target_abi = "eabihf") {
             return self.fused_snapshot(op, powers_w);
         }
         let mut snapshot = Snapshot {
-            headroom_k: [T::zero(); N],
-            modes: [T::zero(); N],
+            headroom_k: self.sizes.nodes_of(T::zero()),
+            modes: self.sizes.nodes_of(T::zero()),
             valid: true,
         };
-        self.start_snapshot(&mut snapshot, powers_w, 0..N);
+        self.start_snapshot(&mut snapshot, powers_w, 0..self.sizes.nodes());
         self.finish_steady(&mut snapshot, op);
         snapshot
     }
 
     /// [`Self::steady_snapshot`] in one pass over the rows.
-    fn fused_snapshot(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> Snapshot<T, N> {
+    fn fused_snapshot(
+        &self,
+        op: &OperatingPoint<T, S>,
+        powers_w: &S::Inputs<T>,
+    ) -> Snapshot<S::Nodes<T>> {
         let mut snapshot = Snapshot {
-            headroom_k: [T::zero(); N],
-            modes: [T::zero(); N],
-            valid: op.is_finite() && powers_w.iter().all(|p| p.is_finite()),
+            headroom_k: self.sizes.nodes_of(T::zero()),
+            modes: self.sizes.nodes_of(T::zero()),
+            valid: op.is_finite() && powers_w.as_ref().iter().all(|p| p.is_finite()),
         };
+        let gains = self
+            .gain_power
+            .as_ref()
+            .iter()
+            .zip(self.gain_boundary.as_ref());
+        let node = (self.offset_c.as_ref().iter())
+            .zip(op.temps_c.as_ref())
+            .zip(op.limits_c.as_ref());
         let rows = snapshot
             .headroom_k
+            .as_mut()
             .iter_mut()
-            .zip(&mut snapshot.modes)
-            .zip(self.gain_power.iter().zip(&self.gain_boundary))
-            .zip(self.offset_c.iter().zip(&op.temps_c).zip(&op.limits_c));
+            .zip(snapshot.modes.as_mut())
+            .zip(gains)
+            .zip(node);
         for (((h, d), (gp, gb)), ((k, t), l)) in rows {
             let steady = dot_onto(dot_onto(*k, gp, powers_w), gb, &op.boundary_c);
             *d = *t - steady;
@@ -678,15 +775,21 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// valid if the powers are finite, set with the first row), for
     /// [`Self::finish_steady`] to complete.
     #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
-    fn start_snapshot(&self, snapshot: &mut Snapshot<T, N>, powers_w: &[T; M], rows: Range<usize>) {
+    fn start_snapshot(
+        &self,
+        snapshot: &mut Snapshot<S::Nodes<T>>,
+        powers_w: &S::Inputs<T>,
+        rows: Range<usize>,
+    ) {
         if rows.start == 0 {
-            snapshot.valid = powers_w.iter().all(|p| p.is_finite());
+            snapshot.valid = powers_w.as_ref().iter().all(|p| p.is_finite());
         }
         let all = snapshot
             .headroom_k
+            .as_mut()
             .iter_mut()
-            .zip(&self.gain_power)
-            .zip(&self.offset_c);
+            .zip(self.gain_power.as_ref())
+            .zip(self.offset_c.as_ref());
         for (r, ((sum, gp), k)) in all.enumerate() {
             if rows.contains(&r) {
                 *sum = dot_onto(*k, gp, powers_w);
@@ -698,7 +801,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// many products as an amplitude stage's `elements_per_tick` rows of
     /// `N` (each row is `M` products), at least one.
     fn windings_rows_per_stage(&self) -> usize {
-        self.elements_per_tick.saturating_mul((N / M.max(1)).max(1))
+        let (n, m) = (self.sizes.nodes(), self.sizes.inputs());
+        self.elements_per_tick.saturating_mul((n / m.max(1)).max(1))
     }
 
     /// A snapshot's second part (a split sweep's second stage): the
@@ -707,15 +811,16 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// headroom to `op`'s limits; and `T_0 - T_ss` from `op`'s
     /// temperatures, where the modal amplitudes go, for [`Self::to_modes`]
     /// to turn into them (valid if `op` is finite too).
-    fn finish_steady(&self, snapshot: &mut Snapshot<T, N>, op: &Operating<T, N, B, M>) {
+    fn finish_steady(&self, snapshot: &mut Snapshot<S::Nodes<T>>, op: &OperatingPoint<T, S>) {
         snapshot.valid &= op.is_finite();
         let rows = snapshot
             .headroom_k
+            .as_mut()
             .iter_mut()
-            .zip(&mut snapshot.modes)
-            .zip(&self.gain_boundary)
-            .zip(&op.temps_c)
-            .zip(&op.limits_c);
+            .zip(snapshot.modes.as_mut())
+            .zip(self.gain_boundary.as_ref())
+            .zip(op.temps_c.as_ref())
+            .zip(op.limits_c.as_ref());
         for ((((h, d), gb), t), l) in rows {
             let steady = dot_onto(*h, gb, &op.boundary_c);
             *d = *t - steady;
@@ -732,15 +837,16 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     #[inline(never)]
     fn evaluate_point(
         &self,
-        snapshot: &Snapshot<T, N>,
+        snapshot: &Snapshot<S::Nodes<T>>,
         k: usize,
         first: usize,
         budget: usize,
-        prev: &mut [Parts<T>; N],
-        sweep: &mut [Crossing<T>; N],
+        prev: &mut S::Nodes<Parts<T>>,
+        sweep: &mut S::Nodes<Crossing<T>>,
     ) -> PointProgress {
+        let n = self.sizes.nodes();
         let over = PointProgress {
-            next_element: N,
+            next_element: n,
             sweep_over: true,
             evaluated: 0,
         };
@@ -748,19 +854,37 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             return over;
         };
         if !snapshot.valid {
-            *sweep = [Crossing::At(T::from_subset(&f64::NAN)); N];
+            *sweep = self.sizes.nodes_of(Crossing::At(T::from_subset(&f64::NAN)));
             return over;
         }
         let t_a = match k {
             0 | 1 => T::zero(),
             _ => self.grid_s.get(k - 2).copied().unwrap_or(T::zero()),
         };
+        // `t = 0` decays nothing: one loop for both, without a branch on
+        // the decay per mode.
+        let ones = self.sizes.nodes_of(T::one());
         // From `first` on by slicing, not `skip`: its `nth` walked the
         // skipped elements (and cost the M0 footprint its code).
-        let elements = (sweep.get_mut(first..).unwrap_or_default().iter_mut())
-            .zip(prev.get_mut(first..).unwrap_or_default().iter_mut())
-            .zip(self.v.get(first..).unwrap_or_default())
-            .zip(snapshot.headroom_k.get(first..).unwrap_or_default());
+        let elements = (sweep
+            .as_mut()
+            .get_mut(first..)
+            .unwrap_or_default()
+            .iter_mut())
+        .zip(
+            prev.as_mut()
+                .get_mut(first..)
+                .unwrap_or_default()
+                .iter_mut(),
+        )
+        .zip(self.v.as_ref().get(first..).unwrap_or_default())
+        .zip(
+            snapshot
+                .headroom_k
+                .as_ref()
+                .get(first..)
+                .unwrap_or_default(),
+        );
         let mut evaluated = 0;
         for (e, (((state, prev), row), &headroom)) in (first..).zip(elements) {
             if *state != Crossing::Open {
@@ -779,7 +903,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
                 };
             }
             evaluated += 1;
-            let now = self.parts(row, &snapshot.modes, decay);
+            let now = self.parts(row, &snapshot.modes, decay.unwrap_or(&ones));
             if k == 0 {
                 if now.p - now.q >= headroom {
                     *state = Crossing::At(T::zero());
@@ -793,9 +917,10 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         if last {
             // The tail beyond t_K: T_e <= T_ss + P(t_K).
             let t_last = self.grid_s.last().copied().unwrap_or(T::zero());
-            for ((state, prev), &headroom) in
-                sweep.iter_mut().zip(prev.iter()).zip(&snapshot.headroom_k)
-            {
+            let elements = (sweep.as_mut().iter_mut())
+                .zip(prev.as_ref())
+                .zip(snapshot.headroom_k.as_ref());
+            for ((state, prev), &headroom) in elements {
                 if *state == Crossing::Open {
                     *state = if prev.p < headroom {
                         Crossing::Never
@@ -806,8 +931,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             }
         }
         PointProgress {
-            next_element: N,
-            sweep_over: last || sweep.iter().all(|s| *s != Crossing::Open),
+            next_element: n,
+            sweep_over: last || sweep.as_ref().iter().all(|s| *s != Crossing::Open),
             evaluated,
         }
     }
@@ -816,16 +941,22 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// `op` (`None`: never; `Some(0)`: at or past it; `Some(NaN)`: an input
     /// was not finite), written to `out`. One full sweep: see the module docs
     /// for the cost.
-    pub fn predict(&self, op: &Operating<T, N, B, M>, out: &mut [Option<T>; N]) {
+    pub fn predict(&self, op: &OperatingPoint<T, S>, out: &mut S::Nodes<Option<T>>) {
         let powers = self.conservative_powers_w(op);
         let sweep = self.full_sweep(op, &powers);
-        *out = sweep.map(|s| published(s, T::zero()));
+        for (o, s) in out.as_mut().iter_mut().zip(sweep.as_ref()) {
+            *o = published(*s, T::zero());
+        }
     }
 
-    fn full_sweep(&self, op: &Operating<T, N, B, M>, powers_w: &[T; M]) -> [Crossing<T>; N] {
+    fn full_sweep(
+        &self,
+        op: &OperatingPoint<T, S>,
+        powers_w: &S::Inputs<T>,
+    ) -> S::Nodes<Crossing<T>> {
         let snapshot = self.snapshot(op, powers_w);
-        let mut prev = [Parts::default(); N];
-        let mut sweep = [Crossing::Open; N];
+        let mut prev = self.sizes.nodes_of(Parts::default());
+        let mut sweep = self.sizes.nodes_of(Crossing::Open);
         for k in 0..=K {
             let progress = self.evaluate_point(&snapshot, k, 0, usize::MAX, &mut prev, &mut sweep);
             if progress.sweep_over {
@@ -842,13 +973,25 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
 /// copies cost the M0 footprint 400 B.
 #[cfg_attr(target_abi = "eabihf", inline(always))]
 #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
-fn mode<T: RealField + Copy, const N: usize>(v_inv_row: &[T; N], from_steady: &[T; N]) -> T {
+fn mode<T: RealField + Copy, V: AsRef<[T]>>(v_inv_row: &V, from_steady: &V) -> T {
     let mut m = T::zero();
-    for (vi, d) in v_inv_row.iter().zip(from_steady) {
+    for (vi, d) in v_inv_row.as_ref().iter().zip(from_steady.as_ref()) {
         m += *vi * *d;
     }
     m
 }
+
+/// Marks the branch that calls it as the unlikely one (Rust 1.95's
+/// `core::hint::cold_path`; this crate's MSRV is 1.93): a call the
+/// compiler keeps, to a function it knows is cold. In
+/// [`ModalPredictor::parts`] it keeps the sign test a branch: without it
+/// the compiler unrolled the loop and computed both arms of every mode, a
+/// software add, subtract and multiply more per mode on a core without an
+/// FPU (the M0 network's worst predictor stage 5 819 -> 6 124
+/// instructions; with the mark 5 782).
+#[cold]
+#[inline(never)]
+fn cold_path() {}
 
 /// The larger of a winding's `R` at `temp` and at `limit` \[ohm\] (see
 /// [`LimitPredictor::conservative_resistance_ohm`]): `R` of the warmer
@@ -1095,7 +1238,7 @@ mod answers {
 /// to its limit kept too unless `A` is [`AnswersWhenAsked`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]> {
-    snapshot: Snapshot<T, N>,
+    snapshot: Snapshot<[T; N]>,
     prev: [Parts<T>; N],
     sweep: [Crossing<T>; N],
     next_point: usize,
@@ -1387,9 +1530,7 @@ mod tests;
 
 /// Downtime cooling: the network's exact zero-current solution, from the
 /// modes the predictor already holds (issue 17).
-impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const K: usize>
-    LimitPredictor<T, N, B, M, K>
-{
+impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// The temperatures \[degC\] the network reaches from `temps_c` after
     /// `off_s` \[s\] with no current and the boundaries held at
     /// `boundary_c` \[degC\] (and the fixed powers on): the exact
@@ -1410,31 +1551,42 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// any off time far beyond [`Self::slowest_time_constant_s`]) gives the
     /// steady state plus the guard. A result that is not finite (non-finite
     /// inputs) also falls back to `temps_c`.
-    pub fn cooled_c(&self, temps_c: &[T; N], boundary_c: &[T; B], off_s: T) -> [T; N] {
+    pub fn cooled_c(
+        &self,
+        temps_c: &S::Nodes<T>,
+        boundary_c: &S::Boundaries<T>,
+        off_s: T,
+    ) -> S::Nodes<T> {
         // Not positive, or NaN: unknown, no cooling.
         if off_s.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
-            return *temps_c;
+            return temps_c.clone();
         }
-        let (steady, modes) = self.steady_and_modes(temps_c, &[T::zero(); M], boundary_c, true);
-        let decay = self.lambda_per_s.map(|l| (l * off_s).exp());
+        let no_power = self.sizes.inputs_of(T::zero());
+        let (steady, modes) = self.steady_and_modes(temps_c, &no_power, boundary_c, true);
+        let mut decay = self.lambda_per_s.clone();
+        for d in decay.as_mut() {
+            *d = (*d * off_s).exp();
+        }
         let eps = T::default_epsilon();
-        let guard_factor = T::from_subset(&(64.0 * N as f64)) * eps;
+        let guard_factor = T::from_subset(&(64.0 * self.sizes.nodes() as f64)) * eps;
         let floor_k = T::from_subset(&1e-3);
-        let mut out = *temps_c;
-        for (o, (row, ss)) in out.iter_mut().zip(self.v.iter().zip(&steady)) {
+        let mut out = temps_c.clone();
+        let rows = self.v.as_ref().iter().zip(steady.as_ref());
+        for (o, (row, ss)) in out.as_mut().iter_mut().zip(rows) {
             let mut sum = *ss;
             let mut magnitude = ss.abs();
-            for ((v, z), d) in row.iter().zip(&modes).zip(&decay) {
+            let terms = row.as_ref().iter().zip(modes.as_ref()).zip(decay.as_ref());
+            for ((v, z), d) in terms {
                 let c = *v * *z;
                 sum += c * *d;
                 magnitude += c.abs();
             }
             *o = sum + floor_k + guard_factor * magnitude;
         }
-        if out.iter().all(|t| t.is_finite()) {
+        if out.as_ref().iter().all(|t| t.is_finite()) {
             out
         } else {
-            *temps_c
+            temps_c.clone()
         }
     }
 }

@@ -21,11 +21,15 @@
 //! is why the hot-spot current of [`hot_spot_current_a`] is the one to
 //! design with.
 //!
-//! Build-time code (`f64`, `O(N^3)`, bounded iterations, no allocation).
+//! Build-time code (`f64`, `O(N^3)`, bounded iterations), for any network
+//! description: a [`Network`](crate::network::Network) with arrays and no
+//! allocation, or a model file's network at its own size on a host (the
+//! `alloc` feature's `RunTimeSizes`).
 
 use super::modal::{conductance_matrix, feedback_w_per_k, symmetric_eigen};
 use crate::error::BuildError;
-use crate::network::Network;
+use crate::network::{steady_state_of, Boundaries, Inputs, NetworkDescription, Nodes};
+use crate::sizes::Sizes;
 
 /// Bisection steps for [`hot_spot_current_a`] (2^-200 of the bracket: the
 /// loop stops at `f64` resolution long before).
@@ -53,16 +57,19 @@ pub struct CoilRunaway {
 /// [`BuildError::MissingSource`] for a winding without a source,
 /// [`BuildError::NoSteadyState`] if the other windings already run away,
 /// [`BuildError::Singular`] if a node has no path to a boundary,
-/// [`BuildError::InvalidParameter`] for non-finite currents.
-pub fn runaway_current_a<const N: usize, const B: usize, const M: usize>(
-    network: &Network<N, B, M>,
+/// [`BuildError::InvalidParameter`] for non-finite currents or not one
+/// per input.
+pub fn runaway_current_a<W: NetworkDescription>(
+    network: &W,
     coil: usize,
-    currents_a: &[f64; M],
+    currents_a: &Inputs<W, f64>,
 ) -> Result<Option<f64>, BuildError> {
+    let sizes = network.sizes();
     let source = network
-        .source(coil)
+        .joule_source_of(coil)
         .ok_or(BuildError::MissingSource { input: coil })?;
-    if !currents_a.iter().all(|i| i.is_finite()) {
+    let currents = currents_a.as_ref();
+    if !currents.iter().all(|i| i.is_finite()) || currents.len() != sizes.inputs() {
         return Err(BuildError::InvalidParameter { name: "currents_a" });
     }
     let slope = source.resistance.slope_ohm_per_k;
@@ -70,24 +77,32 @@ pub fn runaway_current_a<const N: usize, const B: usize, const M: usize>(
     if slope <= 0.0 || source.drive == crate::network::Drive::Voltage {
         return Ok(None);
     }
-    let mut others = *currents_a;
-    others[coil] = 0.0;
+    let mut others = currents_a.clone();
+    if let Some(i) = others.as_mut().get_mut(coil) {
+        *i = 0.0;
+    }
     let feedback = feedback_w_per_k(network, &others);
-    let eigen = symmetric_eigen(conductance_matrix(network, &feedback))?;
-    let largest = eigen.values.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !eigen.values.iter().all(|&v| v > 1e-12 * largest) {
-        let bare = symmetric_eigen(conductance_matrix(network, &[0.0; N]))?;
-        return Err(if bare.values.iter().all(|&v| v > 1e-12 * largest) {
-            BuildError::NoSteadyState
-        } else {
-            BuildError::Singular
-        });
+    let eigen = symmetric_eigen(sizes, conductance_matrix(network, &feedback))?;
+    let values = eigen.values.as_ref();
+    let largest = values.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !values.iter().all(|&v| v > 1e-12 * largest) {
+        let bare = symmetric_eigen(sizes, conductance_matrix(network, &sizes.nodes_of(0.0)))?;
+        return Err(
+            if bare.values.as_ref().iter().all(|&v| v > 1e-12 * largest) {
+                BuildError::NoSteadyState
+            } else {
+                BuildError::Singular
+            },
+        );
     }
     let node = source.node;
-    let resistance_k_per_w: f64 = eigen
-        .values
+    let vectors = eigen.vectors.as_ref();
+    let row = vectors
+        .get(node)
+        .ok_or(BuildError::InvalidParameter { name: "network" })?;
+    let resistance_k_per_w: f64 = values
         .iter()
-        .zip(&eigen.vectors[node])
+        .zip(row.as_ref())
         .map(|(mu, u)| u * u / mu)
         .sum();
     Ok(Some(libm::sqrt(1.0 / (slope * resistance_k_per_w))))
@@ -100,28 +115,32 @@ pub fn runaway_current_a<const N: usize, const B: usize, const M: usize>(
 /// current is (a winding whose resistance does not rise, heating only
 /// elements without limits).
 ///
-/// Bisection on [`Network::steady_state`] between zero and the runaway
+/// Bisection on the steady state ([`steady_state_of`]) between zero and the runaway
 /// current (or a bracket found by doubling), to `f64` resolution.
 ///
 /// # Errors
 /// As [`runaway_current_a`], and [`BuildError::InvalidParameter`] for a NaN
-/// limit or non-finite boundary temperature.
-pub fn hot_spot_current_a<const N: usize, const B: usize, const M: usize>(
-    network: &Network<N, B, M>,
+/// limit, non-finite boundary temperatures, or vectors of other lengths
+/// than the network's.
+pub fn hot_spot_current_a<W: NetworkDescription>(
+    network: &W,
     coil: usize,
-    currents_a: &[f64; M],
-    boundary_c: &[f64; B],
-    limits_c: &[f64; N],
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+    limits_c: &Nodes<W, f64>,
 ) -> Result<Option<f64>, BuildError> {
-    if limits_c.iter().any(|l| l.is_nan()) {
+    let limits = limits_c.as_ref();
+    if limits.iter().any(|l| l.is_nan()) || limits.len() != network.sizes().nodes() {
         return Err(BuildError::InvalidParameter { name: "limits_c" });
     }
     let runaway = runaway_current_a(network, coil, currents_a)?;
     let safe = |current: f64| -> Result<bool, BuildError> {
-        let mut currents = *currents_a;
-        currents[coil] = current;
-        match network.steady_state(&currents, boundary_c) {
-            Ok(t) => Ok(t.iter().zip(limits_c).all(|(t, l)| t <= l)),
+        let mut currents = currents_a.clone();
+        if let Some(i) = currents.as_mut().get_mut(coil) {
+            *i = current;
+        }
+        match steady_state_of(network, &currents, boundary_c) {
+            Ok(t) => Ok(t.as_ref().iter().zip(limits).all(|(t, l)| t <= l)),
             Err(BuildError::NoSteadyState) => Ok(false),
             Err(e) => Err(e),
         }
@@ -167,17 +186,17 @@ pub fn hot_spot_current_a<const N: usize, const B: usize, const M: usize>(
 ///
 /// # Errors
 /// As [`hot_spot_current_a`].
-pub fn runaway_report<const N: usize, const B: usize, const M: usize>(
-    network: &Network<N, B, M>,
-    currents_a: &[f64; M],
-    boundary_c: &[f64; B],
-    limits_c: &[f64; N],
-) -> Result<[CoilRunaway; M], BuildError> {
-    let mut report = [CoilRunaway {
+pub fn runaway_report<W: NetworkDescription>(
+    network: &W,
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+    limits_c: &Nodes<W, f64>,
+) -> Result<Inputs<W, CoilRunaway>, BuildError> {
+    let mut report = network.sizes().inputs_of(CoilRunaway {
         runaway_current_a: None,
         hot_spot_current_a: None,
-    }; M];
-    for (coil, entry) in report.iter_mut().enumerate() {
+    });
+    for (coil, entry) in report.as_mut().iter_mut().enumerate() {
         *entry = CoilRunaway {
             runaway_current_a: runaway_current_a(network, coil, currents_a)?,
             hot_spot_current_a: hot_spot_current_a(
@@ -191,7 +210,7 @@ pub fn runaway_report<const N: usize, const B: usize, const M: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::network::Resistance;
+    use crate::network::{Network, Resistance};
 
     #[test]
     fn single_node_matches_the_closed_form() {

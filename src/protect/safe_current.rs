@@ -62,7 +62,8 @@
 
 use nalgebra::RealField;
 
-use super::predict::{LimitPredictor, Operating};
+use super::predict::{ModalPredictor, OperatingPoint};
+use crate::sizes::Sizes;
 
 /// How far ahead the limits must hold.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -98,21 +99,23 @@ impl<T: RealField + Copy> SafeLimit<T> {
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const K: usize>
-    LimitPredictor<T, N, B, M, K>
-{
+impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// The largest common scale `k` on the present currents `op.currents_a`
     /// such that no element passes its limit over `horizon`, with the load
     /// pulsed at `duty` (in `(0, 1]`; 1 for continuous). Safe currents are
     /// `k * op.currents_a`.
     pub fn max_common_scale(
         &self,
-        op: &Operating<T, N, B, M>,
+        op: &OperatingPoint<T, S>,
         horizon: Horizon<T>,
         duty: T,
     ) -> SafeLimit<T> {
-        let load = self.conservative_powers_w(op).map(|p| p * duty);
-        let limit = self.max_load_factor(op, &[T::zero(); M], &load, horizon, duty);
+        let mut load = self.conservative_powers_w(op);
+        for p in load.as_mut() {
+            *p *= duty;
+        }
+        let free = self.sizes.inputs_of(T::zero());
+        let limit = self.max_load_factor(op, &free, &load, horizon, duty);
         SafeLimit {
             value: limit.value.sqrt(),
             ..limit
@@ -126,16 +129,16 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     pub fn max_coil_current_a(
         &self,
         coil: usize,
-        op: &Operating<T, N, B, M>,
+        op: &OperatingPoint<T, S>,
         horizon: Horizon<T>,
         duty: T,
     ) -> SafeLimit<T> {
-        let Some(winding) = self.windings.get(coil) else {
+        let Some(winding) = self.windings.as_ref().get(coil) else {
             return SafeLimit::invalid();
         };
         let mut others = self.conservative_powers_w(op);
-        let mut unit = [T::zero(); M];
-        if let (Some(o), Some(u)) = (others.get_mut(coil), unit.get_mut(coil)) {
+        let mut unit = self.sizes.inputs_of(T::zero());
+        if let (Some(o), Some(u)) = (others.as_mut().get_mut(coil), unit.as_mut().get_mut(coil)) {
             *o = T::zero();
             *u = self.conservative_resistance_ohm(winding, op) * duty;
         }
@@ -150,9 +153,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
     /// docs), `F` from `op` with powers `free_w`, `L` from powers `load_w`.
     fn max_load_factor(
         &self,
-        op: &Operating<T, N, B, M>,
-        free_w: &[T; M],
-        load_w: &[T; M],
+        op: &OperatingPoint<T, S>,
+        free_w: &S::Inputs<T>,
+        load_w: &S::Inputs<T>,
         horizon: Horizon<T>,
         duty: T,
     ) -> SafeLimit<T> {
@@ -163,14 +166,20 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
         let inputs_ok = op.is_finite()
             && duty > T::zero()
             && duty <= T::one()
-            && free_w.iter().chain(load_w).all(|p| p.is_finite());
+            && (free_w.as_ref().iter())
+                .chain(load_w.as_ref())
+                .all(|p| p.is_finite());
         if !(horizon_ok && inputs_ok) {
             return SafeLimit::invalid();
         }
         let (free_ss, free_modes) =
             self.steady_and_modes(&op.temps_c, free_w, &op.boundary_c, true);
-        let (load_ss, load_modes) =
-            self.steady_and_modes(&[T::zero(); N], load_w, &[T::zero(); B], false);
+        let (load_ss, load_modes) = self.steady_and_modes(
+            &self.sizes.nodes_of(T::zero()),
+            load_w,
+            &self.sizes.boundaries_of(T::zero()),
+            false,
+        );
 
         let mut best = SafeLimit {
             value: T::from_subset(&f64::INFINITY),
@@ -178,14 +187,16 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             feasible: true,
         };
         // P of the free part at each bracket's start, per element.
-        let mut free_p_start = [T::zero(); N];
-        for (p, row) in free_p_start.iter_mut().zip(&self.v) {
-            *p = self.parts(row, &free_modes, None).p;
+        let ones = self.sizes.nodes_of(T::one());
+        let mut free_p_start = self.sizes.nodes_of(T::zero());
+        for (p, row) in free_p_start.as_mut().iter_mut().zip(self.v.as_ref()) {
+            *p = self.parts(row, &free_modes, &ones).p;
         }
-        let mut horizon_decay = [T::zero(); N];
+        let mut horizon_decay = self.sizes.nodes_of(T::zero());
         let t_h = match horizon {
             Horizon::Seconds(t) => {
-                for (d, l) in horizon_decay.iter_mut().zip(&self.lambda_per_s) {
+                let decays = horizon_decay.as_mut().iter_mut();
+                for (d, l) in decays.zip(self.lambda_per_s.as_ref()) {
                     *d = (*l * t).exp();
                 }
                 Some(t)
@@ -193,17 +204,15 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             Horizon::Forever => None,
         };
         // One bracket, from the previous end to the time whose decay is `end`.
-        let mut bracket = |end: &[T; N]| {
-            let rows = self
-                .v
-                .iter()
-                .zip(free_p_start.iter_mut())
-                .zip(free_ss.iter().zip(&load_ss))
-                .zip(&op.limits_c)
+        let mut bracket = |end: &S::Nodes<T>| {
+            let rows = (self.v.as_ref().iter())
+                .zip(free_p_start.as_mut().iter_mut())
+                .zip(free_ss.as_ref().iter().zip(load_ss.as_ref()))
+                .zip(op.limits_c.as_ref())
                 .enumerate();
             for (e, (((row, p_start), (f_ss, l_ss)), limit)) in rows {
-                let free = self.parts(row, &free_modes, Some(end));
-                let load = self.parts(row, &load_modes, Some(end));
+                let free = self.parts(row, &free_modes, end);
+                let load = self.parts(row, &load_modes, end);
                 let alpha = *f_ss + *p_start - free.q;
                 let beta = *l_ss + load.p - load.q;
                 constrain(&mut best, e, alpha, beta, *limit);
@@ -225,10 +234,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize, const 
             return best;
         }
         // Forever: the tail [t_K, inf).
-        let rows = free_p_start
-            .iter()
-            .zip(free_ss.iter().zip(&load_ss))
-            .zip(&op.limits_c)
+        let rows = (free_p_start.as_ref().iter())
+            .zip(free_ss.as_ref().iter().zip(load_ss.as_ref()))
+            .zip(op.limits_c.as_ref())
             .enumerate();
         for (e, ((p_last, (f_ss, l_ss)), limit)) in rows {
             constrain(&mut best, e, *f_ss + *p_last, *l_ss, *limit);

@@ -43,6 +43,7 @@
 use super::modal::{feedback_w_per_k, Modal};
 use crate::error::BuildError;
 use crate::network::Network;
+use crate::sizes::ConstSizes;
 
 /// The seven combinations of three powered solenoids (inner, middle, outer),
 /// in the order single coils, pairs, all three.
@@ -103,15 +104,15 @@ impl<const N: usize> StudyLimits<N> {
 }
 
 /// The exact trajectory at one set of constant currents.
-struct Trajectory<const N: usize> {
+struct Trajectory<const N: usize, const B: usize, const M: usize> {
     start_c: [f64; N],
-    modal: Modal<N>,
+    modal: Modal<ConstSizes<N, B, M>>,
     /// `V^-1 dT/dt(0)`.
     initial_rate_modes: [f64; N],
 }
 
-impl<const N: usize> Trajectory<N> {
-    fn new<const B: usize, const M: usize>(
+impl<const N: usize, const B: usize, const M: usize> Trajectory<N, B, M> {
+    fn new(
         network: &Network<N, B, M>,
         limits: &StudyLimits<N>,
         currents_a: &[f64; M],
