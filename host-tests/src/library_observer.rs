@@ -117,9 +117,9 @@ use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
 use crate::codegen::FirmwareInputs;
 use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
-use crate::limits::{class_of, on_big_stack, padded_with, Padding};
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement, TickClock};
+use crate::padding::{class_of, on_big_stack, padded_with, Padding};
 use crate::sim::{plant_info, PlantInfo};
 use coil_thermal::protect::derating::DeratingRule;
 

@@ -28,7 +28,8 @@ use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::events::{AlarmEvent as LibEvent, EventKind, EventQueue};
 use serde::Serialize;
 
-use crate::limits::{TimeToLimit, NO_LIMIT_C, SIZE_CLASSES};
+use crate::limits::{TimeToLimit, NO_LIMIT_C};
+use crate::padding::SIZE_CLASSES;
 
 use crate::sim::{InputRow, PlantInfo, RowSource};
 

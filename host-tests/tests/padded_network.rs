@@ -8,8 +8,8 @@ use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, SolenoidParams,
 };
 use coil_thermal_host::dynamic_network::DynNetwork;
-use coil_thermal_host::limits::{padded_with, Padding};
 use coil_thermal_host::model_file::{Model, ModelFile};
+use coil_thermal_host::padding::{padded_with, Padding};
 use coil_thermal_host::sim::{simulate, Drive, FilePlant, Plant};
 use coil_thermal_host::synth::Rng;
 

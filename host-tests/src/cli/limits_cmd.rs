@@ -255,7 +255,7 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     // The firmware's limiter, alarm and time to limit act on its upper
     // bound, not on the estimate: each element's limit for the model's
     // mean is the temperature at which that bound reaches its limit.
-    let (mean_limits_c, bound_by) = mean_limits(&spec, &file, &model, &limits_c, &boundary_c)?;
+    let (mean_limits_c, bound) = mean_limits(&spec, &file, &model, &limits_c, &boundary_c)?;
     let query = LimitsQuery {
         network: model.network.clone(),
         currents_a: currents.clone(),
@@ -301,8 +301,18 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             "boundary_c": boundary_c,
             "derating_product": if a.limit_c.is_some() { None } else { Some(rule.product()) },
             "limits_c": lim,
-            "acts_on": "upper bound",
-            "upper_bound": bound_by,
+            "acts_on": match bound {
+                Bound::Upper(_) => "upper bound",
+                Bound::Estimate(_) => "estimate",
+            },
+            "upper_bound": match &bound {
+                Bound::Upper(by) => Some(by),
+                Bound::Estimate(_) => None,
+            },
+            "no_upper_bound": match &bound {
+                Bound::Upper(_) => None,
+                Bound::Estimate(why) => Some(why),
+            },
             "mean_limits_c": mean_lim,
             "assumed_limit_nodes": nodes.iter().zip(&assumed).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect::<Vec<_>>(),
             "time_to_limit_s": ttl,
@@ -312,7 +322,6 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             "max_currents_horizon_a": report.common_scale_horizon.as_ref().and_then(scaled),
             "max_currents_forever_a": scaled(&report.common_scale_forever),
             "coils": coils,
-            "size_class": report.size_class,
             "slowest_time_constant_s": report.slowest_time_constant_s,
         }));
         return Ok(());
@@ -338,9 +347,14 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             rule.product()
         ),
     }
-    println!(
-        "on the firmware's upper bound ({bound_by}): \"mean at limit\" is the estimate at which the bound reaches the limit"
-    );
+    match &bound {
+        Bound::Upper(by) => println!(
+            "on the firmware's upper bound ({by}): \"mean at limit\" is the estimate at which the bound reaches the limit"
+        ),
+        Bound::Estimate(why) => println!(
+            "on the model's temperatures, no upper bound ({why}): \"mean at limit\" is the limit"
+        ),
+    }
     println!(
         "{:<24} {:>12} {:>14} {:>14} {:>16}",
         "element", "limit [degC]", "mean at limit", "steady [degC]", "time to limit"
@@ -437,20 +451,32 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     Ok(())
 }
 
+/// What the limits act on.
+enum Bound {
+    /// The upper bound the firmware protects on, described.
+    Upper(String),
+    /// The model's temperatures: no firmware observer exists for the
+    /// model (why).
+    Estimate(String),
+}
+
 /// Each element's limit for the model's mean \[degC\]: the estimate at
 /// which the upper bound the firmware protects on reaches `limits_c`
 /// \[degC\] (`boundary_c` \[degC\] the boundaries), and a description of
 /// that bound. The built-in devices: their flashed observers' margins (the
 /// grid's on the rise above the colder of its coolant and ambient, the
 /// Omnimagnet's `k sigma` and unmeasured margin); a model file: the
-/// `NetworkObserver` `codegen` flashes from its `[observer]` table.
+/// `NetworkObserver` `codegen` flashes from its `[observer]` table. A model
+/// file larger than that observer is solved for (`codegen` makes no
+/// firmware of it) has no upper bound: the limits act on the model's
+/// temperatures, and say so.
 fn mean_limits(
     spec: &ModelSpec,
     file: &crate::model_file::ModelFile,
     model: &Model,
     limits_c: &[Option<f64>],
     boundary_c: &[f64],
-) -> Result<(Vec<Option<f64>>, String)> {
+) -> Result<(Vec<Option<f64>>, Bound)> {
     match spec {
         ModelSpec::Hppa => {
             let margin = coil_thermal::observer::grid::DEFAULT_MARGIN;
@@ -464,10 +490,10 @@ fn mean_limits(
                     .iter()
                     .map(|l| l.map(|l| element.mean_limit_c(l, reference_c)))
                     .collect(),
-                format!(
+                Bound::Upper(format!(
                     "the grid observer's: {} x the rise above the colder of coolant and ambient, + {} K",
                     margin.rise_fraction, margin.offset_k
-                ),
+                )),
             ))
         }
         ModelSpec::Omnimagnet => {
@@ -486,10 +512,17 @@ fn mean_limits(
                         })
                     })
                     .collect(),
-                "the flashed OmniObserver's: k sigma with its six thermocouples, and its margin on the unmeasured elements' rise".into(),
+                Bound::Upper("the flashed OmniObserver's: k sigma with its six thermocouples, and its margin on the unmeasured elements' rise".into()),
             ))
         }
         _ => {
+            if let Err(e) = crate::padding::class_of(
+                &model.network,
+                &crate::library_observer::OBSERVER_CLASSES,
+                "no firmware observer",
+            ) {
+                return Ok((limits_c.to_vec(), Bound::Estimate(format!("{e:#}"))));
+            }
             let config = crate::firmware::FirmwareConfig::of(model, file.observer.as_ref())?;
             let sensors = config.sensor_nodes.clone();
             let observer = crate::library_observer::ObserverEstimator::firmware(
@@ -503,11 +536,11 @@ fn mean_limits(
             )?;
             Ok((
                 observer.mean_limits_c(limits_c, boundary_c),
-                format!(
+                Bound::Upper(format!(
                     "the firmware's NetworkObserver from {}: k sigma with its {} sensor(s), and the unmeasured margin",
                     if config.from_table { "the [observer] table" } else { "codegen's defaults" },
                     sensors.len()
-                ),
+                )),
             ))
         }
     }

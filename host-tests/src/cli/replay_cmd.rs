@@ -748,7 +748,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // firmware's observer is solved for on the host (its tables are
     // const-generic: `codegen` makes none of it either); otherwise the
     // firmware's observer.
-    let too_large = crate::limits::class_of(
+    let too_large = crate::padding::class_of(
         &model.network,
         &crate::library_observer::OBSERVER_CLASSES,
         "the firmware's observer",
@@ -802,22 +802,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     };
     let rule_product = settings.rule.product();
     // The host's alarm on the estimate, for the estimators without a
-    // protection of their own (the firmware's observer has its own).
-    // A model too large for the library's predictor on the host (its modes
-    // are const-generic too) is watched without a time to limit, and the
-    // replay says so.
-    let mut no_time_to_limit = None;
+    // protection of their own (the firmware's observer has its own), with
+    // the library's time-to-limit predictor at the model's own size.
     let mut host_alarm = (path != Path::Firmware)
         .then(|| -> Result<LibraryAlarm> {
             let alarm = LibraryAlarm::new(&info, &settings)?;
-            match TimeToLimit::new(&model) {
-                Ok(predictor) => alarm.with_time_to_limit(&info, predictor, settings.horizon_s),
-                Err(e) if too_large.is_some() => {
-                    no_time_to_limit = Some(format!("{e:#}"));
-                    Ok(alarm)
-                }
-                Err(e) => Err(e),
-            }
+            alarm.with_time_to_limit(&info, TimeToLimit::new(&model)?, settings.horizon_s)
         })
         .transpose()?;
     let mut unwatched = Unwatched;
@@ -1397,9 +1387,6 @@ pub fn run(a: ReplayArgs) -> Result<()> {
                 t.unknown_rows
             );
         }
-    }
-    if let Some(why) = &no_time_to_limit {
-        println!("time to limit: not computed ({why})");
     }
     print_events(&events);
     let t = &times;

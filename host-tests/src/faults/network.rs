@@ -36,8 +36,8 @@ use super::{
 use crate::codegen::FirmwareInputs;
 use crate::codegen::ObserverSpec;
 use crate::firmware::FirmwareConfig;
-use crate::limits::{on_big_stack, padded_with, Padding};
 use crate::model_file::{Model, VoltageSource};
+use crate::padding::{on_big_stack, padded_with, Padding};
 use crate::sim::{FilePlant, Plant};
 use coil_thermal::VoltageDrive;
 
