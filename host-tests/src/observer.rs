@@ -13,12 +13,14 @@
 //! # Size dispatch by padding
 //!
 //! The library's alarm is const-generic in its element count; a model file
-//! has its node count at run time. As in [`crate::limits`], the watched
-//! nodes (those with a critical temperature) are padded to the smallest size
-//! class of [`SIZE_CLASSES`] and one generic `PaddedAlarm<P>` is
-//! instantiated per class behind one object-safe trait. A padding element has
-//! the critical temperature [`NO_LIMIT_C`] and stays at the nominal ambient,
-//! so it can never raise an event.
+//! has its node count at run time. The watched nodes (those with a
+//! critical temperature) are padded to the smallest size class of
+//! [`SIZE_CLASSES`] and one generic `PaddedAlarm<P>` is instantiated per
+//! class behind one object-safe trait. A padding element has the critical
+//! temperature [`NO_LIMIT_C`] and stays at the nominal ambient, so it can
+//! never raise an event. More watched nodes than the largest class run in
+//! chunks of it (`ChunkedAlarm`): each element's alarm is its own, so any
+//! number of them is the library's alarm.
 
 use std::time::Instant;
 
@@ -233,6 +235,66 @@ impl<const P: usize> ElementAlarms for PaddedAlarm<P> {
     }
 }
 
+/// The alarm of more watched nodes than the largest size class: the
+/// library's alarm over consecutive chunks of that many elements. Each
+/// element's alarm is its own (its levels, debounce and latch); all the
+/// chunks share is the tick count, which they keep alike (they tick
+/// together), and the ambient's validity, which every chunk judges alike
+/// and the first reports. So the chunks are the alarm of all the elements
+/// at once, with the elements of chunk `k` numbered from `k` times the
+/// chunk's size.
+struct ChunkedAlarm {
+    chunks: Vec<Box<dyn ElementAlarms>>,
+}
+
+/// Elements of one [`ChunkedAlarm`] chunk: the largest size class.
+const CHUNK: usize = SIZE_CLASSES[SIZE_CLASSES.len() - 1];
+
+impl ChunkedAlarm {
+    fn build(s: &AlarmSettings, critical_c: &[f64]) -> Result<Box<dyn ElementAlarms>> {
+        let chunks = critical_c
+            .chunks(CHUNK)
+            .map(|part| PaddedAlarm::<CHUNK>::build(s, part))
+            .collect::<Result<_>>()?;
+        Ok(Box::new(Self { chunks }))
+    }
+}
+
+impl ElementAlarms for ChunkedAlarm {
+    fn tick(
+        &mut self,
+        temps_c: &[f64],
+        ambient_c: f64,
+        time_to_limit_s: &[Option<f64>],
+        sink: &mut dyn FnMut(LibEvent),
+    ) -> AlarmStatus {
+        let mut status = AlarmStatus::default();
+        let parts = temps_c.chunks(CHUNK).zip(time_to_limit_s.chunks(CHUNK));
+        for (k, (chunk, (temps_c, ttl_s))) in self.chunks.iter_mut().zip(parts).enumerate() {
+            let first = k * CHUNK;
+            let part = chunk.tick(temps_c, ambient_c, ttl_s, &mut |mut event: LibEvent| {
+                match event.element.as_mut() {
+                    Some(e) => *e += first,
+                    // The ambient's event, which every chunk raises alike.
+                    None if k > 0 => return,
+                    None => {}
+                }
+                sink(event);
+            });
+            status = status.union(part);
+        }
+        status
+    }
+
+    fn limit_c(&self, e: usize) -> Option<f64> {
+        self.chunks.get(e / CHUNK)?.limit_c(e % CHUNK)
+    }
+
+    fn warning_margin_k(&self) -> f64 {
+        self.chunks.first().map_or(0.0, |c| c.warning_margin_k())
+    }
+}
+
 /// The library's derated, debounced, latched alarm as a replay
 /// [`Protection`]: one element per node with a critical temperature, limits
 /// derated at the measured ambient every row.
@@ -287,11 +349,12 @@ pub struct TimeToLimitSummary {
 
 impl LibraryAlarm {
     /// Builds the alarm for `info`'s nodes with a critical temperature in
-    /// `settings` (in node order), padded to the smallest size class.
+    /// `settings` (in node order), padded to the smallest size class, or
+    /// in chunks of the largest (any number of watched nodes).
     ///
     /// # Errors
-    /// More watched nodes than the largest size class, a boundary index out
-    /// of range, or a parameter the library's builder refuses.
+    /// A boundary index out of range, or a parameter the library's builder
+    /// refuses.
     pub fn new(info: &PlantInfo, settings: &AlarmSettings) -> Result<Self> {
         if settings.critical_c.len() != info.nodes.len() {
             bail!(
@@ -316,14 +379,9 @@ impl LibraryAlarm {
             .filter_map(|(i, c)| c.map(|c| (i, c)))
             .unzip();
         let n = nodes.len();
-        let Some(&class) = SIZE_CLASSES.iter().find(|&&p| p >= n) else {
-            bail!(
-                "alarm: model `{}` has {n} nodes with a critical temperature; at most {} are supported",
-                info.name,
-                SIZE_CLASSES[SIZE_CLASSES.len() - 1]
-            );
-        };
-        let alarm = match class {
+        let class = SIZE_CLASSES.iter().copied().find(|&p| p >= n);
+        let alarm = match class.unwrap_or(0) {
+            0 => ChunkedAlarm::build(settings, &critical_c),
             4 => PaddedAlarm::<4>::build(settings, &critical_c),
             8 => PaddedAlarm::<8>::build(settings, &critical_c),
             16 => PaddedAlarm::<16>::build(settings, &critical_c),
@@ -947,7 +1005,55 @@ mod tests {
             assert!((events[1].limit_c.unwrap() - 65.36).abs() < 1e-12);
             assert!(alarm.shutdown_latched());
         }
-        let largest = SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 1;
-        assert!(LibraryAlarm::new(&info(largest), &settings(largest)).is_err());
+    }
+
+    /// More watched nodes than the largest size class: the library's alarm
+    /// in chunks of it is every element's own alarm. 250 elements through
+    /// rows that cross each one's warning and shutdown at rows of its own,
+    /// an invalid sample, and a fall back to the ambient: each element's
+    /// events (level, kind, temperature and limit) are the ones an alarm of
+    /// that element alone raises on its temperatures, and the latch is
+    /// theirs.
+    #[test]
+    fn more_watched_nodes_than_the_largest_class_run_in_chunks_of_it() {
+        let n = 2 * SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 58;
+        let mut all = LibraryAlarm::new(&info(n), &settings(n)).unwrap();
+        let mut alone: Vec<LibraryAlarm> = (0..n)
+            .map(|_| LibraryAlarm::new(&info(1), &settings(1)).unwrap())
+            .collect();
+        let temp = |e: usize, row: usize| match (e % 50, row) {
+            (3, 10) => f64::NAN,
+            (_, 30..) if e % 2 == 1 => 20.0,
+            _ => 20.0 + row as f64 * (1.0 + (e % 7) as f64 * 0.4),
+        };
+        let seen = |events: &[AlarmEvent]| -> Vec<_> {
+            events
+                .iter()
+                .map(|ev| (ev.level, ev.kind, ev.temp_c.map(f64::to_bits), ev.limit_c))
+                .collect()
+        };
+        let mut raised = 0;
+        for row in 0..40 {
+            let temps: Vec<f64> = (0..n).map(|e| temp(e, row)).collect();
+            let mut events = Vec::new();
+            all.check(row as f64, &temps, &[], &[], &[], &mut events);
+            raised += events.len();
+            for (e, own_alarm) in alone.iter_mut().enumerate() {
+                let mut own = Vec::new();
+                own_alarm.check(row as f64, &temps[e..=e], &[], &[], &[], &mut own);
+                let name = format!("n{e}");
+                let mine: Vec<AlarmEvent> = events
+                    .iter()
+                    .filter(|ev| ev.node.as_deref() == Some(name.as_str()))
+                    .cloned()
+                    .collect();
+                assert_eq!(seen(&mine), seen(&own), "element {e}, row {row}");
+            }
+            let latched = alone.iter().any(LibraryAlarm::shutdown_latched);
+            assert_eq!(all.shutdown_latched(), latched, "row {row}");
+        }
+        // Warnings and shutdowns raised, the odd ones' cleared, the NaN
+        // samples' sensor events: the rows did exercise the alarm.
+        assert!(raised > n, "{raised}");
     }
 }
