@@ -5,11 +5,12 @@
 //! description (capacities, pair conductances stored once, boundary
 //! conductances, Joule sources with the library's [`Resistance`], fixed
 //! powers) in `Vec`s, validated as the library validates it. It computes
-//! nothing: the library steps it at its own size (it is a
-//! [`NetworkDescription`], which the library's `RunTimeStepper` takes), and
-//! every exponential, predict and update runs in the library on the
-//! description copied into a padded `Network<P, 2, P>`
-//! ([`crate::limits::padded_with`]).
+//! nothing: it is a [`NetworkDescription`] whose sizes are
+//! `RunTimeSizes`, so the library steps it (`RunTimeStepper`) and solves
+//! its steady state, time to limit, safe and runaway currents at its own
+//! size; the observer's exponentials, predicts and updates run in the
+//! library on the description copied into a padded `Network<P, 2, P>`
+//! ([`crate::padding::padded_with`]).
 
 use coil_thermal::network::{JouleSource, NetworkDescription};
 use coil_thermal::sizes::RunTimeSizes;

@@ -133,5 +133,33 @@ pub(crate) use riccati::update_against;
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};
 pub use virtual_sensor::update_virtual;
 
+use nalgebra::{RealField, SMatrix, SVector};
+
+/// `y += a x`, column by column as nalgebra's `gemv(1, a, x, 1)` sums it
+/// (so the same bits: `(1 a_ij) x_j + 1 y_i` is `y_i + a_ij x_j`), without
+/// the multiplies by its unit `alpha` and `beta` that `gemv` forms unless
+/// the compiler sees them constant. For the steady gain's correction
+/// (`update_against`): a two-node generated observer built for a Cortex-M0
+/// at the default release profile (`footprint_m0`) links 272 B less code;
+/// with link-time optimisation the figures are as with `gemv`. Not for the
+/// subset fusion's: its 19 x 6 on a Cortex-M4F was 30 instructions dearer
+/// than `gemv` (measured).
+#[inline(always)]
+pub(crate) fn add_product<T: RealField + Copy, const R: usize, const C: usize>(
+    y: &mut SVector<T, R>,
+    a: &SMatrix<T, R, C>,
+    x: &SVector<T, C>,
+) {
+    // The arrays themselves (`a`'s columns are its storage's rows): a
+    // matrix view per column was measured far slower on the M4F.
+    let [y] = &mut y.data.0;
+    let [x] = &x.data.0;
+    for (column, xj) in a.data.0.iter().zip(x) {
+        for (yi, aij) in y.iter_mut().zip(column) {
+            *yi += *aij * *xj;
+        }
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod testutil;

@@ -380,7 +380,7 @@ pub(crate) fn update_against<
         recover_and_fuse(cfg, prior_ht, innovation_cov, est, z, &nu, &mut verdicts);
     } else if verdicts.iter().all(|v| v.is_fused()) {
         let mut x_new = est.x;
-        x_new.gemv(T::one(), gain, &nu, T::one());
+        super::add_product(&mut x_new, gain, &nu);
         if x_new.iter().all(|v| v.is_finite()) {
             est.x = x_new;
         } else {
