@@ -250,6 +250,41 @@ fn the_run_time_analyses_are_the_const_generic_ones_to_the_bit() {
     assert!(
         hot_spot_current_a(&run_time, 0, &vec![1.0; 3], &vec![20.0; 2], &vec![90.0; 5]).is_err()
     );
+    // ... and give the predictor's "unknown" answers: every time to limit
+    // `Some(NaN)`, an invalid safe current, no cooling.
+    let predictor = PredictorBuilder::new()
+        .build_from::<f64, _, 24>(&run_time)
+        .unwrap();
+    let op = OperatingPoint {
+        temps_c: vec![40.0; 5],
+        currents_a: vec![5.0; 3],
+        boundary_c: vec![20.0; 2],
+        limits_c: vec![90.0; 6],
+    };
+    let mut ttl = vec![None; 6];
+    predictor.predict(&op, &mut ttl);
+    assert!(ttl.iter().all(|t| t.is_some_and(f64::is_nan)), "{ttl:?}");
+    let op = OperatingPoint {
+        temps_c: vec![40.0; 6],
+        ..op
+    };
+    let mut short = vec![None; 5];
+    predictor.predict(&op, &mut short);
+    assert!(
+        short.iter().all(|t| t.is_some_and(f64::is_nan)),
+        "{short:?}"
+    );
+    predictor.predict(&op, &mut ttl);
+    assert!(ttl.iter().all(|t| t.is_none_or(|t| !t.is_nan())), "{ttl:?}");
+    let unfit = OperatingPoint {
+        boundary_c: vec![20.0; 3],
+        ..op.clone()
+    };
+    let safe = predictor.max_common_scale(&unfit, Horizon::Forever, 1.0);
+    assert!(!safe.feasible && safe.value == 0.0, "{safe:?}");
+    let warm = vec![60.0; 6];
+    assert_eq!(predictor.cooled_c(&warm, &vec![20.0; 1], 100.0), warm);
+    assert!(predictor.cooled_c(&warm, &vec![20.0; 2], 100.0)[0] < 60.0);
 }
 
 /// Slots of the 300-node motor.

@@ -418,6 +418,16 @@ pub struct OperatingPoint<T: Element, S: Sizes> {
 }
 
 impl<T: RealField + Copy, S: Sizes> OperatingPoint<T, S> {
+    /// `true` when every vector has the length `sizes` give it (always,
+    /// with arrays; a `Vec` of another length is an operating point of
+    /// another network).
+    pub fn fits(&self, sizes: &S) -> bool {
+        self.temps_c.as_ref().len() == sizes.nodes()
+            && self.limits_c.as_ref().len() == sizes.nodes()
+            && self.currents_a.as_ref().len() == sizes.inputs()
+            && self.boundary_c.as_ref().len() == sizes.boundaries()
+    }
+
     /// `true` when every input is finite (a limit may also be `+inf`: an
     /// element that has none).
     pub fn is_finite(&self) -> bool {
@@ -556,6 +566,13 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// The period of [`PredictorState::tick`] \[s\].
     pub fn tick_s(&self) -> T {
         self.tick_s
+    }
+
+    /// `op` is finite and this network's (see [`OperatingPoint::fits`]):
+    /// otherwise every answer is "unknown" (`Some(NaN)`).
+    #[inline(always)]
+    pub(super) fn takes(&self, op: &OperatingPoint<T, S>) -> bool {
+        op.fits(&self.sizes) && op.is_finite()
     }
 
     /// Each winding's Joule power \[W\] at the resistance it would have at the
@@ -744,7 +761,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
         let mut snapshot = Snapshot {
             headroom_k: self.sizes.nodes_of(T::zero()),
             modes: self.sizes.nodes_of(T::zero()),
-            valid: op.is_finite() && powers_w.as_ref().iter().all(|p| p.is_finite()),
+            valid: self.takes(op) && powers_w.as_ref().iter().all(|p| p.is_finite()),
         };
         let gains = self
             .gain_power
@@ -812,7 +829,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// temperatures, where the modal amplitudes go, for [`Self::to_modes`]
     /// to turn into them (valid if `op` is finite too).
     fn finish_steady(&self, snapshot: &mut Snapshot<S::Nodes<T>>, op: &OperatingPoint<T, S>) {
-        snapshot.valid &= op.is_finite();
+        snapshot.valid &= self.takes(op);
         let rows = snapshot
             .headroom_k
             .as_mut()
@@ -939,9 +956,14 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
 
     /// Every element's time to its alarm limit \[s\] at the operating point
     /// `op` (`None`: never; `Some(0)`: at or past it; `Some(NaN)`: an input
-    /// was not finite), written to `out`. One full sweep: see the module docs
-    /// for the cost.
+    /// was not finite, or, with `Vec`s, `op` or `out` has another length
+    /// than the network's, when every entry of `out` is `Some(NaN)`),
+    /// written to `out`. One full sweep: see the module docs for the cost.
     pub fn predict(&self, op: &OperatingPoint<T, S>, out: &mut S::Nodes<Option<T>>) {
+        if out.as_ref().len() != self.sizes.nodes() {
+            out.as_mut().fill(Some(T::from_subset(&f64::NAN)));
+            return;
+        }
         let powers = self.conservative_powers_w(op);
         let sweep = self.full_sweep(op, &powers);
         for (o, s) in out.as_mut().iter_mut().zip(sweep.as_ref()) {
@@ -1550,15 +1572,19 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// cooling: the saved state is never below the cooled one); `+inf` (or
     /// any off time far beyond [`Self::slowest_time_constant_s`]) gives the
     /// steady state plus the guard. A result that is not finite (non-finite
-    /// inputs) also falls back to `temps_c`.
+    /// inputs) also falls back to `temps_c`, and so do vectors of another
+    /// length than the network's (with `Vec`s).
     pub fn cooled_c(
         &self,
         temps_c: &S::Nodes<T>,
         boundary_c: &S::Boundaries<T>,
         off_s: T,
     ) -> S::Nodes<T> {
-        // Not positive, or NaN: unknown, no cooling.
-        if off_s.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+        // Not positive, or NaN: unknown, no cooling; so are vectors of
+        // another network (`Vec`s of other lengths).
+        let fits = temps_c.as_ref().len() == self.sizes.nodes()
+            && boundary_c.as_ref().len() == self.sizes.boundaries();
+        if !fits || off_s.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
             return temps_c.clone();
         }
         let no_power = self.sizes.inputs_of(T::zero());

@@ -85,7 +85,8 @@ pub struct SafeLimit<T> {
     pub binding_element: Option<usize>,
     /// `false` when some element passes its limit within the horizon even at
     /// zero load (it is already too hot, or the rest of the load is too
-    /// much), or when an input was not finite.
+    /// much), or when an input was not finite (or, with `Vec`s, not of the
+    /// network's length).
     pub feasible: bool,
 }
 
@@ -163,7 +164,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
             Horizon::Seconds(t) => t > T::zero() && t.is_finite(),
             Horizon::Forever => true,
         };
-        let inputs_ok = op.is_finite()
+        let inputs_ok = self.takes(op)
             && duty > T::zero()
             && duty <= T::one()
             && (free_w.as_ref().iter())
