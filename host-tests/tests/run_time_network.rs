@@ -823,3 +823,84 @@ fn limits_predicts_a_300_node_motor_at_its_own_size() {
         "{predicted_s} s, {true_s} s"
     );
 }
+
+/// Any value: finite, extreme, infinite or NaN.
+fn any_value() -> impl proptest::strategy::Strategy<Value = f64> {
+    use proptest::prelude::*;
+    prop_oneof![
+        -50.0..300.0f64,
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(f64::NEG_INFINITY),
+        Just(f64::MAX),
+        Just(-f64::MAX),
+        Just(1e-300),
+    ]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// The analyses at run-time sizes take any input without a panic: an
+    /// operating point of any lengths and values, any horizon, duty, coil
+    /// and off time. One of another network's lengths, or with a value
+    /// that is not finite (a limit may be `+inf`), gets the "unknown"
+    /// answers (every time to limit `Some(NaN)`, an invalid safe current);
+    /// the steady state and the runaway current refuse one.
+    #[test]
+    fn the_run_time_analyses_take_any_input(
+        temps in proptest::collection::vec(any_value(), 0..9),
+        currents in proptest::collection::vec(any_value(), 0..5),
+        boundary in proptest::collection::vec(any_value(), 0..4),
+        limits in proptest::collection::vec(any_value(), 0..9),
+        horizon_s in any_value(),
+        duty in any_value(),
+        off_s in any_value(),
+        coil in 0usize..5,
+    ) {
+        use coil_thermal::network::steady_state_of;
+        use coil_thermal::protect::predict::{OperatingPoint, PredictorBuilder};
+        use coil_thermal::protect::runaway::runaway_current_a;
+        use coil_thermal::protect::safe_current::Horizon;
+
+        let network = six_nodes_at_run_time(&mut Rng::new(7));
+        let predictor = PredictorBuilder::new()
+            .build_from::<f64, _, 16>(&network)
+            .unwrap();
+        let op: OperatingPoint<f64, coil_thermal::sizes::RunTimeSizes> = OperatingPoint {
+            temps_c: temps,
+            currents_a: currents,
+            boundary_c: boundary,
+            limits_c: limits,
+        };
+        let fits = op.temps_c.len() == 6
+            && op.limits_c.len() == 6
+            && op.currents_a.len() == 3
+            && op.boundary_c.len() == 2;
+        let finite = (op.temps_c.iter())
+            .chain(&op.currents_a)
+            .chain(&op.boundary_c)
+            .all(|v| v.is_finite())
+            && op.limits_c.iter().all(|l| l.is_finite() || *l > 0.0);
+        let mut ttl = vec![None; 6];
+        predictor.predict(&op, &mut ttl);
+        if !(fits && finite) {
+            proptest::prop_assert!(ttl.iter().all(|t| t.is_some_and(f64::is_nan)), "{:?}", ttl);
+        }
+        for horizon in [Horizon::Seconds(horizon_s), Horizon::Forever] {
+            let common = predictor.max_common_scale(&op, horizon, duty);
+            let one = predictor.max_coil_current_a(coil, &op, horizon, duty);
+            if !(fits && finite) {
+                proptest::prop_assert!(!common.feasible && common.value == 0.0);
+                proptest::prop_assert!(!one.feasible && one.value == 0.0);
+            }
+        }
+        let cooled = predictor.cooled_c(&op.temps_c, &op.boundary_c, off_s);
+        proptest::prop_assert_eq!(cooled.len(), op.temps_c.len());
+        let steady = steady_state_of(&network, &op.currents_a, &op.boundary_c);
+        let runaway = runaway_current_a(&network, coil.min(2), &op.currents_a);
+        if op.currents_a.len() != 3 || !op.currents_a.iter().all(|i| i.is_finite()) {
+            proptest::prop_assert!(steady.is_err() && runaway.is_err());
+        }
+    }
+}
