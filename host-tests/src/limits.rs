@@ -17,7 +17,7 @@ use coil_thermal::network::steady_state_of;
 use coil_thermal::protect::predict::{
     ModalPredictor, OperatingPoint, PredictorBuilder, DEFAULT_GRID_POINTS,
 };
-use coil_thermal::protect::runaway::{hot_spot_current_a, runaway_current_a};
+use coil_thermal::protect::runaway::coil_runaway;
 use coil_thermal::protect::safe_current::Horizon;
 use coil_thermal::sizes::RunTimeSizes;
 use coil_thermal::BuildError;
@@ -137,13 +137,11 @@ pub fn compute(q: &LimitsQuery) -> Result<LimitsReport> {
     let common_f = safe(predictor.max_common_scale(&op, Horizon::Forever, 1.0));
     let mut coils = Vec::new();
     for &c in &q.coils {
-        let (runaway, hot, error) = match (
-            runaway_current_a(net, c, &q.currents_a),
-            hot_spot_current_a(net, c, &q.currents_a, &q.boundary_c, &limits),
-        ) {
-            (Ok(r), Ok(h)) => (r, h, None),
-            (Err(e), _) | (_, Err(e)) => (None, None, Some(e.to_string())),
-        };
+        let (runaway, hot, error) =
+            match coil_runaway(net, c, &q.currents_a, &q.boundary_c, &limits) {
+                Ok(f) => (f.runaway_current_a, f.hot_spot_current_a, None),
+                Err(e) => (None, None, Some(e.to_string())),
+            };
         coils.push(CoilLimits {
             source: c,
             max_current_horizon_a: horizon

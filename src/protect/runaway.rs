@@ -129,11 +129,45 @@ pub fn hot_spot_current_a<W: NetworkDescription>(
     boundary_c: &Boundaries<W, f64>,
     limits_c: &Nodes<W, f64>,
 ) -> Result<Option<f64>, BuildError> {
+    let figures = coil_runaway(network, coil, currents_a, boundary_c, limits_c)?;
+    Ok(figures.hot_spot_current_a)
+}
+
+/// [`runaway_current_a`] and [`hot_spot_current_a`] of winding `coil` at
+/// once: the runaway current, the hot spot's bracket, is solved once (an
+/// eigen-decomposition of the network, the cost that matters for a model
+/// of hundreds of nodes).
+///
+/// # Errors
+/// As [`hot_spot_current_a`].
+pub fn coil_runaway<W: NetworkDescription>(
+    network: &W,
+    coil: usize,
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+    limits_c: &Nodes<W, f64>,
+) -> Result<CoilRunaway, BuildError> {
     let limits = limits_c.as_ref();
     if limits.iter().any(|l| l.is_nan()) || limits.len() != network.sizes().nodes() {
         return Err(BuildError::InvalidParameter { name: "limits_c" });
     }
     let runaway = runaway_current_a(network, coil, currents_a)?;
+    Ok(CoilRunaway {
+        runaway_current_a: runaway,
+        hot_spot_current_a: hot_spot_below(network, coil, currents_a, boundary_c, limits, runaway)?,
+    })
+}
+
+/// The hot-spot current of [`hot_spot_current_a`], bracketed by the
+/// winding's `runaway` current (`None`: found by doubling).
+fn hot_spot_below<W: NetworkDescription>(
+    network: &W,
+    coil: usize,
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+    limits: &[f64],
+    runaway: Option<f64>,
+) -> Result<Option<f64>, BuildError> {
     let safe = |current: f64| -> Result<bool, BuildError> {
         let mut currents = currents_a.clone();
         if let Some(i) = currents.as_mut().get_mut(coil) {
@@ -197,12 +231,7 @@ pub fn runaway_report<W: NetworkDescription>(
         hot_spot_current_a: None,
     });
     for (coil, entry) in report.as_mut().iter_mut().enumerate() {
-        *entry = CoilRunaway {
-            runaway_current_a: runaway_current_a(network, coil, currents_a)?,
-            hot_spot_current_a: hot_spot_current_a(
-                network, coil, currents_a, boundary_c, limits_c,
-            )?,
-        };
+        *entry = coil_runaway(network, coil, currents_a, boundary_c, limits_c)?;
     }
     Ok(report)
 }
