@@ -126,6 +126,13 @@ use coil_thermal::protect::derating::DeratingRule;
 /// The padded sizes `C` (nodes and sources) of the observer.
 pub const OBSERVER_CLASSES: [usize; 4] = [8, 16, 32, 96];
 
+/// Why no firmware observer is solved for `network` (more nodes or sources
+/// than the largest of [`OBSERVER_CLASSES`], or more than 2 boundaries:
+/// `codegen` makes no firmware of it either), or `None` when one is.
+pub fn why_no_firmware_observer(network: &DynNetwork) -> Option<anyhow::Error> {
+    class_of(network, &OBSERVER_CLASSES, "the firmware's observer").err()
+}
+
 /// Currents enter the observer divided by this, resistances multiplied by
 /// its square (see the module docs).
 pub const CURRENT_SCALE: f64 = 16.0;

@@ -111,9 +111,7 @@ fn lib_err(what: &str) -> impl Fn(BuildError) -> anyhow::Error + '_ {
 pub fn compute(q: &LimitsQuery) -> Result<LimitsReport> {
     let net = &q.network;
     let (n, m) = (net.nodes(), net.sources().len());
-    if net.boundaries() == 0 {
-        bail!("limits: the model has no boundary, so no steady state");
-    }
+    has_a_boundary(net, "limits")?;
     if q.currents_a.len() != m || q.boundary_c.len() != net.boundaries() || q.limits_c.len() != n {
         bail!(
             "limits: one current per source, one temperature per boundary and one limit per node"
@@ -172,6 +170,15 @@ pub fn compute(q: &LimitsQuery) -> Result<LimitsReport> {
     })
 }
 
+/// A network without a boundary has no steady state (nothing to predict
+/// towards): refused, naming `what`.
+fn has_a_boundary(net: &DynNetwork, what: &str) -> Result<()> {
+    if net.boundaries() == 0 {
+        bail!("{what}: the model has no boundary, so no steady state");
+    }
+    Ok(())
+}
+
 /// The library's time-to-limit predictor of a network at its own size,
 /// with horizons up to ten times its slowest time constant (at least 4 h)
 /// so that "never" is tight, and that time constant \[s\].
@@ -218,9 +225,7 @@ impl TimeToLimit {
     /// A model without a boundary, or a network the library refuses.
     pub fn new(model: &Model) -> Result<Self> {
         let net = &model.network;
-        if net.boundaries() == 0 {
-            bail!("time to limit: the model has no boundary, so no steady state");
-        }
+        has_a_boundary(net, "time to limit")?;
         let (predictor, _) = predictor_for(net)?;
         let (n, m, b) = (net.nodes(), net.sources().len(), net.boundaries());
         Ok(Self {

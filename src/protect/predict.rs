@@ -291,8 +291,8 @@ impl PredictorBuilder {
             }
             modal.node_values(&modes, &ones)
         };
-        // Row `i` of a table, each entry of `T`.
-        let rows_of = |row: &<W::Sizes as Sizes>::Nodes<f64>| {
+        // A node vector in `T`.
+        let in_t = |row: &<W::Sizes as Sizes>::Nodes<f64>| {
             let mut out = sizes.nodes_of(T::zero());
             for (o, x) in out.as_mut().iter_mut().zip(row.as_ref()) {
                 *o = to_t(*x);
@@ -353,19 +353,19 @@ impl PredictorBuilder {
         let matrix_of = |m: &crate::protect::modal::NodeMatrix<W::Sizes>| {
             let mut out = sizes.rows_of(sizes.nodes_of(T::zero()));
             for (o, row) in out.as_mut().iter_mut().zip(m.as_ref()) {
-                *o = rows_of(row);
+                *o = in_t(row);
             }
             out
         };
         Ok(ModalPredictor {
             grid_s,
             decay,
-            lambda_per_s: rows_of(&modal.lambda_per_s),
+            lambda_per_s: in_t(&modal.lambda_per_s),
             v: matrix_of(&modal.v),
             v_inv: matrix_of(&modal.v_inv),
             gain_power,
             gain_boundary,
-            offset_c: rows_of(&offset),
+            offset_c: in_t(&offset),
             windings,
             sizes,
             tick_s: to_t(self.tick_s),

@@ -516,12 +516,8 @@ fn mean_limits(
             ))
         }
         _ => {
-            if let Err(e) = crate::padding::class_of(
-                &model.network,
-                &crate::library_observer::OBSERVER_CLASSES,
-                "no firmware observer",
-            ) {
-                return Ok((limits_c.to_vec(), Bound::Estimate(format!("{e:#}"))));
+            if let Some(why) = crate::library_observer::why_no_firmware_observer(&model.network) {
+                return Ok((limits_c.to_vec(), Bound::Estimate(format!("{why:#}"))));
             }
             let config = crate::firmware::FirmwareConfig::of(model, file.observer.as_ref())?;
             let sensors = config.sensor_nodes.clone();

@@ -748,12 +748,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     // firmware's observer is solved for on the host (its tables are
     // const-generic: `codegen` makes none of it either); otherwise the
     // firmware's observer.
-    let too_large = crate::padding::class_of(
-        &model.network,
-        &crate::library_observer::OBSERVER_CLASSES,
-        "the firmware's observer",
-    )
-    .err();
+    let too_large = crate::library_observer::why_no_firmware_observer(&model.network);
     let stepper_why = if model.has_varying_conductances() {
         "its network changes with a signal".to_string()
     } else {
