@@ -374,20 +374,21 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
     }
 }
 
-/// The predictor's limits \[degC\] of `N` elements, kept with the ambient
-/// \[degC\] they were formed at: they depend on nothing else, and the
-/// ambient moves far less often than a predictor stage runs (each formed
-/// limit is a derating and a bound's shift, a dozen soft-float routines an
-/// element on a core without an FPU).
+/// Limits \[degC\] of `N` elements that depend on the ambient alone (the
+/// derated alarm limits, the predictor's mean limits), kept with the
+/// ambient \[degC\] they were formed at: the ambient moves far less often
+/// than a protection stage runs, and each formed limit is a derating (and
+/// for the predictor a bound's shift), soft-float routines an element on a
+/// core without an FPU.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct MeanLimits<const N: usize> {
+pub(crate) struct AmbientLimits<const N: usize> {
     /// The bits of the ambient the limits were formed at; `None` before
     /// the first.
     ambient_bits: Option<u32>,
     limits_c: [f32; N],
 }
 
-impl<const N: usize> MeanLimits<N> {
+impl<const N: usize> AmbientLimits<N> {
     /// No limits formed yet.
     pub(crate) const fn new() -> Self {
         Self {
@@ -622,10 +623,10 @@ mod tests {
     }
 
     #[test]
-    fn mean_limits_are_formed_again_when_the_ambient_moves() {
+    fn ambient_limits_are_formed_again_when_the_ambient_moves() {
         let mut formed = 0;
-        let mut limits = MeanLimits::<2>::new();
-        let mut at = |limits: &mut MeanLimits<2>, ambient_c: f32| {
+        let mut limits = AmbientLimits::<2>::new();
+        let mut at = |limits: &mut AmbientLimits<2>, ambient_c: f32| {
             *limits.at(ambient_c, |a| {
                 formed += 1;
                 [a + 100.0, a + 50.0]

@@ -416,7 +416,7 @@ use super::consistency::{
 };
 use super::cycle::aged_time_to_limit;
 use super::cycle::{
-    record_verdicts, sample_readings, Latch, MeanLimits, Protecting, ProtectionCycle,
+    record_verdicts, sample_readings, AmbientLimits, Latch, Protecting, ProtectionCycle,
     ProtectionStages,
 };
 use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
@@ -1030,7 +1030,7 @@ pub struct NetworkObserverState<
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<P>,
     /// The predictor's limits at the ambient they were formed at.
-    mean_limits: MeanLimits<N>,
+    mean_limits: AmbientLimits<N>,
     /// The time-varying warm-up's covariance, while it runs, if this
     /// flavour holds one.
     warm: W,
@@ -1046,6 +1046,9 @@ pub struct NetworkObserverState<
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
     shadow_waiting_block: Option<BlockMean<M>>,
+    /// The derated alarm limits at the ambient they were formed at (the
+    /// alarm's and the limiter's; a core without an FPU's alone).
+    alarm_limits: KeptAlarmLimits<N>,
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
@@ -1078,6 +1081,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             alarm: self.alarm,
             predictor: self.predictor,
             mean_limits: self.mean_limits,
+            alarm_limits: self.alarm_limits,
             clock: self.clock,
             events: self.events,
             held_currents_a: self.held_currents_a,
@@ -1184,7 +1188,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .limits
             .accept_temperatures(boundary_c, &mut held_boundary_c);
         let ambient_c = self.ambient(&held_boundary_c);
-        let mut mean_limits = MeanLimits::new();
+        let mut mean_limits = AmbientLimits::new();
         let op = self.operating(
             &mut mean_limits,
             temps_c,
@@ -1204,6 +1208,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             mean_limits,
+            alarm_limits: KeptAlarmLimits::new(),
             clock: ClockState::default(),
             events: EventQueue::new(),
             held_currents_a: [0.0; M],
@@ -1249,7 +1254,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             ambient_c,
             &mut state.outputs.upper_c,
         );
-        self.limit(&mut state.outputs, ambient_c);
+        self.limit(&mut state.outputs, &mut state.alarm_limits, ambient_c);
         state
     }
 
@@ -1511,7 +1516,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     #[inline(never)]
     fn operating(
         &self,
-        mean_limits: &mut MeanLimits<N>,
+        mean_limits: &mut AmbientLimits<N>,
         temps_c: &[f32; N],
         currents_a: &[f32; M],
         boundary_c: &[f32; B],
@@ -1743,11 +1748,79 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         protect_on_shadow(&self.bound, &shadow_c, ambient_c, &mut out.upper_c, limited);
     }
 
-    /// The limiter at the published upper bounds: a taper factor per
-    /// limited element, each current held at its hardware limit times the
-    /// smallest factor of the elements it heats.
-    fn limit(&self, out: &mut NetworkOutputs<N, M, P>, ambient_c: f32) {
-        let mut limits_c = self.alarm.alarm_limits_c(ambient_c);
+    /// The derated alarm on the published upper bounds at `ambient_c`
+    /// \[degC\]. On a core without an FPU its limits are the kept ones
+    /// (see [`Self::alarm_limits_c`]).
+    #[cfg(not(target_abi = "eabihf"))]
+    #[inline(always)]
+    fn alarm_tick<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        ambient_c: f32,
+    ) -> AlarmStatus {
+        let derating_c = state.alarm.derating_ambient_c(ambient_c);
+        let limits_c = self.alarm_limits_c(&mut state.alarm_limits, derating_c);
+        let out = &state.outputs;
+        state.alarm.tick_at_limits(
+            &self.alarm,
+            &out.upper_c,
+            ambient_c,
+            &limits_c,
+            &out.time_to_limit_s,
+            &mut state.events,
+        )
+    }
+
+    /// See the other [`Self::alarm_tick`].
+    #[cfg(target_abi = "eabihf")]
+    #[inline(always)]
+    fn alarm_tick<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        ambient_c: f32,
+    ) -> AlarmStatus {
+        let out = &state.outputs;
+        state.alarm.tick(
+            &self.alarm,
+            &out.upper_c,
+            ambient_c,
+            &out.time_to_limit_s,
+            &mut state.events,
+        )
+    }
+
+    /// The derated alarm limits \[degC\] at `ambient_c` \[degC\]. On a core
+    /// without an FPU, from `kept`, formed again only when the ambient
+    /// moved (each is a derating, four soft-float routines: the
+    /// Cortex-M0's alarm and limiter stages about 900 and 1 100
+    /// instructions less), out of line as the two stages share it. On a
+    /// core with an FPU formed each time, and the alarm derates its own:
+    /// kept, they cost the M4F's network ticks up to 7 instructions more on
+    /// average (measured).
+    #[cfg(not(target_abi = "eabihf"))]
+    #[inline(never)]
+    fn alarm_limits_c(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+        *kept.at(ambient_c, |a| self.alarm.alarm_limits_c(a))
+    }
+
+    /// See the other [`Self::alarm_limits_c`].
+    #[cfg(target_abi = "eabihf")]
+    #[inline(always)]
+    fn alarm_limits_c(&self, _: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+        self.alarm.alarm_limits_c(ambient_c)
+    }
+
+    /// The limiter at the published upper bounds and the alarm limits at
+    /// `ambient_c` \[degC\] (from `kept`, see [`Self::alarm_limits_c`]): a
+    /// taper factor per limited element, each current held at its
+    /// hardware limit times the smallest factor of the elements it heats.
+    fn limit(
+        &self,
+        out: &mut NetworkOutputs<N, M, P>,
+        kept: &mut KeptAlarmLimits<N>,
+        ambient_c: f32,
+    ) {
+        let mut limits_c = self.alarm_limits_c(kept, ambient_c);
         // Only the limited elements' factors are read below: an infinite
         // limit makes the limiter pass the others over at the cost of a
         // test (their taper, root and weight are soft-float on an M0).
@@ -2400,7 +2473,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state.warmup_left = start::MAX_START_CORRECTIONS;
         state.warmup_until_steady = true;
         self.publish_upper(&mut state, ambient_c, true);
-        self.limit(&mut state.outputs, ambient_c);
+        self.limit(&mut state.outputs, &mut state.alarm_limits, ambient_c);
         state
     }
 
@@ -2506,14 +2579,7 @@ where
         // warm-up's wider covariance is held (its doubt is the limiter's;
         // see `super::start`).
         observer.publish_upper(state, ambient_c, false);
-        let out = &mut state.outputs;
-        out.alarm = state.alarm.tick(
-            &observer.alarm,
-            &out.upper_c,
-            ambient_c,
-            &out.time_to_limit_s,
-            &mut state.events,
-        );
+        state.outputs.alarm = observer.alarm_tick(state, ambient_c);
         if state.warmup_left > 0 && state.warm.held().is_some() {
             observer.publish_upper(state, ambient_c, true);
         }
@@ -2524,12 +2590,36 @@ where
         let (observer, state) = (self.observer, &mut *self.state);
         let ambient_c = observer.ambient(&state.held_boundary_c);
         observer.publish_upper(state, ambient_c, true);
-        observer.limit(&mut state.outputs, ambient_c);
+        observer.limit(&mut state.outputs, &mut state.alarm_limits, ambient_c);
     }
 
     #[inline(always)]
     fn age_time_to_limit(&mut self) {
         self.observer.age_time_to_limit(self.state);
+    }
+}
+
+/// The derated alarm limits a state keeps per ambient: on a core without
+/// an FPU (see [`NetworkObserver::alarm_limits_c`]).
+#[cfg(not(target_abi = "eabihf"))]
+type KeptAlarmLimits<const N: usize> = AmbientLimits<N>;
+
+/// On a core with an FPU none are kept (see
+/// [`NetworkObserver::alarm_limits_c`]): the state is as large as without
+/// them (20 bytes more of it cost the M4F's motor and three-phase ticks 2
+/// instructions on average, measured).
+#[cfg(target_abi = "eabihf")]
+type KeptAlarmLimits<const N: usize> = NoneKept;
+
+/// Nothing kept (see [`KeptAlarmLimits`]).
+#[cfg(target_abi = "eabihf")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct NoneKept;
+
+#[cfg(target_abi = "eabihf")]
+impl NoneKept {
+    const fn new() -> Self {
+        Self
     }
 }
 

@@ -306,7 +306,7 @@ fn the_time_to_limit_follows_a_moved_ambient() {
     let published = state.outputs().time_to_limit_s[0].expect("9 A reaches the limit");
     let full_sweep = |ambient_c: f32| {
         let op = observer.operating(
-            &mut MeanLimits::new(),
+            &mut AmbientLimits::new(),
             &state.outputs().temps_c,
             &[9.0],
             &[35.0],
@@ -325,6 +325,54 @@ fn the_time_to_limit_follows_a_moved_ambient() {
         "the ambient must move the answer: {stale} vs {now}"
     );
     assert!((published - now).abs() < 2.0, "{published} vs {now}");
+}
+
+#[test]
+fn the_alarm_and_the_limiter_follow_a_moved_ambient() {
+    // The alarm's and the limiter's derated limits are kept between stages
+    // and formed again only when the ambient moves. A winding whose bound
+    // lies between its limit derated at 35 degC (77.1 degC) and at 20 degC
+    // (71.8 degC): no shutdown and a tapered current at 35 degC; after the
+    // ambient falls to 20 degC, the shutdown and the floor current.
+    let net = device();
+    let observer: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
+        .critical_c([Some(100.0), None, None])
+        .build()
+        .unwrap();
+    let limit_at = |ambient_c: f32| observer.alarm.alarm_limit_c(0, ambient_c).unwrap();
+    let (cool_limit_c, warm_limit_c) = (limit_at(20.0), limit_at(35.0));
+    assert!(
+        warm_limit_c - cool_limit_c > 5.0,
+        "{cool_limit_c} {warm_limit_c}"
+    );
+    // The bound's offset over the estimate, from a first state.
+    let probe = observer.state(&[60.0; 3], &[35.0]);
+    let offset_k = probe.outputs().upper_c[0] - probe.outputs().temps_c[0];
+    let mid_c = 0.5 * (cool_limit_c + warm_limit_c);
+    let mut state = observer.state(&[mid_c - offset_k; 3], &[35.0]);
+    let hardware_a = observer.hardware_limit_a[0];
+    let mut k = 0u32;
+    let mut run = |state: &mut NetworkObserverState<3, 1, 1, 4, 1, NoWarmUp>, ambient_c, ms| {
+        for _ in 0..ms {
+            observer.tick(state, &inputs([0.0], [ambient_c], k.wrapping_mul(1000)));
+            k += 1;
+        }
+        let out = state.outputs();
+        (out.upper_c[0], out.alarm.shutdown, out.limits[0].current_a)
+    };
+    let (upper_c, shutdown, current_a) = run(&mut state, 35.0, 2_000);
+    assert!(
+        upper_c > cool_limit_c + 1.0 && upper_c < warm_limit_c - 1.0,
+        "{upper_c} between {cool_limit_c} and {warm_limit_c}"
+    );
+    assert!(!shutdown, "the bound {upper_c} is below {warm_limit_c}");
+    assert!(
+        current_a > 0.0 && current_a < hardware_a,
+        "tapered at 35 degC: {current_a} of {hardware_a} A"
+    );
+    let (upper_c, shutdown, current_a) = run(&mut state, 20.0, 2_000);
+    assert!(shutdown, "the bound {upper_c} is above {cool_limit_c}");
+    assert_eq!(current_a, observer.limiter.floor_a(), "{upper_c}");
 }
 
 #[test]
