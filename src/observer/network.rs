@@ -1749,9 +1749,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// The derated alarm on the published upper bounds at `ambient_c`
-    /// \[degC\]. On a core without an FPU its limits are the kept ones
-    /// (see [`Self::alarm_limits_c`]).
-    #[cfg(not(target_abi = "eabihf"))]
+    /// \[degC\], at the kept limits where there are (see
+    /// [`Self::kept_alarm_limits_c`]).
     #[inline(always)]
     fn alarm_tick<W: WarmUpKind<X>>(
         &self,
@@ -1759,55 +1758,57 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         ambient_c: f32,
     ) -> AlarmStatus {
         let derating_c = state.alarm.derating_ambient_c(ambient_c);
-        let limits_c = self.alarm_limits_c(&mut state.alarm_limits, derating_c);
+        let kept = self.kept_alarm_limits_c(&mut state.alarm_limits, derating_c);
         let out = &state.outputs;
         state.alarm.tick_at_limits(
             &self.alarm,
             &out.upper_c,
             ambient_c,
-            &limits_c,
+            kept.as_ref(),
             &out.time_to_limit_s,
             &mut state.events,
         )
     }
 
-    /// See the other [`Self::alarm_tick`].
-    #[cfg(target_abi = "eabihf")]
+    /// The derated alarm limits \[degC\] at `ambient_c` \[degC\].
     #[inline(always)]
-    fn alarm_tick<W: WarmUpKind<X>>(
-        &self,
-        state: &mut NetworkObserverState<N, B, M, X, P, W>,
-        ambient_c: f32,
-    ) -> AlarmStatus {
-        let out = &state.outputs;
-        state.alarm.tick(
-            &self.alarm,
-            &out.upper_c,
-            ambient_c,
-            &out.time_to_limit_s,
-            &mut state.events,
-        )
+    fn alarm_limits_c(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+        self.kept_alarm_limits_c(kept, ambient_c)
+            .unwrap_or_else(|| self.alarm.alarm_limits_c(ambient_c))
     }
 
-    /// The derated alarm limits \[degC\] at `ambient_c` \[degC\]. On a core
-    /// without an FPU, from `kept`, formed again only when the ambient
-    /// moved (each is a derating, four soft-float routines: the
-    /// Cortex-M0's alarm and limiter stages about 900 and 1 100
+    /// The derated alarm limits \[degC\] at `ambient_c` \[degC\] as `kept`
+    /// has them. On a core without an FPU they are formed again only when
+    /// the ambient moved (each is a derating, four soft-float routines:
+    /// the Cortex-M0's alarm and limiter stages about 900 and 1 100
     /// instructions less), out of line as the two stages share it. On a
-    /// core with an FPU formed each time, and the alarm derates its own:
-    /// kept, they cost the M4F's network ticks up to 7 instructions more on
-    /// average (measured).
+    /// core with an FPU none are kept (`None`: formed where they are used,
+    /// the alarm derating its own): kept, they cost the M4F's network
+    /// ticks up to 7 instructions more on average (measured).
+    #[cfg(not(target_abi = "eabihf"))]
+    #[inline(always)]
+    fn kept_alarm_limits_c(
+        &self,
+        kept: &mut KeptAlarmLimits<N>,
+        ambient_c: f32,
+    ) -> Option<[f32; N]> {
+        Some(self.kept_limits_at(kept, ambient_c))
+    }
+
+    /// The body of [`Self::kept_alarm_limits_c`] on a core without an FPU
+    /// (a `Some` the compiler sees, so that the alarm's own derating is not
+    /// linked: the 2-node Cortex-M0 footprint 1 032 B).
     #[cfg(not(target_abi = "eabihf"))]
     #[inline(never)]
-    fn alarm_limits_c(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+    fn kept_limits_at(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
         *kept.at(ambient_c, |a| self.alarm.alarm_limits_c(a))
     }
 
-    /// See the other [`Self::alarm_limits_c`].
+    /// See the other [`Self::kept_alarm_limits_c`].
     #[cfg(target_abi = "eabihf")]
     #[inline(always)]
-    fn alarm_limits_c(&self, _: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
-        self.alarm.alarm_limits_c(ambient_c)
+    fn kept_alarm_limits_c(&self, _: &mut KeptAlarmLimits<N>, _: f32) -> Option<[f32; N]> {
+        None
     }
 
     /// The limiter at the published upper bounds and the alarm limits at

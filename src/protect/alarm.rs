@@ -640,7 +640,6 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     /// The ambient \[degC\] the limits of a tick at `ambient_c` \[degC\]
     /// are derated at: `ambient_c`, or the last valid one if it is not
     /// finite (see the module docs).
-    #[cfg_attr(target_abi = "eabihf", allow(dead_code))]
     pub(crate) fn derating_ambient_c(&self, ambient_c: S) -> S {
         if ambient_c.is_finite() {
             ambient_c
@@ -649,32 +648,34 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         }
     }
 
-    /// [`Self::tick`] with every element's alarm limit \[degC\] given:
-    /// `limits_c` must be [`AlarmConfig::alarm_limits_c`] at
-    /// [`Self::derating_ambient_c`] of `ambient_c` (an observer that keeps
-    /// them per ambient, which moves far less often than its alarm runs:
-    /// each is a derating, soft-float routines on a core without an FPU).
-    /// The same tick, to the bit.
+    /// [`Self::tick`] with every element's alarm limit \[degC\] given, if
+    /// `limits_c` is `Some`: then it must be [`AlarmConfig::alarm_limits_c`]
+    /// at [`Self::derating_ambient_c`] of `ambient_c` (for an observer
+    /// that keeps them per ambient, which moves far less often than its
+    /// alarm runs: each is a derating, soft-float routines on a core
+    /// without an FPU). The same tick, to the bit.
     #[inline(always)]
-    #[cfg_attr(target_abi = "eabihf", allow(dead_code))]
     pub(crate) fn tick_at_limits<const CAP: usize>(
         &mut self,
         config: &AlarmConfig<S, N>,
         temps_c: &[S; N],
         ambient_c: S,
-        limits_c: &[S; N],
+        limits_c: Option<&[S; N]>,
         time_to_limit_s: &[Option<S>; N],
         events: &mut EventQueue<CAP>,
     ) -> AlarmStatus {
-        self.judge(
-            config,
-            temps_c,
-            ambient_c,
-            time_to_limit_s,
-            events,
-            0..N,
-            limits_c,
-        )
+        match limits_c {
+            Some(limits_c) => self.judge(
+                config,
+                temps_c,
+                ambient_c,
+                time_to_limit_s,
+                events,
+                0..N,
+                limits_c,
+            ),
+            None => self.tick(config, temps_c, ambient_c, time_to_limit_s, events),
+        }
     }
 
     /// [`Self::tick_part`] with the alarm limits of `levels`.
@@ -1025,7 +1026,7 @@ mod tests {
                 &cfg,
                 &temps_c,
                 ambient_c,
-                &limits_c,
+                Some(&limits_c),
                 &time_s,
                 &mut given_events,
             );
