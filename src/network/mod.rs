@@ -33,6 +33,7 @@ pub mod motor;
 mod source;
 mod steady;
 pub use steady::steady_state_of;
+pub(crate) use steady::{one_winding_steady, OneWindingSteady};
 
 pub use description::{Boundaries, Inputs, NetworkDescription, Nodes};
 pub use explicit::{compensated_add, ExplicitStepper, NetworkState};

@@ -112,6 +112,116 @@ pub fn steady_state_of<W: NetworkDescription>(
     })
 }
 
+/// The steady states of a network as one current-driven winding's current
+/// `I` varies, the others held: `K` changes by a rank-one term at the
+/// winding's node `n` and `q` by one entry (see the module docs), so with
+/// `w = K_0^-1 q_0` (the steady state at `I = 0`) and `u = K_0^-1 e_n`
+///
+/// ```text
+/// T_n(I) = (w_n + I^2 r0 u_n) / (1 - s I^2 u_n)
+/// T(I)   = w + I^2 (r0 + s T_n(I)) u
+/// ```
+///
+/// (a steady state while the denominator is positive): two solves, then
+/// `O(N)` a current where [`steady_state_of`] takes `O(N^3)`. For a search
+/// over one winding's current (the hot-spot current of
+/// [`crate::protect::runaway`]); not for a network with a voltage-driven
+/// source, whose steady state is no linear solve.
+pub(crate) struct OneWindingSteady<V> {
+    /// `K_0^-1 q_0`: the steady state at zero current \[degC\].
+    at_zero_c: V,
+    /// `K_0^-1 e_n`: each node's rise per watt at the winding's node
+    /// \[K/W\].
+    per_watt_k_per_w: V,
+    node: usize,
+    r0_ohm: f64,
+    slope_ohm_per_k: f64,
+}
+
+impl<V: AsRef<[f64]>> OneWindingSteady<V> {
+    /// The current \[A\] above which no steady state exists (the
+    /// denominator's zero, `I^2 = 1 / (s u_n)`, `u_n` the node's
+    /// resistance to the boundaries, see [`crate::protect::runaway`]);
+    /// `None` for a resistance that does not rise with temperature.
+    pub(crate) fn runaway_current_a(&self) -> Option<f64> {
+        let u_n = self.per_watt_k_per_w.as_ref().get(self.node).copied()?;
+        (self.slope_ohm_per_k > 0.0 && u_n > 0.0)
+            .then(|| libm::sqrt(1.0 / (self.slope_ohm_per_k * u_n)))
+    }
+
+    /// Whether the steady state at `current_a` \[A\] exists and keeps
+    /// every node at or below its limit `limits_c` \[degC\].
+    pub(crate) fn within(&self, current_a: f64, limits_c: &[f64]) -> bool {
+        let (w, u) = (self.at_zero_c.as_ref(), self.per_watt_k_per_w.as_ref());
+        let (Some(w_n), Some(u_n)) = (w.get(self.node), u.get(self.node)) else {
+            return false;
+        };
+        let u2 = current_a * current_a;
+        let denominator = 1.0 - self.slope_ohm_per_k * u2 * u_n;
+        if denominator.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            // Runaway (or NaN): no steady state.
+            return false;
+        }
+        let t_n = (w_n + u2 * self.r0_ohm * u_n) / denominator;
+        let power_w = u2 * (self.r0_ohm + self.slope_ohm_per_k * t_n);
+        w.iter()
+            .zip(u)
+            .zip(limits_c)
+            .all(|((w, u), limit)| w + power_w * u <= *limit)
+    }
+}
+
+/// [`OneWindingSteady`] of input `coil` with the other inputs at
+/// `currents_a` \[A\] (its own entry ignored) and the boundaries at
+/// `boundary_c` \[degC\]; `Ok(None)` where it does not apply (no such
+/// current-driven winding, or a voltage-driven source in the network).
+///
+/// # Errors
+/// As [`steady_state_of`] at zero current of `coil`.
+pub(crate) fn one_winding_steady<W: NetworkDescription>(
+    network: &W,
+    coil: usize,
+    currents_a: &Inputs<W, f64>,
+    boundary_c: &Boundaries<W, f64>,
+) -> Result<Option<OneWindingSteady<Nodes<W, f64>>>, BuildError> {
+    let sizes = network.sizes();
+    let voltage = (0..sizes.inputs())
+        .filter_map(|m| network.joule_source_of(m))
+        .any(|s| s.drive == Drive::Voltage);
+    let Some(source) = network.joule_source_of(coil) else {
+        return Ok(None);
+    };
+    if voltage || source.drive != Drive::Current {
+        return Ok(None);
+    }
+    let mut currents = currents_a.clone();
+    if let Some(i) = currents.as_mut().get_mut(coil) {
+        *i = 0.0;
+    }
+    // Validates the inputs and tells runaway from a node without a way out.
+    let at_zero_c = steady_state_of(network, &currents, boundary_c)?;
+    let (k, _) = steady_system(
+        sizes,
+        network,
+        currents.as_ref(),
+        boundary_c.as_ref(),
+        true,
+        at_zero_c.as_ref(),
+    );
+    let mut unit = sizes.nodes_of(0.0);
+    if let Some(e) = unit.as_mut().get_mut(source.node) {
+        *e = 1.0;
+    }
+    let per_watt_k_per_w = solve_m_matrix(k, unit).map_err(|()| BuildError::Singular)?;
+    Ok(Some(OneWindingSteady {
+        at_zero_c,
+        per_watt_k_per_w,
+        node: source.node,
+        r0_ohm: source.resistance.r_at_0c_ohm,
+        slope_ohm_per_k: source.resistance.slope_ohm_per_k,
+    }))
+}
+
 /// `K` and `q` of the module docs; with `with_feedback` false, without
 /// the `R(T)` feedback on the diagonal; voltage-driven sources
 /// linearised at `at` \[degC\].
