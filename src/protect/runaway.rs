@@ -165,8 +165,7 @@ pub fn coil_runaway<W: NetworkDescription>(
     // one at zero current (see `hot_spot_below`) give the runaway too:
     // `(K_0^-1)_nn` is the update's `u_n`, one solve where the
     // eigen-decomposition costs tens of them (`limits` of the 300-node
-    // motor's 24 windings 12.9 -> 2.5 s, the hot-spot search alone had
-    // taken it to 12.9 from 13.4).
+    // motor with 24 windings: 13.4 -> 2.5 s).
     let one = one_winding_steady(network, coil, currents_a, boundary_c);
     let runaway = match &one {
         Ok(Some(one)) => one.runaway_current_a(),
@@ -451,53 +450,86 @@ mod tests {
         assert!(constant_rise < 0.75 * target, "{constant_rise}");
     }
 
-    /// The rank-one steady states of the hot-spot search against the full
-    /// solve ([`Network::steady_state`], Gaussian elimination of the whole
-    /// system at each current): every node within 1e-7 K, from both
-    /// sides, for each winding of a layered coil at currents up to 0.95 of
-    /// its runaway; none beyond the runaway, where the solve finds none
-    /// either. The update's runaway current is the eigen-decomposition's
-    /// ([`runaway_current_a`]) to 1e-9.
-    #[test]
-    fn the_search_steady_states_are_the_full_solves() {
-        let network = layered_coil::<12>(1.05);
-        let others = [10.0; 12];
-        let boundary = [16.0];
-        for coil in 0..12 {
-            let one = crate::network::one_winding_steady(&network, coil, &others, &boundary)
-                .unwrap()
-                .expect("a current-driven winding");
-            let runaway = runaway_current_a(&network, coil, &others).unwrap().unwrap();
-            // The update's runaway (one solve) is the eigen-decomposition's.
-            let by_update = one.runaway_current_a().unwrap();
+    /// Winding `coil`'s rank-one steady states against the full solve
+    /// ([`Network::steady_state`], Gaussian elimination of the whole system
+    /// at each current): every node within 1e-7 K, from both sides, at
+    /// each of `currents_a`; and, for a winding that runs away, its
+    /// runaway current against the eigen-decomposition's
+    /// ([`runaway_current_a`], to 1e-9) and no steady state just beyond.
+    fn check_against_full_solves<const N: usize, const B: usize, const M: usize>(
+        network: &Network<N, B, M>,
+        coil: usize,
+        others: [f64; M],
+        boundary: [f64; B],
+        currents_a: &[f64],
+    ) {
+        let one = crate::network::one_winding_steady(network, coil, &others, &boundary)
+            .unwrap()
+            .expect("a current-driven winding");
+        let runaway = runaway_current_a(network, coil, &others).unwrap();
+        assert_eq!(one.runaway_current_a().is_some(), runaway.is_some());
+        if let (Some(by_update), Some(runaway)) = (one.runaway_current_a(), runaway) {
             assert!(
                 (by_update - runaway).abs() < 1e-9 * runaway,
                 "coil {coil}: {by_update} A against {runaway} A"
             );
-            for share in [0.0, 0.2, 0.5, 0.8, 0.95] {
-                let current = share * runaway;
-                let mut currents = others;
-                currents[coil] = current;
-                let t = network.steady_state(&currents, &boundary).unwrap();
-                let above = t.map(|t| t + 1e-7);
-                assert!(one.within(current, &above), "coil {coil} at {current} A");
-                for j in 0..12 {
-                    let mut limits = above;
-                    limits[j] = t[j] - 1e-7;
-                    assert!(
-                        !one.within(current, &limits),
-                        "coil {coil} node {j} at {current} A"
-                    );
-                }
-            }
-            let beyond = 1.01 * runaway;
             let mut currents = others;
-            currents[coil] = beyond;
+            currents[coil] = 1.01 * runaway;
             assert_eq!(
                 network.steady_state(&currents, &boundary),
                 Err(BuildError::NoSteadyState)
             );
-            assert!(!one.within(beyond, &[f64::MAX; 12]));
+            assert!(!one.within(1.01 * runaway, &[f64::MAX; N]));
+        }
+        for &current in currents_a {
+            let mut currents = others;
+            currents[coil] = current;
+            let t = network.steady_state(&currents, &boundary).unwrap();
+            let above = t.map(|t| t + 1e-7);
+            assert!(one.within(current, &above), "coil {coil} at {current} A");
+            for j in 0..N {
+                let mut limits = above;
+                limits[j] = t[j] - 1e-7;
+                assert!(
+                    !one.within(current, &limits),
+                    "coil {coil} node {j} at {current} A"
+                );
+            }
+        }
+    }
+
+    /// [`check_against_full_solves`] for each winding of a layered coil at
+    /// currents up to 0.95 of its runaway, and for a network with two
+    /// boundaries, a fixed power and two windings on one node (each taken
+    /// in turn, the other held) beside a constant resistance.
+    #[test]
+    fn the_search_steady_states_are_the_full_solves() {
+        let network = layered_coil::<12>(1.05);
+        let others = [10.0; 12];
+        for coil in 0..12 {
+            let runaway = runaway_current_a(&network, coil, &others).unwrap().unwrap();
+            let currents = [0.0, 0.2, 0.5, 0.8, 0.95].map(|share| share * runaway);
+            check_against_full_solves(&network, coil, others, [16.0], &currents);
+        }
+        let mixed: Network<4, 2, 3> = Network::new([50.0, 80.0, 200.0, 900.0])
+            .and_then(|n| n.connect(0, 1, 2.0))
+            .and_then(|n| n.connect(1, 2, 1.5))
+            .and_then(|n| n.connect(2, 3, 1.0))
+            .and_then(|n| n.connect_boundary(3, 0, 2.0))
+            .and_then(|n| n.connect_boundary(0, 1, 0.5))
+            .and_then(|n| n.fixed_power(2, 5.0))
+            .and_then(|n| n.joule_source(0, 1, Resistance::with_alpha(0.4, 0.00393, 20.0)))
+            .and_then(|n| n.joule_source(1, 1, Resistance::with_alpha(0.2, 0.00393, 20.0)))
+            .and_then(|n| n.joule_source(2, 2, Resistance::constant(0.5)))
+            .unwrap();
+        for coil in 0..3 {
+            check_against_full_solves(
+                &mixed,
+                coil,
+                [3.0, 4.0, 5.0],
+                [20.0, 35.0],
+                &[0.0, 1.5, 4.0, 7.0],
+            );
         }
     }
 
