@@ -25,6 +25,10 @@
 #![no_std]
 #![no_main]
 
+// On a core without an FPU, the `f32` routines written for Thumb-1 (the
+// same results to the bit; nothing on the M4F).
+coil_thermal::soft_float_routines!();
+
 #[path = "support/exit.rs"]
 mod exit;
 use exit::fail;

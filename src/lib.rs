@@ -18,7 +18,9 @@
 //!   and a current limiter acting on an upper bound of the estimate
 //!   ([`docs::prediction_and_margin`], [`docs::protection`]).
 //! * Every scalar type through one [`Scalar`] trait: `f32`, `f64`, or [`Q32`]
-//!   fixed point for cores without an FPU ([`docs::firmware`], [`docs::cost`]).
+//!   fixed point for cores without an FPU ([`docs::firmware`], [`docs::cost`]);
+//!   on such a core, `f32` routines written for Thumb-1 ([`soft_float`],
+//!   opted in with [`soft_float_routines!`]).
 //!
 //! The lowest layer in a few lines: a coil on a housing, stepped at 1 ms in
 //! `f32` and held against the exact steady state.
@@ -73,6 +75,7 @@ pub mod protect;
 pub mod scalar;
 pub mod sensors;
 pub mod sizes;
+pub mod soft_float;
 pub mod solenoid;
 
 /// The linear algebra crate this one is built on, re-exported so that a
