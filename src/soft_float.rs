@@ -11,12 +11,13 @@
 //! the time-to-limit predictor's element) those routines were seven tenths
 //! of the instructions. The ones here take a product from four 12-bit
 //! partial products, an add's alignment and rounding in one 32-bit word,
-//! and a compare as two integer ones: per call about 14 instructions
-//! fewer for an add and 18 for a multiply (measured in QEMU on the M0, each
-//! about 100 with the call), a subnormal operand or result in a slower
-//! path of its own. With them `network_roundtrip`'s M0 tick went from 661
-//! / 5 778 instructions (mean / worst) to 640 / 5 236, and `motor_qemu`'s
-//! from 2 426 / 11 789 to 2 208 / 11 136 (docs/cost.md). A divide stays
+//! the result's sign and exponent as one word the rounded significand
+//! adds to, and a compare as two integer ones: per call about 25
+//! instructions fewer for an add and 28 for a multiply (measured in QEMU
+//! on the M0: 103 -> 78 and 114 -> 86 with the call), a subnormal operand
+//! or result in a slower path of its own. With them `network_roundtrip`'s M0 tick went from 661
+//! / 5 778 instructions (mean / worst) to 621 / 4 906, and `motor_qemu`'s
+//! from 2 426 / 11 789 to 2 171 / 10 816 (docs/cost.md). A divide stays
 //! the compiler's: a restoring division in Rust compiled to twice its
 //! instructions.
 //!
@@ -38,9 +39,9 @@
 //! routine of the same name from the compiler's library; `.ci/run` checks
 //! that the M0 examples link these). The library itself defines no
 //! symbol: a firmware that already has faster routines (an RP2040's, in
-//! its boot ROM) keeps them. They cost flash: about 1 KiB more than the
+//! its boot ROM) keeps them. They cost flash: about 600 B more than the
 //! compiler's (the two-node footprint example, which does not use them,
-//! would grow from 24 336 to 25 360 B, over its 24 KiB goal).
+//! would grow from 24 336 to 24 952 B, over its 24 KiB goal).
 //!
 //! No function here uses a float operation (it would call itself) or a
 //! 64-bit one (each would be a call on Thumb-1).
@@ -199,25 +200,31 @@ macro_rules! soft_float_routines {
 /// bits 6..0 (bit 0 set if anything nonzero was shifted out).
 #[inline(always)]
 fn round_pack(sign: u32, exp: i32, w: u32) -> u32 {
-    if exp >= 0xFF {
-        return sign | INF;
+    // One compare for both ends of the range.
+    if (exp - 1) as u32 >= 0xFE {
+        return sign | beyond_normal(exp, w);
     }
-    if exp <= 0 {
-        return sign | round_subnormal(exp, w);
-    }
-    let sig = w >> 7;
-    // Up when the rest is above a half, or a half and `sig` odd.
-    let up = ((w & 0x7F) + 0x3F + (sig & 1)) >> 7;
     // The implicit one adds 1 to the exponent field, and a carry out of
     // the significand goes on into it (to infinity from the largest).
-    sign | (((exp - 1) as u32) << 23).wrapping_add(sig + up)
+    sign | ((((exp - 1) as u32) << 23) + rounded(w))
+}
+
+/// [`round_pack`]'s magnitude for an exponent beyond the normal range:
+/// infinity above it, a subnormal (or zero) below.
+#[cold]
+#[inline(never)]
+fn beyond_normal(exp: i32, w: u32) -> u32 {
+    if exp >= 0xFF {
+        INF
+    } else {
+        round_subnormal(exp, w)
+    }
 }
 
 /// [`round_pack`] of a result below the smallest normal (`exp <= 0`):
 /// the significand shifted to exponent 1, then rounded (a carry makes it
 /// the smallest normal).
-#[cold]
-#[inline(never)]
+#[inline(always)]
 fn round_subnormal(exp: i32, w: u32) -> u32 {
     let shift = (1 - exp) as u32;
     let w = if shift < 32 {
@@ -225,8 +232,7 @@ fn round_subnormal(exp: i32, w: u32) -> u32 {
     } else {
         (w != 0) as u32
     };
-    let sig = w >> 7;
-    sig + (((w & 0x7F) + 0x3F + (sig & 1)) >> 7)
+    rounded(w)
 }
 
 /// Leading zeros of a nonzero `x`, without a call (Thumb-1 has no `clz`).
@@ -295,18 +301,18 @@ fn add_bits(a: u32, b: u32) -> u32 {
         return add_special(a, b);
     }
     // `x` the larger magnitude: its sign is the result's.
-    let (x, y, kx, ky) = if ka >= kb {
-        (a, b, ka, kb)
-    } else {
-        (b, a, kb, ka)
-    };
-    let exp = (kx >> 24) as i32;
-    let shift = (kx >> 24) - (ky >> 24);
+    let (x, y) = if ka >= kb { (a, b) } else { (b, a) };
+    let shift = ((x << 1) >> 24) - ((y << 1) >> 24);
     if shift > 25 {
         // `y` is below a quarter of `x`'s last place (of the place below,
         // if `x` is a power of two): `x` is the rounded sum.
         return x;
     }
+    // `x`'s sign and exponent less the implicit one: the rounded
+    // significand (its leading one at bit 23) adds the exponent back, and
+    // a carry out of it goes on into the exponent (to infinity from the
+    // largest finite).
+    let base = (x & !FRACTION) - HIDDEN;
     let mx = significand_at_30(x);
     // `y` aligned, what falls off kept as a sticky bit (nothing does for
     // a shift up to 7: the low 7 bits are zeros).
@@ -315,22 +321,34 @@ fn add_bits(a: u32, b: u32) -> u32 {
     if (a ^ b) & SIGN == 0 {
         let w = mx + my;
         if w >= 1 << 31 {
-            return round_pack(x & SIGN, exp + 1, (w >> 1) | (w & 1));
+            // One place up.
+            if x << 1 >= 0xFE << 24 {
+                return (x & SIGN) | INF;
+            }
+            return base + HIDDEN + rounded((w >> 1) | (w & 1));
         }
-        return round_pack(x & SIGN, exp, w);
+        return base + rounded(w);
     }
     let w = mx - my;
     if w >= 1 << 30 {
-        return round_pack(x & SIGN, exp, w);
+        return base + rounded(w);
     }
-    if w >= 1 << 29 && exp > 1 {
-        return round_pack(x & SIGN, exp - 1, w << 1);
+    if w >= 1 << 29 && x << 1 >= 2 << 24 {
+        // One place down, the exponent still normal.
+        return base - HIDDEN + rounded(w << 1);
     }
     if w == 0 {
         // `x - x` is +0 when rounding to nearest.
         return 0;
     }
-    cancelled(x & SIGN, exp, w)
+    cancelled(x & SIGN, ((x << 1) >> 24) as i32, w)
+}
+
+/// `w`'s bits 30..7 rounded to nearest even on its bits 6..0: the
+/// significand with its leading one at bit 23 (`2^24` when it carries).
+#[inline(always)]
+fn rounded(w: u32) -> u32 {
+    (w + 0x3F + ((w >> 7) & 1)) >> 7
 }
 
 /// `x` is zero, subnormal, infinite or NaN, for `x` shifted up a bit
@@ -413,26 +431,24 @@ fn add_subnormal(a: u32, b: u32) -> u32 {
 
 fn mul_bits(a: u32, b: u32) -> u32 {
     let (ka, kb) = (a << 1, b << 1);
-    if is_special(ka) || is_special(kb) {
+    let sign = (a ^ b) & SIGN;
+    let (exp_sum, ma, mb) = if is_special(ka) || is_special(kb) {
         // A zero times a finite number, the common case, here; the rest
         // out of line.
         if (ka == 0 && kb < INF << 1) || (kb == 0 && ka < INF << 1) {
-            return (a ^ b) & SIGN;
+            return sign;
         }
-        return mul_special(a, b);
-    }
-    mul_significands(
-        (a ^ b) & SIGN,
-        ((ka >> 24) + (kb >> 24)) as i32,
-        (a & FRACTION) | HIDDEN,
-        (b & FRACTION) | HIDDEN,
-    )
-}
-
-/// The product of two significands with their leading ones at bit 23,
-/// whose biased exponents sum to `exp_sum`.
-#[inline(always)]
-fn mul_significands(sign: u32, exp_sum: i32, ma: u32, mb: u32) -> u32 {
+        match mul_special(a, b) {
+            Ok(operands) => operands,
+            Err(result) => return result,
+        }
+    } else {
+        (
+            ((ka >> 24) + (kb >> 24)) as i32,
+            (a & FRACTION) | HIDDEN,
+            (b & FRACTION) | HIDDEN,
+        )
+    };
     // The 48-bit product from 12-bit halves (each partial product fits
     // 32 bits): `high` its bits 47..24, `low` its bits 23..0.
     let (ah, al) = (ma >> 12, ma & 0xFFF);
@@ -452,29 +468,31 @@ fn mul_significands(sign: u32, exp_sum: i32, ma: u32, mb: u32) -> u32 {
     }
 }
 
-/// [`mul_bits`] where an operand is a zero, a subnormal, an infinity or a
-/// NaN.
+/// [`mul_bits`] where an operand is a subnormal, an infinity or a NaN (or
+/// a zero times one of those): the result (`Err`), or, for two finite
+/// nonzero operands, the sum of their biased exponents (below 2 with a
+/// subnormal) and their significands with the leading ones at bit 23.
 #[cold]
 #[inline(never)]
-fn mul_special(a: u32, b: u32) -> u32 {
+fn mul_special(a: u32, b: u32) -> Result<(i32, u32, u32), u32> {
     if let Some(nan) = nan_operand(a, b) {
-        return nan;
+        return Err(nan);
     }
     let sign = (a ^ b) & SIGN;
     let (abs_a, abs_b) = (a & !SIGN, b & !SIGN);
     if abs_a == INF || abs_b == INF {
-        return if abs_a == 0 || abs_b == 0 {
+        return Err(if abs_a == 0 || abs_b == 0 {
             INVALID
         } else {
             sign | INF
-        };
+        });
     }
     if abs_a == 0 || abs_b == 0 {
-        return sign;
+        return Err(sign);
     }
     let (exp_a, ma) = unpack(abs_a);
     let (exp_b, mb) = unpack(abs_b);
-    mul_significands(sign, exp_a + exp_b, ma, mb)
+    Ok((exp_a + exp_b, ma, mb))
 }
 
 #[cfg(test)]
