@@ -41,7 +41,7 @@
 //! symbol: a firmware that already has faster routines (an RP2040's, in
 //! its boot ROM) keeps them. They cost flash: about 600 B more than the
 //! compiler's (the two-node footprint example, which does not use them,
-//! would grow from 24 336 to 24 952 B, over its 24 KiB goal).
+//! would grow from 24 576 to 25 192 B, over its 24 KiB goal).
 //!
 //! No function here uses a float operation (it would call itself) or a
 //! 64-bit one (each would be a call on Thumb-1).

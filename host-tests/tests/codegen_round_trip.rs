@@ -100,8 +100,10 @@ fn the_cortex_m0_model_files_are_their_sources_but_their_cost_keys() {
 /// (`examples/network_roundtrip_m0.expected`), and those lines are the
 /// 1 ms `f32` firmware's within 2 mK on the estimates, 10 mK on the upper
 /// bounds (the 10 ms model's steady covariance: 7 mK lower at 5 A, 4 mK
-/// higher at 1 A) and 5 s on the times to limit (996 s where the `f32`
-/// firmware's fresher sweep says 999 s: earlier, the safe side).
+/// higher at 1 A), and on the times to limit at most 5 s later and 10 s
+/// earlier (993 s where the `f32` firmware's fresher sweep says 999 s: one
+/// element a stage, each element's horizon in two, so its answers are
+/// older; earlier, the safe side).
 #[test]
 fn the_host_replay_prints_what_the_cortex_m0_printed() {
     let observer = model_integer::observer().expect("the generated parts assemble");
@@ -136,13 +138,14 @@ fn the_host_replay_prints_what_the_cortex_m0_printed() {
     let (m0, f32_run) = (numbers(&golden), numbers(&float));
     assert_eq!(m0.len(), f32_run.len());
     for ((label, a), (_, b)) in m0.iter().zip(&f32_run) {
-        let tolerance = match label.as_str() {
-            "ttl" => 5.0,
-            "upper" => 0.01,
-            _ => 0.002,
+        // (earlier, later) than the `f32` firmware
+        let (earlier, later) = match label.as_str() {
+            "ttl" => (10.0, 5.0),
+            "upper" => (0.01, 0.01),
+            _ => (0.002, 0.002),
         };
         assert!(
-            (a - b).abs() <= tolerance,
+            a - b <= later && b - a <= earlier,
             "{label} {a} on the Cortex-M0, {b} in f32 at 1 ms"
         );
     }

@@ -108,6 +108,15 @@
 //! age from the first call: older than they are by the time between the
 //! two, so earlier (conservative).
 //!
+//! Smaller still, [`PredictorState::tick_in_halves`] takes each element's
+//! horizon in two calls: its modal parts `P`, `Q`, `Q'` (held in the
+//! caller's [`HalfElement`], so that a state that never halves, the
+//! Omnimagnet's, keeps its size), then its crossing. The same answers to
+//! the bit, each horizon in twice the calls; the network observer does so
+//! at one element a stage (`predictor_elements_per_stage = 1`, the
+//! Cortex-M0 examples: `network_roundtrip`'s heaviest predictor stage
+//! 4 906 -> 3 826 instructions).
+//!
 //! # Cost per call (`N` elements, `M` windings, `B` boundaries)
 //!
 //! | step | flops |
@@ -851,8 +860,17 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// state's flavour made the tick generic, instantiated in the
     /// firmware's crate) it made the predictor's stages about 200
     /// instructions dearer (`observer_m4`: combined worst 6 914 -> 7 048).
+    ///
+    /// `HALVES`: whether `half` may be `Some` (an element in two stages).
+    /// With an FPU the sweep without halves keeps a copy of its own, the
+    /// code it had before them (one test per element cost the M4F network's
+    /// worst tick 14 instructions, measured); without one, one copy for
+    /// both (a second would cost the M0 footprint its room).
+    // The sweep's pieces one by one: borrowed from a `PredictorState` or
+    // from `full_sweep`'s locals.
+    #[allow(clippy::too_many_arguments)]
     #[inline(never)]
-    fn evaluate_point(
+    fn evaluate_point<const HALVES: bool>(
         &self,
         snapshot: &Snapshot<S::Nodes<T>>,
         k: usize,
@@ -860,7 +878,9 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
         budget: usize,
         prev: &mut S::Nodes<Parts<T>>,
         sweep: &mut S::Nodes<Crossing<T>>,
+        half: Option<&mut Option<Parts<T>>>,
     ) -> PointProgress {
+        let mut half = if HALVES { half } else { None };
         let n = self.sizes.nodes();
         let over = PointProgress {
             next_element: n,
@@ -872,6 +892,9 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
         };
         if !snapshot.valid {
             *sweep = self.sizes.nodes_of(Crossing::At(T::from_subset(&f64::NAN)));
+            if let Some(formed) = half {
+                *formed = None;
+            }
             return over;
         }
         let t_a = match k {
@@ -919,8 +942,25 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
                     evaluated,
                 };
             }
+            // With halves, the element's second stage takes the parts its
+            // first formed.
+            let now = match half.as_deref_mut().and_then(Option::take) {
+                Some(formed) => formed,
+                None => {
+                    let now = self.parts(row, &snapshot.modes, decay.unwrap_or(&ones));
+                    if let Some(slot) = half.as_deref_mut() {
+                        // Its first stage: the parts alone.
+                        *slot = Some(now);
+                        return PointProgress {
+                            next_element: e,
+                            sweep_over: false,
+                            evaluated: evaluated + 1,
+                        };
+                    }
+                    now
+                }
+            };
             evaluated += 1;
-            let now = self.parts(row, &snapshot.modes, decay.unwrap_or(&ones));
             if k == 0 {
                 if now.p - now.q >= headroom {
                     *state = Crossing::At(T::zero());
@@ -980,7 +1020,15 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
         let mut prev = self.sizes.nodes_of(Parts::default());
         let mut sweep = self.sizes.nodes_of(Crossing::Open);
         for k in 0..=K {
-            let progress = self.evaluate_point(&snapshot, k, 0, usize::MAX, &mut prev, &mut sweep);
+            let progress = self.evaluate_point::<ONE_COPY>(
+                &snapshot,
+                k,
+                0,
+                usize::MAX,
+                &mut prev,
+                &mut sweep,
+                None,
+            );
             if progress.sweep_over {
                 break;
             }
@@ -988,6 +1036,10 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
         sweep
     }
 }
+
+/// Whether [`ModalPredictor::evaluate_point`] has one copy, with and without
+/// halves (a core without an FPU, whose flash is short), or two.
+const ONE_COPY: bool = !cfg!(target_abi = "eabihf");
 
 /// One modal amplitude \[K\]: the row `v_inv_row` of `V^-1` times
 /// `T_0 - T_ss` (`from_steady`, \[K\]). Not inlined on a core without an
@@ -1279,6 +1331,26 @@ pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]>
     out: A,
 }
 
+/// An element's modal parts formed by the first of its two stages, for its
+/// second ([`PredictorState::tick_in_halves`]); empty between elements.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfElement<T> {
+    formed: Option<Parts<T>>,
+}
+
+impl<T> HalfElement<T> {
+    /// Nothing formed.
+    pub const fn new() -> Self {
+        Self { formed: None }
+    }
+}
+
+impl<T> Default for HalfElement<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// How much of its snapshot a [`PredictorState`]'s sweep has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum SweepPhase {
@@ -1341,7 +1413,15 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         &mut self,
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
+        mut half: Option<&mut HalfElement<T>>,
     ) {
+        if self.phase != SweepPhase::Sweeping {
+            // Parts formed for another sweep (or another state) are not
+            // this one's.
+            if let Some(half) = half.as_deref_mut() {
+                half.formed = None;
+            }
+        }
         let tick_s = predictor.tick_s;
         self.sweep_age_s += tick_s;
         self.published_age_s += tick_s;
@@ -1371,14 +1451,29 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 predictor.to_modes(&mut self.snapshot.modes);
                 self.phase = SweepPhase::Sweeping;
             }
-            let progress = predictor.evaluate_point(
-                &self.snapshot,
-                self.next_point,
-                self.next_element,
-                budget,
-                &mut self.prev,
-                &mut self.sweep,
-            );
+            let slot = half.as_deref_mut().map(|h| &mut h.formed);
+            let (snapshot, point, first) = (&self.snapshot, self.next_point, self.next_element);
+            let progress = if !ONE_COPY && slot.is_none() {
+                predictor.evaluate_point::<false>(
+                    snapshot,
+                    point,
+                    first,
+                    budget,
+                    &mut self.prev,
+                    &mut self.sweep,
+                    None,
+                )
+            } else {
+                predictor.evaluate_point::<true>(
+                    snapshot,
+                    point,
+                    first,
+                    budget,
+                    &mut self.prev,
+                    &mut self.sweep,
+                    slot,
+                )
+            };
             budget = budget.saturating_sub(progress.evaluated);
             if progress.next_element < N {
                 self.next_element = progress.next_element;
@@ -1503,8 +1598,38 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
     ) -> &[Option<T>; N] {
-        self.advance(predictor, op);
+        self.advance(predictor, op, None);
         &self.out
+    }
+
+    /// [`tick`](Self::tick) with each element's horizon in two stages, for
+    /// a sweep of one element a stage on a core without an FPU: the
+    /// element's modal parts, held in `half` (the caller's, so that a state
+    /// that never halves keeps its size), then its crossing. The same
+    /// answers as [`tick`](Self::tick)'s to the bit, each sweep taking its
+    /// horizons' stages twice; a stage bounded by the heavier half.
+    ///
+    /// Bounded, allocation-free, panic-free.
+    pub fn tick_in_halves<const B: usize, const K: usize>(
+        &mut self,
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+        half: &mut HalfElement<T>,
+    ) -> &[Option<T>; N] {
+        self.advance(predictor, op, Some(half));
+        &self.out
+    }
+
+    /// [`tick_in_halves`](Self::tick_in_halves) with `Some(half)`, else
+    /// [`tick`](Self::tick): one copy of the tick for a caller that
+    /// chooses at run time.
+    pub(crate) fn tick_with<const B: usize, const K: usize>(
+        &mut self,
+        predictor: &LimitPredictor<T, N, B, M, K>,
+        op: &Operating<T, N, B, M>,
+        half: Option<&mut HalfElement<T>>,
+    ) {
+        self.advance(predictor, op, half);
     }
 
     /// The answers of the last [`tick`](Self::tick) \[s\].
@@ -1535,7 +1660,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize>
         predictor: &LimitPredictor<T, N, B, M, K>,
         op: &Operating<T, N, B, M>,
     ) {
-        self.advance(predictor, op);
+        self.advance(predictor, op, None);
     }
 
     /// Every element's time to its alarm limit \[s\] of the last tick

@@ -443,6 +443,69 @@ fn a_sweep_split_by_elements_gives_the_same_answers_in_more_ticks() {
 }
 
 #[test]
+fn an_element_in_two_stages_gives_the_same_answers_in_twice_the_stages() {
+    // One element a stage, each element's horizon in two stages (its
+    // parts, then its crossing): every sweep publishes the whole sweep's
+    // answers to the bit, as the one-stage elements do, and its horizons
+    // take twice the stages. A lug without a limit (`+inf`) is resolved
+    // without a stage; a sweep that starts over (a fresh state) drops parts
+    // formed for another.
+    let network = four_node();
+    let mut op = op::<f32, 4, 1, 1>([35.0, 30.0, 25.0, 33.0], [1.6], [20.0], [65.36; 4]);
+    op.limits_c[3] = f32::INFINITY;
+    let split = PredictorBuilder::new()
+        .elements_per_tick(1)
+        .build::<f32, 4, 1, 1, 48>(&network)
+        .unwrap();
+    let powers = split.conservative_powers_w(&op);
+    let expected = split.full_sweep(&op, &powers);
+    assert!(
+        expected[..3]
+            .iter()
+            .any(|c| matches!(c, Crossing::At(t) if *t > 0.0)),
+        "{expected:?}"
+    );
+    assert_eq!(expected[3], Crossing::Never);
+    let mut whole = PredictorState::new(&split, &op);
+    let mut halved = PredictorState::new(&split, &op);
+    let mut half = HalfElement::new();
+    let (mut whole_ticks, mut halved_ticks) = (Vec::new(), Vec::new());
+    for tick in 0..2_000 {
+        whole.tick(&split, &op);
+        halved.tick_in_halves(&split, &op, &mut half);
+        for (state, ends) in [(&whole, &mut whole_ticks), (&halved, &mut halved_ticks)] {
+            if state.phase == SweepPhase::Idle {
+                assert_eq!(state.published, expected, "tick {tick}");
+                ends.push(tick);
+            }
+        }
+    }
+    assert!(whole_ticks.len() >= 3 && halved_ticks.len() >= 2);
+    let period = |ends: &[usize]| ends[1] - ends[0];
+    let (snapshot_stages, horizon_stages) = (2 + 4, period(&whole_ticks) - 6);
+    assert_eq!(
+        period(&halved_ticks),
+        snapshot_stages + 2 * horizon_stages,
+        "{whole_ticks:?} {halved_ticks:?}"
+    );
+    // Parts formed for another sweep are not taken.
+    let mut fresh = PredictorState::new(&split, &op);
+    let mut stale = HalfElement {
+        formed: Some(Parts {
+            p: 1e6,
+            q: 0.0,
+            dq: 0.0,
+        }),
+    };
+    for _ in 0..period(&halved_ticks) {
+        fresh.tick_in_halves(&split, &op, &mut stale);
+        if fresh.phase == SweepPhase::Idle {
+            assert_eq!(fresh.published, expected);
+        }
+    }
+}
+
+#[test]
 fn an_element_without_a_limit_is_never_and_leaves_the_others_alone() {
     // The lug (3) without a limit (`+inf`) against the lug at a limit it
     // cannot reach (1000 degC): the same answers for the others, `None`
