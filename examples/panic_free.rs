@@ -39,7 +39,10 @@
 //!   `f32_of_state`), the protective upper bounds and
 //!   mean limits of `protect::margin` (`f32`, `Q32`, parts out of range);
 //! * the sensor decoders `max31855::decode`, `max31856::decode` and the
-//!   plausibility `sensors::check`.
+//!   plausibility `sensors::check`;
+//! * on the Cortex-M0, the crate's `f32` routines (`soft_float`: add,
+//!   subtract, multiply, compares), the firmware's through
+//!   `soft_float_routines!()`.
 //!
 //! `.ci/run` links it for the Cortex-M4F and for the Cortex-M0
 //! (`thumbv6m-none-eabi`), where the fixed-point subset is proven: the
@@ -48,12 +51,16 @@
 //! together; see `checks`). Checked by inserting a `panic!` in
 //! `OmnimagnetObserver::predict`, `CoilGrid::tick` (both targets),
 //! `filter::update_virtual`, `max31855::decode` (M0),
-//! `PredictorState::tick` (M4F) and `AlarmState::tick_part` (M0): each link
-//! fails.
+//! `PredictorState::tick` (M4F), `AlarmState::tick_part` (M0) and
+//! `soft_float`'s add and multiply (M0): each link fails.
 #![no_std]
 #![no_main]
 // The Cortex-M0 build proves a subset (see `checks`).
 #![cfg_attr(not(target_abi = "eabihf"), allow(dead_code, unused_imports))]
+
+// On the Cortex-M0 the crate's `f32` routines are the firmware's (the M0
+// examples take them): their code is proven with the rest.
+coil_thermal::soft_float_routines!();
 
 use coil_thermal::discretize::fixed::{f32_of_state, FixedInputs, FixedStep};
 use coil_thermal::filter::{predict, update, update_virtual, KalmanConfig, KalmanState};
