@@ -366,7 +366,9 @@ fn significand_at_30(x: u32) -> u32 {
 
 /// The end of a subtraction that cancelled more than one leading bit
 /// (`w` below `2^29`, or `2^30` at the exponent 1): normalised, but not
-/// below the exponent 1 (a subnormal result).
+/// below the exponent 1 (a subnormal result). Exact, so not rounded: it
+/// takes exponents at most one apart, and `w`'s bits below the last place
+/// are zeros once shifted up.
 #[cold]
 #[inline(never)]
 fn cancelled(sign: u32, exp: i32, w: u32) -> u32 {
@@ -375,7 +377,8 @@ fn cancelled(sign: u32, exp: i32, w: u32) -> u32 {
         return 0;
     }
     let up = (leading_zeros(w) - 1).min(exp as u32 - 1);
-    round_pack(sign, exp - up as i32, w << up)
+    // The exponent stays at least 1; below the implicit one, a subnormal.
+    sign | ((((exp as u32) - up - 1) << 23) + ((w << up) >> 7))
 }
 
 /// [`add_bits`] where an operand is a zero, a subnormal, an infinity or a
@@ -426,7 +429,14 @@ fn add_subnormal(a: u32, b: u32) -> u32 {
         }
         return round_pack(x & SIGN, exp, w);
     }
-    cancelled(x & SIGN, exp, mx - my)
+    // Normalised, but not below the exponent 1; rounded, as a shift past
+    // the sticky bit may have made it inexact.
+    let w = mx - my;
+    if w == 0 {
+        return 0;
+    }
+    let up = (leading_zeros(w) - 1).min(exp as u32 - 1);
+    round_pack(x & SIGN, exp - up as i32, w << up)
 }
 
 fn mul_bits(a: u32, b: u32) -> u32 {
