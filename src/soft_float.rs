@@ -365,24 +365,20 @@ fn significand_at_30(x: u32) -> u32 {
 }
 
 /// The end of a subtraction that cancelled more than one leading bit
-/// (`w` below `2^29`, or `2^30` at the exponent 1): normalised, but not
-/// below the exponent 1 (a subnormal result). Exact, so not rounded: it
-/// takes exponents at most one apart, and `w`'s bits below the last place
-/// are zeros once shifted up.
+/// (`w` nonzero, below `2^29`, or `2^30` at the exponent 1): normalised,
+/// but not below the exponent 1 (a subnormal result). Exact, so not
+/// rounded: it takes exponents at most one apart, and `w`'s bits below the
+/// last place are zeros once shifted up.
 #[cold]
 #[inline(never)]
 fn cancelled(sign: u32, exp: i32, w: u32) -> u32 {
-    if w == 0 {
-        // `x - x` is +0 when rounding to nearest.
-        return 0;
-    }
     let up = (leading_zeros(w) - 1).min(exp as u32 - 1);
     // The exponent stays at least 1; below the implicit one, a subnormal.
     sign | ((((exp as u32) - up - 1) << 23) + ((w << up) >> 7))
 }
 
-/// [`add_bits`] where an operand is a zero, a subnormal, an infinity or a
-/// NaN.
+/// [`add_bits`] where an operand is a subnormal, an infinity or a NaN (a
+/// zero with a number that is not a NaN [`add_bits`] took in line).
 #[cold]
 #[inline(never)]
 fn add_special(a: u32, b: u32) -> u32 {
@@ -395,13 +391,6 @@ fn add_special(a: u32, b: u32) -> u32 {
     }
     if abs_b == INF {
         return b;
-    }
-    if abs_a == 0 {
-        // Two zeros: -0 only if both are.
-        return if abs_b == 0 { a & b } else { b };
-    }
-    if abs_b == 0 {
-        return a;
     }
     add_subnormal(a, b)
 }
@@ -479,7 +468,7 @@ fn mul_bits(a: u32, b: u32) -> u32 {
 }
 
 /// [`mul_bits`] where an operand is a subnormal, an infinity or a NaN (or
-/// a zero times one of those): the result (`Err`), or, for two finite
+/// a zero times an infinity or a NaN): the result (`Err`), or, for two finite
 /// nonzero operands, the sum of their biased exponents (below 2 with a
 /// subnormal) and their significands with the leading ones at bit 23.
 #[cold]
@@ -497,9 +486,8 @@ fn mul_special(a: u32, b: u32) -> Result<(i32, u32, u32), u32> {
             sign | INF
         });
     }
-    if abs_a == 0 || abs_b == 0 {
-        return Err(sign);
-    }
+    // No zero here: [`mul_bits`] took a zero times a finite number in
+    // line, and a zero times an infinity is above.
     let (exp_a, ma) = unpack(abs_a);
     let (exp_b, mb) = unpack(abs_b);
     Ok((exp_a + exp_b, ma, mb))
