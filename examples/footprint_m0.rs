@@ -74,33 +74,26 @@ struct Line {
 }
 
 impl Line {
-    fn text(mut self, s: &str) -> Self {
+    fn push(&mut self, byte: u8) {
+        if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = byte;
+            self.len += 1;
+        }
+    }
+
+    fn text(&mut self, s: &str) -> &mut Self {
         for b in s.bytes() {
-            if let Some(slot) = self.buf.get_mut(self.len) {
-                *slot = b;
-                self.len += 1;
-            }
+            self.push(b);
         }
         self
     }
 
-    fn number(mut self, mut n: usize) -> Self {
-        let mut digits = [0u8; 20];
-        let mut k = digits.len();
-        loop {
-            k -= 1;
-            digits[k] = b'0' + (n % 10) as u8;
-            n /= 10;
-            if n == 0 || k == 0 {
-                break;
-            }
+    /// `n` in decimal, its leading digits first (at most 20 calls deep).
+    fn number(&mut self, n: usize) -> &mut Self {
+        if n >= 10 {
+            self.number(n / 10);
         }
-        for b in digits.iter().skip(k) {
-            if let Some(slot) = self.buf.get_mut(self.len) {
-                *slot = *b;
-                self.len += 1;
-            }
-        }
+        self.push(b'0' + (n % 10) as u8);
         self
     }
 
@@ -146,17 +139,17 @@ fn main() -> ! {
     // 3 A in 5.69 ohm heats the coil above the housing it sits on.
     let ok = out.temps_c[0] > out.temps_c[1] && out.flags.is_clean();
     let (flash, ram) = cost::image_sizes();
-    Line {
+    let mut line = Line {
         buf: [0; 160],
         len: 0,
-    }
-    .text("cost: two-node observer, f32, default release profile: flash ")
-    .number(flash)
-    .text(" B, static RAM ")
-    .number(ram)
-    .text(" B, stack peak ")
-    .number(cost::stack_peak())
-    .text(" B\n")
-    .write();
+    };
+    line.text("cost: two-node observer, f32, default release profile: flash ")
+        .number(flash)
+        .text(" B, static RAM ")
+        .number(ram)
+        .text(" B, stack peak ")
+        .number(cost::stack_peak())
+        .text(" B\n")
+        .write();
     exit(ok)
 }

@@ -239,6 +239,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             frozen_loss_ticks: 1000,
             integer_model_step: true,
             predictor_elements_per_stage: 1,
+            correction_in_two_ticks: false,
         },
         sensor_nodes: [2],
         critical_c: [

@@ -172,6 +172,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             frozen_loss_ticks: 1000,
             integer_model_step: false,
             predictor_elements_per_stage: 0,
+            correction_in_two_ticks: false,
         },
         sensor_nodes: [3],
         critical_c: [Some(155.0), Some(155.0), Some(155.0), Some(90.0)],

@@ -109,6 +109,9 @@ impl FirmwareConfig {
         if let Some(v) = table.predictor_elements_per_stage {
             settings.predictor_elements_per_stage = v;
         }
+        if let Some(v) = table.correction_in_two_ticks {
+            settings.correction_in_two_ticks = v;
+        }
         if table.unmeasured_margin.is_some() || table.unmeasured_margin_offset_k.is_some() {
             let default = settings.unmeasured_margin;
             let fraction = table.unmeasured_margin.unwrap_or(default.rise_fraction);

@@ -44,16 +44,18 @@ fn read(path: &Path) -> String {
 }
 
 /// The Cortex-M0 model files are their `f32` firmware's files with the
-/// integer model step, a one-element predictor stage and 10 ms model
-/// steps on their 1 ms loop, and nothing else: a new
+/// integer model step, a one-element predictor stage, 10 ms model
+/// steps on their 1 ms loop and (the drive's, whose correction was its
+/// heaviest tick) a correction in two ticks, and nothing else: a new
 /// fit of the source file (`calibrate`) must be copied to them.
 #[test]
 fn the_cortex_m0_model_files_are_their_sources_but_their_cost_keys() {
-    for (source, integer) in [
-        ("drive-3node-fitted.toml", "drive-3node-integer.toml"),
+    for (source, integer, two_ticks) in [
+        ("drive-3node-fitted.toml", "drive-3node-integer.toml", true),
         (
             "hust_motor_slot_fitted.toml",
             "hust_motor_slot_integer.toml",
+            false,
         ),
     ] {
         let table = |file: &str| -> toml::Table {
@@ -73,6 +75,10 @@ fn the_cortex_m0_model_files_are_their_sources_but_their_cost_keys() {
         assert_eq!(
             observer.remove("predictor_elements_per_stage"),
             Some(toml::Value::Integer(1))
+        );
+        assert_eq!(
+            observer.remove("correction_in_two_ticks"),
+            two_ticks.then_some(toml::Value::Boolean(true))
         );
         assert_eq!(
             observer.remove("step_us"),

@@ -215,6 +215,45 @@
 //! an `f32` firmware, whose generated observer never asks for it (without
 //! the feature such settings are refused).
 //!
+//! # A correction in two ticks
+//!
+//! On a core without an FPU a correction, about forty soft-float
+//! operations (the screens, the gate, the update, the biases' floors), is
+//! the heaviest thing a multi-rate model's tick can carry: 4 620
+//! instructions at worst on the Cortex-M0 `network_roundtrip`, whose model
+//! steps cost 3 760. With [`NetworkSettings::correction_in_two_ticks`] the
+//! readings are screened, gated and fused on their tick, and the end of
+//! the correction, the biases' floors and their check against the model's
+//! uncertainty ([`InputFlags::HEAT_BIAS_BEYOND_MODEL`]), waits for the
+//! next tick, where it runs before anything else: before that tick's
+//! currents are taken (the floors are at the Joule power of the currents
+//! the correction saw), its model step and its own correction. So every
+//! step and every correction starts from the estimate the one-tick
+//! correction would have left, to the bit
+//! (`a_correction_in_two_ticks_is_the_same_estimate`: 400 s with readings
+//! on every phase of the step and a dozen in a row, with 10 ms and 2 ms
+//! steps, the start's warm-up and the integer step). What a firmware sees:
+//! - the estimate is published on the second tick, complete; the first
+//!   publishes the sensors' verdicts and `corrected`, and keeps the last
+//!   temperatures;
+//! - no protection stage runs on the first tick (it judges the finished
+//!   estimate a tick later, not counted as one of a busy tick's waits), so
+//!   a limit can come a tick later than with the one-tick correction;
+//! - between the two ticks, [`NetworkObserver::temps_c`],
+//!   [`NetworkObserver::heat_bias_w`], [`NetworkObserver::save`] and the
+//!   state's fields read the fused estimate before its floors;
+//! - the bias flag is raised on the second tick.
+//!
+//! Both ticks are light ones on the Cortex-M0 example: its worst tick fell
+//! to 3 862 instructions (a predictor stage's; the fusion's tick 3 216,
+//! the floors' under 1 000). It needs a model step longer than the loop's
+//! tick: otherwise the second tick always steps and carries the floors as
+//! well, so the setting is refused there. It is refused on a target with
+//! an FPU too, whose observer compiles no second tick: there the whole
+//! correction is a light tick (about 600 instructions on the M4F), and the
+//! second tick's test cost every tick (the M4F network's mean 299 -> 328
+//! in a first version).
+//!
 //! # No model refresh, no single-sensor rule
 //!
 //! The Omnimagnet observer refuses a sensor set that a single fault leaves
@@ -622,6 +661,18 @@ pub struct NetworkSettings {
     /// stages (`network_roundtrip` on the Cortex-M0: its ticks without a
     /// reading 4 906 -> 3 826 instructions at worst).
     pub predictor_elements_per_stage: u16,
+    /// A correction in two ticks (see "A correction in two ticks" in
+    /// [`super::network`]): the readings' fusion on the tick they arrive,
+    /// the biases' floors and the bias check on the next tick, before
+    /// anything else of it. The same estimate to the bit, published on the
+    /// second tick. For a core without an FPU, where the whole correction
+    /// was the heaviest tick (`network_roundtrip` on the Cortex-M0: its
+    /// worst tick 4 620 -> 3 862 instructions). Refused where it does not
+    /// apply: on a target with an FPU (`target_abi = "eabihf"`, which
+    /// compiles no second tick), and with a model step no longer than the
+    /// loop's tick (the second tick would always step). Default `false`:
+    /// the whole correction on one tick.
+    pub correction_in_two_ticks: bool,
 }
 
 impl NetworkSettings {
@@ -669,6 +720,7 @@ impl NetworkSettings {
         frozen_loss_ticks: super::clock::DEFAULT_FROZEN_LOSS_TICKS,
         integer_model_step: false,
         predictor_elements_per_stage: 0,
+        correction_in_two_ticks: false,
     };
 }
 
@@ -943,6 +995,10 @@ pub struct NetworkObserver<
     offset_boundary: Option<usize>,
     /// A bias or the offset decays (one test on the tick's path).
     decays: bool,
+    /// [`NetworkSettings::correction_in_two_ticks`] (refused on a core
+    /// with an FPU: see the state's `floors_due`).
+    #[cfg(not(target_abi = "eabihf"))]
+    correction_in_two_ticks: bool,
     /// The offset's decay per model step, `step / boundary_offset_tau_s`
     /// (dimensionless).
     offset_decay_per_step: f32,
@@ -1059,6 +1115,14 @@ pub struct NetworkObserverState<
     /// The derated alarm limits at the ambient they were formed at (the
     /// alarm's and the limiter's; a core without an FPU's alone).
     alarm_limits: KeptAlarmLimits<N>,
+    /// The second tick of a correction in two ticks, if due (see
+    /// [`NetworkSettings::correction_in_two_ticks`]): whether its first
+    /// tick ran the warm-up's covariance. Only on a core without an FPU:
+    /// with one the field and its test cost every tick (the M4F
+    /// three-phase example's worst 1 981 -> 1 990 instructions, the
+    /// motor's mean 1 026 -> 1 028).
+    #[cfg(not(target_abi = "eabihf"))]
+    floors_due: Option<bool>,
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
@@ -1067,6 +1131,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// The outputs of the last tick.
     pub fn outputs(&self) -> &NetworkOutputs<N, M, P> {
         &self.outputs
+    }
+
+    /// Whether a correction in two ticks waits for its second
+    /// ([`NetworkSettings::correction_in_two_ticks`]).
+    #[inline(always)]
+    const fn correction_unfinished(&self) -> bool {
+        #[cfg(not(target_abi = "eabihf"))]
+        if self.floors_due.is_some() {
+            return true;
+        }
+        false
     }
 
     /// The shutdown's latch over this state (see [`Latch`]).
@@ -1111,6 +1186,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             outputs: self.outputs,
             step_account: self.step_account,
             shadow_waiting_block: self.shadow_waiting_block,
+            #[cfg(not(target_abi = "eabihf"))]
+            floors_due: self.floors_due,
             predictor_half: self.predictor_half,
         }
     }
@@ -1229,7 +1306,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             // step) the reading's move into its states (see "Model step and
             // ticks").
             cycle: ProtectionCycle::new().with_busy_waits(if self.step_us > self.loop_period_us {
-                3 + u8::from(self.steps_in_integers())
+                3 + u8::from(self.steps_in_integers()) + u8::from(self.corrects_in_two_ticks())
             } else {
                 0
             }),
@@ -1241,6 +1318,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             warmup_until_steady: false,
             step_account: StepAccount::new(),
             shadow_waiting_block: None,
+            #[cfg(not(target_abi = "eabihf"))]
+            floors_due: None,
             predictor_half: HalfElement::new(),
             stuck: StuckWatch::new(),
             rewind: StuckRewind::new(),
@@ -1445,6 +1524,16 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
+    /// Whether a correction takes two ticks
+    /// ([`NetworkSettings::correction_in_two_ticks`]).
+    const fn corrects_in_two_ticks(&self) -> bool {
+        #[cfg(not(target_abi = "eabihf"))]
+        if self.correction_in_two_ticks {
+            return true;
+        }
+        false
+    }
+
     /// Whether the model steps in integer arithmetic.
     const fn steps_in_integers(&self) -> bool {
         #[cfg(feature = "integer-step")]
@@ -1581,6 +1670,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             state.latch().clock_lost();
         }
         let mut flags = steps.flags;
+        // A correction's second tick goes first: with the currents its
+        // first saw, before this tick's step and correction; it is this
+        // tick's one put-off piece when it does not step.
+        #[cfg(not(target_abi = "eabihf"))]
+        let floors_ran = match state.floors_due.take() {
+            Some(warming) => {
+                self.finish_correction(state, warming, &mut flags);
+                true
+            }
+            None => false,
+        };
+        #[cfg(target_abi = "eabihf")]
+        let floors_ran = false;
         let moved =
             state
                 .step_account
@@ -1604,7 +1706,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &steps,
             self.step_us,
         );
-        let put_off_ran = self.step_model(state, steps.steps, mean_sq_a2, &inputs.readings);
+        let put_off_ran = if floors_ran && steps.steps == 0 {
+            true
+        } else {
+            self.step_model(state, steps.steps, mean_sq_a2, &inputs.readings)
+        };
         self.decay_biases(state, steps.steps);
         state.cycle.stepped(
             &steps,
@@ -1618,8 +1724,12 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         if corrected {
             state.integer.corrected();
         }
-        // Only a step or a reading (a correction) moves the estimate.
-        if steps.steps > 0 || inputs.readings.iter().any(Option::is_some) {
+        // Only a step or a reading (a correction) moves the estimate; a
+        // correction in two ticks publishes it on its second.
+        let unfinished = state.correction_unfinished();
+        if (steps.steps > 0 || floors_ran || inputs.readings.iter().any(Option::is_some))
+            && !unfinished
+        {
             state.outputs.temps_c = self.temps_c(state);
         }
         state.outputs.corrected = corrected;
@@ -1628,15 +1738,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let busy = corrected
             || steps.steps.saturating_mul(self.step_us) > self.loop_period_us
             || put_off_ran;
-        Protecting {
-            observer: self,
-            state: &mut *state,
+        let model_moved = steps.steps > 0 || steps.dropped_us > 0;
+        if unfinished {
+            // No stage between a correction's two ticks: each judges the
+            // finished estimate (not a busy tick's wait: it comes next).
+            if model_moved {
+                self.age_time_to_limit(state);
+            }
+        } else {
+            Protecting {
+                observer: self,
+                state: &mut *state,
+            }
+            .run_due(busy, self.protect_period_us, model_moved);
         }
-        .run_due(
-            busy,
-            self.protect_period_us,
-            steps.steps > 0 || steps.dropped_us > 0,
-        );
         state.outputs.finish_tick(flags, &steps);
         &state.outputs
     }
@@ -1706,6 +1821,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
+    // One copy on a core without an FPU (the tick's held stage and the
+    // cycle's both age).
+    #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
     fn age_time_to_limit<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
@@ -2021,12 +2139,32 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &report.verdicts,
             &z.map(|z| z.is_some()),
         );
-        let powers_w = self.keep_floors(state, warming);
-        if self.biases_beyond(state, &powers_w).contains(&true) {
-            flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        #[cfg(not(target_abi = "eabihf"))]
+        if self.correction_in_two_ticks {
+            state.floors_due = Some(warming);
+            self.note_doubt(state, true);
+            return (true, flags);
         }
+        self.finish_correction(state, warming, &mut flags);
         self.note_doubt(state, true);
         (true, flags)
+    }
+
+    /// The end of a correction: the biases' floors (with the covariance
+    /// the correction used: the warm-up's if `warming`) and the check of
+    /// the biases against the model's uncertainty.
+    // One copy on a core without an FPU, whose two ticks call it.
+    #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
+    fn finish_correction<W: WarmUpKind<X>>(
+        &self,
+        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        warming: bool,
+        flags: &mut InputFlags,
+    ) {
+        let powers_w = self.keep_floors(state, warming);
+        if self.biases_beyond(state, &powers_w).contains(&true) {
+            *flags |= InputFlags::HEAT_BIAS_BEYOND_MODEL;
+        }
     }
 
     /// The gate's innovation variance of sensor `j` \[K^2\]: the steady

@@ -587,11 +587,24 @@ proptest::proptest! {
         ticks in proptest::collection::vec(
             (proptest::num::f32::ANY, proptest::num::f32::ANY, proptest::num::f32::ANY, 0u32..20_000),
             1..200,
-        )
+        ),
+        two_ticks in proptest::bool::ANY,
     ) {
         let net = device();
+        // Also a multi-rate model with its correction in two ticks.
+        let settings = if two_ticks {
+            NetworkSettings {
+                step_us: 10_000,
+                loop_period_us: 1000,
+                correction_in_two_ticks: true,
+                ..NetworkSettings::DEFAULT
+            }
+        } else {
+            NetworkSettings::DEFAULT
+        };
         let obs: NetworkObserver<3, 1, 1, 4, 1> = NetworkObserverBuilder::new(&net, [1])
             .critical_c([Some(155.0), Some(80.0), None])
+            .settings(settings)
             .build()
             .unwrap();
         let mut state = obs.state(&[20.0; 3], &[20.0]);
@@ -1422,3 +1435,140 @@ fn a_shared_bias_warms_up_and_finds_the_heat_where_the_power_is() {
 
 #[path = "network/start_tests.rs"]
 mod start;
+
+/// One run of [`a_correction_in_two_ticks_is_the_same_estimate`]: the
+/// observers of `settings` with the correction in one tick and in two,
+/// ticked side by side; returns the corrections whose floors had a bias
+/// to lift (the test's reason to exist) and the ticks compared.
+#[cfg(not(target_abi = "eabihf"))]
+fn two_tick_run(settings: NetworkSettings, warm_up: bool) -> (u32, u32) {
+    let net = device();
+    let build = |two_ticks: bool| -> NetworkObserver<3, 1, 1, 4, 1> {
+        NetworkObserverBuilder::new(&net, [1])
+            .critical_c([Some(90.0), None, None])
+            .settings(NetworkSettings {
+                correction_in_two_ticks: two_ticks,
+                // A floor at a tenth of the Joule power: of the currents
+                // the correction saw, not the next tick's.
+                max_cooling_bias_fraction: 0.1,
+                ..settings
+            })
+            .build()
+            .unwrap()
+    };
+    let (one, two) = (build(false), build(true));
+    let start = |obs: &NetworkObserver<3, 1, 1, 4, 1>| {
+        if warm_up {
+            obs.start(&[Some(20.0)], &[20.0])
+        } else {
+            obs.with_warm_up(obs.state(&[20.0; 3], &[20.0]))
+        }
+    };
+    let (mut s1, mut s2) = (start(&one), start(&two));
+    let (mut floored, mut compared) = (0, 0);
+    let mut limits_later = 0;
+    let mut plant = [20.0f64; 3];
+    for k in 0..400_000u32 {
+        let now_us = k.wrapping_mul(1000);
+        // A current that changes every 7 ticks, so that a correction's
+        // second tick holds other currents than its first.
+        let current_a = if (k / 7) % 3 == 0 { 9.0 } else { 5.0 };
+        rk4(&net, &mut plant, &[f64::from(current_a)], &[20.0], 1e-3);
+        let mut i = inputs([current_a], [20.0], now_us);
+        // Readings on every phase of the model step, now and then on two
+        // ticks in a row or on a dozen (more busy ticks than a stage
+        // waits out); from 60 s a thermocouple that drifts cold, so that
+        // the heat bias's floor holds it.
+        let phase = k % 1000;
+        if phase == (k / 1000) % 13 || phase == 500 || phase == 501 || (700..712).contains(&phase) {
+            let drift_k = 0.02 * (f64::from(k) * 1e-3 - 60.0).max(0.0);
+            i.readings = [reading((plant[1] - drift_k) as f32, now_us)];
+        }
+        let limits2_before = s2.outputs().limits;
+        let o1 = *one.tick(&mut s1, &i);
+        let o2 = *two.tick(&mut s2, &i);
+        assert_eq!(o1.sensors, o2.sensors, "tick {k}");
+        assert_eq!(o1.alarm, o2.alarm, "tick {k}");
+        assert_eq!(o1.time_to_limit_s, o2.time_to_limit_s, "tick {k}");
+        // A stage that would have run on a correction's first tick runs
+        // on its second: the limit of an estimate a tick later.
+        let (l1, l2) = (o1.limits[0], o2.limits[0]);
+        if l1 != l2 {
+            limits_later += 1;
+            assert!(
+                (l1.current_a - l2.current_a).abs() < 0.01 && (l1.weight - l2.weight).abs() < 0.01,
+                "tick {k}: {l1:?} vs {l2:?}"
+            );
+        }
+        if s2.correction_unfinished() {
+            // Its first tick: the readings fused, the floors not yet (a
+            // bias below its floor, -0.1 x the Joule power at the fused
+            // winding estimate, is theirs to lift).
+            assert!(o2.corrected, "tick {k}");
+            // No protection stage judges the unfinished estimate.
+            assert_eq!(o2.limits, limits2_before, "tick {k}");
+            let x = &s2.estimate.x;
+            let r_ohm = 0.3 * (1.0 + 0.00393 * x[0]);
+            floored += u32::from(x[3] < -0.1 * current_a * current_a * r_ohm - 1e-3);
+            continue;
+        }
+        assert_eq!(s1.estimate.x, s2.estimate.x, "tick {k}");
+        assert_eq!(o1.temps_c, o2.temps_c, "tick {k}");
+        compared += 1;
+    }
+    std::println!("limits a tick later on {limits_later} ticks");
+    (floored, compared)
+}
+
+#[test]
+#[cfg(not(target_abi = "eabihf"))]
+fn a_correction_in_two_ticks_is_the_same_estimate() {
+    // `correction_in_two_ticks`: the readings' fusion on their tick, the
+    // floors and the bias check on the next, before its step (whose
+    // currents may differ) and its own correction. After the second tick
+    // the estimate is the one-tick observer's to the bit, and so is every
+    // published temperature, alarm and time to limit (a limit a tick
+    // later at most, within 0.01 A), with 10 ms steps on a 1 ms loop
+    // (readings on every phase of the step), with 2 ms steps (every other
+    // second tick steps), in the start's warm-up and with the integer
+    // step. With a step every tick the setting is refused: its second
+    // tick would always step.
+    let multi_rate = NetworkSettings {
+        step_us: 10_000,
+        loop_period_us: 1000,
+        ..NetworkSettings::DEFAULT
+    };
+    let two_ms = NetworkSettings {
+        step_us: 2000,
+        ..multi_rate
+    };
+    let mut runs = std::vec![
+        ("10 ms steps", multi_rate, false),
+        ("2 ms steps", two_ms, false),
+        ("10 ms steps, warm-up", multi_rate, true),
+    ];
+    if cfg!(feature = "integer-step") {
+        let integer = NetworkSettings {
+            integer_model_step: true,
+            ..multi_rate
+        };
+        runs.push(("10 ms integer steps", integer, false));
+    }
+    for (name, settings, warm_up) in runs {
+        let (floored, compared) = two_tick_run(settings, warm_up);
+        std::println!("{name}: {floored} corrections held by the floor, {compared} ticks compared");
+        assert!(floored > 50, "{name}: the floor never held ({floored})");
+    }
+    let every_tick = NetworkSettings {
+        correction_in_two_ticks: true,
+        ..NetworkSettings::DEFAULT
+    };
+    let refused: Result<NetworkObserver<3, 1, 1, 4, 1>, _> =
+        NetworkObserverBuilder::new(&device(), [1])
+            .settings(every_tick)
+            .build();
+    assert!(
+        matches!(refused, Err(BuildError::InvalidParameter { name }) if name.contains("correction_in_two_ticks")),
+        "{refused:?}"
+    );
+}

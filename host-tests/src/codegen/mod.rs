@@ -138,6 +138,13 @@ pub struct ObserverSpec {
     /// tick without an FPU, the same answers a little later.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub predictor_elements_per_stage: Option<u16>,
+    /// A correction in two ticks, for a core without an FPU (default
+    /// false; see `NetworkSettings::correction_in_two_ticks`): the
+    /// readings' fusion on their tick, the biases' floors on the next, the
+    /// same estimate to the bit. Refused by a firmware built for a core
+    /// with an FPU.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub correction_in_two_ticks: Option<bool>,
     /// Model-uncertainty margin of the nodes no sensor measures, as a share
     /// of their rise above the ambient (dimensionless, `>= 0`; default
     /// 0.05, the Omnimagnet's): the share by which the truth of such a node
@@ -541,6 +548,9 @@ impl Plan {
         }
         if let Some(v) = s.predictor_elements_per_stage {
             fields.push(format!("predictor_elements_per_stage: {v}"));
+        }
+        if let Some(v) = s.correction_in_two_ticks {
+            fields.push(format!("correction_in_two_ticks: {v}"));
         }
         if let Some(v) = s.stuck_tolerance_k {
             fields.push(format!(

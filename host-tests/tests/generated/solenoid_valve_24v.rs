@@ -186,6 +186,7 @@ pub const PARTS: NetworkParts<NODES, BOUNDARIES, CURRENTS, STATES, SENSORS> =
             frozen_loss_ticks: 1000,
             integer_model_step: false,
             predictor_elements_per_stage: 0,
+            correction_in_two_ticks: false,
         },
         sensor_nodes: [1],
         critical_c: [Some(130.0), Some(80.0)],

@@ -910,6 +910,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
         let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
         let integer_step = integer_step(s, &m.step)?;
+        two_tick_corrections(s)?;
         // Refused above without the feature, so always `None` here then.
         #[cfg(not(feature = "integer-step"))]
         let _ = integer_step;
@@ -948,6 +949,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             },
             offset_boundary: s.boundary_offset,
             decays: s.bias_tau_s > 0.0 || s.boundary_offset.is_some(),
+            #[cfg(not(target_abi = "eabihf"))]
+            correction_in_two_ticks: s.correction_in_two_ticks,
             offset_decay_per_step: if s.boundary_offset.is_some() {
                 (timing.clock.step_s() / s.boundary_offset_tau_s) as f32
             } else {
@@ -1094,6 +1097,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             Ok(step) => step,
             Err(e) => return Err(e),
         };
+        if let Err(e) = two_tick_corrections(s) {
+            return Err(e);
+        }
         // Refused above without the feature, so always `None` here then.
         #[cfg(not(feature = "integer-step"))]
         let _ = integer_step;
@@ -1149,6 +1155,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             bias_decay_per_step: a.bias_decay_per_step,
             offset_boundary: s.boundary_offset,
             decays: a.decays,
+            #[cfg(not(target_abi = "eabihf"))]
+            correction_in_two_ticks: s.correction_in_two_ticks,
             offset_decay_per_step: a.offset_decay_per_step,
             shared_bias: a.shared_bias,
             nominal_power_w: a.nominal_power_w,
@@ -1192,6 +1200,28 @@ const fn integer_step<const N: usize, const B: usize, const M: usize>(
         Some(step) => Ok(Some(step)),
         None => Err(invalid("model")),
     }
+}
+
+/// Refuses [`NetworkSettings::correction_in_two_ticks`] where it does not
+/// apply: on a core with an FPU, whose whole correction is a light tick
+/// and whose observer compiles no second tick (see the state's
+/// `floors_due`), and with a model step no longer than the loop's tick,
+/// where the second tick would always step.
+const fn two_tick_corrections(s: &NetworkSettings) -> Result<(), BuildError> {
+    if !s.correction_in_two_ticks {
+        return Ok(());
+    }
+    if cfg!(target_abi = "eabihf") {
+        return Err(invalid(
+            "correction_in_two_ticks (for a core without an FPU; this target has one)",
+        ));
+    }
+    if s.step_us <= s.loop_tick_us() {
+        return Err(invalid(
+            "correction_in_two_ticks (needs step_us longer than the loop's tick)",
+        ));
+    }
+    Ok(())
 }
 
 /// The shadow's block step in integer arithmetic when the model steps in
@@ -1418,6 +1448,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
         frozen_loss_ticks,
         integer_model_step,
         predictor_elements_per_stage,
+        correction_in_two_ticks,
     } = s;
     let mut w = out.nested("settings", "observer::network::NetworkSettings")?;
     w.field("step_us", step_us)?;
@@ -1461,6 +1492,7 @@ fn write_settings(out: &mut Fields<'_>, s: &NetworkSettings) -> fmt::Result {
     w.field("frozen_loss_ticks", frozen_loss_ticks)?;
     w.field("integer_model_step", integer_model_step)?;
     w.field("predictor_elements_per_stage", predictor_elements_per_stage)?;
+    w.field("correction_in_two_ticks", correction_in_two_ticks)?;
     w.close(false)
 }
 
