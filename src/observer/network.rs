@@ -171,9 +171,10 @@
 //! a tick; see "The model step in integer arithmetic"), which it makes
 //! busy, so that the next step's tick does not carry it. Every protection
 //! stage (the predictor's, the alarm, the limiter) waits out up to three
-//! busy ticks in a row (a step's, its block's and a reading's; four with
-//! the integer step's read) before it runs all the same, so that it lands
-//! on a light tick. Unlike the Omnimagnet's, a step here does not wait a
+//! busy ticks in a row (a step's, its block's and a reading's; one more
+//! with the integer step's read, one more with a correction's second tick,
+//! see "A correction in two ticks") before it runs all the same, so that
+//! it lands on a light tick. Unlike the Omnimagnet's, a step here does not wait a
 //! tick for a reading's correction ([`StepClock::defer`]): on the
 //! Cortex-M0 its clock code cost the 2-node footprint 280 B and the M4F
 //! ticks up to 8 %, for a worst tick the stages' waiting lowered instead. The Cortex-M0 run of
