@@ -246,7 +246,7 @@
 //! - the bias flag is raised on the second tick.
 //!
 //! Both ticks are light ones on the Cortex-M0 example: its worst tick fell
-//! to 3 862 instructions (a predictor stage's; the fusion's tick 3 216,
+//! to 3 858 instructions (a predictor stage's; the fusion's tick 3 213,
 //! the floors' under 1 000). It needs a model step longer than the loop's
 //! tick: otherwise the second tick always steps and carries the floors as
 //! well, so the setting is refused there. It is refused on a target with
@@ -668,7 +668,7 @@ pub struct NetworkSettings {
     /// anything else of it. The same estimate to the bit, published on the
     /// second tick. For a core without an FPU, where the whole correction
     /// was the heaviest tick (`network_roundtrip` on the Cortex-M0: its
-    /// worst tick 4 620 -> 3 862 instructions). Refused where it does not
+    /// worst tick 4 620 -> 3 858 instructions). Refused where it does not
     /// apply: on a target with an FPU (`target_abi = "eabihf"`, which
     /// compiles no second tick), and with a model step no longer than the
     /// loop's tick (the second tick would always step). Default `false`:
@@ -1675,8 +1675,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // first saw, before this tick's step and correction; it is this
         // tick's one put-off piece when it does not step.
         #[cfg(not(target_abi = "eabihf"))]
-        let floors_ran = match state.floors_due.take() {
+        let floors_ran = match state.floors_due {
             Some(warming) => {
+                state.floors_due = None;
                 self.finish_correction(state, warming, &mut flags);
                 true
             }
