@@ -1379,7 +1379,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// The estimated offset of the boundary with an offset state
     /// ([`NetworkSettings::boundary_offset`]) \[K\], `>= 0` after every
-    /// correction; `None` without one.
+    /// correction (with [`NetworkSettings::correction_in_two_ticks`], after
+    /// its second tick); `None` without one.
     pub fn boundary_offset_k<W: WarmUpKind<X>>(
         &self,
         state: &NetworkObserverState<N, B, M, X, P, W>,
