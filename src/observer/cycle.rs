@@ -231,13 +231,19 @@ pub(crate) trait ProtectionStages<const M: usize> {
     fn age_time_to_limit(&mut self);
 
     /// Runs the stage due this tick, if any (`busy`: a correction or a
-    /// step longer than the loop's tick already ran; `period_us`: the
+    /// step longer than the loop's tick already ran; `held`: no stage may
+    /// run this tick, whatever its waits, and the tick is not one of them
+    /// (a correction waiting for its second tick); `period_us`: the
     /// protection period \[us\]), and ages the published times to limit
     /// when the model's time (`model_moved`: steps taken or time dropped)
     /// or the predictor moved. Returns the stage run.
     #[inline(always)]
-    fn run_due(&mut self, busy: bool, period_us: u32, model_moved: bool) -> Stage {
-        let stage = self.cycle_and_held().0.due(busy, period_us);
+    fn run_due(&mut self, busy: bool, held: bool, period_us: u32, model_moved: bool) -> Stage {
+        let stage = if held {
+            Stage::Idle
+        } else {
+            self.cycle_and_held().0.due(busy, period_us)
+        };
         match stage {
             Stage::Idle => {}
             Stage::Predict => {
@@ -561,7 +567,7 @@ mod tests {
         };
         let tick = |o: &mut Logged, model_moved: bool| {
             o.log.clear();
-            let stage = o.run_due(false, 1000, model_moved);
+            let stage = o.run_due(false, false, 1000, model_moved);
             (stage, o.log.clone())
         };
         assert_eq!(

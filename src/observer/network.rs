@@ -246,7 +246,7 @@
 //! - the bias flag is raised on the second tick.
 //!
 //! Both ticks are light ones on the Cortex-M0 example: its worst tick fell
-//! to 3 858 instructions (a predictor stage's; the fusion's tick 3 213,
+//! to 3 863 instructions (a predictor stage's; the fusion's tick 3 209,
 //! the floors' under 1 000). It needs a model step longer than the loop's
 //! tick: otherwise the second tick always steps and carries the floors as
 //! well, so the setting is refused there. It is refused on a target with
@@ -668,7 +668,7 @@ pub struct NetworkSettings {
     /// anything else of it. The same estimate to the bit, published on the
     /// second tick. For a core without an FPU, where the whole correction
     /// was the heaviest tick (`network_roundtrip` on the Cortex-M0: its
-    /// worst tick 4 620 -> 3 858 instructions). Refused where it does not
+    /// worst tick 4 620 -> 3 863 instructions). Refused where it does not
     /// apply: on a target with an FPU (`target_abi = "eabihf"`, which
     /// compiles no second tick), and with a model step no longer than the
     /// loop's tick (the second tick would always step). Default `false`:
@@ -1741,20 +1741,18 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         let busy = corrected
             || steps.steps.saturating_mul(self.step_us) > self.loop_period_us
             || put_off_ran;
-        let model_moved = steps.steps > 0 || steps.dropped_us > 0;
-        if unfinished {
-            // No stage between a correction's two ticks: each judges the
-            // finished estimate (not a busy tick's wait: it comes next).
-            if model_moved {
-                self.age_time_to_limit(state);
-            }
-        } else {
-            Protecting {
-                observer: self,
-                state: &mut *state,
-            }
-            .run_due(busy, self.protect_period_us, model_moved);
+        // No stage between a correction's two ticks: each judges the
+        // finished estimate (not a busy tick's wait: it comes next).
+        Protecting {
+            observer: self,
+            state: &mut *state,
         }
+        .run_due(
+            busy,
+            unfinished,
+            self.protect_period_us,
+            steps.steps > 0 || steps.dropped_us > 0,
+        );
         state.outputs.finish_tick(flags, &steps);
         &state.outputs
     }
@@ -1824,8 +1822,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         }
     }
 
-    // One copy on a core without an FPU (the tick's held stage and the
-    // cycle's both age).
+    // One copy on a core without an FPU (the cycle ages in two places).
     #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
     fn age_time_to_limit<W: WarmUpKind<X>>(
         &self,

@@ -1512,6 +1512,7 @@ impl OmniObserver {
         }
         .run_due(
             busy,
+            false,
             self.protect_period_us,
             steps.steps > 0 || steps.dropped_us > 0,
         );
