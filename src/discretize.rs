@@ -9,7 +9,7 @@
 //! ```
 //!
 //! Both come from one scaling-and-squaring pass, with no augmented matrix (so
-//! the sizes stay const generics `N`, `M`, `B`): Taylor series of `E` and
+//! the sizes stay the network's own, `N`, `M`, `B`): Taylor series of `E` and
 //! `Phi` at `h / 2^s` with `||A h / 2^s||_1 <= 1/4`, where 16 terms leave a
 //! truncation error below 1e-20, then `s` doublings
 //!
@@ -17,14 +17,18 @@
 //! Phi(2h) = Phi(h) (I + E(h)),   E(2h) = E(h)^2.
 //! ```
 //!
-//! Build-time code (`O(N^3 log ||A h||)`), `no_std`, no allocation. The step
-//! itself ([`Discrete::step`]) is a matrix-vector product and works in `f32`.
+//! Build-time code (`O(N^3 log ||A h||)`), `no_std`, no allocation for a
+//! network of [`ConstSizes`] (one read at run time, `RunTimeSizes`, gets
+//! its matrices on the heap: see [`crate::sizes`]). The step itself
+//! ([`Discrete::step`]) is a matrix-vector product and works in `f32`.
 
 pub mod fixed;
 
 use crate::error::BuildError;
 use crate::network::StateSpace;
-use nalgebra::{RealField, SMatrix, SVector};
+use crate::sizes::{ConstSizes, NetworkAllocator, Sizes};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, RealField, SMatrix};
 
 /// One step of a network's exact zero-order hold in the network
 /// observer's deviation coordinates (see "f32 without drift" in
@@ -54,10 +58,13 @@ const MAX_SQUARINGS: u32 = 60;
 ///
 /// Errors with [`BuildError::InvalidTimeStep`] for `h` not finite or `<= 0`,
 /// and [`BuildError::InvalidParameter`] when `A h` is not finite or too large.
-pub fn expm_with_integral<const N: usize>(
-    a: &SMatrix<f64, N, N>,
+pub fn expm_with_integral<D: Dim>(
+    a: &OMatrix<f64, D, D>,
     h: f64,
-) -> Result<(SMatrix<f64, N, N>, SMatrix<f64, N, N>), BuildError> {
+) -> Result<(OMatrix<f64, D, D>, OMatrix<f64, D, D>), BuildError>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
     let mut work = SlicedExpm::new(a, h)?;
     // Bounded: at most TAYLOR_TERMS / 2 + MAX_SQUARINGS slices.
     while !work.slice() {}
@@ -81,19 +88,25 @@ enum ExpmPhase {
 /// bit. A full run takes `TAYLOR_TERMS / 2 + s` slices (8 + s), `s` the number
 /// of squarings (`||A h||_1 <= 2^s / 4`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct SlicedExpm<const N: usize> {
-    x: SMatrix<f64, N, N>,
-    term: SMatrix<f64, N, N>,
-    e: SMatrix<f64, N, N>,
-    phi: SMatrix<f64, N, N>,
+pub struct SlicedExpm<D: Dim>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    x: OMatrix<f64, D, D>,
+    term: OMatrix<f64, D, D>,
+    e: OMatrix<f64, D, D>,
+    phi: OMatrix<f64, D, D>,
     scaled_h: f64,
     squarings: u32,
     phase: ExpmPhase,
 }
 
-impl<const N: usize> SlicedExpm<N> {
+impl<D: Dim> SlicedExpm<D>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
     /// Chooses the scaling for `exp(A h)` (`O(N^2)` work); no product yet.
-    pub fn new(a: &SMatrix<f64, N, N>, h: f64) -> Result<Self, BuildError> {
+    pub fn new(a: &OMatrix<f64, D, D>, h: f64) -> Result<Self, BuildError> {
         if !(h.is_finite() && h > 0.0) {
             return Err(BuildError::InvalidTimeStep);
         }
@@ -115,11 +128,12 @@ impl<const N: usize> SlicedExpm<N> {
             }
         }
         let scaled_h = h * scale;
-        let identity = SMatrix::<f64, N, N>::identity();
+        let (rows, columns) = a.shape_generic();
+        let identity = OMatrix::<f64, D, D>::identity_generic(rows, columns);
         Ok(Self {
             x: a * scaled_h,
-            term: identity,
-            e: identity,
+            term: identity.clone(),
+            e: identity.clone(),
             phi: identity,
             scaled_h,
             squarings,
@@ -134,9 +148,9 @@ impl<const N: usize> SlicedExpm<N> {
                 // E = sum X^k / k!, Phi / h_s = sum X^k / (k+1)!
                 let end = (next_term + MATMULS_PER_SLICE).min(TAYLOR_TERMS);
                 for k in next_term..end {
-                    self.term = self.term * self.x / (k as f64);
-                    self.e += self.term;
-                    self.phi += self.term / ((k + 1) as f64);
+                    self.term = &self.term * &self.x / (k as f64);
+                    self.e += &self.term;
+                    self.phi += &self.term / ((k + 1) as f64);
                 }
                 if end < TAYLOR_TERMS {
                     ExpmPhase::Taylor { next_term: end }
@@ -150,8 +164,9 @@ impl<const N: usize> SlicedExpm<N> {
             }
             ExpmPhase::Squaring { left } => {
                 // Phi(2h) = Phi(h) (I + E(h)), E(2h) = E(h)^2
-                self.phi *= SMatrix::<f64, N, N>::identity() + self.e;
-                self.e = self.e * self.e;
+                let (rows, columns) = self.e.shape_generic();
+                self.phi *= OMatrix::<f64, D, D>::identity_generic(rows, columns) + &self.e;
+                self.e = &self.e * &self.e;
                 if left <= 1 {
                     ExpmPhase::Done
                 } else {
@@ -175,66 +190,80 @@ impl<const N: usize> SlicedExpm<N> {
 
     /// `(exp(A h), integral_0^h exp(A s) ds)`; meaningful once
     /// [`SlicedExpm::is_done`].
-    pub fn result(&self) -> (SMatrix<f64, N, N>, SMatrix<f64, N, N>) {
-        (self.e, self.phi)
+    pub fn result(&self) -> (OMatrix<f64, D, D>, OMatrix<f64, D, D>) {
+        (self.e.clone(), self.phi.clone())
     }
 }
 
-/// A network discretised exactly for one step `dt_s`, in `f32` or `f64`.
+/// A network discretised exactly for one step `dt_s`, in `f32` or `f64`,
+/// with matrices of the network's [`Sizes`] `Z`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Discrete<T: RealField + Copy, const N: usize, const B: usize, const M: usize> {
+pub struct Discrete<T: RealField + Copy, Z: Sizes>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// The step \[s\].
     pub dt_s: f64,
     /// State transition `exp(A dt)`.
-    pub ad: SMatrix<T, N, N>,
+    pub ad: OMatrix<T, Z::NodeDim, Z::NodeDim>,
     /// Power input matrix `Phi B` \[K/W\].
-    pub bd_power: SMatrix<T, N, M>,
+    pub bd_power: OMatrix<T, Z::NodeDim, Z::InputDim>,
     /// Boundary matrix `Phi G` (dimensionless).
-    pub gd_boundary: SMatrix<T, N, B>,
+    pub gd_boundary: OMatrix<T, Z::NodeDim, Z::BoundaryDim>,
     /// Constant term `Phi d` \[K\].
-    pub dd: SVector<T, N>,
+    pub dd: OVector<T, Z::NodeDim>,
 }
 
 /// Discretises a state space exactly for a step `dt_s` \[s\].
-pub fn zoh<const N: usize, const B: usize, const M: usize>(
-    ss: &StateSpace<N, B, M>,
-    dt_s: f64,
-) -> Result<Discrete<f64, N, B, M>, BuildError> {
+pub fn zoh<Z: Sizes>(ss: &StateSpace<Z>, dt_s: f64) -> Result<Discrete<f64, Z>, BuildError>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     let (ad, phi) = expm_with_integral(&ss.a, dt_s)?;
     Ok(Discrete {
         dt_s,
         ad,
-        bd_power: phi * ss.b_power,
-        gd_boundary: phi * ss.g_boundary,
-        dd: phi * ss.d,
+        bd_power: &phi * &ss.b_power,
+        gd_boundary: &phi * &ss.g_boundary,
+        dd: &phi * &ss.d,
     })
 }
 
-impl<const N: usize, const B: usize, const M: usize> Discrete<f64, N, B, M> {
+impl<Z: Sizes> Discrete<f64, Z>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// The same model in another float type (`f32` for an MCU with an FPU).
-    pub fn cast<T: RealField + Copy>(&self) -> Discrete<T, N, B, M> {
+    pub fn cast<T: RealField + Copy>(&self) -> Discrete<T, Z> {
         Discrete {
             dt_s: self.dt_s,
-            ad: self.ad.cast(),
-            bd_power: self.bd_power.cast(),
-            gd_boundary: self.gd_boundary.cast(),
-            dd: self.dd.cast(),
+            ad: self.ad.clone().cast(),
+            bd_power: self.bd_power.clone().cast(),
+            gd_boundary: self.gd_boundary.clone().cast(),
+            dd: self.dd.clone().cast(),
         }
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize> Discrete<T, N, B, M> {
+impl<T: RealField + Copy, Z: Sizes> Discrete<T, Z>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// One exact step: `T <- Ad T + Bd p + Gd T_b + dd`, with the Joule powers
     /// `powers_w` \[W\] and boundary temperatures \[degC\] held over the step.
     pub fn step(
         &self,
-        temps_c: &SVector<T, N>,
-        powers_w: &SVector<T, M>,
-        boundary_c: &SVector<T, B>,
-    ) -> SVector<T, N> {
-        self.ad * temps_c + self.bd_power * powers_w + self.gd_boundary * boundary_c + self.dd
+        temps_c: &OVector<T, Z::NodeDim>,
+        powers_w: &OVector<T, Z::InputDim>,
+        boundary_c: &OVector<T, Z::BoundaryDim>,
+    ) -> OVector<T, Z::NodeDim> {
+        &self.ad * temps_c + &self.bd_power * powers_w + &self.gd_boundary * boundary_c + &self.dd
     }
+}
 
+impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize>
+    Discrete<T, ConstSizes<N, B, M>>
+{
     /// The combined input matrix `[Bd | Gd | dd]` for the input vector
     /// `u = [p; T_b; 1]`, the form a Kalman filter takes. `U` must equal
     /// `M + B + 1` (checked at compile time).
@@ -252,6 +281,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const M: usize> Discre
 mod tests {
     use super::*;
     use crate::network::{Network, Resistance};
+    use nalgebra::SVector;
 
     #[test]
     fn scalar_exponential_and_integral_match_closed_form() {

@@ -14,12 +14,24 @@
 //! length a constant), for `RunTimeSizes` to loops over the model's
 //! lengths.
 //!
-//! Only the build-time analyses and the time-to-limit predictor are
-//! written over [`Sizes`] so far ([`crate::protect::predict`],
+//! A matrix over a network's nodes, boundaries or inputs is nalgebra's
+//! `OMatrix` of the sizes' dimensions ([`Sizes::NodeDim`], ...):
+//! `Const<N>` for [`ConstSizes`] (the same type as `SMatrix`, on the
+//! stack), `Dyn` for `RunTimeSizes` (a `DMatrix` on the heap). Code over
+//! them states the allocations it needs once, as
+//! `DefaultAllocator: NetworkAllocator<Z>` ([`NetworkAllocator`]).
+//!
+//! Written over [`Sizes`] so far: the build-time analyses and the
+//! time-to-limit predictor ([`crate::protect::predict`],
 //! [`crate::protect::safe_current`], [`crate::protect::runaway`], the
-//! steady state); the observers keep their const generics.
+//! steady state), the state space and its exact discretisation
+//! ([`crate::network::StateSpace`], [`crate::discretize`]); the observers
+//! keep their const generics.
 
 use core::fmt::Debug;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, Dim};
 
 /// What a vector element must be: cloned into place, compared and shown
 /// (every scalar, `Option` of one, and a vector of them).
@@ -41,6 +53,12 @@ pub trait Sizes: Copy + Debug + PartialEq {
     type Boundaries<U: Element>: Vector<U>;
     /// A value per input (current source).
     type Inputs<U: Element>: Vector<U>;
+    /// The nalgebra dimension of the state nodes (`Const<N>` or `Dyn`).
+    type NodeDim: Dim;
+    /// The nalgebra dimension of the boundaries.
+    type BoundaryDim: Dim;
+    /// The nalgebra dimension of the inputs.
+    type InputDim: Dim;
 
     /// Number of state nodes `N`.
     fn nodes(&self) -> usize;
@@ -58,6 +76,45 @@ pub trait Sizes: Copy + Debug + PartialEq {
     fn inputs_of<U: Element + Copy>(&self, fill: U) -> Self::Inputs<U>;
     /// A node vector of clones of `row` (a matrix by rows, at build time).
     fn rows_of<U: Element>(&self, row: U) -> Self::Nodes<U>;
+
+    /// The state nodes as a nalgebra dimension.
+    fn node_dim(&self) -> Self::NodeDim {
+        Self::NodeDim::from_usize(self.nodes())
+    }
+    /// The boundaries as a nalgebra dimension.
+    fn boundary_dim(&self) -> Self::BoundaryDim {
+        Self::BoundaryDim::from_usize(self.boundaries())
+    }
+    /// The inputs as a nalgebra dimension.
+    fn input_dim(&self) -> Self::InputDim {
+        Self::InputDim::from_usize(self.inputs())
+    }
+}
+
+/// The nalgebra allocations of a network's matrices and vectors
+/// (`N x N`, `N x B`, `N x M`, and vectors of each length): one bound,
+/// `DefaultAllocator: NetworkAllocator<Z>`, for code over a
+/// [`Sizes`] `Z` (Rust elaborates a trait's supertraits, not the other
+/// bounds of a where clause). Implemented by nalgebra's
+/// `DefaultAllocator` for every [`ConstSizes`], and for `RunTimeSizes`.
+pub trait NetworkAllocator<Z: Sizes>:
+    Allocator<Z::NodeDim, Z::NodeDim>
+    + Allocator<Z::NodeDim, Z::BoundaryDim>
+    + Allocator<Z::NodeDim, Z::InputDim>
+    + Allocator<Z::NodeDim>
+    + Allocator<Z::BoundaryDim>
+    + Allocator<Z::InputDim>
+{
+}
+
+impl<Z: Sizes, A> NetworkAllocator<Z> for A where
+    A: Allocator<Z::NodeDim, Z::NodeDim>
+        + Allocator<Z::NodeDim, Z::BoundaryDim>
+        + Allocator<Z::NodeDim, Z::InputDim>
+        + Allocator<Z::NodeDim>
+        + Allocator<Z::BoundaryDim>
+        + Allocator<Z::InputDim>
+{
 }
 
 /// Sizes fixed at compile time: every vector an array (an MCU).
@@ -68,6 +125,9 @@ impl<const N: usize, const B: usize, const M: usize> Sizes for ConstSizes<N, B, 
     type Nodes<U: Element> = [U; N];
     type Boundaries<U: Element> = [U; B];
     type Inputs<U: Element> = [U; M];
+    type NodeDim = Const<N>;
+    type BoundaryDim = Const<B>;
+    type InputDim = Const<M>;
 
     #[inline(always)]
     fn nodes(&self) -> usize {
@@ -112,6 +172,8 @@ mod run_time {
     use alloc::vec;
     use alloc::vec::Vec;
 
+    use nalgebra::Dyn;
+
     use super::{Element, Sizes};
 
     /// Sizes read at run time: every vector a `Vec` of the model's length
@@ -130,6 +192,9 @@ mod run_time {
         type Nodes<U: Element> = Vec<U>;
         type Boundaries<U: Element> = Vec<U>;
         type Inputs<U: Element> = Vec<U>;
+        type NodeDim = Dyn;
+        type BoundaryDim = Dyn;
+        type InputDim = Dyn;
 
         fn nodes(&self) -> usize {
             self.nodes

@@ -644,7 +644,7 @@ mod tests {
         dt_s: f64,
         origin_c: f64,
     ) -> (
-        crate::discretize::Discrete<f64, N, B, M>,
+        crate::discretize::Discrete<f64, crate::sizes::ConstSizes<N, B, M>>,
         StepTables<N, B, M>,
     ) {
         let d = crate::discretize::zoh(&network.state_space(&[origin_c; N]), dt_s).unwrap();

@@ -43,7 +43,8 @@ pub use motor::{DqScaling, Motor, MotorBuilder, MotorDatasheet, MotorHeatCapacit
 pub use source::{DeviationResistance, Drive, JouleSource, Resistance, ScalarResistance};
 
 use crate::error::BuildError;
-use nalgebra::{SMatrix, SVector};
+use crate::sizes::{ConstSizes, NetworkAllocator, Sizes};
+use nalgebra::{DefaultAllocator, OMatrix, OVector, U1};
 
 /// A lumped thermal network, described in `f64` at build time.
 ///
@@ -63,21 +64,94 @@ pub struct Network<const N: usize, const B: usize, const M: usize> {
 /// `dT/dt = A T + B p + G T_b + d`, with `T` in degC, `p` the Joule power of
 /// each current input \[W\], `T_b` the boundary temperatures \[degC\] and `d`
 /// the fixed powers divided by the capacities \[K/s\].
+///
+/// Its matrices are of the network's [`Sizes`] `Z`: `SMatrix` for a
+/// [`Network`] (`ConstSizes`), `DMatrix` for one read at run time (see
+/// [`crate::sizes`]); [`ConstStateSpace`] names the first.
 #[derive(Debug, Clone, PartialEq)]
-pub struct StateSpace<const N: usize, const B: usize, const M: usize> {
+pub struct StateSpace<Z: Sizes>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// Conduction matrix \[1/s\]: `A_ij = G_ij / C_i`, `A_ii = -sum(G_i*) / C_i`.
-    pub a: SMatrix<f64, N, N>,
+    pub a: OMatrix<f64, Z::NodeDim, Z::NodeDim>,
     /// Power input matrix \[K/(s W)\]: `1 / C_node` for each input's node.
-    pub b_power: SMatrix<f64, N, M>,
+    pub b_power: OMatrix<f64, Z::NodeDim, Z::InputDim>,
     /// Boundary matrix \[1/s\]: `G_ib / C_i`.
-    pub g_boundary: SMatrix<f64, N, B>,
+    pub g_boundary: OMatrix<f64, Z::NodeDim, Z::BoundaryDim>,
     /// Fixed powers over capacities \[K/s\].
-    pub d: SVector<f64, N>,
+    pub d: OVector<f64, Z::NodeDim>,
     /// The paper's input matrix for `U = I^2` at the operating point
     /// \[K/(s A^2)\]: `R(T_op) / C_node` (Omnimagnet Appendix B); for a
     /// voltage-driven input, `U = V_eff^2` and the entry is `1 / (R(T_op)
     /// C_node)` \[K/(s V^2)\].
-    pub b_current_squared: SMatrix<f64, N, M>,
+    pub b_current_squared: OMatrix<f64, Z::NodeDim, Z::InputDim>,
+}
+
+/// The state space of a [`Network`] with `N` nodes, `B` boundaries and `M`
+/// inputs (its matrices `SMatrix`).
+pub type ConstStateSpace<const N: usize, const B: usize, const M: usize> =
+    StateSpace<ConstSizes<N, B, M>>;
+
+/// The state space of any network description at the operating point
+/// `op_temps_c` \[degC\] (which only sets `b_current_squared`: `A`, `B`,
+/// `G` of a network with constant conductances do not depend on
+/// temperature); [`Network::state_space`] for a [`Network`], at its own
+/// size for one read at run time.
+pub fn state_space_of<W: NetworkDescription>(
+    network: &W,
+    op_temps_c: &Nodes<W, f64>,
+) -> StateSpace<W::Sizes>
+where
+    DefaultAllocator: NetworkAllocator<W::Sizes>,
+{
+    let z = network.sizes();
+    let (n, b, m) = (z.node_dim(), z.boundary_dim(), z.input_dim());
+    let mut a = OMatrix::<f64, _, _>::zeros_generic(n, n);
+    let mut g_boundary = OMatrix::<f64, _, _>::zeros_generic(n, b);
+    let mut b_power = OMatrix::<f64, _, _>::zeros_generic(n, m);
+    let mut b_current_squared = OMatrix::<f64, _, _>::zeros_generic(n, m);
+    let mut d = OVector::<f64, _>::zeros_generic(n, U1);
+    // Each node's conductances summed in the order of its neighbours'
+    // indices, then its boundaries': a pair (i, j > i) reaches row j while
+    // the rows are taken in order, before row j's own later pairs.
+    let mut diagonal = OVector::<f64, _>::zeros_generic(n, U1);
+    for i in 0..z.nodes() {
+        let c = network.capacity_at_j_per_k(i);
+        for (j, g) in network.later_pairs_w_per_k(i) {
+            a[(i, j)] = g / c;
+            a[(j, i)] = g / network.capacity_at_j_per_k(j);
+            diagonal[i] += g;
+            diagonal[j] += g;
+        }
+        let mut sum = diagonal[i];
+        for k in 0..z.boundaries() {
+            let g = network.boundary_link_w_per_k(i, k);
+            g_boundary[(i, k)] = g / c;
+            sum += g;
+        }
+        a[(i, i)] = -sum / c;
+        d[i] = network.fixed_power_at_w(i) / c;
+    }
+    for k in 0..z.inputs() {
+        if let Some(s) = network.joule_source_of(k) {
+            let c = network.capacity_at_j_per_k(s.node);
+            b_power[(s.node, k)] = 1.0 / c;
+            let r = s.resistance.at_c(op_temps_c.as_ref()[s.node]);
+            b_current_squared[(s.node, k)] = match s.drive {
+                Drive::Current => r / c,
+                // The input squared is `V_eff^2`: `1 / (R C)`.
+                Drive::Voltage => 1.0 / (r * c),
+            };
+        }
+    }
+    StateSpace {
+        a,
+        b_power,
+        g_boundary,
+        d,
+        b_current_squared,
+    }
 }
 
 /// The energy account of a network at one instant \[W\].
@@ -394,52 +468,10 @@ impl<const N: usize, const B: usize, const M: usize> Network<N, B, M> {
         }
     }
 
-    /// The state space at the operating point `op_temps_c` (which only sets
-    /// `b_current_squared`, since `A`, `B`, `G` of a network with constant
-    /// conductances do not depend on temperature).
-    pub fn state_space(&self, op_temps_c: &[f64; N]) -> StateSpace<N, B, M> {
-        let mut a = SMatrix::<f64, N, N>::zeros();
-        let mut g_boundary = SMatrix::<f64, N, B>::zeros();
-        let mut b_power = SMatrix::<f64, N, M>::zeros();
-        let mut b_current_squared = SMatrix::<f64, N, M>::zeros();
-        let mut d = SVector::<f64, N>::zeros();
-        for i in 0..N {
-            let c = self.capacity_j_per_k[i];
-            let mut diagonal = 0.0;
-            for j in 0..N {
-                if j != i {
-                    let g = self.conductance_w_per_k(i, j);
-                    a[(i, j)] = g / c;
-                    diagonal += g;
-                }
-            }
-            for b in 0..B {
-                let g = self.boundary_w_per_k[i][b];
-                g_boundary[(i, b)] = g / c;
-                diagonal += g;
-            }
-            a[(i, i)] = -diagonal / c;
-            d[i] = self.fixed_power_w[i] / c;
-        }
-        for (m, source) in self.sources.iter().enumerate() {
-            if let Some(s) = source {
-                let c = self.capacity_j_per_k[s.node];
-                b_power[(s.node, m)] = 1.0 / c;
-                let r = s.resistance.at_c(op_temps_c[s.node]);
-                b_current_squared[(s.node, m)] = match s.drive {
-                    Drive::Current => r / c,
-                    // The input squared is `V_eff^2`: `1 / (R C)`.
-                    Drive::Voltage => 1.0 / (r * c),
-                };
-            }
-        }
-        StateSpace {
-            a,
-            b_power,
-            g_boundary,
-            d,
-            b_current_squared,
-        }
+    /// The state space at the operating point `op_temps_c` \[degC\]
+    /// (see [`state_space_of`]).
+    pub fn state_space(&self, op_temps_c: &[f64; N]) -> ConstStateSpace<N, B, M> {
+        state_space_of(self, op_temps_c)
     }
 }
 

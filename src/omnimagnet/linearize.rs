@@ -10,7 +10,8 @@ use super::data::{Peer, NODES, SOLENOIDS};
 use super::Omnimagnet;
 use crate::discretize::{zoh, Discrete};
 use crate::error::BuildError;
-use crate::network::{Network, StateSpace};
+use crate::network::{ConstStateSpace, Network};
+use crate::sizes::ConstSizes;
 use nalgebra::{SMatrix, SVector};
 
 /// The Omnimagnet network type: 16 states, 1 boundary (ambient), 3 currents.
@@ -24,7 +25,7 @@ pub struct Linearization {
     /// Ambient of the operating point \[degC\].
     pub op_ambient_c: f64,
     /// The ZOH model for inputs `p` (Joule powers, W), `T_0` and `d`.
-    pub discrete: Discrete<f64, NODES, 1, SOLENOIDS>,
+    pub discrete: Discrete<f64, ConstSizes<NODES, 1, SOLENOIDS>>,
     /// `Phi B_I2` \[K/A^2\]: the paper's input matrix for `U = I^2`, with
     /// `R(T_op)`.
     pub bd_current_squared: SMatrix<f64, NODES, SOLENOIDS>,
@@ -82,7 +83,7 @@ impl Omnimagnet {
         &self,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
-    ) -> Result<StateSpace<NODES, 1, SOLENOIDS>, BuildError> {
+    ) -> Result<ConstStateSpace<NODES, 1, SOLENOIDS>, BuildError> {
         Ok(self.network(op_temps_c, ambient_c)?.state_space(op_temps_c))
     }
 
@@ -94,7 +95,7 @@ impl Omnimagnet {
         &self,
         op_temps_c: &[f64; NODES],
         ambient_c: f64,
-    ) -> Result<StateSpace<NODES, 1, SOLENOIDS>, BuildError> {
+    ) -> Result<ConstStateSpace<NODES, 1, SOLENOIDS>, BuildError> {
         let mut ss = self.state_space(op_temps_c, ambient_c)?;
         let caps = self.capacities_j_per_k(op_temps_c);
         let g = self.conductances_with(op_temps_c, ambient_c, false);

@@ -23,7 +23,7 @@ use super::linearize::Linearization;
 use super::Omnimagnet;
 use crate::discretize::{Discrete, SlicedExpm};
 use crate::error::BuildError;
-use crate::network::StateSpace;
+use crate::network::ConstStateSpace;
 use nalgebra::SMatrix;
 
 pub use crate::discretize::MATMULS_PER_SLICE;
@@ -80,8 +80,8 @@ enum Phase {
 struct Work {
     op_temps_c: [f64; NODES],
     op_ambient_c: f64,
-    ss: StateSpace<NODES, 1, SOLENOIDS>,
-    expm: SlicedExpm<NODES>,
+    ss: ConstStateSpace<NODES, 1, SOLENOIDS>,
+    expm: SlicedExpm<nalgebra::Const<NODES>>,
 }
 
 /// Keeps an active linearisation and replaces it, slice by slice, when the
