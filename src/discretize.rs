@@ -49,6 +49,9 @@ pub struct StepTables<const N: usize, const B: usize, const M: usize> {
     pub constant_k: [f32; N],
 }
 
+/// A square `f64` matrix of dimension `D` (`Const<N>` or `Dyn`).
+pub type Square<D> = OMatrix<f64, D, D>;
+
 /// Taylor terms kept at the scaled step.
 const TAYLOR_TERMS: usize = 16;
 /// Most halvings of the step (bounds the loop; `||A h|| < 2^58` always fits).
@@ -61,7 +64,7 @@ const MAX_SQUARINGS: u32 = 60;
 pub fn expm_with_integral<D: Dim>(
     a: &OMatrix<f64, D, D>,
     h: f64,
-) -> Result<(OMatrix<f64, D, D>, OMatrix<f64, D, D>), BuildError>
+) -> Result<(Square<D>, Square<D>), BuildError>
 where
     DefaultAllocator: Allocator<D, D>,
 {
