@@ -87,7 +87,7 @@ use coil_thermal::{
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector, U1};
 
 fn network() -> Result<Network<3, 1, 1>, coil_thermal::BuildError> {
     Network::new(black_box([68.7, 40.0, 400.0]))?
@@ -258,7 +258,7 @@ fn observers() -> bool {
 #[inline(never)]
 fn time_varying_filter() -> bool {
     let f = black_box(SMatrix::<f32, 4, 4>::identity() * 0.99);
-    let cfg = KalmanConfig::<f32, 4, 1, 2>::new(
+    let cfg = KalmanConfig::<f32, Const<4>, U1, Const<2>>::new(
         f,
         black_box(SMatrix::<f32, 4, 1>::repeat(0.01)),
         black_box(SMatrix::<f32, 2, 4>::identity()),
@@ -553,7 +553,7 @@ fn kalman_observers<T: nalgebra::RealField + Copy>() -> bool {
         black_box(obs.correct_winding(black_box(k as usize % 5), &winding));
     }
     black_box(&obs);
-    let cfg = KalmanConfig::<T, 4, 1, 2>::new(
+    let cfg = KalmanConfig::<T, Const<4>, U1, Const<2>>::new(
         black_box(SMatrix::identity() * cast(0.99)),
         black_box(SMatrix::repeat(cast(0.01))),
         black_box(SMatrix::identity()),

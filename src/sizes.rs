@@ -44,6 +44,48 @@ pub trait Vector<U>: AsRef<[U]> + AsMut<[U]> + Clone + Debug + PartialEq {}
 
 impl<U, V: AsRef<[U]> + AsMut<[U]> + Clone + Debug + PartialEq> Vector<U> for V {}
 
+/// A nalgebra dimension with a plain vector of its length: `[U; N]` for
+/// `Const<N>` (an MCU: the array the compiler places), a `Vec<U>` for
+/// `Dyn` (a host, with the `alloc` feature). For what is not a matrix
+/// entry (a sensor's verdict, counter or reads), beside the matrices of
+/// the same dimension.
+pub trait Length: Dim {
+    /// A value per index of this dimension.
+    type Array<U: Element>: Vector<U>;
+
+    /// A vector with every entry `fill`.
+    fn filled<U: Element + Copy>(self, fill: U) -> Self::Array<U>;
+
+    /// A vector of `f(i)` for every index `i`, in order.
+    fn each<U: Element>(self, f: impl FnMut(usize) -> U) -> Self::Array<U>;
+
+    /// `f` of every entry of `from`, in order (no index, so nothing to
+    /// check on the tick's path).
+    fn mapped<U: Element, V: Element>(
+        from: &Self::Array<U>,
+        f: impl FnMut(&U) -> V,
+    ) -> Self::Array<V>;
+}
+
+impl<const N: usize> Length for Const<N> {
+    type Array<U: Element> = [U; N];
+
+    #[inline(always)]
+    fn filled<U: Element + Copy>(self, fill: U) -> [U; N] {
+        [fill; N]
+    }
+
+    #[inline(always)]
+    fn each<U: Element>(self, f: impl FnMut(usize) -> U) -> [U; N] {
+        core::array::from_fn(f)
+    }
+
+    #[inline(always)]
+    fn mapped<U: Element, V: Element>(from: &[U; N], f: impl FnMut(&U) -> V) -> [V; N] {
+        from.each_ref().map(f)
+    }
+}
+
 /// The sizes of a network: `N` state nodes, `B` boundaries and `M` inputs
 /// (current sources), and the vector types of each length.
 pub trait Sizes: Copy + Debug + PartialEq {
@@ -174,7 +216,23 @@ mod run_time {
 
     use nalgebra::Dyn;
 
-    use super::{Element, Sizes};
+    use super::{Element, Length, Sizes};
+
+    impl Length for Dyn {
+        type Array<U: Element> = Vec<U>;
+
+        fn filled<U: Element + Copy>(self, fill: U) -> Vec<U> {
+            vec![fill; self.0]
+        }
+
+        fn each<U: Element>(self, f: impl FnMut(usize) -> U) -> Vec<U> {
+            (0..self.0).map(f).collect()
+        }
+
+        fn mapped<U: Element, V: Element>(from: &Vec<U>, f: impl FnMut(&U) -> V) -> Vec<V> {
+            from.iter().map(f).collect()
+        }
+    }
 
     /// Sizes read at run time: every vector a `Vec` of the model's length
     /// (a host; allocates where a vector is made).

@@ -225,8 +225,14 @@ fn omnimagnet_predict<T: nalgebra::RealField + Copy>(
 ) -> Timing {
     use coil_thermal::filter::{predict_mean, KalmanConfig};
     let (f, g, h, q, r) = omnimagnet_model();
-    let cfg = KalmanConfig::<T, 16, 5, 6>::new(f.cast(), g.cast(), h.cast(), q.cast(), r.cast())
-        .expect("valid filter model");
+    let cfg = KalmanConfig::<T, nalgebra::Const<16>, nalgebra::Const<5>, nalgebra::Const<6>>::new(
+        f.cast(),
+        g.cast(),
+        h.cast(),
+        q.cast(),
+        r.cast(),
+    )
+    .expect("valid filter model");
     let mut x = nalgebra::SVector::<T, 16>::repeat(T::from_subset(&20.0));
     let u = nalgebra::SVector::<f64, 5>::from([9.0, 9.0, 9.0, 20.0, 1.0]).cast::<T>();
     measure(key.to_string(), min_time, repeats, || {
@@ -239,7 +245,14 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
         predict, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
     };
     let (f, g, h, q, r) = omnimagnet_model();
-    let cfg = KalmanConfig::<f32, 16, 5, 6>::new(f.cast(), g.cast(), h.cast(), q.cast(), r.cast())
+    let cfg =
+        KalmanConfig::<f32, nalgebra::Const<16>, nalgebra::Const<5>, nalgebra::Const<6>>::new(
+            f.cast(),
+            g.cast(),
+            h.cast(),
+            q.cast(),
+            r.cast(),
+        )
         .expect("valid filter model");
     let x0 = nalgebra::SVector::<f32, 16>::repeat(20.0);
     let z = [

@@ -21,18 +21,22 @@
 //! temperature, back by what that part of the correction had given it.
 //! [`condition_on`] is the same step to a given value.
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, RealField};
 
 /// Moves `x` onto `x[k] >= floor` if it is below (see the module docs),
 /// with the covariance `cov` the estimate was corrected with; returns
 /// whether it moved. A NaN `x[k]` or `floor`, or `k` out of range, leaves
 /// `x` as it is. Cost: `N` multiply-adds.
-pub fn project_onto_floor<T: RealField + Copy, const N: usize>(
-    x: &mut SVector<T, N>,
-    cov: &SMatrix<T, N, N>,
+pub fn project_onto_floor<T: RealField + Copy, N: Dim>(
+    x: &mut OVector<T, N>,
+    cov: &OMatrix<T, N, N>,
     k: usize,
     floor: T,
-) -> bool {
+) -> bool
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     // Not `>=`: a NaN compares false either way and must not move `x`.
     match x.get(k) {
         Some(xk) if *xk < floor => condition_on(x, cov, k, floor),
@@ -48,12 +52,15 @@ pub fn project_onto_floor<T: RealField + Copy, const N: usize>(
 /// temperatures with it). A state with no variance (or a NaN one) is set
 /// alone; a non-finite `value` or `x[k]`, or `k` out of range, leaves `x`
 /// as it is; returns whether it moved. Cost: `N` multiply-adds.
-pub fn condition_on<T: RealField + Copy, const N: usize>(
-    x: &mut SVector<T, N>,
-    cov: &SMatrix<T, N, N>,
+pub fn condition_on<T: RealField + Copy, N: Dim>(
+    x: &mut OVector<T, N>,
+    cov: &OMatrix<T, N, N>,
     k: usize,
     value: T,
-) -> bool {
+) -> bool
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     let Some(xk) = x.get(k).copied() else {
         return false;
     };

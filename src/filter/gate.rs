@@ -1,7 +1,10 @@
 //! Innovation gate, per-sensor verdicts, rejection counters and the recovery
 //! trigger. Shared by the time-varying and the steady-state correction.
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, DimName, OMatrix, OVector, RealField};
+
+use crate::sizes::Length;
 
 /// 99.9 % quantile of the chi-square distribution with 1 degree of freedom:
 /// the default gate threshold on `nu^2 / S` (a true reading exceeds it with
@@ -39,55 +42,96 @@ impl SensorVerdict {
     }
 }
 
-/// The outcome of one correction (`update` or `update_steady`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct UpdateReport<const P: usize> {
+/// The outcome of one correction (`update` or `update_steady`), for `P`
+/// sensors (`Const<P>`: arrays; `Dyn`: vectors).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UpdateReport<P: Length> {
     /// One verdict per sensor, in the order of the rows of `H`.
-    pub verdicts: [SensorVerdict; P],
+    pub verdicts: P::Array<SensorVerdict>,
     /// Sensors rejected at least `suspect_after` times in a row (after this
     /// correction): probably open, shorted, stuck or detached.
-    pub suspect: [bool; P],
+    pub suspect: P::Array<bool>,
     /// Every present reading was rejected for `recover_after` corrections in a
     /// row, so the covariance was inflated and this correction re-gated (see
     /// the module docs, "Recovery").
     pub recovered: bool,
 }
 
-impl<const P: usize> UpdateReport<P> {
+impl<P: Length> Copy for UpdateReport<P>
+where
+    P::Array<SensorVerdict>: Copy,
+    P::Array<bool>: Copy,
+{
+}
+
+#[cfg(feature = "defmt")]
+impl<const P: usize> defmt::Format for UpdateReport<nalgebra::Const<P>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "UpdateReport {{ verdicts: {}, suspect: {}, recovered: {} }}",
+            self.verdicts,
+            self.suspect,
+            self.recovered
+        )
+    }
+}
+
+impl<P: Length> UpdateReport<P> {
     /// Number of fused readings.
     pub fn fused(&self) -> usize {
-        self.verdicts.iter().filter(|v| v.is_fused()).count()
+        self.verdicts
+            .as_ref()
+            .iter()
+            .filter(|v| v.is_fused())
+            .count()
     }
 
     /// Number of rejected readings.
     pub fn rejected(&self) -> usize {
-        self.verdicts.iter().filter(|v| v.is_rejected()).count()
+        self.verdicts
+            .as_ref()
+            .iter()
+            .filter(|v| v.is_rejected())
+            .count()
     }
 
     /// True if any sensor is suspect.
     pub fn any_suspect(&self) -> bool {
-        self.suspect.iter().any(|&s| s)
+        self.suspect.as_ref().iter().any(|&s| s)
     }
 }
 
 /// Per-device gate memory: consecutive rejections per sensor and the number of
 /// consecutive corrections in which every present reading was rejected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct GateCounters<const P: usize> {
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GateCounters<P: Length> {
     /// Consecutive rejections of each sensor; reset when it is fused, kept
     /// when it is missing (a missing reading says nothing about the sensor).
-    pub consecutive_rejections: [u16; P],
+    pub consecutive_rejections: P::Array<u16>,
     /// Consecutive corrections with at least one reading and all rejected.
     pub all_rejected_streak: u16,
 }
 
-impl<const P: usize> GateCounters<P> {
-    /// All counters at zero.
-    pub const fn new() -> Self {
+impl<P: Length> Copy for GateCounters<P> where P::Array<u16>: Copy {}
+
+#[cfg(feature = "defmt")]
+impl<const P: usize> defmt::Format for GateCounters<nalgebra::Const<P>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "GateCounters {{ consecutive_rejections: {}, all_rejected_streak: {} }}",
+            self.consecutive_rejections,
+            self.all_rejected_streak
+        )
+    }
+}
+
+impl<P: Length> GateCounters<P> {
+    /// All counters at zero, for `sensors` sensors.
+    pub fn new(sensors: P) -> Self {
         Self {
-            consecutive_rejections: [0; P],
+            consecutive_rejections: sensors.filled(0),
             all_rejected_streak: 0,
         }
     }
@@ -97,9 +141,10 @@ impl<const P: usize> GateCounters<P> {
     /// the streak so recovery fires at most once per `recover_after`.
     pub(crate) fn record_gate(
         &mut self,
-        verdicts: &[SensorVerdict; P],
+        verdicts: &P::Array<SensorVerdict>,
         recover_after: u16,
     ) -> bool {
+        let verdicts = verdicts.as_ref();
         let present = verdicts
             .iter()
             .any(|v| !matches!(v, SensorVerdict::Missing));
@@ -123,15 +168,16 @@ impl<const P: usize> GateCounters<P> {
     /// suspect flags.
     pub(crate) fn record_sensors(
         &mut self,
-        verdicts: &[SensorVerdict; P],
+        verdicts: &P::Array<SensorVerdict>,
         suspect_after: u16,
-    ) -> [bool; P] {
-        let mut suspect = [false; P];
+    ) -> P::Array<bool> {
+        let mut suspect = P::mapped(verdicts, |_| false);
         for ((count, verdict), flag) in self
             .consecutive_rejections
+            .as_mut()
             .iter_mut()
-            .zip(verdicts)
-            .zip(suspect.iter_mut())
+            .zip(verdicts.as_ref())
+            .zip(suspect.as_mut().iter_mut())
         {
             match verdict {
                 SensorVerdict::Fused { .. } => *count = 0,
@@ -144,9 +190,9 @@ impl<const P: usize> GateCounters<P> {
     }
 }
 
-impl<const P: usize> Default for GateCounters<P> {
+impl<P: Length + DimName> Default for GateCounters<P> {
     fn default() -> Self {
-        Self::new()
+        Self::new(P::name())
     }
 }
 
@@ -177,16 +223,19 @@ pub(crate) fn nis_f32<T: RealField + Copy>(nis: T) -> f32 {
 /// Gates every present reading against the *prior* (before any of this
 /// correction's readings is fused), so verdicts do not depend on sensor order
 /// and match the steady-state gate exactly.
-pub(crate) fn gate_all<T: RealField + Copy, const N: usize, const P: usize>(
-    x: &SVector<T, N>,
-    cov: &SMatrix<T, N, N>,
-    ht: &SMatrix<T, N, P>,
-    r: &SVector<T, P>,
-    z: &[Option<T>; P],
+pub(crate) fn gate_all<T: RealField + Copy, N: Dim, P: Length>(
+    x: &OVector<T, N>,
+    cov: &OMatrix<T, N, N>,
+    ht: &OMatrix<T, N, P>,
+    r: &OVector<T, P>,
+    z: &P::Array<Option<T>>,
     threshold: T,
-) -> [SensorVerdict; P] {
-    let mut verdicts = [SensorVerdict::Missing; P];
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+) -> P::Array<SensorVerdict>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, P> + Allocator<N> + Allocator<P>,
+{
+    let mut verdicts = P::mapped(z, |_| SensorVerdict::Missing);
+    for (j, (verdict, zj)) in verdicts.as_mut().iter_mut().zip(z.as_ref()).enumerate() {
         let Some(zj) = usable(*zj) else { continue };
         let h = ht.column(j);
         let s = h.dot(&(cov * h)) + r[j];
@@ -231,7 +280,7 @@ mod tests {
         let rej = SensorVerdict::Rejected { nis: 99.0 };
         let ok = SensorVerdict::Fused { nis: 1.0 };
         let miss = SensorVerdict::Missing;
-        let mut c = GateCounters::<2>::new();
+        let mut c = GateCounters::new(nalgebra::Const::<2>);
         // Sensor 1 rejected 3 times in a row, sensor 0 healthy: suspect, no recovery.
         for _ in 0..3 {
             assert!(!c.record_gate(&[ok, rej], 2));

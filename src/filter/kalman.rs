@@ -1,34 +1,41 @@
 //! The time-varying filter: configuration, per-device state, predict and the
 //! sequential Joseph-form correction.
 
-use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Cholesky, Const, DefaultAllocator, Dim, DimName, OMatrix, OVector, RealField, U1};
 
 use super::gate::{
     gate_all, usable, GateCounters, GatePolicy, SensorVerdict, UpdateReport, CHI2_1DOF_999,
 };
+use super::{FilterAllocator, SensorAllocator};
 use crate::error::BuildError;
+use crate::sizes::Length;
 
 /// The discrete model and noise, validated once and shared by every device
-/// that uses it (N states, M inputs, P sensors).
+/// that uses it (N states, M inputs, P sensors, each a nalgebra dimension:
+/// `Const<N>` on an MCU, `Dyn` on a host with the `alloc` feature).
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, const P: usize> {
-    pub(crate) f: SMatrix<T, N, N>,
-    pub(crate) g: SMatrix<T, N, M>,
+pub struct KalmanConfig<T: RealField + Copy, N: Length, M: Dim, P: Length>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
+    pub(crate) f: OMatrix<T, N, N>,
+    pub(crate) g: OMatrix<T, N, M>,
     /// `H^T`: column `j` is sensor `j`'s row of `H`, contiguous in memory.
-    pub(crate) ht: SMatrix<T, N, P>,
-    pub(crate) q: SMatrix<T, N, N>,
-    pub(crate) r: SVector<T, P>,
+    pub(crate) ht: OMatrix<T, N, P>,
+    pub(crate) q: OMatrix<T, N, N>,
+    pub(crate) r: OVector<T, P>,
     pub(crate) gate: GatePolicy<T>,
     /// Variances added to the diagonal of `P` on recovery.
-    pub(crate) recovery_variance: SVector<T, N>,
+    pub(crate) recovery_variance: OVector<T, N>,
     /// First of the trailing states whose row of `F` is a unit row (random
     /// walks, such as bias states): `N` when there are none.
     pub(crate) walk_from: usize,
     /// The states each sensor's row of `H` reads: derived from `ht` by
     /// every constructor (nothing changes `ht` after).
-    pub(crate) reads: [Reads<N>; P],
+    pub(crate) reads: P::Array<Reads<N>>,
 }
 
 /// The states one sensor's row of `H` reads: the indices of its entries
@@ -37,13 +44,15 @@ pub struct KalmanConfig<T: RealField + Copy, const N: usize, const M: usize, con
 /// rest are multiply-adds by zero, one instruction each on an FPU but a
 /// soft-float pair on a core without one (the real motor's reading tick on
 /// a Cortex-M0: 14 states, one or two read).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Reads<const N: usize> {
-    states: [u16; N],
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Reads<N: Length> {
+    states: N::Array<u16>,
     count: u16,
 }
 
-impl<const N: usize> Reads<N> {
+impl<N: Length> Copy for Reads<N> where N::Array<u16>: Copy {}
+
+impl<const N: usize> Reads<Const<N>> {
     /// Nothing read (and a filter's state indices fit the `u16`s).
     const NONE: Self = {
         assert!(N <= 1 << 16, "at most 65 536 filter states");
@@ -54,7 +63,6 @@ impl<const N: usize> Reads<N> {
     };
 
     /// These states and `state` after them (at most `N`).
-    #[inline(always)]
     const fn push(mut self, state: usize) -> Self {
         if (self.count as usize) < N {
             self.states[self.count as usize] = state as u16;
@@ -75,12 +83,28 @@ impl<const N: usize> Reads<N> {
         }
         reads
     }
+}
 
-    /// Sensor `j`'s reads from `H^T`.
-    fn of<T: RealField + Copy, const P: usize>(ht: &SMatrix<T, N, P>, j: usize) -> Self {
-        (0..N)
-            .filter(|i| ht.get((*i, j)).is_some_and(|h| *h != T::zero()))
-            .fold(Self::NONE, Self::push)
+impl<N: Length> Reads<N> {
+    /// Sensor `j`'s reads from `H^T` (a filter's state indices fit the
+    /// `u16`s: a state beyond is not read, and the build refuses it).
+    fn of<T: RealField + Copy, P: Dim>(ht: &OMatrix<T, N, P>, j: usize) -> Self
+    where
+        DefaultAllocator: Allocator<N, P>,
+    {
+        let mut reads = Self {
+            states: ht.shape_generic().0.filled(0),
+            count: 0,
+        };
+        for (i, h) in ht.column(j).iter().enumerate() {
+            if *h != T::zero() {
+                if let Some(slot) = reads.states.as_mut().get_mut(usize::from(reads.count)) {
+                    *slot = i as u16;
+                    reads.count += 1;
+                }
+            }
+        }
+        reads
     }
 
     /// `h . x` for sensor `j`'s column `h` of `H^T`, over the states read.
@@ -90,17 +114,21 @@ impl<const N: usize> Reads<N> {
     /// its first term, this one at `+0`); with more, the same terms summed
     /// in another order.
     #[inline]
-    pub(crate) fn dot<T: RealField + Copy, const P: usize>(
+    pub(crate) fn dot<T: RealField + Copy, P: Dim>(
         &self,
-        ht: &SMatrix<T, N, P>,
+        ht: &OMatrix<T, N, P>,
         j: usize,
-        x: &SVector<T, N>,
-    ) -> T {
-        let Some(h) = ht.as_slice().get(j * N..(j + 1) * N) else {
+        x: &OVector<T, N>,
+    ) -> T
+    where
+        DefaultAllocator: Allocator<N, P> + Allocator<N>,
+    {
+        let n = ht.nrows();
+        let Some(h) = ht.as_slice().get(j * n..(j + 1) * n) else {
             return T::zero();
         };
         let mut sum = T::zero();
-        for &i in self.states.iter().take(self.count as usize) {
+        for &i in self.states.as_ref().iter().take(self.count as usize) {
             if let (Some(h), Some(x)) = (h.get(i as usize), x.get(i as usize)) {
                 sum += *h * *x;
             }
@@ -113,7 +141,7 @@ impl<const N: usize> Reads<N> {
 /// in a `const fn`.
 pub(crate) const fn reads_of_rows<const N: usize, const P: usize>(
     ht: &[[f32; P]; N],
-) -> [Reads<N>; P] {
+) -> [Reads<Const<N>>; P] {
     let mut reads = [Reads::NONE; P];
     let mut j = 0;
     while j < P {
@@ -124,10 +152,11 @@ pub(crate) const fn reads_of_rows<const N: usize, const P: usize>(
 }
 
 /// Every sensor's [`Reads`] from `H^T`.
-fn reads_of<T: RealField + Copy, const N: usize, const P: usize>(
-    ht: &SMatrix<T, N, P>,
-) -> [Reads<N>; P] {
-    core::array::from_fn(|j| Reads::of(ht, j))
+fn reads_of<T: RealField + Copy, N: Length, P: Length>(ht: &OMatrix<T, N, P>) -> P::Array<Reads<N>>
+where
+    DefaultAllocator: Allocator<N, P>,
+{
+    ht.shape_generic().1.each(|j| Reads::of(ht, j))
 }
 
 /// Input handling of one predict step.
@@ -147,54 +176,86 @@ pub enum InputStatus {
 /// Per-device filter state: the estimate, its covariance and the gate memory.
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct KalmanState<T: RealField + Copy, const N: usize, const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub struct KalmanState<T: RealField + Copy, N: Dim, P: Length>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     /// State estimate `x`.
-    pub x: SVector<T, N>,
+    pub x: OVector<T, N>,
     /// Estimate covariance `P` (symmetric positive semi-definite).
-    pub cov: SMatrix<T, N, N>,
+    pub cov: OMatrix<T, N, N>,
     /// Rejection counters.
     pub gate: GateCounters<P>,
 }
 
-impl<T: RealField + Copy, const N: usize, const P: usize> KalmanState<T, N, P> {
-    /// A state with estimate `x0` and covariance `p0` (the caller's prior).
-    pub fn new(x0: SVector<T, N>, p0: SMatrix<T, N, N>) -> Self {
+impl<T: RealField + Copy, N: Dim, P: Length> Copy for KalmanState<T, N, P>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+    OVector<T, N>: Copy,
+    OMatrix<T, N, N>: Copy,
+    GateCounters<P>: Copy,
+{
+}
+
+impl<T: RealField + Copy, N: Dim, P: Length> KalmanState<T, N, P>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    /// A state with estimate `x0` and covariance `p0` (the caller's prior),
+    /// for `sensors` sensors.
+    pub fn for_sensors(x0: OVector<T, N>, p0: OMatrix<T, N, N>, sensors: P) -> Self {
         Self {
             x: x0,
             cov: p0,
-            gate: GateCounters::new(),
+            gate: GateCounters::new(sensors),
         }
+    }
+
+    /// A state with estimate `x0` and covariance `p0` (the caller's prior),
+    /// for a number of sensors known when compiling.
+    pub fn new(x0: OVector<T, N>, p0: OMatrix<T, N, N>) -> Self
+    where
+        P: DimName,
+    {
+        Self::for_sensors(x0, p0, P::name())
     }
 }
 
-fn all_finite<T: RealField + Copy, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> bool {
+fn all_finite<T: RealField + Copy, R: Dim, C: Dim>(m: &OMatrix<T, R, C>) -> bool
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     m.iter().all(|v| v.is_finite())
 }
 
 /// `m += diag(v)`.
-pub(crate) fn add_diagonal<T: RealField + Copy, const N: usize>(
-    m: &mut SMatrix<T, N, N>,
-    v: &SVector<T, N>,
-) {
+pub(crate) fn add_diagonal<T: RealField + Copy, N: Dim>(m: &mut OMatrix<T, N, N>, v: &OVector<T, N>)
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     for (i, vi) in v.iter().enumerate() {
         m[(i, i)] += *vi;
     }
 }
 
 /// Largest absolute entry (0 for an empty matrix).
-pub(crate) fn max_abs<T: RealField + Copy, const R: usize, const C: usize>(
-    m: &SMatrix<T, R, C>,
-) -> T {
+pub(crate) fn max_abs<T: RealField + Copy, R: Dim, C: Dim>(m: &OMatrix<T, R, C>) -> T
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     m.iter().fold(T::zero(), |acc, v| acc.max(v.abs()))
 }
 
 /// Checks that `q` is finite, symmetric to rounding and positive semi-definite
 /// (to rounding), and returns its exactly symmetric part.
-pub(crate) fn validate_psd<T: RealField + Copy, const N: usize>(
-    q: &SMatrix<T, N, N>,
+pub(crate) fn validate_psd<T: RealField + Copy, N: Dim>(
+    q: &OMatrix<T, N, N>,
     name: &'static str,
-) -> Result<SMatrix<T, N, N>, BuildError> {
+) -> Result<OMatrix<T, N, N>, BuildError>
+where
+    DefaultAllocator: Allocator<N, N>,
+{
     if !all_finite(q) {
         return Err(BuildError::InvalidParameter { name });
     }
@@ -215,16 +276,20 @@ pub(crate) fn validate_psd<T: RealField + Copy, const N: usize>(
     if scale == T::zero() {
         return Ok(sym);
     }
-    let n: T = nalgebra::convert(N as f64);
+    let (rows, columns) = q.shape_generic();
+    let n: T = nalgebra::convert(q.nrows() as f64);
     let ridge = eps * n * nalgebra::convert(64.0) * scale;
-    let ridged = sym + SMatrix::<T, N, N>::identity() * ridge;
+    let ridged = sym.clone() + OMatrix::<T, N, N>::identity_generic(rows, columns) * ridge;
     if Cholesky::new(ridged).is_none() {
         return Err(BuildError::InvalidParameter { name });
     }
     Ok(sym)
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> KalmanConfig<T, N, M, P> {
+impl<T: RealField + Copy, N: Length, M: Dim, P: Length> KalmanConfig<T, N, M, P>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     /// Validates and builds the configuration.
     ///
     /// * `f`: state transition `F` (N x N), one predict step.
@@ -239,14 +304,23 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
     /// rejections, recovery after 5 all-rejected corrections adding
     /// `1e4 * max(r)` to every diagonal entry of `P` (a 100-sigma widening for
     /// states in the units of the readings; see [`Self::with_recovery`]).
+    ///
+    /// A filter needs states and sensors: `N = 0` is refused as a bad `f`,
+    /// `P = 0` as a bad `h`, and so are mismatched shapes (a run-time size).
     pub fn new(
-        f: SMatrix<T, N, N>,
-        g: SMatrix<T, N, M>,
-        h: SMatrix<T, P, N>,
-        q: SMatrix<T, N, N>,
-        r: SVector<T, P>,
+        f: OMatrix<T, N, N>,
+        g: OMatrix<T, N, M>,
+        h: OMatrix<T, P, N>,
+        q: OMatrix<T, N, N>,
+        r: OVector<T, P>,
     ) -> Result<Self, BuildError> {
-        const { assert!(N > 0 && P > 0, "a filter needs states and sensors") };
+        let (n, p) = (f.nrows(), h.nrows());
+        if n == 0 || f.ncols() != n || g.nrows() != n || q.shape() != (n, n) {
+            return Err(BuildError::InvalidParameter { name: "f" });
+        }
+        if p == 0 || h.ncols() != n || r.nrows() != p || n > 1 << 16 {
+            return Err(BuildError::InvalidParameter { name: "h" });
+        }
         if !all_finite(&f) {
             return Err(BuildError::InvalidParameter { name: "f" });
         }
@@ -262,9 +336,11 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
         }
         let r_max = r.iter().fold(T::zero(), |a, v| a.max(*v));
         let unit_row =
-            |i: usize| (0..N).all(|k| f[(i, k)] == if k == i { T::one() } else { T::zero() });
-        let walk_from = (0..N).rev().take_while(|i| unit_row(*i)).fold(N, |_, i| i);
+            |i: usize| (0..n).all(|k| f[(i, k)] == if k == i { T::one() } else { T::zero() });
+        let walk_from = (0..n).rev().take_while(|i| unit_row(*i)).fold(n, |_, i| i);
         let ht = h.transpose();
+        let recovery_variance =
+            OVector::repeat_generic(f.shape_generic().0, U1, r_max * nalgebra::convert(1e4));
         Ok(Self {
             f,
             g,
@@ -277,7 +353,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
                 suspect_after: 3,
                 recover_after: 5,
             },
-            recovery_variance: SVector::repeat(r_max * nalgebra::convert(1e4)),
+            recovery_variance,
             walk_from,
         })
     }
@@ -303,9 +379,11 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
     pub fn with_recovery(
         mut self,
         after: u16,
-        variance: SVector<T, N>,
+        variance: OVector<T, N>,
     ) -> Result<Self, BuildError> {
-        if variance.iter().any(|v| !v.is_finite() || *v < T::zero()) {
+        if variance.nrows() != self.f.nrows()
+            || variance.iter().any(|v| !v.is_finite() || *v < T::zero())
+        {
             return Err(BuildError::InvalidParameter { name: "variance" });
         }
         self.gate.recover_after = after;
@@ -314,27 +392,27 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
     }
 
     /// State transition `F`.
-    pub fn f(&self) -> &SMatrix<T, N, N> {
+    pub fn f(&self) -> &OMatrix<T, N, N> {
         &self.f
     }
 
     /// Input matrix `G`.
-    pub fn g(&self) -> &SMatrix<T, N, M> {
+    pub fn g(&self) -> &OMatrix<T, N, M> {
         &self.g
     }
 
     /// Measurement matrix `H` (P x N).
-    pub fn h(&self) -> SMatrix<T, P, N> {
+    pub fn h(&self) -> OMatrix<T, P, N> {
         self.ht.transpose()
     }
 
     /// Process noise `Q` (exactly symmetric).
-    pub fn q(&self) -> &SMatrix<T, N, N> {
+    pub fn q(&self) -> &OMatrix<T, N, N> {
         &self.q
     }
 
     /// Measurement noise variances `r`.
-    pub fn r(&self) -> &SVector<T, P> {
+    pub fn r(&self) -> &OVector<T, P> {
         &self.r
     }
 
@@ -376,12 +454,15 @@ impl<T: RealField + Copy, const N: usize, const M: usize, const P: usize> Kalman
 /// the rounding carried, as
 /// [`NetworkObserver`](crate::observer::NetworkObserver) does (within
 /// 1e-5 K of `f64` there), or run this in `f64`.
-pub fn predict_mean<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub fn predict_mean<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
-    x: &mut SVector<T, N>,
-    u: &SVector<T, M>,
-) -> InputStatus {
-    let prev = *x;
+    x: &mut OVector<T, N>,
+    u: &OVector<T, M>,
+) -> InputStatus
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
+    let prev = x.clone();
     x.gemv(T::one(), &cfg.f, &prev, T::zero());
     if u.iter().all(|v| v.is_finite()) {
         x.gemv(T::one(), &cfg.g, u, T::one());
@@ -396,11 +477,14 @@ pub fn predict_mean<T: RealField + Copy, const N: usize, const M: usize, const P
 /// time), that block and the symmetry of `P` are exploited: about 40 % fewer
 /// multiply-adds for the Omnimagnet's 16 + 3 states, same result to
 /// rounding; otherwise the plain product.
-pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub fn predict<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
     state: &mut KalmanState<T, N, P>,
-    u: &SVector<T, M>,
-) -> InputStatus {
+    u: &OVector<T, M>,
+) -> InputStatus
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     let status = predict_mean(cfg, &mut state.x, u);
     predict_cov(cfg, &mut state.cov);
     status
@@ -409,16 +493,18 @@ pub fn predict<T: RealField + Copy, const N: usize, const M: usize, const P: usi
 /// The covariance half of [`predict`]: `P = F P F^T + Q`, exactly
 /// symmetric (for a caller that runs its own mean predict, as the network
 /// observer's time-varying warm-up does).
-pub(crate) fn predict_cov<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub(crate) fn predict_cov<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
-    cov: &mut SMatrix<T, N, N>,
-) {
-    if cfg.walk_from < N {
+    cov: &mut OMatrix<T, N, N>,
+) where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
+    if cfg.walk_from < cov.nrows() {
         propagate_cov(&cfg.f, &cfg.q, cfg.walk_from, cov);
     } else {
         // Without random walks the plain product, so that models without
         // them keep their results bit for bit.
-        let prev = *cov;
+        let prev = cov.clone();
         cov.copy_from(&cfg.q);
         cov.quadform_tr(T::one(), &cfg.f, &prev, T::one());
         *cov = cov.symmetric_part();
@@ -429,15 +515,18 @@ pub(crate) fn predict_cov<T: RealField + Copy, const N: usize, const M: usize, c
 const BLOCK: usize = 8;
 
 /// `sum_k m[start..start + BLOCK, k] w_k` for the column-major `m` with
-/// `ROWS` rows (rows past the end of a column count as zero): a fixed-size
-/// accumulator the compiler keeps in registers.
-fn block_combination<T: RealField + Copy, const ROWS: usize>(
+/// `rows` rows (rows past the end of a column count as zero): a fixed-size
+/// accumulator the compiler keeps in registers. Inlined, so that a
+/// constant `rows` (a size known when compiling) stays one.
+#[inline(always)]
+fn block_combination<T: RealField + Copy>(
     m: &[T],
+    rows: usize,
     start: usize,
     weights: impl Iterator<Item = T>,
 ) -> [T; BLOCK] {
     let mut acc = [T::zero(); BLOCK];
-    for (col, w) in m.chunks_exact(ROWS).zip(weights) {
+    for (col, w) in m.chunks_exact(rows).zip(weights) {
         match col.get(start..start + BLOCK) {
             Some(block) => {
                 for (a, v) in acc.iter_mut().zip(block) {
@@ -475,40 +564,47 @@ fn store_block<T: Copy>(col: &mut [T], start: usize, acc: &[T; BLOCK]) {
 /// 16 + 3 states against 13 718. Columns are walked contiguously (nalgebra
 /// stores column-major) in blocks of [`BLOCK`] rows accumulated in
 /// registers.
-pub(crate) fn propagate_cov<T: RealField + Copy, const N: usize>(
-    f: &SMatrix<T, N, N>,
-    q: &SMatrix<T, N, N>,
+pub(crate) fn propagate_cov<T: RealField + Copy, N: Dim>(
+    f: &OMatrix<T, N, N>,
+    q: &OMatrix<T, N, N>,
     walk_from: usize,
-    cov: &mut SMatrix<T, N, N>,
-) {
-    let a = walk_from.min(N);
-    let p = *cov;
+    cov: &mut OMatrix<T, N, N>,
+) where
+    DefaultAllocator: Allocator<N, N>,
+{
+    let (rows, columns) = cov.shape_generic();
+    let n = cov.nrows();
+    if n == 0 {
+        return;
+    }
+    let a = walk_from.min(n);
+    let p = cov.clone();
     let fs = f.as_slice();
     // Y[:a, j] = sum_k F[:a, k] P[k, j], in blocks of rows held in registers.
-    let mut y = SMatrix::<T, N, N>::zeros();
+    let mut y = OMatrix::<T, N, N>::zeros_generic(rows, columns);
     for (ycol, pcol) in y
         .as_mut_slice()
-        .chunks_exact_mut(N)
-        .zip(p.as_slice().chunks_exact(N))
+        .chunks_exact_mut(n)
+        .zip(p.as_slice().chunks_exact(n))
     {
         for start in (0..a).step_by(BLOCK) {
-            let acc = block_combination::<T, N>(fs, start, pcol.iter().copied());
+            let acc = block_combination(fs, n, start, pcol.iter().copied());
             store_block(ycol, start, &acc);
         }
     }
     // C[i, j] = sum_k Y[i, k] F[j, k] for j <= i < a (blocks may reach above
     // the diagonal; those entries are not used).
     let ys = y.as_slice();
-    let mut c = SMatrix::<T, N, N>::zeros();
-    for (j, ccol) in c.as_mut_slice().chunks_exact_mut(N).enumerate().take(a) {
-        let fj = fs.iter().skip(j).step_by(N).copied();
+    let mut c = OMatrix::<T, N, N>::zeros_generic(rows, columns);
+    for (j, ccol) in c.as_mut_slice().chunks_exact_mut(n).enumerate().take(a) {
+        let fj = fs.iter().skip(j).step_by(n).copied();
         for start in (j - j % BLOCK..a).step_by(BLOCK) {
-            let acc = block_combination::<T, N>(ys, start, fj.clone());
+            let acc = block_combination(ys, n, start, fj.clone());
             store_block(ccol, start, &acc);
         }
     }
-    for j in 0..N {
-        for i in j..N {
+    for j in 0..n {
+        for i in j..n {
             let v = if j >= a {
                 p[(i, j)]
             } else if i >= a {
@@ -531,28 +627,31 @@ pub(crate) fn propagate_cov<T: RealField + Copy, const N: usize>(
 /// `W (I - k h)^T = W - (W h^T) k^T`, then `+ r k k^T`.
 ///
 /// Returns false (and changes nothing) if the result would not be finite.
-pub(crate) fn fuse_scalar<T: RealField + Copy, const N: usize>(
-    x: &mut SVector<T, N>,
-    cov: &mut SMatrix<T, N, N>,
-    h: &SVector<T, N>,
+pub(crate) fn fuse_scalar<T: RealField + Copy, N: Dim>(
+    x: &mut OVector<T, N>,
+    cov: &mut OMatrix<T, N, N>,
+    h: &OVector<T, N>,
     r: T,
     z: T,
-) -> bool {
-    let b = *cov * h;
+) -> bool
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let b = &*cov * h;
     let s = h.dot(&b) + r;
     if !s.is_finite() || s <= T::zero() {
         return false;
     }
-    let k = b / s;
+    let k = &b / s;
     let nu = z - h.dot(x);
-    let mut x_new = *x;
+    let mut x_new = x.clone();
     x_new.axpy(nu, &k, T::one());
     if !x_new.iter().all(|v| v.is_finite()) {
         return false;
     }
-    let mut w = *cov;
+    let mut w = cov.clone();
     w.ger(-T::one(), &k, &b, T::one());
-    let c = w * h;
+    let c = &w * h;
     w.ger(-T::one(), &c, &k, T::one());
     w.ger(r, &k, &k, T::one());
     let w = w.symmetric_part();
@@ -567,21 +666,24 @@ pub(crate) fn fuse_scalar<T: RealField + Copy, const N: usize>(
 /// Fuses the readings whose verdict is `Fused`, one scalar update each, in
 /// sensor order. A reading that would make the state non-finite is turned
 /// into a rejection.
-pub(crate) fn fuse_accepted<T: RealField + Copy, const N: usize, const P: usize>(
-    x: &mut SVector<T, N>,
-    cov: &mut SMatrix<T, N, N>,
-    ht: &SMatrix<T, N, P>,
-    r: &SVector<T, P>,
-    z: &[Option<T>; P],
-    verdicts: &mut [SensorVerdict; P],
-) {
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+pub(crate) fn fuse_accepted<T: RealField + Copy, N: Dim, P: Length>(
+    x: &mut OVector<T, N>,
+    cov: &mut OMatrix<T, N, N>,
+    ht: &OMatrix<T, N, P>,
+    r: &OVector<T, P>,
+    z: &P::Array<Option<T>>,
+    verdicts: &mut P::Array<SensorVerdict>,
+) where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
+    let readings = verdicts.as_mut().iter_mut().zip(z.as_ref()).zip(r.iter());
+    for (j, ((verdict, zj), rj)) in readings.enumerate() {
         let SensorVerdict::Fused { nis } = *verdict else {
             continue;
         };
         let Some(zj) = usable(*zj) else { continue };
-        let h: SVector<T, N> = ht.column(j).into_owned();
-        if !fuse_scalar(x, cov, &h, r[j], zj) {
+        let h: OVector<T, N> = ht.column(j).into_owned();
+        if !fuse_scalar(x, cov, &h, *rj, zj) {
             *verdict = SensorVerdict::Rejected { nis };
         }
     }
@@ -591,11 +693,14 @@ pub(crate) fn fuse_accepted<T: RealField + Copy, const N: usize, const P: usize>
 /// skips sensor `j`. Each present reading is gated against the prior, the
 /// accepted ones are fused sequentially (Joseph form), and the rejection
 /// counters and recovery policy are applied (see the module docs).
-pub fn update<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub fn update<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
     state: &mut KalmanState<T, N, P>,
-    z: &[Option<T>; P],
-) -> UpdateReport<P> {
+    z: &P::Array<Option<T>>,
+) -> UpdateReport<P>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     let mut verdicts = gate_all(&state.x, &state.cov, &cfg.ht, &cfg.r, z, cfg.gate.threshold);
     let recovered = state.gate.record_gate(&verdicts, cfg.gate.recover_after);
     if recovered {
@@ -618,24 +723,27 @@ pub fn update<T: RealField + Copy, const N: usize, const M: usize, const P: usiz
     }
 }
 
-impl<const N: usize, const M: usize, const P: usize> KalmanConfig<f64, N, M, P> {
+impl<N: Length, M: Dim, P: Length> KalmanConfig<f64, N, M, P>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     /// The same filter in another float type: matrices built and checked in
     /// `f64`, run in `f32` on an MCU with an FPU.
     pub fn cast<U: RealField + Copy>(&self) -> KalmanConfig<U, N, M, P> {
-        let ht = self.ht.cast();
+        let ht = self.ht.clone().cast();
         KalmanConfig {
-            f: self.f.cast(),
-            g: self.g.cast(),
+            f: self.f.clone().cast(),
+            g: self.g.clone().cast(),
             reads: reads_of(&ht),
             ht,
-            q: self.q.cast(),
-            r: self.r.cast(),
+            q: self.q.clone().cast(),
+            r: self.r.clone().cast(),
             gate: GatePolicy {
                 threshold: nalgebra::convert(self.gate.threshold),
                 suspect_after: self.gate.suspect_after,
                 recover_after: self.gate.recover_after,
             },
-            recovery_variance: self.recovery_variance.cast(),
+            recovery_variance: self.recovery_variance.clone().cast(),
             walk_from: self.walk_from,
         }
     }
@@ -645,10 +753,10 @@ impl<const N: usize, const M: usize, const P: usize> KalmanConfig<f64, N, M, P> 
 mod tests {
     use super::*;
     use crate::filter::testutil::{is_sym_psd, RandomSystem, Rng};
-    use nalgebra::{Matrix1, SMatrix, SVector, Vector1, Vector2, Vector4};
+    use nalgebra::{Const, Matrix1, SMatrix, SVector, Vector1, Vector2, Vector4};
     use proptest::prelude::*;
 
-    type Cfg4 = KalmanConfig<f64, 4, 1, 2>;
+    type Cfg4 = KalmanConfig<f64, Const<4>, U1, Const<2>>;
 
     fn random_cfg(rng: &mut Rng) -> (Cfg4, RandomSystem<4, 2>, SMatrix<f64, 4, 1>) {
         let sys = RandomSystem::<4, 2>::new(rng, 0.95, 0.01);
@@ -659,7 +767,7 @@ mod tests {
 
     /// The scalar random walk (F = H = 1, no input) and its closed-form
     /// steady prior variance `M = (q + sqrt(q^2 + 4 q r)) / 2`.
-    fn random_walk<T: RealField + Copy>(q: T, r: T) -> (KalmanConfig<T, 1, 1, 1>, T) {
+    fn random_walk<T: RealField + Copy>(q: T, r: T) -> (KalmanConfig<T, U1, U1, U1>, T) {
         let two = T::one() + T::one();
         let m = (q + (q * q + two * two * q * r).sqrt()) / two;
         let cfg = KalmanConfig::new(
@@ -708,7 +816,7 @@ mod tests {
     fn a_long_f32_run_keeps_the_covariance_symmetric_and_positive_definite() {
         use crate::filter::testutil::thermal_chain_16;
         let (f, h) = thermal_chain_16();
-        let cfg = KalmanConfig::<f32, 16, 1, 6>::new(
+        let cfg = KalmanConfig::<f32, Const<16>, U1, Const<6>>::new(
             f.cast::<f32>(),
             SMatrix::<f32, 16, 1>::zeros(),
             h.cast::<f32>(),
@@ -860,7 +968,7 @@ mod tests {
     fn recovers_from_wrong_state() {
         let f = SMatrix::<f64, 3, 3>::new(0.9, 0.1, 0.0, 0.1, 0.8, 0.1, 0.0, 0.1, 0.9);
         let h = SMatrix::<f64, 2, 3>::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
-        let base = KalmanConfig::<f64, 3, 1, 2>::new(
+        let base = KalmanConfig::<f64, Const<3>, U1, Const<2>>::new(
             f,
             SMatrix::zeros(),
             h,
@@ -941,7 +1049,7 @@ mod tests {
             let p = (l * l.transpose()).symmetric_part();
             let lq: SMatrix<f64, 7, 7> = rng.matrix();
             let q = (lq * lq.transpose() * 0.01).symmetric_part();
-            let cfg = KalmanConfig::<f64, 7, 1, 1>::new(
+            let cfg = KalmanConfig::<f64, Const<7>, U1, U1>::new(
                 f,
                 SMatrix::zeros(),
                 SMatrix::<f64, 1, 7>::repeat(1.0),

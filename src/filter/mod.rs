@@ -133,7 +133,39 @@ pub(crate) use riccati::update_against;
 pub use riccati::{k_step_model, update_steady, SteadyEstimate, SteadyStateGain};
 pub use virtual_sensor::update_virtual;
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, RealField};
+
+/// The nalgebra allocations of a filter's matrices over `N` states and `P`
+/// sensors (`N x N`, `N x P`, `P x N`, `P x P`, and vectors of each
+/// length): one bound, `DefaultAllocator: SensorAllocator<N, P>`, for code
+/// over the dimensions (see [`crate::sizes`]).
+pub trait SensorAllocator<N: Dim, P: Dim>:
+    Allocator<N, N> + Allocator<N, P> + Allocator<P, N> + Allocator<P, P> + Allocator<N> + Allocator<P>
+{
+}
+
+impl<N: Dim, P: Dim, A> SensorAllocator<N, P> for A where
+    A: Allocator<N, N>
+        + Allocator<N, P>
+        + Allocator<P, N>
+        + Allocator<P, P>
+        + Allocator<N>
+        + Allocator<P>
+{
+}
+
+/// [`SensorAllocator`] and the `M` inputs' (`N x M`, a vector of `M`): the
+/// allocations of a [`KalmanConfig`].
+pub trait FilterAllocator<N: Dim, M: Dim, P: Dim>:
+    SensorAllocator<N, P> + Allocator<N, M> + Allocator<M>
+{
+}
+
+impl<N: Dim, M: Dim, P: Dim, A> FilterAllocator<N, M, P> for A where
+    A: SensorAllocator<N, P> + Allocator<N, M> + Allocator<M>
+{
+}
 
 /// `y += a x`, column by column as nalgebra's `gemv(1, a, x, 1)` sums it
 /// (so the same bits: `(1 a_ij) x_j + 1 y_i` is `y_i + a_ij x_j`), without
@@ -145,16 +177,21 @@ use nalgebra::{RealField, SMatrix, SVector};
 /// subset fusion's: its 19 x 6 on a Cortex-M4F was 30 instructions dearer
 /// than `gemv` (measured).
 #[inline(always)]
-pub(crate) fn add_product<T: RealField + Copy, const R: usize, const C: usize>(
-    y: &mut SVector<T, R>,
-    a: &SMatrix<T, R, C>,
-    x: &SVector<T, C>,
-) {
-    // The arrays themselves (`a`'s columns are its storage's rows): a
+pub(crate) fn add_product<T: RealField + Copy, R: Dim, C: Dim>(
+    y: &mut OVector<T, R>,
+    a: &OMatrix<T, R, C>,
+    x: &OVector<T, C>,
+) where
+    DefaultAllocator: Allocator<R, C> + Allocator<R> + Allocator<C>,
+{
+    // The storage's slices (`a`'s columns are its chunks of `R`): a
     // matrix view per column was measured far slower on the M4F.
-    let [y] = &mut y.data.0;
-    let [x] = &x.data.0;
-    for (column, xj) in a.data.0.iter().zip(x) {
+    let rows = a.nrows();
+    if rows == 0 {
+        return;
+    }
+    let y = y.as_mut_slice();
+    for (column, xj) in a.as_slice().chunks_exact(rows).zip(x.as_slice()) {
         for (yi, aij) in y.iter_mut().zip(column) {
             *yi += *aij * *xj;
         }

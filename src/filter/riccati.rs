@@ -2,72 +2,119 @@
 //! equation (solved by structure-preserving doubling) and the constant-gain
 //! correction with its missing-sensor fallback.
 
-use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Cholesky, DefaultAllocator, Dim, DimName, OMatrix, OVector, RealField, U1};
 
 use super::gate::{judge, usable, GateCounters, SensorVerdict, UpdateReport};
 use super::kalman::{add_diagonal, fuse_scalar, max_abs, KalmanConfig};
+use super::{FilterAllocator, SensorAllocator};
 use crate::error::BuildError;
+use crate::sizes::Length;
 
 /// Upper bound on doubling steps: step `i` covers `2^i` correction periods,
 /// so 64 steps exceed any horizon a filter meets.
 const MAX_DOUBLINGS: usize = 64;
 
-/// The steady-state solution for corrections every `period` predict steps.
+/// The steady-state solution for corrections every `period` predict steps
+/// (`N` states and `P` sensors, nalgebra dimensions).
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SteadyStateGain<T: RealField + Copy, const N: usize, const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteadyStateGain<T: RealField + Copy, N: Dim, P: Dim>
+where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
     pub(crate) period: u32,
-    pub(crate) gain: SMatrix<T, N, P>,
-    pub(crate) prior: SMatrix<T, N, N>,
-    pub(crate) posterior: SMatrix<T, N, N>,
-    pub(crate) innovation_var: SVector<T, P>,
+    pub(crate) gain: OMatrix<T, N, P>,
+    pub(crate) prior: OMatrix<T, N, N>,
+    pub(crate) posterior: OMatrix<T, N, N>,
+    pub(crate) innovation_var: OVector<T, P>,
     /// `M H^T`: with `S` below, the update of any sensor subset from `M`
     /// without touching an `N x N` matrix.
-    pub(crate) prior_ht: SMatrix<T, N, P>,
+    pub(crate) prior_ht: OMatrix<T, N, P>,
     /// Innovation covariance `S = H M H^T + R` of all sensors.
-    pub(crate) innovation_cov: SMatrix<T, P, P>,
+    pub(crate) innovation_cov: OMatrix<T, P, P>,
+}
+
+impl<T: RealField + Copy, N: Dim, P: Dim> Copy for SteadyStateGain<T, N, P>
+where
+    DefaultAllocator: SensorAllocator<N, P>,
+    OMatrix<T, N, P>: Copy,
+    OMatrix<T, N, N>: Copy,
+    OMatrix<T, P, P>: Copy,
+    OVector<T, P>: Copy,
+{
 }
 
 /// Per-device state of the steady-state filter: the estimate and the gate
 /// memory (no covariance: it is constant and lives in [`SteadyStateGain`]).
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SteadyEstimate<T: RealField + Copy, const N: usize, const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteadyEstimate<T: RealField + Copy, N: Dim, P: Length>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// State estimate `x`.
-    pub x: SVector<T, N>,
+    pub x: OVector<T, N>,
     /// Rejection counters.
     pub gate: GateCounters<P>,
 }
 
-impl<T: RealField + Copy, const N: usize, const P: usize> SteadyEstimate<T, N, P> {
-    /// An estimate starting at `x0`.
-    pub fn new(x0: SVector<T, N>) -> Self {
+impl<T: RealField + Copy, N: Dim, P: Length> Copy for SteadyEstimate<T, N, P>
+where
+    DefaultAllocator: Allocator<N>,
+    OVector<T, N>: Copy,
+    GateCounters<P>: Copy,
+{
+}
+
+impl<T: RealField + Copy, N: Dim, P: Length> SteadyEstimate<T, N, P>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    /// An estimate starting at `x0`, for `sensors` sensors.
+    pub fn for_sensors(x0: OVector<T, N>, sensors: P) -> Self {
         Self {
             x: x0,
-            gate: GateCounters::new(),
+            gate: GateCounters::new(sensors),
         }
+    }
+
+    /// An estimate starting at `x0`, for a number of sensors known when
+    /// compiling.
+    pub fn new(x0: OVector<T, N>) -> Self
+    where
+        P: DimName,
+    {
+        Self::for_sensors(x0, P::name())
     }
 }
 
 /// `(F^k, sum_{i<k} F^i Q F^iT)`: the transition and process noise of `k`
 /// predict steps, by binary powering (at most 2 log2(k) compositions).
-pub fn k_step_model<T: RealField + Copy, const N: usize>(
-    f: &SMatrix<T, N, N>,
-    q: &SMatrix<T, N, N>,
+pub fn k_step_model<T: RealField + Copy, N: Dim>(
+    f: &OMatrix<T, N, N>,
+    q: &OMatrix<T, N, N>,
     k: u32,
-) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
+) -> (OMatrix<T, N, N>, OMatrix<T, N, N>)
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     // Segments of one time-invariant model commute, so the order in which the
     // binary pieces are composed does not matter.
-    let compose = |(fa, qa): &(SMatrix<T, N, N>, SMatrix<T, N, N>),
-                   (fb, qb): &(SMatrix<T, N, N>, SMatrix<T, N, N>)| {
-        let mut qn = *qb;
+    let compose = |(fa, qa): &(OMatrix<T, N, N>, OMatrix<T, N, N>),
+                   (fb, qb): &(OMatrix<T, N, N>, OMatrix<T, N, N>)| {
+        let mut qn = qb.clone();
         qn.quadform_tr(T::one(), fb, qa, T::one());
         (fb * fa, qn.symmetric_part())
     };
-    let mut acc = (SMatrix::<T, N, N>::identity(), SMatrix::<T, N, N>::zeros());
-    let mut pow = (*f, *q);
+    let (rows, columns) = f.shape_generic();
+    let mut acc = (
+        OMatrix::<T, N, N>::identity_generic(rows, columns),
+        OMatrix::<T, N, N>::zeros_generic(rows, columns),
+    );
+    let mut pow = (f.clone(), q.clone());
     let mut rest = k;
     while rest > 0 {
         if rest & 1 == 1 {
@@ -85,35 +132,39 @@ pub fn k_step_model<T: RealField + Copy, const N: usize>(
 /// `X = A X A^T - A X H^T (H X H^T + R)^-1 H X A^T + Q` by the
 /// structure-preserving doubling algorithm (Chu, Fan, Lin 2005, applied to the
 /// dual control DARE with `A -> F^T`), quadratically convergent.
-fn solve_dare<T: RealField + Copy, const N: usize, const P: usize>(
-    a: &SMatrix<T, N, N>,
-    ht: &SMatrix<T, N, P>,
-    r: &SVector<T, P>,
-    q: &SMatrix<T, N, N>,
-) -> Result<SMatrix<T, N, N>, BuildError> {
+fn solve_dare<T: RealField + Copy, N: Dim, P: Dim>(
+    a: &OMatrix<T, N, N>,
+    ht: &OMatrix<T, N, P>,
+    r: &OVector<T, P>,
+    q: &OMatrix<T, N, N>,
+) -> Result<OMatrix<T, N, N>, BuildError>
+where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
     let err = BuildError::NotConverged {
         name: "steady_state_gain",
     };
-    let eye = SMatrix::<T, N, N>::identity();
+    let (rows, columns) = a.shape_generic();
+    let eye = OMatrix::<T, N, N>::identity_generic(rows, columns);
     let mut ak = a.transpose();
     // G0 = H^T R^-1 H; R is diagonal and positive.
-    let mut gk = SMatrix::<T, N, N>::zeros();
+    let mut gk = OMatrix::<T, N, N>::zeros_generic(rows, columns);
     for (j, rj) in r.iter().enumerate() {
         let h = ht.column(j);
         gk.ger(T::one() / *rj, &h, &h, T::one());
     }
-    let mut xk = *q;
+    let mut xk = q.clone();
     let tol = T::default_epsilon() * nalgebra::convert(1e3);
     for _ in 0..MAX_DOUBLINGS {
-        let w = (eye + gk * xk).try_inverse().ok_or(err)?;
-        let aw = ak * w;
-        let a_next = aw * ak;
-        let g_next = (gk + aw * gk * ak.transpose()).symmetric_part();
-        let x_next = (xk + ak.transpose() * xk * w * ak).symmetric_part();
+        let w = (&eye + &gk * &xk).try_inverse().ok_or(err)?;
+        let aw = &ak * &w;
+        let a_next = &aw * &ak;
+        let g_next = (&gk + &aw * &gk * ak.transpose()).symmetric_part();
+        let x_next = (&xk + ak.transpose() * &xk * &w * &ak).symmetric_part();
         if !x_next.iter().all(|v| v.is_finite()) {
             return Err(err);
         }
-        let change = max_abs(&(x_next - xk));
+        let change = max_abs(&(&x_next - &xk));
         let scale = max_abs(&x_next);
         ak = a_next;
         gk = g_next;
@@ -125,7 +176,10 @@ fn solve_dare<T: RealField + Copy, const N: usize, const P: usize>(
     Err(err)
 }
 
-impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, P> {
+impl<T: RealField + Copy, N: Dim, P: Dim> SteadyStateGain<T, N, P>
+where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
     /// Solves the steady-state filter for one correction (all `P` sensors)
     /// every `period` predict steps (`period >= 1`).
     ///
@@ -139,20 +193,22 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
     ///
     /// Build-time cost O(N^3 (log2(period) + doublings)); stack about
     /// 20 N^2 scalars (about 20 KiB for N = 16 in f32, an estimate).
-    pub fn solve<const M: usize>(
-        cfg: &KalmanConfig<T, N, M, P>,
-        period: u32,
-    ) -> Result<Self, BuildError> {
+    pub fn solve<M: Dim>(cfg: &KalmanConfig<T, N, M, P>, period: u32) -> Result<Self, BuildError>
+    where
+        N: Length,
+        P: Length,
+        DefaultAllocator: FilterAllocator<N, M, P>,
+    {
         if period == 0 {
             return Err(BuildError::InvalidParameter { name: "period" });
         }
         let (fk, qk) = k_step_model(&cfg.f, &cfg.q, period);
         let prior = solve_dare(&fk, &cfg.ht, &cfg.r, &qk)?;
 
-        let mut posterior = prior;
-        let mut scratch = SVector::<T, N>::zeros();
+        let mut posterior = prior.clone();
+        let mut scratch = OVector::<T, N>::zeros_generic(prior.shape_generic().0, U1);
         for (j, rj) in cfg.r.iter().enumerate() {
-            let h: SVector<T, N> = cfg.ht.column(j).into_owned();
+            let h: OVector<T, N> = cfg.ht.column(j).into_owned();
             // The reading is irrelevant to the covariance; zero keeps x finite.
             let z = h.dot(&scratch);
             if !fuse_scalar(&mut scratch, &mut posterior, &h, *rj, z) {
@@ -161,7 +217,7 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
         }
         let mut next = qk;
         next.quadform_tr(T::one(), &fk, &posterior, T::one());
-        let residual = max_abs(&(next - prior));
+        let residual = max_abs(&(next - &prior));
         let bound = T::default_epsilon().sqrt() * max_abs(&prior);
         if !residual.is_finite() || residual > bound {
             return Err(BuildError::NotConverged {
@@ -171,12 +227,12 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
 
         // K = M H^T S^-1 with S = H M H^T + R, symmetric positive definite.
         let h = cfg.ht.transpose();
-        let hm = h * prior;
-        let mut s = hm * cfg.ht;
+        let hm = h * &prior;
+        let mut s = &hm * &cfg.ht;
         add_diagonal(&mut s, &cfg.r);
         let s = s.symmetric_part();
-        let innovation_var = SVector::<T, P>::from_fn(|j, _| s[(j, j)]);
-        let chol = Cholesky::new(s).ok_or(BuildError::Singular)?;
+        let innovation_var = s.diagonal();
+        let chol = Cholesky::new(s.clone()).ok_or(BuildError::Singular)?;
         let gain = chol.solve(&hm).transpose();
         if !gain.iter().all(|v| v.is_finite()) {
             return Err(BuildError::Singular);
@@ -198,32 +254,32 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
     }
 
     /// Steady-state gain `K` (N x P) for a correction with all sensors.
-    pub fn gain(&self) -> &SMatrix<T, N, P> {
+    pub fn gain(&self) -> &OMatrix<T, N, P> {
         &self.gain
     }
 
     /// Steady-state prior covariance `M` (just before a correction).
-    pub fn prior(&self) -> &SMatrix<T, N, N> {
+    pub fn prior(&self) -> &OMatrix<T, N, N> {
         &self.prior
     }
 
     /// Steady-state posterior covariance (just after a full correction).
-    pub fn posterior(&self) -> &SMatrix<T, N, N> {
+    pub fn posterior(&self) -> &OMatrix<T, N, N> {
         &self.posterior
     }
 
     /// Steady-state innovation variance `S_jj = h_j M h_j^T + r_j` per sensor.
-    pub fn innovation_var(&self) -> &SVector<T, P> {
+    pub fn innovation_var(&self) -> &OVector<T, P> {
         &self.innovation_var
     }
 
     /// Steady-state innovation covariance `S = H M H^T + R` (P x P).
-    pub fn innovation_cov(&self) -> &SMatrix<T, P, P> {
+    pub fn innovation_cov(&self) -> &OMatrix<T, P, P> {
         &self.innovation_cov
     }
 
     /// `M H^T` (N x P): the columns the update of any sensor subset combines.
-    pub fn prior_ht(&self) -> &SMatrix<T, N, P> {
+    pub fn prior_ht(&self) -> &OMatrix<T, N, P> {
         &self.prior_ht
     }
 }
@@ -233,14 +289,20 @@ impl<T: RealField + Copy, const N: usize, const P: usize> SteadyStateGain<T, N, 
 ///
 /// The unused rows and columns are replaced by those of the identity, so one
 /// fixed-size factorisation serves every subset: `O(P^3 / 6)`.
-fn solve_subset<T: RealField + Copy, const P: usize>(
-    s: &SMatrix<T, P, P>,
-    nu: &SVector<T, P>,
-    used: &[bool; P],
-) -> Option<SVector<T, P>> {
-    let mut l = SMatrix::<T, P, P>::zeros();
-    let mut w = SVector::<T, P>::zeros();
-    for i in 0..P {
+fn solve_subset<T: RealField + Copy, P: Length>(
+    s: &OMatrix<T, P, P>,
+    nu: &OVector<T, P>,
+    used: &P::Array<bool>,
+) -> Option<OVector<T, P>>
+where
+    DefaultAllocator: Allocator<P, P> + Allocator<P>,
+{
+    let (rows, columns) = s.shape_generic();
+    let p = s.nrows();
+    let used = used.as_ref();
+    let mut l = OMatrix::<T, P, P>::zeros_generic(rows, columns);
+    let mut w = OVector::<T, P>::zeros_generic(rows, U1);
+    for i in 0..p {
         if !used[i] {
             l[(i, i)] = T::one();
             continue;
@@ -268,16 +330,16 @@ fn solve_subset<T: RealField + Copy, const P: usize>(
     }
     // L y = nu, then L^T w = y (unused rows stay zero: their row of L is e_i
     // and their right-hand side zero).
-    for i in 0..P {
+    for i in 0..p {
         let mut v = w[i];
         for k in 0..i {
             v -= l[(i, k)] * w[k];
         }
         w[i] = v / l[(i, i)];
     }
-    for i in (0..P).rev() {
+    for i in (0..p).rev() {
         let mut v = w[i];
-        for k in i + 1..P {
+        for k in i + 1..p {
             v -= l[(k, i)] * w[k];
         }
         w[i] = v / l[(i, i)];
@@ -290,23 +352,25 @@ fn solve_subset<T: RealField + Copy, const P: usize>(
 /// up to rounding because `R` is diagonal), from `mht = M H^T` and
 /// `S = H M H^T + R`. Fused verdicts become rejected if it is not finite.
 /// `O(N P + P^3)`, against `O(P N^2)` for the sequential Joseph updates.
-fn fuse_subset<T: RealField + Copy, const N: usize, const P: usize>(
-    x: &mut SVector<T, N>,
-    mht: &SMatrix<T, N, P>,
-    s: &SMatrix<T, P, P>,
-    nu: &SVector<T, P>,
-    verdicts: &mut [SensorVerdict; P],
-) {
-    let used = verdicts.map(|v| v.is_fused());
+fn fuse_subset<T: RealField + Copy, N: Dim, P: Length>(
+    x: &mut OVector<T, N>,
+    mht: &OMatrix<T, N, P>,
+    s: &OMatrix<T, P, P>,
+    nu: &OVector<T, P>,
+    verdicts: &mut P::Array<SensorVerdict>,
+) where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
+    let used = P::mapped(verdicts, SensorVerdict::is_fused);
     let step = solve_subset(s, nu, &used).map(|w| {
-        let mut x_new = *x;
+        let mut x_new = x.clone();
         x_new.gemv(T::one(), mht, &w, T::one());
         x_new
     });
     match step {
         Some(x_new) if x_new.iter().all(|v| v.is_finite()) => *x = x_new,
         _ => {
-            for v in verdicts.iter_mut() {
+            for v in verdicts.as_mut().iter_mut() {
                 if let SensorVerdict::Fused { nis } = *v {
                     *v = SensorVerdict::Rejected { nis };
                 }
@@ -330,12 +394,15 @@ fn fuse_subset<T: RealField + Copy, const N: usize, const P: usize>(
 /// leaves more uncertainty); the gate uses the same `M`, so this is the
 /// filter's only approximation. Recovery inflates `M` by the same diagonal as
 /// [`super::update`], through `M H^T` and `S` only (`O(N P^2)`).
-pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub fn update_steady<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
     ss: &SteadyStateGain<T, N, P>,
     est: &mut SteadyEstimate<T, N, P>,
-    z: &[Option<T>; P],
-) -> UpdateReport<P> {
+    z: &P::Array<Option<T>>,
+) -> UpdateReport<P>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     update_against(
         cfg,
         &ss.gain,
@@ -354,23 +421,22 @@ pub fn update_steady<T: RealField + Copy, const N: usize, const M: usize, const 
 /// both: as a call, `observer_m4`'s steady correction tick cost 120
 /// instructions more.
 #[inline(always)]
-pub(crate) fn update_against<
-    T: RealField + Copy,
-    const N: usize,
-    const M: usize,
-    const P: usize,
->(
+pub(crate) fn update_against<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
-    gain: &SMatrix<T, N, P>,
-    innovation_var: &SVector<T, P>,
-    prior_ht: &SMatrix<T, N, P>,
-    innovation_cov: &SMatrix<T, P, P>,
+    gain: &OMatrix<T, N, P>,
+    innovation_var: &OVector<T, P>,
+    prior_ht: &OMatrix<T, N, P>,
+    innovation_cov: &OMatrix<T, P, P>,
     est: &mut SteadyEstimate<T, N, P>,
-    z: &[Option<T>; P],
-) -> UpdateReport<P> {
-    let mut verdicts = [SensorVerdict::Missing; P];
-    let mut nu = SVector::<T, P>::zeros();
-    for (j, ((verdict, zj), reads)) in verdicts.iter_mut().zip(z).zip(&cfg.reads).enumerate() {
+    z: &P::Array<Option<T>>,
+) -> UpdateReport<P>
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
+    let mut verdicts = P::mapped(z, |_| SensorVerdict::Missing);
+    let mut nu = OVector::<T, P>::zeros_generic(innovation_var.shape_generic().0, U1);
+    let readings = verdicts.as_mut().iter_mut().zip(z.as_ref());
+    for (j, ((verdict, zj), reads)) in readings.zip(cfg.reads.as_ref()).enumerate() {
         let Some(zj) = usable(*zj) else { continue };
         nu[j] = zj - reads.dot(&cfg.ht, j, &est.x);
         *verdict = judge(nu[j], innovation_var[j], cfg.gate.threshold);
@@ -378,19 +444,19 @@ pub(crate) fn update_against<
     let recovered = est.gate.record_gate(&verdicts, cfg.gate.recover_after);
     if recovered {
         recover_and_fuse(cfg, prior_ht, innovation_cov, est, z, &nu, &mut verdicts);
-    } else if verdicts.iter().all(|v| v.is_fused()) {
-        let mut x_new = est.x;
+    } else if verdicts.as_ref().iter().all(|v| v.is_fused()) {
+        let mut x_new = est.x.clone();
         super::add_product(&mut x_new, gain, &nu);
         if x_new.iter().all(|v| v.is_finite()) {
             est.x = x_new;
         } else {
-            for v in verdicts.iter_mut() {
+            for v in verdicts.as_mut().iter_mut() {
                 if let SensorVerdict::Fused { nis } = *v {
                     *v = SensorVerdict::Rejected { nis };
                 }
             }
         }
-    } else if verdicts.iter().any(|v| v.is_fused()) {
+    } else if verdicts.as_ref().iter().any(|v| v.is_fused()) {
         fuse_subset(&mut est.x, prior_ht, innovation_cov, &nu, &mut verdicts);
     }
     let suspect = est.gate.record_sensors(&verdicts, cfg.gate.suspect_after);
@@ -406,18 +472,20 @@ pub(crate) fn update_against<
 /// (`(M + D) H^T = M H^T + D H^T`, `S + H D H^T`: the inflated prior is
 /// never formed), every present reading gated again against it and the
 /// accepted ones fused.
-fn recover_and_fuse<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+fn recover_and_fuse<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
-    prior_ht: &SMatrix<T, N, P>,
-    innovation_cov: &SMatrix<T, P, P>,
+    prior_ht: &OMatrix<T, N, P>,
+    innovation_cov: &OMatrix<T, P, P>,
     est: &mut SteadyEstimate<T, N, P>,
-    z: &[Option<T>; P],
-    nu: &SVector<T, P>,
-    verdicts: &mut [SensorVerdict; P],
-) {
+    z: &P::Array<Option<T>>,
+    nu: &OVector<T, P>,
+    verdicts: &mut P::Array<SensorVerdict>,
+) where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     let d = &cfg.recovery_variance;
-    let mut mht = *prior_ht;
-    let mut s = *innovation_cov;
+    let mut mht = prior_ht.clone();
+    let mut s = innovation_cov.clone();
     for (j, hj) in cfg.ht.column_iter().enumerate() {
         for (n, dn) in d.iter().enumerate() {
             mht[(n, j)] += *dn * hj[n];
@@ -426,7 +494,7 @@ fn recover_and_fuse<T: RealField + Copy, const N: usize, const M: usize, const P
             s[(i, j)] += hi.component_mul(&hj).dot(d);
         }
     }
-    for (j, (verdict, zj)) in verdicts.iter_mut().zip(z).enumerate() {
+    for (j, (verdict, zj)) in verdicts.as_mut().iter_mut().zip(z.as_ref()).enumerate() {
         if usable(*zj).is_some() {
             *verdict = judge(nu[j], s[(j, j)], cfg.gate.threshold);
         }
@@ -434,18 +502,21 @@ fn recover_and_fuse<T: RealField + Copy, const N: usize, const M: usize, const P
     fuse_subset(&mut est.x, &mht, &s, nu, verdicts);
 }
 
-impl<const N: usize, const P: usize> SteadyStateGain<f64, N, P> {
+impl<N: Dim, P: Dim> SteadyStateGain<f64, N, P>
+where
+    DefaultAllocator: SensorAllocator<N, P>,
+{
     /// The same solution in another float type: solved in `f64` (where
     /// the doubling keeps its accuracy), run in `f32`.
     pub fn cast<U: RealField + Copy>(&self) -> SteadyStateGain<U, N, P> {
         SteadyStateGain {
             period: self.period,
-            gain: self.gain.cast(),
-            prior: self.prior.cast(),
-            posterior: self.posterior.cast(),
-            innovation_var: self.innovation_var.cast(),
-            prior_ht: self.prior_ht.cast(),
-            innovation_cov: self.innovation_cov.cast(),
+            gain: self.gain.clone().cast(),
+            prior: self.prior.clone().cast(),
+            posterior: self.posterior.clone().cast(),
+            innovation_var: self.innovation_var.clone().cast(),
+            prior_ht: self.prior_ht.clone().cast(),
+            innovation_cov: self.innovation_cov.clone().cast(),
         }
     }
 }
@@ -455,9 +526,9 @@ mod tests {
     use super::*;
     use crate::filter::testutil::{RandomSystem, Rng};
     use crate::filter::{predict, predict_mean, update, KalmanState};
-    use nalgebra::{Matrix1, SMatrix, SVector, Vector1};
+    use nalgebra::{Const, Matrix1, SMatrix, SVector, Vector1};
 
-    type Cfg = KalmanConfig<f64, 4, 1, 2>;
+    type Cfg = KalmanConfig<f64, Const<4>, U1, Const<2>>;
 
     fn random_cfg(seed: u64) -> (Cfg, RandomSystem<4, 2>) {
         let mut rng = Rng::new(seed);
@@ -477,7 +548,7 @@ mod tests {
     #[test]
     fn random_walk_closed_form_any_period() {
         let (q, r) = (1e-3f64, 0.25f64);
-        let cfg = KalmanConfig::<f64, 1, 1, 1>::new(
+        let cfg = KalmanConfig::<f64, U1, U1, U1>::new(
             Matrix1::new(1.0),
             Matrix1::new(0.0),
             Matrix1::new(1.0),
@@ -586,10 +657,16 @@ mod tests {
         use crate::filter::kalman::fuse_accepted;
         let mut rng = Rng::new(61);
         let sys = RandomSystem::<5, 6>::new(&mut rng, 0.97, 0.02);
-        let cfg = KalmanConfig::<f64, 5, 1, 6>::new(sys.f, rng.matrix(), sys.h, sys.q, sys.r)
-            .unwrap()
-            .with_gate(f64::INFINITY)
-            .unwrap();
+        let cfg = KalmanConfig::<f64, Const<5>, U1, Const<6>>::new(
+            sys.f,
+            rng.matrix(),
+            sys.h,
+            sys.q,
+            sys.r,
+        )
+        .unwrap()
+        .with_gate(f64::INFINITY)
+        .unwrap();
         let ss = SteadyStateGain::solve(&cfg, 3).unwrap();
         let x0: SVector<f64, 5> = rng.matrix();
         let zv: SVector<f64, 6> = sys.h * rng.matrix::<5, 1>();
@@ -688,7 +765,7 @@ mod tests {
     fn unobservable_unstable_mode_does_not_converge() {
         let f = SMatrix::<f64, 2, 2>::new(0.9, 0.0, 0.0, 1.01);
         let h = SMatrix::<f64, 1, 2>::new(1.0, 0.0);
-        let cfg = KalmanConfig::<f64, 2, 1, 1>::new(
+        let cfg = KalmanConfig::<f64, Const<2>, U1, U1>::new(
             f,
             SMatrix::zeros(),
             h,
@@ -731,7 +808,7 @@ mod tests {
 mod sized_tests {
     use super::*;
     use crate::filter::testutil::thermal_chain_16;
-    use nalgebra::SMatrix;
+    use nalgebra::{Const, SMatrix, SVector};
 
     /// The device's sizes: 16 states, 6 thermocouples at 2 Hz with 1 kHz
     /// predicts (period 500). The f32 solution agrees with the f64 one.
@@ -740,11 +817,13 @@ mod sized_tests {
         let (f, h) = thermal_chain_16();
         let q = SMatrix::<f64, 16, 16>::identity() * 1e-8;
         let r = SVector::<f64, 6>::repeat(0.01);
-        let cfg = KalmanConfig::<f64, 16, 3, 6>::new(f, SMatrix::zeros(), h, q, r).unwrap();
+        let cfg =
+            KalmanConfig::<f64, Const<16>, Const<3>, Const<6>>::new(f, SMatrix::zeros(), h, q, r)
+                .unwrap();
         let ss = SteadyStateGain::solve(&cfg, 500).unwrap();
         assert!(ss.gain().iter().all(|v| v.is_finite()));
 
-        let cfg32 = KalmanConfig::<f32, 16, 3, 6>::new(
+        let cfg32 = KalmanConfig::<f32, Const<16>, Const<3>, Const<6>>::new(
             f.cast(),
             SMatrix::zeros(),
             h.cast(),
@@ -755,7 +834,7 @@ mod sized_tests {
         let ss32 = SteadyStateGain::solve(&cfg32, 500).unwrap();
         // Compare with f64 on the same rounded model: F = I + A dt keeps only
         // ~2 digits of A dt in f32, a model error the solver cannot undo.
-        let rounded = KalmanConfig::<f64, 16, 3, 6>::new(
+        let rounded = KalmanConfig::<f64, Const<16>, Const<3>, Const<6>>::new(
             cfg32.f().cast(),
             SMatrix::zeros(),
             cfg32.h().cast(),

@@ -27,29 +27,38 @@
 //! residual instead). A non-finite `z`, a non-finite `h`, or `r` not finite
 //! and positive is [`SensorVerdict::Missing`]: nothing changes.
 
-use nalgebra::{RealField, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector, RealField};
 
 use super::gate::{judge, SensorVerdict};
 use super::kalman::{fuse_scalar, KalmanConfig, KalmanState};
+use super::FilterAllocator;
+use crate::sizes::Length;
 
 /// `true` when the reading can be used at all.
-fn usable_reading<T: RealField + Copy, const N: usize>(h: &SVector<T, N>, z: T, r: T) -> bool {
+fn usable_reading<T: RealField + Copy, N: Dim>(h: &OVector<T, N>, z: T, r: T) -> bool
+where
+    DefaultAllocator: Allocator<N>,
+{
     z.is_finite() && r.is_finite() && r > T::zero() && h.iter().all(|v| v.is_finite())
 }
 
 /// Gates and fuses one virtual reading `z = h x + v`, `var(v) = r`, into the
 /// time-varying filter `state` (see the module docs).
-pub fn update_virtual<T: RealField + Copy, const N: usize, const M: usize, const P: usize>(
+pub fn update_virtual<T: RealField + Copy, N: Length, M: Dim, P: Length>(
     cfg: &KalmanConfig<T, N, M, P>,
     state: &mut KalmanState<T, N, P>,
-    h: &SVector<T, N>,
+    h: &OVector<T, N>,
     z: T,
     r: T,
-) -> SensorVerdict {
+) -> SensorVerdict
+where
+    DefaultAllocator: FilterAllocator<N, M, P>,
+{
     if !usable_reading(h, z, r) {
         return SensorVerdict::Missing;
     }
-    let s = h.dot(&(state.cov * h)) + r;
+    let s = h.dot(&(&state.cov * h)) + r;
     let verdict = judge(z - h.dot(&state.x), s, cfg.gate.threshold);
     match verdict {
         SensorVerdict::Fused { nis } if !fuse_scalar(&mut state.x, &mut state.cov, h, r, z) => {
@@ -64,9 +73,9 @@ mod tests {
     use super::*;
     use crate::filter::testutil::{RandomSystem, Rng};
     use crate::filter::update;
-    use nalgebra::{SMatrix, SVector};
+    use nalgebra::{Const, SMatrix, SVector, U1};
 
-    type Cfg = KalmanConfig<f64, 4, 1, 2>;
+    type Cfg = KalmanConfig<f64, Const<4>, U1, Const<2>>;
 
     fn system(seed: u64) -> (Cfg, RandomSystem<4, 2>, Rng) {
         let mut rng = Rng::new(seed);
@@ -84,7 +93,7 @@ mod tests {
             let (cfg, sys, mut rng) = system(seed);
             let h: SVector<f64, 4> = rng.matrix();
             let r = 0.05 + rng.uniform();
-            let one = KalmanConfig::<f64, 4, 1, 1>::new(
+            let one = KalmanConfig::<f64, Const<4>, U1, U1>::new(
                 sys.f,
                 SMatrix::zeros(),
                 h.transpose(),
@@ -96,8 +105,8 @@ mod tests {
             let a: SMatrix<f64, 4, 4> = rng.matrix();
             let p0 = a * a.transpose() + SMatrix::identity();
             let z = h.dot(&x0) + 0.3 * rng.gauss();
-            let mut virt = KalmanState::<f64, 4, 2>::new(x0, p0);
-            let mut conf = KalmanState::<f64, 4, 1>::new(x0, p0);
+            let mut virt = KalmanState::<f64, Const<4>, Const<2>>::new(x0, p0);
+            let mut conf = KalmanState::<f64, Const<4>, U1>::new(x0, p0);
             let v = update_virtual(&cfg, &mut virt, &h, z, r);
             let c = update(&one, &mut conf, &[Some(z)]).verdicts[0];
             assert_eq!(v, c, "seed {seed}");
@@ -121,7 +130,7 @@ mod tests {
             (h, 1.0, f64::NAN),
             (h * f64::NAN, 1.0, 0.1),
         ] {
-            let mut state = KalmanState::<f64, 4, 2>::new(zero, p0);
+            let mut state = KalmanState::<f64, Const<4>, Const<2>>::new(zero, p0);
             let before = state;
             assert_eq!(
                 update_virtual(&cfg, &mut state, &hh, z, r),
@@ -130,7 +139,7 @@ mod tests {
             assert_eq!(state, before);
         }
         // 30 K off with a 0.1 K sigma and a 0.1 K prior: far past the gate.
-        let mut state = KalmanState::<f64, 4, 2>::new(zero, p0);
+        let mut state = KalmanState::<f64, Const<4>, Const<2>>::new(zero, p0);
         let v = update_virtual(&cfg, &mut state, &h, 30.0, 0.01);
         assert!(v.is_rejected() && state.x == zero);
     }

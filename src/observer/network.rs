@@ -443,7 +443,7 @@
 //! `max_steps_per_tick`, the rest dropped and flagged); a snapshot holds the
 //! node temperatures and the latched shutdown, the biases restart at zero.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector, U1};
 
 use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
 use bias::{
@@ -967,8 +967,8 @@ pub struct NetworkObserver<
     source_node: [usize; M],
     /// Each winding's `R` in the state's deviations from `origin_c`.
     resistance: [DeviationResistance; M],
-    kalman: KalmanConfig<f32, X, 1, P>,
-    gain: SteadyStateGain<f32, X, P>,
+    kalman: KalmanConfig<f32, Const<X>, U1, Const<P>>,
+    gain: SteadyStateGain<f32, Const<X>, Const<P>>,
     sensor_nodes: [usize; P],
     limited: [bool; N],
     incidence: [[bool; M]; N],
@@ -1054,7 +1054,7 @@ pub struct NetworkObserverState<
     // 26 instructions).
     /// The filter's estimate (deviations from the origin \[K\], then the
     /// heat-input biases \[W\]) and gate memory.
-    pub estimate: SteadyEstimate<f32, X, P>,
+    pub estimate: SteadyEstimate<f32, Const<X>, Const<P>>,
     /// What each node's `f32` deviation could not hold \[K\] (the carry of
     /// [`compensated_add`]). Zero with the integer step, whose states carry
     /// it (see "The model step in integer arithmetic").
@@ -1247,7 +1247,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// The steady-state gain in use (`f32`, solved in `f64`).
-    pub fn gain(&self) -> &SteadyStateGain<f32, X, P> {
+    pub fn gain(&self) -> &SteadyStateGain<f32, Const<X>, Const<P>> {
         &self.gain
     }
 

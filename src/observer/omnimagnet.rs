@@ -422,7 +422,7 @@
 //! [`UncertaintyMargin::ZERO`] the protection acts on the mean, to the
 //! bit.
 
-use nalgebra::SVector;
+use nalgebra::{Const, SVector};
 
 use super::clock::{step_square_currents, ClockState, Deferral, StepAccount, StepClock};
 use super::consistency::{
@@ -793,7 +793,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     outputs: OmniOutputs,
     /// The filter's estimate (deviations from `model`'s origin \[K\], then
     /// the heat-input biases \[W\]) and gate memory.
-    pub estimate: SteadyEstimate<f32, STATES, THERMOCOUPLES>,
+    pub estimate: SteadyEstimate<f32, Const<STATES>, Const<THERMOCOUPLES>>,
     /// What each node's deviation could not hold \[K\] (the carry of
     /// [`MeanModel::predict`]).
     residual_k: [f32; NODES],
@@ -1902,7 +1902,7 @@ impl OmniObserver {
         &self,
         state: &mut OmniObserverState<W>,
         z: &[Option<f32>; THERMOCOUPLES],
-    ) -> UpdateReport<THERMOCOUPLES> {
+    ) -> UpdateReport<Const<THERMOCOUPLES>> {
         let kalman = self.filter.kalman();
         let Some(OmniHeld { cov: held, .. }) = state.warm.held_mut() else {
             return update_steady(kalman, self.filter.gain(), &mut state.estimate, z);

@@ -35,6 +35,7 @@ use crate::protect::limiter::LimiterConfig;
 use crate::protect::margin::{ElementBound, UpperBound};
 use crate::protect::predict::{LimitPredictor, Winding};
 use crate::scalar::Scalar;
+use nalgebra::Const;
 
 /// Horizons of the time-to-limit predictor (both filtered observers').
 pub const PREDICTOR_POINTS: usize = 32;
@@ -62,7 +63,7 @@ pub struct GainTables<const X: usize, const P: usize> {
 impl<const X: usize, const P: usize> GainTables<X, P> {
     /// The tables of a solved gain (the Omnimagnet's and the network's
     /// `parts()`), row-major.
-    pub(crate) fn of(gain: &crate::filter::SteadyStateGain<f32, X, P>) -> Self {
+    pub(crate) fn of(gain: &crate::filter::SteadyStateGain<f32, Const<X>, Const<P>>) -> Self {
         Self {
             period: gain.period,
             gain: rows(&gain.gain),
@@ -76,7 +77,7 @@ impl<const X: usize, const P: usize> GainTables<X, P> {
 
     /// The gain these tables hold (a `const fn` that only moves values,
     /// for a configuration in flash).
-    pub(crate) const fn gain(&self) -> crate::filter::SteadyStateGain<f32, X, P> {
+    pub(crate) const fn gain(&self) -> crate::filter::SteadyStateGain<f32, Const<X>, Const<P>> {
         crate::filter::SteadyStateGain {
             period: self.period,
             gain: matrix(&self.gain),
@@ -141,7 +142,7 @@ impl<const X: usize, const P: usize> KalmanTables<X, P> {
     };
 
     /// The tables of `k` (its `G` left out).
-    pub(crate) fn of<const U: usize>(k: &KalmanConfig<f32, X, U, P>) -> Self {
+    pub(crate) fn of<const U: usize>(k: &KalmanConfig<f32, Const<X>, Const<U>, Const<P>>) -> Self {
         Self {
             f: rows(&k.f),
             ht: rows(&k.ht),
@@ -160,7 +161,7 @@ impl<const X: usize, const P: usize> KalmanTables<X, P> {
     pub(crate) const fn config<const U: usize>(
         &self,
         g: nalgebra::SMatrix<f32, X, U>,
-    ) -> KalmanConfig<f32, X, U, P> {
+    ) -> KalmanConfig<f32, Const<X>, Const<U>, Const<P>> {
         KalmanConfig {
             f: matrix(&self.f),
             g,

@@ -133,7 +133,7 @@
 //! [`update`]: crate::filter::update
 //! [`update_steady`]: crate::filter::update_steady
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{Const, RealField, SMatrix, SVector};
 
 use super::data::{NODES, SOLENOIDS};
 use super::linearize::Linearization;
@@ -158,9 +158,9 @@ pub const INPUTS: usize = SOLENOIDS + 2;
 pub const STEADY_SWITCH_TOLERANCE: f64 = 1.0;
 
 /// The filter configuration type the observer uses.
-pub type ObserverKalman<T> = KalmanConfig<T, STATES, INPUTS, THERMOCOUPLES>;
+pub type ObserverKalman<T> = KalmanConfig<T, Const<STATES>, Const<INPUTS>, Const<THERMOCOUPLES>>;
 /// The steady-state solution type the observer uses.
-pub type ObserverGain<T> = SteadyStateGain<T, STATES, THERMOCOUPLES>;
+pub type ObserverGain<T> = SteadyStateGain<T, Const<STATES>, Const<THERMOCOUPLES>>;
 
 /// The steady-state predict's model: the temperature rows of `F` and `G`
 /// in deviation coordinates, and their origin (the operating point).
@@ -472,7 +472,7 @@ pub struct ObserverConfig<T: RealField + Copy> {
 pub struct ObserverState<T: RealField + Copy> {
     /// The filter state (deviations from the operating point \[K\], biases
     /// \[W\]), its covariance and the gate counters.
-    pub filter: KalmanState<T, STATES, THERMOCOUPLES>,
+    pub filter: KalmanState<T, Const<STATES>, Const<THERMOCOUPLES>>,
     /// Gain mode in use.
     pub mode: GainMode,
     /// The last finite input `u` (held when a tick's inputs are not finite).

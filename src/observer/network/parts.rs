@@ -42,7 +42,7 @@
 
 use core::fmt::{self, Write};
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector, U1};
 
 use super::bias::{nominal_powers_w, shared_in_tables, tie_block, BiasLayout, BiasMode};
 use super::resistance::Conversion;
@@ -441,7 +441,10 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
     /// Whether `gain` leaves every limited element within
     /// `max_element_sigma_k` (the check of
     /// [`NetworkObserver::from_parts`], which refuses it otherwise).
-    fn observes_limited<const X: usize>(&self, gain: &SteadyStateGain<f32, X, P>) -> bool {
+    fn observes_limited<const X: usize>(
+        &self,
+        gain: &SteadyStateGain<f32, Const<X>, Const<P>>,
+    ) -> bool {
         self.critical_c.iter().enumerate().all(|(node, critical)| {
             let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
             self.settings
@@ -460,7 +463,7 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
         &self,
         model: &Model<N, B, M>,
         period: u32,
-    ) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+    ) -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
         let s = &self.settings;
         let per_source = BiasLayout::per_source(self.bias_sources);
         let shared = |mask: [bool; M]| {
@@ -470,7 +473,7 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
             let nominal_w = nominal_powers_w(&self.hardware_limit_a, &model.resistance, s.origin_c);
             BiasLayout::shared(self.bias_sources, mask, &nominal_w)
         };
-        let solve = |layout: &BiasLayout<M>| -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+        let solve = |layout: &BiasLayout<M>| -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
             let gain = solve_gain(
                 model,
                 &self.sensor_nodes,
@@ -546,7 +549,7 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
     layout: &BiasLayout<M>,
     reduced: bool,
     dt_s: f64,
-) -> Result<KalmanConfig<f64, X, 1, P>, BuildError> {
+) -> Result<KalmanConfig<f64, Const<X>, U1, Const<P>>, BuildError> {
     let lead = layout.lead();
     let mut f = SMatrix::<f64, X, X>::identity();
     for i in 0..N {
@@ -641,7 +644,7 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     s: &NetworkSettings,
     layout: &BiasLayout<M>,
     period: u32,
-) -> Result<SteadyStateGain<f32, X, P>, BuildError> {
+) -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
     let kalman = filter_config::<N, B, M, X, P>(
         (&model.ad, &model.bd_power_f64, &model.gd_boundary_f64),
         (sensor_nodes, sensor_var_k2),
@@ -683,7 +686,7 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     let diag =
         |cov: &SMatrix<f64, X, X>| -> [f64; M] { core::array::from_fn(|m| cov[(N + m, N + m)]) };
     let (prior_w2, posterior_w2) = (diag(&gain.prior), diag(&gain.posterior));
-    let mut cast: SteadyStateGain<f32, X, P> = gain.cast();
+    let mut cast: SteadyStateGain<f32, Const<X>, Const<P>> = gain.cast();
     let shared = layout.shared_mask();
     tie_block::<N, M, X>(&mut cast.prior, &prior_w2, &shared);
     tie_block::<N, M, X>(&mut cast.posterior, &posterior_w2, &shared);
@@ -1321,7 +1324,7 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
 /// `k sigma` from the steady prior on every node, the model margin on the
 /// nodes no sensor measures.
 fn upper_bound<const N: usize, const X: usize, const P: usize>(
-    gain: &SteadyStateGain<f32, X, P>,
+    gain: &SteadyStateGain<f32, Const<X>, Const<P>>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
 ) -> Result<UpperBound<f32, N>, BuildError> {

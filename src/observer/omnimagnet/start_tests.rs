@@ -563,10 +563,11 @@ fn the_held_covariance_is_the_period_riccati_recursion() {
             .unwrap();
     let kalman = exact.kalman();
     let (fk, qk) = k_step_model(kalman.f(), kalman.q(), exact.period());
-    let mut reference = KalmanState::<f64, STATES, THERMOCOUPLES>::new(
-        nalgebra::SVector::zeros(),
-        state.warm.held.cov.prior().unwrap().cast(),
-    );
+    let mut reference =
+        KalmanState::<f64, nalgebra::Const<STATES>, nalgebra::Const<THERMOCOUPLES>>::new(
+            nalgebra::SVector::zeros(),
+            state.warm.held.cov.prior().unwrap().cast(),
+        );
     let fused = [crate::filter::SensorVerdict::Fused { nis: 0.0 }; THERMOCOUPLES];
     let gain = obs.filter.gain();
     let transition = PeriodTransition {

@@ -813,13 +813,13 @@ impl<const X: usize, const K: usize, const P: usize> HeldCovariance<X, K, P> {
 mod tests {
     use super::*;
     use crate::filter::{update, KalmanConfig, KalmanState, SteadyStateGain};
-    use nalgebra::{Matrix1, SMatrix, SVector};
+    use nalgebra::{Const, Matrix1, SMatrix, SVector, U1};
 
-    type Cfg = KalmanConfig<f64, 3, 1, 1>;
+    type Cfg = KalmanConfig<f64, Const<3>, U1, U1>;
 
     const FUSED: [SensorVerdict; 1] = [SensorVerdict::Fused { nis: 0.0 }];
 
-    fn layout(steady: &SteadyStateGain<f32, 3, 1>) -> HeldLayout<3, 1, 1> {
+    fn layout(steady: &SteadyStateGain<f32, Const<3>, U1>) -> HeldLayout<3, 1, 1> {
         HeldLayout {
             measured: [0],
             sensors: [Some(0)],
@@ -857,7 +857,7 @@ mod tests {
             gamma: &gamma,
         };
         let mut held = HeldCovariance::<3, 1, 1>::start(p0.cast(), layout(&steady));
-        let mut exact = KalmanState::<f64, 3, 1>::new(SVector::zeros(), p0);
+        let mut exact = KalmanState::<f64, Const<3>, U1>::new(SVector::zeros(), p0);
         let (mut worst, mut settled) = (0.0f64, None);
         let recovery = SVector::<f32, 3>::zeros();
         for period in 1..=periods {
@@ -922,7 +922,7 @@ mod tests {
         held.corrected(&FUSED, None);
         let (_, innovation_var, cols, _) = held.correction();
         // Exact: one reading of variance 0.02.
-        let mut exact = KalmanState::<f64, 3, 1>::new(SVector::zeros(), p0);
+        let mut exact = KalmanState::<f64, Const<3>, U1>::new(SVector::zeros(), p0);
         let twice = Cfg::new(
             *cfg.f(),
             SMatrix::zeros(),
