@@ -29,6 +29,7 @@ use exit::fail;
 mod cost;
 
 use coil_thermal::grid::GridConfig;
+use coil_thermal::nalgebra::Const;
 use coil_thermal::observer::grid::DEFAULT_MARGIN;
 use coil_thermal::observer::{GridInputs, GridObserver, ProtectionPlan};
 use coil_thermal::protect::alarm::AlarmBuilder;
@@ -97,9 +98,9 @@ fn run(meter: &cost::Meter) -> Result<(), &'static str> {
     .map_err(|_| "observer")?;
     let reference = CoilGrid::<f32, ROWS, COLS>::new(&config).map_err(|_| "f32 grid")?;
     let reference_limiter =
-        LimiterConfig::<f32, N>::new([6.0; N], 10.0, 0.0).map_err(|_| "f32 limiter")?;
+        LimiterConfig::<f32, Const<N>>::new([6.0; N], 10.0, 0.0).map_err(|_| "f32 limiter")?;
     let reference_alarm = alarm.build::<f32>().map_err(|_| "f32 alarm")?;
-    let reference_bound = UpperBoundBuilder::<N>::new(DEFAULT_MARGIN)
+    let reference_bound = UpperBoundBuilder::<Const<N>>::new(DEFAULT_MARGIN)
         .build::<f32>()
         .map_err(|_| "f32 bound")?;
 

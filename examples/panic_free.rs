@@ -367,7 +367,7 @@ fn main() -> ! {
 #[inline(never)]
 fn small_grid_observer<S: Scalar>() -> bool {
     let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 12]).build::<S>();
-    let limiter = LimiterConfig::<S, 12>::new(black_box([6.0; 12]), 10.0, 0.0);
+    let limiter = LimiterConfig::<S, Const<12>>::new(black_box([6.0; 12]), 10.0, 0.0);
     let config = GridConfig {
         ticks_per_update: black_box(10),
         ..GridConfig::default()
@@ -403,7 +403,7 @@ fn small_grid_observer<S: Scalar>() -> bool {
 #[inline(never)]
 fn protection_blocks<S: Scalar>() -> bool {
     let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; 4]).build::<S>();
-    let limiter = LimiterConfig::<S, 4>::new(black_box([3.0; 4]), 10.0, 0.0);
+    let limiter = LimiterConfig::<S, Const<4>>::new(black_box([3.0; 4]), 10.0, 0.0);
     let (Ok(alarm), Ok(limiter)) = (alarm, limiter) else {
         return false;
     };

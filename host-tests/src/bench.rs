@@ -40,6 +40,7 @@
 //!
 //! In JSON each key `<name>_ns` also has `<name>_budget_ratio`.
 
+use coil_thermal::nalgebra::Const;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -225,7 +226,7 @@ fn omnimagnet_predict<T: nalgebra::RealField + Copy>(
 ) -> Timing {
     use coil_thermal::filter::{predict_mean, KalmanConfig};
     let (f, g, h, q, r) = omnimagnet_model();
-    let cfg = KalmanConfig::<T, nalgebra::Const<16>, nalgebra::Const<5>, nalgebra::Const<6>>::new(
+    let cfg = KalmanConfig::<T, Const<16>, Const<5>, Const<6>>::new(
         f.cast(),
         g.cast(),
         h.cast(),
@@ -245,15 +246,14 @@ fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>)
         predict, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
     };
     let (f, g, h, q, r) = omnimagnet_model();
-    let cfg =
-        KalmanConfig::<f32, nalgebra::Const<16>, nalgebra::Const<5>, nalgebra::Const<6>>::new(
-            f.cast(),
-            g.cast(),
-            h.cast(),
-            q.cast(),
-            r.cast(),
-        )
-        .expect("valid filter model");
+    let cfg = KalmanConfig::<f32, Const<16>, Const<5>, Const<6>>::new(
+        f.cast(),
+        g.cast(),
+        h.cast(),
+        q.cast(),
+        r.cast(),
+    )
+    .expect("valid filter model");
     let x0 = nalgebra::SVector::<f32, 16>::repeat(20.0);
     let z = [
         Some(20.3f32),
@@ -368,11 +368,11 @@ fn kalman_observer_calls<T: nalgebra::RealField + Copy>(
 /// `coil-thermal bench` and the criterion bench `protect`.
 pub struct ProtectTick {
     predictor: LimitPredictor<f32, 16, 1, 3, 48>,
-    alarm: AlarmConfig<f32, 16>,
-    limiter: LimiterConfig<f32, 3>,
+    alarm: AlarmConfig<f32, Const<16>>,
+    limiter: LimiterConfig<f32, Const<3>>,
     op: Operating<f32, 16, 1, 3>,
     state: PredictorState<f32, 16, 3>,
-    alarm_state: AlarmState<f32, 16>,
+    alarm_state: AlarmState<f32, Const<16>>,
     events: EventQueue<32>,
     coil_limits: [CoilLimit<f32>; 3],
 }
@@ -403,7 +403,8 @@ impl ProtectTick {
         let alarm = AlarmBuilder::new(&DeratingRule::omnimagnet(), critical)
             .build::<f32>()
             .expect("valid alarm");
-        let limiter = LimiterConfig::<f32, 3>::new([8.0; 3], 10.0, 0.0).expect("valid limiter");
+        let limiter =
+            LimiterConfig::<f32, Const<3>>::new([8.0; 3], 10.0, 0.0).expect("valid limiter");
         let op = Operating {
             temps_c: core::array::from_fn(|i| 30.0 + i as f32),
             currents_a: [3.0, 2.5, 3.5],

@@ -22,6 +22,7 @@
 //! chunks of it (`ChunkedAlarm`): each element's alarm is its own, so any
 //! number of them is the library's alarm.
 
+use coil_thermal::nalgebra::Const;
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
@@ -151,8 +152,8 @@ pub struct AlarmSettings {
 /// Padding elements have a critical temperature of [`NO_LIMIT_C`] and sit at
 /// the nominal ambient for ever, so they never raise anything.
 struct PaddedAlarm<const P: usize> {
-    config: AlarmConfig<f64, P>,
-    state: AlarmState<f64, P>,
+    config: AlarmConfig<f64, Const<P>>,
+    state: AlarmState<f64, Const<P>>,
     events: EventQueue<EVENT_CAPACITY>,
     temps_c: [f64; P],
     time_to_limit_s: [Option<f64>; P],

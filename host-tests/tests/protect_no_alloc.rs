@@ -2,6 +2,7 @@
 //! sensor, drift check) and the safe-current bound allocate nothing: every
 //! allocation on this test's thread is counted.
 
+use coil_thermal::nalgebra::Const;
 use coil_thermal_host::alloc_count::{count_allocations, CountingAllocator};
 
 use coil_thermal::protect::alarm::{AlarmBuilder, AlarmState};
@@ -44,7 +45,7 @@ fn protection_ticks_allocate_nothing() {
     let alarm = AlarmBuilder::new(&DeratingRule::hppa(), [100.0; 3])
         .build::<f32>()
         .unwrap();
-    let limiter = LimiterConfig::<f32, 2>::new([3.0; 2], 10.0, 0.0).unwrap();
+    let limiter = LimiterConfig::<f32, Const<2>>::new([3.0; 2], 10.0, 0.0).unwrap();
     let sensor = ResistanceSensor::new(Resistance::HPPA_COIL, 0.01, 1e-3, 0.2).unwrap();
     let drift = DriftConfig::new(1e-3, 10.0, 3.0, 5.0).unwrap();
     let limits = alarm.alarm_limits_c(20.0);

@@ -171,7 +171,7 @@ impl<P: Length> GateCounters<P> {
         verdicts: &P::Array<SensorVerdict>,
         suspect_after: u16,
     ) -> P::Array<bool> {
-        let mut suspect = P::mapped(verdicts, |_| false);
+        let mut suspect = P::filled_like(verdicts, false);
         for ((count, verdict), flag) in self
             .consecutive_rejections
             .as_mut()
@@ -234,7 +234,7 @@ pub(crate) fn gate_all<T: RealField + Copy, N: Dim, P: Length>(
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N, P> + Allocator<N> + Allocator<P>,
 {
-    let mut verdicts = P::mapped(z, |_| SensorVerdict::Missing);
+    let mut verdicts = P::filled_like(z, SensorVerdict::Missing);
     for (j, (verdict, zj)) in verdicts.as_mut().iter_mut().zip(z.as_ref()).enumerate() {
         let Some(zj) = usable(*zj) else { continue };
         let h = ht.column(j);

@@ -433,7 +433,7 @@ pub(crate) fn update_against<T: RealField + Copy, N: Length, M: Dim, P: Length>(
 where
     DefaultAllocator: FilterAllocator<N, M, P>,
 {
-    let mut verdicts = P::mapped(z, |_| SensorVerdict::Missing);
+    let mut verdicts = P::filled_like(z, SensorVerdict::Missing);
     let mut nu = OVector::<T, P>::zeros_generic(innovation_var.shape_generic().0, U1);
     let readings = verdicts.as_mut().iter_mut().zip(z.as_ref());
     for (j, ((verdict, zj), reads)) in readings.zip(cfg.reads.as_ref()).enumerate() {

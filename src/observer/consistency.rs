@@ -34,7 +34,7 @@
 //! negative heat biases are dropped: what was dragged comes back, and the
 //! protection runs on the model until a sensor agrees with it again.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector};
 
 use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
@@ -287,7 +287,7 @@ pub(crate) fn raise_to_shadow<S: Scalar, const N: usize>(
 /// what a lying sensor dragged, the shadow the physics no reading moved:
 /// a flagged fault can only make the protection err hot.
 pub(crate) fn protect_on_shadow<S: Scalar, const N: usize>(
-    bound: &UpperBound<S, N>,
+    bound: &UpperBound<S, Const<N>>,
     shadow_c: &[S; N],
     ambient_c: S,
     upper_c: &mut [S; N],

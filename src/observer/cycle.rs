@@ -29,6 +29,7 @@ use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::scalar::Scalar;
+use nalgebra::Const;
 
 /// A protection stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -316,7 +317,7 @@ pub(crate) fn record_verdicts<const P: usize>(
 /// Latches the shutdown and shows it at once: the published alarm says
 /// so and every current limit is zero (until the deliberate clear).
 pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
-    alarm: &mut AlarmState<S, N>,
+    alarm: &mut AlarmState<S, Const<N>>,
     published: &mut AlarmStatus,
     limits: &mut [CoilLimit<S>],
 ) {
@@ -333,7 +334,7 @@ pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
 /// the deliberate clear.
 pub(crate) struct Latch<'a, S: Scalar, const E: usize, const CAP: usize> {
     /// The alarm's state (`E` elements).
-    pub alarm: &'a mut AlarmState<S, E>,
+    pub alarm: &'a mut AlarmState<S, Const<E>>,
     /// The state's event queue.
     pub events: &'a mut EventQueue<CAP>,
     /// The published alarm summary.
@@ -373,7 +374,7 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
     /// # Errors
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
-    pub(crate) fn clear(self, config: &AlarmConfig<S, E>) -> Result<(), ResetError> {
+    pub(crate) fn clear(self, config: &AlarmConfig<S, Const<E>>) -> Result<(), ResetError> {
         self.alarm.reset(config, self.events)?;
         self.published.shutdown = self.alarm.shutdown_latched();
         Ok(())

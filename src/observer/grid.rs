@@ -138,6 +138,8 @@ use crate::protect::events::EventQueue;
 use crate::protect::limiter::{hold_shutdown, CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
 use crate::scalar::Scalar;
+use crate::sizes::Element;
+use nalgebra::Const;
 
 mod parts;
 
@@ -243,15 +245,15 @@ use crate::grid::DIRECTIONS;
 /// The configuration of one grid device: model, protection and clock.
 /// `N` must be `ROWS * COLS` (checked at compile time).
 #[derive(Debug, Clone)]
-pub struct GridObserver<S, const ROWS: usize, const COLS: usize, const N: usize> {
+pub struct GridObserver<S: Element, const ROWS: usize, const COLS: usize, const N: usize> {
     grid: CoilGrid<S, ROWS, COLS>,
-    alarm: AlarmConfig<S, N>,
-    limiter: LimiterConfig<S, N>,
+    alarm: AlarmConfig<S, Const<N>>,
+    limiter: LimiterConfig<S, Const<N>>,
     clock: StepClock,
     plan: ProtectionPlan,
     ttl: TimeToLimit<ROWS, COLS>,
     /// Each coil's protective upper bound (see [`GridObserver::with_margin`]).
-    bound: UpperBound<S, N>,
+    bound: UpperBound<S, Const<N>>,
     /// `bound` is zero: the protection reads the temperatures themselves.
     bound_is_zero: bool,
     restart_c: f64,
@@ -402,7 +404,7 @@ pub struct GridOutputs<S, const ROWS: usize, const COLS: usize, const N: usize> 
 
 /// The per-device state: model, alarm, clock, events and the last outputs.
 #[derive(Debug, Clone)]
-pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: usize> {
+pub struct GridObserverState<S: Element, const ROWS: usize, const COLS: usize, const N: usize> {
     /// The grid model's state. Read it freely; the observer keeps work
     /// derived from its temperatures (see [`UpdateWork`]), so a state with
     /// other temperatures is made with [`GridObserver::restore`] or
@@ -411,7 +413,7 @@ pub struct GridObserverState<S, const ROWS: usize, const COLS: usize, const N: u
     /// The grid update done ahead, a few rows per tick.
     work: UpdateWork<S, ROWS, COLS>,
     /// The alarm's state.
-    pub alarm: AlarmState<S, N>,
+    pub alarm: AlarmState<S, Const<N>>,
     /// The time not yet simulated.
     pub clock: ClockState,
     /// Alarm events not yet drained by the application.
@@ -468,8 +470,8 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     /// the protection stages need ticks without a grid update).
     pub fn new(
         grid: &GridConfig,
-        alarm: AlarmConfig<S, N>,
-        limiter: LimiterConfig<S, N>,
+        alarm: AlarmConfig<S, Const<N>>,
+        limiter: LimiterConfig<S, Const<N>>,
         max_steps_per_tick: u32,
     ) -> Result<Self, BuildError> {
         const { assert!(N == ROWS * COLS, "N must be ROWS * COLS") };
@@ -602,7 +604,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
 
     /// This observer with a bound per coil (index `row * COLS + col`), e.g.
     /// no margin on a coil that carries a sensor; see [`Self::with_margin`].
-    pub fn with_upper_bound(mut self, bound: UpperBound<S, N>) -> Self {
+    pub fn with_upper_bound(mut self, bound: UpperBound<S, Const<N>>) -> Self {
         self.bound_is_zero = bound.is_zero();
         self.bound = bound;
         self.restart_c = self.restart_temp();
@@ -630,7 +632,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// Each coil's protective upper bound.
-    pub fn upper_bound(&self) -> &UpperBound<S, N> {
+    pub fn upper_bound(&self) -> &UpperBound<S, Const<N>> {
         &self.bound
     }
 
@@ -687,7 +689,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// The alarm configuration.
-    pub fn alarm(&self) -> &AlarmConfig<S, N> {
+    pub fn alarm(&self) -> &AlarmConfig<S, Const<N>> {
         &self.alarm
     }
 

@@ -973,10 +973,10 @@ pub struct NetworkObserver<
     limited: [bool; N],
     incidence: [[bool; M]; N],
     hardware_limit_a: [f32; M],
-    alarm: AlarmConfig<f32, N>,
-    limiter: LimiterConfig<f32, N>,
+    alarm: AlarmConfig<f32, Const<N>>,
+    limiter: LimiterConfig<f32, Const<N>>,
     predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
-    bound: UpperBound<f32, N>,
+    bound: UpperBound<f32, Const<N>>,
     /// The bound's `k` (of `k sigma`).
     k_sigma: f32,
     /// The steady `sigma` in each node's bound \[K\] (of the prior).
@@ -1086,7 +1086,7 @@ pub struct NetworkObserverState<
     /// example's mean 2 instructions (the layout), here none.
     predictor_half: HalfElement<f32>,
     /// The alarm's state.
-    pub alarm: AlarmState<f32, N>,
+    pub alarm: AlarmState<f32, Const<N>>,
     /// Alarm events not yet drained.
     pub events: EventQueue<EVENT_CAPACITY>,
     stuck: StuckWatch<P>,
@@ -1242,7 +1242,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// Each node's protective upper bound.
-    pub fn upper_bound(&self) -> &UpperBound<f32, N> {
+    pub fn upper_bound(&self) -> &UpperBound<f32, Const<N>> {
         &self.bound
     }
 
@@ -1252,7 +1252,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// The alarm configuration (per-element limits at an ambient).
-    pub fn alarm(&self) -> &AlarmConfig<f32, N> {
+    pub fn alarm(&self) -> &AlarmConfig<f32, Const<N>> {
         &self.alarm
     }
 

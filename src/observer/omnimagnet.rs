@@ -710,11 +710,11 @@ pub type OmniOutputs = FilteredOutputs<NODES, SOLENOIDS, { ALARM_NODES.len() }, 
 #[derive(Debug, Clone)]
 pub struct OmniObserver {
     filter: ObserverConfig<f32>,
-    alarm: AlarmConfig<f32, 6>,
-    limiter: LimiterConfig<f32, SOLENOIDS>,
+    alarm: AlarmConfig<f32, Const<6>>,
+    limiter: LimiterConfig<f32, Const<SOLENOIDS>>,
     predictor: LimitPredictor<f32, NODES, 1, SOLENOIDS, PREDICTOR_POINTS>,
     /// Each node's protective upper bound, on its rise above the ambient.
-    bound: UpperBound<f32, NODES>,
+    bound: UpperBound<f32, Const<NODES>>,
     clock: StepClock,
     limits: ScalarLimits<f32>,
     max_reading_age_us: u32,
@@ -808,7 +808,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     /// The predictor's sweep.
     pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
     /// The alarm's state.
-    pub alarm: AlarmState<f32, 6>,
+    pub alarm: AlarmState<f32, Const<6>>,
     /// Alarm events not yet drained.
     pub events: EventQueue<EVENT_CAPACITY>,
     stuck: StuckWatch<THERMOCOUPLES>,
@@ -1114,7 +1114,7 @@ impl OmniObserver {
     fn build_bound(
         filter: &ObserverConfig<f32>,
         settings: &OmniSettings,
-    ) -> Result<UpperBound<f32, NODES>, BuildError> {
+    ) -> Result<UpperBound<f32, Const<NODES>>, BuildError> {
         let prior = filter.gain().prior();
         let sigma_k: [f64; NODES] =
             core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
@@ -1136,7 +1136,7 @@ impl OmniObserver {
 
     /// Each node's protective upper bound (see [`OmniSettings::k_sigma`]
     /// and [`OmniSettings::unmeasured_margin`]).
-    pub fn upper_bound(&self) -> &UpperBound<f32, NODES> {
+    pub fn upper_bound(&self) -> &UpperBound<f32, Const<NODES>> {
         &self.bound
     }
 
@@ -1161,9 +1161,9 @@ impl OmniObserver {
     fn fingerprint_of(
         filter: &ObserverConfig<f32>,
         settings: &OmniSettings,
-        alarm: &AlarmConfig<f32, 6>,
-        limiter: &LimiterConfig<f32, SOLENOIDS>,
-        bound: &UpperBound<f32, NODES>,
+        alarm: &AlarmConfig<f32, Const<6>>,
+        limiter: &LimiterConfig<f32, Const<SOLENOIDS>>,
+        bound: &UpperBound<f32, Const<NODES>>,
         refresh: &RefreshWatchdog,
     ) -> u32 {
         let kalman = filter.kalman();
@@ -1206,7 +1206,7 @@ impl OmniObserver {
 
     /// The alarm configuration of the [`ALARM_NODES`] elements (their
     /// limits at an ambient).
-    pub fn alarm(&self) -> &AlarmConfig<f32, 6> {
+    pub fn alarm(&self) -> &AlarmConfig<f32, Const<6>> {
         &self.alarm
     }
 

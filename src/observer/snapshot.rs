@@ -55,6 +55,7 @@
 //! negative) is no cooling. The latch is restored as it was.
 
 use core::fmt;
+use nalgebra::Const;
 
 use crate::protect::alarm::AlarmState;
 use crate::scalar::Scalar;
@@ -248,7 +249,7 @@ pub(crate) fn save_state<S: Scalar, const N: usize, const E: usize>(
     temps_c: &[f32; N],
     fingerprint: u32,
     now_s: u32,
-    alarm: &AlarmState<S, E>,
+    alarm: &AlarmState<S, Const<E>>,
     out: &mut [u8],
 ) -> Result<usize, SnapshotError> {
     let meta = SnapshotMeta {

@@ -470,8 +470,8 @@ pub struct AlarmTables<S, const N: usize> {
     pub nominal_ambient_c: S,
 }
 
-impl<S: Copy, const N: usize> AlarmTables<S, N> {
-    pub(crate) fn of(a: &AlarmConfig<S, N>) -> Self {
+impl<S: Scalar, const N: usize> AlarmTables<S, N> {
+    pub(crate) fn of(a: &AlarmConfig<S, Const<N>>) -> Self {
         Self {
             critical_c: a.critical_c,
             derating_product: a.product,
@@ -485,7 +485,7 @@ impl<S: Copy, const N: usize> AlarmTables<S, N> {
     }
 
     /// The configuration, copied field by field.
-    pub(crate) const fn config(&self) -> AlarmConfig<S, N> {
+    pub(crate) const fn config(&self) -> AlarmConfig<S, Const<N>> {
         AlarmConfig {
             critical_c: self.critical_c,
             product: self.derating_product,
@@ -527,8 +527,8 @@ pub struct LimiterTables<S, const N: usize> {
     pub floor_a: S,
 }
 
-impl<S: Copy, const N: usize> LimiterTables<S, N> {
-    pub(crate) fn of(l: &LimiterConfig<S, N>) -> Self {
+impl<S: Scalar, const N: usize> LimiterTables<S, N> {
+    pub(crate) fn of(l: &LimiterConfig<S, Const<N>>) -> Self {
         Self {
             hardware_limit_a: l.hardware_limit_a,
             taper_k: l.taper_k,
@@ -538,7 +538,7 @@ impl<S: Copy, const N: usize> LimiterTables<S, N> {
     }
 
     /// The configuration, copied field by field.
-    pub(crate) const fn config(&self) -> LimiterConfig<S, N> {
+    pub(crate) const fn config(&self) -> LimiterConfig<S, Const<N>> {
         LimiterConfig {
             hardware_limit_a: self.hardware_limit_a,
             taper_k: self.taper_k,
@@ -605,14 +605,18 @@ impl ClockTables {
 
 /// Each element's upper bound as a row: the share of its rise `f`
 /// (dimensionless), `f / (1 + f)` and its offset \[K\].
-pub(crate) fn bound_rows<S: Copy, const N: usize>(bound: &UpperBound<S, N>) -> [[S; 3]; N] {
+pub(crate) fn bound_rows<S: Scalar, const N: usize>(
+    bound: &UpperBound<S, Const<N>>,
+) -> [[S; 3]; N] {
     bound
         .elements
         .map(|e| [e.rise_fraction, e.limit_fraction, e.offset_k])
 }
 
 /// The upper bound of [`bound_rows`]' rows, copied.
-pub(crate) const fn upper_bound<S: Scalar, const N: usize>(rows: &[[S; 3]; N]) -> UpperBound<S, N> {
+pub(crate) const fn upper_bound<S: Scalar, const N: usize>(
+    rows: &[[S; 3]; N],
+) -> UpperBound<S, Const<N>> {
     let mut elements = [ElementBound::<S>::ZERO; N];
     let mut i = 0;
     while i < N {

@@ -63,10 +63,13 @@
 use core::fmt;
 use core::ops::Range;
 
+use nalgebra::Const;
+
 use super::derating::{derated_limit_c, DeratingRule};
 use super::events::{AlarmEvent, EventKind, EventQueue};
 use crate::error::{check, BuildError};
 use crate::scalar::Scalar;
+use crate::sizes::{Element, Length};
 
 /// Where one sample lies relative to an alarm's raise and clear levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -158,14 +161,14 @@ impl Debounced {
     }
 }
 
-/// The alarm configuration for `N` elements, in scalar `S`.
+/// The alarm configuration for `N` elements (`Const<N>`: arrays; `Dyn`:
+/// vectors, see [`crate::sizes`]), in scalar `S`.
 ///
 /// Built once by [`AlarmBuilder::build`], then only read; share it between
 /// devices of the same kind.
 #[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct AlarmConfig<S, const N: usize> {
-    pub(crate) critical_c: [S; N],
+pub struct AlarmConfig<S: Element, N: Length> {
+    pub(crate) critical_c: N::Array<S>,
     pub(crate) product: S,
     pub(crate) warning_margin_k: S,
     pub(crate) hysteresis_k: S,
@@ -175,24 +178,44 @@ pub struct AlarmConfig<S, const N: usize> {
     pub(crate) nominal_ambient_c: S,
 }
 
-impl<S: Scalar, const N: usize> AlarmConfig<S, N> {
+#[cfg(feature = "defmt")]
+impl<S: Element + defmt::Format, const N: usize> defmt::Format for AlarmConfig<S, Const<N>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "AlarmConfig {{ critical_c: {}, product: {}, warning_margin_k: {}, hysteresis_k: {}, debounce_ticks: {}, horizon_s: {}, horizon_clear_s: {}, nominal_ambient_c: {} }}",
+            self.critical_c,
+            self.product,
+            self.warning_margin_k,
+            self.hysteresis_k,
+            self.debounce_ticks,
+            self.horizon_s,
+            self.horizon_clear_s,
+            self.nominal_ambient_c
+        )
+    }
+}
+
+impl<S: Scalar, N: Length> AlarmConfig<S, N> {
     /// The alarm limit \[degC\] (the shutdown level) of every element at
     /// ambient `ambient_c` \[degC\]; what the current limiter tapers towards.
-    pub fn alarm_limits_c(&self, ambient_c: S) -> [S; N] {
-        self.critical_c
-            .map(|critical_c| derated_limit_c(critical_c, ambient_c, self.product))
+    pub fn alarm_limits_c(&self, ambient_c: S) -> N::Array<S> {
+        N::mapped(&self.critical_c, |&critical_c| {
+            derated_limit_c(critical_c, ambient_c, self.product)
+        })
     }
 
     /// The alarm limit \[degC\] of element `element` at `ambient_c` \[degC\],
     /// or `None` if there is no such element.
     pub fn alarm_limit_c(&self, element: usize, ambient_c: S) -> Option<S> {
         self.critical_c
+            .as_ref()
             .get(element)
             .map(|&critical_c| derated_limit_c(critical_c, ambient_c, self.product))
     }
 
     /// The critical temperatures \[degC\], one per element.
-    pub fn critical_c(&self) -> &[S; N] {
+    pub fn critical_c(&self) -> &N::Array<S> {
         &self.critical_c
     }
 
@@ -217,6 +240,7 @@ impl<S: Scalar, const N: usize> AlarmConfig<S, N> {
     #[must_use]
     pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
         self.critical_c
+            .as_ref()
             .iter()
             .fold(fp, |fp, c| fp.f64(c.to_f64()))
             .f64s(&[
@@ -233,9 +257,8 @@ impl<S: Scalar, const N: usize> AlarmConfig<S, N> {
 
 /// Builds an [`AlarmConfig`]; every parameter has a documented default.
 #[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct AlarmBuilder<const N: usize> {
-    critical_c: [f64; N],
+pub struct AlarmBuilder<N: Length> {
+    critical_c: N::Array<f64>,
     product: f64,
     warning_margin_k: f64,
     hysteresis_k: f64,
@@ -245,7 +268,7 @@ pub struct AlarmBuilder<const N: usize> {
     nominal_ambient_c: f64,
 }
 
-impl<const N: usize> AlarmBuilder<N> {
+impl<const N: usize> AlarmBuilder<Const<N>> {
     /// Starts a configuration from a derating rule and each element's
     /// critical temperature \[degC\] (the lowest of its materials).
     ///
@@ -254,6 +277,14 @@ impl<const N: usize> AlarmBuilder<N> {
     /// `horizon_hysteresis_s` 10 s, `nominal_ambient_c` 20 degC (the
     /// calibration ambient of both reference devices).
     pub fn new(rule: &DeratingRule, critical_c: [f64; N]) -> Self {
+        Self::of(rule, critical_c)
+    }
+}
+
+impl<N: Length> AlarmBuilder<N> {
+    /// [`AlarmBuilder::new`] for elements of any [`Length`] (a `Vec` of
+    /// critical temperatures for `Dyn`, a model's size read at run time).
+    pub fn of(rule: &DeratingRule, critical_c: N::Array<f64>) -> Self {
         Self {
             critical_c,
             product: rule.product(),
@@ -313,7 +344,10 @@ impl<const N: usize> AlarmBuilder<N> {
     /// finite or out of its range (`critical_c` for any element).
     pub fn build<S: Scalar>(&self) -> Result<AlarmConfig<S, N>, BuildError> {
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
-        check(self.critical_c.iter().all(|c| c.is_finite()), "critical_c")?;
+        check(
+            self.critical_c.as_ref().iter().all(|c| c.is_finite()),
+            "critical_c",
+        )?;
         check(non_negative(self.warning_margin_k), "warning_margin_k")?;
         check(non_negative(self.hysteresis_k), "hysteresis_k")?;
         check(self.debounce_ticks >= 1, "debounce_ticks")?;
@@ -324,7 +358,7 @@ impl<const N: usize> AlarmBuilder<N> {
         )?;
         check(self.nominal_ambient_c.is_finite(), "nominal_ambient_c")?;
         Ok(AlarmConfig {
-            critical_c: self.critical_c.map(S::from_f64),
+            critical_c: N::mapped(&self.critical_c, |&c| S::from_f64(c)),
             product: S::from_f64(self.product),
             warning_margin_k: S::from_f64(self.warning_margin_k),
             hysteresis_k: S::from_f64(self.hysteresis_k),
@@ -529,18 +563,31 @@ impl core::error::Error for ResetError {}
 
 /// The alarm state of `N` elements: small, per device, what a snapshot saves.
 #[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct AlarmState<S, const N: usize> {
-    elements: [ElementAlarm; N],
+pub struct AlarmState<S: Element, N: Length> {
+    elements: N::Array<ElementAlarm>,
     ambient_c: S,
     ambient_invalid: bool,
     tick: u64,
 }
 
+#[cfg(feature = "defmt")]
+impl<S: Element + defmt::Format, const N: usize> defmt::Format for AlarmState<S, Const<N>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "AlarmState {{ elements: {}, ambient_c: {}, ambient_invalid: {}, tick: {} }}",
+            self.elements,
+            self.ambient_c,
+            self.ambient_invalid,
+            self.tick
+        )
+    }
+}
+
 /// Where a tick's alarm limits come from: derated from the critical
 /// temperatures at the tick's ambient ([`Derate`]), or given (a slice of
 /// them, derated already \[degC\]).
-trait Levels<S: Scalar, const N: usize>: Copy {
+trait Levels<S: Scalar, N: Length>: Copy {
     /// The temperatures \[degC\] the limits are taken from.
     fn of<'a>(self, config: &'a AlarmConfig<S, N>) -> &'a [S]
     where
@@ -553,13 +600,13 @@ trait Levels<S: Scalar, const N: usize>: Copy {
 #[derive(Clone, Copy)]
 struct Derate;
 
-impl<S: Scalar, const N: usize> Levels<S, N> for Derate {
+impl<S: Scalar, N: Length> Levels<S, N> for Derate {
     #[inline(always)]
     fn of<'a>(self, config: &'a AlarmConfig<S, N>) -> &'a [S]
     where
         Self: 'a,
     {
-        &config.critical_c
+        config.critical_c.as_ref()
     }
     #[inline(always)]
     fn limit_c(critical_c: S, ambient_c: S, product: S) -> S {
@@ -567,13 +614,13 @@ impl<S: Scalar, const N: usize> Levels<S, N> for Derate {
     }
 }
 
-impl<S: Scalar, const N: usize> Levels<S, N> for &[S; N] {
+impl<S: Scalar, N: Length> Levels<S, N> for &N::Array<S> {
     #[inline(always)]
     fn of<'a>(self, _: &'a AlarmConfig<S, N>) -> &'a [S]
     where
         Self: 'a,
     {
-        self
+        self.as_ref()
     }
     #[inline(always)]
     fn limit_c(limit_c: S, _: S, _: S) -> S {
@@ -581,11 +628,11 @@ impl<S: Scalar, const N: usize> Levels<S, N> for &[S; N] {
     }
 }
 
-impl<S: Scalar, const N: usize> AlarmState<S, N> {
+impl<S: Scalar, N: Length> AlarmState<S, N> {
     /// All alarms off, ambient at the configuration's nominal ambient.
     pub fn new(config: &AlarmConfig<S, N>) -> Self {
         Self {
-            elements: [ElementAlarm::default(); N],
+            elements: N::filled_like(&config.critical_c, ElementAlarm::default()),
             ambient_c: config.nominal_ambient_c,
             ambient_invalid: false,
             tick: 0,
@@ -602,12 +649,13 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     pub fn tick<const CAP: usize>(
         &mut self,
         config: &AlarmConfig<S, N>,
-        temps_c: &[S; N],
+        temps_c: &N::Array<S>,
         ambient_c: S,
-        time_to_limit_s: &[Option<S>; N],
+        time_to_limit_s: &N::Array<Option<S>>,
         events: &mut EventQueue<CAP>,
     ) -> AlarmStatus {
-        self.tick_part(config, temps_c, ambient_c, time_to_limit_s, events, 0..N)
+        let all = 0..temps_c.as_ref().len();
+        self.tick_part(config, temps_c, ambient_c, time_to_limit_s, events, all)
     }
 
     /// [`Self::tick`] for the elements in `elements` only, for a caller that
@@ -620,9 +668,9 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     pub fn tick_part<const CAP: usize>(
         &mut self,
         config: &AlarmConfig<S, N>,
-        temps_c: &[S; N],
+        temps_c: &N::Array<S>,
         ambient_c: S,
-        time_to_limit_s: &[Option<S>; N],
+        time_to_limit_s: &N::Array<Option<S>>,
         events: &mut EventQueue<CAP>,
         elements: Range<usize>,
     ) -> AlarmStatus {
@@ -658,10 +706,10 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     pub(crate) fn tick_at_limits<const CAP: usize>(
         &mut self,
         config: &AlarmConfig<S, N>,
-        temps_c: &[S; N],
+        temps_c: &N::Array<S>,
         ambient_c: S,
-        limits_c: Option<&[S; N]>,
-        time_to_limit_s: &[Option<S>; N],
+        limits_c: Option<&N::Array<S>>,
+        time_to_limit_s: &N::Array<Option<S>>,
         events: &mut EventQueue<CAP>,
     ) -> AlarmStatus {
         match limits_c {
@@ -671,7 +719,7 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
                 ambient_c,
                 time_to_limit_s,
                 events,
-                0..N,
+                0..temps_c.as_ref().len(),
                 limits_c,
             ),
             None => self.tick(config, temps_c, ambient_c, time_to_limit_s, events),
@@ -691,9 +739,9 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     fn judge<L: Levels<S, N>, const CAP: usize>(
         &mut self,
         config: &AlarmConfig<S, N>,
-        temps_c: &[S; N],
+        temps_c: &N::Array<S>,
         ambient_c: S,
-        time_to_limit_s: &[Option<S>; N],
+        time_to_limit_s: &N::Array<Option<S>>,
         events: &mut EventQueue<CAP>,
         elements: Range<usize>,
         levels: L,
@@ -726,12 +774,13 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         };
         let (mut warning, mut shutdown, mut predictive, mut sensor_invalid) =
             (false, false, false, false);
-        let elements = first.min(N)..elements.end.min(N);
+        let n = temps_c.as_ref().len();
+        let elements = first.min(n)..elements.end.min(n);
         let (Some(alarms), Some(temps_c), Some(levels_c), Some(time_to_limit_s)) = (
-            self.elements.get_mut(elements.clone()),
-            temps_c.get(elements.clone()),
+            self.elements.as_mut().get_mut(elements.clone()),
+            temps_c.as_ref().get(elements.clone()),
             levels.of(config).get(elements.clone()),
-            time_to_limit_s.get(elements),
+            time_to_limit_s.as_ref().get(elements),
         ) else {
             return status;
         };
@@ -818,7 +867,7 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
         if self.ambient_invalid {
             return Err(ResetError::AmbientInvalid);
         }
-        for (element, alarm) in self.elements.iter().enumerate() {
+        for (element, alarm) in self.elements.as_ref().iter().enumerate() {
             if alarm.sensor_invalid {
                 return Err(ResetError::SensorInvalid { element });
             }
@@ -829,7 +878,7 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
                 return Err(ResetError::NotSettled { element });
             }
         }
-        for alarm in &mut self.elements {
+        for alarm in self.elements.as_mut() {
             alarm.shutdown = Debounced::default();
         }
         let _ = events.push(AlarmEvent {
@@ -845,7 +894,7 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     /// reset of the MCU must not be a way around the latch. [`Self::reset`]
     /// clears it under its usual conditions.
     pub fn latch_shutdown(&mut self) {
-        for element in &mut self.elements {
+        for element in self.elements.as_mut() {
             element.shutdown = Debounced {
                 active: true,
                 count: 0,
@@ -875,12 +924,13 @@ impl<S: Scalar, const N: usize> AlarmState<S, N> {
     }
 
     /// `true` while any element's shutdown is latched.
+    #[inline]
     pub fn shutdown_latched(&self) -> bool {
-        self.elements.iter().any(|e| e.shutdown.active)
+        self.elements.as_ref().iter().any(|e| e.shutdown.active)
     }
 
     /// Every element's alarm state.
-    pub fn elements(&self) -> &[ElementAlarm; N] {
+    pub fn elements(&self) -> &N::Array<ElementAlarm> {
         &self.elements
     }
 
@@ -918,7 +968,7 @@ fn observe<S: Scalar>(temp_c: S, level_c: S, hysteresis_k: S) -> Observation {
 
 /// A predicted time against the horizon: sooner is "above".
 #[inline]
-fn observe_time<S: Scalar, const N: usize>(
+fn observe_time<S: Scalar, N: Length>(
     time_s: Option<S>,
     config: &AlarmConfig<S, N>,
 ) -> Observation {
@@ -960,7 +1010,7 @@ mod tests {
     const WARNING: f64 = 60.36;
     const HYST: f64 = 2.0;
 
-    fn config<S: Scalar, const N: usize>(debounce: u16) -> AlarmConfig<S, N> {
+    fn config<S: Scalar, const N: usize>(debounce: u16) -> AlarmConfig<S, Const<N>> {
         AlarmBuilder::new(&DeratingRule::hppa(), [HPPA_CRITICAL_C; N])
             .warning_margin_k(5.0)
             .hysteresis_k(HYST)
@@ -973,8 +1023,8 @@ mod tests {
 
     /// Runs one tick with one element, no prediction, 20 degC ambient.
     fn step<S: Scalar, const Q: usize>(
-        state: &mut AlarmState<S, 1>,
-        cfg: &AlarmConfig<S, 1>,
+        state: &mut AlarmState<S, Const<1>>,
+        cfg: &AlarmConfig<S, Const<1>>,
         temp_c: f64,
         events: &mut EventQueue<Q>,
     ) -> AlarmStatus {
@@ -1240,8 +1290,8 @@ mod tests {
         let mut state = AlarmState::new(&cfg);
         let mut events = EventQueue::<64>::new();
         fn run(
-            state: &mut AlarmState<f64, 2>,
-            cfg: &AlarmConfig<f64, 2>,
+            state: &mut AlarmState<f64, Const<2>>,
+            cfg: &AlarmConfig<f64, Const<2>>,
             events: &mut EventQueue<64>,
             temps: [f64; 2],
             ticks: usize,
@@ -1427,7 +1477,7 @@ mod tests {
         let mut events = EventQueue::<64>::new();
         let temps = [S::from_f64(30.0); 2];
         let ambient = S::from_f64(20.0);
-        let mut run = |state: &mut AlarmState<S, 2>, times: [Option<f64>; 2], n: usize| {
+        let mut run = |state: &mut AlarmState<S, Const<2>>, times: [Option<f64>; 2], n: usize| {
             let times = times.map(|t| t.map(S::from_f64));
             let mut status = AlarmStatus::default();
             for _ in 0..n {
@@ -1522,7 +1572,7 @@ mod tests {
     fn builder_rejects_bad_parameters() {
         let rule = DeratingRule::hppa();
         let base = AlarmBuilder::new(&rule, [100.0; 3]);
-        let err = |b: AlarmBuilder<3>| b.build::<f64>().unwrap_err();
+        let err = |b: AlarmBuilder<Const<3>>| b.build::<f64>().unwrap_err();
         let name = |name| BuildError::InvalidParameter { name };
         assert_eq!(
             err(AlarmBuilder::new(&rule, [100.0, f64::NAN, 100.0])),

@@ -77,6 +77,8 @@ use core::ops::Range;
 use crate::error::BuildError;
 use crate::input::DriveFlags;
 use crate::scalar::Scalar;
+use crate::sizes::{Element, Length};
+use nalgebra::Const;
 
 /// A voltage-driven winding's limit in its drive's units (see "A limit in
 /// the drive's own unit").
@@ -144,14 +146,26 @@ pub fn drive_limit(limit: &CoilLimit<f32>, resistance_ohm: f32, supply_v: f32) -
 
 /// The limiter configuration for `N` coils, in scalar `S`.
 #[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LimiterConfig<S, const N: usize> {
-    pub(crate) hardware_limit_a: [S; N],
+pub struct LimiterConfig<S: Element, N: Length> {
+    pub(crate) hardware_limit_a: N::Array<S>,
     pub(crate) taper_k: S,
     /// `1 / taper_k` \[1/K\]: the taper is a multiply per coil, where a
     /// division is a software routine on a core without an FPU.
     pub(crate) taper_per_k: S,
     pub(crate) floor_a: S,
+}
+
+#[cfg(feature = "defmt")]
+impl<S: Element + defmt::Format, const N: usize> defmt::Format for LimiterConfig<S, Const<N>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "LimiterConfig {{ hardware_limit_a: {}, taper_k: {}, floor_a: {} }}",
+            self.hardware_limit_a,
+            self.taper_k,
+            self.floor_a
+        )
+    }
 }
 
 /// One coil's limit for this tick.
@@ -200,7 +214,7 @@ pub struct LimiterStatus {
     pub invalid: usize,
 }
 
-impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
+impl<S: Scalar, const N: usize> LimiterConfig<S, Const<N>> {
     /// Validates a configuration: each coil's hardware current limit
     /// `hardware_limit_a` \[A\] (finite, > 0), the width of the taper band
     /// below the alarm limit `taper_k` \[K\] (finite, > 0), and the current
@@ -212,16 +226,32 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     /// made on the values converted to `S`, so a `taper_k` too small for the
     /// fixed-point resolution is rejected rather than divided by.
     pub fn new(hardware_limit_a: [f64; N], taper_k: f64, floor_a: f64) -> Result<Self, BuildError> {
+        Self::of(&hardware_limit_a, taper_k, floor_a)
+    }
+}
+
+impl<S: Scalar, N: Length> LimiterConfig<S, N> {
+    /// [`LimiterConfig::new`] for coils of any [`Length`] (a `Vec` for
+    /// `Dyn`, a model's size read at run time).
+    ///
+    /// # Errors
+    /// As [`LimiterConfig::new`].
+    pub fn of(
+        hardware_limit_a: &N::Array<f64>,
+        taper_k: f64,
+        floor_a: f64,
+    ) -> Result<Self, BuildError> {
         let config = Self {
-            hardware_limit_a: hardware_limit_a.map(S::from_f64),
+            hardware_limit_a: N::mapped(hardware_limit_a, |&a| S::from_f64(a)),
             taper_k: S::from_f64(taper_k),
             taper_per_k: S::from_f64(1.0 / taper_k),
             floor_a: S::from_f64(floor_a),
         };
         let positive = |raw: f64, converted: S| raw.is_finite() && converted > S::ZERO;
         let hardware_ok = hardware_limit_a
+            .as_ref()
             .iter()
-            .zip(config.hardware_limit_a.iter())
+            .zip(config.hardware_limit_a.as_ref())
             .all(|(&raw, &converted)| positive(raw, converted) && converted >= config.floor_a);
         if !(positive(taper_k, config.taper_k) && config.taper_per_k > S::ZERO) {
             return Err(BuildError::InvalidParameter { name: "taper_k" });
@@ -231,7 +261,11 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
         }
         if !hardware_ok {
             // Distinguish a bad hardware limit from a floor above a good one.
-            let name = if hardware_limit_a.iter().all(|&a| a.is_finite() && a > 0.0) {
+            let name = if hardware_limit_a
+                .as_ref()
+                .iter()
+                .all(|&a| a.is_finite() && a > 0.0)
+            {
                 "floor_a"
             } else {
                 "hardware_limit_a"
@@ -249,12 +283,13 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     /// constructor or a `max` keeps positive.
     pub fn apply(
         &self,
-        temps_c: &[S; N],
-        alarm_limits_c: &[S; N],
+        temps_c: &N::Array<S>,
+        alarm_limits_c: &N::Array<S>,
         ambient_c: S,
-        out: &mut [CoilLimit<S>; N],
+        out: &mut N::Array<CoilLimit<S>>,
     ) -> LimiterStatus {
-        self.apply_part(temps_c, alarm_limits_c, ambient_c, out, 0..N)
+        let all = 0..temps_c.as_ref().len();
+        self.apply_part(temps_c, alarm_limits_c, ambient_c, out, all)
     }
 
     /// [`Self::apply`] for the coils in `coils` only (cut to `N`), the
@@ -262,19 +297,20 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     /// limiter over several control ticks. The status counts those coils.
     pub fn apply_part(
         &self,
-        temps_c: &[S; N],
-        alarm_limits_c: &[S; N],
+        temps_c: &N::Array<S>,
+        alarm_limits_c: &N::Array<S>,
         ambient_c: S,
-        out: &mut [CoilLimit<S>; N],
+        out: &mut N::Array<CoilLimit<S>>,
         coils: Range<usize>,
     ) -> LimiterStatus {
         let mut status = LimiterStatus::default();
-        let coils = coils.start.min(N)..coils.end.min(N);
+        let n = temps_c.as_ref().len();
+        let coils = coils.start.min(n)..coils.end.min(n);
         let (Some(temps_c), Some(alarm_limits_c), Some(hardware_a), Some(out)) = (
-            temps_c.get(coils.clone()),
-            alarm_limits_c.get(coils.clone()),
-            self.hardware_limit_a.get(coils.clone()),
-            out.get_mut(coils),
+            temps_c.as_ref().get(coils.clone()),
+            alarm_limits_c.as_ref().get(coils.clone()),
+            self.hardware_limit_a.as_ref().get(coils.clone()),
+            out.as_mut().get_mut(coils),
         ) else {
             return status;
         };
@@ -324,7 +360,7 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     }
 
     /// The hardware current limits \[A\].
-    pub fn hardware_limit_a(&self) -> &[S; N] {
+    pub fn hardware_limit_a(&self) -> &N::Array<S> {
         &self.hardware_limit_a
     }
 
@@ -343,6 +379,7 @@ impl<S: Scalar, const N: usize> LimiterConfig<S, N> {
     #[must_use]
     pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
         self.hardware_limit_a
+            .as_ref()
             .iter()
             .fold(fp, |fp, a| fp.f64(a.to_f64()))
             .f64s(&[self.taper_k.to_f64(), self.floor_a.to_f64()])
@@ -373,7 +410,7 @@ mod tests {
     const ALARM_C: f64 = 65.36;
     const AMBIENT_C: f64 = 20.0;
 
-    fn one<S: Scalar>(cfg: &LimiterConfig<S, 1>, temp_c: f64) -> CoilLimit<S> {
+    fn one<S: Scalar>(cfg: &LimiterConfig<S, Const<1>>, temp_c: f64) -> CoilLimit<S> {
         let mut out = [CoilLimit::default()];
         cfg.apply(
             &[S::from_f64(temp_c)],
@@ -398,7 +435,7 @@ mod tests {
 
     #[test]
     fn table_against_closed_form() {
-        let cfg = LimiterConfig::<f64, 1>::new([HW_A], TAPER_K, 0.0).unwrap();
+        let cfg = LimiterConfig::<f64, Const<1>>::new([HW_A], TAPER_K, 0.0).unwrap();
         // (temperature, limit): at T_start + 7.5 K a quarter of the headroom
         // is left, so half the current and a quarter of the power.
         let table = [
@@ -423,7 +460,7 @@ mod tests {
 
     #[test]
     fn floor_and_invalid_inputs() {
-        let cfg = LimiterConfig::<f32, 1>::new([HW_A], TAPER_K, 0.2).unwrap();
+        let cfg = LimiterConfig::<f32, Const<1>>::new([HW_A], TAPER_K, 0.2).unwrap();
         assert_eq!(one(&cfg, 100.0).current_a, 0.2);
         assert!(!one(&cfg, 100.0).invalid);
         for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
@@ -434,7 +471,7 @@ mod tests {
             );
         }
         // A NaN alarm limit too, and it is counted.
-        let cfg2 = LimiterConfig::<f32, 2>::new([HW_A; 2], TAPER_K, 0.2).unwrap();
+        let cfg2 = LimiterConfig::<f32, Const<2>>::new([HW_A; 2], TAPER_K, 0.2).unwrap();
         let mut out = [CoilLimit::default(); 2];
         let status = cfg2.apply(&[30.0, 30.0], &[f32::NAN, 65.0], 20.0, &mut out);
         assert_eq!(
@@ -467,7 +504,7 @@ mod tests {
     #[test]
     fn config_is_validated() {
         let err = |hw: f64, taper: f64, floor: f64| {
-            LimiterConfig::<f64, 2>::new([HW_A, hw], taper, floor).unwrap_err()
+            LimiterConfig::<f64, Const<2>>::new([HW_A, hw], taper, floor).unwrap_err()
         };
         let name = |name| BuildError::InvalidParameter { name };
         assert_eq!(err(0.0, 10.0, 0.0), name("hardware_limit_a"));
@@ -478,10 +515,10 @@ mod tests {
         assert_eq!(err(1.0, 10.0, 1.5), name("floor_a"));
         // Below one Q32 LSB the taper would divide by zero: rejected.
         assert_eq!(
-            LimiterConfig::<Q32, 1>::new([HW_A], 1e-12, 0.0).unwrap_err(),
+            LimiterConfig::<Q32, Const<1>>::new([HW_A], 1e-12, 0.0).unwrap_err(),
             name("taper_k")
         );
-        assert!(LimiterConfig::<f64, 1>::new([HW_A], 1e-12, 0.0).is_ok());
+        assert!(LimiterConfig::<f64, Const<1>>::new([HW_A], 1e-12, 0.0).is_ok());
     }
 
     /// Fixed-point error against f64. Away from the alarm limit it is a few
@@ -494,8 +531,8 @@ mod tests {
 
     #[test]
     fn fixed_point_agrees_with_f64() {
-        let cfg64 = LimiterConfig::<f64, 1>::new([HW_A], TAPER_K, 0.0).unwrap();
-        let cfgq = LimiterConfig::<Q32, 1>::new([HW_A], TAPER_K, 0.0).unwrap();
+        let cfg64 = LimiterConfig::<f64, Const<1>>::new([HW_A], TAPER_K, 0.0).unwrap();
+        let cfgq = LimiterConfig::<Q32, Const<1>>::new([HW_A], TAPER_K, 0.0).unwrap();
         let error = |temp_c: f64| {
             let (a, q) = (one(&cfg64, temp_c), one(&cfgq, temp_c));
             assert!((a.weight - q.weight.to_f64()).abs() < 1e-8, "{temp_c}");
@@ -534,7 +571,7 @@ mod tests {
     /// `[floor, hw]`, the weight within [0, 1], a non-finite temperature gets
     /// the floor, and a hotter coil never gets more current or weight.
     fn check_properties<S: Scalar>(a_c: f64, b_c: f64, floor_a: f64) -> Result<(), TestCaseError> {
-        let cfg = LimiterConfig::<S, 1>::new([HW_A], TAPER_K, floor_a).unwrap();
+        let cfg = LimiterConfig::<S, Const<1>>::new([HW_A], TAPER_K, floor_a).unwrap();
         let (la, lb) = (one(&cfg, a_c), one(&cfg, b_c));
         let hw = S::from_f64(HW_A);
         let floor = S::from_f64(floor_a);

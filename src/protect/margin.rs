@@ -107,8 +107,11 @@
 
 use core::ops::Range;
 
+use nalgebra::Const;
+
 use crate::error::{check, BuildError};
 use crate::scalar::Scalar;
+use crate::sizes::{Element, Length};
 
 /// The model-uncertainty margin of an element: how much hotter than the
 /// model's estimate it may be, `offset_k + rise_fraction * (T - T_ref)`
@@ -266,37 +269,48 @@ impl<S: Scalar> ElementBound<S> {
 /// The upper bounds of `N` elements (configuration: built once by
 /// [`UpperBoundBuilder`], shared, read by the tick).
 #[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct UpperBound<S, const N: usize> {
-    pub(crate) elements: [ElementBound<S>; N],
+pub struct UpperBound<S: Element, N: Length> {
+    pub(crate) elements: N::Array<ElementBound<S>>,
 }
 
-impl<S: Scalar, const N: usize> UpperBound<S, N> {
+#[cfg(feature = "defmt")]
+impl<S: Element + defmt::Format, const N: usize> defmt::Format for UpperBound<S, Const<N>> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "UpperBound {{ elements: {} }}", self.elements)
+    }
+}
+
+impl<S: Scalar, const N: usize> UpperBound<S, Const<N>> {
     /// No margin on any element: every bound is the estimate.
     pub const ZERO: Self = Self {
         elements: [ElementBound::ZERO; N],
     };
+}
 
+impl<S: Scalar, N: Length> UpperBound<S, N> {
     /// Every element's bound.
-    pub fn elements(&self) -> &[ElementBound<S>; N] {
+    pub fn elements(&self) -> &N::Array<ElementBound<S>> {
         &self.elements
     }
 
     /// Element `index`'s bound (`None` beyond `N`).
     pub fn element(&self, index: usize) -> Option<&ElementBound<S>> {
-        self.elements.get(index)
+        self.elements.as_ref().get(index)
     }
 
     /// Whether no element has a margin (the bound is the estimate).
     pub fn is_zero(&self) -> bool {
-        self.elements.iter().all(|e| *e == ElementBound::ZERO)
+        self.elements
+            .as_ref()
+            .iter()
+            .all(|e| *e == ElementBound::ZERO)
     }
 
     /// Feeds every element's margin (fraction of the rise and offset) to a
     /// snapshot fingerprint.
     #[must_use]
     pub fn fingerprint(&self, fp: crate::observer::Fingerprint) -> crate::observer::Fingerprint {
-        self.elements.iter().fold(fp, |fp, e| {
+        self.elements.as_ref().iter().fold(fp, |fp, e| {
             fp.f64(e.rise_fraction.to_f64()).f64(e.offset_k.to_f64())
         })
     }
@@ -304,8 +318,9 @@ impl<S: Scalar, const N: usize> UpperBound<S, N> {
     /// The upper bound of every element \[degC\] from the estimates
     /// `temps_c` \[degC\] and the reference `reference_c` \[degC\], into
     /// `out`. O(N), allocation-free, panic-free.
-    pub fn upper_c(&self, temps_c: &[S; N], reference_c: S, out: &mut [S; N]) {
-        self.upper_part(temps_c, reference_c, out, 0..N);
+    pub fn upper_c(&self, temps_c: &N::Array<S>, reference_c: S, out: &mut N::Array<S>) {
+        let all = 0..temps_c.as_ref().len();
+        self.upper_part(temps_c, reference_c, out, all);
     }
 
     /// [`Self::upper_c`] for the elements in `elements` only (cut to `N`),
@@ -313,16 +328,17 @@ impl<S: Scalar, const N: usize> UpperBound<S, N> {
     /// protection over several ticks.
     pub fn upper_part(
         &self,
-        temps_c: &[S; N],
+        temps_c: &N::Array<S>,
         reference_c: S,
-        out: &mut [S; N],
+        out: &mut N::Array<S>,
         elements: Range<usize>,
     ) {
-        let range = elements.start.min(N)..elements.end.min(N);
+        let n = temps_c.as_ref().len();
+        let range = elements.start.min(n)..elements.end.min(n);
         let (Some(bounds), Some(temps_c), Some(out)) = (
-            self.elements.get(range.clone()),
-            temps_c.get(range.clone()),
-            out.get_mut(range),
+            self.elements.as_ref().get(range.clone()),
+            temps_c.as_ref().get(range.clone()),
+            out.as_mut().get_mut(range),
         ) else {
             return;
         };
@@ -334,9 +350,9 @@ impl<S: Scalar, const N: usize> UpperBound<S, N> {
     /// The mean limit of every element \[degC\] (see
     /// [`ElementBound::mean_limit_c`]) for the limits `limits_c` \[degC\] and
     /// the reference `reference_c` \[degC\].
-    pub fn mean_limits_c(&self, limits_c: &[S; N], reference_c: S) -> [S; N] {
-        let mut out = *limits_c;
-        for (bound, limit_c) in self.elements.iter().zip(out.iter_mut()) {
+    pub fn mean_limits_c(&self, limits_c: &N::Array<S>, reference_c: S) -> N::Array<S> {
+        let mut out = limits_c.clone();
+        for (bound, limit_c) in self.elements.as_ref().iter().zip(out.as_mut()) {
             *limit_c = bound.mean_limit_c(*limit_c, reference_c);
         }
         out
@@ -346,13 +362,13 @@ impl<S: Scalar, const N: usize> UpperBound<S, N> {
 /// Builds and validates an [`UpperBound`]: the model margin of each element
 /// and, for a filtered model, `k` times each element's standard deviation.
 #[derive(Debug, Clone, PartialEq)]
-pub struct UpperBoundBuilder<const N: usize> {
-    margins: [UncertaintyMargin; N],
+pub struct UpperBoundBuilder<N: Length> {
+    margins: N::Array<UncertaintyMargin>,
     k_sigma: f64,
-    sigma_k: [f64; N],
+    sigma_k: N::Array<f64>,
 }
 
-impl<const N: usize> UpperBoundBuilder<N> {
+impl<const N: usize> UpperBoundBuilder<Const<N>> {
     /// The same `margin` on every element, no `k sigma`.
     pub fn new(margin: UncertaintyMargin) -> Self {
         Self::per_element([margin; N])
@@ -361,17 +377,25 @@ impl<const N: usize> UpperBoundBuilder<N> {
     /// A margin per element (e.g. [`UncertaintyMargin::ZERO`] on the
     /// elements a sensor measures), no `k sigma`.
     pub fn per_element(margins: [UncertaintyMargin; N]) -> Self {
+        Self::of(margins)
+    }
+}
+
+impl<N: Length> UpperBoundBuilder<N> {
+    /// [`UpperBoundBuilder::per_element`] for elements of any [`Length`]
+    /// (a `Vec` for `Dyn`, a model's size read at run time).
+    pub fn of(margins: N::Array<UncertaintyMargin>) -> Self {
         Self {
+            sigma_k: N::filled_like(&margins, 0.0),
             margins,
             k_sigma: 0.0,
-            sigma_k: [0.0; N],
         }
     }
 
     /// Adds `k` (dimensionless, finite, `>= 0`) times each element's
     /// standard deviation `sigma_k` \[K\] (finite, `>= 0`), e.g. the square
     /// roots of a steady-state filter's covariance diagonal.
-    pub fn sigma(mut self, k: f64, sigma_k: [f64; N]) -> Self {
+    pub fn sigma(mut self, k: f64, sigma_k: N::Array<f64>) -> Self {
         self.k_sigma = k;
         self.sigma_k = sigma_k;
         self
@@ -383,12 +407,16 @@ impl<const N: usize> UpperBoundBuilder<N> {
     /// [`BuildError::InvalidParameter`] naming the parameter: a fraction, an
     /// offset, `k` or a `sigma_k` that is not finite or is negative.
     pub fn build<S: Scalar>(&self) -> Result<UpperBound<S, N>, BuildError> {
+        // `sigma` may have been given another length (a run-time size).
+        check(
+            self.sigma_k.as_ref().len() == self.margins.as_ref().len(),
+            "sigma_k",
+        )?;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
         check(nonneg(self.k_sigma), "k_sigma")?;
-        let mut elements = [ElementBound::ZERO; N];
-        for ((element, margin), sigma_k) in
-            elements.iter_mut().zip(&self.margins).zip(&self.sigma_k)
-        {
+        let mut elements = N::filled_like(&self.margins, ElementBound::ZERO);
+        let margins = self.margins.as_ref().iter().zip(self.sigma_k.as_ref());
+        for (element, (margin, sigma_k)) in elements.as_mut().iter_mut().zip(margins) {
             let f = margin.rise_fraction;
             check(nonneg(f), "UncertaintyMargin::rise_fraction")?;
             check(nonneg(margin.offset_k), "UncertaintyMargin::offset_k")?;
@@ -410,7 +438,7 @@ mod tests {
     use super::*;
     use crate::scalar::Q32;
 
-    fn bound<S: Scalar>(f: f64, offset_k: f64, k: f64, sigma_k: f64) -> UpperBound<S, 1> {
+    fn bound<S: Scalar>(f: f64, offset_k: f64, k: f64, sigma_k: f64) -> UpperBound<S, Const<1>> {
         UpperBoundBuilder::new(UncertaintyMargin::new(f, offset_k))
             .sigma(k, [sigma_k])
             .build()
@@ -419,7 +447,7 @@ mod tests {
 
     #[test]
     fn zero_margin_is_the_estimate_to_the_bit() {
-        let zero = UpperBound::<f32, 1>::ZERO;
+        let zero = UpperBound::<f32, Const<1>>::ZERO;
         let built = bound::<f32>(0.0, 0.0, 3.0, 0.0);
         assert_eq!(zero, built);
         assert!(built.is_zero());
@@ -440,7 +468,7 @@ mod tests {
             }
         }
         assert!(e.upper_c(f32::NAN, 20.0).is_nan());
-        let q = UpperBound::<Q32, 1>::ZERO.elements()[0];
+        let q = UpperBound::<Q32, Const<1>>::ZERO.elements()[0];
         let t = Q32::from_f64(63.123_456_789);
         assert_eq!(q.upper_c(t, Q32::from_f64(20.0)), t);
         assert_eq!(q.mean_limit_c(t, Q32::from_f64(20.0)), t);
@@ -495,7 +523,7 @@ mod tests {
 
     #[test]
     fn bad_settings_are_refused_by_name() {
-        let name = |r: Result<UpperBound<f32, 2>, BuildError>| match r {
+        let name = |r: Result<UpperBound<f32, Const<2>>, BuildError>| match r {
             Err(BuildError::InvalidParameter { name }) => name,
             other => panic!("{other:?}"),
         };
@@ -537,7 +565,7 @@ mod tests {
             "UncertaintyMargin::offset_k"
         );
         assert!(
-            UpperBoundBuilder::<2>::new(UncertaintyMargin::GRID_20_PERCENT)
+            UpperBoundBuilder::<Const<2>>::new(UncertaintyMargin::GRID_20_PERCENT)
                 .build::<f32>()
                 .is_ok()
         );
@@ -545,7 +573,7 @@ mod tests {
 
     #[test]
     fn parts_write_only_their_elements() {
-        let b: UpperBound<f32, 4> = UpperBoundBuilder::new(UncertaintyMargin::new(1.0, 0.0))
+        let b: UpperBound<f32, Const<4>> = UpperBoundBuilder::new(UncertaintyMargin::new(1.0, 0.0))
             .build()
             .unwrap();
         let mut out = [-1.0f32; 4];

@@ -26,7 +26,7 @@
 //!
 //! let rule = DeratingRule::hppa();
 //! let alarm = AlarmBuilder::new(&rule, [HPPA_CRITICAL_C; 4]).build::<f32>()?;
-//! let limiter = LimiterConfig::<f32, 4>::new([3.0; 4], 10.0, 0.0)?;
+//! let limiter = LimiterConfig::<f32, _>::new([3.0; 4], 10.0, 0.0)?;
 //! let mut state = coil_thermal::protect::alarm::AlarmState::new(&alarm);
 //! let mut events = EventQueue::<32>::new();
 //! let mut limits = [CoilLimit::default(); 4];

@@ -1,6 +1,7 @@
 //! `coil-thermal limits` and `alarm-limit`, on `coil_thermal::protect`.
 
 use anyhow::{bail, Context, Result};
+use coil_thermal::nalgebra::Const;
 use coil_thermal::omnimagnet::{Omnimagnet, EXPERIMENT_STOP_C, NODES, NODE_NAMES};
 use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::study::{
@@ -480,7 +481,7 @@ fn mean_limits(
     match spec {
         ModelSpec::Hppa => {
             let margin = coil_thermal::observer::grid::DEFAULT_MARGIN;
-            let bound = coil_thermal::protect::margin::UpperBoundBuilder::<1>::new(margin)
+            let bound = coil_thermal::protect::margin::UpperBoundBuilder::<Const<1>>::new(margin)
                 .build::<f64>()
                 .map_err(|e| anyhow::anyhow!("the grid's upper bound: {e}"))?;
             let element = bound.elements()[0];

@@ -1327,7 +1327,7 @@ fn upper_bound<const N: usize, const X: usize, const P: usize>(
     gain: &SteadyStateGain<f32, Const<X>, Const<P>>,
     sensor_nodes: &[usize; P],
     s: &NetworkSettings,
-) -> Result<UpperBound<f32, N>, BuildError> {
+) -> Result<UpperBound<f32, Const<N>>, BuildError> {
     let prior = gain.prior();
     let sigma_k: [f64; N] = core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
     let mut margins = [s.unmeasured_margin; N];
