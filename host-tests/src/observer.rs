@@ -10,29 +10,26 @@
 //! `coil_thermal::protect::alarm` with its derated limits, debounced
 //! warning, latched shutdown and event queue.
 //!
-//! # Size dispatch by padding
+//! # At the model's own size
 //!
-//! The library's alarm is const-generic in its element count; a model file
-//! has its node count at run time. The watched nodes (those with a
-//! critical temperature) are padded to the smallest size class of
-//! [`SIZE_CLASSES`] and one generic `PaddedAlarm<P>` is instantiated per
-//! class behind one object-safe trait. A padding element has the critical
-//! temperature [`NO_LIMIT_C`] and stays at the nominal ambient, so it can
-//! never raise an event. More watched nodes than the largest class run in
-//! chunks of it (`ChunkedAlarm`): each element's alarm is its own, so any
-//! number of them is the library's alarm.
+//! A model file has its node count at run time: the watched nodes (those
+//! with a critical temperature) are the elements of the library's alarm
+//! at run-time size (`AlarmConfig<f64, Dyn>`, its vectors the model's
+//! `Vec`s), with no padding and no cap. One tick runs in parts of
+//! [`ALARM_PART`] elements (`AlarmState::tick_part`), the event queue
+//! drained after each, so a queue of a fixed capacity never drops an
+//! event however many elements cross at once.
 
-use coil_thermal::nalgebra::Const;
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
+use coil_thermal::nalgebra::Dyn;
 use coil_thermal::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmStatus};
 use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::events::{AlarmEvent as LibEvent, EventKind, EventQueue};
 use serde::Serialize;
 
-use crate::limits::{TimeToLimit, NO_LIMIT_C};
-use crate::padding::SIZE_CLASSES;
+use crate::limits::TimeToLimit;
 
 use crate::sim::{InputRow, PlantInfo, RowSource};
 
@@ -146,47 +143,24 @@ pub struct AlarmSettings {
     pub nominal_ambient_c: f64,
 }
 
-/// The library's alarm ([`AlarmState`]) over `P` elements: the runtime
-/// number of watched nodes padded to a size class of [`SIZE_CLASSES`].
-///
-/// Padding elements have a critical temperature of [`NO_LIMIT_C`] and sit at
-/// the nominal ambient for ever, so they never raise anything.
-struct PaddedAlarm<const P: usize> {
-    config: AlarmConfig<f64, Const<P>>,
-    state: AlarmState<f64, Const<P>>,
+/// Elements of the alarm ticked between two drains of its event queue.
+pub const ALARM_PART: usize = 96;
+
+/// Every event one part of a tick can push: four per element (sensor,
+/// warning, shutdown, predictive) and the ambient's.
+const EVENT_CAPACITY: usize = 4 * ALARM_PART + 1;
+
+/// The library's alarm ([`AlarmState`]) over the watched nodes, at the
+/// model's own size.
+struct RunTimeAlarm {
+    config: AlarmConfig<f64, Dyn>,
+    state: AlarmState<f64, Dyn>,
     events: EventQueue<EVENT_CAPACITY>,
-    temps_c: [f64; P],
-    time_to_limit_s: [Option<f64>; P],
 }
 
-/// Every event one tick can push: four per element (sensor, warning,
-/// shutdown, predictive) and the ambient's. The queue is drained after each
-/// tick, so with this capacity nothing is ever dropped.
-const EVENT_CAPACITY: usize = 4 * SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 1;
-
-/// The size-independent face of [`PaddedAlarm`].
-trait ElementAlarms {
-    /// One alarm tick over the first `temps_c.len()` elements; every event
-    /// goes to `sink` in queue order.
-    fn tick(
-        &mut self,
-        temps_c: &[f64],
-        ambient_c: f64,
-        time_to_limit_s: &[Option<f64>],
-        sink: &mut dyn FnMut(LibEvent),
-    ) -> AlarmStatus;
-    /// The alarm limit of element `e` at the ambient of the last tick
-    /// \[degC\].
-    fn limit_c(&self, e: usize) -> Option<f64>;
-    /// The warning margin \[K\].
-    fn warning_margin_k(&self) -> f64;
-}
-
-impl<const P: usize> PaddedAlarm<P> {
-    fn build(s: &AlarmSettings, critical_c: &[f64]) -> Result<Box<dyn ElementAlarms>> {
-        let mut padded = [NO_LIMIT_C; P];
-        padded[..critical_c.len()].copy_from_slice(critical_c);
-        let config = AlarmBuilder::new(&s.rule, padded)
+impl RunTimeAlarm {
+    fn build(s: &AlarmSettings, critical_c: &[f64]) -> Result<Self> {
+        let config = AlarmBuilder::<Dyn>::of(&s.rule, critical_c.to_vec())
             .warning_margin_k(s.warning_margin_k)
             .hysteresis_k(s.hysteresis_k)
             .debounce_ticks(s.debounce_rows)
@@ -194,105 +168,51 @@ impl<const P: usize> PaddedAlarm<P> {
             .nominal_ambient_c(s.nominal_ambient_c)
             .build::<f64>()
             .map_err(|e| anyhow!("alarm: {e}"))?;
-        Ok(Box::new(Self {
+        Ok(Self {
             state: AlarmState::new(&config),
             config,
             events: EventQueue::new(),
-            temps_c: [s.nominal_ambient_c; P],
-            time_to_limit_s: [None; P],
-        }))
+        })
     }
-}
 
-impl<const P: usize> ElementAlarms for PaddedAlarm<P> {
+    /// One alarm tick over every element, in parts of [`ALARM_PART`];
+    /// every event goes to `sink` in queue order.
     fn tick(
         &mut self,
-        temps_c: &[f64],
+        temps_c: &Vec<f64>,
         ambient_c: f64,
-        time_to_limit_s: &[Option<f64>],
-        sink: &mut dyn FnMut(LibEvent),
-    ) -> AlarmStatus {
-        self.temps_c[..temps_c.len()].copy_from_slice(temps_c);
-        self.time_to_limit_s[..time_to_limit_s.len()].copy_from_slice(time_to_limit_s);
-        let status = self.state.tick(
-            &self.config,
-            &self.temps_c,
-            ambient_c,
-            &self.time_to_limit_s,
-            &mut self.events,
-        );
-        while let Some(event) = self.events.pop() {
-            sink(event);
-        }
-        status
-    }
-
-    fn limit_c(&self, e: usize) -> Option<f64> {
-        self.config.alarm_limit_c(e, self.state.ambient_c())
-    }
-
-    fn warning_margin_k(&self) -> f64 {
-        self.config.warning_margin_k()
-    }
-}
-
-/// The alarm of more watched nodes than the largest size class: the
-/// library's alarm over consecutive chunks of that many elements. Each
-/// element's alarm is its own (its levels, debounce and latch); all the
-/// chunks share is the tick count, which they keep alike (they tick
-/// together), and the ambient's validity, which every chunk judges alike
-/// and the first reports. So the chunks are the alarm of all the elements
-/// at once, with the elements of chunk `k` numbered from `k` times the
-/// chunk's size.
-struct ChunkedAlarm {
-    chunks: Vec<Box<dyn ElementAlarms>>,
-}
-
-/// Elements of one [`ChunkedAlarm`] chunk: the largest size class.
-const CHUNK: usize = SIZE_CLASSES[SIZE_CLASSES.len() - 1];
-
-impl ChunkedAlarm {
-    fn build(s: &AlarmSettings, critical_c: &[f64]) -> Result<Box<dyn ElementAlarms>> {
-        let chunks = critical_c
-            .chunks(CHUNK)
-            .map(|part| PaddedAlarm::<CHUNK>::build(s, part))
-            .collect::<Result<_>>()?;
-        Ok(Box::new(Self { chunks }))
-    }
-}
-
-impl ElementAlarms for ChunkedAlarm {
-    fn tick(
-        &mut self,
-        temps_c: &[f64],
-        ambient_c: f64,
-        time_to_limit_s: &[Option<f64>],
+        time_to_limit_s: &Vec<Option<f64>>,
         sink: &mut dyn FnMut(LibEvent),
     ) -> AlarmStatus {
         let mut status = AlarmStatus::default();
-        let parts = temps_c.chunks(CHUNK).zip(time_to_limit_s.chunks(CHUNK));
-        for (k, (chunk, (temps_c, ttl_s))) in self.chunks.iter_mut().zip(parts).enumerate() {
-            let first = k * CHUNK;
-            let part = chunk.tick(temps_c, ambient_c, ttl_s, &mut |mut event: LibEvent| {
-                match event.element.as_mut() {
-                    Some(e) => *e += first,
-                    // The ambient's event, which every chunk raises alike.
-                    None if k > 0 => return,
-                    None => {}
-                }
+        // At least one part: the first counts the tick and judges the
+        // ambient, with or without elements.
+        for start in (0..temps_c.len().max(1)).step_by(ALARM_PART) {
+            let part = self.state.tick_part(
+                &self.config,
+                temps_c,
+                ambient_c,
+                time_to_limit_s,
+                &mut self.events,
+                start..start + ALARM_PART,
+            );
+            while let Some(event) = self.events.pop() {
                 sink(event);
-            });
+            }
             status = status.union(part);
         }
         status
     }
 
+    /// The alarm limit of element `e` at the ambient of the last tick
+    /// \[degC\].
     fn limit_c(&self, e: usize) -> Option<f64> {
-        self.chunks.get(e / CHUNK)?.limit_c(e % CHUNK)
+        self.config.alarm_limit_c(e, self.state.ambient_c())
     }
 
+    /// The warning margin \[K\].
     fn warning_margin_k(&self) -> f64 {
-        self.chunks.first().map_or(0.0, |c| c.warning_margin_k())
+        self.config.warning_margin_k()
     }
 }
 
@@ -305,7 +225,7 @@ pub struct LibraryAlarm {
     names: Vec<String>,
     ambient_boundary: Option<usize>,
     nominal_ambient_c: f64,
-    alarm: Box<dyn ElementAlarms>,
+    alarm: RunTimeAlarm,
     temps_c: Vec<f64>,
     time_to_limit_s: Vec<Option<f64>>,
     /// This row's library events, drained from the queue.
@@ -350,8 +270,7 @@ pub struct TimeToLimitSummary {
 
 impl LibraryAlarm {
     /// Builds the alarm for `info`'s nodes with a critical temperature in
-    /// `settings` (in node order), padded to the smallest size class, or
-    /// in chunks of the largest (any number of watched nodes).
+    /// `settings` (in node order), at their number (any).
     ///
     /// # Errors
     /// A boundary index out of range, or a parameter the library's builder
@@ -380,17 +299,7 @@ impl LibraryAlarm {
             .filter_map(|(i, c)| c.map(|c| (i, c)))
             .unzip();
         let n = nodes.len();
-        let class = SIZE_CLASSES.iter().copied().find(|&p| p >= n);
-        let alarm = match class.unwrap_or(0) {
-            0 => ChunkedAlarm::build(settings, &critical_c),
-            4 => PaddedAlarm::<4>::build(settings, &critical_c),
-            8 => PaddedAlarm::<8>::build(settings, &critical_c),
-            16 => PaddedAlarm::<16>::build(settings, &critical_c),
-            32 => PaddedAlarm::<32>::build(settings, &critical_c),
-            64 => PaddedAlarm::<64>::build(settings, &critical_c),
-            96 => PaddedAlarm::<96>::build(settings, &critical_c),
-            other => unreachable!("size class {other} has no alarm instance"),
-        }?;
+        let alarm = RunTimeAlarm::build(settings, &critical_c)?;
         Ok(Self {
             names: nodes.iter().map(|i| info.nodes[*i].clone()).collect(),
             nodes,
@@ -549,8 +458,8 @@ impl Protection for LibraryAlarm {
         self.shutdown |= status.shutdown;
         let margin_k = self.alarm.warning_margin_k();
         for e in &self.pending {
-            // Padding elements never change; an index past the watched nodes
-            // cannot come, but would not be a node either.
+            // An index past the watched nodes cannot come, but would not
+            // be a node either.
             let element = e.element.filter(|i| *i < self.nodes.len());
             let (level, kind) = describe(e.kind);
             let limit_c = element.and_then(|i| self.alarm.limit_c(i)).map(|l| {
@@ -983,12 +892,13 @@ mod tests {
         }
     }
 
-    /// Every size class has an instance, and the last watched element of
-    /// each (the one next to the padding) raises its own shutdown at the
-    /// HPPA limit, 65.36 degC, and nothing else does.
+    /// Any number of watched nodes, on both sides of a part's end: the
+    /// last element raises its own shutdown at the HPPA limit, 65.36 degC,
+    /// and nothing else does.
     #[test]
-    fn every_size_class_dispatches_and_padding_stays_silent() {
-        for n in SIZE_CLASSES.iter().flat_map(|p| [*p - 1, *p]) {
+    fn any_number_of_watched_nodes_alarms_on_its_own_elements() {
+        let part = ALARM_PART;
+        for n in [1, 3, part - 1, part, part + 1, 2 * part, 2 * part + 1, 300] {
             let mut alarm = LibraryAlarm::new(&info(n), &settings(n)).unwrap();
             let mut temps = vec![20.0; n];
             temps[n - 1] = 65.37;
@@ -1008,16 +918,16 @@ mod tests {
         }
     }
 
-    /// More watched nodes than the largest size class: the library's alarm
-    /// in chunks of it is every element's own alarm. 250 elements through
+    /// More watched nodes than a part of a tick: the library's alarm,
+    /// ticked in parts, is every element's own alarm. 250 elements through
     /// rows that cross each one's warning and shutdown at rows of its own,
     /// an invalid sample, and a fall back to the ambient: each element's
     /// events (level, kind, temperature and limit) are the ones an alarm of
     /// that element alone raises on its temperatures, and the latch is
     /// theirs.
     #[test]
-    fn more_watched_nodes_than_the_largest_class_run_in_chunks_of_it() {
-        let n = 2 * SIZE_CLASSES[SIZE_CLASSES.len() - 1] + 58;
+    fn more_watched_nodes_than_a_part_are_each_elements_own_alarm() {
+        let n = 2 * ALARM_PART + 58;
         let mut all = LibraryAlarm::new(&info(n), &settings(n)).unwrap();
         let mut alone: Vec<LibraryAlarm> = (0..n)
             .map(|_| LibraryAlarm::new(&info(1), &settings(1)).unwrap())
