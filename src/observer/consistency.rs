@@ -44,6 +44,7 @@ use crate::filter::GatePolicy;
 use crate::network::{compensated_add, DeviationResistance};
 use crate::protect::margin::UpperBound;
 use crate::scalar::Scalar;
+use crate::sizes::Length;
 
 /// The band a reading must keep to below the shadow: the model's
 /// uncertainty.
@@ -70,14 +71,15 @@ impl Band {
     /// correction, marking it [`SensorStatus::ColderThanPhysics`];
     /// `shadow_c[j]` is the shadow's temperature at sensor `j`'s node
     /// \[degC\].
-    pub(crate) fn screen<const P: usize>(
+    pub(crate) fn screen<P: Length>(
         &self,
-        samples: &mut [Option<f32>; P],
-        statuses: &mut [SensorStatus; P],
-        shadow_c: &[f32; P],
+        samples: &mut P::Array<Option<f32>>,
+        statuses: &mut P::Array<SensorStatus>,
+        shadow_c: &P::Array<f32>,
         ambient_c: f32,
     ) {
-        for ((sample, status), shadow_c) in samples.iter_mut().zip(statuses).zip(shadow_c) {
+        let screened = samples.as_mut().iter_mut().zip(statuses.as_mut());
+        for ((sample, status), shadow_c) in screened.zip(shadow_c.as_ref()) {
             let Some(t) = *sample else { continue };
             let lowest_c = self.lowest_c(*shadow_c, ambient_c);
             if t < lowest_c {
@@ -184,22 +186,26 @@ pub(crate) const DOUBT_HOLD_CORRECTIONS: u16 = 60;
 /// 7 A by 4.8 s before. The shadow, linearised at the ambient, runs hot
 /// at the Omnimagnet's currents (all sensors detached at 7 A shut down
 /// 9.6 s before the clean run).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Suspicion<const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Suspicion<M: Length> {
     /// Corrections of doubt left per input.
-    left: [u16; M],
+    left: M::Array<u16>,
 }
 
-impl<const M: usize> Suspicion<M> {
-    /// No doubt.
-    pub(crate) const fn new() -> Self {
-        Self { left: [0; M] }
+impl<M: Length> Copy for Suspicion<M> where M::Array<u16>: Copy {}
+
+impl<M: Length> Suspicion<M> {
+    /// No doubt, on `inputs` inputs.
+    pub(crate) fn new(inputs: M) -> Self {
+        Self {
+            left: inputs.filled(0),
+        }
     }
 
     /// One correction's verdicts: doubt renewed where `doubt`, one
     /// correction less elsewhere.
-    pub(crate) fn note(&mut self, doubt: &[bool; M]) {
-        for (left, doubt) in self.left.iter_mut().zip(doubt) {
+    pub(crate) fn note(&mut self, doubt: &M::Array<bool>) {
+        for (left, doubt) in self.left.as_mut().iter_mut().zip(doubt.as_ref()) {
             *left = if *doubt {
                 DOUBT_HOLD_CORRECTIONS
             } else {
@@ -210,8 +216,8 @@ impl<const M: usize> Suspicion<M> {
 
     /// Renews the doubt where `doubt`, leaving the rest as it is (a tick
     /// without a correction: a silent sensor).
-    pub(crate) fn renew(&mut self, doubt: &[bool; M]) {
-        for (left, doubt) in self.left.iter_mut().zip(doubt) {
+    pub(crate) fn renew(&mut self, doubt: &M::Array<bool>) {
+        for (left, doubt) in self.left.as_mut().iter_mut().zip(doubt.as_ref()) {
             if *doubt {
                 *left = DOUBT_HOLD_CORRECTIONS;
             }
@@ -220,7 +226,7 @@ impl<const M: usize> Suspicion<M> {
 
     /// Some input is in doubt.
     pub(crate) fn any(&self) -> bool {
-        self.left.iter().any(|l| *l > 0)
+        self.left.as_ref().iter().any(|l| *l > 0)
     }
 }
 
@@ -246,11 +252,11 @@ pub(crate) fn sensor_doubt(status: &SensorStatus, rejections: u16) -> Option<boo
 /// K/s: the estimate went on falling behind the truth after the gate had
 /// refused the sensor). Without the bias the estimate returns toward the
 /// model; erring hot, a positive bias is kept.
-pub(crate) fn drop_cold_biases<'b, const M: usize>(
+pub(crate) fn drop_cold_biases<'b, M: Length>(
     biases_w: impl Iterator<Item = &'b mut f32>,
-    doubt: &[bool; M],
+    doubt: &M::Array<bool>,
 ) {
-    for (bias, doubt) in biases_w.zip(doubt) {
+    for (bias, doubt) in biases_w.zip(doubt.as_ref()) {
         if *doubt && *bias < 0.0 {
             *bias = 0.0;
         }
@@ -460,36 +466,44 @@ impl SensorChecks {
 /// window's restart let it back in, and a stuck thermocouple at 3.1 A
 /// dragged its solenoid's estimate 9 K). Four scalars and a count per
 /// sensor; no history.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct StuckWatch<const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct StuckWatch<P: Length> {
     /// Each sensor's reading when it last changed (by more than the
     /// test's tolerance) \[degC\] (NaN: none yet).
-    last_c: [f32; P],
+    last_c: P::Array<f32>,
     /// The shadow at the sensor's node when the reading last changed
     /// \[degC\].
-    shadow_at_change_c: [f32; P],
+    shadow_at_change_c: P::Array<f32>,
     /// What the shadow may move since the change under a live reading
     /// \[K\]: the threshold plus the band's share of the rise there.
-    allowance_k: [f32; P],
+    allowance_k: P::Array<f32>,
     /// The shadow at the sensor's node when the window last restarted
     /// \[degC\].
-    shadow_at_window_c: [f32; P],
+    shadow_at_window_c: P::Array<f32>,
     /// Readings since the window restarted.
-    since: [u32; P],
+    since: P::Array<u32>,
     /// Judged stuck, until the reading changes.
-    stuck: [bool; P],
+    stuck: P::Array<bool>,
 }
 
-impl<const P: usize> StuckWatch<P> {
-    /// No reading seen yet.
-    pub(crate) const fn new() -> Self {
+impl<P: Length> Copy for StuckWatch<P>
+where
+    P::Array<f32>: Copy,
+    P::Array<u32>: Copy,
+    P::Array<bool>: Copy,
+{
+}
+
+impl<P: Length> StuckWatch<P> {
+    /// No reading seen yet, on `sensors` sensors.
+    pub(crate) fn new(sensors: P) -> Self {
         Self {
-            last_c: [f32::NAN; P],
-            shadow_at_change_c: [f32::NAN; P],
-            allowance_k: [f32::NAN; P],
-            shadow_at_window_c: [f32::NAN; P],
-            since: [0; P],
-            stuck: [false; P],
+            last_c: sensors.filled(f32::NAN),
+            shadow_at_change_c: sensors.filled(f32::NAN),
+            allowance_k: sensors.filled(f32::NAN),
+            shadow_at_window_c: sensors.filled(f32::NAN),
+            since: sensors.filled(0),
+            stuck: sensors.filled(false),
         }
     }
 
@@ -501,26 +515,32 @@ impl<const P: usize> StuckWatch<P> {
     /// judged stuck at this screen.
     pub(crate) fn screen(
         &mut self,
-        samples: &mut [Option<f32>; P],
-        statuses: &mut [SensorStatus; P],
-        shadow_c: &[f32; P],
+        samples: &mut P::Array<Option<f32>>,
+        statuses: &mut P::Array<SensorStatus>,
+        shadow_c: &P::Array<f32>,
         ambient_c: f32,
         test: &StuckTest,
         fraction: f32,
     ) -> StuckEvents<P> {
-        let mut events = StuckEvents {
-            changed: [false; P],
-            became_stuck: [false; P],
+        let mut events = StuckEvents::<P> {
+            changed: P::filled_like::<_, bool>(&*samples, false),
+            became_stuck: P::filled_like::<_, bool>(&*samples, false),
         };
+        // Slices of stated types: the vectors are of the sensors' length.
+        let changed: &mut [bool] = events.changed.as_mut();
+        let became: &mut [bool] = events.became_stuck.as_mut();
+        let last_c: &mut [f32] = self.last_c.as_mut();
+        let shadow_at_change_c: &mut [f32] = self.shadow_at_change_c.as_mut();
+        let allowance_k: &mut [f32] = self.allowance_k.as_mut();
+        let shadow_at_window_c: &mut [f32] = self.shadow_at_window_c.as_mut();
+        let since_readings: &mut [u32] = self.since.as_mut();
+        let stuck_now: &mut [bool] = self.stuck.as_mut();
+        let shadow_c: &[f32] = shadow_c.as_ref();
         for (j, ((sample, status), (changed, became_stuck))) in samples
+            .as_mut()
             .iter_mut()
-            .zip(statuses.iter_mut())
-            .zip(
-                events
-                    .changed
-                    .iter_mut()
-                    .zip(events.became_stuck.iter_mut()),
-            )
+            .zip(statuses.as_mut().iter_mut())
+            .zip(changed.iter_mut().zip(became.iter_mut()))
             .enumerate()
         {
             let (
@@ -534,12 +554,12 @@ impl<const P: usize> StuckWatch<P> {
                 Some(shadow),
             ) = (
                 *sample,
-                self.last_c.get_mut(j),
-                self.shadow_at_change_c.get_mut(j),
-                self.allowance_k.get_mut(j),
-                self.shadow_at_window_c.get_mut(j),
-                self.since.get_mut(j),
-                self.stuck.get_mut(j),
+                last_c.get_mut(j),
+                shadow_at_change_c.get_mut(j),
+                allowance_k.get_mut(j),
+                shadow_at_window_c.get_mut(j),
+                since_readings.get_mut(j),
+                stuck_now.get_mut(j),
                 shadow_c.get(j),
             )
             else {
@@ -586,14 +606,16 @@ impl<const P: usize> StuckWatch<P> {
 }
 
 /// What one screen of the [`StuckWatch`] saw, per sensor.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct StuckEvents<const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct StuckEvents<P: Length> {
     /// The reading changed (by more than the test's tolerance): the
     /// references restarted.
-    pub changed: [bool; P],
+    pub changed: P::Array<bool>,
     /// Judged stuck at this screen, not before.
-    pub became_stuck: [bool; P],
+    pub became_stuck: P::Array<bool>,
 }
+
+impl<P: Length> Copy for StuckEvents<P> where P::Array<bool>: Copy {}
 
 /// The stuck sensor's rewind: each sensor's heat-input biases \[W\] when
 /// its reading last changed, and the step that takes back what it taught
@@ -603,17 +625,21 @@ pub(crate) struct StuckEvents<const P: usize> {
 /// thermocouple stuck while the drive cooled left a positive bias: the hot
 /// spot read 6.3 K hot an hour on). One rule for the Omnimagnet and the
 /// network observers.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct StuckRewind<const P: usize, const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct StuckRewind<P: Length, M: Length> {
     /// Sensor `j`'s biases when its reading last changed \[W\].
-    bias_at_change_w: [[f32; M]; P],
+    bias_at_change_w: P::Array<M::Array<f32>>,
 }
 
-impl<const P: usize, const M: usize> StuckRewind<P, M> {
-    /// No bias noted (zero: a bias starts at zero).
-    pub(crate) const fn new() -> Self {
+impl<P: Length, M: Length> Copy for StuckRewind<P, M> where P::Array<M::Array<f32>>: Copy {}
+
+impl<P: Length, M: Length> StuckRewind<P, M> {
+    /// No bias noted (zero: a bias starts at zero), for `sensors`
+    /// sensors and `inputs` inputs.
+    pub(crate) fn new(sensors: P, inputs: M) -> Self {
+        let none = inputs.filled(0.0);
         Self {
-            bias_at_change_w: [[0.0; M]; P],
+            bias_at_change_w: sensors.each(|_| none.clone()),
         }
     }
 
@@ -631,22 +657,23 @@ impl<const P: usize, const M: usize> StuckRewind<P, M> {
         cov: &SMatrix<f32, S, S>,
         first_bias: usize,
         events: &StuckEvents<P>,
-        skip: &[bool; M],
-        mut also: impl FnMut(&mut SVector<f32, S>, &[f32; M]),
+        skip: &M::Array<bool>,
+        mut also: impl FnMut(&mut SVector<f32, S>, &M::Array<f32>),
     ) {
         for ((at_change, changed), became_stuck) in self
             .bias_at_change_w
+            .as_mut()
             .iter_mut()
-            .zip(&events.changed)
-            .zip(&events.became_stuck)
+            .zip(events.changed.as_ref())
+            .zip(events.became_stuck.as_ref())
         {
             if *changed {
-                for (m, bias) in at_change.iter_mut().enumerate() {
+                for (m, bias) in at_change.as_mut().iter_mut().enumerate() {
                     *bias = x.get(first_bias + m).copied().unwrap_or(0.0);
                 }
             } else if *became_stuck {
-                for (m, bias) in at_change.iter().enumerate() {
-                    if skip[m] {
+                for (m, (bias, skip)) in at_change.as_ref().iter().zip(skip.as_ref()).enumerate() {
+                    if *skip {
                         continue;
                     }
                     crate::filter::condition_on(x, cov, first_bias + m, *bias);
@@ -681,15 +708,23 @@ impl<const P: usize, const M: usize> StuckRewind<P, M> {
 /// threshold within the stuck window is released to the gate and its
 /// recovery (a steady offset is the model's error; a drift moves), and is
 /// not held again before it is fused once.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct DriftHold<const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct DriftHold<P: Length> {
     /// `reading - shadow` when the hold began \[K\].
-    offset_at_hold_k: [f32; P],
+    offset_at_hold_k: P::Array<f32>,
     /// Readings since the hold began.
-    since: [u32; P],
+    since: P::Array<u32>,
     /// [`HoldFlags`] of each sensor: a byte, not three `bool`s (the
     /// Omnimagnet's six sensors: 12 B of RAM fewer).
-    flags: [u8; P],
+    flags: P::Array<u8>,
+}
+
+impl<P: Length> Copy for DriftHold<P>
+where
+    P::Array<f32>: Copy,
+    P::Array<u32>: Copy,
+    P::Array<u8>: Copy,
+{
 }
 
 /// The bits of a sensor's [`DriftHold`] flags.
@@ -714,13 +749,13 @@ pub(crate) struct GateView {
     pub innovation_var_k2: f32,
 }
 
-impl<const P: usize> DriftHold<P> {
-    /// Nothing held.
-    pub(crate) const fn new() -> Self {
+impl<P: Length> DriftHold<P> {
+    /// Nothing held, on `sensors` sensors.
+    pub(crate) fn new(sensors: P) -> Self {
         Self {
-            offset_at_hold_k: [0.0; P],
-            since: [0; P],
-            flags: [0; P],
+            offset_at_hold_k: sensors.filled(0.0),
+            since: sensors.filled(0),
+            flags: sensors.filled(0),
         }
     }
 
@@ -731,10 +766,10 @@ impl<const P: usize> DriftHold<P> {
     /// cost their correction tick about 250 instructions on a
     /// Cortex-M4F).
     #[inline(always)]
-    fn in_question(&self, rejections: &[u16; P], suspect_after: u16) -> bool {
+    fn in_question(&self, rejections: &P::Array<u16>, suspect_after: u16) -> bool {
         // Folds without a branch per sensor (cheaper than `any` here).
-        let flagged = self.flags.iter().fold(0, |all, f| all | f);
-        let most_rejections = rejections.iter().fold(0, |most, r| most.max(*r));
+        let flagged = self.flags.as_ref().iter().fold(0, |all, f| all | f);
+        let most_rejections = rejections.as_ref().iter().fold(0, |most, r| most.max(*r));
         suspect_after != 0 && (flagged != 0 || most_rejections >= suspect_after)
     }
 
@@ -753,10 +788,10 @@ impl<const P: usize> DriftHold<P> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn screen(
         &mut self,
-        samples: &mut [Option<f32>; P],
-        statuses: &mut [SensorStatus; P],
-        shadow_c: &[f32; P],
-        rejections: &[u16; P],
+        samples: &mut P::Array<Option<f32>>,
+        statuses: &mut P::Array<SensorStatus>,
+        shadow_c: &P::Array<f32>,
+        rejections: &P::Array<u16>,
         gate: &GatePolicy<f32>,
         stuck: &StuckTest,
         mut view: impl FnMut(usize) -> GateView,
@@ -766,16 +801,22 @@ impl<const P: usize> DriftHold<P> {
             return false;
         }
         let mut any_held = false;
-        for (j, (sample, status)) in samples.iter_mut().zip(statuses.iter_mut()).enumerate() {
-            let (Some(t), Some(shadow), Some(&rejections)) =
-                (*sample, shadow_c.get(j), rejections.get(j))
-            else {
+        let screened = samples
+            .as_mut()
+            .iter_mut()
+            .zip(statuses.as_mut().iter_mut());
+        for (j, (sample, status)) in screened.enumerate() {
+            let (Some(t), Some(shadow), Some(&rejections)) = (
+                *sample,
+                shadow_c.as_ref().get(j),
+                rejections.as_ref().get(j),
+            ) else {
                 continue;
             };
             let (Some(at), Some(since), Some(flags)) = (
-                self.offset_at_hold_k.get_mut(j),
-                self.since.get_mut(j),
-                self.flags.get_mut(j),
+                self.offset_at_hold_k.as_mut().get_mut(j),
+                self.since.as_mut().get_mut(j),
+                self.flags.as_mut().get_mut(j),
             ) else {
                 continue;
             };
@@ -830,7 +871,7 @@ impl<const P: usize> DriftHold<P> {
             *status = SensorStatus::Rejected { nis };
             any_held = true;
         }
-        any_held && samples.iter().all(Option::is_none)
+        any_held && samples.as_ref().iter().all(Option::is_none)
     }
 }
 
@@ -855,39 +896,44 @@ pub(crate) struct StuckTest {
 /// than physics), then the stuck test. Returns `true` for a common-mode
 /// fault (some reading arrived and every one was refused) and the stuck
 /// test's events.
-pub(crate) fn screen_readings<const P: usize>(
+pub(crate) fn screen_readings<P: Length>(
     band: &Band,
     stuck: &StuckTest,
     watch: &mut StuckWatch<P>,
-    samples: &mut [Option<f32>; P],
-    statuses: &mut [SensorStatus; P],
-    shadow_c: &[f32; P],
+    samples: &mut P::Array<Option<f32>>,
+    statuses: &mut P::Array<SensorStatus>,
+    shadow_c: &P::Array<f32>,
     ambient_c: f32,
 ) -> (bool, StuckEvents<P>) {
-    let present = samples.iter().any(Option::is_some);
-    band.screen(samples, statuses, shadow_c, ambient_c);
+    let present = samples.as_ref().iter().any(Option::is_some);
+    band.screen::<P>(samples, statuses, shadow_c, ambient_c);
     let events = watch.screen(samples, statuses, shadow_c, ambient_c, stuck, band.fraction);
-    (present && samples.iter().all(Option::is_none), events)
+    (
+        present && samples.as_ref().iter().all(Option::is_none),
+        events,
+    )
 }
 
 /// Silent sensors: no reading, not even a fault, for longer than the
 /// caller's limit (two correction periods) since the last one (or since the
 /// watch began).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct SilenceWatch<const P: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SilenceWatch<P: Length> {
     /// When each sensor was last heard \[us\] (or the watch began).
-    last_heard_us: [u32; P],
+    last_heard_us: P::Array<u32>,
     /// The watch has begun: its first tick notes every sensor as heard
     /// (one flag, not an `Option` per sensor: the Omnimagnet's six
     /// sensors, 20 B of RAM fewer).
     begun: bool,
 }
 
-impl<const P: usize> SilenceWatch<P> {
-    /// Nothing heard yet.
-    pub(crate) const fn new() -> Self {
+impl<P: Length> Copy for SilenceWatch<P> where P::Array<u32>: Copy {}
+
+impl<P: Length> SilenceWatch<P> {
+    /// Nothing heard yet, on `sensors` sensors.
+    pub(crate) fn new(sensors: P) -> Self {
         Self {
-            last_heard_us: [0; P],
+            last_heard_us: sensors.filled(0),
             begun: false,
         }
     }
@@ -897,17 +943,18 @@ impl<const P: usize> SilenceWatch<P> {
     /// reported for them this tick) [`SensorStatus::Silent`].
     pub(crate) fn watch(
         &mut self,
-        heard: &[bool; P],
+        heard: &P::Array<bool>,
         now_us: u32,
         silent_after_us: u32,
-        statuses: &mut [SensorStatus; P],
+        statuses: &mut P::Array<SensorStatus>,
     ) {
         if !self.begun {
-            self.last_heard_us = [now_us; P];
+            self.last_heard_us = P::filled_like(heard, now_us);
             self.begun = true;
             return;
         }
-        for ((last, heard), status) in self.last_heard_us.iter_mut().zip(heard).zip(statuses) {
+        let watched = self.last_heard_us.as_mut().iter_mut().zip(heard.as_ref());
+        for ((last, heard), status) in watched.zip(statuses.as_mut()) {
             if *heard {
                 *last = now_us;
                 continue;
@@ -1440,7 +1487,12 @@ mod tests {
     };
 
     /// One reading through a one-sensor watch: whether it was judged stuck.
-    fn stuck(watch: &mut StuckWatch<1>, reading_c: f32, shadow_c: f32, test: &StuckTest) -> bool {
+    fn stuck(
+        watch: &mut StuckWatch<Const<1>>,
+        reading_c: f32,
+        shadow_c: f32,
+        test: &StuckTest,
+    ) -> bool {
         let mut samples = [Some(reading_c)];
         let mut statuses = [SensorStatus::Fused { nis: 0.0 }];
         watch.screen(&mut samples, &mut statuses, &[shadow_c], 20.0, test, 0.25);
@@ -1457,7 +1509,7 @@ mod tests {
     /// value ends it.
     #[test]
     fn stuck_verdict_holds_until_the_reading_moves() {
-        let mut watch = StuckWatch::<1>::new();
+        let mut watch = StuckWatch::<Const<1>>::new(Const);
         let test = StuckTest {
             tolerance_k: 0.0,
             threshold_k: 1.0,
@@ -1497,7 +1549,7 @@ mod tests {
                 tolerance_k,
                 ..STUCK
             };
-            let mut watch = StuckWatch::<1>::new();
+            let mut watch = StuckWatch::<Const<1>>::new(Const);
             (0..120u32)
                 .map(|k| {
                     // The physics heats 0.025 K per reading (3 K in all).
@@ -1531,7 +1583,7 @@ mod tests {
     /// a minute from 0.1 K above the ambient: 0.4 K per 120 s window).
     #[test]
     fn a_slow_move_since_the_last_change_makes_a_repeated_reading_stuck() {
-        let mut watch = StuckWatch::<1>::new();
+        let mut watch = StuckWatch::<Const<1>>::new(Const);
         let per_reading_k = 0.2 / 120.0; // 0.2 K a minute at 2 Hz
         let allowance_k = 1.0 + 0.25 * 0.1;
         let mut first = None;
@@ -1568,7 +1620,7 @@ mod tests {
             for tau_s in [300.0, 1000.0, 3000.0] {
                 for (gain, stretch) in [(1.25, 1.25), (0.75, 1.25), (1.25, 0.8), (0.75, 0.8)] {
                     for heating in [true, false] {
-                        let mut watch = StuckWatch::<1>::new();
+                        let mut watch = StuckWatch::<Const<1>>::new(Const);
                         let (mut last, mut at) = (f32::NAN, 0.0f64);
                         let steps = (12.0 * tau_s / dt_s) as u32;
                         for k in 0..=steps {
@@ -1632,7 +1684,7 @@ mod tests {
     /// [`holds`] with the estimate at `estimate_c` \[degC\] (the shadow
     /// at 50 degC).
     fn holds_against(readings: impl Iterator<Item = f32>, estimate_c: f32) -> Vec<bool> {
-        let mut hold = DriftHold::<1>::new();
+        let mut hold = DriftHold::<Const<1>>::new(Const);
         let (stuck, gate) = hold_policies();
         let mut rejections = 0u16;
         readings
@@ -1703,7 +1755,7 @@ mod tests {
         // Sensor 0 refused twice already, 2 K colder than the shadow and
         // the estimate (NIS 40); sensor 1 healthy.
         let screen = |other: Option<f32>| {
-            let mut hold = DriftHold::<2>::new();
+            let mut hold = DriftHold::<Const<2>>::new(Const);
             let mut samples = [Some(48.0), other];
             let mut statuses = [SensorStatus::NoReading; 2];
             let common = hold.screen(
@@ -1751,7 +1803,7 @@ mod tests {
 
     #[test]
     fn doubt_lasts_its_hold_then_clears() {
-        let mut doubt = Suspicion::<3>::new();
+        let mut doubt = Suspicion::<Const<3>>::new(Const);
         assert!(!doubt.any());
         doubt.note(&[false, true, false]);
         assert!(doubt.any());

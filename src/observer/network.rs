@@ -1076,7 +1076,7 @@ pub struct NetworkObserverState<
     /// 1 500 instructions on a core without an FPU.
     period_decay: [f32; 2],
     outputs: NetworkOutputs<N, M, P>,
-    silence: SilenceWatch<P>,
+    silence: SilenceWatch<Const<P>>,
     /// The predictor's sweep.
     pub predictor: PredictorState<f32, N, M>,
     /// The predictor's element between its two stages, when its sweep
@@ -1089,13 +1089,13 @@ pub struct NetworkObserverState<
     pub alarm: AlarmState<f32, Const<N>>,
     /// Alarm events not yet drained.
     pub events: EventQueue<EVENT_CAPACITY>,
-    stuck: StuckWatch<P>,
+    stuck: StuckWatch<Const<P>>,
     /// The heat-input biases when each sensor's reading last changed:
     /// where a stuck sensor's biases go back to.
-    rewind: StuckRewind<P, M>,
-    drift: DriftHold<P>,
+    rewind: StuckRewind<Const<P>, Const<M>>,
+    drift: DriftHold<Const<P>>,
     /// The sensors whose measurement is in doubt.
-    suspect: Suspicion<P>,
+    suspect: Suspicion<Const<P>>,
     /// The predictor's limits at the ambient they were formed at.
     mean_limits: AmbientLimits<N>,
     /// The time-varying warm-up's covariance, while it runs, if this
@@ -1322,11 +1322,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             #[cfg(not(target_abi = "eabihf"))]
             floors_due: None,
             predictor_half: HalfElement::new(),
-            stuck: StuckWatch::new(),
-            rewind: StuckRewind::new(),
-            drift: DriftHold::new(),
-            suspect: Suspicion::new(),
-            silence: SilenceWatch::new(),
+            stuck: StuckWatch::new(Const),
+            rewind: StuckRewind::new(Const, Const),
+            drift: DriftHold::new(Const),
+            suspect: Suspicion::new(Const),
+            silence: SilenceWatch::new(Const),
             outputs: NetworkOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -2212,7 +2212,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     fn rewind_stuck_biases<W: WarmUpKind<X>>(
         &self,
         state: &mut NetworkObserverState<N, B, M, X, P, W>,
-        events: &StuckEvents<P>,
+        events: &StuckEvents<Const<P>>,
     ) {
         let shared = &self.shared_bias;
         let any_shared = shared.contains(&true);

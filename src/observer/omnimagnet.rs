@@ -789,7 +789,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     /// Model steps handed to the next tick (see [`StepClock::defer`]).
     deferral: Deferral,
     shadow_block: BlockMean<SOLENOIDS>,
-    silence: SilenceWatch<THERMOCOUPLES>,
+    silence: SilenceWatch<Const<THERMOCOUPLES>>,
     outputs: OmniOutputs,
     /// The filter's estimate (deviations from `model`'s origin \[K\], then
     /// the heat-input biases \[W\]) and gate memory.
@@ -811,15 +811,15 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     pub alarm: AlarmState<f32, Const<6>>,
     /// Alarm events not yet drained.
     pub events: EventQueue<EVENT_CAPACITY>,
-    stuck: StuckWatch<THERMOCOUPLES>,
+    stuck: StuckWatch<Const<THERMOCOUPLES>>,
     /// The heat-input biases when each thermocouple's reading last
     /// changed: where a stuck one's biases go back to.
-    rewind: StuckRewind<THERMOCOUPLES, SOLENOIDS>,
+    rewind: StuckRewind<Const<THERMOCOUPLES>, Const<SOLENOIDS>>,
     /// The readings held out of the gate's recovery as drifting colder
     /// than the physics.
-    drift: DriftHold<THERMOCOUPLES>,
+    drift: DriftHold<Const<THERMOCOUPLES>>,
     /// The solenoids whose measurement is in doubt.
-    suspect: Suspicion<SOLENOIDS>,
+    suspect: Suspicion<Const<SOLENOIDS>>,
     /// The last tick corrected with a multi-rate model: the heat-bias
     /// check is this tick's (see [`OmniObserver::tick`]).
     bias_check_due: bool,
@@ -1266,11 +1266,11 @@ impl OmniObserver {
             shadow_block: BlockMean::new(),
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
-            stuck: StuckWatch::new(),
-            rewind: StuckRewind::new(),
-            drift: DriftHold::new(),
-            silence: SilenceWatch::new(),
-            suspect: Suspicion::new(),
+            stuck: StuckWatch::new(Const),
+            rewind: StuckRewind::new(Const, Const),
+            drift: DriftHold::new(Const),
+            silence: SilenceWatch::new(Const),
+            suspect: Suspicion::new(Const),
             outputs: OmniOutputs {
                 temps_c: *temps_c,
                 upper_c: *temps_c,
@@ -1885,7 +1885,7 @@ impl OmniObserver {
         doubt: &[bool; SOLENOIDS],
     ) {
         if state.relinearised {
-            drop_cold_biases(state.estimate.x.iter_mut().skip(NODES), doubt);
+            drop_cold_biases::<Const<SOLENOIDS>>(state.estimate.x.iter_mut().skip(NODES), doubt);
         }
     }
 
