@@ -1814,4 +1814,142 @@ mod tests {
         doubt.note(&[false; 3]);
         assert!(!doubt.any());
     }
+
+    /// The sensor checks at run-time sizes (`Dyn`: a host's model at its
+    /// own size) are the const-generic ones to the bit: three sensors and
+    /// two inputs through 3 000 corrections of readings that follow the
+    /// physics, stick, drift colder, go missing or NaN, give the same
+    /// screened samples, statuses, stuck events, holds, rewound biases,
+    /// silences and doubt.
+    #[cfg(feature = "alloc")]
+    #[test]
+    fn the_checks_at_run_time_sizes_are_the_const_generic_ones() {
+        use alloc::vec::Vec;
+        use nalgebra::{Dyn, SMatrix, SVector};
+        let (stuck_test, gate) = hold_policies();
+        let band = Band {
+            offset_k: 2.0,
+            fraction: 0.25,
+        };
+        let dyn3 = Dyn(3);
+        let mut watch_c = StuckWatch::<Const<3>>::new(Const);
+        let mut watch_d = StuckWatch::new(dyn3);
+        let mut hold_c = DriftHold::<Const<3>>::new(Const);
+        let mut hold_d = DriftHold::new(dyn3);
+        let mut silence_c = SilenceWatch::<Const<3>>::new(Const);
+        let mut silence_d = SilenceWatch::new(dyn3);
+        let mut doubt_c = Suspicion::<Const<3>>::new(Const);
+        let mut doubt_d = Suspicion::new(dyn3);
+        let mut rewind_c = StuckRewind::<Const<3>, Const<2>>::new(Const, Const);
+        let mut rewind_d = StuckRewind::new(dyn3, Dyn(2));
+        let cov = SMatrix::<f32, 5, 5>::from_fn(|i, j| if i == j { 1.0 } else { 0.1 });
+        let (mut x_c, mut x_d) = (SVector::<f32, 5>::zeros(), SVector::<f32, 5>::zeros());
+        let mut seed = 7u32;
+        let mut noise = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+        };
+        let (mut stuck_seen, mut held_seen) = (0, 0);
+        for k in 0..3000u32 {
+            let shadow = [
+                50.0 + 0.01 * k as f32,
+                45.0 + 0.02 * k as f32,
+                60.0 - 0.005 * k as f32,
+            ];
+            let mut samples = [
+                Some(shadow[0] + 0.2 * noise()),
+                // Stuck from reading 500 on.
+                Some(if k < 500 {
+                    shadow[1] + 0.2 * noise()
+                } else {
+                    56.0
+                }),
+                // Drifting colder from 1 500 on, missing now and then.
+                (k % 37 != 0).then(|| shadow[2] - (k.saturating_sub(1500)) as f32 * 0.02),
+            ];
+            if k % 211 == 0 {
+                samples[0] = Some(f32::NAN);
+            }
+            let mut statuses = [SensorStatus::NoReading; 3];
+            let mut samples_d: Vec<Option<f32>> = samples.to_vec();
+            let mut statuses_d: Vec<SensorStatus> = statuses.to_vec();
+            let (common_c, events_c) = screen_readings(
+                &band,
+                &stuck_test,
+                &mut watch_c,
+                &mut samples,
+                &mut statuses,
+                &shadow,
+                20.0,
+            );
+            let (common_d, events_d) = screen_readings::<Dyn>(
+                &band,
+                &stuck_test,
+                &mut watch_d,
+                &mut samples_d,
+                &mut statuses_d,
+                &shadow.to_vec(),
+                20.0,
+            );
+            assert_eq!(common_c, common_d, "{k}");
+            assert_eq!(events_c.changed.to_vec(), events_d.changed, "{k}");
+            assert_eq!(events_c.became_stuck.to_vec(), events_d.became_stuck, "{k}");
+            stuck_seen += statuses
+                .iter()
+                .filter(|s| matches!(s, SensorStatus::Stuck { .. }))
+                .count();
+            let rejections = [0, 0, (k / 100) as u16 % 5];
+            let view = |j: usize| GateView {
+                estimate_c: shadow[j] - 0.5,
+                innovation_var_k2: 0.1,
+            };
+            let held_c = hold_c.screen(
+                &mut samples,
+                &mut statuses,
+                &shadow,
+                &rejections,
+                &gate,
+                &stuck_test,
+                view,
+            );
+            let held_d = hold_d.screen(
+                &mut samples_d,
+                &mut statuses_d,
+                &shadow.to_vec(),
+                &rejections.to_vec(),
+                &gate,
+                &stuck_test,
+                view,
+            );
+            assert_eq!(held_c, held_d, "{k}");
+            held_seen += usize::from(matches!(statuses[2], SensorStatus::Rejected { .. }));
+            let heard = samples.map(|s| s.is_some());
+            silence_c.watch(&heard, k * 500_000, 1_000_000, &mut statuses);
+            silence_d.watch(&heard.to_vec(), k * 500_000, 1_000_000, &mut statuses_d);
+            let bits =
+                |v: &[Option<f32>]| v.iter().map(|s| s.map(f32::to_bits)).collect::<Vec<_>>();
+            assert_eq!(bits(&samples), bits(&samples_d), "{k}");
+            assert_eq!(statuses.to_vec(), statuses_d, "{k}");
+            let doubt = statuses.map(|s| sensor_doubt(&s, 2).unwrap_or(false));
+            doubt_c.note(&doubt);
+            doubt_d.note(&doubt.to_vec());
+            assert_eq!(doubt_c.any(), doubt_d.any(), "{k}");
+            x_c[3] += 0.01;
+            x_d[3] += 0.01;
+            rewind_c.rewind(&mut x_c, &cov, 3, &events_c, &[false, false], |_, _| {});
+            rewind_d.rewind(
+                &mut x_d,
+                &cov,
+                3,
+                &events_d,
+                &alloc::vec![false, false],
+                |_, _| {},
+            );
+            assert_eq!(x_c, x_d, "{k}");
+        }
+        assert!(
+            stuck_seen > 100 && held_seen > 0,
+            "{stuck_seen} {held_seen}"
+        );
+    }
 }
