@@ -192,8 +192,6 @@ pub(crate) struct Suspicion<M: Length> {
     left: M::Array<u16>,
 }
 
-impl<M: Length> Copy for Suspicion<M> where M::Array<u16>: Copy {}
-
 impl<M: Length> Suspicion<M> {
     /// No doubt, on `inputs` inputs.
     pub(crate) fn new(inputs: M) -> Self {
@@ -486,14 +484,6 @@ pub(crate) struct StuckWatch<P: Length> {
     stuck: P::Array<bool>,
 }
 
-impl<P: Length> Copy for StuckWatch<P>
-where
-    P::Array<f32>: Copy,
-    P::Array<u32>: Copy,
-    P::Array<bool>: Copy,
-{
-}
-
 impl<P: Length> StuckWatch<P> {
     /// No reading seen yet, on `sensors` sensors.
     pub(crate) fn new(sensors: P) -> Self {
@@ -615,8 +605,6 @@ pub(crate) struct StuckEvents<P: Length> {
     pub became_stuck: P::Array<bool>,
 }
 
-impl<P: Length> Copy for StuckEvents<P> where P::Array<bool>: Copy {}
-
 /// The stuck sensor's rewind: each sensor's heat-input biases \[W\] when
 /// its reading last changed, and the step that takes back what it taught
 /// them once it is found stuck. Until the stuck test sees it, an unchanged
@@ -630,8 +618,6 @@ pub(crate) struct StuckRewind<P: Length, M: Length> {
     /// Sensor `j`'s biases when its reading last changed \[W\].
     bias_at_change_w: P::Array<M::Array<f32>>,
 }
-
-impl<P: Length, M: Length> Copy for StuckRewind<P, M> where P::Array<M::Array<f32>>: Copy {}
 
 impl<P: Length, M: Length> StuckRewind<P, M> {
     /// No bias noted (zero: a bias starts at zero), for `sensors`
@@ -717,14 +703,6 @@ pub(crate) struct DriftHold<P: Length> {
     /// [`HoldFlags`] of each sensor: a byte, not three `bool`s (the
     /// Omnimagnet's six sensors: 12 B of RAM fewer).
     flags: P::Array<u8>,
-}
-
-impl<P: Length> Copy for DriftHold<P>
-where
-    P::Array<f32>: Copy,
-    P::Array<u32>: Copy,
-    P::Array<u8>: Copy,
-{
 }
 
 /// The bits of a sensor's [`DriftHold`] flags.
@@ -926,8 +904,6 @@ pub(crate) struct SilenceWatch<P: Length> {
     /// sensors, 20 B of RAM fewer).
     begun: bool,
 }
-
-impl<P: Length> Copy for SilenceWatch<P> where P::Array<u32>: Copy {}
 
 impl<P: Length> SilenceWatch<P> {
     /// Nothing heard yet, on `sensors` sensors.
