@@ -219,21 +219,21 @@ fn omnimagnet_model() -> OmniModel {
     )
 }
 
+/// The Omnimagnet's 16-state filter of [`omnimagnet_model`] in `T`.
+fn omnimagnet_filter<T: nalgebra::RealField + Copy>(
+) -> coil_thermal::filter::KalmanConfig<T, Const<16>, Const<5>, Const<6>> {
+    let (f, g, h, q, r) = omnimagnet_model();
+    coil_thermal::filter::KalmanConfig::new(f.cast(), g.cast(), h.cast(), q.cast(), r.cast())
+        .expect("valid filter model")
+}
+
 fn omnimagnet_predict<T: nalgebra::RealField + Copy>(
     key: &str,
     min_time: Duration,
     repeats: usize,
 ) -> Timing {
-    use coil_thermal::filter::{predict_mean, KalmanConfig};
-    let (f, g, h, q, r) = omnimagnet_model();
-    let cfg = KalmanConfig::<T, Const<16>, Const<5>, Const<6>>::new(
-        f.cast(),
-        g.cast(),
-        h.cast(),
-        q.cast(),
-        r.cast(),
-    )
-    .expect("valid filter model");
+    use coil_thermal::filter::predict_mean;
+    let cfg = omnimagnet_filter::<T>();
     let mut x = nalgebra::SVector::<T, 16>::repeat(T::from_subset(&20.0));
     let u = nalgebra::SVector::<f64, 5>::from([9.0, 9.0, 9.0, 20.0, 1.0]).cast::<T>();
     measure(key.to_string(), min_time, repeats, || {
@@ -243,17 +243,9 @@ fn omnimagnet_predict<T: nalgebra::RealField + Copy>(
 
 fn omnimagnet_correct(min_time: Duration, repeats: usize, out: &mut Vec<Timing>) {
     use coil_thermal::filter::{
-        predict, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
+        predict, update, update_steady, KalmanState, SteadyEstimate, SteadyStateGain,
     };
-    let (f, g, h, q, r) = omnimagnet_model();
-    let cfg = KalmanConfig::<f32, Const<16>, Const<5>, Const<6>>::new(
-        f.cast(),
-        g.cast(),
-        h.cast(),
-        q.cast(),
-        r.cast(),
-    )
-    .expect("valid filter model");
+    let cfg = omnimagnet_filter::<f32>();
     let x0 = nalgebra::SVector::<f32, 16>::repeat(20.0);
     let z = [
         Some(20.3f32),

@@ -315,10 +315,11 @@ where
         r: OVector<T, P>,
     ) -> Result<Self, BuildError> {
         let (n, p) = (f.nrows(), h.nrows());
-        if n == 0 || f.ncols() != n || g.nrows() != n || q.shape() != (n, n) {
+        // A state index must fit the `u16` of a sensor's `Reads`.
+        if n == 0 || n > 1 << 16 || f.ncols() != n || g.nrows() != n || q.shape() != (n, n) {
             return Err(BuildError::InvalidParameter { name: "f" });
         }
-        if p == 0 || h.ncols() != n || r.nrows() != p || n > 1 << 16 {
+        if p == 0 || h.ncols() != n || r.nrows() != p {
             return Err(BuildError::InvalidParameter { name: "h" });
         }
         if !all_finite(&f) {
