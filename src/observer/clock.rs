@@ -38,6 +38,7 @@
 
 use crate::error::BuildError;
 use crate::input::InputFlags;
+use crate::sizes::Length;
 
 /// The step size and the catch-up limit (configuration).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -299,10 +300,10 @@ impl StepClock {
 /// with every tick (on a core without an FPU, about 300 instructions a
 /// current on every tick of the step).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct StepAccount<const M: usize> {
+pub(crate) struct StepAccount<M: Length> {
     /// Each current's `I^2` times the time it was held \[A^2 us\], over
     /// the closed segments of the clock's debt.
-    i2_a2_us: [f32; M],
+    i2_a2_us: M::Array<f32>,
     /// The open segment: the time \[us\] of the clock's debt at the
     /// currents held now.
     held_us: u32,
@@ -311,11 +312,11 @@ pub(crate) struct StepAccount<const M: usize> {
     mixed: bool,
 }
 
-impl<const M: usize> StepAccount<M> {
-    /// An empty account (a new state: no debt).
-    pub(crate) const fn new() -> Self {
+impl<M: Length> StepAccount<M> {
+    /// An empty account of `currents` (a new state: no debt).
+    pub(crate) fn new(currents: M) -> Self {
         Self {
-            i2_a2_us: [0.0; M],
+            i2_a2_us: currents.filled(0.0),
             held_us: 0,
             mixed: false,
         }
@@ -332,17 +333,18 @@ impl<const M: usize> StepAccount<M> {
     pub(crate) fn moves(
         &mut self,
         debt_before_us: u32,
-        incoming: &[f32; M],
-        held: &[f32; M],
+        incoming: &M::Array<f32>,
+        held: &M::Array<f32>,
     ) -> bool {
         let moved = debt_before_us > 0
             && incoming
+                .as_ref()
                 .iter()
-                .zip(held)
+                .zip(held.as_ref())
                 .any(|(a, b)| a.to_bits() != b.to_bits());
         if moved && self.held_us > 0 {
             let held_us = self.held_us as f32;
-            for (s, i) in self.i2_a2_us.iter_mut().zip(held) {
+            for (s, i) in self.i2_a2_us.as_mut().iter_mut().zip(held.as_ref()) {
                 *s += i * i * held_us;
             }
             self.held_us = 0;
@@ -360,14 +362,14 @@ impl<const M: usize> StepAccount<M> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn account(
         &mut self,
-        held_a: &[f32; M],
+        held_a: &M::Array<f32>,
         moved: bool,
         debt_before_us: u32,
         debt_after_us: u32,
         elapsed_us: u32,
         steps: &TickSteps,
         step_us: u32,
-    ) -> Option<[f32; M]> {
+    ) -> Option<M::Array<f32>> {
         if debt_before_us == 0 && debt_after_us == 0 {
             // Ticks on the steps' boundaries (the usual loop): a step
             // ended with the tick before, so the account is empty, and
@@ -400,8 +402,9 @@ impl<const M: usize> StepAccount<M> {
                 -((closed_us - covered_us) as f32)
             };
             let per_us = 1.0 / covered_us.max(1) as f32;
-            let mut mean = [0.0; M];
-            for ((mean, s), i) in mean.iter_mut().zip(&self.i2_a2_us).zip(held_a) {
+            let mut mean = M::filled_like(held_a, 0.0);
+            let sums = self.i2_a2_us.as_ref();
+            for ((mean, s), i) in mean.as_mut().iter_mut().zip(sums).zip(held_a.as_ref()) {
                 let energy = s + i * i * at_held_us;
                 // Not below zero (only a deferral's redistribution could
                 // get there, and the carry then holds more than its share).
@@ -412,7 +415,7 @@ impl<const M: usize> StepAccount<M> {
         // The time carried past the steps opens the next step's account
         // at the held currents.
         if mixed {
-            self.i2_a2_us = [0.0; M];
+            self.i2_a2_us = M::filled_like(&self.i2_a2_us, 0.0);
         }
         self.held_us = debt_after_us;
         self.mixed = false;
@@ -425,11 +428,11 @@ impl<const M: usize> StepAccount<M> {
 /// [`StepAccount::account`]), else the held currents `held_a` \[A\]
 /// squared. Powers are `R(T)` times these: no root is taken.
 #[inline(always)]
-pub(crate) fn step_square_currents<const M: usize>(
-    mean_sq_a2: Option<[f32; M]>,
-    held_a: &[f32; M],
-) -> [f32; M] {
-    mean_sq_a2.unwrap_or_else(|| held_a.map(|i| i * i))
+pub(crate) fn step_square_currents<M: Length>(
+    mean_sq_a2: Option<M::Array<f32>>,
+    held_a: &M::Array<f32>,
+) -> M::Array<f32> {
+    mean_sq_a2.unwrap_or_else(|| M::mapped(held_a, |i| i * i))
 }
 
 /// `(debt_us + elapsed_us) / step_us` and its remainder, the sum taken
@@ -549,7 +552,7 @@ mod tests {
             let clock = StepClock::new(STEP_US, 4).unwrap();
             let mut state = ClockState::default();
             let mut deferral = Deferral::default();
-            let mut account = StepAccount::<2>::new();
+            let mut account = StepAccount::new(nalgebra::Const::<2>);
             let mut held = [0.0f32; 2];
             // The reference: each current's energy over the debt [A^2 us],
             // and whether the debt saw more than one set of currents.

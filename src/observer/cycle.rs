@@ -29,6 +29,7 @@ use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::scalar::Scalar;
+use crate::sizes::Length;
 use nalgebra::Const;
 
 /// A protection stage.
@@ -46,9 +47,9 @@ pub(crate) enum Stage {
 
 /// Where a state is in its protection cycle, with `M` currents.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct ProtectionCycle<const M: usize> {
+pub(crate) struct ProtectionCycle<M: Length> {
     /// Largest held current magnitude since the last predictor slice \[A\].
-    peak_currents_a: [f32; M],
+    peak_currents_a: M::Array<f32>,
     /// Simulated time minus the predictor's own ageing \[us\].
     lag_us: u32,
     stage: Stage,
@@ -66,12 +67,12 @@ pub(crate) struct ProtectionCycle<const M: usize> {
     slices_left: u32,
 }
 
-impl<const M: usize> ProtectionCycle<M> {
-    /// A cycle whose first stage, the predictor slice, is due at once (a
-    /// new state's limits are valid from its first ticks).
-    pub(crate) fn new() -> Self {
+impl<M: Length> ProtectionCycle<M> {
+    /// A cycle of `currents` whose first stage, the predictor slice, is
+    /// due at once (a new state's limits are valid from its first ticks).
+    pub(crate) fn new(currents: M) -> Self {
         Self {
-            peak_currents_a: [0.0; M],
+            peak_currents_a: currents.filled(0.0),
             lag_us: 0,
             stage: Stage::Predict,
             put_off: 0,
@@ -123,7 +124,7 @@ impl<const M: usize> ProtectionCycle<M> {
         steps: &TickSteps,
         step_us: u32,
         elapsed_us: u32,
-        held_currents_a: &[f32; M],
+        held_currents_a: &M::Array<f32>,
     ) {
         if steps.steps > 0 || elapsed_us > 0 {
             self.held(held_currents_a);
@@ -135,8 +136,9 @@ impl<const M: usize> ProtectionCycle<M> {
     }
 
     /// The peaks take `currents_a` \[A\].
-    fn held(&mut self, currents_a: &[f32; M]) {
-        for (peak, i) in self.peak_currents_a.iter_mut().zip(currents_a) {
+    fn held(&mut self, currents_a: &M::Array<f32>) {
+        let peaks = self.peak_currents_a.as_mut().iter_mut();
+        for (peak, i) in peaks.zip(currents_a.as_ref()) {
             // As `max` (a NaN current leaves the peak), without its call.
             if i.abs() > *peak {
                 *peak = i.abs();
@@ -169,16 +171,16 @@ impl<const M: usize> ProtectionCycle<M> {
 
     /// The currents the predictor slice takes: the largest held since the
     /// previous slice \[A\].
-    pub(crate) fn peak_currents_a(&self) -> &[f32; M] {
+    pub(crate) fn peak_currents_a(&self) -> &M::Array<f32> {
         &self.peak_currents_a
     }
 
     /// A predictor slice ran: its time is caught up by `slice_us` (the
     /// period over the slices per cycle), the peaks restart from the held
     /// currents, and after the cycle's last slice the alarm is next.
-    pub(crate) fn predicted(&mut self, slice_us: u32, held_currents_a: &[f32; M]) {
+    pub(crate) fn predicted(&mut self, slice_us: u32, held_currents_a: &M::Array<f32>) {
         self.lag_us = self.lag_us.saturating_sub(slice_us);
-        self.peak_currents_a = held_currents_a.map(f32::abs);
+        self.peak_currents_a = M::mapped(held_currents_a, |i| i.abs());
         self.slices_left = self.slices_left.saturating_sub(1);
         if self.slices_left == 0 {
             self.slices_left = self.slices;
@@ -215,9 +217,9 @@ pub(crate) struct Protecting<'a, O, S> {
 /// stage of its protection cycle. The cycle's rules, which stage a tick
 /// runs, the bookkeeping after it and the ageing of the answers, are the
 /// provided [`Self::run_due`], the same for every observer.
-pub(crate) trait ProtectionStages<const M: usize> {
+pub(crate) trait ProtectionStages<M: Length> {
     /// The state's cycle and the currents it holds now \[A\].
-    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<M>, &[f32; M]);
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<M>, &M::Array<f32>);
     /// Model time one predictor stage catches up \[us\] (the period over
     /// the slices per cycle).
     fn predictor_slice_us(&self) -> u32;
@@ -388,26 +390,30 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
 /// for the predictor a bound's shift), soft-float routines an element on a
 /// core without an FPU.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct AmbientLimits<const N: usize> {
+pub(crate) struct AmbientLimits<N: Length> {
     /// The bits of the ambient the limits were formed at; `None` before
     /// the first.
     ambient_bits: Option<u32>,
-    limits_c: [f32; N],
+    limits_c: N::Array<f32>,
 }
 
-impl<const N: usize> AmbientLimits<N> {
-    /// No limits formed yet.
-    pub(crate) const fn new() -> Self {
+impl<N: Length> AmbientLimits<N> {
+    /// No limits of `elements` formed yet.
+    pub(crate) fn new(elements: N) -> Self {
         Self {
             ambient_bits: None,
-            limits_c: [0.0; N],
+            limits_c: elements.filled(0.0),
         }
     }
 
     /// The limits at `ambient_c` \[degC\]: the kept ones when it has the
     /// same bits, else `form(ambient_c)`, kept. The same bits as forming
     /// them every time (`form` is a function of the ambient alone).
-    pub(crate) fn at(&mut self, ambient_c: f32, form: impl FnOnce(f32) -> [f32; N]) -> &[f32; N] {
+    pub(crate) fn at(
+        &mut self,
+        ambient_c: f32,
+        form: impl FnOnce(f32) -> N::Array<f32>,
+    ) -> &N::Array<f32> {
         let bits = ambient_c.to_bits();
         if self.ambient_bits != Some(bits) {
             self.limits_c = form(ambient_c);
@@ -444,7 +450,7 @@ mod tests {
 
     /// [`stages`] with `slices` predictor slices per cycle.
     fn stages_sliced(period_us: u32, phase_us: u32, per_cycle: u32, ticks: u32) -> ([u32; 8], u32) {
-        let mut cycle = ProtectionCycle::<1>::new()
+        let mut cycle = ProtectionCycle::new(Const::<1>)
             .with_phase(phase_us)
             .with_slices(per_cycle);
         let (mut slices, mut n, mut worst_lag) = ([0; 8], 0, 0);
@@ -502,7 +508,7 @@ mod tests {
     /// move (`-0` after `+0` too, whose limits can differ in sign).
     /// The stages the cycle runs on ticks `0..ticks`, with every tick in
     /// `busy` busy.
-    fn run(mut cycle: ProtectionCycle<1>, busy: &[u32], ticks: u32) -> [(u32, Stage); 6] {
+    fn run(mut cycle: ProtectionCycle<Const<1>>, busy: &[u32], ticks: u32) -> [(u32, Stage); 6] {
         let one = TickSteps {
             steps: 1,
             dropped_us: 0,
@@ -529,13 +535,13 @@ mod tests {
 
     /// An observer that logs what `run_due` asks of it.
     struct Logged {
-        cycle: ProtectionCycle<1>,
+        cycle: ProtectionCycle<Const<1>>,
         held_a: [f32; 1],
         log: Vec<&'static str>,
     }
 
-    impl ProtectionStages<1> for Logged {
-        fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<1>, &[f32; 1]) {
+    impl ProtectionStages<Const<1>> for Logged {
+        fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<Const<1>>, &[f32; 1]) {
             (&mut self.cycle, &self.held_a)
         }
         fn predictor_slice_us(&self) -> u32 {
@@ -562,7 +568,7 @@ mod tests {
     #[test]
     fn run_due_ages_the_answers_where_they_moved_and_before_the_alarm() {
         let mut o = Logged {
-            cycle: ProtectionCycle::new(),
+            cycle: ProtectionCycle::new(Const::<1>),
             held_a: [2.0],
             log: Vec::new(),
         };
@@ -591,7 +597,7 @@ mod tests {
         // Without: only the slice waits, once; the alarm and the limiter
         // run on busy ticks (2 and 3, 13 and 14).
         assert_eq!(
-            run(ProtectionCycle::new(), &busy, 16),
+            run(ProtectionCycle::new(Const::<1>), &busy, 16),
             [
                 (1, Predict),
                 (2, Alarm),
@@ -605,7 +611,11 @@ mod tests {
         // all the same (busy); the alarm waits 3 and runs on 4, the
         // limiter on 5; the slice due at 12 waits 12 and 13 and runs on 14.
         assert_eq!(
-            run(ProtectionCycle::new().with_busy_waits(2), &busy, 20),
+            run(
+                ProtectionCycle::new(Const::<1>).with_busy_waits(2),
+                &busy,
+                20
+            ),
             [
                 (2, Predict),
                 (4, Alarm),
@@ -617,7 +627,11 @@ mod tests {
         );
         // Lone busy ticks: each stage on the light tick after one.
         assert_eq!(
-            run(ProtectionCycle::new().with_busy_waits(2), &[0, 11, 13], 18),
+            run(
+                ProtectionCycle::new(Const::<1>).with_busy_waits(2),
+                &[0, 11, 13],
+                18
+            ),
             [
                 (1, Predict),
                 (2, Alarm),
@@ -632,8 +646,8 @@ mod tests {
     #[test]
     fn ambient_limits_are_formed_again_when_the_ambient_moves() {
         let mut formed = 0;
-        let mut limits = AmbientLimits::<2>::new();
-        let mut at = |limits: &mut AmbientLimits<2>, ambient_c: f32| {
+        let mut limits = AmbientLimits::new(Const::<2>);
+        let mut at = |limits: &mut AmbientLimits<Const<2>>, ambient_c: f32| {
             *limits.at(ambient_c, |a| {
                 formed += 1;
                 [a + 100.0, a + 50.0]

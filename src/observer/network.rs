@@ -1066,7 +1066,7 @@ pub struct NetworkObserverState<
     held_boundary_c: [f32; B],
     /// The time not yet simulated.
     pub clock: ClockState,
-    cycle: ProtectionCycle<M>,
+    cycle: ProtectionCycle<Const<M>>,
     shadow: ShadowState<N, M>,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
@@ -1097,7 +1097,7 @@ pub struct NetworkObserverState<
     /// The sensors whose measurement is in doubt.
     suspect: Suspicion<Const<P>>,
     /// The predictor's limits at the ambient they were formed at.
-    mean_limits: AmbientLimits<N>,
+    mean_limits: AmbientLimits<Const<N>>,
     /// The time-varying warm-up's covariance, while it runs, if this
     /// flavour holds one.
     warm: W,
@@ -1109,7 +1109,7 @@ pub struct NetworkObserverState<
     warmup_until_steady: bool,
     /// The energy account of the model step in progress (see "Model step
     /// and ticks" in the module docs).
-    step_account: StepAccount<M>,
+    step_account: StepAccount<Const<M>>,
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
     shadow_waiting_block: Option<BlockMean<M>>,
@@ -1277,7 +1277,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             .limits
             .accept_temperatures(boundary_c, &mut held_boundary_c);
         let ambient_c = self.ambient(&held_boundary_c);
-        let mut mean_limits = AmbientLimits::new();
+        let mut mean_limits = AmbientLimits::new(Const::<N>);
         let op = self.operating(
             &mut mean_limits,
             temps_c,
@@ -1297,7 +1297,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             mean_limits,
-            alarm_limits: KeptAlarmLimits::new(),
+            alarm_limits: KeptAlarmLimits::new(Const::<N>),
             clock: ClockState::default(),
             events: EventQueue::new(),
             held_currents_a: [0.0; M],
@@ -1306,18 +1306,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             // tick, its shadow block's, a reading's and (with the integer
             // step) the reading's move into its states (see "Model step and
             // ticks").
-            cycle: ProtectionCycle::new().with_busy_waits(if self.step_us > self.loop_period_us {
-                3 + u8::from(self.steps_in_integers()) + u8::from(self.corrects_in_two_ticks())
-            } else {
-                0
-            }),
+            cycle: ProtectionCycle::new(Const::<M>).with_busy_waits(
+                if self.step_us > self.loop_period_us {
+                    3 + u8::from(self.steps_in_integers()) + u8::from(self.corrects_in_two_ticks())
+                } else {
+                    0
+                },
+            ),
             shadow: ShadowState::new(core::array::from_fn(|i| x[i])),
             warm: NoWarmUp,
             warmup_left: 0,
             bias_steps: 0,
             period_decay: self.decay_factors(self.gain.period),
             warmup_until_steady: false,
-            step_account: StepAccount::new(),
+            step_account: StepAccount::new(Const::<M>),
             shadow_waiting_block: None,
             #[cfg(not(target_abi = "eabihf"))]
             floors_due: None,
@@ -1441,7 +1443,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             }
             return block_stepped;
         }
-        let sq_a2 = step_square_currents(mean_sq_a2, &state.held_currents_a);
+        let sq_a2 = step_square_currents::<Const<M>>(mean_sq_a2, &state.held_currents_a);
         // The usual tick's one step out of the catch-up's loop: in it, the
         // step's operands were loaded before the loop and spilled (+57
         // instructions on the M4F network's tick, measured).
@@ -1619,7 +1621,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     #[inline(never)]
     fn operating(
         &self,
-        mean_limits: &mut AmbientLimits<N>,
+        mean_limits: &mut AmbientLimits<Const<N>>,
         temps_c: &[f32; N],
         currents_a: &[f32; M],
         boundary_c: &[f32; B],
@@ -2694,13 +2696,13 @@ struct Model<const N: usize, const B: usize, const M: usize> {
 /// The network observer's protection stages; the cycle's rules are
 /// [`ProtectionStages::run_due`]'s.
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
-    ProtectionStages<M>
+    ProtectionStages<Const<M>>
     for Protecting<'_, NetworkObserver<N, B, M, X, P>, NetworkObserverState<N, B, M, X, P, W>>
 where
     W: WarmUpKind<X>,
 {
     #[inline(always)]
-    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<M>, &[f32; M]) {
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<Const<M>>, &[f32; M]) {
         (&mut self.state.cycle, &self.state.held_currents_a)
     }
 
@@ -2755,7 +2757,7 @@ where
 /// The derated alarm limits a state keeps per ambient: on a core without
 /// an FPU (see [`NetworkObserver::alarm_limits_c`]).
 #[cfg(not(target_abi = "eabihf"))]
-type KeptAlarmLimits<const N: usize> = AmbientLimits<N>;
+type KeptAlarmLimits<const N: usize> = AmbientLimits<Const<N>>;
 
 /// On a core with an FPU none are kept (see
 /// [`NetworkObserver::alarm_limits_c`]): the state is as large as without
@@ -2771,7 +2773,7 @@ struct NoneKept;
 
 #[cfg(target_abi = "eabihf")]
 impl NoneKept {
-    const fn new() -> Self {
+    fn new<D>(_: D) -> Self {
         Self
     }
 }

@@ -306,7 +306,7 @@ fn the_time_to_limit_follows_a_moved_ambient() {
     let published = state.outputs().time_to_limit_s[0].expect("9 A reaches the limit");
     let full_sweep = |ambient_c: f32| {
         let op = observer.operating(
-            &mut AmbientLimits::new(),
+            &mut AmbientLimits::new(nalgebra::Const),
             &state.outputs().temps_c,
             &[9.0],
             &[35.0],

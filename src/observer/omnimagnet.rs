@@ -781,11 +781,11 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     held_ambient_c: f32,
     /// The energy account of the step in progress (see "Model step and
     /// ticks" in the module docs).
-    step_account: StepAccount<SOLENOIDS>,
+    step_account: StepAccount<Const<SOLENOIDS>>,
     /// Model steps since the state was made or a model was last
     /// installed (saturating), for the refresh watchdog.
     model_age_steps: u32,
-    cycle: ProtectionCycle<SOLENOIDS>,
+    cycle: ProtectionCycle<Const<SOLENOIDS>>,
     /// Model steps handed to the next tick (see [`StepClock::defer`]).
     deferral: Deferral,
     shadow_block: BlockMean<SOLENOIDS>,
@@ -1255,7 +1255,7 @@ impl OmniObserver {
             held_currents_a: [0.0; SOLENOIDS],
             held_ambient_c: ambient_c,
             // The first ticks run a whole cycle: outputs valid from the start.
-            cycle: ProtectionCycle::new()
+            cycle: ProtectionCycle::new(Const::<SOLENOIDS>)
                 .with_phase(self.protect_phase_us)
                 .with_slices(self.protect_period_us / self.predictor_slice_us.max(1)),
             shadow_x: SVector::from_fn(|i, _| {
@@ -1284,7 +1284,7 @@ impl OmniObserver {
                 dropped_us: 0,
                 tick: 0,
             },
-            step_account: StepAccount::new(),
+            step_account: StepAccount::new(Const::<SOLENOIDS>),
             bias_check_due: false,
             deferral: Deferral::default(),
             relinearised: false,
@@ -1473,7 +1473,7 @@ impl OmniObserver {
         );
         // The shadow's blocks take each step's mean `I^2`.
         let block_sq_a2 = (steps.steps > 0)
-            .then(|| step_square_currents(mean_sq_a2, &state.held_currents_a))
+            .then(|| step_square_currents::<Const<SOLENOIDS>>(mean_sq_a2, &state.held_currents_a))
             .and_then(|step_sq_a2| {
                 state
                     .shadow_block
@@ -2466,11 +2466,11 @@ impl OmniObserver {
 
 /// The Omnimagnet observer's protection stages; the cycle's rules are
 /// [`ProtectionStages::run_due`]'s.
-impl<W: OmniWarmUpKind> ProtectionStages<SOLENOIDS>
+impl<W: OmniWarmUpKind> ProtectionStages<Const<SOLENOIDS>>
     for Protecting<'_, OmniObserver, OmniObserverState<W>>
 {
     #[inline(always)]
-    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<SOLENOIDS>, &[f32; SOLENOIDS]) {
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<Const<SOLENOIDS>>, &[f32; SOLENOIDS]) {
         (&mut self.state.cycle, &self.state.held_currents_a)
     }
 
