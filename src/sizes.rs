@@ -4,27 +4,23 @@
 //! An MCU's observer has its sizes as const generics: every vector is an
 //! array, placed by the compiler, with no allocation and no length to
 //! check. A host reading a model file learns its sizes at run time (a
-//! motor's network from a design tool has hundreds of nodes). [`Sizes`] is
-//! the one face both show to the code that holds a vector per node, per
-//! boundary or per input: [`ConstSizes`] makes each an array (`[U; N]`),
-//! and, with the `alloc` feature, `RunTimeSizes` a `Vec` of the model's
-//! length. Code written over `S: Sizes` reads its vectors as slices
-//! ([`AsRef<[U]>`]), so the MCU and the host run the same code: for
-//! [`ConstSizes`] it compiles to what the arrays compiled to before (every
-//! length a constant), for `RunTimeSizes` to loops over the model's
-//! lengths.
+//! motor's network from a design tool has hundreds of nodes). One
+//! abstraction serves both: a size is a nalgebra dimension ([`Dim`]) that
+//! is a [`Length`], `Const<N>` on an MCU and `Dyn` on a host (the `alloc`
+//! feature). A matrix over it is nalgebra's `OMatrix` (for `Const` the same
+//! type as `SMatrix`, on the stack; for `Dyn` a `DMatrix` on the heap); a
+//! plain vector (temperatures, verdicts, counters) is its
+//! [`Length::Array`], `[U; N]` or a `Vec<U>` of the model's length.
 //!
-//! A matrix over a network's nodes, boundaries or inputs is nalgebra's
-//! `OMatrix` of the sizes' dimensions ([`Sizes::NodeDim`], ...):
-//! `Const<N>` for [`ConstSizes`] (the same type as `SMatrix`, on the
-//! stack), `Dyn` for `RunTimeSizes` (a `DMatrix` on the heap). Code over
-//! them states the allocations it needs once, as
+//! [`Sizes`] are a network's three dimensions, nodes, boundaries and
+//! inputs, with their vectors [`NodeVector`], [`BoundaryVector`] and
+//! [`InputVector`]: [`ConstSizes`] on an MCU, `RunTimeSizes` on a host.
+//! Code written over them reads its vectors as slices ([`AsRef<[U]>`]), so
+//! the MCU and the host run the same code: for `Const` sizes it compiles
+//! to what the arrays compiled to before (every length a constant), for
+//! `Dyn` to loops over the model's lengths. Code over a network's matrices
+//! states the allocations it needs once, as
 //! `DefaultAllocator: NetworkAllocator<Z>` ([`NetworkAllocator`]).
-//!
-//! A dimension alone (a filter's states or sensors, the protection's
-//! elements) is a nalgebra [`Dim`] that is a [`Length`]: its plain
-//! vectors (verdicts, counters, alarm states) are `[U; N]` for
-//! `Const<N>` and `Vec<U>` for `Dyn`.
 //!
 //! Written over sizes so far: the build-time analyses and the
 //! time-to-limit predictor ([`crate::protect::predict`],
@@ -34,15 +30,15 @@
 //! filter ([`crate::filter`]: `KalmanConfig<T, N, M, P>` over three
 //! dimensions), the alarm, the current limiter and the upper bound
 //! ([`crate::protect::alarm`], [`crate::protect::limiter`],
-//! [`crate::protect::margin`], over their elements `N`). Each compiles
-//! for `Const` sizes to what the arrays compiled to before (the MCU
-//! examples' instruction counts and goldens unchanged), and the sensor
-//! checks both filtered observers share (the stuck test and its rewind,
-//! the drift hold, silence, doubt: `crate::observer::consistency`). The
-//! observers keep their const generics (`NetworkObserver<N, B, M, X, P>`
-//! holds `KalmanConfig<f32, Const<X>, U1, Const<P>>`); the shadow's
-//! block mean stays const-generic for now (written over a `Length`, the
-//! Cortex-M0 network example's every tick took 9 instructions more).
+//! [`crate::protect::margin`], over their elements `N`), and of the
+//! observers' pieces the sensor checks (the stuck test and its rewind,
+//! the drift hold, silence, doubt), the protection cycle and the model
+//! step's energy account. Each compiles for `Const` sizes to what the
+//! arrays compiled to before (the MCU examples' goldens unchanged; the
+//! Cortex-M4F's instruction counts too, the Cortex-M0 network example's
+//! within 8 instructions a tick). The observers themselves keep their
+//! const generics for now (`NetworkObserver<N, B, M, X, P>` holds
+//! `KalmanConfig<f32, Const<X>, U1, Const<P>>`).
 
 use core::fmt::Debug;
 
@@ -115,20 +111,14 @@ impl<const N: usize> Length for Const<N> {
 }
 
 /// The sizes of a network: `N` state nodes, `B` boundaries and `M` inputs
-/// (current sources), and the vector types of each length.
+/// (current sources), each a dimension with its vectors ([`Length`]).
 pub trait Sizes: Copy + Debug + PartialEq {
-    /// A value per state node.
-    type Nodes<U: Element>: Vector<U>;
-    /// A value per boundary node.
-    type Boundaries<U: Element>: Vector<U>;
-    /// A value per input (current source).
-    type Inputs<U: Element>: Vector<U>;
-    /// The nalgebra dimension of the state nodes (`Const<N>` or `Dyn`).
-    type NodeDim: Dim;
-    /// The nalgebra dimension of the boundaries.
-    type BoundaryDim: Dim;
-    /// The nalgebra dimension of the inputs.
-    type InputDim: Dim;
+    /// The state nodes' dimension (`Const<N>` or `Dyn`).
+    type NodeDim: Length;
+    /// The boundaries' dimension.
+    type BoundaryDim: Length;
+    /// The inputs' dimension.
+    type InputDim: Length;
 
     /// Number of state nodes `N`.
     fn nodes(&self) -> usize;
@@ -136,16 +126,6 @@ pub trait Sizes: Copy + Debug + PartialEq {
     fn boundaries(&self) -> usize;
     /// Number of inputs `M`.
     fn inputs(&self) -> usize;
-
-    /// A node vector with every entry `fill` (`[fill; N]`: the splat the
-    /// compiler knows, on the hot path).
-    fn nodes_of<U: Element + Copy>(&self, fill: U) -> Self::Nodes<U>;
-    /// A boundary vector with every entry `fill`.
-    fn boundaries_of<U: Element + Copy>(&self, fill: U) -> Self::Boundaries<U>;
-    /// An input vector with every entry `fill`.
-    fn inputs_of<U: Element + Copy>(&self, fill: U) -> Self::Inputs<U>;
-    /// A node vector of clones of `row` (a matrix by rows, at build time).
-    fn rows_of<U: Element>(&self, row: U) -> Self::Nodes<U>;
 
     /// The state nodes as a nalgebra dimension.
     fn node_dim(&self) -> Self::NodeDim {
@@ -159,7 +139,35 @@ pub trait Sizes: Copy + Debug + PartialEq {
     fn input_dim(&self) -> Self::InputDim {
         Self::InputDim::from_usize(self.inputs())
     }
+
+    /// A node vector with every entry `fill` (`[fill; N]`: the splat the
+    /// compiler knows, on the hot path).
+    #[inline(always)]
+    fn nodes_of<U: Element + Copy>(&self, fill: U) -> NodeVector<Self, U> {
+        self.node_dim().filled(fill)
+    }
+    /// A boundary vector with every entry `fill`.
+    #[inline(always)]
+    fn boundaries_of<U: Element + Copy>(&self, fill: U) -> BoundaryVector<Self, U> {
+        self.boundary_dim().filled(fill)
+    }
+    /// An input vector with every entry `fill`.
+    #[inline(always)]
+    fn inputs_of<U: Element + Copy>(&self, fill: U) -> InputVector<Self, U> {
+        self.input_dim().filled(fill)
+    }
+    /// A node vector of clones of `row` (a matrix by rows, at build time).
+    fn rows_of<U: Element>(&self, row: U) -> NodeVector<Self, U> {
+        self.node_dim().each(|_| row.clone())
+    }
 }
+
+/// A value per state node of sizes `Z` (`[U; N]` or a `Vec`).
+pub type NodeVector<Z, U> = <<Z as Sizes>::NodeDim as Length>::Array<U>;
+/// A value per boundary of sizes `Z`.
+pub type BoundaryVector<Z, U> = <<Z as Sizes>::BoundaryDim as Length>::Array<U>;
+/// A value per input (current source) of sizes `Z`.
+pub type InputVector<Z, U> = <<Z as Sizes>::InputDim as Length>::Array<U>;
 
 /// The nalgebra allocations of a network's matrices and vectors
 /// (`N x N`, `N x B`, `N x M`, and vectors of each length): one bound,
@@ -192,9 +200,6 @@ impl<Z: Sizes, A> NetworkAllocator<Z> for A where
 pub struct ConstSizes<const N: usize, const B: usize, const M: usize>;
 
 impl<const N: usize, const B: usize, const M: usize> Sizes for ConstSizes<N, B, M> {
-    type Nodes<U: Element> = [U; N];
-    type Boundaries<U: Element> = [U; B];
-    type Inputs<U: Element> = [U; M];
     type NodeDim = Const<N>;
     type BoundaryDim = Const<B>;
     type InputDim = Const<M>;
@@ -215,22 +220,18 @@ impl<const N: usize, const B: usize, const M: usize> Sizes for ConstSizes<N, B, 
     }
 
     #[inline(always)]
-    fn nodes_of<U: Element + Copy>(&self, fill: U) -> [U; N] {
-        [fill; N]
+    fn node_dim(&self) -> Const<N> {
+        Const
     }
 
     #[inline(always)]
-    fn boundaries_of<U: Element + Copy>(&self, fill: U) -> [U; B] {
-        [fill; B]
+    fn boundary_dim(&self) -> Const<B> {
+        Const
     }
 
     #[inline(always)]
-    fn inputs_of<U: Element + Copy>(&self, fill: U) -> [U; M] {
-        [fill; M]
-    }
-
-    fn rows_of<U: Element>(&self, row: U) -> [U; N] {
-        core::array::from_fn(|_| row.clone())
+    fn input_dim(&self) -> Const<M> {
+        Const
     }
 }
 
@@ -279,9 +280,6 @@ mod run_time {
     }
 
     impl Sizes for RunTimeSizes {
-        type Nodes<U: Element> = Vec<U>;
-        type Boundaries<U: Element> = Vec<U>;
-        type Inputs<U: Element> = Vec<U>;
         type NodeDim = Dyn;
         type BoundaryDim = Dyn;
         type InputDim = Dyn;
@@ -296,22 +294,6 @@ mod run_time {
 
         fn inputs(&self) -> usize {
             self.inputs
-        }
-
-        fn nodes_of<U: Element + Copy>(&self, fill: U) -> Vec<U> {
-            vec![fill; self.nodes]
-        }
-
-        fn boundaries_of<U: Element + Copy>(&self, fill: U) -> Vec<U> {
-            vec![fill; self.boundaries]
-        }
-
-        fn inputs_of<U: Element + Copy>(&self, fill: U) -> Vec<U> {
-            vec![fill; self.inputs]
-        }
-
-        fn rows_of<U: Element>(&self, row: U) -> Vec<U> {
-            vec![row; self.nodes]
         }
     }
 }

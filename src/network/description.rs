@@ -10,17 +10,17 @@
 //! `alloc` feature, `RunTimeStepper` on a host), not through a copy of it.
 
 use super::{JouleSource, Network};
-use crate::sizes::{ConstSizes, Sizes};
+use crate::sizes::{BoundaryVector, ConstSizes, InputVector, NodeVector, Sizes};
 
 /// A value per state node of network `W`: an array for a [`Network`], a
 /// `Vec` for one read at run time.
-pub type Nodes<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Nodes<U>;
+pub type Nodes<W, U> = NodeVector<<W as NetworkDescription>::Sizes, U>;
 
 /// A value per boundary of network `W`.
-pub type Boundaries<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Boundaries<U>;
+pub type Boundaries<W, U> = BoundaryVector<<W as NetworkDescription>::Sizes, U>;
 
 /// A value per input (current source) of network `W`.
-pub type Inputs<W, U> = <<W as NetworkDescription>::Sizes as Sizes>::Inputs<U>;
+pub type Inputs<W, U> = InputVector<<W as NetworkDescription>::Sizes, U>;
 
 /// A thermal network as a stepper reads it: sizes, capacities, the
 /// conductances of each node to its later neighbours and to the

@@ -30,7 +30,7 @@
 use super::description::{Boundaries, Inputs, Nodes};
 use super::{Drive, Network, NetworkDescription};
 use crate::error::BuildError;
-use crate::sizes::Sizes;
+use crate::sizes::{NodeVector, Sizes};
 
 /// Newton iterations at most for voltage-driven sources.
 const MAX_NEWTON: usize = 100;
@@ -232,7 +232,7 @@ fn steady_system<S: Sizes>(
     boundary_c: &[f64],
     with_feedback: bool,
     at: &[f64],
-) -> (S::Nodes<S::Nodes<f64>>, S::Nodes<f64>) {
+) -> (NodeVector<S, NodeVector<S, f64>>, NodeVector<S, f64>) {
     let n = sizes.nodes();
     let mut k = sizes.rows_of(sizes.nodes_of(0.0));
     let mut q = sizes.nodes_of(0.0);

@@ -24,13 +24,13 @@
 
 use crate::error::BuildError;
 use crate::network::{Drive, Inputs, NetworkDescription, Nodes};
-use crate::sizes::Sizes;
+use crate::sizes::{NodeVector, Sizes};
 
 /// Most Jacobi sweeps (converged networks need 6 to 10).
 pub(crate) const MAX_SWEEPS: usize = 64;
 
 /// A square matrix over a network's nodes, by rows.
-pub(crate) type NodeMatrix<S> = <S as Sizes>::Nodes<<S as Sizes>::Nodes<f64>>;
+pub(crate) type NodeMatrix<S> = NodeVector<S, NodeVector<S, f64>>;
 
 /// `K` of the module docs \[W/K\], with `feedback_w_per_k[i]` (`s I^2` of the
 /// windings at node `i`) subtracted from the diagonal.
@@ -89,7 +89,7 @@ pub(crate) fn feedback_w_per_k<W: NetworkDescription>(
 /// eigenvector `j` in column `j` of `vectors`.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct SymmetricEigen<S: Sizes> {
-    pub values: S::Nodes<f64>,
+    pub values: NodeVector<S, f64>,
     pub vectors: NodeMatrix<S>,
 }
 
@@ -176,7 +176,7 @@ fn rotate(row: &mut [f64], p: usize, q: usize, c: f64, s: f64) {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Modal<S: Sizes> {
     /// Eigenvalues of `A` \[1/s\]; all negative for a stable network.
-    pub lambda_per_s: S::Nodes<f64>,
+    pub lambda_per_s: NodeVector<S, f64>,
     /// `V = C^(-1/2) U`: row `i` holds node `i`'s share of every mode.
     pub v: NodeMatrix<S>,
     /// `V^-1 = U^T C^(1/2)`.
@@ -187,7 +187,7 @@ impl<S: Sizes> Modal<S> {
     /// The modes of `A = -C^-1 (K - diag(feedback))`.
     pub fn new<W: NetworkDescription<Sizes = S>>(
         network: &W,
-        feedback_w_per_k: &S::Nodes<f64>,
+        feedback_w_per_k: &NodeVector<S, f64>,
     ) -> Result<Self, BuildError> {
         let sizes = network.sizes();
         let n = sizes.nodes();
@@ -223,7 +223,7 @@ impl<S: Sizes> Modal<S> {
     }
 
     /// `V^-1 x`: modal amplitudes of a node vector.
-    pub fn to_modes(&self, x: &S::Nodes<f64>) -> S::Nodes<f64> {
+    pub fn to_modes(&self, x: &NodeVector<S, f64>) -> NodeVector<S, f64> {
         let mut z = x.clone();
         for (z, row) in z.as_mut().iter_mut().zip(self.v_inv.as_ref()) {
             *z = row
@@ -237,7 +237,11 @@ impl<S: Sizes> Modal<S> {
     }
 
     /// `V diag(w) z`: node values from weighted modal amplitudes.
-    pub fn node_values(&self, z: &S::Nodes<f64>, weights: &S::Nodes<f64>) -> S::Nodes<f64> {
+    pub fn node_values(
+        &self,
+        z: &NodeVector<S, f64>,
+        weights: &NodeVector<S, f64>,
+    ) -> NodeVector<S, f64> {
         let mut x = z.clone();
         for (x, row) in x.as_mut().iter_mut().zip(self.v.as_ref()) {
             *x = row

@@ -148,7 +148,7 @@ use nalgebra::RealField;
 use super::modal::Modal;
 use crate::error::BuildError;
 use crate::network::{Network, NetworkDescription};
-use crate::sizes::{ConstSizes, Element, Sizes};
+use crate::sizes::{BoundaryVector, ConstSizes, Element, InputVector, NodeVector, Sizes};
 
 /// The default number of positive horizons `K` in the grid.
 pub const DEFAULT_GRID_POINTS: usize = 48;
@@ -293,7 +293,7 @@ impl PredictorBuilder {
         // -A^-1 x = V diag(-1/lambda) V^-1 x, for a vector of rates x [K/s].
         let inverse_rate = node_rates(&|j| -1.0 / lambda_per_s[j]);
         let ones = sizes.nodes_of(1.0);
-        let steady_gain = |rates: &<W::Sizes as Sizes>::Nodes<f64>| {
+        let steady_gain = |rates: &NodeVector<W::Sizes, f64>| {
             let mut modes = modal.to_modes(rates);
             for (z, w) in modes.as_mut().iter_mut().zip(inverse_rate.as_ref()) {
                 *z *= w;
@@ -301,7 +301,7 @@ impl PredictorBuilder {
             modal.node_values(&modes, &ones)
         };
         // A node vector in `T`.
-        let in_t = |row: &<W::Sizes as Sizes>::Nodes<f64>| {
+        let in_t = |row: &NodeVector<W::Sizes, f64>| {
             let mut out = sizes.nodes_of(T::zero());
             for (o, x) in out.as_mut().iter_mut().zip(row.as_ref()) {
                 *o = to_t(*x);
@@ -410,20 +410,29 @@ pub type Operating<T, const N: usize, const B: usize, const M: usize> =
 
 /// The present operating point, in the predictor's float type, with
 /// vectors of the sizes `S` ([`Operating`] on an MCU).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct OperatingPoint<T: Element, S: Sizes> {
     /// Element temperatures \[degC\] (a model's or filter's estimate).
-    pub temps_c: S::Nodes<T>,
+    pub temps_c: NodeVector<S, T>,
     /// Winding currents \[A\] (sign is irrelevant: power goes with `I^2`).
-    pub currents_a: S::Inputs<T>,
+    pub currents_a: InputVector<S, T>,
     /// Boundary temperatures \[degC\], assumed held over the horizon.
-    pub boundary_c: S::Boundaries<T>,
+    pub boundary_c: BoundaryVector<S, T>,
     /// Each element's alarm limit \[degC\], finite (e.g. from
     /// [`AlarmConfig::alarm_limits_c`](super::alarm::AlarmConfig::alarm_limits_c)),
     /// or `+inf` for an element without one that is not a winding's node
     /// (its answer is "never" and its horizons are skipped; a winding's
     /// power is taken at its node's limit, which must be finite).
-    pub limits_c: S::Nodes<T>,
+    pub limits_c: NodeVector<S, T>,
+}
+
+/// Copied where its vectors are (arrays: an MCU's).
+impl<T: Element, S: Sizes> Copy for OperatingPoint<T, S>
+where
+    NodeVector<S, T>: Copy,
+    InputVector<S, T>: Copy,
+    BoundaryVector<S, T>: Copy,
+{
 }
 
 impl<T: RealField + Copy, S: Sizes> OperatingPoint<T, S> {
@@ -479,17 +488,17 @@ pub struct ModalPredictor<T: Element, S: Sizes, const K: usize = DEFAULT_GRID_PO
     /// Positive horizons `t_1 .. t_K` \[s\].
     pub(crate) grid_s: [T; K],
     /// `exp(lambda_j t_k)`, row `k` for `t_{k+1}`.
-    pub(crate) decay: [S::Nodes<T>; K],
-    pub(crate) lambda_per_s: S::Nodes<T>,
-    pub(crate) v: S::Nodes<S::Nodes<T>>,
-    pub(crate) v_inv: S::Nodes<S::Nodes<T>>,
+    pub(crate) decay: [NodeVector<S, T>; K],
+    pub(crate) lambda_per_s: NodeVector<S, T>,
+    pub(crate) v: NodeVector<S, NodeVector<S, T>>,
+    pub(crate) v_inv: NodeVector<S, NodeVector<S, T>>,
     /// Steady rise per watt of each winding \[K/W\].
-    pub(crate) gain_power: S::Nodes<S::Inputs<T>>,
+    pub(crate) gain_power: NodeVector<S, InputVector<S, T>>,
     /// Steady temperature per degree of each boundary (dimensionless).
-    pub(crate) gain_boundary: S::Nodes<S::Boundaries<T>>,
+    pub(crate) gain_boundary: NodeVector<S, BoundaryVector<S, T>>,
     /// Steady rise from the fixed powers \[K\].
-    pub(crate) offset_c: S::Nodes<T>,
-    pub(crate) windings: S::Inputs<Winding<T>>,
+    pub(crate) offset_c: NodeVector<S, T>,
+    pub(crate) windings: InputVector<S, Winding<T>>,
     pub(crate) sizes: S,
     pub(crate) tick_s: T,
     pub(crate) points_per_tick: usize,
@@ -587,7 +596,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// Each winding's Joule power \[W\] at the resistance it would have at the
     /// alarm limit of its node (or its present temperature, if higher): the
     /// conservative powers of the module docs.
-    pub(super) fn conservative_powers_w(&self, op: &OperatingPoint<T, S>) -> S::Inputs<T> {
+    pub(super) fn conservative_powers_w(&self, op: &OperatingPoint<T, S>) -> InputVector<S, T> {
         let mut powers = self.sizes.inputs_of(T::zero());
         let windings = powers.as_mut().iter_mut().zip(self.windings.as_ref());
         for ((p, w), i) in windings.zip(op.currents_a.as_ref()) {
@@ -634,11 +643,11 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// took `N + M + B + 1`.
     pub(super) fn steady_and_modes(
         &self,
-        temps_c: &S::Nodes<T>,
-        powers_w: &S::Inputs<T>,
-        boundary_c: &S::Boundaries<T>,
+        temps_c: &NodeVector<S, T>,
+        powers_w: &InputVector<S, T>,
+        boundary_c: &BoundaryVector<S, T>,
         with_fixed: bool,
-    ) -> (S::Nodes<T>, S::Nodes<T>) {
+    ) -> (NodeVector<S, T>, NodeVector<S, T>) {
         let (steady, mut modes) = self.steady_and_offset(temps_c, powers_w, boundary_c, with_fixed);
         self.to_modes(&mut modes);
         (steady, modes)
@@ -648,11 +657,11 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// \[degC\] and `T_0 - T_ss` \[K\].
     fn steady_and_offset(
         &self,
-        temps_c: &S::Nodes<T>,
-        powers_w: &S::Inputs<T>,
-        boundary_c: &S::Boundaries<T>,
+        temps_c: &NodeVector<S, T>,
+        powers_w: &InputVector<S, T>,
+        boundary_c: &BoundaryVector<S, T>,
         with_fixed: bool,
-    ) -> (S::Nodes<T>, S::Nodes<T>) {
+    ) -> (NodeVector<S, T>, NodeVector<S, T>) {
         let mut steady = self.sizes.nodes_of(T::zero());
         let rows = steady
             .as_mut()
@@ -676,7 +685,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// `T_0 - T_ss` \[K\] in, the modal amplitudes `V^-1 (T_0 - T_ss)`
     /// \[K\] out.
     #[inline(always)]
-    fn to_modes(&self, values: &mut S::Nodes<T>) {
+    fn to_modes(&self, values: &mut NodeVector<S, T>) {
         let from_steady = values.clone();
         for (z, v_inv_row) in values.as_mut().iter_mut().zip(self.v_inv.as_ref()) {
             *z = mode(v_inv_row, &from_steady);
@@ -689,9 +698,9 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     #[inline(always)]
     pub(super) fn parts(
         &self,
-        row: &S::Nodes<T>,
-        modes: &S::Nodes<T>,
-        decay: &S::Nodes<T>,
+        row: &NodeVector<S, T>,
+        modes: &NodeVector<S, T>,
+        decay: &NodeVector<S, T>,
     ) -> Parts<T> {
         let mut parts = Parts::default();
         let terms = (row.as_ref().iter().zip(modes.as_ref()))
@@ -715,7 +724,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
 
     /// Time \[s\] of grid point `k` (0 is `t = 0`) and its decay row.
     #[inline]
-    pub(super) fn point(&self, k: usize) -> Option<(T, Option<&S::Nodes<T>>)> {
+    pub(super) fn point(&self, k: usize) -> Option<(T, Option<&NodeVector<S, T>>)> {
         if k == 0 {
             return Some((T::zero(), None));
         }
@@ -726,8 +735,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     fn snapshot(
         &self,
         op: &OperatingPoint<T, S>,
-        powers_w: &S::Inputs<T>,
-    ) -> Snapshot<S::Nodes<T>> {
+        powers_w: &InputVector<S, T>,
+    ) -> Snapshot<NodeVector<S, T>> {
         let mut snapshot = self.steady_snapshot(op, powers_w);
         self.to_modes(&mut snapshot.modes);
         snapshot
@@ -746,8 +755,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     fn steady_snapshot(
         &self,
         op: &OperatingPoint<T, S>,
-        powers_w: &S::Inputs<T>,
-    ) -> Snapshot<S::Nodes<T>> {
+        powers_w: &InputVector<S, T>,
+    ) -> Snapshot<NodeVector<S, T>> {
         if cfg!(target_abi = "eabihf") {
             return self.fused_snapshot(op, powers_w);
         }
@@ -765,8 +774,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     fn fused_snapshot(
         &self,
         op: &OperatingPoint<T, S>,
-        powers_w: &S::Inputs<T>,
-    ) -> Snapshot<S::Nodes<T>> {
+        powers_w: &InputVector<S, T>,
+    ) -> Snapshot<NodeVector<S, T>> {
         let mut snapshot = Snapshot {
             headroom_k: self.sizes.nodes_of(T::zero()),
             modes: self.sizes.nodes_of(T::zero()),
@@ -803,8 +812,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     #[cfg_attr(not(target_abi = "eabihf"), inline(never))]
     fn start_snapshot(
         &self,
-        snapshot: &mut Snapshot<S::Nodes<T>>,
-        powers_w: &S::Inputs<T>,
+        snapshot: &mut Snapshot<NodeVector<S, T>>,
+        powers_w: &InputVector<S, T>,
         rows: Range<usize>,
     ) {
         if rows.start == 0 {
@@ -837,7 +846,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// headroom to `op`'s limits; and `T_0 - T_ss` from `op`'s
     /// temperatures, where the modal amplitudes go, for [`Self::to_modes`]
     /// to turn into them (valid if `op` is finite too).
-    fn finish_steady(&self, snapshot: &mut Snapshot<S::Nodes<T>>, op: &OperatingPoint<T, S>) {
+    fn finish_steady(&self, snapshot: &mut Snapshot<NodeVector<S, T>>, op: &OperatingPoint<T, S>) {
         snapshot.valid &= self.takes(op);
         let rows = snapshot
             .headroom_k
@@ -872,12 +881,12 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     #[inline(never)]
     fn evaluate_point<const HALVES: bool>(
         &self,
-        snapshot: &Snapshot<S::Nodes<T>>,
+        snapshot: &Snapshot<NodeVector<S, T>>,
         k: usize,
         first: usize,
         budget: usize,
-        prev: &mut S::Nodes<Parts<T>>,
-        sweep: &mut S::Nodes<Crossing<T>>,
+        prev: &mut NodeVector<S, Parts<T>>,
+        sweep: &mut NodeVector<S, Crossing<T>>,
         half: Option<&mut Option<Parts<T>>>,
     ) -> PointProgress {
         let mut half = if HALVES { half } else { None };
@@ -999,7 +1008,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// was not finite, or, with `Vec`s, `op` or `out` has another length
     /// than the network's, when every entry of `out` is `Some(NaN)`),
     /// written to `out`. One full sweep: see the module docs for the cost.
-    pub fn predict(&self, op: &OperatingPoint<T, S>, out: &mut S::Nodes<Option<T>>) {
+    pub fn predict(&self, op: &OperatingPoint<T, S>, out: &mut NodeVector<S, Option<T>>) {
         if out.as_ref().len() != self.sizes.nodes() {
             out.as_mut().fill(Some(T::from_subset(&f64::NAN)));
             return;
@@ -1014,8 +1023,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     fn full_sweep(
         &self,
         op: &OperatingPoint<T, S>,
-        powers_w: &S::Inputs<T>,
-    ) -> S::Nodes<Crossing<T>> {
+        powers_w: &InputVector<S, T>,
+    ) -> NodeVector<S, Crossing<T>> {
         let snapshot = self.snapshot(op, powers_w);
         let mut prev = self.sizes.nodes_of(Parts::default());
         let mut sweep = self.sizes.nodes_of(Crossing::Open);
@@ -1701,10 +1710,10 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     /// length than the network's (with `Vec`s).
     pub fn cooled_c(
         &self,
-        temps_c: &S::Nodes<T>,
-        boundary_c: &S::Boundaries<T>,
+        temps_c: &NodeVector<S, T>,
+        boundary_c: &BoundaryVector<S, T>,
         off_s: T,
-    ) -> S::Nodes<T> {
+    ) -> NodeVector<S, T> {
         // Not positive, or NaN: unknown, no cooling; so are vectors of
         // another network (`Vec`s of other lengths).
         let fits = temps_c.as_ref().len() == self.sizes.nodes()

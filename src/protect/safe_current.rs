@@ -63,7 +63,7 @@
 use nalgebra::RealField;
 
 use super::predict::{ModalPredictor, OperatingPoint};
-use crate::sizes::Sizes;
+use crate::sizes::{InputVector, NodeVector, Sizes};
 
 /// How far ahead the limits must hold.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -155,8 +155,8 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
     fn max_load_factor(
         &self,
         op: &OperatingPoint<T, S>,
-        free_w: &S::Inputs<T>,
-        load_w: &S::Inputs<T>,
+        free_w: &InputVector<S, T>,
+        load_w: &InputVector<S, T>,
         horizon: Horizon<T>,
         duty: T,
     ) -> SafeLimit<T> {
@@ -205,7 +205,7 @@ impl<T: RealField + Copy, S: Sizes, const K: usize> ModalPredictor<T, S, K> {
             Horizon::Forever => None,
         };
         // One bracket, from the previous end to the time whose decay is `end`.
-        let mut bracket = |end: &S::Nodes<T>| {
+        let mut bracket = |end: &NodeVector<S, T>| {
             let rows = (self.v.as_ref().iter())
                 .zip(free_p_start.as_mut().iter_mut())
                 .zip(free_ss.as_ref().iter().zip(load_ss.as_ref()))
