@@ -59,6 +59,7 @@
 //! (docs/cost.md, "The model step in integer arithmetic").
 
 use super::StepTables;
+use crate::sizes::{BoundaryVector, ConstSizes, InputVector, Length, NodeVector, Sizes};
 
 #[cfg(feature = "integer-step")]
 mod memory;
@@ -86,56 +87,67 @@ const MAX_SCALE: i32 = 62;
 /// One step of [`StepTables`] in integer arithmetic (see the module docs).
 /// Derived from the tables by [`FixedStep::of`], in a `const fn`, so a
 /// generated observer's step is assembled by the compiler.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FixedStep<const N: usize, const B: usize, const M: usize> {
+/// Over a network's [`Sizes`] (an MCU's: [`ConstFixedStep`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FixedStep<Z: Sizes> {
     /// `(Ad - I) 2^temp_scale[i]`, row `i`.
-    temps: [[i32; N]; N],
+    temps: NodeVector<Z, NodeVector<Z, i32>>,
     /// `Bd 2^power_scale[i]` \[K/W\].
-    powers: [[i32; M]; N],
+    powers: NodeVector<Z, InputVector<Z, i32>>,
     /// `Gd 2^boundary_scale[i]`.
-    boundaries: [[i32; B]; N],
-    temp_scale: [u8; N],
-    power_scale: [u8; N],
-    boundary_scale: [u8; N],
+    boundaries: NodeVector<Z, BoundaryVector<Z, i32>>,
+    temp_scale: NodeVector<Z, u8>,
+    power_scale: NodeVector<Z, u8>,
+    boundary_scale: NodeVector<Z, u8>,
     /// `c` in Q16.48 \[K\].
-    constant: [i64; N],
+    constant: NodeVector<Z, i64>,
 }
+
+/// The integer step of an MCU's network: `N` nodes, `B` boundaries, `M`
+/// inputs known when the firmware is compiled.
+pub type ConstFixedStep<const N: usize, const B: usize, const M: usize> =
+    FixedStep<ConstSizes<N, B, M>>;
 
 /// The inputs of one step: the Joule powers in block floating point and
 /// the boundaries' deviations in Q12.20.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FixedInputs<const B: usize, const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub struct FixedInputs<Z: Sizes> {
     /// Each power's mantissa at the shared exponent (`p = mantissa
     /// 2^(exponent - 150)`).
-    power_mantissas: [i32; M],
+    power_mantissas: InputVector<Z, i32>,
     /// The shared exponent, biased as `f32`'s (0 with no power).
     power_exponent: i32,
     /// The boundaries' deviations, Q12.20 \[K\].
-    boundaries: [i32; B],
+    boundaries: BoundaryVector<Z, i32>,
 }
 
-impl<const B: usize, const M: usize> FixedInputs<B, M> {
+impl<Z: Sizes> FixedInputs<Z> {
     /// The inputs of a step with Joule powers `powers_w` \[W\] and boundary
     /// deviations `boundaries_k` \[K\]; `None` if one is not finite (the
     /// caller keeps its state rather than step on it). A boundary beyond
     /// +-2 048 K saturates there (the input limits clamp far inside).
     #[inline]
-    pub fn new(powers_w: &[f32; M], boundaries_k: &[f32; B]) -> Option<Self> {
-        if !powers_w.iter().chain(boundaries_k).all(|v| finite_bits(*v)) {
+    pub fn new(
+        powers_w: &InputVector<Z, f32>,
+        boundaries_k: &BoundaryVector<Z, f32>,
+    ) -> Option<Self> {
+        let mut inputs = powers_w.as_ref().iter().chain(boundaries_k.as_ref());
+        if !inputs.all(|v| finite_bits(*v)) {
             return None;
         }
-        let split = powers_w.map(split);
-        let power_exponent = split.iter().map(|(_, e)| *e).max().unwrap_or(0);
-        let power_mantissas = split.map(|(m, e)| shift_round_i32(m, power_exponent - e));
+        let split = Z::InputDim::mapped(powers_w, |p| split(*p));
+        let power_exponent = split.as_ref().iter().map(|(_, e)| *e).max().unwrap_or(0);
+        let power_mantissas =
+            Z::InputDim::mapped(&split, |(m, e)| shift_round_i32(*m, power_exponent - e));
         Some(Self {
             power_mantissas,
             power_exponent,
-            boundaries: boundaries_k.map(input_of_f32),
+            boundaries: Z::BoundaryDim::mapped(boundaries_k, |t| input_of_f32(*t)),
         })
     }
 }
 
-impl<const N: usize, const B: usize, const M: usize> FixedStep<N, B, M> {
+impl<const N: usize, const B: usize, const M: usize> ConstFixedStep<N, B, M> {
     /// The integer step of `tables`; `None` if an entry is not finite or a
     /// group's entries reach 2^30 (see [`FixedStep`]'s scales).
     pub const fn of(tables: &StepTables<N, B, M>) -> Option<Self> {
@@ -171,29 +183,47 @@ impl<const N: usize, const B: usize, const M: usize> FixedStep<N, B, M> {
         }
         Some(step)
     }
+}
 
+impl<Z: Sizes> FixedStep<Z> {
     /// One step of the states `states` (Q16.48 deviations \[K\]) with
     /// `inputs`. Saturating; allocation-free, panic-free, `O(N (N + M +
     /// B))` integer multiply-adds.
     #[inline]
-    pub fn step(&self, states: &mut [i64; N], inputs: &FixedInputs<B, M>) {
-        let temps = states.map(input_of_state);
-        for i in 0..N {
-            let increment = self.constant[i]
+    pub fn step(&self, states: &mut NodeVector<Z, i64>, inputs: &FixedInputs<Z>) {
+        let temps = Z::NodeDim::mapped(states, |q| input_of_state(*q));
+        // By index, as the rows are laid out (each length the nodes'):
+        // zipped, the Cortex-M0 motor example's worst tick took 41
+        // instructions more (seven row pointers in its eight low
+        // registers).
+        let (temp, boundary, power) = (
+            self.temps.as_ref(),
+            self.boundaries.as_ref(),
+            self.powers.as_ref(),
+        );
+        let (temp_scale, boundary_scale, power_scale) = (
+            self.temp_scale.as_ref(),
+            self.boundary_scale.as_ref(),
+            self.power_scale.as_ref(),
+        );
+        let constant = self.constant.as_ref();
+        let states = states.as_mut();
+        for i in 0..states.len() {
+            let increment = constant[i]
                 .saturating_add(group(
-                    &self.temps[i],
-                    &temps,
-                    i32::from(self.temp_scale[i]) + TEMP_SHIFT,
+                    temp[i].as_ref(),
+                    temps.as_ref(),
+                    i32::from(temp_scale[i]) + TEMP_SHIFT,
                 ))
                 .saturating_add(group(
-                    &self.boundaries[i],
-                    &inputs.boundaries,
-                    i32::from(self.boundary_scale[i]) + TEMP_SHIFT,
+                    boundary[i].as_ref(),
+                    inputs.boundaries.as_ref(),
+                    i32::from(boundary_scale[i]) + TEMP_SHIFT,
                 ))
                 .saturating_add(group(
-                    &self.powers[i],
-                    &inputs.power_mantissas,
-                    i32::from(self.power_scale[i]) + POWER_SHIFT - inputs.power_exponent,
+                    power[i].as_ref(),
+                    inputs.power_mantissas.as_ref(),
+                    i32::from(power_scale[i]) + POWER_SHIFT - inputs.power_exponent,
                 ));
             states[i] = states[i].saturating_add(increment);
         }
@@ -204,7 +234,7 @@ impl<const N: usize, const B: usize, const M: usize> FixedStep<N, B, M> {
 /// Q16.48. The sum is at most 2^62 (see `scale_row`), so neither it nor the
 /// rounding's half overflows.
 #[inline(always)]
-fn group<const C: usize>(row: &[i32; C], inputs: &[i32; C], shift: i32) -> i64 {
+fn group(row: &[i32], inputs: &[i32], shift: i32) -> i64 {
     let mut sum = 0i64;
     for (c, x) in row.iter().zip(inputs) {
         sum = sum.wrapping_add(mul_wide(*c, *x));
@@ -602,9 +632,9 @@ mod tests {
 
     #[test]
     fn inputs_refuse_non_finite_values() {
-        assert!(FixedInputs::<1, 1>::new(&[f32::NAN], &[0.0]).is_none());
-        assert!(FixedInputs::<1, 1>::new(&[1.0], &[f32::INFINITY]).is_none());
-        assert!(FixedInputs::<1, 2>::new(&[1.0e30, 1.0e-30], &[0.0]).is_some());
+        assert!(FixedInputs::<ConstSizes<1, 1, 1>>::new(&[f32::NAN], &[0.0]).is_none());
+        assert!(FixedInputs::<ConstSizes<1, 1, 1>>::new(&[1.0], &[f32::INFINITY]).is_none());
+        assert!(FixedInputs::<ConstSizes<1, 1, 2>>::new(&[1.0e30, 1.0e-30], &[0.0]).is_some());
     }
 
     #[test]
@@ -754,6 +784,6 @@ mod tests {
         let mut q = [0i64; 3];
         step.step(&mut q, &FixedInputs::new(&[f32::MAX, 0.0], &[0.0]).unwrap());
         assert_eq!(q[0], i64::MAX);
-        assert!(FixedInputs::<1, 2>::new(&[f32::NAN, 0.0], &[0.0]).is_none());
+        assert!(FixedInputs::<ConstSizes<1, 1, 2>>::new(&[f32::NAN, 0.0], &[0.0]).is_none());
     }
 }

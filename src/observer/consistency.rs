@@ -34,7 +34,8 @@
 //! negative heat biases are dropped: what was dragged comes back, and the
 //! protection runs on the model until a sensor agrees with it again.
 
-use nalgebra::{Const, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, VectorView, U1};
 
 use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
@@ -44,7 +45,7 @@ use crate::filter::GatePolicy;
 use crate::network::{compensated_add, DeviationResistance};
 use crate::protect::margin::UpperBound;
 use crate::scalar::Scalar;
-use crate::sizes::Length;
+use crate::sizes::{BoundaryVector, InputVector, Length, NetworkAllocator, NodeVector, Sizes};
 
 /// The band a reading must keep to below the shadow: the model's
 /// uncertainty.
@@ -113,30 +114,33 @@ impl Band {
 /// an alarm for the engineer, not a verdict the protection acts on
 /// (holding negative biases at the bound, or taking the flag as a lost
 /// measurement, shut that healthy run down at 1 963 s instead of 2 210 s).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct BiasBound<const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BiasBound<M: Length> {
     /// The band's fixed part as a steady heat on each input \[W\]
     /// (infinite: no bound).
-    pub offset_w: [f32; M],
+    pub offset_w: M::Array<f32>,
     /// Share of the Joule power (dimensionless).
     pub fraction: f32,
 }
 
-impl<const M: usize> BiasBound<M> {
+impl<M: Length> BiasBound<M> {
     /// The bound of `band` for the block model `Ad - I` (`phi_minus_i`,
     /// dimensionless) and its power columns `bd_power` \[K/W\] (any step:
     /// the steady rise does not depend on it), solved in `f64`. An input
     /// that heats no node, or a singular network, is left unbounded.
-    pub(crate) fn new<const N: usize>(
+    pub(crate) fn new<N: Dim>(
         band: &Band,
-        phi_minus_i: &SMatrix<f32, N, N>,
-        bd_power: &SMatrix<f32, N, M>,
-    ) -> Self {
-        let mut offset_w = [f32::INFINITY; M];
-        if let Some(inverse) = (-phi_minus_i.cast::<f64>()).try_inverse() {
+        phi_minus_i: &OMatrix<f32, N, N>,
+        bd_power: &OMatrix<f32, N, M>,
+    ) -> Self
+    where
+        DefaultAllocator: Allocator<N, N> + Allocator<N, M>,
+    {
+        let mut offset_w = bd_power.shape_generic().1.filled(f32::INFINITY);
+        if let Some(inverse) = (-phi_minus_i.map(f64::from)).try_inverse() {
             // dT/dP = (I - Ad)^-1 Bd \[K/W\], >= 0 for a heat network.
-            let rise = inverse * bd_power.cast::<f64>();
-            for (m, offset) in offset_w.iter_mut().enumerate() {
+            let rise = inverse * bd_power.map(f64::from);
+            for (m, offset) in offset_w.as_mut().iter_mut().enumerate() {
                 let hottest = rise.column(m).iter().fold(0.0f64, |a, r| a.max(*r));
                 if hottest.is_finite() && hottest > 0.0 {
                     *offset = (f64::from(band.offset_k) / hottest) as f32;
@@ -152,13 +156,13 @@ impl<const M: usize> BiasBound<M> {
     /// Which of the biases `biases_w` \[W\] are beyond the bound at the
     /// inputs' Joule powers `powers_w` \[W\] (see the type's docs). NaN
     /// passes unflagged (no verdict).
-    pub(crate) fn beyond(&self, biases_w: &[f32], powers_w: &[f32; M]) -> [bool; M] {
-        let mut beyond = [false; M];
+    pub(crate) fn beyond(&self, biases_w: &[f32], powers_w: &M::Array<f32>) -> M::Array<bool> {
+        let mut beyond = M::filled_like(powers_w, false);
         for (((bias, offset), power), beyond) in biases_w
             .iter()
-            .zip(&self.offset_w)
-            .zip(powers_w)
-            .zip(beyond.iter_mut())
+            .zip(self.offset_w.as_ref())
+            .zip(powers_w.as_ref())
+            .zip(beyond.as_mut().iter_mut())
         {
             *beyond = bias.abs() > offset + self.fraction * power.abs();
         }
@@ -946,18 +950,29 @@ impl<P: Length> SilenceWatch<P> {
 }
 
 /// The mean `I^2` of each current over a block of model steps.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct BlockMean<const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BlockMean<M: Length> {
     /// Sum over the block's steps of each current squared \[A^2\].
-    i2_sum_a2: [f32; M],
+    i2_sum_a2: M::Array<f32>,
     steps: u32,
 }
 
-impl<const M: usize> BlockMean<M> {
-    /// An empty block.
-    pub(crate) const fn new() -> Self {
+/// Copied where its sums are (arrays: an MCU's).
+impl<M: Length> Copy for BlockMean<M> where M::Array<f32>: Copy {}
+
+impl<M: Length> BlockMean<M> {
+    /// An empty block of `currents`.
+    pub(crate) fn new(currents: M) -> Self {
         Self {
-            i2_sum_a2: [0.0; M],
+            i2_sum_a2: currents.filled(0.0),
+            steps: 0,
+        }
+    }
+
+    /// An empty block of this one's currents.
+    fn emptied(&self) -> Self {
+        Self {
+            i2_sum_a2: M::filled_like(&self.i2_sum_a2, 0.0),
             steps: 0,
         }
     }
@@ -971,18 +986,24 @@ impl<const M: usize> BlockMean<M> {
     /// currents throughout, not RMS currents: a block's power is `R(T)`
     /// times its mean `I^2`, and no root is taken (on a core without an
     /// FPU, a soft-float `sqrtf` per current).
-    pub(crate) fn add(&mut self, steps: u32, sq_a2: &[f32; M], block_steps: u32) -> Option<Self> {
+    pub(crate) fn add(
+        &mut self,
+        steps: u32,
+        sq_a2: &M::Array<f32>,
+        block_steps: u32,
+    ) -> Option<Self> {
         if steps == 0 {
             return None;
         }
+        let sums = self.i2_sum_a2.as_mut().iter_mut().zip(sq_a2.as_ref());
         if steps == 1 {
             // Most ticks: without the multiply by one step.
-            for (sum, i2) in self.i2_sum_a2.iter_mut().zip(sq_a2) {
+            for (sum, i2) in sums {
                 *sum += i2;
             }
         } else {
             let n = steps as f32;
-            for (sum, i2) in self.i2_sum_a2.iter_mut().zip(sq_a2) {
+            for (sum, i2) in sums {
                 *sum += i2 * n;
             }
         }
@@ -991,13 +1012,14 @@ impl<const M: usize> BlockMean<M> {
         if self.steps < block_steps {
             return None;
         }
-        let complete = core::mem::replace(self, Self::new());
+        let empty = self.emptied();
+        let complete = core::mem::replace(self, empty);
         let rest = complete.steps - block_steps;
         if rest > 0 {
             // Only a catch-up runs past the block: its steps past it open
             // the next block at the complete one's mean.
             let rest_steps = rest as f32;
-            self.i2_sum_a2 = complete.mean_sq_a2().map(|i2| i2 * rest_steps);
+            self.i2_sum_a2 = M::mapped(&complete.mean_sq_a2(), |i2| i2 * rest_steps);
             self.steps = rest;
         }
         Some(complete)
@@ -1005,24 +1027,27 @@ impl<const M: usize> BlockMean<M> {
 
     /// Each current's mean `I^2` over the block's steps \[A^2\] (one
     /// division, then a multiply per current).
-    pub(crate) fn mean_sq_a2(&self) -> [f32; M] {
+    pub(crate) fn mean_sq_a2(&self) -> M::Array<f32> {
         let per_step = 1.0 / self.steps.max(1) as f32;
-        self.i2_sum_a2.map(|s| s * per_step)
+        M::mapped(&self.i2_sum_a2, |s| s * per_step)
     }
 }
 
 /// The network observer's shadow: the exact zero-order hold of one block
 /// in the observer's deviation coordinates, and its band.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
+pub(crate) struct Shadow<Z: Sizes>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// `Ad - I` of one block (dimensionless).
-    pub phi_minus_i: SMatrix<f32, N, N>,
+    pub phi_minus_i: OMatrix<f32, Z::NodeDim, Z::NodeDim>,
     /// `Bd` of the powers over one block \[K/W\].
-    pub bd_power: SMatrix<f32, N, M>,
+    pub bd_power: OMatrix<f32, Z::NodeDim, Z::InputDim>,
     /// `Gd` of the boundaries over one block (dimensionless).
-    pub gd_boundary: SMatrix<f32, N, B>,
+    pub gd_boundary: OMatrix<f32, Z::NodeDim, Z::BoundaryDim>,
     /// The block's constant term in deviation coordinates \[K\].
-    pub constant_k: SVector<f32, N>,
+    pub constant_k: OVector<f32, Z::NodeDim>,
     /// Model steps per block.
     pub block_steps: u32,
     /// A complete block waits for a tick without a step or a reading (a
@@ -1032,46 +1057,46 @@ pub(crate) struct Shadow<const N: usize, const B: usize, const M: usize> {
     /// it and the block's tables fit its scales (see
     /// [`Self::block_step`]).
     #[cfg(feature = "integer-step")]
-    pub integer_block: Option<FixedStep<N, B, M>>,
+    pub integer_block: Option<FixedStep<Z>>,
     /// The consistency band.
     pub band: Band,
     /// The band's image on the heat-input biases.
-    pub bias_bound: BiasBound<M>,
+    pub bias_bound: BiasBound<Z::InputDim>,
 }
 
 /// The network shadow's state: deviations from the observer's origin
 /// \[K\], their carry, and the block in progress.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct ShadowState<const N: usize, const M: usize> {
-    dev_k: [f32; N],
-    residual_k: [f32; N],
-    block: BlockMean<M>,
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ShadowState<Z: Sizes> {
+    dev_k: NodeVector<Z, f32>,
+    residual_k: NodeVector<Z, f32>,
+    block: BlockMean<Z::InputDim>,
     /// The integer block step's own states, whose image `dev_k` is (see
     /// [`StepMemory`]); unused by the `f32` block step.
     #[cfg(feature = "integer-step")]
-    integer: StepMemory<N>,
+    integer: StepMemory<Z::NodeDim>,
 }
 
-impl<const N: usize, const M: usize> ShadowState<N, M> {
-    /// A shadow at the deviations `dev_k` \[K\].
-    pub(crate) fn new(dev_k: [f32; N]) -> Self {
+impl<Z: Sizes> ShadowState<Z> {
+    /// A shadow of `sizes` at the deviations `dev_k` \[K\].
+    pub(crate) fn new(sizes: &Z, dev_k: NodeVector<Z, f32>) -> Self {
         Self {
+            residual_k: Z::NodeDim::filled_like(&dev_k, 0.0),
             dev_k,
-            residual_k: [0.0; N],
-            block: BlockMean::new(),
+            block: BlockMean::new(sizes.input_dim()),
             #[cfg(feature = "integer-step")]
-            integer: StepMemory::new(),
+            integer: StepMemory::new(sizes.node_dim()),
         }
     }
 
     /// The shadow's deviation of `node` from the origin \[K\] (NaN out of
     /// range).
     pub(crate) fn dev_k(&self, node: usize) -> f32 {
-        self.dev_k.get(node).copied().unwrap_or(f32::NAN)
+        self.dev_k.as_ref().get(node).copied().unwrap_or(f32::NAN)
     }
 
     /// All deviations \[K\].
-    pub(crate) fn devs_k(&self) -> &[f32; N] {
+    pub(crate) fn devs_k(&self) -> &NodeVector<Z, f32> {
         &self.dev_k
     }
 
@@ -1079,15 +1104,18 @@ impl<const N: usize, const M: usize> ShadowState<N, M> {
     /// cleared, the block in progress kept): the start's warm-up, while
     /// the shadow knows no more than the filter (see
     /// [`super::start`]).
-    pub(crate) fn reseed(&mut self, dev_k: [f32; N]) {
+    pub(crate) fn reseed(&mut self, dev_k: NodeVector<Z, f32>) {
         self.dev_k = dev_k;
-        self.residual_k = [0.0; N];
+        self.residual_k = Z::NodeDim::filled_like(&self.dev_k, 0.0);
         #[cfg(feature = "integer-step")]
         self.integer.forget();
     }
 }
 
-impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
+impl<Z: Sizes> Shadow<Z>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     /// Accounts for `steps` (at least one) model steps at the square
     /// currents `sq_a2` \[A^2\] (each step's mean `I^2`) and advances the
     /// shadow by a complete block: at once, or with
@@ -1108,13 +1136,13 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     #[cfg_attr(target_abi = "eabihf", inline(always))]
     pub(crate) fn stepped(
         &self,
-        state: &mut ShadowState<N, M>,
-        waiting: &mut Option<BlockMean<M>>,
+        state: &mut ShadowState<Z>,
+        waiting: &mut Option<BlockMean<Z::InputDim>>,
         steps: u32,
-        sq_a2: &[f32; M],
-        boundary_c: &[f32; B],
-        source_node: &[usize; M],
-        resistance: &[DeviationResistance; M],
+        sq_a2: &InputVector<Z, f32>,
+        boundary_c: &BoundaryVector<Z, f32>,
+        source_node: &InputVector<Z, usize>,
+        resistance: &InputVector<Z, DeviationResistance>,
         origin_c: f32,
     ) -> bool {
         let Some(complete) = state.block.add(steps, sq_a2, self.block_steps) else {
@@ -1141,18 +1169,18 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     #[cfg_attr(target_abi = "eabihf", inline(always))]
     pub(crate) fn between_steps(
         &self,
-        state: &mut ShadowState<N, M>,
-        waiting: &mut Option<BlockMean<M>>,
-        boundary_c: &[f32; B],
-        source_node: &[usize; M],
-        resistance: &[DeviationResistance; M],
+        state: &mut ShadowState<Z>,
+        waiting: &mut Option<BlockMean<Z::InputDim>>,
+        boundary_c: &BoundaryVector<Z, f32>,
+        source_node: &InputVector<Z, usize>,
+        resistance: &InputVector<Z, DeviationResistance>,
         origin_c: f32,
         reading: impl FnOnce() -> bool,
     ) -> bool {
-        match *waiting {
+        match waiting {
             Some(block) if !reading() => {
+                self.block_step(state, block, boundary_c, source_node, resistance, origin_c);
                 *waiting = None;
-                self.block_step(state, &block, boundary_c, source_node, resistance, origin_c);
                 true
             }
             _ => false,
@@ -1163,24 +1191,26 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
     #[cfg_attr(target_abi = "eabihf", inline(always))]
     fn block_step(
         &self,
-        state: &mut ShadowState<N, M>,
-        block: &BlockMean<M>,
-        boundary_c: &[f32; B],
-        source_node: &[usize; M],
-        resistance: &[DeviationResistance; M],
+        state: &mut ShadowState<Z>,
+        block: &BlockMean<Z::InputDim>,
+        boundary_c: &BoundaryVector<Z, f32>,
+        source_node: &InputVector<Z, usize>,
+        resistance: &InputVector<Z, DeviationResistance>,
         origin_c: f32,
     ) {
         let mean_sq_a2 = block.mean_sq_a2();
-        let mut power = SVector::<f32, M>::zeros();
-        for (m, ((node, r), i2)) in source_node
-            .iter()
-            .zip(resistance)
-            .zip(&mean_sq_a2)
-            .enumerate()
-        {
-            power[m] = r.resistance_ohm(state.dev_k(*node)) * i2;
+        let (nodes, inputs) = self.bd_power.shape_generic();
+        let mut power = OVector::<f32, Z::InputDim>::zeros_generic(inputs, U1);
+        for (p, ((node, r), i2)) in power.iter_mut().zip(
+            source_node
+                .as_ref()
+                .iter()
+                .zip(resistance.as_ref())
+                .zip(mean_sq_a2.as_ref()),
+        ) {
+            *p = r.resistance_ohm(state.dev_k(*node)) * i2;
         }
-        let boundary_k = boundary_c.map(|t| t - origin_c);
+        let boundary_k = Z::BoundaryDim::mapped(boundary_c, |t| t - origin_c);
         // In integer arithmetic when the model steps in it: the block's
         // tables on the shadow's own Q16.48 states, kept between blocks
         // (read from the deviation and its carry before the first block
@@ -1192,24 +1222,26 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
             step_in_memory(
                 step,
                 &mut state.integer,
-                &mut state.dev_k,
+                state.dev_k.as_mut(),
                 &state.residual_k,
-                &power.into(),
+                &Z::InputDim::each(inputs, |m| power[m]),
                 &boundary_k,
             );
             return;
         }
-        let temps = SVector::<f32, N>::from(state.dev_k);
-        let boundary = SVector::<f32, B>::from(boundary_k);
-        let mut increment = self.constant_k;
+        let temps = VectorView::from_slice_generic(state.dev_k.as_ref(), nodes, U1);
+        let boundaries = self.gd_boundary.shape_generic().1;
+        let boundary = VectorView::from_slice_generic(boundary_k.as_ref(), boundaries, U1);
+        let mut increment = self.constant_k.clone();
         increment.gemv(1.0, &self.phi_minus_i, &temps, 1.0);
         increment.gemv(1.0, &self.bd_power, &power, 1.0);
         increment.gemv(1.0, &self.gd_boundary, &boundary, 1.0);
         if increment.iter().all(|v| v.is_finite()) {
             for ((x, residual), inc) in state
                 .dev_k
+                .as_mut()
                 .iter_mut()
-                .zip(state.residual_k.iter_mut())
+                .zip(state.residual_k.as_mut().iter_mut())
                 .zip(increment.iter())
             {
                 *x = compensated_add(*x, *inc, residual);
@@ -1221,6 +1253,10 @@ impl<const N: usize, const B: usize, const M: usize> Shadow<N, B, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sizes::ConstSizes;
+
+    /// One node, one boundary, one input.
+    type One = ConstSizes<1, 1, 1>;
 
     const BAND: Band = Band {
         offset_k: 3.0,
@@ -1236,7 +1272,7 @@ mod tests {
         let ad = libm::exp(-g * dt / c);
         let phi_minus_i = SMatrix::<f32, 1, 1>::new((ad - 1.0) as f32);
         let bd = SMatrix::<f32, 1, 1>::new(((1.0 - ad) / g) as f32);
-        let bound = BiasBound::<1>::new(&BAND, &phi_minus_i, &bd);
+        let bound = BiasBound::<Const<1>>::new(&BAND, &phi_minus_i, &bd);
         let expected_w = 3.0 * g;
         let got_w = f64::from(bound.offset_w[0]);
         assert!((got_w - expected_w).abs() < 1e-3 * expected_w, "{got_w}");
@@ -1257,14 +1293,14 @@ mod tests {
             offset_k: f32::INFINITY,
             fraction: 0.25,
         };
-        let bound = BiasBound::<1>::new(&off, &phi_minus_i, &bd);
+        let bound = BiasBound::<Const<1>>::new(&off, &phi_minus_i, &bd);
         assert_eq!(bound.beyond(&[-1e6f32], &[20.0]), [false]);
     }
 
     /// One node, capacity 400 J/K, 0.8 W/K to a 20 degC ambient, a
     /// 2 ohm winding (no slope), blocks of 4 steps of 0.5 s, exact over a
     /// block; `waits` as a model step several ticks long sets it.
-    fn one_node_shadow(waits: bool) -> Shadow<1, 1, 1> {
+    fn one_node_shadow(waits: bool) -> Shadow<One> {
         let (c, g, block_s) = (400.0f64, 0.8f64, 2.0f64);
         let ad = libm::exp(-g * block_s / c);
         let phi_minus_i = SMatrix::<f32, 1, 1>::new((ad - 1.0) as f32);
@@ -1292,9 +1328,9 @@ mod tests {
     /// it) on a tick with or without a reading; says whether a block that
     /// waited stepped.
     fn tick_shadow(
-        shadow: &Shadow<1, 1, 1>,
-        state: &mut ShadowState<1, 1>,
-        waiting: &mut Option<BlockMean<1>>,
+        shadow: &Shadow<One>,
+        state: &mut ShadowState<One>,
+        waiting: &mut Option<BlockMean<Const<1>>>,
         steps: u32,
         current_a: f32,
         reading: bool,
@@ -1323,7 +1359,7 @@ mod tests {
     /// last step leaves the next one empty.
     #[test]
     fn a_block_is_the_mean_of_its_steps_and_a_catch_up_opens_the_next() {
-        let mut block = BlockMean::<2>::new();
+        let mut block = BlockMean::new(Const::<2>);
         assert_eq!(block.add(1, &[4.0, 1.0], 4), None);
         assert_eq!(block.add(1, &[4.0, 1.0], 4), None);
         // 3 steps at [1, 7]: 5 steps in all, one past the block.
@@ -1337,7 +1373,7 @@ mod tests {
             assert!((got - want).abs() < 1e-6, "{got} vs {want}");
         }
         // Ended on its last step: the next block is empty.
-        assert_eq!(block, BlockMean::new());
+        assert_eq!(block, BlockMean::new(Const::<2>));
     }
 
     /// A model stepping each tick steps the shadow's block on the tick
@@ -1348,7 +1384,7 @@ mod tests {
     fn a_complete_block_waits_for_a_light_tick_and_steps_the_same() {
         // At once: 4 steps at 5 A (50 W for 2 s).
         let at_once = one_node_shadow(false);
-        let mut now = ShadowState::<1, 1>::new([0.0]);
+        let mut now = ShadowState::new(&One::default(), [0.0]);
         let mut none = None;
         for _ in 0..3 {
             assert!(!tick_shadow(&at_once, &mut now, &mut none, 1, 5.0, false));
@@ -1366,7 +1402,7 @@ mod tests {
 
         // Waiting: the completing step tick and a reading's tick pass.
         let waiting = one_node_shadow(true);
-        let mut later = ShadowState::<1, 1>::new([0.0]);
+        let mut later = ShadowState::new(&One::default(), [0.0]);
         let mut held = None;
         for _ in 0..4 {
             assert!(!tick_shadow(&waiting, &mut later, &mut held, 1, 5.0, false));
@@ -1383,7 +1419,7 @@ mod tests {
 
         // No light tick for a whole block: the waiting one steps when the
         // next completes (never two behind), and that one waits.
-        let mut starved = ShadowState::<1, 1>::new([0.0]);
+        let mut starved = ShadowState::new(&One::default(), [0.0]);
         let mut queue = None;
         let stepped: Vec<bool> = (0..8)
             .map(|_| tick_shadow(&waiting, &mut starved, &mut queue, 1, 5.0, true))
@@ -1428,7 +1464,7 @@ mod tests {
             heat + 1.0 - decay(t_s)
         };
         for shadow in [&f32_block, &integer] {
-            let mut state = ShadowState::<1, 1>::new([0.0]);
+            let mut state = ShadowState::new(&One::default(), [0.0]);
             let mut none = None;
             for block in 1..=800u32 {
                 let current_a = if block <= 500 { 5.0 } else { 0.0 };

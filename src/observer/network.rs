@@ -443,6 +443,7 @@
 //! `max_steps_per_tick`, the rest dropped and flagged); a snapshot holds the
 //! node temperatures and the latched shutdown, the biases restart at zero.
 
+use crate::sizes::ConstSizes;
 use nalgebra::{Const, SMatrix, SVector, U1};
 
 use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
@@ -962,7 +963,7 @@ pub struct NetworkObserver<
     /// the `integer-step` feature only, so an `f32` firmware's observer is
     /// laid out as before it).
     #[cfg(feature = "integer-step")]
-    integer_step: Option<crate::discretize::fixed::FixedStep<N, B, M>>,
+    integer_step: Option<crate::discretize::fixed::ConstFixedStep<N, B, M>>,
     origin_c: f32,
     source_node: [usize; M],
     /// Each winding's `R` in the state's deviations from `origin_c`.
@@ -981,7 +982,7 @@ pub struct NetworkObserver<
     k_sigma: f32,
     /// The steady `sigma` in each node's bound \[K\] (of the prior).
     bound_sigma_k: [f32; N],
-    shadow: Shadow<N, B, M>,
+    shadow: Shadow<ConstSizes<N, B, M>>,
     stuck_test: StuckTest,
     /// No reading for this long makes a sensor silent \[us\]: two
     /// correction periods.
@@ -1061,13 +1062,13 @@ pub struct NetworkObserverState<
     pub residual_k: [f32; N],
     /// The integer step's own states (with the `integer-step` feature).
     #[cfg(feature = "integer-step")]
-    integer: StepMemory<N>,
+    integer: StepMemory<Const<N>>,
     held_currents_a: [f32; M],
     held_boundary_c: [f32; B],
     /// The time not yet simulated.
     pub clock: ClockState,
     cycle: ProtectionCycle<Const<M>>,
-    shadow: ShadowState<N, M>,
+    shadow: ShadowState<ConstSizes<N, B, M>>,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
     /// The heat biases' and the boundary offset's decay factors over one
@@ -1112,7 +1113,7 @@ pub struct NetworkObserverState<
     step_account: StepAccount<Const<M>>,
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
-    shadow_waiting_block: Option<BlockMean<M>>,
+    shadow_waiting_block: Option<BlockMean<Const<M>>>,
     /// The derated alarm limits at the ambient they were formed at (the
     /// alarm's and the limiter's; a core without an FPU's alone).
     alarm_limits: KeptAlarmLimits<N>,
@@ -1290,9 +1291,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             residual_k: [0.0; N],
             #[cfg(feature = "integer-step")]
             integer: if self.integer_step.is_some() {
-                StepMemory::unread()
+                StepMemory::unread(Const::<N>)
             } else {
-                StepMemory::new()
+                StepMemory::new(Const::<N>)
             },
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
@@ -1313,7 +1314,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                     0
                 },
             ),
-            shadow: ShadowState::new(core::array::from_fn(|i| x[i])),
+            shadow: ShadowState::new(&ConstSizes, core::array::from_fn(|i| x[i])),
             warm: NoWarmUp,
             warmup_left: 0,
             bias_steps: 0,

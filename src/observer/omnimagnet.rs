@@ -738,7 +738,7 @@ pub struct OmniObserver {
     /// The consistency band.
     band: Band,
     /// The band's image on the heat-input biases.
-    bias_bound: BiasBound<SOLENOIDS>,
+    bias_bound: BiasBound<Const<SOLENOIDS>>,
     stuck_test: StuckTest,
     /// No reading for this long makes a thermocouple silent \[us\]: two
     /// correction periods.
@@ -788,7 +788,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     cycle: ProtectionCycle<Const<SOLENOIDS>>,
     /// Model steps handed to the next tick (see [`StepClock::defer`]).
     deferral: Deferral,
-    shadow_block: BlockMean<SOLENOIDS>,
+    shadow_block: BlockMean<Const<SOLENOIDS>>,
     silence: SilenceWatch<Const<THERMOCOUPLES>>,
     outputs: OmniOutputs,
     /// The filter's estimate (deviations from `model`'s origin \[K\], then
@@ -1263,7 +1263,7 @@ impl OmniObserver {
                     .get(i)
                     .map_or(0.0, |t| t - self.shadow.origin_c()[i])
             }),
-            shadow_block: BlockMean::new(),
+            shadow_block: BlockMean::new(Const::<SOLENOIDS>),
             residual_k: [0.0; NODES],
             shadow_residual_k: [0.0; NODES],
             stuck: StuckWatch::new(Const),

@@ -228,7 +228,7 @@ impl<const M: usize> ChecksTables<M> {
 
     pub(crate) fn of(
         band: &Band,
-        bias_bound: &BiasBound<M>,
+        bias_bound: &BiasBound<Const<M>>,
         stuck_test: &StuckTest,
         silent_after_us: u32,
     ) -> Self {
@@ -250,7 +250,7 @@ impl<const M: usize> ChecksTables<M> {
         }
     }
 
-    pub(crate) const fn bias_bound(&self) -> BiasBound<M> {
+    pub(crate) const fn bias_bound(&self) -> BiasBound<Const<M>> {
         BiasBound {
             offset_w: self.bias_offset_w,
             fraction: self.bias_fraction,

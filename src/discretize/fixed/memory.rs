@@ -20,15 +20,16 @@
 //! step: the same states to the bit, off the step's tick.
 
 use super::{f32_of_state, finite_bits, state_of_f32, FixedInputs, FixedStep};
+use crate::sizes::{BoundaryVector, InputVector, Length, NodeVector, Sizes};
 
 /// The integer step's memory in an observer state: each node's Q16.48
 /// deviation \[K\] and the bits of the `f32` estimate it last wrote.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct StepMemory<const N: usize> {
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct StepMemory<N: Length> {
     /// Q16.48 deviations from the origin \[K\].
-    states: [i64; N],
+    states: N::Array<i64>,
     /// The `f32` bits the last step wrote to each deviation.
-    written: [u32; N],
+    written: N::Array<u32>,
     /// `false` until the first step: the states are then read from the
     /// estimate and its residual.
     valid: bool,
@@ -38,13 +39,13 @@ pub(crate) struct StepMemory<const N: usize> {
     read_due: bool,
 }
 
-impl<const N: usize> StepMemory<N> {
-    /// No step taken yet; the first step reads the estimate (a shadow's
-    /// memory, which no tick between steps reads).
-    pub(crate) const fn new() -> Self {
+impl<N: Length> StepMemory<N> {
+    /// No step taken yet for `nodes`; the first step reads the estimate (a
+    /// shadow's memory, which no tick between steps reads).
+    pub(crate) fn new(nodes: N) -> Self {
         Self {
-            states: [0; N],
-            written: [0; N],
+            states: nodes.filled(0),
+            written: nodes.filled(0),
             valid: false,
             read_due: false,
         }
@@ -53,10 +54,10 @@ impl<const N: usize> StepMemory<N> {
     /// No step taken yet, the estimate to be read in on the first tick
     /// between steps (an observer state's memory: a start or a restore
     /// reads its estimate off the first step's tick).
-    pub(crate) const fn unread() -> Self {
+    pub(crate) fn unread(nodes: N) -> Self {
         Self {
             read_due: true,
-            ..Self::new()
+            ..Self::new(nodes)
         }
     }
 
@@ -90,7 +91,7 @@ impl<const N: usize> StepMemory<N> {
     /// moves are exact). Returns whether it read them (the tick is busy
     /// then); a non-finite deviation is left to the step, which keeps the
     /// estimate.
-    pub(crate) fn read_between_steps(&mut self, x: &[f32], residual_k: &[f32; N]) -> bool {
+    pub(crate) fn read_between_steps(&mut self, x: &[f32], residual_k: &N::Array<f32>) -> bool {
         if !core::mem::take(&mut self.read_due) {
             return false;
         }
@@ -98,7 +99,7 @@ impl<const N: usize> StepMemory<N> {
             return false;
         };
         self.states = states;
-        for (written, xi) in self.written.iter_mut().zip(x.iter()) {
+        for (written, xi) in self.written.as_mut().iter_mut().zip(x.iter()) {
             *written = xi.to_bits();
         }
         self.valid = true;
@@ -109,11 +110,16 @@ impl<const N: usize> StepMemory<N> {
     /// of `x` and its residual `residual_k` before the first step);
     /// `None` for a non-finite deviation or residual.
     #[inline(always)]
-    fn read_moves(&self, x: &[f32], residual_k: &[f32; N]) -> Option<[i64; N]> {
-        let mut states = self.states;
-        for (i, (q, xi)) in states.iter_mut().zip(x.iter()).enumerate() {
+    fn read_moves(&self, x: &[f32], residual_k: &N::Array<f32>) -> Option<N::Array<i64>> {
+        let mut states = self.states.clone();
+        let read = states
+            .as_mut()
+            .iter_mut()
+            .zip(x.iter())
+            .zip(self.written.as_ref());
+        for (i, ((q, xi), written)) in read.enumerate() {
             let bits = xi.to_bits();
-            if self.valid && bits == self.written[i] {
+            if self.valid && bits == *written {
                 continue;
             }
             if !finite_bits(*xi) {
@@ -121,10 +127,10 @@ impl<const N: usize> StepMemory<N> {
             }
             *q = if self.valid {
                 // Moved since the last step: the move, exactly.
-                let before = f32::from_bits(self.written[i]);
+                let before = f32::from_bits(*written);
                 q.saturating_add(state_of_f32(*xi).saturating_sub(state_of_f32(before)))
             } else {
-                let r = residual_k.get(i).copied().unwrap_or(0.0);
+                let r = residual_k.as_ref().get(i).copied().unwrap_or(0.0);
                 if !finite_bits(r) {
                     return None;
                 }
@@ -143,13 +149,13 @@ impl<const N: usize> StepMemory<N> {
 /// state gets one): the caller keeps its estimate, as the `f32` step does.
 /// Out of line, so that the tick around it keeps its registers.
 #[inline(never)]
-pub(crate) fn step_in_memory<const N: usize, const B: usize, const M: usize>(
-    step: &FixedStep<N, B, M>,
-    memory: &mut StepMemory<N>,
+pub(crate) fn step_in_memory<Z: Sizes>(
+    step: &FixedStep<Z>,
+    memory: &mut StepMemory<Z::NodeDim>,
     x: &mut [f32],
-    residual_k: &[f32; N],
-    powers_w: &[f32; M],
-    boundary_k: &[f32; B],
+    residual_k: &NodeVector<Z, f32>,
+    powers_w: &InputVector<Z, f32>,
+    boundary_k: &BoundaryVector<Z, f32>,
 ) -> bool {
     let Some(inputs) = FixedInputs::new(powers_w, boundary_k) else {
         return false;
@@ -158,7 +164,8 @@ pub(crate) fn step_in_memory<const N: usize, const B: usize, const M: usize>(
         return false;
     };
     step.step(&mut states, &inputs);
-    for ((xi, written), q) in x.iter_mut().zip(memory.written.iter_mut()).zip(&states) {
+    let written = memory.written.as_mut().iter_mut();
+    for ((xi, written), q) in x.iter_mut().zip(written).zip(states.as_ref()) {
         *xi = f32_of_state(*q);
         *written = xi.to_bits();
     }
@@ -174,7 +181,7 @@ mod tests {
     use crate::discretize::StepTables;
 
     /// A 2-node step (a winding on a housing tied to the boundary).
-    fn two_nodes() -> FixedStep<2, 1, 1> {
+    fn two_nodes() -> super::super::ConstFixedStep<2, 1, 1> {
         FixedStep::of(&StepTables::<2, 1, 1> {
             phi_minus_i: [[-2e-3, 2e-3], [5e-4, -8e-4]],
             bd_power: [[1.6e-4], [1e-7]],
@@ -195,11 +202,11 @@ mod tests {
         let (power, boundary) = ([40.0], [0.5]);
         let residual = [1.5e-6f32, -2.5e-7];
         let mut x = [3.0f32, 1.0, 0.25];
-        let mut early = StepMemory::<2>::unread();
-        let mut late = early;
+        let mut early = StepMemory::unread(nalgebra::Const::<2>);
+        let mut late = early.clone();
         assert!(early.read_due(), "the whole estimate before the first step");
         assert!(
-            !StepMemory::<2>::new().read_due(),
+            !StepMemory::new(nalgebra::Const::<2>).read_due(),
             "a shadow's: its step reads"
         );
         let mut x_late = x;
@@ -209,8 +216,8 @@ mod tests {
         assert!(!early.read_due());
         let step_both = |x: &mut [f32; 3],
                          x_late: &mut [f32; 3],
-                         early: &mut StepMemory<2>,
-                         late: &mut StepMemory<2>| {
+                         early: &mut StepMemory<nalgebra::Const<2>>,
+                         late: &mut StepMemory<nalgebra::Const<2>>| {
             assert!(step_in_memory(
                 &step, early, x, &residual, &power, &boundary
             ));

@@ -51,7 +51,7 @@ use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
 };
-use crate::discretize::fixed::FixedStep;
+use crate::discretize::fixed::{ConstFixedStep, FixedStep};
 use crate::error::{check, BuildError};
 use crate::filter::{KalmanConfig, SteadyStateGain};
 use crate::input::InputLimits;
@@ -1190,7 +1190,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 const fn integer_step<const N: usize, const B: usize, const M: usize>(
     s: &NetworkSettings,
     step: &StepTables<N, B, M>,
-) -> Result<Option<FixedStep<N, B, M>>, BuildError> {
+) -> Result<Option<ConstFixedStep<N, B, M>>, BuildError> {
     if !s.integer_model_step {
         return Ok(None);
     }
@@ -1235,7 +1235,7 @@ const fn two_tick_corrections(s: &NetworkSettings) -> Result<(), BuildError> {
 const fn integer_block<const N: usize, const B: usize, const M: usize>(
     s: &NetworkSettings,
     block: &StepTables<N, B, M>,
-) -> Option<FixedStep<N, B, M>> {
+) -> Option<ConstFixedStep<N, B, M>> {
     if s.integer_model_step {
         FixedStep::of(block)
     } else {
