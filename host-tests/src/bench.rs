@@ -53,7 +53,9 @@ use coil_thermal::protect::alarm::{AlarmBuilder, AlarmConfig, AlarmState, AlarmS
 use coil_thermal::protect::derating::DeratingRule;
 use coil_thermal::protect::events::EventQueue;
 use coil_thermal::protect::limiter::{CoilLimit, LimiterConfig};
-use coil_thermal::protect::predict::{LimitPredictor, Operating, PredictorBuilder, PredictorState};
+use coil_thermal::protect::predict::{
+    ConstPredictorState, LimitPredictor, Operating, PredictorBuilder, PredictorState,
+};
 use coil_thermal::{
     ExplicitStepper, InputLimits, Network, NetworkState, Resistance, Scalar, SolenoidParams, Q32,
 };
@@ -363,7 +365,7 @@ pub struct ProtectTick {
     alarm: AlarmConfig<f32, Const<16>>,
     limiter: LimiterConfig<f32, Const<3>>,
     op: Operating<f32, 16, 1, 3>,
-    state: PredictorState<f32, 16, 3>,
+    state: ConstPredictorState<f32, 16, 1, 3>,
     alarm_state: AlarmState<f32, Const<16>>,
     events: EventQueue<32>,
     coil_limits: [CoilLimit<f32>; 3],

@@ -308,6 +308,84 @@ struct Link {
     g_w_per_k: f64,
 }
 
+/// The predictor's per-tick state at run-time sizes (`Vec` sweeps and
+/// answers) is the MCU's (arrays) to the bit: sliced sweeps (two elements
+/// a tick, and one in two halves, as the network observer on a core
+/// without an FPU takes them) over 600 ticks whose operating point moves
+/// every tick, with a NaN temperature and an unlimited node now and then;
+/// and the sweep that keeps no answers makes the same ones when asked.
+#[test]
+fn the_sliced_predictor_at_run_time_sizes_is_the_const_generic_one_to_the_bit() {
+    use coil_thermal::protect::predict::{
+        AnswersWhenAsked, HalfElement, Operating, OperatingPoint, PredictorBuilder, PredictorState,
+    };
+
+    let mut rng = Rng::new(71);
+    let run_time = six_nodes_at_run_time(&mut rng);
+    let fixed: Network<6, 2, 3> = run_time.to_network().unwrap();
+    let builder = PredictorBuilder::new()
+        .grid_s(0.5, 5000.0)
+        .tick_s(0.1)
+        .elements_per_tick(2);
+    let a = builder.build::<f32, 6, 2, 3, 24>(&fixed).unwrap();
+    let b = builder.build_from::<f32, _, 24>(&run_time).unwrap();
+    let op_at = |rng: &mut Rng, k: usize| {
+        let mut op = Operating::<f32, 6, 2, 3> {
+            temps_c: [0; 6].map(|_| 20.0 + 80.0 * rng.uniform() as f32),
+            currents_a: [0; 3].map(|_| 15.0 * rng.uniform() as f32),
+            boundary_c: [0; 2].map(|_| 15.0 + 10.0 * rng.uniform() as f32),
+            limits_c: [0; 6].map(|_| 60.0 + 100.0 * rng.uniform() as f32),
+        };
+        if k % 37 == 5 {
+            op.limits_c[k % 6] = f32::INFINITY;
+        }
+        if k % 101 == 17 {
+            op.temps_c[2] = f32::NAN;
+        }
+        let op_b = OperatingPoint {
+            temps_c: op.temps_c.to_vec(),
+            currents_a: op.currents_a.to_vec(),
+            boundary_c: op.boundary_c.to_vec(),
+            limits_c: op.limits_c.to_vec(),
+        };
+        (op, op_b)
+    };
+    let (op, op_b) = op_at(&mut rng, 0);
+    let (mut whole_a, mut whole_b) = (PredictorState::new(&a, &op), PredictorState::new(&b, &op_b));
+    let (mut halved_a, mut halved_b) = (whole_a.clone(), whole_b.clone());
+    let (mut half_a, mut half_b) = (HalfElement::new(), HalfElement::new());
+    let mut asked_a = PredictorState::<_, _, AnswersWhenAsked>::when_asked(&a, &op);
+    let mut asked_b = PredictorState::<_, _, AnswersWhenAsked>::when_asked(&b, &op_b);
+    let mut answered = 0;
+    for k in 1..=600 {
+        let (op, op_b) = op_at(&mut rng, k);
+        let (ta, tb) = (whole_a.tick(&a, &op), whole_b.tick(&b, &op_b));
+        // `Option` of NaN is not equal to itself: the bits through their
+        // debug form.
+        assert_eq!(format!("{ta:?}"), format!("{tb:?}"), "tick {k}");
+        answered += ta
+            .iter()
+            .filter(|t| matches!(t, Some(t) if t.is_finite()))
+            .count();
+        let (ha, hb) = (
+            halved_a.tick_in_halves(&a, &op, &mut half_a),
+            halved_b.tick_in_halves(&b, &op_b, &mut half_b),
+        );
+        assert_eq!(format!("{ha:?}"), format!("{hb:?}"), "tick {k}, in halves");
+        asked_a.tick(&a, &op);
+        asked_b.tick(&b, &op_b);
+        let (aa, ab) = (asked_a.time_to_limit_s(), asked_b.time_to_limit_s());
+        assert_eq!(format!("{aa:?}"), format!("{ab:?}"), "tick {k}, when asked");
+        assert_eq!(
+            format!("{aa:?}"),
+            format!("{ta:?}"),
+            "tick {k}, kept and asked"
+        );
+    }
+    // The sweeps completed and answered (not all "never" or NaN).
+    assert!(answered > 600, "{answered} finite answers");
+}
+
 /// A stator of 36 slots, each with two copper layers (each a Joule source
 /// on its phase), the slot liner, the tooth and its tip, the yoke segment
 /// and the end winding at each end (8 nodes a slot); a housing and a rotor

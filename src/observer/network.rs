@@ -1079,7 +1079,7 @@ pub struct NetworkObserverState<
     outputs: NetworkOutputs<N, M, P>,
     silence: SilenceWatch<Const<P>>,
     /// The predictor's sweep.
-    pub predictor: PredictorState<f32, N, M>,
+    pub predictor: PredictorState<f32, ConstSizes<N, B, M>>,
     /// The predictor's element between its two stages, when its sweep
     /// takes one element a stage
     /// ([`NetworkSettings::predictor_elements_per_stage`]). Beside the

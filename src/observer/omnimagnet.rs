@@ -422,6 +422,7 @@
 //! [`UncertaintyMargin::ZERO`] the protection acts on the mean, to the
 //! bit.
 
+use crate::sizes::ConstSizes;
 use nalgebra::{Const, SVector};
 
 use super::clock::{step_square_currents, ClockState, Deferral, StepAccount, StepClock};
@@ -806,7 +807,7 @@ pub struct OmniObserverState<W = WarmUp<OmniHeld>> {
     shadow_x: SVector<f32, STATES>,
     shadow_residual_k: [f32; NODES],
     /// The predictor's sweep.
-    pub predictor: PredictorState<f32, NODES, SOLENOIDS, AnswersWhenAsked>,
+    pub predictor: PredictorState<f32, ConstSizes<NODES, 1, SOLENOIDS>, AnswersWhenAsked>,
     /// The alarm's state.
     pub alarm: AlarmState<f32, Const<6>>,
     /// Alarm events not yet drained.

@@ -143,12 +143,12 @@
 
 use core::ops::Range;
 
-use nalgebra::RealField;
+use nalgebra::{Const, RealField};
 
 use super::modal::Modal;
 use crate::error::BuildError;
 use crate::network::{Network, NetworkDescription};
-use crate::sizes::{BoundaryVector, ConstSizes, Element, InputVector, NodeVector, Sizes};
+use crate::sizes::{BoundaryVector, ConstSizes, Element, InputVector, Length, NodeVector, Sizes};
 
 /// The default number of positive horizons `K` in the grid.
 pub const DEFAULT_GRID_POINTS: usize = 48;
@@ -1264,17 +1264,29 @@ impl<T: RealField + Copy> Line<T> {
     }
 }
 
-/// Where a [`PredictorState`] keeps its answers (sealed): every element's
-/// time to its limit made at each tick (`[Option<T>; N]`, the default: for
-/// an observer that reads them all on every tick, and
+/// Where a [`PredictorState`] keeps its answers (sealed) for the nodes'
+/// dimension `D`: every element's time to its limit made at each tick
+/// (the dimension's vector of `Option<T>`, `[Option<T>; N]` on an MCU, the
+/// default: for an observer that reads them all on every tick, and
 /// [`PredictorState::tick`] hands them out), or none ([`AnswersWhenAsked`]).
-pub trait Answers<T, const N: usize>:
-    answers::Store<T, N> + Clone + core::fmt::Debug + PartialEq
+pub trait Answers<T, D: Length>:
+    answers::Store<T, D> + Clone + core::fmt::Debug + PartialEq
 {
 }
 
-impl<T: Clone + core::fmt::Debug + PartialEq, const N: usize> Answers<T, N> for [Option<T>; N] {}
-impl<T, const N: usize> Answers<T, N> for AnswersWhenAsked {}
+impl<T: Element, const N: usize> Answers<T, Const<N>> for [Option<T>; N] {}
+#[cfg(feature = "alloc")]
+impl<T: Element> Answers<T, nalgebra::Dyn> for alloc::vec::Vec<Option<T>> {}
+impl<T, D: Length> Answers<T, D> for AnswersWhenAsked {}
+
+/// The [`Answers`] that keep every element's (sealed, and of no type
+/// parameter, so that no other crate can make [`AnswersWhenAsked`] one):
+/// the dimension's vector of `Option<T>`.
+pub trait KeptAnswers {}
+
+impl<T, const N: usize> KeptAnswers for [Option<T>; N] {}
+#[cfg(feature = "alloc")]
+impl<T> KeptAnswers for alloc::vec::Vec<Option<T>> {}
 
 /// The answers kept by no [`PredictorState`]: each element's time to its
 /// limit is made when asked ([`PredictorState::time_to_limit_of`]), from
@@ -1285,60 +1297,98 @@ impl<T, const N: usize> Answers<T, N> for AnswersWhenAsked {}
 pub struct AnswersWhenAsked;
 
 mod answers {
+    use crate::sizes::{Element, Length};
+    use nalgebra::Const;
+
     /// Keeps the answers made at each tick, or not.
-    pub trait Store<T, const N: usize> {
+    pub trait Store<T, D: Length> {
         /// The answers, each element's `make` of its crossing `from`.
-        fn made<U: Copy>(from: &[U; N], make: impl FnMut(U) -> Option<T>) -> Self;
+        fn made<U: Element + Copy>(from: &D::Array<U>, make: impl FnMut(U) -> Option<T>) -> Self;
         /// Makes them again.
-        fn remake<U: Copy>(&mut self, from: &[U; N], make: impl FnMut(U) -> Option<T>);
+        fn remake<U: Element + Copy>(
+            &mut self,
+            from: &D::Array<U>,
+            make: impl FnMut(U) -> Option<T>,
+        );
     }
 
-    impl<T, const N: usize> Store<T, N> for [Option<T>; N] {
+    impl<T, const N: usize> Store<T, Const<N>> for [Option<T>; N] {
         #[inline(always)]
-        fn made<U: Copy>(from: &[U; N], make: impl FnMut(U) -> Option<T>) -> Self {
+        fn made<U: Element + Copy>(from: &[U; N], make: impl FnMut(U) -> Option<T>) -> Self {
             from.map(make)
         }
         #[inline(always)]
-        fn remake<U: Copy>(&mut self, from: &[U; N], mut make: impl FnMut(U) -> Option<T>) {
+        fn remake<U: Element + Copy>(
+            &mut self,
+            from: &[U; N],
+            mut make: impl FnMut(U) -> Option<T>,
+        ) {
             for (out, crossing) in self.iter_mut().zip(from) {
                 *out = make(*crossing);
             }
         }
     }
 
-    impl<T, const N: usize> Store<T, N> for super::AnswersWhenAsked {
+    #[cfg(feature = "alloc")]
+    impl<T> Store<T, nalgebra::Dyn> for alloc::vec::Vec<Option<T>> {
+        fn made<U: Element + Copy>(
+            from: &alloc::vec::Vec<U>,
+            make: impl FnMut(U) -> Option<T>,
+        ) -> Self {
+            from.iter().copied().map(make).collect()
+        }
+        fn remake<U: Element + Copy>(
+            &mut self,
+            from: &alloc::vec::Vec<U>,
+            mut make: impl FnMut(U) -> Option<T>,
+        ) {
+            for (out, crossing) in self.iter_mut().zip(from) {
+                *out = make(*crossing);
+            }
+        }
+    }
+
+    impl<T, D: Length> Store<T, D> for super::AnswersWhenAsked {
         #[inline(always)]
-        fn made<U: Copy>(_: &[U; N], _: impl FnMut(U) -> Option<T>) -> Self {
+        fn made<U: Element + Copy>(_: &D::Array<U>, _: impl FnMut(U) -> Option<T>) -> Self {
             Self
         }
         #[inline(always)]
-        fn remake<U: Copy>(&mut self, _: &[U; N], _: impl FnMut(U) -> Option<T>) {}
+        fn remake<U: Element + Copy>(&mut self, _: &D::Array<U>, _: impl FnMut(U) -> Option<T>) {}
     }
 }
 
 /// The sliced predictor's per-device state: a sweep in progress and the
 /// last published answers (as crossings and their age; each element's time
 /// to its limit kept too unless `A` is [`AnswersWhenAsked`]).
+///
+/// Over the network's [`Sizes`] `S`, as its [`ModalPredictor`] (an MCU's
+/// [`ConstPredictorState`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct PredictorState<T, const N: usize, const M: usize, A = [Option<T>; N]> {
-    snapshot: Snapshot<[T; N]>,
-    prev: [Parts<T>; N],
-    sweep: [Crossing<T>; N],
+pub struct PredictorState<T: Element, S: Sizes, A = NodeVector<S, Option<T>>> {
+    snapshot: Snapshot<NodeVector<S, T>>,
+    prev: NodeVector<S, Parts<T>>,
+    sweep: NodeVector<S, Crossing<T>>,
     next_point: usize,
     /// Where the point in progress resumes (split points).
     next_element: usize,
     /// How much of its snapshot the sweep in progress has.
     phase: SweepPhase,
     sweep_age_s: T,
-    published: [Crossing<T>; N],
+    published: NodeVector<S, Crossing<T>>,
     published_age_s: T,
-    peak_power_w: [T; M],
+    peak_power_w: InputVector<S, T>,
     /// The peak powers the sweep in progress took at its start \[W\]
     /// (the peak starts over then), kept while its stages form the
     /// windings' part of its steady state.
-    snapshot_power_w: [T; M],
+    snapshot_power_w: InputVector<S, T>,
     out: A,
 }
+
+/// The predictor's state of an MCU's network of `N` nodes, `B` boundaries
+/// and `M` windings, keeping every element's answer.
+pub type ConstPredictorState<T, const N: usize, const B: usize, const M: usize> =
+    PredictorState<T, ConstSizes<N, B, M>>;
 
 /// An element's modal parts formed by the first of its two stages, for its
 /// second ([`PredictorState::tick_in_halves`]); empty between elements.
@@ -1381,47 +1431,45 @@ enum SweepPhase {
     Sweeping,
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
-    PredictorState<T, N, M, A>
-{
+impl<T: RealField + Copy, S: Sizes, A: Answers<T, S::NodeDim>> PredictorState<T, S, A> {
     /// A state whose first answers come from one full sweep at `op` (see
     /// [`PredictorState::new`]).
-    fn build<const B: usize, const K: usize>(
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+    fn build<const K: usize>(
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
     ) -> Self {
         let powers = predictor.conservative_powers_w(op);
         let first = predictor.full_sweep(op, &powers);
         Self {
             snapshot: predictor.snapshot(op, &powers),
-            prev: [Parts::default(); N],
-            sweep: [Crossing::Open; N],
+            prev: predictor.sizes.nodes_of(Parts::default()),
+            sweep: predictor.sizes.nodes_of(Crossing::Open),
             next_point: 0,
             next_element: 0,
             phase: SweepPhase::Idle,
             sweep_age_s: T::zero(),
+            out: A::made(&first, |c| published(c, T::zero())),
             published: first,
             published_age_s: T::zero(),
-            peak_power_w: powers,
+            peak_power_w: powers.clone(),
             snapshot_power_w: powers,
-            out: A::made(&first, |c| published(c, T::zero())),
         }
     }
 
     /// Element `i`'s time to its alarm limit \[s\] of the last tick, as
     /// `time_to_limit_s` has it (`None` too for no such element).
     pub fn time_to_limit_of(&self, i: usize) -> Option<T> {
-        let crossing = *self.published.get(i)?;
+        let crossing = *self.published.as_ref().get(i)?;
         published(crossing, self.published_age_s)
     }
 
     /// The tick of [`PredictorState::tick`], its answers kept as `A` keeps
     /// them.
     #[inline(always)]
-    fn advance<const B: usize, const K: usize>(
+    fn advance<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
         mut half: Option<&mut HalfElement<T>>,
     ) {
         if self.phase != SweepPhase::Sweeping {
@@ -1435,7 +1483,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
         self.sweep_age_s += tick_s;
         self.published_age_s += tick_s;
         let powers = predictor.conservative_powers_w(op);
-        for (peak, p) in self.peak_power_w.iter_mut().zip(&powers) {
+        for (peak, p) in self.peak_power_w.as_mut().iter_mut().zip(powers.as_ref()) {
             // NaN must win here: it marks the snapshot invalid.
             if matches!(
                 (*peak).partial_cmp(p),
@@ -1444,7 +1492,8 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 *peak = *p;
             }
         }
-        let split = predictor.elements_per_tick < N;
+        let n = predictor.sizes.nodes();
+        let split = predictor.elements_per_tick < n;
         let mut budget = predictor.elements_per_tick;
         for _ in 0..predictor.points_per_tick {
             if self.phase != SweepPhase::Sweeping {
@@ -1454,8 +1503,8 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                     break;
                 }
                 self.snapshot = predictor.steady_snapshot(op, &self.peak_power_w);
-                self.peak_power_w = powers;
-                self.sweep = [Crossing::Open; N];
+                self.peak_power_w.clone_from(&powers);
+                self.sweep = predictor.sizes.nodes_of(Crossing::Open);
                 self.sweep_age_s = T::zero();
                 predictor.to_modes(&mut self.snapshot.modes);
                 self.phase = SweepPhase::Sweeping;
@@ -1484,14 +1533,14 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 )
             };
             budget = budget.saturating_sub(progress.evaluated);
-            if progress.next_element < N {
+            if progress.next_element < n {
                 self.next_element = progress.next_element;
                 break;
             }
             self.next_element = 0;
             self.next_point += 1;
             if progress.sweep_over {
-                self.published = self.sweep;
+                self.published.clone_from(&self.sweep);
                 self.published_age_s = self.sweep_age_s;
                 self.next_point = 0;
                 self.phase = SweepPhase::Idle;
@@ -1507,9 +1556,7 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
-    PredictorState<T, N, M, A>
-{
+impl<T: RealField + Copy, S: Sizes, A: Answers<T, S::NodeDim>> PredictorState<T, S, A> {
     /// One stage of a split sweep's snapshot (at this tick's `op` and
     /// conservative `powers_w` \[W\]), stages of their own: the windings'
     /// part of the steady state at their peak powers; its boundaries'
@@ -1521,20 +1568,21 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
     /// it, and inlined it moved the M4F's worst ticks by up to 50
     /// instructions (measured).
     #[inline(never)]
-    fn snapshot_stage<const B: usize, const K: usize>(
+    fn snapshot_stage<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
-        powers_w: &[T; M],
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
+        powers_w: &InputVector<S, T>,
     ) {
+        let n = predictor.sizes.nodes();
         match self.phase {
             SweepPhase::Idle | SweepPhase::Windings => {
                 if self.phase == SweepPhase::Idle {
                     // The sweep starts at the peak so far; the next peak
                     // starts over.
-                    self.snapshot_power_w = self.peak_power_w;
-                    self.peak_power_w = *powers_w;
-                    self.sweep = [Crossing::Open; N];
+                    self.snapshot_power_w.clone_from(&self.peak_power_w);
+                    self.peak_power_w.clone_from(powers_w);
+                    self.sweep = predictor.sizes.nodes_of(Crossing::Open);
                     self.sweep_age_s = T::zero();
                     self.next_element = 0;
                 }
@@ -1543,9 +1591,9 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 let first = self.next_element;
                 let end = first
                     .saturating_add(predictor.windings_rows_per_stage())
-                    .min(N);
+                    .min(n);
                 predictor.start_snapshot(&mut self.snapshot, &self.snapshot_power_w, first..end);
-                if end < N {
+                if end < n {
                     self.next_element = end;
                     self.phase = SweepPhase::Windings;
                 } else {
@@ -1563,17 +1611,18 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
                 // `prev` (its first point sets it before reading it) so
                 // that `T_0 - T_ss` stays whole until the last.
                 let first = self.next_element;
-                let end = first.saturating_add(predictor.elements_per_tick).min(N);
-                let rows = self.prev.get_mut(first..end).unwrap_or_default();
-                let v_inv = predictor.v_inv.get(first..end).unwrap_or_default();
+                let end = first.saturating_add(predictor.elements_per_tick).min(n);
+                let rows = self.prev.as_mut().get_mut(first..end).unwrap_or_default();
+                let v_inv = predictor.v_inv.as_ref().get(first..end).unwrap_or_default();
                 for (slot, v_inv_row) in rows.iter_mut().zip(v_inv) {
                     slot.p = mode(v_inv_row, &self.snapshot.modes);
                 }
-                if end < N {
+                if end < n {
                     self.next_element = end;
                     return;
                 }
-                for (z, slot) in self.snapshot.modes.iter_mut().zip(&self.prev) {
+                let modes = self.snapshot.modes.as_mut().iter_mut();
+                for (z, slot) in modes.zip(self.prev.as_ref()) {
                     *z = slot.p;
                 }
                 self.next_element = 0;
@@ -1583,16 +1632,23 @@ impl<T: RealField + Copy, const N: usize, const M: usize, A: Answers<T, N>>
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M> {
+impl<T: RealField + Copy, S: Sizes> PredictorState<T, S>
+where
+    NodeVector<S, Option<T>>: KeptAnswers + Answers<T, S::NodeDim>,
+{
     /// A state whose first answers come from one full sweep at `op` (build
     /// time cost, so the first ticks already publish valid times).
-    pub fn new<const B: usize, const K: usize>(
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+    pub fn new<const K: usize>(
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
     ) -> Self {
         Self::build(predictor, op)
     }
+}
 
+impl<T: RealField + Copy, S: Sizes, A: KeptAnswers + Answers<T, S::NodeDim>>
+    PredictorState<T, S, A>
+{
     /// One tick: ages the published answers by the predictor's `tick_s`,
     /// evaluates `points_per_tick` horizons (or at most
     /// `elements_per_tick` elements, or the snapshot alone, when split) of
@@ -1602,11 +1658,11 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
     /// [`AlarmState::tick`](super::alarm::AlarmState::tick).
     ///
     /// Bounded (`points_per_tick` horizons), allocation-free, panic-free.
-    pub fn tick<const B: usize, const K: usize>(
+    pub fn tick<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
-    ) -> &[Option<T>; N] {
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
+    ) -> &A {
         self.advance(predictor, op, None);
         &self.out
     }
@@ -1619,12 +1675,12 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
     /// horizons' stages twice; a stage bounded by the heavier half.
     ///
     /// Bounded, allocation-free, panic-free.
-    pub fn tick_in_halves<const B: usize, const K: usize>(
+    pub fn tick_in_halves<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
         half: &mut HalfElement<T>,
-    ) -> &[Option<T>; N] {
+    ) -> &A {
         self.advance(predictor, op, Some(half));
         &self.out
     }
@@ -1632,28 +1688,26 @@ impl<T: RealField + Copy, const N: usize, const M: usize> PredictorState<T, N, M
     /// [`tick_in_halves`](Self::tick_in_halves) with `Some(half)`, else
     /// [`tick`](Self::tick): one copy of the tick for a caller that
     /// chooses at run time.
-    pub(crate) fn tick_with<const B: usize, const K: usize>(
+    pub(crate) fn tick_with<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
         half: Option<&mut HalfElement<T>>,
     ) {
         self.advance(predictor, op, half);
     }
 
     /// The answers of the last [`tick`](Self::tick) \[s\].
-    pub fn time_to_limit_s(&self) -> &[Option<T>; N] {
+    pub fn time_to_limit_s(&self) -> &A {
         &self.out
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const M: usize>
-    PredictorState<T, N, M, AnswersWhenAsked>
-{
+impl<T: RealField + Copy, S: Sizes> PredictorState<T, S, AnswersWhenAsked> {
     /// [`PredictorState::new`] for a state that keeps no answers.
-    pub fn when_asked<const B: usize, const K: usize>(
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+    pub fn when_asked<const K: usize>(
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
     ) -> Self {
         Self::build(predictor, op)
     }
@@ -1664,19 +1718,19 @@ impl<T: RealField + Copy, const N: usize, const M: usize>
     /// [`time_to_limit_s`](Self::time_to_limit_s)).
     ///
     /// Bounded (`points_per_tick` horizons), allocation-free, panic-free.
-    pub fn tick<const B: usize, const K: usize>(
+    pub fn tick<const K: usize>(
         &mut self,
-        predictor: &LimitPredictor<T, N, B, M, K>,
-        op: &Operating<T, N, B, M>,
+        predictor: &ModalPredictor<T, S, K>,
+        op: &OperatingPoint<T, S>,
     ) {
         self.advance(predictor, op, None);
     }
 
     /// Every element's time to its alarm limit \[s\] of the last tick
     /// (`None`: never), made now.
-    pub fn time_to_limit_s(&self) -> [Option<T>; N] {
+    pub fn time_to_limit_s(&self) -> NodeVector<S, Option<T>> {
         let age = self.published_age_s;
-        self.published.map(|crossing| published(crossing, age))
+        S::NodeDim::mapped(&self.published, |crossing| published(*crossing, age))
     }
 }
 
