@@ -30,7 +30,6 @@ use crate::protect::events::{EventKind, EventQueue};
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::scalar::Scalar;
 use crate::sizes::Length;
-use nalgebra::Const;
 
 /// A protection stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -318,8 +317,8 @@ pub(crate) fn record_verdicts<const P: usize>(
 
 /// Latches the shutdown and shows it at once: the published alarm says
 /// so and every current limit is zero (until the deliberate clear).
-pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
-    alarm: &mut AlarmState<S, Const<N>>,
+pub(crate) fn latch_and_publish<S: Scalar, N: Length>(
+    alarm: &mut AlarmState<S, N>,
     published: &mut AlarmStatus,
     limits: &mut [CoilLimit<S>],
 ) {
@@ -334,9 +333,9 @@ pub(crate) fn latch_and_publish<S: Scalar, const N: usize>(
 /// observer (the grid, the Omnimagnet, the network): latched, the
 /// published alarm says so at once and every current limit is zero until
 /// the deliberate clear.
-pub(crate) struct Latch<'a, S: Scalar, const E: usize, const CAP: usize> {
+pub(crate) struct Latch<'a, S: Scalar, E: Length, const CAP: usize> {
     /// The alarm's state (`E` elements).
-    pub alarm: &'a mut AlarmState<S, Const<E>>,
+    pub alarm: &'a mut AlarmState<S, E>,
     /// The state's event queue.
     pub events: &'a mut EventQueue<CAP>,
     /// The published alarm summary.
@@ -345,7 +344,7 @@ pub(crate) struct Latch<'a, S: Scalar, const E: usize, const CAP: usize> {
     pub limits: &'a mut [CoilLimit<S>],
 }
 
-impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
+impl<S: Scalar, E: Length, const CAP: usize> Latch<'_, S, E, CAP> {
     /// Latches the shutdown and shows it ([`latch_and_publish`]): a
     /// conservative start, a snapshot that held a latch.
     pub(crate) fn latch(self) {
@@ -376,7 +375,7 @@ impl<S: Scalar, const E: usize, const CAP: usize> Latch<'_, S, E, CAP> {
     /// # Errors
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
-    pub(crate) fn clear(self, config: &AlarmConfig<S, Const<E>>) -> Result<(), ResetError> {
+    pub(crate) fn clear(self, config: &AlarmConfig<S, E>) -> Result<(), ResetError> {
         self.alarm.reset(config, self.events)?;
         self.published.shutdown = self.alarm.shutdown_latched();
         Ok(())
@@ -440,6 +439,7 @@ pub(crate) fn aged_time_to_limit(time_s: Option<f32>, lag_s: f32) -> Option<f32>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Const;
 
     /// The ticks (1 ms steps, never busy) on which each stage runs over
     /// `ticks`, for a cycle of `period_us` with `phase_us`, and the largest

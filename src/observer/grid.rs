@@ -440,7 +440,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
     }
 
     /// What the shutdown latch touches (its rules are every observer's).
-    fn latch(&mut self) -> Latch<'_, S, N, EVENT_CAPACITY> {
+    fn latch(&mut self) -> Latch<'_, S, Const<N>, EVENT_CAPACITY> {
         Latch {
             alarm: &mut self.alarm,
             events: &mut self.events,

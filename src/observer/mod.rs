@@ -64,4 +64,6 @@ pub use snapshot::{
     conservative_start, restore, save, Fingerprint, RestorePolicy, SnapshotError, SnapshotMeta,
 };
 pub use tables::{AlarmTables, ChecksTables, ClockTables, KalmanTables, LimiterTables, StepTables};
-pub use vocabulary::{FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY};
+pub use vocabulary::{
+    ConstOutputs, FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
+};

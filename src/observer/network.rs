@@ -462,9 +462,7 @@ use super::cycle::{
 };
 use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
-use super::vocabulary::{
-    FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
-};
+use super::vocabulary::{ConstOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY};
 use super::warm_up::Flavour;
 #[cfg(feature = "integer-step")]
 use crate::discretize::fixed::{step_in_memory, StepMemory};
@@ -750,8 +748,7 @@ pub struct NetworkInputs<const B: usize, const M: usize, const P: usize> {
 
 /// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
 /// filtered observers' outputs, a time to limit for every node.
-pub type NetworkOutputs<const N: usize, const M: usize, const P: usize> =
-    FilteredOutputs<N, M, N, P>;
+pub type NetworkOutputs<const N: usize, const M: usize, const P: usize> = ConstOutputs<N, M, N, P>;
 
 /// Builds a [`NetworkObserver`]: the network, the sensor map, the limits;
 /// everything else has a default ([`NetworkSettings::DEFAULT`]).
@@ -1147,7 +1144,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// The shutdown's latch over this state (see [`Latch`]).
-    fn latch(&mut self) -> Latch<'_, f32, N, EVENT_CAPACITY> {
+    fn latch(&mut self) -> Latch<'_, f32, Const<N>, EVENT_CAPACITY> {
         Latch {
             alarm: &mut self.alarm,
             events: &mut self.events,

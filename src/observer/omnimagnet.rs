@@ -437,7 +437,7 @@ use super::cycle::{
 };
 use super::snapshot::{self, Fingerprint, Restored, SnapshotError, SnapshotMeta};
 use super::start::{self, HeldCovariance, HeldLayout, PeriodTransition};
-use super::vocabulary::{FilteredOutputs, SensorChecks, EVENT_CAPACITY};
+use super::vocabulary::{ConstOutputs, SensorChecks, EVENT_CAPACITY};
 pub use super::vocabulary::{SensorStatus, TimedReading};
 use super::warm_up::Flavour;
 pub use super::warm_up::{NoWarmUp, WarmUp};
@@ -703,7 +703,7 @@ pub struct OmniInputs {
 /// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
 /// filtered observers' outputs, over the [`NODE_NAMES`](crate::omnimagnet::NODE_NAMES),
 /// a time to limit for each of the [`ALARM_NODES`].
-pub type OmniOutputs = FilteredOutputs<NODES, SOLENOIDS, { ALARM_NODES.len() }, THERMOCOUPLES>;
+pub type OmniOutputs = ConstOutputs<NODES, SOLENOIDS, { ALARM_NODES.len() }, THERMOCOUPLES>;
 
 /// The configuration of one Omnimagnet device.
 ///
@@ -886,7 +886,7 @@ impl<W: OmniWarmUpKind> OmniObserverState<W> {
     }
 
     /// What the shutdown latch touches (its rules are every observer's).
-    fn latch(&mut self) -> Latch<'_, f32, { ALARM_NODES.len() }, EVENT_CAPACITY> {
+    fn latch(&mut self) -> Latch<'_, f32, Const<{ ALARM_NODES.len() }>, EVENT_CAPACITY> {
         Latch {
             alarm: &mut self.alarm,
             events: &mut self.events,

@@ -10,6 +10,8 @@ use crate::input::InputFlags;
 use crate::protect::alarm::AlarmStatus;
 use crate::protect::limiter::{hold_shutdown, CoilLimit};
 use crate::sensors::{SensorFault, SensorResult};
+use crate::sizes::Length;
+use nalgebra::Const;
 
 /// Capacity of each observer's alarm event queue.
 pub const EVENT_CAPACITY: usize = 16;
@@ -194,32 +196,32 @@ impl Default for SensorChecks {
     }
 }
 
-/// What one tick of a filtered observer produced (`Copy`, for
-/// [`Shared`](super::Shared)): the Omnimagnet's
+/// What one tick of a filtered observer produced: the Omnimagnet's
 /// ([`OmniOutputs`](super::OmniOutputs)) and the network's
 /// ([`NetworkOutputs`](super::NetworkOutputs)), for `N` nodes, `M`
-/// currents, `A` elements with a time to limit and `P` sensors.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FilteredOutputs<const N: usize, const M: usize, const A: usize, const P: usize> {
+/// currents, `A` elements with a time to limit and `P` sensors, each a
+/// dimension (`Const<N>` on an MCU, where the outputs are `Copy`, for
+/// [`Shared`](super::Shared); [`ConstOutputs`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilteredOutputs<N: Length, M: Length, A: Length, P: Length> {
     /// Node temperature estimates \[degC\]: the filter's mean.
-    pub temps_c: [f32; N],
+    pub temps_c: N::Array<f32>,
     /// Each node's protective upper bound \[degC\], what the limiter and
     /// the alarm act on: the estimate plus `k_sigma` steady-state standard
     /// deviations and, on the unmeasured nodes, the model-uncertainty
     /// margin (see [`crate::protect::margin`]). Taken with the protection
     /// cycle (by its alarm and limiter stages), so it lags `temps_c` by up
     /// to a cycle, as the limits do.
-    pub upper_c: [f32; N],
+    pub upper_c: N::Array<f32>,
     /// Current limit per input.
-    pub limits: [CoilLimit<f32>; M],
+    pub limits: M::Array<CoilLimit<f32>>,
     /// Time until each limited element's upper bound reaches its alarm
     /// limit \[s\] (`None`: never, or no limit).
-    pub time_to_limit_s: [Option<f32>; A],
+    pub time_to_limit_s: A::Array<Option<f32>>,
     /// The alarm summary.
     pub alarm: AlarmStatus,
     /// What happened to each sensor's reading.
-    pub sensors: [SensorStatus; P],
+    pub sensors: P::Array<SensorStatus>,
     /// A correction ran this tick.
     pub corrected: bool,
     /// Input rules that fired this tick.
@@ -232,7 +234,47 @@ pub struct FilteredOutputs<const N: usize, const M: usize, const A: usize, const
     pub tick: u32,
 }
 
-impl<const N: usize, const M: usize, const A: usize, const P: usize> FilteredOutputs<N, M, A, P> {
+/// The outputs of an MCU's observer: every size known when the firmware is
+/// compiled.
+pub type ConstOutputs<const N: usize, const M: usize, const A: usize, const P: usize> =
+    FilteredOutputs<Const<N>, Const<M>, Const<A>, Const<P>>;
+
+/// Copied where every vector is (arrays: an MCU's).
+impl<N: Length, M: Length, A: Length, P: Length> Copy for FilteredOutputs<N, M, A, P>
+where
+    N::Array<f32>: Copy,
+    M::Array<CoilLimit<f32>>: Copy,
+    A::Array<Option<f32>>: Copy,
+    P::Array<SensorStatus>: Copy,
+{
+}
+
+#[cfg(feature = "defmt")]
+impl<const N: usize, const M: usize, const A: usize, const P: usize> defmt::Format
+    for ConstOutputs<N, M, A, P>
+{
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(
+            f,
+            "FilteredOutputs {{ temps_c: {}, upper_c: {}, limits: {}, time_to_limit_s: {}, \
+             alarm: {}, sensors: {}, corrected: {}, flags: {}, steps: {}, dropped_us: {}, \
+             tick: {} }}",
+            self.temps_c,
+            self.upper_c,
+            self.limits,
+            self.time_to_limit_s,
+            self.alarm,
+            self.sensors,
+            self.corrected,
+            self.flags,
+            self.steps,
+            self.dropped_us,
+            self.tick
+        )
+    }
+}
+
+impl<N: Length, M: Length, A: Length, P: Length> FilteredOutputs<N, M, A, P> {
     /// Ends a tick: its input flags, its model steps and dropped time
     /// (`steps`), every current limit held at zero while the shutdown is
     /// latched (until the deliberate clear), and the tick counted.
@@ -242,7 +284,7 @@ impl<const N: usize, const M: usize, const A: usize, const P: usize> FilteredOut
         self.steps = steps.steps;
         self.dropped_us = steps.dropped_us;
         if self.alarm.shutdown {
-            hold_shutdown(&mut self.limits);
+            hold_shutdown(self.limits.as_mut());
         }
         self.tick = self.tick.wrapping_add(1);
     }
