@@ -23,22 +23,25 @@
 //! `DefaultAllocator: NetworkAllocator<Z>` ([`NetworkAllocator`]).
 //!
 //! Written over sizes so far: the build-time analyses and the
-//! time-to-limit predictor ([`crate::protect::predict`],
-//! [`crate::protect::safe_current`], [`crate::protect::runaway`], the
-//! steady state), the state space and its exact discretisation
-//! ([`crate::network::StateSpace`], [`crate::discretize`]), the Kalman
-//! filter ([`crate::filter`]: `KalmanConfig<T, N, M, P>` over three
-//! dimensions), the alarm, the current limiter and the upper bound
-//! ([`crate::protect::alarm`], [`crate::protect::limiter`],
-//! [`crate::protect::margin`], over their elements `N`), and of the
-//! observers' pieces the sensor checks (the stuck test and its rewind,
-//! the drift hold, silence, doubt), the protection cycle and the model
-//! step's energy account. Each compiles for `Const` sizes to what the
-//! arrays compiled to before (the MCU examples' goldens unchanged; the
-//! Cortex-M4F's instruction counts too, the Cortex-M0 network example's
-//! within 8 instructions a tick). The observers themselves keep their
-//! const generics for now (`NetworkObserver<N, B, M, X, P>` holds
-//! `KalmanConfig<f32, Const<X>, U1, Const<P>>`).
+//! time-to-limit predictor with its per-tick state
+//! ([`crate::protect::predict`], [`crate::protect::safe_current`],
+//! [`crate::protect::runaway`], the steady state), the state space and its
+//! exact discretisation and integer step ([`crate::network::StateSpace`],
+//! [`crate::discretize`]), the Kalman filter ([`crate::filter`]:
+//! `KalmanConfig<T, N, M, P>` over three dimensions), the alarm, the
+//! current limiter and the upper bound ([`crate::protect::alarm`],
+//! [`crate::protect::limiter`], [`crate::protect::margin`], over their
+//! elements `N`), and the filtered observers' pieces: the sensor checks
+//! (the stuck test and its rewind, the drift hold, silence, doubt), the
+//! shadow model, the protection cycle and its latch, the model step's
+//! energy account and the outputs
+//! ([`crate::observer::FilteredOutputs`]). Each compiles for `Const`
+//! sizes to what the arrays compiled to before, but for register
+//! allocation: the MCU examples' goldens are unchanged and their
+//! instruction counts within a few (the moves are in docs/cost.md). The
+//! observers themselves keep their const generics for now
+//! (`NetworkObserver<N, B, M, X, P>` holds `KalmanConfig<f32, Const<X>,
+//! U1, Const<P>>` and `Shadow<ConstSizes<N, B, M>>`).
 
 use core::fmt::Debug;
 

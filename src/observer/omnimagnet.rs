@@ -196,7 +196,7 @@
 //! only what its stages do), the step's `I^2` account
 //! (`clock::StepAccount`), the snapshot writer (`snapshot::save_state`), the gain's tables
 //! ([`GainTables`](super::network::GainTables)), the start's rules
-//! ([`super::start`]) and the outputs ([`FilteredOutputs`]).
+//! ([`super::start`]) and the outputs ([`super::FilteredOutputs`]).
 //!
 //! Two rules stay the Omnimagnet's own:
 //!
