@@ -39,9 +39,11 @@
 //! sizes to what the arrays compiled to before, but for register
 //! allocation: the MCU examples' goldens are unchanged and their
 //! instruction counts within a few (the moves are in docs/cost.md). The
-//! observers themselves keep their const generics for now
-//! (`NetworkObserver<N, B, M, X, P>` holds `KalmanConfig<f32, Const<X>,
-//! U1, Const<P>>` and `Shadow<ConstSizes<N, B, M>>`).
+//! network observer's configuration and state are types over sizes
+//! ([`crate::observer::NetworkObserverOf`]`<Z, X, P>`, whose `Const` sizes
+//! are `NetworkObserver<N, B, M, X, P>`), but their methods are still the
+//! `Const` sizes' alone: a host cannot build or tick one of `Dyn` sizes
+//! yet.
 
 use core::fmt::Debug;
 

@@ -55,8 +55,9 @@ pub use grid::{
     PROTECTION_TICKS,
 };
 pub use network::{
-    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState, NetworkOutputs,
-    NetworkSettings,
+    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverOf,
+    NetworkObserverState, NetworkObserverStateOf, NetworkOutputs, NetworkSettings,
+    ObserverAllocator,
 };
 pub use omnimagnet::{OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings};
 pub use shared::{Mailbox, Shared};

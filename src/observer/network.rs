@@ -443,8 +443,10 @@
 //! `max_steps_per_tick`, the rest dropped and flagged); a snapshot holds the
 //! node temperatures and the latched shutdown, the biases restart at zero.
 
-use crate::sizes::ConstSizes;
-use nalgebra::{Const, SMatrix, SVector, U1};
+use crate::sizes::{
+    BoundaryVector, ConstSizes, InputVector, Length, NetworkAllocator, NodeVector, Sizes,
+};
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
 
 use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
 use bias::{
@@ -462,14 +464,17 @@ use super::cycle::{
 };
 use super::snapshot::{self, Restored, SnapshotError, SnapshotMeta};
 use super::start;
-use super::vocabulary::{ConstOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY};
+use super::vocabulary::{
+    ConstOutputs, FilteredOutputs, SensorChecks, SensorStatus, TimedReading, EVENT_CAPACITY,
+};
 use super::warm_up::Flavour;
 #[cfg(feature = "integer-step")]
 use crate::discretize::fixed::{step_in_memory, StepMemory};
 use crate::discretize::zoh;
 use crate::error::{check, BuildError};
 use crate::filter::{
-    predict_cov, update, update_steady, KalmanConfig, KalmanState, SteadyEstimate, SteadyStateGain,
+    predict_cov, update, update_steady, FilterAllocator, KalmanConfig, KalmanState, SteadyEstimate,
+    SteadyStateGain,
 };
 use crate::input::{DriveFlags, VoltageDrive};
 use crate::input::{InputFlags, ScalarLimits};
@@ -480,7 +485,7 @@ use crate::protect::events::EventQueue;
 use crate::protect::limiter::{drive_limit, DriveLimit};
 use crate::protect::limiter::{CoilLimit, LimiterConfig};
 use crate::protect::margin::{UncertaintyMargin, UpperBound};
-use crate::protect::predict::{HalfElement, LimitPredictor, Operating, PredictorState};
+use crate::protect::predict::{HalfElement, ModalPredictor, Operating, PredictorState};
 
 /// Alternating projections of the heat biases' and the boundary offset's
 /// floors after a correction (see [`NetworkSettings::boundary_offset`]).
@@ -935,51 +940,75 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
     }
 }
 
-/// The configuration of one device's observer (see the module docs).
-/// `X` must be `N + M`.
-///
-/// Holds nalgebra matrices, which do not implement `defmt::Format`.
-#[derive(Debug, Clone)]
-pub struct NetworkObserver<
+/// The nalgebra allocations of a network observer over the sizes `Z`, its
+/// filter's states `X` and sensors `P`: the network's matrices and the
+/// filter's (one bound, `DefaultAllocator: ObserverAllocator<Z, X, P>`;
+/// every `Const` size has them).
+pub trait ObserverAllocator<Z: Sizes, X: Dim, P: Dim>:
+    NetworkAllocator<Z> + FilterAllocator<X, U1, P>
+{
+}
+
+impl<Z: Sizes, X: Dim, P: Dim, A> ObserverAllocator<Z, X, P> for A where
+    A: NetworkAllocator<Z> + FilterAllocator<X, U1, P>
+{
+}
+
+/// The configuration of one device's observer (see the module docs) on
+/// an MCU: `N` nodes, `B` boundaries, `M` currents, `X` filter states and
+/// `P` sensors known when the firmware is compiled ([`NetworkObserverOf`]
+/// of `Const` sizes). `X` must be `N + M`.
+pub type NetworkObserver<
     const N: usize,
     const B: usize,
     const M: usize,
     const X: usize,
     const P: usize,
-> {
+> = NetworkObserverOf<ConstSizes<N, B, M>, Const<X>, Const<P>>;
+
+/// The configuration of one device's observer over the network's [`Sizes`]
+/// `Z`, its filter's states `X` and its sensors `P` (dimensions: `Const`
+/// on an MCU, [`NetworkObserver`]).
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone)]
+pub struct NetworkObserverOf<Z: Sizes, X: Length, P: Length>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+{
     /// `Ad - I` (dimensionless), formed in `f64`.
-    phi_minus_i: SMatrix<f32, N, N>,
+    phi_minus_i: OMatrix<f32, Z::NodeDim, Z::NodeDim>,
     /// `Bd` of the powers \[K/J\].
-    bd_power: SMatrix<f32, N, M>,
+    bd_power: OMatrix<f32, Z::NodeDim, Z::InputDim>,
     /// `Gd` of the boundaries (dimensionless).
-    gd_boundary: SMatrix<f32, N, B>,
+    gd_boundary: OMatrix<f32, Z::NodeDim, Z::BoundaryDim>,
     /// `dd + (Ad - I) T_0 + Gd T_0` \[K\], formed in `f64`.
-    constant_k: SVector<f32, N>,
+    constant_k: OVector<f32, Z::NodeDim>,
     /// The model step in integer arithmetic, if the settings ask for it
     /// (see "The model step in integer arithmetic"; the field exists with
     /// the `integer-step` feature only, so an `f32` firmware's observer is
     /// laid out as before it).
     #[cfg(feature = "integer-step")]
-    integer_step: Option<crate::discretize::fixed::ConstFixedStep<N, B, M>>,
+    integer_step: Option<crate::discretize::fixed::FixedStep<Z>>,
     origin_c: f32,
-    source_node: [usize; M],
+    source_node: InputVector<Z, usize>,
     /// Each winding's `R` in the state's deviations from `origin_c`.
-    resistance: [DeviationResistance; M],
-    kalman: KalmanConfig<f32, Const<X>, U1, Const<P>>,
-    gain: SteadyStateGain<f32, Const<X>, Const<P>>,
-    sensor_nodes: [usize; P],
-    limited: [bool; N],
-    incidence: [[bool; M]; N],
-    hardware_limit_a: [f32; M],
-    alarm: AlarmConfig<f32, Const<N>>,
-    limiter: LimiterConfig<f32, Const<N>>,
-    predictor: LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>,
-    bound: UpperBound<f32, Const<N>>,
+    resistance: InputVector<Z, DeviationResistance>,
+    kalman: KalmanConfig<f32, X, U1, P>,
+    gain: SteadyStateGain<f32, X, P>,
+    sensor_nodes: P::Array<usize>,
+    limited: NodeVector<Z, bool>,
+    incidence: NodeVector<Z, InputVector<Z, bool>>,
+    hardware_limit_a: InputVector<Z, f32>,
+    alarm: AlarmConfig<f32, Z::NodeDim>,
+    limiter: LimiterConfig<f32, Z::NodeDim>,
+    predictor: ModalPredictor<f32, Z, PREDICTOR_POINTS>,
+    bound: UpperBound<f32, Z::NodeDim>,
     /// The bound's `k` (of `k sigma`).
     k_sigma: f32,
     /// The steady `sigma` in each node's bound \[K\] (of the prior).
-    bound_sigma_k: [f32; N],
-    shadow: Shadow<ConstSizes<N, B, M>>,
+    bound_sigma_k: NodeVector<Z, f32>,
+    shadow: Shadow<Z>,
     stuck_test: StuckTest,
     /// No reading for this long makes a sensor silent \[us\]: two
     /// correction periods.
@@ -1002,10 +1031,10 @@ pub struct NetworkObserver<
     /// (dimensionless).
     offset_decay_per_step: f32,
     /// The sources sharing one heat bias (see "One sensor sees one heat").
-    shared_bias: [bool; M],
+    shared_bias: InputVector<Z, bool>,
     /// Each shared source's nominal Joule power \[W\] (0 for the others):
     /// its share of the shared bias with no current.
-    nominal_power_w: [f32; M],
+    nominal_power_w: InputVector<Z, f32>,
     clock: StepClock,
     limits: ScalarLimits<f32>,
     ambient_boundary: usize,
@@ -1018,10 +1047,10 @@ pub struct NetworkObserver<
     // Last, so that the fields every tick reads keep their offsets (a
     // Cortex-M load reaches 1020 bytes from its base in one instruction).
     /// Each resistance sensor's conversion (`None`: a thermocouple).
-    resistance_sensors: [Option<resistance::Conversion>; P],
+    resistance_sensors: P::Array<Option<resistance::Conversion>>,
     /// How far below the shadow each sensor's screens take its node \[K\]:
     /// its noise at the gate's width (0 for a thermocouple).
-    noise_allowance_k: [f32; P],
+    noise_allowance_k: P::Array<f32>,
 }
 
 /// The per-device state.
@@ -1035,16 +1064,27 @@ pub struct NetworkObserver<
 /// type of a firmware that restores and falls back to a start.
 ///
 /// Holds nalgebra matrices, which do not implement `defmt::Format`.
-#[derive(Debug, Clone)]
-#[repr(C)]
-pub struct NetworkObserverState<
+///
+/// On an MCU: [`NetworkObserverStateOf`] of `Const` sizes.
+pub type NetworkObserverState<
     const N: usize,
     const B: usize,
     const M: usize,
     const X: usize,
     const P: usize,
     W = WarmUp<SMatrix<f32, X, X>>,
-> {
+> = NetworkObserverStateOf<ConstSizes<N, B, M>, Const<X>, Const<P>, W>;
+
+/// The per-device state over the network's [`Sizes`] `Z`, the filter's
+/// states `X` and the sensors `P` (see [`NetworkObserverState`]).
+///
+/// Holds nalgebra matrices, which do not implement `defmt::Format`.
+#[derive(Debug, Clone)]
+#[repr(C)]
+pub struct NetworkObserverStateOf<Z: Sizes, X: Length, P: Length, W = WarmUp<OMatrix<f32, X, X>>>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+{
     // Laid out as declared (`repr(C)`), the fields every tick reads
     // first: on the Cortex-M4F a float load reaches 1 020 bytes from its
     // base, and a field beyond costs an address computation per access
@@ -1052,20 +1092,20 @@ pub struct NetworkObserverState<
     // 26 instructions).
     /// The filter's estimate (deviations from the origin \[K\], then the
     /// heat-input biases \[W\]) and gate memory.
-    pub estimate: SteadyEstimate<f32, Const<X>, Const<P>>,
+    pub estimate: SteadyEstimate<f32, X, P>,
     /// What each node's `f32` deviation could not hold \[K\] (the carry of
     /// [`compensated_add`]). Zero with the integer step, whose states carry
     /// it (see "The model step in integer arithmetic").
-    pub residual_k: [f32; N],
+    pub residual_k: NodeVector<Z, f32>,
     /// The integer step's own states (with the `integer-step` feature).
     #[cfg(feature = "integer-step")]
-    integer: StepMemory<Const<N>>,
-    held_currents_a: [f32; M],
-    held_boundary_c: [f32; B],
+    integer: StepMemory<Z::NodeDim>,
+    held_currents_a: InputVector<Z, f32>,
+    held_boundary_c: BoundaryVector<Z, f32>,
     /// The time not yet simulated.
     pub clock: ClockState,
-    cycle: ProtectionCycle<Const<M>>,
-    shadow: ShadowState<ConstSizes<N, B, M>>,
+    cycle: ProtectionCycle<Z::InputDim>,
+    shadow: ShadowState<Z>,
     /// Model steps since the biases' means last decayed.
     bias_steps: u32,
     /// The heat biases' and the boundary offset's decay factors over one
@@ -1073,10 +1113,10 @@ pub struct NetworkObserverState<
     /// period's two `expf` cost the model step's tick that closes it some
     /// 1 500 instructions on a core without an FPU.
     period_decay: [f32; 2],
-    outputs: NetworkOutputs<N, M, P>,
-    silence: SilenceWatch<Const<P>>,
+    outputs: FilteredOutputs<Z::NodeDim, Z::InputDim, Z::NodeDim, P>,
+    silence: SilenceWatch<P>,
     /// The predictor's sweep.
-    pub predictor: PredictorState<f32, ConstSizes<N, B, M>>,
+    pub predictor: PredictorState<f32, Z>,
     /// The predictor's element between its two stages, when its sweep
     /// takes one element a stage
     /// ([`NetworkSettings::predictor_elements_per_stage`]). Beside the
@@ -1084,18 +1124,18 @@ pub struct NetworkObserverState<
     /// example's mean 2 instructions (the layout), here none.
     predictor_half: HalfElement<f32>,
     /// The alarm's state.
-    pub alarm: AlarmState<f32, Const<N>>,
+    pub alarm: AlarmState<f32, Z::NodeDim>,
     /// Alarm events not yet drained.
     pub events: EventQueue<EVENT_CAPACITY>,
-    stuck: StuckWatch<Const<P>>,
+    stuck: StuckWatch<P>,
     /// The heat-input biases when each sensor's reading last changed:
     /// where a stuck sensor's biases go back to.
-    rewind: StuckRewind<Const<P>, Const<M>>,
-    drift: DriftHold<Const<P>>,
+    rewind: StuckRewind<P, Z::InputDim>,
+    drift: DriftHold<P>,
     /// The sensors whose measurement is in doubt.
-    suspect: Suspicion<Const<P>>,
+    suspect: Suspicion<P>,
     /// The predictor's limits at the ambient they were formed at.
-    mean_limits: AmbientLimits<Const<N>>,
+    mean_limits: AmbientLimits<Z::NodeDim>,
     /// The time-varying warm-up's covariance, while it runs, if this
     /// flavour holds one.
     warm: W,
@@ -1107,13 +1147,13 @@ pub struct NetworkObserverState<
     warmup_until_steady: bool,
     /// The energy account of the model step in progress (see "Model step
     /// and ticks" in the module docs).
-    step_account: StepAccount<Const<M>>,
+    step_account: StepAccount<Z::InputDim>,
     /// The shadow's complete block that waits for a light tick (see
     /// [`Shadow::stepped`]; apart from `shadow`, out of the hot fields).
-    shadow_waiting_block: Option<BlockMean<Const<M>>>,
+    shadow_waiting_block: Option<BlockMean<Z::InputDim>>,
     /// The derated alarm limits at the ambient they were formed at (the
     /// alarm's and the limiter's; a core without an FPU's alone).
-    alarm_limits: KeptAlarmLimits<N>,
+    alarm_limits: KeptAlarmLimits<Z::NodeDim>,
     /// The second tick of a correction in two ticks, if due (see
     /// [`NetworkSettings::correction_in_two_ticks`]): whether its first
     /// tick ran the warm-up's covariance. Only on a core without an FPU:
@@ -1902,7 +1942,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 
     /// The derated alarm limits \[degC\] at `ambient_c` \[degC\].
     #[inline(always)]
-    fn alarm_limits_c(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+    fn alarm_limits_c(&self, kept: &mut KeptAlarmLimits<Const<N>>, ambient_c: f32) -> [f32; N] {
         self.kept_alarm_limits_c(kept, ambient_c)
             .unwrap_or_else(|| self.alarm.alarm_limits_c(ambient_c))
     }
@@ -1919,7 +1959,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     #[inline(always)]
     fn kept_alarm_limits_c(
         &self,
-        kept: &mut KeptAlarmLimits<N>,
+        kept: &mut KeptAlarmLimits<Const<N>>,
         ambient_c: f32,
     ) -> Option<[f32; N]> {
         Some(self.kept_limits_at(kept, ambient_c))
@@ -1930,14 +1970,14 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// linked: the 2-node Cortex-M0 footprint 1 032 B).
     #[cfg(not(target_abi = "eabihf"))]
     #[inline(never)]
-    fn kept_limits_at(&self, kept: &mut KeptAlarmLimits<N>, ambient_c: f32) -> [f32; N] {
+    fn kept_limits_at(&self, kept: &mut KeptAlarmLimits<Const<N>>, ambient_c: f32) -> [f32; N] {
         *kept.at(ambient_c, |a| self.alarm.alarm_limits_c(a))
     }
 
     /// See the other [`Self::kept_alarm_limits_c`].
     #[cfg(target_abi = "eabihf")]
     #[inline(always)]
-    fn kept_alarm_limits_c(&self, _: &mut KeptAlarmLimits<N>, _: f32) -> Option<[f32; N]> {
+    fn kept_alarm_limits_c(&self, _: &mut KeptAlarmLimits<Const<N>>, _: f32) -> Option<[f32; N]> {
         None
     }
 
@@ -1948,7 +1988,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     fn limit(
         &self,
         out: &mut NetworkOutputs<N, M, P>,
-        kept: &mut KeptAlarmLimits<N>,
+        kept: &mut KeptAlarmLimits<Const<N>>,
         ambient_c: f32,
     ) {
         let mut limits_c = self.alarm_limits_c(kept, ambient_c);
@@ -2755,24 +2795,24 @@ where
 /// The derated alarm limits a state keeps per ambient: on a core without
 /// an FPU (see [`NetworkObserver::alarm_limits_c`]).
 #[cfg(not(target_abi = "eabihf"))]
-type KeptAlarmLimits<const N: usize> = AmbientLimits<Const<N>>;
+type KeptAlarmLimits<N> = AmbientLimits<N>;
 
 /// On a core with an FPU none are kept (see
 /// [`NetworkObserver::alarm_limits_c`]): the state is as large as without
 /// them (20 bytes more of it cost the M4F's motor and three-phase ticks 2
 /// instructions on average, measured).
 #[cfg(target_abi = "eabihf")]
-type KeptAlarmLimits<const N: usize> = NoneKept;
+type KeptAlarmLimits<N> = NoneKept<N>;
 
 /// Nothing kept (see [`KeptAlarmLimits`]).
 #[cfg(target_abi = "eabihf")]
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct NoneKept;
+struct NoneKept<N>(core::marker::PhantomData<N>);
 
 #[cfg(target_abi = "eabihf")]
-impl NoneKept {
-    fn new<D>(_: D) -> Self {
-        Self
+impl<N> NoneKept<N> {
+    fn new(_: N) -> Self {
+        Self(core::marker::PhantomData)
     }
 }
 
