@@ -1164,11 +1164,12 @@ where
     floors_due: Option<bool>,
 }
 
-impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
-    NetworkObserverState<N, B, M, X, P, W>
+impl<Z: Sizes, X: Length, P: Length, W> NetworkObserverStateOf<Z, X, P, W>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
 {
     /// The outputs of the last tick.
-    pub fn outputs(&self) -> &NetworkOutputs<N, M, P> {
+    pub fn outputs(&self) -> &FilteredOutputs<Z::NodeDim, Z::InputDim, Z::NodeDim, P> {
         &self.outputs
     }
 
@@ -1184,20 +1185,20 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// The shutdown's latch over this state (see [`Latch`]).
-    fn latch(&mut self) -> Latch<'_, f32, Const<N>, EVENT_CAPACITY> {
+    fn latch(&mut self) -> Latch<'_, f32, Z::NodeDim, EVENT_CAPACITY> {
         Latch {
             alarm: &mut self.alarm,
             events: &mut self.events,
             published: &mut self.outputs.alarm,
-            limits: &mut self.outputs.limits,
+            limits: self.outputs.limits.as_mut(),
         }
     }
 
     /// This state in the flavour `V`, holding `warm`.
-    fn flavoured<V>(self, warm: V) -> NetworkObserverState<N, B, M, X, P, V> {
+    fn flavoured<V>(self, warm: V) -> NetworkObserverStateOf<Z, X, P, V> {
         // Field by field: `..self` cannot change a type parameter on
         // stable Rust (type-changing struct update is unstable).
-        NetworkObserverState {
+        NetworkObserverStateOf {
             estimate: self.estimate,
             residual_k: self.residual_k,
             #[cfg(feature = "integer-step")]
