@@ -35,7 +35,7 @@
 //! protection runs on the model until a sensor agrees with it again.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, VectorView, U1};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, VectorView, U1};
 
 use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
@@ -270,9 +270,9 @@ pub(crate) fn drop_cold_biases<'b, M: Length>(
 /// limiter then gives the floor): the protection while a measurement is
 /// in doubt (see [`Suspicion`]) or the model is stale (see
 /// [`RefreshWatchdog`]).
-pub(crate) fn raise_to_shadow<S: Scalar, const N: usize>(
-    upper_c: &mut [S; N],
-    shadow_upper_c: &[S; N],
+pub(crate) fn raise_to_shadow<S: Scalar>(
+    upper_c: &mut [S],
+    shadow_upper_c: &[S],
     nodes: impl Iterator<Item = usize>,
 ) {
     for node in nodes {
@@ -294,17 +294,17 @@ pub(crate) fn raise_to_shadow<S: Scalar, const N: usize>(
 /// hotter ([`raise_to_shadow`]). The estimate is then the model alone or
 /// what a lying sensor dragged, the shadow the physics no reading moved:
 /// a flagged fault can only make the protection err hot.
-pub(crate) fn protect_on_shadow<S: Scalar, const N: usize>(
-    bound: &UpperBound<S, Const<N>>,
-    shadow_c: &[S; N],
+pub(crate) fn protect_on_shadow<S: Scalar, N: Length>(
+    bound: &UpperBound<S, N>,
+    shadow_c: &N::Array<S>,
     ambient_c: S,
-    upper_c: &mut [S; N],
+    upper_c: &mut N::Array<S>,
     nodes: impl Iterator<Item = usize>,
 ) {
     // Every entry is written by `upper_c`.
-    let mut shadow_upper_c = [S::ZERO; N];
+    let mut shadow_upper_c = N::filled_like(shadow_c, S::ZERO);
     bound.upper_c(shadow_c, ambient_c, &mut shadow_upper_c);
-    raise_to_shadow(upper_c, &shadow_upper_c, nodes);
+    raise_to_shadow(upper_c.as_mut(), shadow_upper_c.as_ref(), nodes);
 }
 
 /// Refresh periods without a model install after which a declared model
@@ -1254,6 +1254,7 @@ where
 mod tests {
     use super::*;
     use crate::sizes::ConstSizes;
+    use nalgebra::Const;
 
     /// One node, one boundary, one input.
     type One = ConstSizes<1, 1, 1>;
