@@ -1266,6 +1266,14 @@ where
     DefaultAllocator: ObserverAllocator<Z, X, P>,
     NodeVector<Z, Option<f32>>: KeptAnswers + Answers<f32, Z::NodeDim>,
 {
+    fn ambient(&self, boundary_c: &BoundaryVector<Z, f32>) -> f32 {
+        boundary_c
+            .as_ref()
+            .get(self.ambient_boundary)
+            .copied()
+            .unwrap_or(self.origin_c)
+    }
+
     /// The predictor's operating point; its limits from `mean_limits`,
     /// formed again only when the ambient moved.
     #[inline(never)]
@@ -1887,13 +1895,6 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state: &NetworkObserverState<N, B, M, X, P, W>,
     ) -> [f32; M] {
         core::array::from_fn(|m| state.estimate.x[N + m])
-    }
-
-    fn ambient(&self, boundary_c: &[f32; B]) -> f32 {
-        boundary_c
-            .get(self.ambient_boundary)
-            .copied()
-            .unwrap_or(self.origin_c)
     }
 
     /// Whether a correction takes two ticks
@@ -2781,14 +2782,15 @@ struct Model<const N: usize, const B: usize, const M: usize> {
 
 /// The network observer's protection stages; the cycle's rules are
 /// [`ProtectionStages::run_due`]'s.
-impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize, W>
-    ProtectionStages<Const<M>>
-    for Protecting<'_, NetworkObserver<N, B, M, X, P>, NetworkObserverState<N, B, M, X, P, W>>
+impl<Z: Sizes, X: Length, P: Length, W> ProtectionStages<Z::InputDim>
+    for Protecting<'_, NetworkObserverOf<Z, X, P>, NetworkObserverStateOf<Z, X, P, W>>
 where
-    W: WarmUpKind<X>,
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+    NodeVector<Z, Option<f32>>: KeptAnswers + Answers<f32, Z::NodeDim>,
+    W: Flavour<OMatrix<f32, X, X>>,
 {
     #[inline(always)]
-    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<Const<M>>, &[f32; M]) {
+    fn cycle_and_held(&mut self) -> (&mut ProtectionCycle<Z::InputDim>, &InputVector<Z, f32>) {
         (&mut self.state.cycle, &self.state.held_currents_a)
     }
 
