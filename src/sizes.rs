@@ -41,9 +41,10 @@
 //! instruction counts within a few (the moves are in docs/cost.md). The
 //! network observer's configuration and state are types over sizes
 //! ([`crate::observer::NetworkObserverOf`]`<Z, X, P>`, whose `Const` sizes
-//! are `NetworkObserver<N, B, M, X, P>`), but their methods are still the
-//! `Const` sizes' alone: a host cannot build or tick one of `Dyn` sizes
-//! yet.
+//! are `NetworkObserver<N, B, M, X, P>`), and its model step and
+//! protection stages are written once for every size; its correction, its
+//! tick, its builder and its start and restore rules are still the `Const`
+//! sizes' alone, so a host cannot build or tick one of `Dyn` sizes yet.
 
 use core::fmt::Debug;
 

@@ -442,6 +442,17 @@
 //! elapsed time is turned into whole steps by the [`StepClock`] (at most
 //! `max_steps_per_tick`, the rest dropped and flagged); a snapshot holds the
 //! node temperatures and the latched shutdown, the biases restart at zero.
+//!
+//! # Sizes
+//!
+//! The observer is [`NetworkObserverOf`]`<Z, X, P>` over the network's
+//! [`Sizes`] `Z`, its filter's states `X` and its sensors `P`;
+//! [`NetworkObserver`]`<N, B, M, X, P>` is the one an MCU flashes, every
+//! size a `Const` (arrays and `SMatrix`es, placed by the compiler). The
+//! model step and the protection's stages are written once, for every
+//! size (a host's `Dyn` sizes are the model file's); the correction, the
+//! tick, the builder and the start and restore rules are, for now, the
+//! `Const` sizes' (see [`crate::sizes`]).
 
 use crate::sizes::{
     BoundaryVector, ConstSizes, InputVector, Length, NetworkAllocator, NodeVector, Sizes,
