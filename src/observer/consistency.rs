@@ -35,7 +35,7 @@
 //! protection runs on the model until a sensor agrees with it again.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, VectorView, U1};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, VectorView, U1};
 
 use super::vocabulary::{SensorChecks, SensorStatus};
 #[cfg(feature = "integer-step")]
@@ -641,15 +641,17 @@ impl<P: Length, M: Length> StuckRewind<P, M> {
     /// steady posterior); `also(x, at_change)` then takes back what the
     /// skipped biases learnt (the network's shared heat).
     #[inline]
-    pub(crate) fn rewind<const S: usize>(
+    pub(crate) fn rewind<S: Dim>(
         &mut self,
-        x: &mut SVector<f32, S>,
-        cov: &SMatrix<f32, S, S>,
+        x: &mut OVector<f32, S>,
+        cov: &OMatrix<f32, S, S>,
         first_bias: usize,
         events: &StuckEvents<P>,
         skip: &M::Array<bool>,
-        mut also: impl FnMut(&mut SVector<f32, S>, &M::Array<f32>),
-    ) {
+        mut also: impl FnMut(&mut OVector<f32, S>, &M::Array<f32>),
+    ) where
+        DefaultAllocator: Allocator<S, S> + Allocator<S>,
+    {
         for ((at_change, changed), became_stuck) in self
             .bias_at_change_w
             .as_mut()
@@ -1254,7 +1256,7 @@ where
 mod tests {
     use super::*;
     use crate::sizes::ConstSizes;
-    use nalgebra::Const;
+    use nalgebra::{Const, SMatrix, SVector};
 
     /// One node, one boundary, one input.
     type One = ConstSizes<1, 1, 1>;

@@ -277,14 +277,18 @@ pub(crate) trait ProtectionStages<M: Length> {
 /// Sorts the fresh readings: each usable one's temperature \[degC\], and
 /// the status of each that is not (too old, from the future, a sensor
 /// fault); sensors without a reading get `NoReading`.
-pub(crate) fn sample_readings<const P: usize>(
-    readings: &[Option<TimedReading>; P],
+pub(crate) fn sample_readings<P: Length>(
+    readings: &P::Array<Option<TimedReading>>,
     now_us: u32,
     max_age_us: u32,
-    statuses: &mut [SensorStatus; P],
-) -> [Option<f32>; P] {
-    let mut samples = [None; P];
-    for ((sample, status), reading) in samples.iter_mut().zip(statuses.iter_mut()).zip(readings) {
+    statuses: &mut P::Array<SensorStatus>,
+) -> P::Array<Option<f32>> {
+    let mut samples = P::filled_like(readings, None);
+    let sampled = samples
+        .as_mut()
+        .iter_mut()
+        .zip(statuses.as_mut().iter_mut());
+    for ((sample, status), reading) in sampled.zip(readings.as_ref()) {
         *status = match reading.map(|r| r.sample_c(now_us, max_age_us)) {
             None => SensorStatus::NoReading,
             Some(Ok(temp_c)) => {
@@ -299,12 +303,13 @@ pub(crate) fn sample_readings<const P: usize>(
 
 /// The filter's verdict on each reading it was given (`given[j]`) as the
 /// sensor's status.
-pub(crate) fn record_verdicts<const P: usize>(
-    statuses: &mut [SensorStatus; P],
-    verdicts: &[SensorVerdict; P],
-    given: &[bool; P],
+pub(crate) fn record_verdicts<P: Length>(
+    statuses: &mut P::Array<SensorStatus>,
+    verdicts: &P::Array<SensorVerdict>,
+    given: &P::Array<bool>,
 ) {
-    for ((status, verdict), given) in statuses.iter_mut().zip(verdicts).zip(given) {
+    let recorded = statuses.as_mut().iter_mut().zip(verdicts.as_ref());
+    for ((status, verdict), given) in recorded.zip(given.as_ref()) {
         if *given {
             *status = match *verdict {
                 SensorVerdict::Fused { nis } => SensorStatus::Fused { nis },

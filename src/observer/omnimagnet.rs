@@ -1711,7 +1711,7 @@ impl OmniObserver {
         inputs: &OmniInputs,
     ) -> (bool, InputFlags) {
         let fitted = self.filter.settings().sensors;
-        let mut samples = sample_readings(
+        let mut samples = sample_readings::<Const<THERMOCOUPLES>>(
             &inputs.readings,
             inputs.now_us,
             self.max_reading_age_us,
@@ -1796,7 +1796,7 @@ impl OmniObserver {
                 &z,
             )
         };
-        record_verdicts(
+        record_verdicts::<Const<THERMOCOUPLES>>(
             &mut state.outputs.sensors,
             &report.verdicts,
             &z.map(|z| z.is_some()),

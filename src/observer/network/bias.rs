@@ -11,7 +11,10 @@
 //! roots, which [`shared_in_tables`] reads back from the tables alone (a
 //! generated module needs no extra field to know its layout).
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, U1};
+
+use crate::sizes::Length;
 
 use crate::network::ScalarResistance;
 
@@ -184,30 +187,43 @@ pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
 /// does not change between passes (each pass formed it again: `X M + M^2`
 /// adds, about 1 000 instructions of the three-phase reading tick on the
 /// M4F).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct SharedColumn<const X: usize> {
+#[derive(Debug, Clone)]
+pub(crate) struct SharedColumn<X: Dim>
+where
+    DefaultAllocator: Allocator<X>,
+{
     /// `Cov(x_i, S)` (in each state's unit times W).
-    cov_with_sum: SVector<f32, X>,
+    cov_with_sum: OVector<f32, X>,
     /// `Var(S)` \[W^2\].
     var_w2: f32,
 }
 
-impl<const X: usize> SharedColumn<X> {
-    /// The column of the shared biases `shared` (at `N + m`) under `cov`.
-    pub(crate) fn of<const N: usize, const M: usize>(
-        cov: &SMatrix<f32, X, X>,
-        shared: &[bool; M],
+impl<X: Dim> SharedColumn<X>
+where
+    DefaultAllocator: Allocator<X, X> + Allocator<X>,
+{
+    /// The column of the shared biases `shared` (at `n + m`) under `cov`.
+    ///
+    /// Generic over the sources' length `M` (not a slice): at a `Const`
+    /// size the loops have a constant bound, which the Cortex-M0 build
+    /// unrolls into less code than a run-time bound's loops.
+    pub(crate) fn of<M: Length>(
+        cov: &OMatrix<f32, X, X>,
+        n: usize,
+        shared: &M::Array<bool>,
     ) -> Self {
         let mut var_w2 = 0.0f32;
-        for a in (0..M).filter(|a| shared[*a]) {
-            for b in (0..M).filter(|b| shared[*b]) {
-                var_w2 += cov.get((N + a, N + b)).copied().unwrap_or(0.0);
+        let shared = shared.as_ref();
+        let m_all = shared.len();
+        for a in (0..m_all).filter(|a| shared[*a]) {
+            for b in (0..m_all).filter(|b| shared[*b]) {
+                var_w2 += cov.get((n + a, n + b)).copied().unwrap_or(0.0);
             }
         }
-        let cov_with_sum = SVector::<f32, X>::from_fn(|i, _| {
+        let cov_with_sum = OVector::<f32, X>::from_fn_generic(cov.shape_generic().0, U1, |i, _| {
             let mut c = 0.0f32;
-            for m in (0..M).filter(|m| shared[*m]) {
-                c += cov.get((i, N + m)).copied().unwrap_or(0.0);
+            for m in (0..m_all).filter(|m| shared[*m]) {
+                c += cov.get((i, n + m)).copied().unwrap_or(0.0);
             }
             c
         });
@@ -226,14 +242,17 @@ impl<const X: usize> SharedColumn<X> {
 /// [`condition_on`](crate::filter::condition_on) on the sum of the shared
 /// biases, which the sensors see as one heat. A non-finite value or sum
 /// leaves `x` as it is. Cost: `X + M` multiply-adds.
-pub(crate) fn condition_shared_sum<const N: usize, const M: usize, const X: usize>(
-    x: &mut SVector<f32, X>,
+pub(crate) fn condition_shared_sum<X: Dim, M: Length>(
+    x: &mut OVector<f32, X>,
+    n: usize,
     column: &SharedColumn<X>,
-    shared: &[bool; M],
-    shares: &[f32; M],
+    shared: &M::Array<bool>,
+    shares: &M::Array<f32>,
     value_w: f32,
-) {
-    let sum_w = shared_sum_w::<N, M, X>(x, shared);
+) where
+    DefaultAllocator: Allocator<X>,
+{
+    let sum_w = shared_sum_w::<X, M>(x, n, shared);
     if !(sum_w.is_finite() && value_w.is_finite()) {
         return;
     }
@@ -243,31 +262,43 @@ pub(crate) fn condition_shared_sum<const N: usize, const M: usize, const X: usiz
             *xi -= c * shift;
         }
     }
-    set_shared::<N, M, X>(x, shared, shares, value_w);
+    set_shared::<X, M>(x, n, shared, shares, value_w);
 }
 
 /// The sum of the shared biases \[W\].
-pub(crate) fn shared_sum_w<const N: usize, const M: usize, const X: usize>(
-    x: &SVector<f32, X>,
-    shared: &[bool; M],
-) -> f32 {
-    (0..M)
+pub(crate) fn shared_sum_w<X: Dim, M: Length>(
+    x: &OVector<f32, X>,
+    n: usize,
+    shared: &M::Array<bool>,
+) -> f32
+where
+    DefaultAllocator: Allocator<X>,
+{
+    let shared = shared.as_ref();
+    (0..shared.len())
         .filter(|m| shared[*m])
-        .map(|m| x.get(N + m).copied().unwrap_or(0.0))
+        .map(|m| x.get(n + m).copied().unwrap_or(0.0))
         .sum()
 }
 
 /// Sets the shared biases (at `N + m`) to `sum_w` \[W\] in the proportions
 /// `shares`.
-pub(crate) fn set_shared<const N: usize, const M: usize, const X: usize>(
-    x: &mut SVector<f32, X>,
-    shared: &[bool; M],
-    shares: &[f32; M],
+pub(crate) fn set_shared<X: Dim, M: Length>(
+    x: &mut OVector<f32, X>,
+    n: usize,
+    shared: &M::Array<bool>,
+    shares: &M::Array<f32>,
     sum_w: f32,
-) {
-    for m in (0..M).filter(|m| shared[*m]) {
-        if let Some(b) = x.get_mut(N + m) {
-            *b = sum_w * shares[m];
+) where
+    DefaultAllocator: Allocator<X>,
+{
+    let (shared, shares) = (shared.as_ref(), shares.as_ref());
+    for (m, share) in shares.iter().enumerate().take(shared.len()) {
+        if !shared[m] {
+            continue;
+        }
+        if let Some(b) = x.get_mut(n + m) {
+            *b = sum_w * share;
         }
     }
 }
@@ -277,30 +308,38 @@ pub(crate) fn set_shared<const N: usize, const M: usize, const X: usize>(
 /// plus [`SHARE_NOMINAL_WEIGHT`] of its nominal power `nominal_w` \[W\]
 /// (which alone decides with no current); the nominal shares when the sum
 /// is not a positive finite number.
-pub(crate) fn present_shares<const M: usize>(
-    shared: &[bool; M],
-    powers_w: &[f32; M],
-    nominal_w: &[f32; M],
-) -> [f32; M] {
+pub(crate) fn present_shares<M: Length>(
+    shared: &M::Array<bool>,
+    powers_w: &M::Array<f32>,
+    nominal_w: &M::Array<f32>,
+) -> M::Array<f32> {
+    let (shared, powers, nominal_of) = (shared.as_ref(), powers_w.as_ref(), nominal_w.as_ref());
     let weight = |m: usize, floor: f32| {
         if shared[m] {
-            powers_w[m].abs() + floor * nominal_w[m]
+            powers[m].abs() + floor * nominal_of[m]
         } else {
             0.0
         }
     };
-    let total: f32 = (0..M).map(|m| weight(m, SHARE_NOMINAL_WEIGHT)).sum();
+    let sources = 0..shared.len();
+    let total: f32 = sources
+        .clone()
+        .map(|m| weight(m, SHARE_NOMINAL_WEIGHT))
+        .sum();
+    let mut shares = M::filled_like(powers_w, 0.0);
     if total.is_finite() && total > 0.0 {
-        return core::array::from_fn(|m| weight(m, SHARE_NOMINAL_WEIGHT) / total);
-    }
-    let nominal: f32 = (0..M).filter(|m| shared[*m]).map(|m| nominal_w[m]).sum();
-    core::array::from_fn(|m| {
-        if shared[m] && nominal > 0.0 {
-            nominal_w[m] / nominal
-        } else {
-            0.0
+        for (m, share) in shares.as_mut().iter_mut().enumerate() {
+            *share = weight(m, SHARE_NOMINAL_WEIGHT) / total;
         }
-    })
+        return shares;
+    }
+    let nominal: f32 = sources.filter(|m| shared[*m]).map(|m| nominal_of[m]).sum();
+    for (m, share) in shares.as_mut().iter_mut().enumerate() {
+        if shared[m] && nominal > 0.0 {
+            *share = nominal_of[m] / nominal;
+        }
+    }
+    shares
 }
 
 /// The heat-input biases' floors at one set of Joule powers, formed once
@@ -308,45 +347,48 @@ pub(crate) fn present_shares<const M: usize>(
 /// [`NetworkObserver::keep_floors`](super::NetworkObserver)): each own
 /// bias's floor, the shared bias's and the shares it goes back to the
 /// sources in.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct BiasFloors<const M: usize> {
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BiasFloors<M: Length> {
     /// `-fraction |P_m|` \[W\] of each source with a bias of its own
     /// (unread for a shared one).
-    pub own_w: [f32; M],
+    pub own_w: M::Array<f32>,
     /// The shared bias's floor \[W\]: the sum of its sources' (unread
     /// without a shared bias).
     pub shared_w: f32,
     /// The shared heat's present shares ([`present_shares`]); all zero
     /// without a shared bias.
-    pub shares: [f32; M],
+    pub shares: M::Array<f32>,
 }
 
-impl<const M: usize> BiasFloors<M> {
+impl<M: Length> BiasFloors<M> {
     /// The floors at the Joule powers `powers_w` \[W\], taking away at most
     /// `cooling_fraction` of each source's power; `shared` and
     /// `nominal_w` \[W\] as [`present_shares`] takes them.
     pub(crate) fn at(
-        powers_w: &[f32; M],
+        powers_w: &M::Array<f32>,
         cooling_fraction: f32,
-        shared: &[bool; M],
-        nominal_w: &[f32; M],
+        shared: &M::Array<bool>,
+        nominal_w: &M::Array<f32>,
     ) -> Self {
-        let any_shared = shared.contains(&true);
+        let any_shared = shared.as_ref().contains(&true);
         Self {
-            own_w: powers_w.map(|p| -cooling_fraction * p.abs()),
+            own_w: M::mapped(powers_w, |p| -cooling_fraction * p.abs()),
             shared_w: if any_shared {
                 -cooling_fraction
-                    * (0..M)
-                        .filter(|m| shared[*m])
-                        .map(|m| powers_w[m].abs())
+                    * shared
+                        .as_ref()
+                        .iter()
+                        .zip(powers_w.as_ref())
+                        .filter(|(shared, _)| **shared)
+                        .map(|(_, p)| p.abs())
                         .sum::<f32>()
             } else {
                 0.0
             },
             shares: if any_shared {
-                present_shares(shared, powers_w, nominal_w)
+                present_shares::<M>(shared, powers_w, nominal_w)
             } else {
-                [0.0; M]
+                M::filled_like(powers_w, 0.0)
             },
         }
     }
