@@ -55,7 +55,7 @@ pub use grid::{
     PROTECTION_TICKS,
 };
 pub use network::{
-    NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverOf,
+    NetworkInputs, NetworkInputsOf, NetworkObserver, NetworkObserverBuilder, NetworkObserverOf,
     NetworkObserverState, NetworkObserverStateOf, NetworkOutputs, NetworkSettings,
     ObserverAllocator,
 };

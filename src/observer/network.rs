@@ -748,21 +748,36 @@ impl Default for NetworkSettings {
     }
 }
 
-/// The inputs of one tick.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NetworkInputs<const B: usize, const M: usize, const P: usize> {
+/// The inputs of one tick, for `B` boundaries, `M` currents and `P`
+/// sensors, each a dimension (`Const` on an MCU: [`NetworkInputs`], `Copy`
+/// there).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NetworkInputsOf<B: Length, M: Length, P: Length> {
     /// Currents \[A\]; NaN holds the last valid one, beyond the input limits
     /// they are clamped (both flagged).
-    pub currents_a: [f32; M],
+    pub currents_a: M::Array<f32>,
     /// Boundary temperatures \[degC\]; an invalid one holds the last valid.
-    pub boundary_c: [f32; B],
+    pub boundary_c: B::Array<f32>,
     /// Fresh readings, one slot per sensor (the builder's `sensor_nodes`).
-    pub readings: [Option<TimedReading>; P],
+    pub readings: P::Array<Option<TimedReading>>,
     /// Now, on the readings' microsecond clock \[us\] (wrapping).
     pub now_us: u32,
     /// Measured time since the previous tick \[us\].
     pub elapsed_us: u32,
 }
+
+impl<B: Length, M: Length, P: Length> Copy for NetworkInputsOf<B, M, P>
+where
+    B::Array<f32>: Copy,
+    M::Array<f32>: Copy,
+    P::Array<Option<TimedReading>>: Copy,
+{
+}
+
+/// The inputs of one tick of a network of `B` boundaries and `M` currents
+/// with `P` sensors, on an MCU.
+pub type NetworkInputs<const B: usize, const M: usize, const P: usize> =
+    NetworkInputsOf<Const<B>, Const<M>, Const<P>>;
 
 /// What one tick produced (`Copy`, for [`Shared`](super::Shared)): the
 /// filtered observers' outputs, a time to limit for every node.
@@ -2222,13 +2237,12 @@ where
     }
 }
 
-impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
-    NetworkObserver<N, B, M, X, P>
+/// The state and the tick, written once for every size.
+impl<Z: Sizes, X: Length, P: Length> NetworkObserverOf<Z, X, P>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+    NodeVector<Z, Option<f32>>: KeptAnswers + Answers<f32, Z::NodeDim>,
 {
-    fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
-        Self::from_parts_with_sensors(&b.parts()?, &b.sensor_kinds)
-    }
-
     /// The configuration fingerprint that snapshots carry.
     pub fn fingerprint(&self) -> u32 {
         self.fingerprint
@@ -2240,23 +2254,28 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// Which currents each element's limit derates (`[i][m]`).
-    pub fn incidence(&self) -> &[[bool; M]; N] {
+    pub fn incidence(&self) -> &NodeVector<Z, InputVector<Z, bool>> {
         &self.incidence
     }
 
     /// Each node's protective upper bound.
-    pub fn upper_bound(&self) -> &UpperBound<f32, Const<N>> {
+    pub fn upper_bound(&self) -> &UpperBound<f32, Z::NodeDim> {
         &self.bound
     }
 
     /// The steady-state gain in use (`f32`, solved in `f64`).
-    pub fn gain(&self) -> &SteadyStateGain<f32, Const<X>, Const<P>> {
+    pub fn gain(&self) -> &SteadyStateGain<f32, X, P> {
         &self.gain
     }
 
     /// The alarm configuration (per-element limits at an ambient).
-    pub fn alarm(&self) -> &AlarmConfig<f32, Const<N>> {
+    pub fn alarm(&self) -> &AlarmConfig<f32, Z::NodeDim> {
         &self.alarm
+    }
+
+    /// The network's sizes (nodes, boundaries, currents).
+    pub fn sizes(&self) -> Z {
+        self.predictor.sizes
     }
 
     /// A state with every node at `temps_c` \[degC\], zero biases, the
@@ -2264,81 +2283,85 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// valid from the first tick. It runs no warm-up ([`NoWarmUp`]): the
     /// steady gain from the first correction, and its ticks link none of
     /// the warm-up's code. [`Self::with_warm_up`] gives it the flavour of
-    /// [`Self::start`]'s states, with the configured warm-up
-    /// ([`NetworkSettings::warmup_corrections`]) if any.
+    /// [`Self::start`](NetworkObserver::start)'s states, with the
+    /// configured warm-up ([`NetworkSettings::warmup_corrections`]) if any.
     pub fn state(
         &self,
-        temps_c: &[f32; N],
-        boundary_c: &[f32; B],
-    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
-        let mut x = SVector::<f32, X>::zeros();
-        for (i, t) in temps_c.iter().enumerate() {
-            x[i] = *t - self.origin_c;
+        temps_c: &NodeVector<Z, f32>,
+        boundary_c: &BoundaryVector<Z, f32>,
+    ) -> NetworkObserverStateOf<Z, X, P, NoWarmUp> {
+        let sizes = self.sizes();
+        let (states, _) = self.gain.prior().shape_generic();
+        let (_, sensors) = self.gain.prior_ht().shape_generic();
+        let mut x = OVector::<f32, X>::zeros_generic(states, U1);
+        for (x, t) in x.iter_mut().zip(temps_c.as_ref()) {
+            *x = *t - self.origin_c;
         }
-        let mut held_boundary_c = [self.origin_c; B];
+        let mut held_boundary_c = sizes.boundaries_of(self.origin_c);
         let _ = self
             .limits
-            .accept_temperatures(boundary_c, &mut held_boundary_c);
+            .accept_temperatures(boundary_c.as_ref(), held_boundary_c.as_mut());
         let ambient_c = self.ambient(&held_boundary_c);
-        let mut mean_limits = AmbientLimits::new(Const::<N>);
+        let mut mean_limits = AmbientLimits::new(sizes.node_dim());
         let op = self.operating(
             &mut mean_limits,
             temps_c,
-            &[0.0; M],
+            &sizes.inputs_of(0.0),
             &held_boundary_c,
             ambient_c,
         );
-        let mut state = NetworkObserverState {
-            estimate: SteadyEstimate::new(x),
-            residual_k: [0.0; N],
+        let shadow_dev_k = sizes.node_dim().each(|i| x[i]);
+        let mut state = NetworkObserverStateOf {
+            estimate: SteadyEstimate::for_sensors(x, sensors),
+            residual_k: sizes.nodes_of(0.0),
             #[cfg(feature = "integer-step")]
             integer: if self.integer_step.is_some() {
-                StepMemory::unread(Const::<N>)
+                StepMemory::unread(sizes.node_dim())
             } else {
-                StepMemory::new(Const::<N>)
+                StepMemory::new(sizes.node_dim())
             },
             alarm: AlarmState::new(&self.alarm),
             predictor: PredictorState::new(&self.predictor, &op),
             mean_limits,
-            alarm_limits: KeptAlarmLimits::new(Const::<N>),
+            alarm_limits: KeptAlarmLimits::new(sizes.node_dim()),
             clock: ClockState::default(),
             events: EventQueue::new(),
-            held_currents_a: [0.0; M],
+            held_currents_a: sizes.inputs_of(0.0),
             held_boundary_c,
             // With a step several ticks long, the stages wait out a step's
             // tick, its shadow block's, a reading's and (with the integer
             // step) the reading's move into its states (see "Model step and
             // ticks").
-            cycle: ProtectionCycle::new(Const::<M>).with_busy_waits(
+            cycle: ProtectionCycle::new(sizes.input_dim()).with_busy_waits(
                 if self.step_us > self.loop_period_us {
                     3 + u8::from(self.steps_in_integers()) + u8::from(self.corrects_in_two_ticks())
                 } else {
                     0
                 },
             ),
-            shadow: ShadowState::new(&ConstSizes, core::array::from_fn(|i| x[i])),
+            shadow: ShadowState::new(&sizes, shadow_dev_k),
             warm: NoWarmUp,
             warmup_left: 0,
             bias_steps: 0,
             period_decay: self.decay_factors(self.gain.period),
             warmup_until_steady: false,
-            step_account: StepAccount::new(Const::<M>),
+            step_account: StepAccount::new(sizes.input_dim()),
             shadow_waiting_block: None,
             #[cfg(not(target_abi = "eabihf"))]
             floors_due: None,
             predictor_half: HalfElement::new(),
-            stuck: StuckWatch::new(Const),
-            rewind: StuckRewind::new(Const, Const),
-            drift: DriftHold::new(Const),
-            suspect: Suspicion::new(Const),
-            silence: SilenceWatch::new(Const),
-            outputs: NetworkOutputs {
-                temps_c: *temps_c,
-                upper_c: *temps_c,
-                limits: [CoilLimit::default(); M],
-                time_to_limit_s: [None; N],
+            stuck: StuckWatch::new(sensors),
+            rewind: StuckRewind::new(sensors, sizes.input_dim()),
+            drift: DriftHold::new(sensors),
+            suspect: Suspicion::new(sensors),
+            silence: SilenceWatch::new(sensors),
+            outputs: FilteredOutputs {
+                temps_c: temps_c.clone(),
+                upper_c: temps_c.clone(),
+                limits: sizes.inputs_of(CoilLimit::default()),
+                time_to_limit_s: sizes.nodes_of(None),
                 alarm: AlarmStatus::default(),
-                sensors: [SensorStatus::NoReading; P],
+                sensors: sensors.filled(SensorStatus::NoReading),
                 corrected: false,
                 flags: InputFlags::NONE,
                 steps: 0,
@@ -2356,16 +2379,17 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 
     /// `state` in the flavour that can run the time-varying warm-up
-    /// ([`WarmUp`], what [`Self::start`] returns: one type for a firmware
-    /// that restores a snapshot and falls back to a start), with the
-    /// configured warm-up armed: [`NetworkSettings::warmup_corrections`]
-    /// corrections from the steady prior widened by the recovery variances
-    /// (none at the default 0: it then ticks as `state` would, to the bit).
+    /// ([`WarmUp`], what [`Self::start`](NetworkObserver::start) returns:
+    /// one type for a firmware that restores a snapshot and falls back to
+    /// a start), with the configured warm-up armed:
+    /// [`NetworkSettings::warmup_corrections`] corrections from the steady
+    /// prior widened by the recovery variances (none at the default 0: it
+    /// then ticks as `state` would, to the bit).
     pub fn with_warm_up(
         &self,
-        state: NetworkObserverState<N, B, M, X, P, NoWarmUp>,
-    ) -> NetworkObserverState<N, B, M, X, P> {
-        let mut cov = *self.gain.prior();
+        state: NetworkObserverStateOf<Z, X, P, NoWarmUp>,
+    ) -> NetworkObserverStateOf<Z, X, P> {
+        let mut cov = self.gain.prior().clone();
         for (i, v) in self.kalman.recovery_variance.iter().enumerate() {
             cov[(i, i)] += *v;
         }
@@ -2374,32 +2398,34 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         state
     }
 
-    /// The estimated temperature of every node \[degC\] now.
-    pub fn temps_c<W: WarmUpKind<X>>(
-        &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
-    ) -> [f32; N] {
-        core::array::from_fn(|i| self.origin_c + state.estimate.x[i])
-    }
-
     /// The estimated offset of the boundary with an offset state
     /// ([`NetworkSettings::boundary_offset`]) \[K\], `>= 0` after every
     /// correction (with [`NetworkSettings::correction_in_two_ticks`], after
     /// its second tick); `None` without one.
-    pub fn boundary_offset_k<W: WarmUpKind<X>>(
+    pub fn boundary_offset_k<W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
+        state: &NetworkObserverStateOf<Z, X, P, W>,
     ) -> Option<f32> {
-        self.offset_boundary
-            .and_then(|_| state.estimate.x.get(N + M).copied())
+        let sizes = self.sizes();
+        self.offset_boundary.and_then(|_| {
+            state
+                .estimate
+                .x
+                .get(sizes.nodes() + sizes.inputs())
+                .copied()
+        })
     }
 
     /// The estimated heat-input bias of each current \[W\].
-    pub fn heat_bias_w<W: WarmUpKind<X>>(
+    pub fn heat_bias_w<W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
-    ) -> [f32; M] {
-        core::array::from_fn(|m| state.estimate.x[N + m])
+        state: &NetworkObserverStateOf<Z, X, P, W>,
+    ) -> InputVector<Z, f32> {
+        let sizes = self.sizes();
+        let first = sizes.nodes();
+        sizes
+            .input_dim()
+            .each(|m| state.estimate.x.get(first + m).copied().unwrap_or(f32::NAN))
     }
 
     /// Whether a correction takes two ticks
@@ -2421,15 +2447,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         false
     }
 
+    /// The estimated temperature of every node \[degC\] now.
+    pub fn temps_c<W: Flavour<OMatrix<f32, X, X>>>(
+        &self,
+        state: &NetworkObserverStateOf<Z, X, P, W>,
+    ) -> NodeVector<Z, f32> {
+        Z::NodeDim::from_usize(self.limited.as_ref().len())
+            .each(|i| self.origin_c + state.estimate.x[i])
+    }
+
     /// One controller tick: model steps from the elapsed time (each a filter
     /// predict), a correction if readings arrived, then at most one stage of
     /// the protection cycle. Bounded (`max_steps_per_tick` steps, one
     /// correction, one stage), allocation-free, panic-free.
-    pub fn tick<'s, W: WarmUpKind<X>>(
+    pub fn tick<'s, W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &'s mut NetworkObserverState<N, B, M, X, P, W>,
-        inputs: &NetworkInputs<B, M, P>,
-    ) -> &'s NetworkOutputs<N, M, P> {
+        state: &'s mut NetworkObserverStateOf<Z, X, P, W>,
+        inputs: &NetworkInputsOf<Z::BoundaryDim, Z::InputDim, P>,
+    ) -> &'s FilteredOutputs<Z::NodeDim, Z::InputDim, Z::NodeDim, P> {
         let debt_before_us = state.clock.debt_us;
         let steps = self.clock.advance(&mut state.clock, inputs.elapsed_us);
         if steps.clock_lost {
@@ -2457,10 +2492,10 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
                 .moves(debt_before_us, &inputs.currents_a, &state.held_currents_a);
         flags |= self
             .limits
-            .accept_currents(&inputs.currents_a, &mut state.held_currents_a);
+            .accept_currents(inputs.currents_a.as_ref(), state.held_currents_a.as_mut());
         flags |= self
             .limits
-            .accept_temperatures(&inputs.boundary_c, &mut state.held_boundary_c);
+            .accept_temperatures(inputs.boundary_c.as_ref(), state.held_boundary_c.as_mut());
         // Each step heats with the mean `I^2` of the time it covers when
         // the held currents changed within it (see "Model step and ticks"
         // in the module docs): a jittering tick or a step several ticks
@@ -2495,7 +2530,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         // Only a step or a reading (a correction) moves the estimate; a
         // correction in two ticks publishes it on its second.
         let unfinished = state.correction_unfinished();
-        if (steps.steps > 0 || floors_ran || inputs.readings.iter().any(Option::is_some))
+        if (steps.steps > 0 || floors_ran || inputs.readings.as_ref().iter().any(Option::is_some))
             && !unfinished
         {
             state.outputs.temps_c = self.temps_c(state);
@@ -2532,20 +2567,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// inputs take `inputs.currents_a` as measured. Bounded, allocation-free,
     /// panic-free: one square root and one division per driven input more
     /// than [`tick`](Self::tick), which it then calls.
-    pub fn tick_voltage<'s, W: WarmUpKind<X>>(
+    pub fn tick_voltage<'s, W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &'s mut NetworkObserverState<N, B, M, X, P, W>,
-        inputs: &NetworkInputs<B, M, P>,
-        drives: &[Option<VoltageDrive>; M],
-    ) -> (&'s NetworkOutputs<N, M, P>, DriveFlags) {
+        state: &'s mut NetworkObserverStateOf<Z, X, P, W>,
+        inputs: &NetworkInputsOf<Z::BoundaryDim, Z::InputDim, P>,
+        drives: &InputVector<Z, Option<VoltageDrive>>,
+    ) -> (
+        &'s FilteredOutputs<Z::NodeDim, Z::InputDim, Z::NodeDim, P>,
+        DriveFlags,
+    ) {
         let mut flags = DriveFlags::NONE;
-        let mut driven = *inputs;
+        let mut driven = inputs.clone();
         for (((current, drive), node), r) in driven
             .currents_a
+            .as_mut()
             .iter_mut()
-            .zip(drives)
-            .zip(&self.source_node)
-            .zip(&self.resistance)
+            .zip(drives.as_ref())
+            .zip(self.source_node.as_ref())
+            .zip(self.resistance.as_ref())
         {
             if let Some(drive) = drive {
                 let (v_eff, f) = drive.effective_v();
@@ -2567,24 +2606,32 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// [`crate::protect::limiter::drive_limit`]: an invalid supply gives
     /// duty zero, flagged). Call after a tick; `O(1)`, panic-free; an input
     /// out of range gets a zero limit.
-    pub fn drive_limit<W: WarmUpKind<X>>(
+    pub fn drive_limit<W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
+        state: &NetworkObserverStateOf<Z, X, P, W>,
         input: usize,
         supply_v: f32,
     ) -> DriveLimit {
         let out = &state.outputs;
         match (
-            out.limits.get(input),
-            self.resistance.get(input),
-            self.source_node.get(input),
+            out.limits.as_ref().get(input),
+            self.resistance.as_ref().get(input),
+            self.source_node.as_ref().get(input),
         ) {
             (Some(limit), Some(r), Some(node)) => {
-                let t = out.temps_c.get(*node).copied().unwrap_or(f32::NAN);
+                let t = out.temps_c.as_ref().get(*node).copied().unwrap_or(f32::NAN);
                 drive_limit(limit, r.line_ohm(t - self.origin_c), supply_v)
             }
             _ => DriveLimit::default(),
         }
+    }
+}
+
+impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
+    NetworkObserver<N, B, M, X, P>
+{
+    fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
+        Self::from_parts_with_sensors(&b.parts()?, &b.sensor_kinds)
     }
 
     /// Writes a snapshot of the node estimates \[degC\] and the latched
