@@ -457,7 +457,7 @@
 use crate::sizes::{
     BoundaryVector, ConstSizes, InputVector, Length, NetworkAllocator, NodeVector, Sizes,
 };
-use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, U1};
 
 use super::clock::{step_square_currents, ClockState, StepAccount, StepClock};
 use bias::{
@@ -489,7 +489,10 @@ use crate::filter::{
 };
 use crate::input::{DriveFlags, VoltageDrive};
 use crate::input::{InputFlags, ScalarLimits};
-use crate::network::{compensated_add, DeviationResistance, Network, ScalarResistance};
+use crate::network::{
+    compensated_add, state_space_of, DeviationResistance, Network, NetworkDescription,
+    ScalarResistance,
+};
 use crate::protect::alarm::{AlarmConfig, AlarmState, AlarmStatus, ResetError};
 use crate::protect::derating::DeratingRule;
 use crate::protect::events::EventQueue;
@@ -2870,19 +2873,26 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     }
 }
 
-/// The discretised network in the observer's coordinates.
-struct Model<const N: usize, const B: usize, const M: usize> {
+/// The discretised network in the observer's coordinates, over the
+/// network's [`Sizes`] `Z` (a [`Network`]'s or one read at run time).
+struct ModelOf<Z: Sizes>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     dt_s: f64,
-    ad: SMatrix<f64, N, N>,
-    bd_power_f64: SMatrix<f64, N, M>,
-    gd_boundary_f64: SMatrix<f64, N, B>,
-    phi_minus_i: SMatrix<f32, N, N>,
-    bd_power: SMatrix<f32, N, M>,
-    gd_boundary: SMatrix<f32, N, B>,
-    constant_k: SVector<f32, N>,
-    source_node: [usize; M],
-    resistance: [ScalarResistance<f32>; M],
+    ad: OMatrix<f64, Z::NodeDim, Z::NodeDim>,
+    bd_power_f64: OMatrix<f64, Z::NodeDim, Z::InputDim>,
+    gd_boundary_f64: OMatrix<f64, Z::NodeDim, Z::BoundaryDim>,
+    phi_minus_i: OMatrix<f32, Z::NodeDim, Z::NodeDim>,
+    bd_power: OMatrix<f32, Z::NodeDim, Z::InputDim>,
+    gd_boundary: OMatrix<f32, Z::NodeDim, Z::BoundaryDim>,
+    constant_k: OVector<f32, Z::NodeDim>,
+    source_node: InputVector<Z, usize>,
+    resistance: InputVector<Z, ScalarResistance<f32>>,
 }
+
+/// [`ModelOf`] a [`Network`] of const sizes.
+type Model<const N: usize, const B: usize, const M: usize> = ModelOf<ConstSizes<N, B, M>>;
 
 /// The network observer's protection stages; the cycle's rules are
 /// [`ProtectionStages::run_due`]'s.
@@ -2970,41 +2980,58 @@ impl<N> NoneKept<N> {
     }
 }
 
-impl<const N: usize, const B: usize, const M: usize> Model<N, B, M> {
+impl<Z: Sizes> ModelOf<Z>
+where
+    DefaultAllocator: NetworkAllocator<Z>,
+{
     #[inline(never)]
-    fn build(network: &Network<N, B, M>, dt_s: f64, origin_c: f64) -> Result<Self, BuildError> {
-        let d = zoh(&network.state_space(&[origin_c; N]), dt_s)?;
-        let phi_minus_i = d.ad - SMatrix::<f64, N, N>::identity();
+    fn build<W: NetworkDescription<Sizes = Z>>(
+        network: &W,
+        dt_s: f64,
+        origin_c: f64,
+    ) -> Result<Self, BuildError> {
+        let sizes = network.sizes();
+        let (nodes, boundaries) = (sizes.node_dim(), sizes.boundary_dim());
+        let d = zoh(&state_space_of(network, &sizes.nodes_of(origin_c)), dt_s)?;
+        let phi_minus_i =
+            &d.ad - OMatrix::<f64, Z::NodeDim, Z::NodeDim>::identity_generic(nodes, nodes);
         // T' = Ad T + Bd p + Gd T_b + dd with T = T_0 + x, T_b = T_0 + y:
         // x' - x = (Ad - I) x + Bd p + Gd y + [dd + (Ad - I) T_0 + Gd T_0],
         // the bracket (zero for a network without fixed power) in f64.
-        let origin = SVector::<f64, N>::repeat(origin_c);
-        let constant =
-            d.dd + phi_minus_i * origin + d.gd_boundary * SVector::<f64, B>::repeat(origin_c);
-        let mut source_node = [0; M];
-        let mut resistance = [crate::network::Resistance::constant(0.0).to_scalar(); M];
-        for m in 0..M {
+        let origin = OVector::<f64, Z::NodeDim>::from_element_generic(nodes, U1, origin_c);
+        let boundary_origin =
+            OVector::<f64, Z::BoundaryDim>::from_element_generic(boundaries, U1, origin_c);
+        let constant = &d.dd + &phi_minus_i * origin + &d.gd_boundary * boundary_origin;
+        let mut source_node = sizes.inputs_of(0);
+        let mut resistance = sizes.inputs_of(crate::network::Resistance::constant(0.0).to_scalar());
+        for (m, (node, r)) in source_node
+            .as_mut()
+            .iter_mut()
+            .zip(resistance.as_mut())
+            .enumerate()
+        {
             let source = network
-                .source(m)
+                .joule_source_of(m)
                 .ok_or(BuildError::MissingSource { input: m })?;
-            source_node[m] = source.node;
-            resistance[m] = source.resistance.to_scalar();
+            *node = source.node;
+            *r = source.resistance.to_scalar();
         }
         Ok(Self {
             dt_s,
+            phi_minus_i: phi_minus_i.cast(),
+            bd_power: d.bd_power.clone().cast(),
+            gd_boundary: d.gd_boundary.clone().cast(),
+            constant_k: constant.cast(),
             ad: d.ad,
             bd_power_f64: d.bd_power,
             gd_boundary_f64: d.gd_boundary,
-            phi_minus_i: phi_minus_i.cast(),
-            bd_power: d.bd_power.cast(),
-            gd_boundary: d.gd_boundary.cast(),
-            constant_k: constant.cast(),
             source_node,
             resistance,
         })
     }
 }
 
+mod assemble;
 mod bias;
 mod parts;
 pub mod resistance;

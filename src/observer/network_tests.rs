@@ -6,6 +6,7 @@
 use super::*;
 use crate::network::Resistance;
 use crate::sensors::{Reading, SensorFault};
+use nalgebra::SVector;
 
 /// Winding (0), housing (1), heatsink (2), ambient (boundary 0), one
 /// current: the module docs' device with a winding that takes 8 A.

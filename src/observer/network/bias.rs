@@ -12,7 +12,7 @@
 //! generated module needs no extra field to know its layout).
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 use crate::sizes::Length;
 
@@ -51,22 +51,23 @@ pub enum BiasMode<const M: usize> {
 /// follows the present power within a fraction of a percent.
 pub(crate) const SHARE_NOMINAL_WEIGHT: f32 = 1e-4;
 
-/// The layout of the heat-input biases (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct BiasLayout<const M: usize> {
+/// The layout of the heat-input biases (see the module docs), over the
+/// sources' dimension `M`.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BiasLayout<M: Length> {
     /// Source `m` carries a bias (its own or a share of the shared one).
-    pub(crate) biased: [bool; M],
+    pub(crate) biased: M::Array<bool>,
     /// Source `m`'s nominal share of the shared bias (dimensionless; the
     /// shared sources' sum to 1, 0 for every other source).
-    pub(crate) share: [f64; M],
+    pub(crate) share: M::Array<f64>,
 }
 
-impl<const M: usize> BiasLayout<M> {
+impl<M: Length> BiasLayout<M> {
     /// A bias per source in `biased`, none shared.
-    pub(crate) fn per_source(biased: [bool; M]) -> Self {
+    pub(crate) fn per_source(biased: M::Array<bool>) -> Self {
         Self {
+            share: M::filled_like(&biased, 0.0),
             biased,
-            share: [0.0; M],
         }
     }
 
@@ -74,27 +75,33 @@ impl<const M: usize> BiasLayout<M> {
     /// their nominal powers `nominal_w` \[W\]; a source of the mask with no
     /// nominal power carries no heat and gets no bias. `None` when fewer
     /// than two sources would share it (nothing to share: per source).
-    pub(crate) fn shared(biased: [bool; M], mask: [bool; M], nominal_w: &[f64; M]) -> Option<Self> {
-        let member = |m: usize| biased[m] && mask[m];
-        let sharing = (0..M).filter(|m| member(*m) && nominal_w[*m] > 0.0).count();
+    pub(crate) fn shared(
+        biased: M::Array<bool>,
+        mask: &M::Array<bool>,
+        nominal_w: &M::Array<f64>,
+    ) -> Option<Self> {
+        let (mask, nominal_w) = (mask.as_ref(), nominal_w.as_ref());
+        let member = |m: usize| biased.as_ref()[m] && mask[m];
+        let sources = biased.as_ref().len();
+        let sharing = (0..sources)
+            .filter(|m| member(*m) && nominal_w[*m] > 0.0)
+            .count();
         if sharing < 2 {
             return None;
         }
-        let total: f64 = (0..M)
+        let total: f64 = (0..sources)
             .filter(|m| member(*m) && nominal_w[*m] > 0.0)
             .map(|m| nominal_w[m])
             .sum();
         if !(total.is_finite() && total > 0.0) {
             return None;
         }
-        let mut layout = Self::per_source(biased);
-        for m in 0..M {
-            if member(m) {
-                if nominal_w[m] > 0.0 {
-                    layout.share[m] = nominal_w[m] / total;
-                } else {
-                    layout.biased[m] = false;
-                }
+        let mut layout = Self::per_source(biased.clone());
+        for m in (0..sources).filter(|m| member(*m)) {
+            if nominal_w[m] > 0.0 {
+                layout.share.as_mut()[m] = nominal_w[m] / total;
+            } else {
+                layout.biased.as_mut()[m] = false;
             }
         }
         Some(layout)
@@ -102,18 +109,33 @@ impl<const M: usize> BiasLayout<M> {
 
     /// Whether source `m` is in the shared bias.
     pub(crate) fn is_shared(&self, m: usize) -> bool {
-        self.share.get(m).is_some_and(|s| *s > 0.0)
+        self.share.as_ref().get(m).is_some_and(|s| *s > 0.0)
+    }
+
+    /// Whether source `m` carries a bias.
+    pub(crate) fn is_biased(&self, m: usize) -> bool {
+        self.biased.as_ref().get(m).copied().unwrap_or(false)
+    }
+
+    /// Source `m`'s nominal share of the shared bias (0 out of range).
+    pub(crate) fn share_of(&self, m: usize) -> f64 {
+        self.share.as_ref().get(m).copied().unwrap_or(0.0)
+    }
+
+    /// The number of sources.
+    pub(crate) fn sources(&self) -> usize {
+        self.share.as_ref().len()
     }
 
     /// The shared sources.
-    pub(crate) fn shared_mask(&self) -> [bool; M] {
-        core::array::from_fn(|m| self.is_shared(m))
+    pub(crate) fn shared_mask(&self) -> M::Array<bool> {
+        M::mapped(&self.share, |s| *s > 0.0)
     }
 
     /// The first shared source: the slot that carries the shared bias in
     /// the reduced coordinates of the gain solve (`None`: none shared).
     pub(crate) fn lead(&self) -> Option<usize> {
-        (0..M).find(|m| self.is_shared(*m))
+        (0..self.sources()).find(|m| self.is_shared(*m))
     }
 }
 
@@ -122,63 +144,76 @@ impl<const M: usize> BiasLayout<M> {
 /// `f64` from the tables' `f32` resistance so that the build and
 /// [`NetworkObserver::from_parts`](super::NetworkObserver::from_parts)
 /// find the same shares to the bit.
-pub(crate) fn nominal_powers_w<const M: usize>(
-    limit_a: &[f64; M],
-    resistance: &[ScalarResistance<f32>; M],
+pub(crate) fn nominal_powers_w<M: Length>(
+    limit_a: &M::Array<f64>,
+    resistance: &M::Array<ScalarResistance<f32>>,
     origin_c: f64,
-) -> [f64; M] {
-    core::array::from_fn(|m| {
-        let r = resistance[m];
+) -> M::Array<f64> {
+    let mut nominal_w = M::mapped(limit_a, |_| 0.0);
+    for ((p, limit_a), r) in nominal_w
+        .as_mut()
+        .iter_mut()
+        .zip(limit_a.as_ref())
+        .zip(resistance.as_ref())
+    {
         let ohm = f64::from(r.r_at_0c_ohm) + f64::from(r.slope_ohm_per_k) * origin_c;
-        let p = ohm.max(0.0) * limit_a[m] * limit_a[m];
-        if p.is_finite() {
-            p
-        } else {
-            0.0
-        }
-    })
+        let power = ohm.max(0.0) * limit_a * limit_a;
+        *p = if power.is_finite() { power } else { 0.0 };
+    }
+    nominal_w
 }
 
-/// Writes the shared sources' block of a steady covariance (`f32`, biases
-/// at `N + m`) as the exact outer product `s_a s_b` of `s_m`, the `f32`
-/// square root of its `f64` diagonal `diag_w2[m]` \[W^2\]: the mark that
-/// [`shared_in_tables`] reads (`sqrtf(fl(s s)) == s` for a correctly
-/// rounded square root in binary floating point).
-pub(crate) fn tie_block<const N: usize, const M: usize, const X: usize>(
-    cov: &mut SMatrix<f32, X, X>,
-    diag_w2: &[f64; M],
-    shared: &[bool; M],
-) {
-    let s: [f32; M] = core::array::from_fn(|m| libm::sqrt(diag_w2[m].max(0.0)) as f32);
-    for a in (0..M).filter(|a| shared[*a]) {
-        for b in (0..M).filter(|b| shared[*b]) {
-            cov[(N + a, N + b)] = s[a] * s[b];
+/// Ties the shared sources' block of `cov` (biases from state `first`) to
+/// rank one: `s_a s_b` from the `f64` diagonal `diag_w2` \[W^2\], so that
+/// the tables say which biases share one (see [`shared_in_prior`]).
+pub(crate) fn tie_block<X: Dim>(
+    cov: &mut OMatrix<f32, X, X>,
+    first: usize,
+    diag_w2: &[f64],
+    shared: &[bool],
+) where
+    DefaultAllocator: Allocator<X, X>,
+{
+    let sd = |m: usize| libm::sqrt(diag_w2[m].max(0.0)) as f32;
+    for a in (0..shared.len()).filter(|a| shared[*a]) {
+        for b in (0..shared.len()).filter(|b| shared[*b]) {
+            cov[(first + a, first + b)] = sd(a) * sd(b);
         }
     }
 }
 
-/// The sources whose biases the steady prior `prior` (biases at `N + m`,
-/// row by row) ties into one shared bias: a positive variance whose
-/// covariance with another source's is exactly the product of their
-/// standard deviations (see [`tie_block`]). A per-source solution is never
-/// tied to the bit unless its biases are correlated to within `f32`
-/// rounding, i.e. already one bias.
-pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
-    prior: &[[f32; X]; X],
-) -> [bool; M] {
+/// The sources whose biases the steady prior ties into one shared bias
+/// (the prior's entry `(i, j)` from `prior`, the biases at `first + m`): a
+/// positive variance whose covariance with another source's is exactly
+/// the product of their standard deviations (see [`tie_block`]). A
+/// per-source solution is never tied to the bit unless its biases are
+/// correlated to within `f32` rounding, i.e. already one bias.
+pub(crate) fn shared_in_prior<M: Length>(
+    sources: M,
+    first: usize,
+    prior: impl Fn(usize, usize) -> f32,
+) -> M::Array<bool> {
+    let count = sources.value();
     let sd = |m: usize| {
-        let v = prior[N + m][N + m];
+        let v = prior(first + m, first + m);
         (v > 0.0 && v.is_finite()).then(|| libm::sqrtf(v))
     };
-    core::array::from_fn(|a| {
+    sources.each(|a| {
         let Some(sa) = sd(a) else { return false };
-        (0..M).any(|b| {
+        (0..count).any(|b| {
             b != a
                 && sd(b).is_some_and(|sb| {
-                    prior[N + a][N + b] == sa * sb && prior[N + b][N + a] == sb * sa
+                    prior(first + a, first + b) == sa * sb && prior(first + b, first + a) == sb * sa
                 })
         })
     })
+}
+
+/// [`shared_in_prior`] of a prior as tables, row by row.
+pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
+    prior: &[[f32; X]; X],
+) -> [bool; M] {
+    shared_in_prior(Const::<M>, N, |i, j| prior[i][j])
 }
 
 /// The shared heat's regression column under a covariance: `Cov(x_i, S)`

@@ -42,24 +42,23 @@
 
 use core::fmt::{self, Write};
 
-use nalgebra::{Const, SMatrix, SVector, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SVector, U1};
 
+use super::assemble::{Solved, StepMatrices};
 use super::bias::{nominal_powers_w, shared_in_tables, tie_block, BiasLayout, BiasMode};
 use super::resistance::Conversion;
 use super::resistance::{check_kinds, sensor_variances_k2, SensorKind};
 use super::{
-    default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
-    PREDICTOR_POINTS,
+    default_incidence, Model, ModelOf, NetworkObserver, NetworkObserverBuilder, NetworkSettings,
+    ObserverAllocator, NO_LIMIT_C, PREDICTOR_POINTS,
 };
 use crate::discretize::fixed::{ConstFixedStep, FixedStep};
 use crate::error::{check, BuildError};
 use crate::filter::{KalmanConfig, SteadyStateGain};
-use crate::input::InputLimits;
 use crate::input::ScalarLimits;
 use crate::network::{DeviationResistance, ScalarResistance};
 use crate::observer::clock::StepClock;
-use crate::observer::consistency::{BiasBound, Shadow};
-use crate::observer::snapshot::Fingerprint;
+use crate::observer::consistency::Shadow;
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, matrix, rows, vector, write_alarm,
     write_checks, write_clock, write_gain, write_kalman, write_limiter, write_predictor,
@@ -68,11 +67,9 @@ use crate::observer::tables::{
 };
 pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::observer::SensorChecks;
-use crate::protect::alarm::AlarmBuilder;
-use crate::protect::derating::{DeratingFactor, DeratingRule};
-use crate::protect::limiter::LimiterConfig;
-use crate::protect::margin::{UncertaintyMargin, UpperBound, UpperBoundBuilder};
+use crate::protect::margin::UncertaintyMargin;
 use crate::protect::predict::{LimitPredictor, PredictorBuilder};
+use crate::sizes::{ConstSizes, Length, Sizes};
 
 impl<const N: usize, const B: usize, const M: usize> StepTables<N, B, M> {
     fn of(model: &Model<N, B, M>) -> Self {
@@ -298,25 +295,27 @@ impl<const N: usize, const M: usize, const X: usize, const P: usize> AssembledTa
 
 /// What the settings alone decide: the clock, the protection period \[us\]
 /// and the correction period (model steps).
-struct Timing {
-    clock: StepClock,
-    protect_period_us: u32,
-    correction_period: u32,
+pub(super) struct Timing {
+    pub(super) clock: StepClock,
+    pub(super) protect_period_us: u32,
+    pub(super) correction_period: u32,
 }
 
 /// The state has the offset's entry exactly when the settings ask for a
 /// boundary offset, on a boundary that exists.
-fn check_offset<const N: usize, const B: usize, const M: usize, const X: usize>(
+pub(super) fn check_offset(
     s: &NetworkSettings,
+    (n, b, m): (usize, usize, usize),
+    states: usize,
 ) -> Result<(), BuildError> {
-    let wanted = s.boundary_offset.is_some_and(|b| b < B);
+    let wanted = s.boundary_offset.is_some_and(|o| o < b);
     check(
-        s.boundary_offset.is_none_or(|b| b < B) && (X == N + M + 1) == wanted,
+        s.boundary_offset.is_none_or(|o| o < b) && (states == n + m + 1) == wanted,
         "boundary_offset",
     )
 }
 
-fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
+pub(super) fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     check(s.origin_c.is_finite(), "origin_c")?;
     let nonneg = |v: f64| v.is_finite() && v >= 0.0;
     check(
@@ -374,7 +373,7 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         let s = &self.settings;
         let network = self.network;
         network.check_sources()?;
-        check_offset::<N, B, M, X>(s)?;
+        check_offset(s, (N, B, M), X)?;
         check(self.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
         check(!self.bad_sensor, "resistance_sensor")?;
         check(s.ambient_boundary < B, "ambient_boundary")?;
@@ -465,22 +464,26 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
         period: u32,
     ) -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
         let s = &self.settings;
-        let per_source = BiasLayout::per_source(self.bias_sources);
+        let per_source = BiasLayout::<Const<M>>::per_source(self.bias_sources);
         let shared = |mask: [bool; M]| {
             if s.bias_noise_w2_per_s <= 0.0 {
                 return None;
             }
-            let nominal_w = nominal_powers_w(&self.hardware_limit_a, &model.resistance, s.origin_c);
-            BiasLayout::shared(self.bias_sources, mask, &nominal_w)
+            let nominal_w =
+                nominal_powers_w::<Const<M>>(&self.hardware_limit_a, &model.resistance, s.origin_c);
+            BiasLayout::shared(self.bias_sources, &mask, &nominal_w)
         };
-        let solve = |layout: &BiasLayout<M>| -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
+        let solve = |layout: &BiasLayout<Const<M>>| -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
             let gain = solve_gain(
                 model,
-                &self.sensor_nodes,
-                &sensor_variances_k2(&self.sensor_kinds, s.sensor_sigma_k),
+                (
+                    &self.sensor_nodes,
+                    &sensor_variances_k2::<Const<P>>(&self.sensor_kinds, s.sensor_sigma_k),
+                ),
                 s,
                 layout,
                 period,
+                Const::<X>,
             )?;
             // The tables must say which biases are shared (`from_parts`
             // reads it back from the prior alone): a tie the rounding broke,
@@ -538,34 +541,39 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
 /// every shared source's bias is `w_m S`: the rank-one noise `q w w^T` and
 /// a recovery widening of `w_m^2` times the bias's (the configuration the
 /// tick's warm-up runs). Without a shared source both are today's.
-fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
+pub(super) fn filter_config<Z: Sizes, X: Length, P: Length>(
     (ad, bd_power, gd_boundary): (
-        &SMatrix<f64, N, N>,
-        &SMatrix<f64, N, M>,
-        &SMatrix<f64, N, B>,
+        &OMatrix<f64, Z::NodeDim, Z::NodeDim>,
+        &OMatrix<f64, Z::NodeDim, Z::InputDim>,
+        &OMatrix<f64, Z::NodeDim, Z::BoundaryDim>,
     ),
-    (sensor_nodes, sensor_var_k2): (&[usize; P], &[f64; P]),
+    (sensor_nodes, sensor_var_k2): (&P::Array<usize>, &P::Array<f64>),
     s: &NetworkSettings,
-    layout: &BiasLayout<M>,
+    layout: &BiasLayout<Z::InputDim>,
     reduced: bool,
-    dt_s: f64,
-) -> Result<KalmanConfig<f64, Const<X>, U1, Const<P>>, BuildError> {
+    (dt_s, states): (f64, X),
+) -> Result<KalmanConfig<f64, X, U1, P>, BuildError>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+{
+    let (n, m) = (ad.nrows(), bd_power.ncols());
+    let sensors = P::from_usize(sensor_nodes.as_ref().len());
     let lead = layout.lead();
-    let mut f = SMatrix::<f64, X, X>::identity();
-    for i in 0..N {
-        for j in 0..N {
+    let mut f = OMatrix::<f64, X, X>::identity_generic(states, states);
+    for i in 0..n {
+        for j in 0..n {
             f[(i, j)] = ad[(i, j)];
         }
-        for m in 0..M {
+        for k in 0..m {
             // The bias adds to the Joule power, so it enters like it.
-            f[(i, N + m)] = if reduced && layout.is_shared(m) {
-                if Some(m) == lead {
-                    (0..M).map(|k| bd_power[(i, k)] * layout.share[k]).sum()
+            f[(i, n + k)] = if reduced && layout.is_shared(k) {
+                if Some(k) == lead {
+                    (0..m).map(|q| bd_power[(i, q)] * layout.share_of(q)).sum()
                 } else {
                     0.0
                 }
             } else {
-                bd_power[(i, m)]
+                bd_power[(i, k)]
             };
         }
     }
@@ -573,31 +581,31 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
         // Gauss-Markov biases (`bias_tau_s`): each decays alike, so the
         // shared bias's reduced slot decays as the biases it stands for.
         let decay = libm::exp(-dt_s / s.bias_tau_s);
-        for m in (0..M).filter(|m| layout.biased[*m]) {
-            f[(N + m, N + m)] = decay;
+        for k in (0..m).filter(|k| layout.is_biased(*k)) {
+            f[(n + k, n + k)] = decay;
         }
     }
-    let mut h = SMatrix::<f64, P, X>::zeros();
-    for (j, node) in sensor_nodes.iter().enumerate() {
+    let mut h = OMatrix::<f64, P, X>::zeros_generic(sensors, states);
+    for (j, node) in sensor_nodes.as_ref().iter().enumerate() {
         h[(j, *node)] = 1.0;
     }
-    let mut q = SMatrix::<f64, X, X>::zeros();
-    let mut recovery = SVector::<f64, X>::zeros();
-    let offset = s.boundary_offset.filter(|_| X == N + M + 1);
+    let mut q = OMatrix::<f64, X, X>::zeros_generic(states, states);
+    let mut recovery = OVector::<f64, X>::zeros_generic(states, U1);
+    let offset = s.boundary_offset.filter(|_| states.value() == n + m + 1);
     if let Some(b) = offset {
         // The offset enters like its boundary (`Gd`'s column), and decays.
-        for i in 0..N {
-            f[(i, N + M)] = gd_boundary[(i, b)];
+        for i in 0..n {
+            f[(i, n + m)] = gd_boundary[(i, b)];
         }
-        f[(N + M, N + M)] = libm::exp(-dt_s / s.boundary_offset_tau_s);
+        f[(n + m, n + m)] = libm::exp(-dt_s / s.boundary_offset_tau_s);
     }
-    for i in 0..N + M {
-        let (noise, widen) = if i < N {
+    for i in 0..n + m {
+        let (noise, widen) = if i < n {
             (s.node_noise_k2_per_s, s.recovery_sigma_k)
-        } else if layout.is_shared(i - N) {
+        } else if layout.is_shared(i - n) {
             // Set below.
             (0.0, 0.0)
-        } else if layout.biased[i - N] {
+        } else if layout.is_biased(i - n) {
             (s.bias_noise_w2_per_s, s.recovery_bias_sigma_w)
         } else {
             (0.0, 0.0)
@@ -607,29 +615,33 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
     }
     if offset.is_some() {
         let variance_k2 = s.boundary_offset_std_k * s.boundary_offset_std_k;
-        q[(N + M, N + M)] = 2.0 * variance_k2 / s.boundary_offset_tau_s * dt_s;
-        recovery[N + M] = variance_k2;
+        q[(n + m, n + m)] = 2.0 * variance_k2 / s.boundary_offset_tau_s * dt_s;
+        recovery[n + m] = variance_k2;
     }
     if let Some(lead) = lead {
         let q_shared = s.bias_noise_w2_per_s * dt_s;
         let widen_w2 = s.recovery_bias_sigma_w * s.recovery_bias_sigma_w;
         if reduced {
-            q[(N + lead, N + lead)] = q_shared;
-            recovery[N + lead] = widen_w2;
+            q[(n + lead, n + lead)] = q_shared;
+            recovery[n + lead] = widen_w2;
         } else {
-            for a in (0..M).filter(|a| layout.is_shared(*a)) {
-                for b in (0..M).filter(|b| layout.is_shared(*b)) {
-                    q[(N + a, N + b)] = q_shared * (layout.share[a] * layout.share[b]);
+            for a in (0..m).filter(|a| layout.is_shared(*a)) {
+                for b in (0..m).filter(|b| layout.is_shared(*b)) {
+                    q[(n + a, n + b)] = q_shared * (layout.share_of(a) * layout.share_of(b));
                 }
-                recovery[N + a] = widen_w2 * layout.share[a] * layout.share[a];
+                recovery[n + a] = widen_w2 * layout.share_of(a) * layout.share_of(a);
             }
         }
     }
     // Each sensor's own noise (a thermocouple's `sensor_sigma_k^2`).
-    let r = SVector::<f64, P>::from(*sensor_var_k2);
+    let r = OVector::<f64, P>::from_iterator_generic(
+        sensors,
+        U1,
+        sensor_var_k2.as_ref().iter().copied(),
+    );
     // The input enters the mean predict only (see `Model`): the filter's
     // `G` is a placeholder column the gain solver never reads.
-    let g = SMatrix::<f64, X, 1>::zeros();
+    let g = OMatrix::<f64, X, U1>::zeros_generic(states, U1);
     KalmanConfig::new(f, g, h, q, r)?
         .with_gate(s.gate_threshold)?
         .with_suspect_after(s.suspect_after)
@@ -637,30 +649,35 @@ fn filter_config<const N: usize, const B: usize, const M: usize, const X: usize,
 }
 
 #[inline(never)]
-fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>(
-    model: &Model<N, B, M>,
-    sensor_nodes: &[usize; P],
-    sensor_var_k2: &[f64; P],
+fn solve_gain<Z: Sizes, X: Length, P: Length>(
+    model: &ModelOf<Z>,
+    (sensor_nodes, sensor_var_k2): (&P::Array<usize>, &P::Array<f64>),
     s: &NetworkSettings,
-    layout: &BiasLayout<M>,
+    layout: &BiasLayout<Z::InputDim>,
     period: u32,
-) -> Result<SteadyStateGain<f32, Const<X>, Const<P>>, BuildError> {
-    let kalman = filter_config::<N, B, M, X, P>(
+    states: X,
+) -> Result<SteadyStateGain<f32, X, P>, BuildError>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+{
+    let kalman = filter_config::<Z, X, P>(
         (&model.ad, &model.bd_power_f64, &model.gd_boundary_f64),
         (sensor_nodes, sensor_var_k2),
         s,
         layout,
         true,
-        model.dt_s,
+        (model.dt_s, states),
     )?;
     let mut gain = SteadyStateGain::solve(&kalman, period)?;
+    let (n, m) = (model.ad.nrows(), layout.sources());
     // A left-out bias (and an idle shared slot) is never driven, so its
     // row and column of every table is zero in exact arithmetic; the
     // doubling's inverse may leave rounding there, and an exact zero is
     // what `from_parts` reads back.
     let lead = layout.lead();
-    for m in (0..M).filter(|m| !layout.biased[*m] || (layout.is_shared(*m) && Some(*m) != lead)) {
-        let i = N + m;
+    for k in (0..m).filter(|k| !layout.is_biased(*k) || (layout.is_shared(*k) && Some(*k) != lead))
+    {
+        let i = n + k;
         gain.gain.row_mut(i).fill(0.0);
         gain.prior_ht.row_mut(i).fill(0.0);
         for cov in [&mut gain.prior, &mut gain.posterior] {
@@ -673,23 +690,28 @@ fn solve_gain<const N: usize, const B: usize, const M: usize, const X: usize, co
     };
     // Back to the state's coordinates: bias `m` is `w_m S` with `S` in the
     // lead's slot, `x = T y` (`T` the identity but for the shared columns).
-    let mut t = SMatrix::<f64, X, X>::identity();
-    for m in (0..M).filter(|m| layout.is_shared(*m)) {
-        t[(N + m, N + m)] = 0.0;
-        t[(N + m, N + lead)] = layout.share[m];
+    let mut t = OMatrix::<f64, X, X>::identity_generic(states, states);
+    for k in (0..m).filter(|k| layout.is_shared(*k)) {
+        t[(n + k, n + k)] = 0.0;
+        t[(n + k, n + lead)] = layout.share_of(k);
     }
-    let spread = |cov: &SMatrix<f64, X, X>| (t * cov * t.transpose()).symmetric_part();
-    gain.gain = t * gain.gain;
-    gain.prior_ht = t * gain.prior_ht;
+    let spread = |cov: &OMatrix<f64, X, X>| (&t * cov * t.transpose()).symmetric_part();
+    gain.gain = &t * &gain.gain;
+    gain.prior_ht = &t * &gain.prior_ht;
     gain.prior = spread(&gain.prior);
     gain.posterior = spread(&gain.posterior);
-    let diag =
-        |cov: &SMatrix<f64, X, X>| -> [f64; M] { core::array::from_fn(|m| cov[(N + m, N + m)]) };
+    let sources = Z::InputDim::from_usize(m);
+    let diag = |cov: &OMatrix<f64, X, X>| sources.each(|k| cov[(n + k, n + k)]);
     let (prior_w2, posterior_w2) = (diag(&gain.prior), diag(&gain.posterior));
-    let mut cast: SteadyStateGain<f32, Const<X>, Const<P>> = gain.cast();
+    let mut cast: SteadyStateGain<f32, X, P> = gain.cast();
     let shared = layout.shared_mask();
-    tie_block::<N, M, X>(&mut cast.prior, &prior_w2, &shared);
-    tie_block::<N, M, X>(&mut cast.posterior, &posterior_w2, &shared);
+    tie_block(&mut cast.prior, n, prior_w2.as_ref(), shared.as_ref());
+    tie_block(
+        &mut cast.posterior,
+        n,
+        posterior_w2.as_ref(),
+        shared.as_ref(),
+    );
     Ok(cast)
 }
 
@@ -703,14 +725,14 @@ fn layout_of<const N: usize, const M: usize, const X: usize, const P: usize>(
     s: &NetworkSettings,
     gain: &GainTables<X, P>,
     nominal_w: &[f64; M],
-) -> BiasLayout<M> {
-    let biased =
+) -> BiasLayout<Const<M>> {
+    let biased: [bool; M] =
         core::array::from_fn(|m| !(s.bias_noise_w2_per_s > 0.0 && gain.prior[N + m][N + m] == 0.0));
     if s.bias_noise_w2_per_s <= 0.0 {
         return BiasLayout::per_source(biased);
     }
     let tied = shared_in_tables::<N, M, X>(&gain.prior);
-    BiasLayout::shared(biased, tied, nominal_w).unwrap_or(BiasLayout::per_source(biased))
+    BiasLayout::shared(biased, &tied, nominal_w).unwrap_or(BiasLayout::per_source(biased))
 }
 
 #[inline(never)]
@@ -783,206 +805,43 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     ) -> Result<Self, BuildError> {
         let () = Self::SIZES;
         let s = &parts.settings;
-        let timing = timing(s)?;
-        check_offset::<N, B, M, X>(s)?;
-        check(parts.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
-        check(s.ambient_boundary < B, "ambient_boundary")?;
-        check(
-            parts
-                .critical_c
-                .iter()
-                .all(|c| c.is_none_or(|c| c.is_finite() && c < NO_LIMIT_C)),
-            "critical_c",
-        )?;
-        check(
-            parts
-                .hardware_limit_a
-                .iter()
-                .all(|a| a.is_finite() && *a > 0.0),
-            "hardware_limit_a",
-        )?;
-        let m = &parts.model;
-        check(m.source_node.iter().all(|n| *n < N), "source_node")?;
-        check_kinds(kinds, &parts.sensor_nodes, &m.source_node)?;
-        let sensor_var_k2 = sensor_variances_k2(kinds, s.sensor_sigma_k);
-        check(m.is_finite(), "model")?;
-        let g = &parts.gain;
-        check(g.period == timing.correction_period, "gain.period")?;
-        check(g.is_finite(), "gain")?;
-        check(
-            solved_with(g, &parts.sensor_nodes, &sensor_var_k2),
-            "sensor_kinds",
-        )?;
+        let (m, sh) = (&parts.model, &parts.shadow);
+        // The tables' own checks: the predictor's indices before it is
+        // read, then everything the assembly checks for every size.
         let predictor = predictor_from(&parts.predictor, elements_per_stage(s))?;
-        let input_limits = InputLimits {
-            max_current_a: s.max_current_a,
-            ..InputLimits::default()
+        let steps = |t: &StepTables<N, B, M>| StepMatrices {
+            phi_minus_i: matrix(&t.phi_minus_i),
+            bd_power: matrix(&t.bd_power),
+            gd_boundary: matrix(&t.gd_boundary),
+            constant_k: SVector::from(t.constant_k),
         };
-        input_limits
-            .validate()
-            .map_err(|_| BuildError::InvalidParameter {
-                name: "max_current_a",
-            })?;
-        let sh = &parts.shadow;
-        check(
-            sh.block_steps == timing.correction_period,
-            "shadow.block_steps",
-        )?;
-        check(sh.step.is_finite(), "shadow")?;
-        let band = s.checks.band();
-        let (phi_minus_i, bd_power) = (matrix(&sh.step.phi_minus_i), matrix(&sh.step.bd_power));
-        let shadow = Shadow {
-            phi_minus_i,
-            bd_power,
-            gd_boundary: matrix(&sh.step.gd_boundary),
-            constant_k: SVector::from(sh.step.constant_k),
-            block_steps: sh.block_steps,
-            waits_for_light_tick: s.step_us > s.loop_tick_us(),
+        let integer = integer_step(s, &m.step).map(|step| {
             #[cfg(feature = "integer-step")]
-            integer_block: integer_block(s, &sh.step),
-            band,
-            bias_bound: BiasBound::new(&band, &phi_minus_i, &bd_power),
-        };
-
-        // The filter's configuration from the stored `Ad` and `Bd` (exact
-        // in `f64`, so its `f32` image is the solved one to the bit).
-        let ad = matrix(&m.ad).cast::<f64>();
-        let bd_power = matrix(&m.step.bd_power);
-        let nominal_w = nominal_powers_w(&parts.hardware_limit_a, &m.resistance, s.origin_c);
-        let layout = layout_of::<N, M, X, P>(s, g, &nominal_w);
-        let kalman = filter_config::<N, B, M, X, P>(
-            (&ad, &bd_power.cast(), &matrix(&m.step.gd_boundary).cast()),
-            (&parts.sensor_nodes, &sensor_var_k2),
+            let block = integer_block(s, &sh.step);
+            #[cfg(not(feature = "integer-step"))]
+            let block = None;
+            (step, block)
+        });
+        Self::assemble(
             s,
-            &layout,
-            false,
-            timing.clock.step_s(),
-        )?
-        .cast::<f32>();
-        let gain = g.gain();
-        let limited = parts.critical_c.map(|c| c.is_some());
-        let critical = parts.critical_c.map(|c| c.unwrap_or(NO_LIMIT_C));
-        let rule = DeratingRule::new(&[DeratingFactor::new(
-            "derating_product",
-            parts.derating_product,
-        )])?;
-        let alarm = AlarmBuilder::new(&rule, critical)
-            .nominal_ambient_c(s.origin_c)
-            .build::<f32>()?;
-        // The taper's factor per element, scaled by each current's
-        // hardware limit afterwards (see "Limits per current").
-        let limiter = LimiterConfig::new([1.0; N], s.taper_k, 0.0)?;
-        for (node, critical) in parts.critical_c.iter().enumerate() {
-            let sigma_k = libm::sqrtf(gain.prior[(node, node)].max(0.0));
-            s.checks
-                .observable(node, critical.is_some(), f64::from(sigma_k))?;
-        }
-        let bound = upper_bound(&gain, &parts.sensor_nodes, s)?;
-
-        let mut fingerprint = Fingerprint::new()
-            .u32(s.step_us)
-            .u32(timing.correction_period)
-            .u32(s.protect_period_steps)
-            .f64(s.origin_c)
-            .f64(s.taper_k);
-        for v in kalman.f().iter().chain(gain.gain.iter()) {
-            fingerprint = fingerprint.f64(f64::from(*v));
-        }
-        for v in bd_power.iter().chain(matrix(&m.step.gd_boundary).iter()) {
-            fingerprint = fingerprint.f64(f64::from(*v));
-        }
-        fingerprint = fingerprint.f64s(&parts.hardware_limit_a);
-        for n in parts.sensor_nodes {
-            fingerprint = fingerprint.u32(n as u32);
-        }
-        // A resistance sensor's conversion too (a thermocouple-only
-        // observer's fingerprint as before sensor kinds).
-        for r in kinds.iter().filter_map(SensorKind::resistance) {
-            fingerprint = fingerprint
-                .u32(r.source as u32)
-                .f64(r.r_at_0c_ohm)
-                .f64(r.slope_ohm_per_k)
-                .f64(r.sigma_k());
-        }
-        // The protection too: a saved latch and temperatures were judged
-        // against these limits (as the grid's and the Omnimagnet's).
-        for row in &parts.incidence {
-            for heats in row {
-                fingerprint = fingerprint.u32(u32::from(*heats));
-            }
-        }
-        let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
-        let integer_step = integer_step(s, &m.step)?;
-        two_tick_corrections(s)?;
-        // Refused above without the feature, so always `None` here then.
-        #[cfg(not(feature = "integer-step"))]
-        let _ = integer_step;
-        Ok(Self {
-            phi_minus_i: matrix(&m.step.phi_minus_i),
-            bd_power,
-            gd_boundary: matrix(&m.step.gd_boundary),
-            constant_k: SVector::from(m.step.constant_k),
-            origin_c: s.origin_c as f32,
-            source_node: m.source_node,
-            resistance: about_origin(&m.resistance, s.origin_c as f32),
-            kalman,
-            gain,
-            sensor_nodes: parts.sensor_nodes,
-            resistance_sensors: kinds.map(|k| k.resistance().map(|r| r.conversion())),
-            noise_allowance_k: kinds.map(|k| {
-                k.resistance()
-                    .map_or(0.0, |r| (libm::sqrt(s.gate_threshold) * r.sigma_k()) as f32)
-            }),
-            limited,
-            incidence: parts.incidence,
-            hardware_limit_a: parts.hardware_limit_a.map(|a| a as f32),
-            alarm,
-            limiter,
-            predictor,
-            bound,
-            k_sigma: s.k_sigma as f32,
-            bound_sigma_k: core::array::from_fn(|i| libm::sqrtf(gain.prior[(i, i)].max(0.0))),
-            shadow,
-            warmup_corrections: s.warmup_corrections,
-            cooling_bias_fraction: s.max_cooling_bias_fraction as f32,
-            bias_decay_per_step: if s.bias_tau_s > 0.0 {
-                (timing.clock.step_s() / s.bias_tau_s) as f32
-            } else {
-                0.0
+            Solved {
+                sizes: ConstSizes,
+                sensor_nodes: parts.sensor_nodes,
+                kinds: *kinds,
+                critical_c: parts.critical_c,
+                derating_product: parts.derating_product,
+                hardware_limit_a: parts.hardware_limit_a,
+                incidence: parts.incidence,
+                ad: matrix(&m.ad),
+                step: steps(&m.step),
+                source_node: m.source_node,
+                resistance: m.resistance,
+                gain: parts.gain.gain(),
+                predictor,
+                block: (steps(&sh.step), sh.block_steps),
+                integer,
             },
-            offset_boundary: s.boundary_offset,
-            decays: s.bias_tau_s > 0.0 || s.boundary_offset.is_some(),
-            #[cfg(not(target_abi = "eabihf"))]
-            correction_in_two_ticks: s.correction_in_two_ticks,
-            offset_decay_per_step: if s.boundary_offset.is_some() {
-                (timing.clock.step_s() / s.boundary_offset_tau_s) as f32
-            } else {
-                0.0
-            },
-            shared_bias: layout.shared_mask(),
-            nominal_power_w: core::array::from_fn(|k| {
-                if layout.is_shared(k) {
-                    nominal_w[k] as f32
-                } else {
-                    0.0
-                }
-            }),
-            stuck_test: s.checks.stuck_test(s.correction_period_s),
-            silent_after_us: timing
-                .correction_period
-                .saturating_mul(s.step_us)
-                .saturating_mul(2),
-            clock: timing.clock,
-            limits: input_limits.to_scalar(),
-            ambient_boundary: s.ambient_boundary,
-            max_reading_age_us: s.max_reading_age_us,
-            step_us: s.step_us,
-            loop_period_us: s.loop_tick_us(),
-            protect_period_us: timing.protect_period_us,
-            fingerprint: fingerprint.finish(),
-            #[cfg(feature = "integer-step")]
-            integer_step,
-        })
+        )
     }
 }
 
@@ -1210,7 +1069,7 @@ const fn integer_step<const N: usize, const B: usize, const M: usize>(
 /// and whose observer compiles no second tick (see the state's
 /// `floors_due`), and with a model step no longer than the loop's tick,
 /// where the second tick would always step.
-const fn two_tick_corrections(s: &NetworkSettings) -> Result<(), BuildError> {
+pub(super) const fn two_tick_corrections(s: &NetworkSettings) -> Result<(), BuildError> {
     if !s.correction_in_two_ticks {
         return Ok(());
     }
@@ -1272,31 +1131,6 @@ const fn limited_of<const N: usize>(critical_c: &[Option<f64>; N]) -> [bool; N] 
     limited
 }
 
-/// Whether `g`'s innovation variances were solved with the sensor noises
-/// `sensor_var_k2` \[K^2\]: `S_jj = M_nn + r_j` for sensor `j` on node
-/// `n`, to the `f32` rounding of the tables (a relative 1e-4; the noises
-/// of a thermocouple and of a resistance sensor differ by tens of times).
-fn solved_with<const X: usize, const P: usize>(
-    g: &GainTables<X, P>,
-    sensor_nodes: &[usize; P],
-    sensor_var_k2: &[f64; P],
-) -> bool {
-    sensor_nodes
-        .iter()
-        .zip(sensor_var_k2)
-        .zip(&g.innovation_var)
-        .all(|((node, r), s)| {
-            let prior = g
-                .prior
-                .get(*node)
-                .and_then(|row| row.get(*node))
-                .copied()
-                .unwrap_or(f32::NAN);
-            let s = f64::from(*s);
-            (s - f64::from(prior) - r).abs() <= 1e-4 * s
-        })
-}
-
 /// The predictor's element evaluations per stage
 /// ([`NetworkSettings::predictor_elements_per_stage`]; 0: unbounded).
 const fn elements_per_stage(s: &NetworkSettings) -> usize {
@@ -1321,26 +1155,6 @@ fn predictor_from<const N: usize, const B: usize, const M: usize>(
     Ok(t.predictor(elements_per_stage))
 }
 
-/// `k sigma` from the steady prior on every node, the model margin on the
-/// nodes no sensor measures.
-fn upper_bound<const N: usize, const X: usize, const P: usize>(
-    gain: &SteadyStateGain<f32, Const<X>, Const<P>>,
-    sensor_nodes: &[usize; P],
-    s: &NetworkSettings,
-) -> Result<UpperBound<f32, Const<N>>, BuildError> {
-    let prior = gain.prior();
-    let sigma_k: [f64; N] = core::array::from_fn(|i| libm::sqrt(f64::from(prior[(i, i)]).max(0.0)));
-    let mut margins = [s.unmeasured_margin; N];
-    for node in sensor_nodes {
-        if let Some(m) = margins.get_mut(*node) {
-            *m = UncertaintyMargin::ZERO;
-        }
-    }
-    UpperBoundBuilder::per_element(margins)
-        .sigma(s.k_sigma, sigma_k)
-        .build()
-}
-
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
     NetworkParts<N, B, M, X, P>
 {
@@ -1348,7 +1162,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// [`BiasMode`]; all `false`: a bias per source), as
     /// [`NetworkObserver::from_parts`] reads them.
     pub fn shared_bias_sources(&self) -> [bool; M] {
-        let nominal_w = nominal_powers_w(
+        let nominal_w = nominal_powers_w::<Const<M>>(
             &self.hardware_limit_a,
             &self.model.resistance,
             self.settings.origin_c,

@@ -82,6 +82,7 @@ use crate::error::{check, BuildError};
 use crate::network::{Network, Resistance};
 use crate::observer::vocabulary::TimedReading;
 use crate::sensors::{Reading, SensorFault, SensorResult};
+use crate::sizes::Length;
 
 use super::NetworkObserver;
 
@@ -410,11 +411,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
 /// `sensor_sigma_k^2` (the very value every sensor had before sensor kinds
 /// existed, so thermocouple-only tables are unchanged to the bit), a
 /// resistance sensor's [`ResistanceSensor::sigma_k`] squared.
-pub(super) fn sensor_variances_k2<const P: usize>(
-    kinds: &[SensorKind; P],
+pub(super) fn sensor_variances_k2<P: Length>(
+    kinds: &P::Array<SensorKind>,
     thermocouple_sigma_k: f64,
-) -> [f64; P] {
-    kinds.map(|kind| match kind {
+) -> P::Array<f64> {
+    P::mapped(kinds, |kind| match kind {
         SensorKind::Thermocouple => thermocouple_sigma_k * thermocouple_sigma_k,
         SensorKind::Resistance(r) => {
             let sigma = r.sigma_k();
@@ -425,9 +426,9 @@ pub(super) fn sensor_variances_k2<const P: usize>(
 
 /// Checks the kinds against the sensor map and the network's sources: a
 /// resistance sensor reads its source's node.
-pub(super) fn check_kinds<const P: usize>(
-    kinds: &[SensorKind; P],
-    sensor_nodes: &[usize; P],
+pub(super) fn check_kinds(
+    kinds: &[SensorKind],
+    sensor_nodes: &[usize],
     source_node: &[usize],
 ) -> Result<(), BuildError> {
     for (kind, node) in kinds.iter().zip(sensor_nodes) {
