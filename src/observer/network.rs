@@ -1274,19 +1274,34 @@ pub fn default_incidence<const N: usize, const B: usize, const M: usize>(
     network: &Network<N, B, M>,
     fraction: f64,
 ) -> Result<[[bool; M]; N], BuildError> {
+    default_incidence_of(network, fraction)
+}
+
+/// [`default_incidence`] of any network description (a [`Network`], or
+/// a model's network at its own size on a host).
+///
+/// # Errors
+/// As [`default_incidence`].
+pub fn default_incidence_of<W: NetworkDescription>(
+    network: &W,
+    fraction: f64,
+) -> Result<NodeVector<W::Sizes, InputVector<W::Sizes, bool>>, BuildError>
+where
+    DefaultAllocator: NetworkAllocator<W::Sizes>,
+{
     check(fraction > 0.0 && fraction <= 1.0, "incidence_fraction")?;
-    let ss = network.state_space(&[0.0; N]);
+    let sizes = network.sizes();
+    let ss = state_space_of(network, &sizes.nodes_of(0.0));
     let inverse = (-ss.a).try_inverse().ok_or(BuildError::Singular)?;
     // dT/dP = (-A)^-1 B \[K/W\]: every entry >= 0 for a heat network.
     let sensitivity = inverse * ss.b_power;
-    let mut incidence = [[false; M]; N];
-    for (i, row) in incidence.iter_mut().enumerate() {
-        let largest = (0..M).fold(0.0f64, |a, m| a.max(sensitivity[(i, m)]));
-        for (m, heats) in row.iter_mut().enumerate() {
-            *heats = largest > 0.0 && sensitivity[(i, m)] >= fraction * largest;
-        }
-    }
-    Ok(incidence)
+    let m = sizes.inputs();
+    Ok(sizes.node_dim().each(|i| {
+        let largest = (0..m).fold(0.0f64, |a, k| a.max(sensitivity[(i, k)]));
+        sizes
+            .input_dim()
+            .each(|k| largest > 0.0 && sensitivity[(i, k)] >= fraction * largest)
+    }))
 }
 
 /// The protection's stages, written once for every size.
@@ -3035,12 +3050,17 @@ mod assemble;
 mod bias;
 mod parts;
 pub mod resistance;
+#[cfg(feature = "alloc")]
+mod run_time;
+mod solve;
 pub use super::warm_up::{NoWarmUp, WarmUp};
 pub use bias::BiasMode;
 pub use parts::{
     AssembledTables, GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables,
 };
 pub use resistance::{ResistanceSensor, SensorKind};
+#[cfg(feature = "alloc")]
+pub use run_time::{RunTimeBiasMode, RunTimeObserver, RunTimeObserverState, RunTimeSpec};
 
 /// A network state's warm-up flavour (see [`super::warm_up`]):
 /// [`NoWarmUp`], or [`WarmUp`] holding the time-varying warm-up's

@@ -12,8 +12,8 @@
 use nalgebra::{DefaultAllocator, OMatrix, OVector, U1};
 
 use super::bias::{nominal_powers_w, shared_in_prior, BiasLayout};
-use super::parts::{check_offset, timing};
 use super::resistance::{check_kinds, sensor_variances_k2, SensorKind};
+use super::solve::{check_offset, filter_config, timing, two_tick_corrections};
 use super::{NetworkObserverOf, NetworkSettings, ObserverAllocator, NO_LIMIT_C, PREDICTOR_POINTS};
 use crate::discretize::fixed::FixedStep;
 use crate::error::{check, BuildError};
@@ -203,7 +203,7 @@ where
         // in `f64`, so its `f32` image is the solved one to the bit).
         let nominal_w = nominal_powers_w::<Z::InputDim>(&hardware_limit_a, &resistance, s.origin_c);
         let layout = layout_of(s, &gain, n, sizes.input_dim(), &nominal_w);
-        let kalman = super::parts::filter_config::<Z, X, P>(
+        let kalman = filter_config::<Z, X, P>(
             (
                 &ad.cast::<f64>(),
                 &step.bd_power.clone().cast(),
@@ -266,7 +266,7 @@ where
         }
         let fingerprint = bound.fingerprint(limiter.fingerprint(alarm.fingerprint(fingerprint)));
         let integer_step = integer_step?;
-        super::parts::two_tick_corrections(s)?;
+        two_tick_corrections(s)?;
         // Refused above without the feature, so always `None` here then.
         #[cfg(not(feature = "integer-step"))]
         let _ = integer_step;

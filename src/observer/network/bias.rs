@@ -127,6 +127,11 @@ impl<M: Length> BiasLayout<M> {
         self.share.as_ref().len()
     }
 
+    /// The sources' dimension.
+    pub(crate) fn shared_mask_dim(&self) -> M {
+        M::from_usize(self.sources())
+    }
+
     /// The shared sources.
     pub(crate) fn shared_mask(&self) -> M::Array<bool> {
         M::mapped(&self.share, |s| *s > 0.0)
