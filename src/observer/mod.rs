@@ -56,8 +56,8 @@ pub use grid::{
 };
 pub use network::{
     NetworkInputs, NetworkInputsOf, NetworkObserver, NetworkObserverBuilder, NetworkObserverOf,
-    NetworkObserverState, NetworkObserverStateOf, NetworkOutputs, NetworkSettings,
-    ObserverAllocator,
+    NetworkObserverState, NetworkObserverStateOf, NetworkOutputs, NetworkOutputsOf,
+    NetworkSettings, ObserverAllocator,
 };
 pub use omnimagnet::{OmniInputs, OmniObserver, OmniObserverState, OmniOutputs, OmniSettings};
 pub use shared::{Mailbox, Shared};

@@ -449,10 +449,13 @@
 //! [`Sizes`] `Z`, its filter's states `X` and its sensors `P`;
 //! [`NetworkObserver`]`<N, B, M, X, P>` is the one an MCU flashes, every
 //! size a `Const` (arrays and `SMatrix`es, placed by the compiler). The
-//! model step and the protection's stages are written once, for every
-//! size (a host's `Dyn` sizes are the model file's); the correction, the
-//! tick, the builder and the start and restore rules are, for now, the
-//! `Const` sizes' (see [`crate::sizes`]).
+//! state, the tick (model step, correction, protection's stages), the
+//! solve and the assembly are written once, for every size; with the
+//! `alloc` feature a host builds `RunTimeObserver`, the observer of `Dyn`
+//! sizes, at a model file's own size (`run_time.rs`: a 300-node, 72-source
+//! motor in `host-tests/tests/run_time_network.rs`). The start and
+//! restore rules and the snapshot are, for now, the `Const` sizes' (see
+//! [`crate::sizes`]).
 
 use crate::sizes::{
     BoundaryVector, ConstSizes, InputVector, Length, NetworkAllocator, NodeVector, Sizes,
@@ -1277,6 +1280,15 @@ pub fn default_incidence<const N: usize, const B: usize, const M: usize>(
     default_incidence_of(network, fraction)
 }
 
+/// `incidence[i][m]`: current `m` heats element `i`, over the network's
+/// sizes `Z` (`[[bool; M]; N]` on an MCU).
+pub type Incidence<Z> = NodeVector<Z, InputVector<Z, bool>>;
+
+/// What one tick of a network observer of sizes `Z` with sensors `P`
+/// produced ([`NetworkOutputs`] on an MCU).
+pub type NetworkOutputsOf<Z, P> =
+    FilteredOutputs<<Z as Sizes>::NodeDim, <Z as Sizes>::InputDim, <Z as Sizes>::NodeDim, P>;
+
 /// [`default_incidence`] of any network description (a [`Network`], or
 /// a model's network at its own size on a host).
 ///
@@ -1285,7 +1297,7 @@ pub fn default_incidence<const N: usize, const B: usize, const M: usize>(
 pub fn default_incidence_of<W: NetworkDescription>(
     network: &W,
     fraction: f64,
-) -> Result<NodeVector<W::Sizes, InputVector<W::Sizes, bool>>, BuildError>
+) -> Result<Incidence<W::Sizes>, BuildError>
 where
     DefaultAllocator: NetworkAllocator<W::Sizes>,
 {
@@ -2590,10 +2602,7 @@ where
         state: &'s mut NetworkObserverStateOf<Z, X, P, W>,
         inputs: &NetworkInputsOf<Z::BoundaryDim, Z::InputDim, P>,
         drives: &InputVector<Z, Option<VoltageDrive>>,
-    ) -> (
-        &'s FilteredOutputs<Z::NodeDim, Z::InputDim, Z::NodeDim, P>,
-        DriveFlags,
-    ) {
+    ) -> (&'s NetworkOutputsOf<Z, P>, DriveFlags) {
         let mut flags = DriveFlags::NONE;
         let mut driven = inputs.clone();
         for (((current, drive), node), r) in driven

@@ -59,6 +59,10 @@ where
     }
 }
 
+/// The model step and the shadow's block in integer arithmetic, each if
+/// any.
+pub(crate) type IntegerSteps<Z> = (Option<FixedStep<Z>>, Option<FixedStep<Z>>);
+
 /// What [`NetworkObserverOf::assemble`] reads: the builder's inputs and
 /// the solved tables, in `f32` as the observer holds them.
 pub(crate) struct Solved<Z: Sizes, X: Length, P: Length>
@@ -83,7 +87,7 @@ where
     pub(crate) block: (StepMatrices<Z>, u32),
     /// The model step and the shadow's block in integer arithmetic, as
     /// the settings ask (an error where they cannot be).
-    pub(crate) integer: Result<(Option<FixedStep<Z>>, Option<FixedStep<Z>>), BuildError>,
+    pub(crate) integer: Result<IntegerSteps<Z>, BuildError>,
 }
 
 impl<Z: Sizes, X: Length, P: Length> NetworkObserverOf<Z, X, P>

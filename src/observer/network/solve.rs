@@ -197,6 +197,13 @@ impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
     }
 }
 
+/// `Ad`, `Bd` of the powers and `Gd` of the boundaries, in `f64`.
+pub(super) type DiscreteF64<'a, Z> = (
+    &'a OMatrix<f64, <Z as Sizes>::NodeDim, <Z as Sizes>::NodeDim>,
+    &'a OMatrix<f64, <Z as Sizes>::NodeDim, <Z as Sizes>::InputDim>,
+    &'a OMatrix<f64, <Z as Sizes>::NodeDim, <Z as Sizes>::BoundaryDim>,
+);
+
 /// `F = [[Ad, Bd_p], [0, I]]`, `H` from the sensor map, `Q`, `R` and the
 /// gate, in `f64` (the filter's configuration; its gain is solved apart).
 /// A bias left out of `bias_sources` gets neither process noise nor
@@ -211,11 +218,7 @@ impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
 /// a recovery widening of `w_m^2` times the bias's (the configuration the
 /// tick's warm-up runs). Without a shared source both are today's.
 pub(super) fn filter_config<Z: Sizes, X: Length, P: Length>(
-    (ad, bd_power, gd_boundary): (
-        &OMatrix<f64, Z::NodeDim, Z::NodeDim>,
-        &OMatrix<f64, Z::NodeDim, Z::InputDim>,
-        &OMatrix<f64, Z::NodeDim, Z::BoundaryDim>,
-    ),
+    (ad, bd_power, gd_boundary): DiscreteF64<'_, Z>,
     (sensor_nodes, sensor_var_k2): (&P::Array<usize>, &P::Array<f64>),
     s: &NetworkSettings,
     layout: &BiasLayout<Z::InputDim>,
