@@ -12,7 +12,7 @@
 //! generated module needs no extra field to know its layout).
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, U1};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 use crate::sizes::Length;
 
@@ -212,13 +212,6 @@ pub(crate) fn shared_in_prior<M: Length>(
                 })
         })
     })
-}
-
-/// [`shared_in_prior`] of a prior as tables, row by row.
-pub(crate) fn shared_in_tables<const N: usize, const M: usize, const X: usize>(
-    prior: &[[f32; X]; X],
-) -> [bool; M] {
-    shared_in_prior(Const::<M>, N, |i, j| prior[i][j])
 }
 
 /// The shared heat's regression column under a covariance: `Cov(x_i, S)`

@@ -44,11 +44,13 @@ use core::fmt::{self, Write};
 
 use nalgebra::{Const, SVector};
 
-use super::assemble::{Solved, StepMatrices};
-use super::bias::{nominal_powers_w, shared_in_tables, BiasLayout, BiasMode};
+use super::assemble::{layout_of, Solved, StepMatrices};
+use super::bias::{nominal_powers_w, BiasMode};
 use super::resistance::Conversion;
 use super::resistance::{check_kinds, SensorKind};
-use super::solve::{check_offset, elements_per_stage, timing, two_tick_corrections, GainSpec};
+use super::solve::{
+    check_offset, elements_per_stage, timing, two_tick_corrections, BiasChoice, GainSpec,
+};
 use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
@@ -383,32 +385,12 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
             hardware_limit_a: &self.hardware_limit_a,
             bias_sources: &self.bias_sources,
             bias_mode: match &self.bias_mode {
-                BiasMode::Auto => None,
-                BiasMode::PerSource => Some(None),
-                BiasMode::Shared(mask) => Some(Some(mask)),
+                BiasMode::Auto => BiasChoice::Auto,
+                BiasMode::PerSource => BiasChoice::PerSource,
+                BiasMode::Shared(mask) => BiasChoice::Shared(mask),
             },
         }
     }
-}
-
-/// The bias layout the tables carry (see
-/// [`NetworkObserverBuilder::bias_sources`] and [`BiasMode`]): with
-/// positive bias noise, a bias of exactly zero steady prior variance was
-/// left out, and the biases the prior ties ([`shared_in_tables`]) share
-/// one bias, in the nominal shares of `nominal_w` \[W\]; with none, no bias
-/// is driven and the flag keeps only the recovery widening (as ever).
-fn layout_of<const N: usize, const M: usize, const X: usize, const P: usize>(
-    s: &NetworkSettings,
-    gain: &GainTables<X, P>,
-    nominal_w: &[f64; M],
-) -> BiasLayout<Const<M>> {
-    let biased: [bool; M] =
-        core::array::from_fn(|m| !(s.bias_noise_w2_per_s > 0.0 && gain.prior[N + m][N + m] == 0.0));
-    if s.bias_noise_w2_per_s <= 0.0 {
-        return BiasLayout::per_source(biased);
-    }
-    let tied = shared_in_tables::<N, M, X>(&gain.prior);
-    BiasLayout::shared(biased, &tied, nominal_w).unwrap_or(BiasLayout::per_source(biased))
 }
 
 #[inline(never)]
@@ -812,7 +794,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
             &self.model.resistance,
             self.settings.origin_c,
         );
-        layout_of::<N, M, X, P>(&self.settings, &self.gain, &nominal_w).shared_mask()
+        layout_of(&self.settings, &self.gain.gain(), N, Const::<M>, &nominal_w).shared_mask()
     }
 
     /// Writes these parts as a Rust expression of type `NetworkParts<N, B,

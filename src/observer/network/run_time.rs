@@ -26,7 +26,7 @@ use nalgebra::Dyn;
 
 use super::assemble::{Solved, StepMatrices};
 use super::resistance::SensorKind;
-use super::solve::{elements_per_stage, timing, GainSpec};
+use super::solve::{elements_per_stage, timing, BiasChoice, GainSpec};
 use super::{
     default_incidence_of, ModelOf, NetworkObserverOf, NetworkObserverStateOf, NetworkSettings,
     PREDICTOR_POINTS,
@@ -121,13 +121,13 @@ impl RunTimeObserver {
             }
             None => default_incidence_of(network, s.incidence_fraction)?,
         };
-        let shared = match &spec.bias_mode {
+        let bias_mode = match &spec.bias_mode {
             RunTimeBiasMode::Shared(mask) => {
                 check(mask.len() == m, "bias_mode")?;
-                Some(Some(mask))
+                BiasChoice::Shared(mask)
             }
-            RunTimeBiasMode::PerSource => Some(None),
-            RunTimeBiasMode::Auto => None,
+            RunTimeBiasMode::PerSource => BiasChoice::PerSource,
+            RunTimeBiasMode::Auto => BiasChoice::Auto,
         };
         // The filter's states: temperatures, biases, and the boundary
         // offset when the settings ask for one on a boundary that exists.
@@ -143,7 +143,7 @@ impl RunTimeObserver {
             critical_c: &spec.critical_c,
             hardware_limit_a: &spec.hardware_limit_a,
             bias_sources: &spec.bias_sources,
-            bias_mode: shared,
+            bias_mode,
         }
         .solve_biased_gain(&model, timing.correction_period, states)?;
         let mut predictor = PredictorBuilder::new()
@@ -279,10 +279,7 @@ mod tests {
             }
         };
         assert!(RunTimeObserver::build_at_run_time(&AtRunTime(&net), &good).is_ok());
-        assert_eq!(
-            refused(&|s| s.critical_c.pop().map_or((), drop)),
-            "critical_c"
-        );
+        assert_eq!(refused(&|s| s.critical_c.truncate(3)), "critical_c");
         assert_eq!(
             refused(&|s| s.hardware_limit_a.push(1.0)),
             "hardware_limit_a"

@@ -81,6 +81,17 @@ pub(super) fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     })
 }
 
+/// How the heat-input biases are laid out ([`BiasMode`](super::BiasMode)
+/// over sizes, borrowed).
+pub(super) enum BiasChoice<'a, Z: Sizes> {
+    /// [`BiasMode::Auto`](super::BiasMode::Auto).
+    Auto,
+    /// [`BiasMode::PerSource`](super::BiasMode::PerSource).
+    PerSource,
+    /// [`BiasMode::Shared`](super::BiasMode::Shared).
+    Shared(&'a InputVector<Z, bool>),
+}
+
 /// What the gain solve reads of a builder, over sizes.
 pub(super) struct GainSpec<'a, Z: Sizes, P: Length> {
     pub(super) settings: &'a NetworkSettings,
@@ -89,9 +100,7 @@ pub(super) struct GainSpec<'a, Z: Sizes, P: Length> {
     pub(super) critical_c: &'a NodeVector<Z, Option<f64>>,
     pub(super) hardware_limit_a: &'a InputVector<Z, f64>,
     pub(super) bias_sources: &'a InputVector<Z, bool>,
-    /// `None`: [`BiasMode::Auto`](super::BiasMode::Auto); `Some(None)`: [`BiasMode::PerSource`](super::BiasMode::PerSource);
-    /// `Some(Some(mask))`: [`BiasMode::Shared`](super::BiasMode::Shared).
-    pub(super) bias_mode: Option<Option<&'a InputVector<Z, bool>>>,
+    pub(super) bias_mode: BiasChoice<'a, Z>,
 }
 
 impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
@@ -173,9 +182,9 @@ impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
                 }
             };
         match self.bias_mode {
-            Some(None) => solve(&per_source()),
-            Some(Some(mask)) => solve(&shared(mask).unwrap_or_else(per_source)),
-            None => match solve(&per_source()) {
+            BiasChoice::PerSource => solve(&per_source()),
+            BiasChoice::Shared(mask) => solve(&shared(mask).unwrap_or_else(per_source)),
+            BiasChoice::Auto => match solve(&per_source()) {
                 Err(refused @ BuildError::NotConverged { .. }) => match shared(&all) {
                     Some(layout) => solve(&layout).map_err(|_| refused),
                     None => Err(refused),
