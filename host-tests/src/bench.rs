@@ -34,8 +34,8 @@
 //!   together, the mean 1 ms tick over whole update cycles ([`GridLoop`]);
 //! * `omnimagnet_observer_16_f32_ns`: model and protection of one
 //!   Omnimagnet together, one 1 ms tick without readings ([`OmniLoop`]);
-//! * `network_observer_96_f32_ns`: the main job's tick, the library's
-//!   `NetworkObserver` on the HPPA grid's 84 coils padded to 96 nodes, the
+//! * `network_observer_84_f32_ns`: the library's `NetworkObserver` on the
+//!   HPPA grid's 84 coils as a model file, at its own size, the
 //!   mean 1 ms tick (`replay` prints the distribution).
 //!
 //! In JSON each key `<name>_ns` also has `<name>_budget_ratio`.
@@ -610,8 +610,8 @@ impl OmniLoop {
     }
 }
 
-/// The main job's tick: the library's `NetworkObserver` on the HPPA grid's
-/// 84 coils (FDM-fitted, as a model file) padded to 96 nodes, 1 ms ticks,
+/// The library's `NetworkObserver` on the HPPA grid's 84 coils
+/// (FDM-fitted, as a model file) at its own size, 1 ms ticks,
 /// every coil at 1 A, open loop; the mean over many ticks (one in 16 runs
 /// the time-to-limit slice).
 fn network_observer_tick(min_time: Duration, repeats: usize) -> Timing {
@@ -631,7 +631,7 @@ fn network_observer_tick(min_time: Duration, repeats: usize) -> Timing {
     observer.reset(&vec![20.0; n]);
     observer.hold_inputs(&vec![1.0; n], &[20.0, 20.0], &[]);
     measure(
-        format!("network_observer_{}_f32_ns", observer.size_class()),
+        format!("network_observer_{}_f32_ns", observer.nodes()),
         min_time,
         repeats,
         || {

@@ -2,28 +2,23 @@
 //! [`NetworkObserver`] at fixed ticks (1 ms by default), each tick timed.
 //!
 //! # Sizes
-//! `NetworkObserver<N, B, M, X, P>` has its sizes in types; a model file has
-//! them at run time. The model's network is copied into `Network<C, 2, C>`
-//! for the smallest `C` of [`OBSERVER_CLASSES`] that holds its nodes and
-//! sources (as `limits` pads it: padding nodes decay to boundary 0 and touch
-//! no real node, padding sources sit at zero current), and the observer is
-//! `NetworkObserver<C, 2, C, 2C, 1>`. Its build solves the steady Kalman
-//! gain of `2C` states in `f64` on the stack, so it runs on a thread with a
-//! large stack and the result is boxed. Few classes keep the compile time
-//! down: a 2-node coil runs as 8 nodes, the HPPA grid's 84 coils as 96.
+//! The observer is the library's [`RunTimeObserver`]: the MCU's network
+//! observer (the same tick, correction, protection and assembly) over
+//! sizes read from the model file, built by
+//! [`RunTimeObserver::build_at_run_time`] from the firmware's network of
+//! the file ([`Model::firmware_network`]) at its own number of nodes,
+//! boundaries, sources and sensors, with no cap below what memory allows
+//! (test `the_library_observer_runs_a_300_node_motor_at_its_own_size`).
 //!
 //! # Open loop and fused thermocouples
-//! The observer has one thermocouple slot per fused sensor (at most
-//! [`SENSOR_SLOTS`]; open loop one slot on node 0 that never reads): a
-//! padded slot would never read, fall silent, and a silent sensor is one
-//! in doubt, which raises the published upper bounds to the uncorrected
-//! shadow model's, as no firmware with the file's sensors does. Without
-//! fused sensors the estimate is the library's model step, the exact
-//! zero-order hold of the network with `R(T)` at the estimate, run in
-//! `f32` on deviations with the rounding carried. With `--measure` each
-//! column is a thermocouple of its node: a row's reading is handed to the
-//! tick right after the row (as a driver's sample taken then), and the
-//! library's steady-state correction fuses it with the gain solved for the
+//! The observer has one sensor per fused thermocouple; open loop one on
+//! node 0 that never reads (a filter has a sensor). Without fused sensors
+//! the estimate is the library's model step, the exact zero-order hold of
+//! the network with `R(T)` at the estimate, run in `f32` on deviations
+//! with the rounding carried. With `--measure` each column is a
+//! thermocouple of its node: a row's reading is handed to the tick right
+//! after the row (as a driver's sample taken then), and the library's
+//! steady-state correction fuses it with the gain solved for the
 //! firmware's correction period (`[observer] correction_period_s`).
 //!
 //! # The firmware's observer
@@ -40,17 +35,9 @@
 //! [`ObserverEstimator::take_events`]). Test `replay_is_the_firmware`: the
 //! estimates, the upper bounds, the alarm limits, the input limits and the
 //! events of `drive-3node` over its bench hour at 1.6 times its currents
-//! are the generated module's to the bit (all 19 events on its ticks):
-//! the padding nodes and sources add exact zeros to every sum, and the
-//! tables the builder solves at the padded size are the model's own to
-//! the bit (compared for drive-3node and the 24 V valve; each
-//! cell of the trace is rounded once to `f32`, as the MCU receives it).
-//! Without sensors the
-//! heat-input biases are off. The padding sources carry no current and
-//! their biases no sensor can see (an unobservable random walk has no
-//! steady gain), so they are left out of the bias states
-//! ([`NetworkObserverBuilder::bias_sources`]: their bias is exactly 0), as
-//! the fault campaign does ([`crate::faults`]). A sensor therefore corrects
+//! are the generated module's to the bit (all 19 events on its ticks;
+//! each cell of the trace is rounded once to `f32`, as the MCU receives
+//! it). Without sensors the heat-input biases are off. A sensor corrects
 //! the model's heat as well as its temperatures: a housing thermocouple
 //! warms an unmeasured coil whose plant runs 40 % hotter than the model
 //! (coil MSE 1.09 K^2, against 5.46 with the biases frozen and 31.9 open
@@ -64,8 +51,7 @@
 //! the firmware generated from the file does: one sensor, one heat. Only
 //! where even that does not converge does the replay refuse, with the
 //! words `codegen` and `faults` use. `[observer] bias_sources` names the
-//! sources whose bias is estimated (the others' stay exactly 0, as the
-//! padding's). Or the
+//! sources whose bias is estimated (the others' stay exactly 0). Or the
 //! firmware freezes every bias (`[observer] bias_noise_w2_per_s = 0`;
 //! `replay --bias-noise-w2-per-s 0` replays so without editing the file:
 //! temperatures corrected, no heat input estimated). Open loop (no sensor)
@@ -86,12 +72,11 @@
 //! 5e-7 K and 5e-7 of duty, the drive rules on the same ticks.
 //!
 //! # Currents above 100 A
-//! The observer holds a current beyond its plausibility limit (the
-//! library's `InputLimits::default()`, 100 A, fixed for the observer) at
-//! that limit. Recorded motor currents reach 400 A (the HUST motor), so the
-//! host feeds every current divided by [`CURRENT_SCALE`] into windings
-//! whose resistance is `CURRENT_SCALE^2` times the model's: the same power,
-//! exactly (both factors are powers of two), for currents up to 1600 A.
+//! The observer holds a current beyond its plausibility limit
+//! (`[observer] max_current_a`, the firmware's) at that limit. Recorded
+//! motor currents reach 400 A (the HUST motor): the open-loop estimator of
+//! [`ObserverEstimator::new`] (no firmware) takes currents up to
+//! [`OPEN_LOOP_MAX_CURRENT_A`].
 //!
 //! # Speed-dependent sources
 //! A model file's power scales, speed factors and losses enter as the
@@ -108,8 +93,8 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
-    BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
-    NetworkSettings, SensorKind,
+    NetworkInputsOf, RunTimeBiasMode, RunTimeObserver, RunTimeObserverState, RunTimeSpec,
+    SensorKind,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
@@ -119,63 +104,13 @@ use crate::dynamic_network::DynNetwork;
 use crate::firmware::FirmwareConfig;
 use crate::model_file::Model;
 use crate::observer::{Estimator, Measurement, TickClock};
-use crate::padding::{class_of, on_big_stack, padded_with, Padding};
 use crate::sim::{plant_info, PlantInfo};
-use coil_thermal::protect::derating::DeratingRule;
+use nalgebra::Dyn;
 
-/// The padded sizes `C` (nodes and sources) of the observer.
-pub const OBSERVER_CLASSES: [usize; 4] = [8, 16, 32, 96];
-
-/// Why no firmware observer is solved for `network` (more nodes or sources
-/// than the largest of [`OBSERVER_CLASSES`], or more than 2 boundaries:
-/// `codegen` makes no firmware of it either), or `None` when one is.
-pub fn why_no_firmware_observer(network: &DynNetwork) -> Option<anyhow::Error> {
-    class_of(network, &OBSERVER_CLASSES, "the firmware's observer").err()
-}
-
-/// Currents enter the observer divided by this, resistances multiplied by
-/// its square (see the module docs).
-pub const CURRENT_SCALE: f64 = 16.0;
-
-/// Thermocouple slots of the padded observer: at most this many fused
-/// sensors (unused slots sit on a padding node and never read).
-pub const SENSOR_SLOTS: usize = 4;
-
-/// The size-independent face of a padded observer with its state.
-trait PaddedObserver: Send {
-    /// A fresh state at `temps_c` (real nodes) and `boundary_c`.
-    fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]);
-    /// Sets the held inputs of the following ticks.
-    fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]);
-    /// Readings (one per fused sensor, `None`: none; a fault the sensor
-    /// reported instead of a value) for the next tick.
-    fn readings(&mut self, z: &[Option<Result<f64, SensorFault>>]);
-    /// Holds each source's voltage drive `(duty, supply_v)` in the
-    /// model's units (see `Model::voltage_drive`; `None`: its current is
-    /// the input's): the ticks run `tick_voltage` while one is `Some`.
-    fn drives(&mut self, drives: &[Option<(f64, f64)>]);
-    /// The drive rules that fired since the last call (`DriveFlags`).
-    fn take_drive_flags(&mut self) -> DriveFlags;
-    /// Each held voltage drive's limit after the last tick, `(duty,
-    /// effective voltage [V])` from the library's `drive_limit` on the
-    /// held supply (`None` for a current-driven source).
-    fn drive_limits(&self, out: &mut [Option<(f64, f64)>]);
-    /// What the last tick did with each fused sensor's reading.
-    fn statuses(&self, out: &mut [SensorStatus]);
-    /// One library tick of `elapsed_us`; returns its host time \[ns\].
-    fn tick(&mut self, elapsed_us: u32) -> u64;
-    /// The real nodes' estimates \[degC\] into `out`.
-    fn temps_c(&self, out: &mut [f64]);
-    /// What the protection published at the last tick, for the model's
-    /// `out.upper_c.len()` nodes and `out.source_limit_a.len()` sources.
-    fn protection(&self, out: &mut Protected);
-    /// Moves the alarm events of the last tick into `out`.
-    fn drain_events(&mut self, out: &mut Vec<EventKindAt>);
-    /// The estimate of `node` \[degC\] at which its protective upper bound
-    /// reaches `limit_c` \[degC\], its reference at `reference_c` \[degC\]
-    /// (the library's `ElementBound::mean_limit_c`).
-    fn mean_limit_c(&self, node: usize, limit_c: f64, reference_c: f64) -> f64;
-}
+/// The plausibility limit of [`ObserverEstimator::new`]'s currents \[A\]:
+/// recorded motor currents reach 400 A (the HUST motor), beyond the
+/// library's default limit (100 A) for a firmware.
+pub const OPEN_LOOP_MAX_CURRENT_A: f64 = 1600.0;
 
 /// An alarm event of the observer: the element (a node of the model, or
 /// `None`) and what happened.
@@ -264,157 +199,93 @@ impl Protected {
     }
 }
 
-struct Sized<const C: usize, const X: usize, const P: usize> {
-    observer: NetworkObserver<C, 2, C, X, P>,
-    state: NetworkObserverState<C, 2, C, X, P>,
-    inputs: NetworkInputs<2, C, P>,
-    /// Each source's voltage drive, in the padded network's units (the
-    /// supply times [`CURRENT_SCALE`]); all `None` for a current-driven
-    /// model.
-    drives: [Option<VoltageDrive>; C],
-    /// The drive rules that fired since [`PaddedObserver::take_drive_flags`].
+/// The library's observer of a model at its own size, with its state and
+/// the inputs it holds between ticks.
+struct AtModelSize {
+    observer: RunTimeObserver,
+    state: RunTimeObserverState,
+    inputs: NetworkInputsOf<Dyn, Dyn, Dyn>,
+    /// Each source's voltage drive; all `None` for a current-driven model.
+    drives: Vec<Option<VoltageDrive>>,
+    /// The drive rules that fired since [`AtModelSize::take_drive_flags`].
     drive_flags: DriveFlags,
     /// Readings waiting for the next tick.
-    pending: [Option<Result<f32, SensorFault>>; P],
+    pending: Vec<Option<Result<f32, SensorFault>>>,
     /// The boundary the alarm takes as the ambient.
     ambient_boundary: usize,
 }
 
-/// What a padded observer is built from (sizes at run time).
-#[derive(Clone)]
-struct BuildSpec {
-    net: DynNetwork,
-    settings: NetworkSettings,
-    sensor_nodes: Vec<usize>,
-    /// What each sensor is (a temperature or a winding's resistance).
-    sensor_kinds: Vec<SensorKind>,
-    biased: Vec<bool>,
-    shared_bias: bool,
-    critical_c: Vec<Option<f64>>,
-    hardware_limit_a: f64,
-    rule: DeratingRule,
-    name: String,
-}
-
-impl<const C: usize, const X: usize, const P: usize> Sized<C, X, P> {
-    fn build(spec: &BuildSpec) -> Result<Box<dyn PaddedObserver>> {
-        let BuildSpec {
-            net,
-            settings,
-            sensor_nodes,
-            sensor_kinds,
-            biased,
-            shared_bias,
-            critical_c,
-            hardware_limit_a,
-            rule,
-            name,
-        } = spec;
-        let settings = *settings;
-        let padding = Padding {
-            link_to_boundary: true,
-            resistance_scale: CURRENT_SCALE * CURRENT_SCALE,
-        };
-        let network = padded_with::<C>(net, padding)?;
-        // One slot per sensor; open loop one slot on node 0, never read.
-        let mut slots = [0; P];
-        slots[..sensor_nodes.len()].copy_from_slice(sensor_nodes);
-        // A resistance sensor reads through the winding's own `R(T)` (the
-        // model's ohms, not the padding's scaled ones): only its noise and
-        // its node enter the tables, and its ohms are converted before
-        // they reach the observer (`raw_sensors`), as the MCU's
-        // `resistance_reading` converts them.
-        let mut kinds = [SensorKind::Thermocouple; P];
-        kinds[..sensor_kinds.len()].copy_from_slice(sensor_kinds);
-        let bias_sources: [bool; C] =
-            core::array::from_fn(|m| biased.get(m).copied().unwrap_or(false));
-        let critical: [Option<f64>; C] =
-            core::array::from_fn(|i| critical_c.get(i).copied().flatten());
-        // The firmware's limits, in the scaled currents (see the module
-        // docs): the hardware limit and the plausibility limit divided by
-        // the scale, exactly (a power of two).
-        let scaled = NetworkSettings {
-            max_current_a: settings.max_current_a / CURRENT_SCALE,
-            ..settings
-        };
-        let observer = NetworkObserverBuilder::new(&network, slots)
-            .critical_c(critical)
-            .hardware_limit_a([hardware_limit_a / CURRENT_SCALE; C])
-            .derating(rule.clone())
-            .settings(scaled)
-            .bias_sources(bias_sources)
-            .sensor_kinds(kinds)
-            .bias_mode(if *shared_bias {
-                // `[observer] shared_bias`: the padding's sources carry no
-                // bias, so they share none either.
-                BiasMode::Shared([true; C])
-            } else {
-                BiasMode::Auto
-            })
-            .build::<X>()
-            .map_err(|e| {
-                // The same words as `codegen` and `faults` (one fix for one
-                // refusal).
-                match crate::codegen::build_hint::observer_build_hint(
-                    &e,
-                    settings.bias_noise_w2_per_s,
-                ) {
-                    Some(hint) => anyhow!(
-                        "the observer of model `{name}` does not build: {e}; {hint} \
-                         (replay: --bias-noise-w2-per-s 0 freezes the biases without editing the file)"
-                    ),
-                    None => anyhow!("the observer of model `{name}` does not build: {e}"),
-                }
-            })?;
+impl AtModelSize {
+    /// The observer of `network` built from `spec`, at the settings' origin
+    /// with the warm-up (`name`: the model's, for the refusal's words).
+    fn build(network: &DynNetwork, spec: &RunTimeSpec, name: &str) -> Result<Self> {
+        let settings = spec.settings;
+        let observer = RunTimeObserver::build_at_run_time(network, spec).map_err(|e| {
+            // The same words as `codegen` and `faults` (one fix for one
+            // refusal).
+            match crate::codegen::build_hint::observer_build_hint(&e, settings.bias_noise_w2_per_s)
+            {
+                Some(hint) => anyhow!(
+                    "the observer of model `{name}` does not build: {e}; {hint} \
+                     (replay: --bias-noise-w2-per-s 0 freezes the biases without editing the file)"
+                ),
+                None => anyhow!("the observer of model `{name}` does not build: {e}"),
+            }
+        })?;
         let origin = settings.origin_c as f32;
-        let state = observer.with_warm_up(observer.state(&[origin; C], &[origin; 2]));
-        Ok(Box::new(Self {
+        let (n, b, m) = (
+            network.nodes(),
+            network.boundaries(),
+            network.sources().len(),
+        );
+        let p = spec.sensor_nodes.len();
+        let state = observer.with_warm_up(observer.state(&vec![origin; n], &vec![origin; b]));
+        Ok(Self {
             observer,
             state,
-            inputs: NetworkInputs {
-                currents_a: [0.0; C],
-                boundary_c: [origin; 2],
-                readings: [None; P],
+            inputs: NetworkInputsOf {
+                currents_a: vec![0.0; m],
+                boundary_c: vec![origin; b],
+                readings: vec![None; p],
                 now_us: 0,
                 elapsed_us: 0,
             },
-            pending: [None; P],
-            drives: [None; C],
+            pending: vec![None; p],
+            drives: vec![None; m],
             drive_flags: DriveFlags::NONE,
-            ambient_boundary: settings.ambient_boundary.min(1),
-        }))
+            ambient_boundary: settings.ambient_boundary,
+        })
     }
-}
 
-impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C, X, P> {
+    /// A fresh state at `temps_c` and `boundary_c` \[degC\], with the
+    /// warm-up.
     fn reset(&mut self, temps_c: &[f64], boundary_c: &[f64]) {
         self.inputs(&[], boundary_c);
-        // Padding nodes start at boundary 0, their equilibrium.
-        let mut temps = [self.inputs.boundary_c[0]; C];
-        for (t, v) in temps.iter_mut().zip(temps_c) {
-            *t = *v as f32;
-        }
+        let temps: Vec<f32> = temps_c.iter().map(|t| *t as f32).collect();
         self.state = self
             .observer
             .with_warm_up(self.observer.state(&temps, &self.inputs.boundary_c));
         self.inputs.now_us = 0;
     }
 
+    /// Sets the held inputs of the following ticks (currents \[A\] missing
+    /// at the end are zero, boundaries \[degC\] missing take the first's).
     fn inputs(&mut self, currents_a: &[f64], boundary_c: &[f64]) {
-        self.inputs.currents_a = [0.0; C];
+        self.inputs.currents_a.fill(0.0);
         for (i, v) in self.inputs.currents_a.iter_mut().zip(currents_a) {
-            *i = (*v / CURRENT_SCALE) as f32;
+            *i = *v as f32;
         }
-        // A padding boundary has no links: boundary 0's value serves.
         let fill = boundary_c.first().map_or(20.0, |b| *b as f32);
-        self.inputs.boundary_c = [fill; 2];
+        self.inputs.boundary_c.fill(fill);
         for (b, v) in self.inputs.boundary_c.iter_mut().zip(boundary_c) {
             *b = *v as f32;
         }
     }
 
+    /// Readings (one per fused sensor, `None`: none; a fault the sensor
+    /// reported instead of a value) for the next tick.
     fn readings(&mut self, z: &[Option<Result<f64, SensorFault>>]) {
-        self.pending = [None; P];
+        self.pending.fill(None);
         for (p, v) in self.pending.iter_mut().zip(z) {
             *p = match v {
                 Some(Ok(v)) if v.is_finite() => Some(Ok(*v as f32)),
@@ -424,40 +295,41 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         }
     }
 
+    /// Holds each source's voltage drive `(duty, supply_v)` in the model's
+    /// units (see `Model::voltage_drive`; `None`: its current is the
+    /// input's): the ticks run `tick_voltage` while one is `Some`.
     fn drives(&mut self, drives: &[Option<(f64, f64)>]) {
-        self.drives = [None; C];
+        self.drives.fill(None);
         for (slot, d) in self.drives.iter_mut().zip(drives) {
-            // The padded winding's resistance is `CURRENT_SCALE^2` times
-            // the model's and its current `1 / CURRENT_SCALE` of it: the
-            // same heat on a supply `CURRENT_SCALE` times the model's.
-            *slot = d.map(|(duty, supply_v)| {
-                VoltageDrive::pwm(duty as f32, (supply_v * CURRENT_SCALE) as f32)
-            });
+            *slot = d.map(|(duty, supply_v)| VoltageDrive::pwm(duty as f32, supply_v as f32));
         }
     }
 
+    /// The drive rules that fired since the last call.
     fn take_drive_flags(&mut self) -> DriveFlags {
         core::mem::take(&mut self.drive_flags)
     }
 
+    /// Each held voltage drive's limit after the last tick, `(duty,
+    /// effective voltage [V])` from the library's `drive_limit` on the
+    /// held supply (`None` for a current-driven source).
     fn drive_limits(&self, out: &mut [Option<(f64, f64)>]) {
         for ((m, l), d) in out.iter_mut().enumerate().zip(&self.drives) {
             *l = d.map(|d| {
                 let limit = self.observer.drive_limit(&self.state, m, d.supply_v);
-                // The effective voltage in the model's volts (the
-                // padding's scale taken out, exactly: a power of two).
-                (
-                    f64::from(limit.duty),
-                    f64::from(limit.voltage_v) / CURRENT_SCALE,
-                )
+                (f64::from(limit.duty), f64::from(limit.voltage_v))
             });
         }
     }
 
+    /// What the last tick did with each fused sensor's reading.
     fn statuses(&self, out: &mut [SensorStatus]) {
-        out.copy_from_slice(&self.state.outputs().sensors[..out.len()]);
+        for (o, s) in out.iter_mut().zip(&self.state.outputs().sensors) {
+            *o = *s;
+        }
     }
 
+    /// One library tick of `elapsed_us`; returns its host time \[ns\].
     fn tick(&mut self, elapsed_us: u32) -> u64 {
         self.inputs.now_us = self.inputs.now_us.wrapping_add(elapsed_us);
         self.inputs.elapsed_us = elapsed_us;
@@ -486,6 +358,7 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         }
     }
 
+    /// The nodes' estimates \[degC\] into `out`.
     fn temps_c(&self, out: &mut [f64]) {
         let temps = self.observer.temps_c(&self.state);
         for (o, t) in out.iter_mut().zip(temps) {
@@ -493,28 +366,40 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
         }
     }
 
+    /// What the protection published at the last tick.
     fn protection(&self, out: &mut Protected) {
         let o = self.state.outputs();
-        let ambient_c = self.inputs.boundary_c[self.ambient_boundary];
+        let ambient_c = self.ambient_c();
         let alarm = self.observer.alarm();
-        for (i, u) in out.upper_c.iter_mut().enumerate() {
-            *u = f64::from(o.upper_c[i]);
+        for (u, t) in out.upper_c.iter_mut().zip(&o.upper_c) {
+            *u = f64::from(*t);
         }
         for (i, l) in out.alarm_limit_c.iter_mut().enumerate() {
             *l = alarm.alarm_limit_c(i, ambient_c).map(f64::from);
         }
-        for (m, l) in out.source_limit_a.iter_mut().enumerate() {
-            // Exact: the scale is a power of two.
-            *l = f64::from(o.limits[m].current_a) * CURRENT_SCALE;
+        for (l, limit) in out.source_limit_a.iter_mut().zip(&o.limits) {
+            *l = f64::from(limit.current_a);
         }
-        for (i, t) in out.time_to_limit_s.iter_mut().enumerate() {
-            *t = o.time_to_limit_s[i].map(f64::from);
+        for (t, s) in out.time_to_limit_s.iter_mut().zip(&o.time_to_limit_s) {
+            *t = s.map(f64::from);
         }
         out.warning = o.alarm.warning;
         out.shutdown = o.alarm.shutdown;
         out.predictive = o.alarm.predictive;
     }
 
+    /// The ambient the alarm derates against \[degC\].
+    fn ambient_c(&self) -> f32 {
+        self.inputs
+            .boundary_c
+            .get(self.ambient_boundary)
+            .copied()
+            .unwrap_or(f32::NAN)
+    }
+
+    /// The estimate of `node` \[degC\] at which its protective upper bound
+    /// reaches `limit_c` \[degC\], its reference at `reference_c` \[degC\]
+    /// (the library's `ElementBound::mean_limit_c`).
     fn mean_limit_c(&self, node: usize, limit_c: f64, reference_c: f64) -> f64 {
         self.observer
             .upper_bound()
@@ -524,15 +409,16 @@ impl<const C: usize, const X: usize, const P: usize> PaddedObserver for Sized<C,
             })
     }
 
+    /// Moves the alarm events of the last tick into `out`.
     fn drain_events(&mut self, out: &mut Vec<EventKindAt>) {
-        let ambient_c = self.inputs.boundary_c[self.ambient_boundary];
-        let upper = self.state.outputs().upper_c;
+        let ambient_c = self.ambient_c();
         let alarm = self.observer.alarm();
         while let Some(e) = self.state.events.pop() {
+            let upper = &self.state.outputs().upper_c;
             out.push(EventKindAt::of(
                 &e,
                 0.0,
-                e.element.map(|i| upper[i]),
+                e.element.and_then(|i| upper.get(i).copied()),
                 e.element.and_then(|i| alarm.alarm_limit_c(i, ambient_c)),
                 alarm.warning_margin_k(),
             ));
@@ -576,7 +462,7 @@ impl FusionStats {
 pub struct ObserverEstimator {
     model: Model,
     info: PlantInfo,
-    observer: Box<dyn PaddedObserver>,
+    observer: AtModelSize,
     tick_us: u32,
     /// The trace time asked for and the ticks done since the reset.
     clock: TickClock,
@@ -591,7 +477,6 @@ pub struct ObserverEstimator {
     currents_f32: Vec<f32>,
     currents: Vec<f64>,
     tick_ns: crate::observer::TimeHistogram,
-    size_class: usize,
     sensors: Vec<usize>,
     /// Readings handed over, not yet seen by a tick.
     awaiting: bool,
@@ -653,15 +538,13 @@ impl ObserverEstimator {
     /// large stack: the gain is solved there).
     ///
     /// # Errors
-    /// No boundary, more than 2, more nodes or sources than the largest
-    /// class, a tick of 0, or a network the library refuses.
+    /// No boundary, a tick of 0, or a network the library refuses.
     pub fn new(model: Model, tick_us: u32) -> Result<Self> {
         let mut config = FirmwareConfig::of(&model, None)?;
         config.settings.step_us = tick_us;
         config.settings.loop_period_us = tick_us;
-        // Not a firmware's: currents up to the scaled default (see the
-        // module docs), as a motor's 400 A need.
-        config.settings.max_current_a = 100.0 * CURRENT_SCALE;
+        // Not a firmware's: currents as a motor's 400 A need.
+        config.settings.max_current_a = OPEN_LOOP_MAX_CURRENT_A;
         Self::firmware(model, tick_us, &config, &[])
     }
 
@@ -671,10 +554,9 @@ impl ObserverEstimator {
     /// that order; none: open loop, and no heat-input bias).
     ///
     /// # Errors
-    /// As [`Self::new`]; more than [`SENSOR_SLOTS`] sensors; settings the
-    /// library refuses (a sensor noise or correction period that is not
-    /// finite and positive, a negative noise); a model that fills its size
-    /// class (the unused sensor slots need a padding node).
+    /// As [`Self::new`]; settings the library refuses (a sensor noise or
+    /// correction period that is not finite and positive, a negative
+    /// noise).
     pub fn firmware(
         model: Model,
         tick_us: u32,
@@ -686,21 +568,21 @@ impl ObserverEstimator {
         }
         model.require_fixed_network("the library's network observer")?;
         let sensors = fused_nodes.to_vec();
-        if sensors.len() > SENSOR_SLOTS {
-            bail!(
-                "--measure: the library observer fuses at most {SENSOR_SLOTS} sensors, got {}",
-                sensors.len()
-            );
-        }
         let info = plant_info(&model);
-        let net = model.firmware_network();
+        let mut net = model.firmware_network();
+        if net.sources().is_empty() {
+            // The library's observer takes at least one current: a model
+            // without a source gets one that never carries current, on
+            // node 0 (no bias: `Model::carries_bias` is false for it).
+            net.joule_source(0, coil_thermal::Resistance::constant(1.0))
+                .map_err(|e| anyhow!("model `{}`: {e}", model.name))?;
+        }
         if net.boundaries() == 0 {
             bail!(
                 "model `{}` has no boundary: the library observer needs one (the ambient)",
                 model.name
             );
         }
-        let class = class_of(&net, &OBSERVER_CLASSES, "the library observer")?;
         let mut settings = config.settings;
         if sensors.is_empty() {
             // Open loop: no sensor, no bias (see the module docs), no
@@ -746,12 +628,10 @@ impl ObserverEstimator {
             // A reading is handed to the tick right after its row.
             // (kept at the firmware's: a reading is handed over with its own tick's time)
         }
-        // The padded network has two boundaries at most.
-        settings.ambient_boundary = settings.ambient_boundary.min(1);
+        let sources = net.sources().len();
         // The model's sources carry their biases (those `[observer]
-        // bias_sources` names, when given), the padding's do not (see the
-        // module docs).
-        let biased: Vec<bool> = (0..class).map(|m| model.carries_bias(m)).collect();
+        // bias_sources` names, when given).
+        let bias_sources: Vec<bool> = (0..sources).map(|m| model.carries_bias(m)).collect();
         // The file's sensor kinds apply to its own sensors; a replay that
         // fuses other nodes (an override it lists) fuses temperatures.
         let sensor_kinds = if sensors == config.sensor_nodes {
@@ -764,51 +644,34 @@ impl ObserverEstimator {
         } else {
             vec![SensorKind::Thermocouple; sensors.len()]
         };
-        let spec = BuildSpec {
-            net,
-            settings,
-            sensor_nodes: sensors.clone(),
-            sensor_kinds,
-            biased,
-            shared_bias: config.shared_bias,
-            critical_c: config.critical_c.clone(),
-            hardware_limit_a: config.hardware_limit_a,
-            rule: config.rule(),
-            name: model.name.clone(),
+        // Open loop one sensor on node 0 that never reads: the filter
+        // has a sensor, as the firmware generated from the file has.
+        let sensor_nodes = if sensors.is_empty() {
+            vec![0]
+        } else {
+            sensors.clone()
         };
-        // As many sensor slots as sensors (one, never read, open loop): a
-        // slot that never reads falls silent, and a silent sensor is one in
-        // doubt, which raises the published upper bounds to the shadow
-        // model's; the firmware has no such slot.
-        let slots = sensors.len().max(1);
-        let offset = spec.settings.boundary_offset.is_some();
-        macro_rules! sized {
-            ($($c:literal, $x:literal);*) => {
-                move || match (class, slots, offset) {
-                    $(
-                        ($c, 1, false) => Sized::<$c, $x, 1>::build(&spec),
-                        ($c, 2, false) => Sized::<$c, $x, 2>::build(&spec),
-                        ($c, 3, false) => Sized::<$c, $x, 3>::build(&spec),
-                        ($c, _, false) => Sized::<$c, $x, 4>::build(&spec),
-                    )*
-                    // A boundary offset is one more state: built for the
-                    // two smallest classes only (the build time of every
-                    // class twice), with one sensor slot or two.
-                    (8, 1, true) => Sized::<8, 17, 1>::build(&spec),
-                    (8, 2, true) => Sized::<8, 17, 2>::build(&spec),
-                    (16, 1, true) => Sized::<16, 33, 1>::build(&spec),
-                    (16, 2, true) => Sized::<16, 33, 2>::build(&spec),
-                    _ if offset => Err(anyhow!(
-                        "[observer] boundary_offset: replay runs it for models of at most 16 nodes and 2 sensors"
-                    )),
-                    _ => unreachable!("class_of returns one of OBSERVER_CLASSES"),
-                }
-            };
-        }
-        let observer = on_big_stack(
-            "the library observer",
-            sized!(8, 16; 16, 32; 32, 64; 96, 192),
-        )?;
+        let sensor_kinds = if sensors.is_empty() {
+            vec![SensorKind::Thermocouple]
+        } else {
+            sensor_kinds
+        };
+        let spec = RunTimeSpec {
+            sensor_nodes,
+            sensor_kinds,
+            critical_c: config.critical_c.clone(),
+            incidence: None,
+            hardware_limit_a: vec![config.hardware_limit_a; sources],
+            rule: config.rule(),
+            settings,
+            bias_sources,
+            bias_mode: if config.shared_bias {
+                RunTimeBiasMode::Shared(vec![true; sources])
+            } else {
+                RunTimeBiasMode::Auto
+            },
+        };
+        let observer = AtModelSize::build(&net, &spec, &model.name)?;
         let n = model.nodes.len();
         let m = model.network.sources().len();
         let firmware_inputs = FirmwareInputs::new(&model);
@@ -825,7 +688,6 @@ impl ObserverEstimator {
             currents_f32: Vec::new(),
             currents: Vec::new(),
             tick_ns: crate::observer::TimeHistogram::default(),
-            size_class: class,
             statuses: vec![SensorStatus::NoReading; sensors.len()],
             stats: sensors.iter().map(|&node| FusionStats::new(node)).collect(),
             sensors,
@@ -882,9 +744,9 @@ impl ObserverEstimator {
         &self.stats
     }
 
-    /// The padded size the observer runs at.
-    pub fn size_class(&self) -> usize {
-        self.size_class
+    /// The model's nodes, the observer's size.
+    pub fn nodes(&self) -> usize {
+        self.temps.len()
     }
 
     /// The tick \[us\].
@@ -949,8 +811,7 @@ impl ObserverEstimator {
             }
             // Before the first row's drive (the reset) the supply is not
             // known: no limit yet (NaN), never a current in a duty's place.
-            // Both are `f32`s widened (the padding's scale taken out
-            // exactly), so narrowing them back is exact.
+            // Both are `f32`s widened, so narrowing them back is exact.
             *out = Some(limit.map_or(f64::NAN, |(duty, voltage_v)| {
                 self.firmware_inputs
                     .drive_limit(m, duty as f32, voltage_v as f32)
@@ -973,9 +834,9 @@ impl Estimator for ObserverEstimator {
 
     fn reset(&mut self, temps_c: &[f64]) {
         // The boundaries of the first row arrive with the first predict;
-        // until then the padding sits at the mean start temperature.
+        // until then they sit at the mean start temperature.
         let mean = temps_c.iter().sum::<f64>() / temps_c.len().max(1) as f64;
-        self.observer.reset(temps_c, &[mean, mean]);
+        self.observer.reset(temps_c, &[mean]);
         self.drive_flag_ticks = DriveFlagTicks::default();
         self.publish_protection();
         self.events.clear();

@@ -598,7 +598,7 @@ fn bench_json_names_model_size_scalar_and_unit() {
         "network_84_q32_ns",
         "solenoid_30_f32_ns",
         "grid_observer_84_f32_ns",
-        "network_observer_96_f32_ns",
+        "network_observer_84_f32_ns",
     ] {
         assert!(j[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {j}");
     }

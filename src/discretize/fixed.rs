@@ -186,6 +186,52 @@ impl<const N: usize, const B: usize, const M: usize> ConstFixedStep<N, B, M> {
 }
 
 impl<Z: Sizes> FixedStep<Z> {
+    /// [`ConstFixedStep::of`] over any sizes, the tables given by entry:
+    /// `phi_minus_i(i, j)` of `Ad - I`, `bd_power(i, m)` of `Bd` \[K/J\],
+    /// `gd_boundary(i, b)` of `Gd` and `constant_k(i)` of `c` \[K\] (not a
+    /// `const fn`: for an observer built at run time). The same scales and
+    /// entries as `of` of the same tables.
+    pub fn of_entries(
+        sizes: Z,
+        phi_minus_i: impl Fn(usize, usize) -> f32,
+        bd_power: impl Fn(usize, usize) -> f32,
+        gd_boundary: impl Fn(usize, usize) -> f32,
+        constant_k: impl Fn(usize) -> f32,
+    ) -> Option<Self> {
+        fn scaled<D: Length>(dim: D, entry: impl Fn(usize) -> f32) -> Option<(D::Array<i32>, u8)> {
+            let row = dim.each(entry);
+            let mut out = dim.filled(0);
+            let scale = scale_row(row.as_ref(), out.as_mut())?;
+            Some((out, scale))
+        }
+        let mut step = Self {
+            temps: sizes.rows_of(sizes.nodes_of(0)),
+            powers: sizes.rows_of(sizes.inputs_of(0)),
+            boundaries: sizes.rows_of(sizes.boundaries_of(0)),
+            temp_scale: sizes.nodes_of(0),
+            power_scale: sizes.nodes_of(0),
+            boundary_scale: sizes.nodes_of(0),
+            constant: sizes.nodes_of(0),
+        };
+        for i in 0..sizes.nodes() {
+            let (row, s) = scaled(sizes.node_dim(), |j| phi_minus_i(i, j))?;
+            step.temps.as_mut()[i] = row;
+            step.temp_scale.as_mut()[i] = s;
+            let (row, s) = scaled(sizes.input_dim(), |m| bd_power(i, m))?;
+            step.powers.as_mut()[i] = row;
+            step.power_scale.as_mut()[i] = s;
+            let (row, s) = scaled(sizes.boundary_dim(), |b| gd_boundary(i, b))?;
+            step.boundaries.as_mut()[i] = row;
+            step.boundary_scale.as_mut()[i] = s;
+            let c = constant_k(i);
+            if !finite_bits(c) {
+                return None;
+            }
+            step.constant.as_mut()[i] = state_of_f32(c);
+        }
+        Some(step)
+    }
+
     /// One step of the states `states` (Q16.48 deviations \[K\]) with
     /// `inputs`. Saturating; allocation-free, panic-free, `O(N (N + M +
     /// B))` integer multiply-adds.
@@ -465,11 +511,12 @@ pub fn f32_of_state(q: i64) -> f32 {
 /// largest `s` (within [`MIN_SCALE`], [`MAX_SCALE`]) that keeps `sum_j
 /// |out[j]| <= 2^30`; `None` if an entry is not finite or `s` would fall
 /// below [`MIN_SCALE`].
-const fn scale_row<const C: usize>(row: &[f32; C], out: &mut [i32; C]) -> Option<u8> {
+const fn scale_row(row: &[f32], out: &mut [i32]) -> Option<u8> {
+    let c = row.len();
     // The largest biased exponent: every |entry| < 2^(top - 126).
     let mut top = 0i32;
     let mut j = 0;
-    while j < C {
+    while j < c {
         if !finite_bits(row[j]) {
             return None;
         }
@@ -479,9 +526,9 @@ const fn scale_row<const C: usize>(row: &[f32; C], out: &mut [i32; C]) -> Option
         }
         j += 1;
     }
-    // Headroom for the sum of C entries, each below 2^(31 - spare).
+    // Headroom for the sum of `c` entries, each below 2^(31 - spare).
     let mut spare = 0;
-    while (1usize << spare) < C {
+    while (1usize << spare) < c {
         spare += 1;
     }
     // |entry 2^s| < 2^(top - 126 + s) <= 2^(30 - spare): rounded, each
@@ -494,7 +541,7 @@ const fn scale_row<const C: usize>(row: &[f32; C], out: &mut [i32; C]) -> Option
         return None;
     }
     let mut j = 0;
-    while j < C {
+    while j < c && j < out.len() {
         out[j] = fixed_of_f32(row[j], s) as i32;
         j += 1;
     }

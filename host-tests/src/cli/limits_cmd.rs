@@ -302,18 +302,8 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             "boundary_c": boundary_c,
             "derating_product": if a.limit_c.is_some() { None } else { Some(rule.product()) },
             "limits_c": lim,
-            "acts_on": match bound {
-                Bound::Upper(_) => "upper bound",
-                Bound::Estimate(_) => "estimate",
-            },
-            "upper_bound": match &bound {
-                Bound::Upper(by) => Some(by),
-                Bound::Estimate(_) => None,
-            },
-            "no_upper_bound": match &bound {
-                Bound::Upper(_) => None,
-                Bound::Estimate(why) => Some(why),
-            },
+            "acts_on": "upper bound",
+            "upper_bound": bound,
             "mean_limits_c": mean_lim,
             "assumed_limit_nodes": nodes.iter().zip(&assumed).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect::<Vec<_>>(),
             "time_to_limit_s": ttl,
@@ -348,14 +338,9 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
             rule.product()
         ),
     }
-    match &bound {
-        Bound::Upper(by) => println!(
-            "on the firmware's upper bound ({by}): \"mean at limit\" is the estimate at which the bound reaches the limit"
-        ),
-        Bound::Estimate(why) => println!(
-            "on the model's temperatures, no upper bound ({why}): \"mean at limit\" is the limit"
-        ),
-    }
+    println!(
+        "on the firmware's upper bound ({bound}): \"mean at limit\" is the estimate at which the bound reaches the limit"
+    );
     println!(
         "{:<24} {:>12} {:>14} {:>14} {:>16}",
         "element", "limit [degC]", "mean at limit", "steady [degC]", "time to limit"
@@ -452,32 +437,21 @@ pub fn limits(a: LimitsArgs) -> Result<()> {
     Ok(())
 }
 
-/// What the limits act on.
-enum Bound {
-    /// The upper bound the firmware protects on, described.
-    Upper(String),
-    /// The model's temperatures: no firmware observer exists for the
-    /// model (why).
-    Estimate(String),
-}
-
 /// Each element's limit for the model's mean \[degC\]: the estimate at
 /// which the upper bound the firmware protects on reaches `limits_c`
 /// \[degC\] (`boundary_c` \[degC\] the boundaries), and a description of
 /// that bound. The built-in devices: their flashed observers' margins (the
 /// grid's on the rise above the colder of its coolant and ambient, the
 /// Omnimagnet's `k sigma` and unmeasured margin); a model file: the
-/// `NetworkObserver` `codegen` flashes from its `[observer]` table. A model
-/// file larger than that observer is solved for (`codegen` makes no
-/// firmware of it) has no upper bound: the limits act on the model's
-/// temperatures, and say so.
+/// `NetworkObserver` `codegen` flashes from its `[observer]` table, at the
+/// model's own size.
 fn mean_limits(
     spec: &ModelSpec,
     file: &crate::model_file::ModelFile,
     model: &Model,
     limits_c: &[Option<f64>],
     boundary_c: &[f64],
-) -> Result<(Vec<Option<f64>>, Bound)> {
+) -> Result<(Vec<Option<f64>>, String)> {
     match spec {
         ModelSpec::Hppa => {
             let margin = coil_thermal::observer::grid::DEFAULT_MARGIN;
@@ -491,10 +465,10 @@ fn mean_limits(
                     .iter()
                     .map(|l| l.map(|l| element.mean_limit_c(l, reference_c)))
                     .collect(),
-                Bound::Upper(format!(
+                format!(
                     "the grid observer's: {} x the rise above the colder of coolant and ambient, + {} K",
                     margin.rise_fraction, margin.offset_k
-                )),
+                ),
             ))
         }
         ModelSpec::Omnimagnet => {
@@ -513,13 +487,10 @@ fn mean_limits(
                         })
                     })
                     .collect(),
-                Bound::Upper("the flashed OmniObserver's: k sigma with its six thermocouples, and its margin on the unmeasured elements' rise".into()),
+                "the flashed OmniObserver's: k sigma with its six thermocouples, and its margin on the unmeasured elements' rise".into(),
             ))
         }
         _ => {
-            if let Some(why) = crate::library_observer::why_no_firmware_observer(&model.network) {
-                return Ok((limits_c.to_vec(), Bound::Estimate(format!("{why:#}"))));
-            }
             let config = crate::firmware::FirmwareConfig::of(model, file.observer.as_ref())?;
             let sensors = config.sensor_nodes.clone();
             let observer = crate::library_observer::ObserverEstimator::firmware(
@@ -533,11 +504,11 @@ fn mean_limits(
             )?;
             Ok((
                 observer.mean_limits_c(limits_c, boundary_c),
-                Bound::Upper(format!(
+                format!(
                     "the firmware's NetworkObserver from {}: k sigma with its {} sensor(s), and the unmeasured margin",
                     if config.from_table { "the [observer] table" } else { "codegen's defaults" },
                     sensors.len()
-                )),
+                ),
             ))
         }
     }

@@ -744,19 +744,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let median_row_s = file.median_gap_s()?;
     // A network that changes with a signal runs open loop on the explicit
     // stepper (the firmware's observer holds one fixed network, and refuses
-    // such a model with sensors), and so does one larger than the
-    // firmware's observer is solved for on the host (its tables are
-    // const-generic: `codegen` makes none of it either); otherwise the
-    // firmware's observer.
-    let too_large = crate::library_observer::why_no_firmware_observer(&model.network);
-    let stepper_why = if model.has_varying_conductances() {
-        "its network changes with a signal".to_string()
-    } else {
-        too_large
-            .as_ref()
-            .map_or_else(String::new, |e| format!("{e:#}"))
-    };
-    let path = if (model.has_varying_conductances() || too_large.is_some()) && measured.is_empty() {
+    // such a model with sensors); otherwise the firmware's observer, at the
+    // model's own size.
+    let stepper_why = "its network changes with a signal";
+    let path = if model.has_varying_conductances() && measured.is_empty() {
         Path::Stepper
     } else {
         Path::Firmware
@@ -764,7 +755,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     if a.bias_noise_w2_per_s.is_some() && measured.is_empty() {
         bail!("--bias-noise-w2-per-s needs a --measure sensor (open loop has no bias)");
     }
-    refuse_inapplicable(&a, path, &stepper_why)?;
+    refuse_inapplicable(&a, path, stepper_why)?;
     let spec = common::ModelSpec::parse(&a.model.model)?;
     let fused_nodes: Vec<usize> = measured.iter().map(|m| m.node).collect();
     let (config, mut overrides) = firmware_config(&a, &spec, &model_file, &model, &fused_nodes)?;
@@ -1404,10 +1395,10 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     }
     match &observer {
         Some(o) => println!(
-            "library tick time [us] over {} ticks of {} ms (NetworkObserver padded to {} nodes): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
+            "library tick time [us] over {} ticks of {} ms (NetworkObserver of the model's {} nodes): min {:.2}, median {:.2}, p99 {:.2}, max {:.2}; p99 is {:.4} of the 0.1 ms budget",
             t.steps,
             f64::from(o.tick_us()) * 1e-3,
-            o.size_class(),
+            o.nodes(),
             t.min_ns * 1e-3,
             t.p50_ns * 1e-3,
             t.p99_ns * 1e-3,

@@ -57,6 +57,18 @@ where
             && self.gd_boundary.iter().all(finite)
             && self.constant_k.iter().all(finite)
     }
+
+    /// The step in integer arithmetic ([`FixedStep::of_entries`]); `None`
+    /// where the tables do not fit its scales.
+    pub(crate) fn fixed(&self, sizes: Z) -> Option<FixedStep<Z>> {
+        FixedStep::of_entries(
+            sizes,
+            |i, j| self.phi_minus_i[(i, j)],
+            |i, m| self.bd_power[(i, m)],
+            |i, b| self.gd_boundary[(i, b)],
+            |i| self.constant_k[i],
+        )
+    }
 }
 
 /// The model step and the shadow's block in integer arithmetic, each if

@@ -16,9 +16,10 @@
 //! readings as the builder's, every published figure within `f32`
 //! rounding.
 //!
-//! Not at run time: the model step in integer arithmetic
-//! ([`NetworkSettings::integer_model_step`]: an MCU's, solved into its
-//! tables by `codegen`), refused by name.
+//! The model step in integer arithmetic
+//! ([`NetworkSettings::integer_model_step`], with the `integer-step`
+//! feature) is derived from the solved tables with the same scales as
+//! the builder's (`FixedStep::of_entries`, `ConstFixedStep::of`'s twin).
 
 use alloc::vec::Vec;
 
@@ -33,6 +34,7 @@ use super::{
 };
 use crate::error::{check, BuildError};
 use crate::network::NetworkDescription;
+use crate::observer::tables::invalid;
 use crate::protect::derating::DeratingRule;
 use crate::protect::predict::PredictorBuilder;
 use crate::sizes::{RunTimeSizes, Sizes};
@@ -91,8 +93,7 @@ impl RunTimeObserver {
     /// What [`NetworkObserverBuilder::build`](super::NetworkObserverBuilder::build)
     /// refuses, by the same names; [`BuildError::InvalidParameter`] naming
     /// a field of `spec` whose length is not the network's (or, for the
-    /// sensors, zero), and `integer_model_step` (an MCU's step, see the
-    /// module docs).
+    /// sensors, zero).
     pub fn build_at_run_time<W: NetworkDescription<Sizes = RunTimeSizes>>(
         network: &W,
         spec: &RunTimeSpec,
@@ -107,7 +108,6 @@ impl RunTimeObserver {
         check(spec.critical_c.len() == n, "critical_c")?;
         check(spec.hardware_limit_a.len() == m, "hardware_limit_a")?;
         check(spec.bias_sources.len() == m, "bias_sources")?;
-        check(!s.integer_model_step, "integer_model_step")?;
         if let Some(input) = (0..m).find(|k| network.joule_source_of(*k).is_none()) {
             return Err(BuildError::MissingSource { input });
         }
@@ -163,6 +163,21 @@ impl RunTimeObserver {
         };
         let ad = model.ad.clone().cast::<f32>();
         let (source_node, resistance) = (model.source_node.clone(), model.resistance.clone());
+        let (step, block) = (step(model), step(block));
+        // As the builder's `integer_step` and `integer_block`: the block
+        // in integer arithmetic where its tables fit, else in `f32`.
+        let integer = if !s.integer_model_step {
+            Ok((None, None))
+        } else if cfg!(not(feature = "integer-step")) {
+            Err(invalid(
+                "integer_model_step (enable coil-thermal's integer-step feature)",
+            ))
+        } else {
+            match step.fixed(sizes) {
+                Some(fixed) => Ok((Some(fixed), block.fixed(sizes))),
+                None => Err(invalid("model")),
+            }
+        };
         Self::assemble(
             s,
             Solved {
@@ -174,13 +189,13 @@ impl RunTimeObserver {
                 hardware_limit_a: spec.hardware_limit_a.clone(),
                 incidence,
                 ad,
-                step: step(model),
+                step,
                 source_node,
                 resistance,
                 gain,
                 predictor,
-                block: (step(block), timing.correction_period),
-                integer: Ok((None, None)),
+                block: (block, timing.correction_period),
+                integer,
             },
         )
     }
@@ -294,10 +309,6 @@ mod tests {
             refused(&|s| s.incidence = Some(alloc::vec![alloc::vec![true; 2]; 3])),
             "incidence"
         );
-        assert_eq!(
-            refused(&|s| s.settings.integer_model_step = true),
-            "integer_model_step"
-        );
         // Checked by the assembly, as for the MCU's tables.
         assert_eq!(
             refused(&|s| {
@@ -310,12 +321,35 @@ mod tests {
 
     #[test]
     fn the_run_time_observer_ticks_as_the_const_one() {
+        ticks_as_the_const_one(
+            NetworkSettings {
+                correction_period_s: 1.0,
+                ..NetworkSettings::DEFAULT
+            },
+            3_600_000,
+        );
+    }
+
+    /// The model step in integer arithmetic, derived at run time, is the
+    /// builder's: half an hour to the bit.
+    #[cfg(feature = "integer-step")]
+    #[test]
+    fn the_run_time_integer_step_ticks_as_the_const_one() {
+        ticks_as_the_const_one(
+            NetworkSettings {
+                correction_period_s: 1.0,
+                integer_model_step: true,
+                ..NetworkSettings::DEFAULT
+            },
+            1_800_000,
+        );
+    }
+
+    /// `ticks` ticks of the run-time observer and the builder's with
+    /// `settings`: every published figure to the bit.
+    fn ticks_as_the_const_one(settings: NetworkSettings, ticks: u32) {
         let net = network();
         let critical_c = [Some(155.0), Some(155.0), None, None];
-        let settings = NetworkSettings {
-            correction_period_s: 1.0,
-            ..NetworkSettings::DEFAULT
-        };
         let builder = NetworkObserverBuilder::new(&net, [3])
             .critical_c(critical_c)
             .hardware_limit_a([12.0, 12.0])
@@ -327,10 +361,10 @@ mod tests {
         let mut fixed_state = fixed.state(&[20.0; 4], &[20.0]);
         let mut dynamic_state = dynamic.state(&alloc::vec![20.0; 4], &alloc::vec![20.0]);
         let mut now_us = 0u32;
-        // An hour: 10 A and 6 A, then a step to 14 A; the housing's
-        // thermocouple reads 2 K above the model each second.
-        for tick in 0..3_600_000u32 {
-            let currents_a = if tick < 1_800_000 {
+        // 10 A and 6 A, then a step to 14 A; the housing's thermocouple
+        // reads 2 K above the model each second.
+        for tick in 0..ticks {
+            let currents_a = if tick < ticks / 2 {
                 [10.0, 6.0]
             } else {
                 [14.0, 6.0]
