@@ -59,7 +59,9 @@ where
     }
 
     /// The step in integer arithmetic ([`FixedStep::of_entries`]); `None`
-    /// where the tables do not fit its scales.
+    /// where the tables do not fit its scales (an MCU's tables are
+    /// `const`, made by `ConstFixedStep::of`).
+    #[cfg(feature = "alloc")]
     pub(crate) fn fixed(&self, sizes: Z) -> Option<FixedStep<Z>> {
         FixedStep::of_entries(
             sizes,
