@@ -7,9 +7,9 @@
 //! powers) in `Vec`s, validated as the library validates it. It computes
 //! nothing: it is a [`NetworkDescription`] whose sizes are
 //! `RunTimeSizes`, so the library steps it (`RunTimeStepper`) and solves
-//! its steady state, time to limit, safe and runaway currents at its own
-//! size; the observer's exponentials, predicts and updates run in the
-//! library on the description copied into a padded `Network<P, 2, P>`
+//! its steady state, time to limit, safe and runaway currents, and builds
+//! the firmware's network observer (`RunTimeObserver`), at its own size;
+//! only the fault campaign copies it into a padded `Network<P, 2, P>`
 //! ([`crate::padding::padded_with`]).
 
 use coil_thermal::network::{JouleSource, NetworkDescription};

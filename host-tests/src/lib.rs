@@ -4,8 +4,8 @@
 //! Layers, bottom up:
 //!
 //! * [`dynamic_network`]: the run-time description of a model file's
-//!   network (it computes nothing: every step runs in the library, padded to
-//!   a size class);
+//!   network (it computes nothing: every step runs in the library, at the
+//!   model's own size);
 //! * [`model_file`]: the TOML model format (`MODEL_FORMAT.md`) and its
 //!   validated, index-resolved [`model_file::Model`];
 //! * [`trace`]: strict CSV traces with `file:line:col` errors and column
@@ -16,15 +16,15 @@
 //!   [`observer::Protection`] stage, scoring and step timing;
 //! * [`grid_firmware`], [`omni_firmware`]: `replay --model hppa` and `--model
 //!   omnimagnet` through the observers the firmware flashes for them;
-//! * [`library_observer`]: the library's `NetworkObserver` at 1 ms ticks on
-//!   a model file (the replay's estimator);
+//! * [`library_observer`]: the library's network observer at 1 ms ticks on
+//!   a model file at its own size (the replay's estimator);
 //! * [`calibrate`]: bounded Levenberg-Marquardt over named parameters;
 //! * [`plot`], [`bench`](mod@bench): figures and per-step timings;
 //! * [`synth`]: seeded synthetic traces for tests;
 //! * [`traces`]: the generator of the committed synthetic HPPA current traces;
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
 //! * [`limits`](mod@limits): time to limit, safe and runaway currents of any network, at its own size;
-//! * [`padding`]: a model file's network padded to a const-generic size class, for the library observer and the fault campaign;
+//! * [`padding`]: a model file's network padded to a const-generic size class, for the fault campaign;
 //! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
 //! * [`faults`]: issue 17's fault campaign (every fault class x sensor x
 //!   onset against the clean run);

@@ -1,19 +1,18 @@
 //! A model file's network copied into a const-generic `Network<P, 2, P>`
-//! of a size class `P`, for the library code that is still const-generic
-//! on the host: the network observer (`library_observer`) and the fault
-//! campaign. Padding nodes (capacity 1 J/K, decaying to boundary 0 or
+//! of a size class `P`, for the one host user of a const-generic observer
+//! left: the fault campaign ([`crate::faults`], whose subjects start and
+//! restore, which the library's observer does at `Const` sizes only so
+//! far). Everything else runs at the model's own size: the network
+//! observer ([`crate::library_observer`]), the steady state, the
+//! time-to-limit predictor and the safe and runaway currents
+//! ([`crate::limits`]). Padding nodes (capacity 1 J/K, decaying to boundary 0 or
 //! isolated) are not connected to the real nodes, so they change no real
-//! temperature, mode or limit; padding sources carry no current. The steady
-//! state, the time-to-limit predictor and the safe and runaway currents run
-//! at the model's own size (see [`crate::limits`]).
+//! temperature, mode or limit; padding sources carry no current.
 
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use coil_thermal::{Network, Resistance};
 
 use crate::dynamic_network::DynNetwork;
-
-/// The padded sizes `P` (nodes and sources) that are instantiated.
-pub const SIZE_CLASSES: [usize; 6] = [4, 8, 16, 32, 64, 96];
 
 /// Runs `job` on a thread with a large stack: the padded matrices of the
 /// larger size classes live on the stack while they are built (256 MiB).
@@ -30,11 +29,6 @@ pub fn on_big_stack<R: Send + 'static>(
 
 pub(crate) fn lib_err(what: &str) -> impl Fn(coil_thermal::BuildError) -> anyhow::Error + '_ {
     move |e| anyhow::anyhow!("padded network: {what}: {e}")
-}
-
-/// The padded library network of a dynamic one (see the module docs).
-pub fn padded<const P: usize>(net: &DynNetwork) -> Result<Network<P, 2, P>> {
-    padded_with::<P>(net, Padding::DECAYING)
 }
 
 /// How [`padded_with`] fills the padding.
@@ -62,32 +56,8 @@ impl Padding {
     };
 }
 
-/// The smallest of `classes` that holds the nodes and sources of
-/// `network` (with at most 2 boundaries).
-pub fn class_of(network: &DynNetwork, classes: &[usize], what: &str) -> Result<usize> {
-    let n = network.nodes();
-    let m = network.sources().len();
-    if network.boundaries() > 2 {
-        bail!(
-            "{what}: the model has {} boundaries; at most 2 are supported",
-            network.boundaries()
-        );
-    }
-    classes
-        .iter()
-        .copied()
-        .find(|&p| p >= n.max(m))
-        .with_context(|| {
-            format!(
-                "{what}: the model has {n} nodes and {m} sources; at most {} of each are supported here \
-                 (its tables are solved at a padded const-generic size; `simulate`, `calibrate`, `limits` \
-                 and an open-loop `replay` run a model of any size)",
-                classes.last().copied().unwrap_or(0)
-            )
-        })
-}
-
-/// [`padded`] with the padding chosen by `padding`.
+/// The padded library network of a dynamic one (see the module docs),
+/// the padding chosen by `padding`.
 pub fn padded_with<const P: usize>(net: &DynNetwork, padding: Padding) -> Result<Network<P, 2, P>> {
     let n = net.nodes();
     let mut caps = [1.0; P];
