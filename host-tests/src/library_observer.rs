@@ -1,5 +1,6 @@
 //! Replay through the library's observer: a model file run by
-//! [`NetworkObserver`] at fixed ticks (1 ms by default), each tick timed.
+//! [`RunTimeObserver`] (the MCU's network observer at the model's own size)
+//! at fixed ticks (1 ms by default), each tick timed.
 //!
 //! # Sizes
 //! The observer is the library's [`RunTimeObserver`]: the MCU's network
@@ -457,7 +458,7 @@ impl FusionStats {
     }
 }
 
-/// A model file replayed by the library's [`NetworkObserver`] at fixed
+/// A model file replayed by the library's [`RunTimeObserver`] at fixed
 /// ticks: the firmware's observer of the file (see the module docs).
 pub struct ObserverEstimator {
     model: Model,
