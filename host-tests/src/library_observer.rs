@@ -535,8 +535,7 @@ impl DriveFlagTicks {
 
 impl ObserverEstimator {
     /// The library observer of `model` with ticks of `tick_us` \[us\] (one
-    /// model step each), open loop, with the library's defaults (on a
-    /// large stack: the gain is solved there).
+    /// model step each), open loop, with the library's defaults.
     ///
     /// # Errors
     /// No boundary, a tick of 0, or a network the library refuses.
@@ -634,28 +633,23 @@ impl ObserverEstimator {
         // bias_sources` names, when given).
         let bias_sources: Vec<bool> = (0..sources).map(|m| model.carries_bias(m)).collect();
         // The file's sensor kinds apply to its own sensors; a replay that
-        // fuses other nodes (an override it lists) fuses temperatures.
-        let sensor_kinds = if sensors == config.sensor_nodes {
-            config.sensor_kinds.clone()
-        } else if config.has_resistance_sensor() && !sensors.is_empty() {
+        // fuses other nodes (an override it lists) fuses temperatures. Open
+        // loop one thermocouple on node 0 that never reads: the filter has
+        // a sensor, as the firmware generated from the file has.
+        let (sensor_nodes, sensor_kinds) = if sensors.is_empty() {
+            (vec![0], vec![SensorKind::Thermocouple])
+        } else if sensors == config.sensor_nodes {
+            (sensors.clone(), config.sensor_kinds.clone())
+        } else if config.has_resistance_sensor() {
             bail!(
                 "--measure: the model file's sensors include a winding's resistance, fused with its own noise; measure exactly the file's sensors, in its order ({} column(s)), or none",
                 config.sensor_nodes.len()
             );
         } else {
-            vec![SensorKind::Thermocouple; sensors.len()]
-        };
-        // Open loop one sensor on node 0 that never reads: the filter
-        // has a sensor, as the firmware generated from the file has.
-        let sensor_nodes = if sensors.is_empty() {
-            vec![0]
-        } else {
-            sensors.clone()
-        };
-        let sensor_kinds = if sensors.is_empty() {
-            vec![SensorKind::Thermocouple]
-        } else {
-            sensor_kinds
+            (
+                sensors.clone(),
+                vec![SensorKind::Thermocouple; sensors.len()],
+            )
         };
         let spec = RunTimeSpec {
             sensor_nodes,
