@@ -9,8 +9,8 @@
 //! clear message), takes its network with `CoilGrid::to_network`, and writes
 //! every link as a named conductance, so the grid is simulated, replayed,
 //! calibrated and analysed by the same code as any model file: the
-//! library's `ExplicitStepper` (simulate, calibrate) and `NetworkObserver`
-//! (replay) on the network padded to 96 nodes. It is the grid's physics with
+//! library's `RunTimeStepper` (simulate, calibrate) and `RunTimeObserver`
+//! (replay, faults) at the grid's own size. It is the grid's physics with
 //! another integrator than `CoilGrid::tick` (no multi-rate accounting;
 //! `tests/grid_replay.rs` bounds the grid stepper against an independent
 //! reference).

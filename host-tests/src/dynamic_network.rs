@@ -8,9 +8,8 @@
 //! nothing: it is a [`NetworkDescription`] whose sizes are
 //! `RunTimeSizes`, so the library steps it (`RunTimeStepper`) and solves
 //! its steady state, time to limit, safe and runaway currents, and builds
-//! the firmware's network observer (`RunTimeObserver`), at its own size;
-//! only the fault campaign copies it into a padded `Network<P, 2, P>`
-//! ([`crate::padding::padded_with`]).
+//! the firmware's network observer (`RunTimeObserver`, which the replay
+//! and the fault campaign run), at its own size.
 
 use coil_thermal::network::{JouleSource, NetworkDescription};
 use coil_thermal::sizes::RunTimeSizes;

@@ -24,7 +24,6 @@
 //! * [`traces`]: the generator of the committed synthetic HPPA current traces;
 //! * [`grid_reference`]: an independent dense f64 reference for the coil grid;
 //! * [`limits`](mod@limits): time to limit, safe and runaway currents of any network, at its own size;
-//! * [`padding`]: a model file's network padded to a const-generic size class, for the fault campaign;
 //! * [`devices`]: the HPPA grid and the Omnimagnet as plants and model files;
 //! * [`faults`]: issue 17's fault campaign (every fault class x sensor x
 //!   onset against the clean run);
@@ -49,7 +48,6 @@ pub mod margin;
 pub mod model_file;
 pub mod observer;
 pub mod omni_firmware;
-pub mod padding;
 pub mod plot;
 pub mod raw_sensors;
 pub mod sensor_kinds;

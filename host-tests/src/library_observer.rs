@@ -94,8 +94,8 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use coil_thermal::observer::network::{
-    NetworkInputsOf, RunTimeBiasMode, RunTimeObserver, RunTimeObserverState, RunTimeSpec,
-    SensorKind,
+    NetworkInputsOf, NetworkSettings, RunTimeBiasMode, RunTimeObserver, RunTimeObserverState,
+    RunTimeSpec, SensorKind,
 };
 use coil_thermal::observer::{SensorStatus, TimedReading};
 use coil_thermal::{DriveFlags, Reading, SensorFault, VoltageDrive};
@@ -198,6 +198,58 @@ impl Protected {
             ..Self::default()
         }
     }
+}
+
+/// The firmware's network of `model` ([`Model::firmware_network`]) and
+/// the spec of its observer as `codegen` builds it from `config` (the
+/// critical temperatures, the hardware limit, the derating, the heat
+/// biases the file names and their layout), with `settings`, on the
+/// sensors `sensor_nodes` of `sensor_kinds`: what the replay and the fault
+/// campaign build the library's [`RunTimeObserver`] from. A model without
+/// a source gets one that never carries current, on node 0 (the library's
+/// observer takes at least one current; no bias: [`Model::carries_bias`]
+/// is false for it).
+///
+/// # Errors
+/// A model without a boundary (the library's observer needs one, the
+/// ambient).
+pub(crate) fn firmware_observer_spec(
+    model: &Model,
+    config: &FirmwareConfig,
+    settings: NetworkSettings,
+    sensor_nodes: Vec<usize>,
+    sensor_kinds: Vec<SensorKind>,
+) -> Result<(DynNetwork, RunTimeSpec)> {
+    let mut net = model.firmware_network();
+    if net.sources().is_empty() {
+        net.joule_source(0, coil_thermal::Resistance::constant(1.0))
+            .map_err(|e| anyhow!("model `{}`: {e}", model.name))?;
+    }
+    if net.boundaries() == 0 {
+        bail!(
+            "model `{}` has no boundary: the library observer needs one (the ambient)",
+            model.name
+        );
+    }
+    let sources = net.sources().len();
+    let spec = RunTimeSpec {
+        sensor_nodes,
+        sensor_kinds,
+        critical_c: config.critical_c.clone(),
+        incidence: None,
+        hardware_limit_a: vec![config.hardware_limit_a; sources],
+        rule: config.rule(),
+        settings,
+        // The model's sources carry their biases (those `[observer]
+        // bias_sources` names, when given).
+        bias_sources: (0..sources).map(|m| model.carries_bias(m)).collect(),
+        bias_mode: if config.shared_bias {
+            RunTimeBiasMode::Shared(vec![true; sources])
+        } else {
+            RunTimeBiasMode::Auto
+        },
+    };
+    Ok((net, spec))
 }
 
 /// The library's observer of a model at its own size, with its state and
@@ -569,20 +621,6 @@ impl ObserverEstimator {
         model.require_fixed_network("the library's network observer")?;
         let sensors = fused_nodes.to_vec();
         let info = plant_info(&model);
-        let mut net = model.firmware_network();
-        if net.sources().is_empty() {
-            // The library's observer takes at least one current: a model
-            // without a source gets one that never carries current, on
-            // node 0 (no bias: `Model::carries_bias` is false for it).
-            net.joule_source(0, coil_thermal::Resistance::constant(1.0))
-                .map_err(|e| anyhow!("model `{}`: {e}", model.name))?;
-        }
-        if net.boundaries() == 0 {
-            bail!(
-                "model `{}` has no boundary: the library observer needs one (the ambient)",
-                model.name
-            );
-        }
         let mut settings = config.settings;
         if sensors.is_empty() {
             // Open loop: no sensor, no bias (see the module docs), no
@@ -628,10 +666,6 @@ impl ObserverEstimator {
             // A reading is handed to the tick right after its row.
             // (kept at the firmware's: a reading is handed over with its own tick's time)
         }
-        let sources = net.sources().len();
-        // The model's sources carry their biases (those `[observer]
-        // bias_sources` names, when given).
-        let bias_sources: Vec<bool> = (0..sources).map(|m| model.carries_bias(m)).collect();
         // The file's sensor kinds apply to its own sensors; a replay that
         // fuses other nodes (an override it lists) fuses temperatures. Open
         // loop one thermocouple on node 0 that never reads: the filter has
@@ -651,21 +685,8 @@ impl ObserverEstimator {
                 vec![SensorKind::Thermocouple; sensors.len()],
             )
         };
-        let spec = RunTimeSpec {
-            sensor_nodes,
-            sensor_kinds,
-            critical_c: config.critical_c.clone(),
-            incidence: None,
-            hardware_limit_a: vec![config.hardware_limit_a; sources],
-            rule: config.rule(),
-            settings,
-            bias_sources,
-            bias_mode: if config.shared_bias {
-                RunTimeBiasMode::Shared(vec![true; sources])
-            } else {
-                RunTimeBiasMode::Auto
-            },
-        };
+        let (net, spec) =
+            firmware_observer_spec(&model, config, settings, sensor_nodes, sensor_kinds)?;
         let observer = AtModelSize::build(&net, &spec, &model.name)?;
         let n = model.nodes.len();
         let m = model.network.sources().len();

@@ -1410,8 +1410,9 @@ impl Model {
 
     /// Whether network source `m` carries a heat-input bias in the
     /// firmware observer: named in `[observer] bias_sources`, or any of
-    /// the model's sources when the key is absent (a padding source's
-    /// index, `m` beyond the model's, never does).
+    /// the model's sources when the key is absent (an index beyond the
+    /// model's, such as the source the host gives a model without one,
+    /// never does).
     pub fn carries_bias(&self, m: usize) -> bool {
         match &self.bias_sources {
             Some(flags) => flags.get(m).copied().unwrap_or(false),

@@ -217,7 +217,7 @@ impl std::fmt::Debug for FilePlant {
 
 impl Clone for FilePlant {
     fn clone(&self) -> Self {
-        let mut plant = Self::new(self.model.clone()).expect("the model was padded before");
+        let mut plant = Self::new(self.model.clone()).expect("the model was built before");
         plant.reset(&self.temps);
         plant
     }

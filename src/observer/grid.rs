@@ -1119,7 +1119,7 @@ impl<S: Scalar, const ROWS: usize, const COLS: usize, const N: usize>
         ambient_c: f64,
         off_s: Option<f32>,
     ) -> Result<GridObserverState<S, ROWS, COLS, N>, SnapshotError> {
-        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let snap = Restored::read(bytes, self.fingerprint, now_s, max_age_s, [0.0; N])?;
         let (temps_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut grid = GridState::uniform(ambient_c);
         for (t, s) in grid.temps_c.as_flattened_mut().iter_mut().zip(&temps_c) {

@@ -2660,19 +2660,26 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     fn new(b: &NetworkObserverBuilder<'_, N, B, M, P>) -> Result<Self, BuildError> {
         Self::from_parts_with_sensors(&b.parts()?, &b.sensor_kinds)
     }
+}
 
+/// Saving, restoring and starting, written once for every size.
+impl<Z: Sizes, X: Length, P: Length> NetworkObserverOf<Z, X, P>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+    NodeVector<Z, Option<f32>>: KeptAnswers + Answers<f32, Z::NodeDim>,
+{
     /// Writes a snapshot of the node estimates \[degC\] and the latched
     /// shutdown, stamped `now_s` \[s\]; returns its length
     /// ([`snapshot_len(N)`](super::snapshot::snapshot_len) bytes). The
     /// biases are not saved: a restored state starts them at zero.
-    pub fn save<W: WarmUpKind<X>>(
+    pub fn save<W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &NetworkObserverState<N, B, M, X, P, W>,
+        state: &NetworkObserverStateOf<Z, X, P, W>,
         now_s: u32,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
         snapshot::save_state(
-            &self.temps_c(state),
+            self.temps_c(state).as_ref(),
             self.fingerprint,
             now_s,
             &state.alarm,
@@ -2695,8 +2702,8 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         bytes: &[u8],
         now_s: u32,
         max_age_s: u32,
-        boundary_c: &[f32; B],
-    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
+        boundary_c: &BoundaryVector<Z, f32>,
+    ) -> Result<NetworkObserverStateOf<Z, X, P, NoWarmUp>, SnapshotError> {
         self.restore_after(bytes, now_s, max_age_s, boundary_c, None)
     }
 
@@ -2724,10 +2731,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         bytes: &[u8],
         now_s: u32,
         max_age_s: u32,
-        boundary_c: &[f32; B],
+        boundary_c: &BoundaryVector<Z, f32>,
         off_s: Option<f32>,
-    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
-        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+    ) -> Result<NetworkObserverStateOf<Z, X, P, NoWarmUp>, SnapshotError> {
+        let saved_c = self.sizes().nodes_of(0.0);
+        let snap = Restored::read(bytes, self.fingerprint, now_s, max_age_s, saved_c)?;
         let off_s = snap.off_time_s(off_s);
         Ok(self.restored(&snap.saved_c, &snap.meta, boundary_c, off_s))
     }
@@ -2756,18 +2764,24 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         bytes: &[u8],
         now_s: u32,
         max_age_s: u32,
-        boundary_c: &[f32; B],
-        readings_c: &[Option<f32>; P],
-    ) -> Result<NetworkObserverState<N, B, M, X, P, NoWarmUp>, SnapshotError> {
-        let snap = Restored::<N>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        boundary_c: &BoundaryVector<Z, f32>,
+        readings_c: &P::Array<Option<f32>>,
+    ) -> Result<NetworkObserverStateOf<Z, X, P, NoWarmUp>, SnapshotError> {
+        let saved_c = self.sizes().nodes_of(0.0);
+        let snap = Restored::read(bytes, self.fingerprint, now_s, max_age_s, saved_c)?;
         let tolerance_k = start::restore_tolerance_k(self.k_sigma, self.kalman.r().iter().copied());
-        let coldest_c = boundary_c.iter().fold(f32::INFINITY, |a, b| a.min(*b));
-        let readings_c = start::restore_readings(readings_c, &[true; P], coldest_c, tolerance_k);
+        let coldest_c = boundary_c
+            .as_ref()
+            .iter()
+            .fold(f32::INFINITY, |a, b| a.min(*b));
+        let mut readings_c = readings_c.clone();
+        let every_sensor = core::iter::repeat(true);
+        start::restore_readings(readings_c.as_mut(), every_sensor, coldest_c, tolerance_k);
         let saved_c = start::cooled_to_readings(
             &snap.saved_c,
             |t| self.cooled_c(&snap.saved_c, boundary_c, t),
-            &self.sensor_nodes,
-            &readings_c,
+            self.sensor_nodes.as_ref(),
+            readings_c.as_ref(),
             tolerance_k,
             snap.age_s(),
         );
@@ -2777,17 +2791,19 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// The state restored from `saved_c` \[degC\] after `off_s` \[s\] off.
     fn restored(
         &self,
-        saved_c: &[f32; N],
+        saved_c: &NodeVector<Z, f32>,
         meta: &SnapshotMeta,
-        boundary_c: &[f32; B],
+        boundary_c: &BoundaryVector<Z, f32>,
         off_s: f32,
-    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
-        let mut held_c = *boundary_c;
-        let rejected = self.limits.accept_temperatures(boundary_c, &mut held_c);
+    ) -> NetworkObserverStateOf<Z, X, P, NoWarmUp> {
+        let mut held_c = boundary_c.clone();
+        let rejected = self
+            .limits
+            .accept_temperatures(boundary_c.as_ref(), held_c.as_mut());
         let temps_c = if off_s > 0.0 && rejected == InputFlags::NONE {
             self.cooled_c(saved_c, boundary_c, off_s)
         } else {
-            *saved_c
+            saved_c.clone()
         };
         let mut state = self.state(&temps_c, boundary_c);
         state.latch().restore(meta);
@@ -2810,32 +2826,38 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// does need not (see [`WarmUpKind`]).
     pub fn start(
         &self,
-        readings_c: &[Option<f32>; P],
-        boundary_c: &[f32; B],
-    ) -> NetworkObserverState<N, B, M, X, P> {
-        let mut held_c = [self.origin_c; B];
-        let _ = self.limits.accept_temperatures(boundary_c, &mut held_c);
+        readings_c: &P::Array<Option<f32>>,
+        boundary_c: &BoundaryVector<Z, f32>,
+    ) -> NetworkObserverStateOf<Z, X, P> {
+        let sizes = self.sizes();
+        let mut held_c = sizes.boundaries_of(self.origin_c);
+        let _ = self
+            .limits
+            .accept_temperatures(boundary_c.as_ref(), held_c.as_mut());
         let ambient_c = self.ambient(&held_c);
-        let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
+        let temps = self.conservative_start_c(readings_c, ambient_c);
         let state = self.state(&temps, boundary_c);
-        let mut read = [false; N];
-        for (reading, node) in readings_c.iter().zip(&self.sensor_nodes) {
-            if let (true, Some(r)) = (reading.is_some_and(f32::is_finite), read.get_mut(*node)) {
+        let mut read = sizes.nodes_of(false);
+        let sensor_nodes = self.sensor_nodes.as_ref();
+        for (reading, node) in readings_c.as_ref().iter().zip(sensor_nodes) {
+            let slot = read.as_mut().get_mut(*node);
+            if let (true, Some(r)) = (reading.is_some_and(f32::is_finite), slot) {
                 *r = true;
             }
         }
-        let mut steady_upper_c = [0.0; N];
+        let mut steady_upper_c = sizes.nodes_of(0.0);
         self.bound.upper_c(&temps, ambient_c, &mut steady_upper_c);
+        let limits_c = self.alarm.alarm_limits_c(ambient_c);
         let sigma_k = start::start_sigma_k(
-            &read,
-            &steady_upper_c,
-            &self.alarm.alarm_limits_c(ambient_c),
-            &self.limited,
-            &self.bound_sigma_k,
+            read.as_ref(),
+            steady_upper_c.as_ref(),
+            limits_c.as_ref(),
+            self.limited.as_ref(),
+            self.bound_sigma_k.as_ref(),
             self.k_sigma,
         );
-        let mut cov = *self.gain.prior();
-        for (i, sigma) in sigma_k.iter().enumerate() {
+        let mut cov = self.gain.prior().clone();
+        for (i, sigma) in sigma_k.enumerate() {
             if let Some(sigma) = sigma {
                 cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
             }
@@ -2853,8 +2875,30 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// zero-current solution of the observer's network, never below it (see
     /// [`Self::restore_after`]; an off time that is not positive returns
     /// `temps_c`).
-    pub fn cooled_c(&self, temps_c: &[f32; N], boundary_c: &[f32; B], off_s: f32) -> [f32; N] {
+    pub fn cooled_c(
+        &self,
+        temps_c: &NodeVector<Z, f32>,
+        boundary_c: &BoundaryVector<Z, f32>,
+        off_s: f32,
+    ) -> NodeVector<Z, f32> {
         self.predictor.cooled_c(temps_c, boundary_c, off_s)
+    }
+
+    /// [`snapshot::conservative_start`] of `readings_c` \[degC\] on the
+    /// sensors' nodes at `ambient_c` \[degC\].
+    fn conservative_start_c(
+        &self,
+        readings_c: &P::Array<Option<f32>>,
+        ambient_c: f32,
+    ) -> NodeVector<Z, f32> {
+        let mut temps_c = self.sizes().nodes_of(0.0);
+        snapshot::conservative_start_into(
+            readings_c.as_ref(),
+            self.sensor_nodes.as_ref(),
+            ambient_c,
+            temps_c.as_mut(),
+        );
+        temps_c
     }
 
     /// The documented start when no snapshot can be trusted
@@ -2866,11 +2910,11 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// ([`NoWarmUp`], as [`Self::state`]'s).
     pub fn conservative_state(
         &self,
-        readings_c: &[Option<f32>; P],
-        boundary_c: &[f32; B],
-    ) -> NetworkObserverState<N, B, M, X, P, NoWarmUp> {
+        readings_c: &P::Array<Option<f32>>,
+        boundary_c: &BoundaryVector<Z, f32>,
+    ) -> NetworkObserverStateOf<Z, X, P, NoWarmUp> {
         let ambient_c = self.ambient(boundary_c);
-        let temps = snapshot::conservative_start::<N, P>(readings_c, &self.sensor_nodes, ambient_c);
+        let temps = self.conservative_start_c(readings_c, ambient_c);
         let mut state = self.state(&temps, boundary_c);
         state.latch().latch();
         state
@@ -2889,9 +2933,9 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     /// # Errors
     /// Why not, naming the first element that blocks it; nothing changes
     /// then.
-    pub fn clear_shutdown<W: WarmUpKind<X>>(
+    pub fn clear_shutdown<W: Flavour<OMatrix<f32, X, X>>>(
         &self,
-        state: &mut NetworkObserverState<N, B, M, X, P, W>,
+        state: &mut NetworkObserverStateOf<Z, X, P, W>,
     ) -> Result<(), ResetError> {
         state.latch().clear(&self.alarm)
     }

@@ -2068,7 +2068,7 @@ impl OmniObserver {
         off_s: Option<f32>,
         cool: impl FnOnce(&[f32; NODES], f32) -> Result<[f32; NODES], SnapshotError>,
     ) -> Result<OmniObserverState<NoWarmUp>, SnapshotError> {
-        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let snap = Restored::read(bytes, self.fingerprint, now_s, max_age_s, [0.0; NODES])?;
         let (saved_c, meta, off_s) = (snap.saved_c, snap.meta, snap.off_time_s(off_s));
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
@@ -2137,7 +2137,7 @@ impl OmniObserver {
         ambient_c: f32,
         readings_c: &[Option<f32>; THERMOCOUPLES],
     ) -> Result<OmniObserverState, SnapshotError> {
-        let snap = Restored::<NODES>::read(bytes, self.fingerprint, now_s, max_age_s)?;
+        let snap = Restored::read(bytes, self.fingerprint, now_s, max_age_s, [0.0; NODES])?;
         let (saved_c, meta) = (snap.saved_c, snap.meta);
         let mut held_c = ambient_c;
         let ambient_ok = self.limits.accept_temperature(ambient_c, &mut held_c) == InputFlags::NONE;
@@ -2150,7 +2150,8 @@ impl OmniObserver {
                 .filter(|(_, used)| *used)
                 .map(|(r, _)| *r),
         );
-        let readings_c = start::restore_readings(readings_c, &fitted, ambient_c, tolerance_k);
+        let mut readings_c = *readings_c;
+        start::restore_readings(&mut readings_c, fitted, ambient_c, tolerance_k);
         let usable = readings_c.iter().any(Option::is_some);
         if !(ambient_ok && usable) {
             return Ok(self.with_warm_up(self.restored(&saved_c, &meta, ambient_c)));
@@ -2355,7 +2356,7 @@ impl OmniObserver {
             k_sigma,
         );
         let mut cov = *prior;
-        for (i, sigma) in sigma_k.iter().enumerate() {
+        for (i, sigma) in sigma_k.enumerate() {
             if let Some(sigma) = sigma {
                 cov[(i, i)] = cov[(i, i)].max(sigma * sigma);
             }

@@ -55,10 +55,10 @@
 //! negative) is no cooling. The latch is restored as it was.
 
 use core::fmt;
-use nalgebra::Const;
 
 use crate::protect::alarm::AlarmState;
 use crate::scalar::Scalar;
+use crate::sizes::Length;
 
 /// Format version written by [`save`].
 pub const SNAPSHOT_VERSION: u16 = 2;
@@ -245,11 +245,11 @@ impl Fingerprint {
 ///
 /// # Errors
 /// Those of [`save`].
-pub(crate) fn save_state<S: Scalar, const N: usize, const E: usize>(
-    temps_c: &[f32; N],
+pub(crate) fn save_state<S: Scalar, E: Length>(
+    temps_c: &[f32],
     fingerprint: u32,
     now_s: u32,
-    alarm: &AlarmState<S, Const<E>>,
+    alarm: &AlarmState<S, E>,
     out: &mut [u8],
 ) -> Result<usize, SnapshotError> {
     let meta = SnapshotMeta {
@@ -262,13 +262,10 @@ pub(crate) fn save_state<S: Scalar, const N: usize, const E: usize>(
 
 /// Writes a snapshot of `temps_c` \[degC\] into `out`; returns the bytes
 /// written. Never panics.
-pub fn save<const N: usize>(
-    temps_c: &[f32; N],
-    meta: &SnapshotMeta,
-    out: &mut [u8],
-) -> Result<usize, SnapshotError> {
-    let len = snapshot_len(N);
-    let node_count = u16::try_from(N).map_err(|_| SnapshotError::WrongNodeCount { found: 0 })?;
+pub fn save(temps_c: &[f32], meta: &SnapshotMeta, out: &mut [u8]) -> Result<usize, SnapshotError> {
+    let n = temps_c.len();
+    let len = snapshot_len(n);
+    let node_count = u16::try_from(n).map_err(|_| SnapshotError::WrongNodeCount { found: 0 })?;
     let out = out
         .get_mut(..len)
         .ok_or(SnapshotError::BufferTooSmall { needed: len })?;
@@ -279,7 +276,7 @@ pub fn save<const N: usize>(
     header[8..12].copy_from_slice(&meta.fingerprint.to_le_bytes());
     header[12..16].copy_from_slice(&meta.saved_at_s.to_le_bytes());
     header[16..20].copy_from_slice(&[meta.shutdown_latched as u8, 0, 0, 0]);
-    let (body, crc) = rest.split_at_mut(4 * N);
+    let (body, crc) = rest.split_at_mut(4 * n);
     for (chunk, t) in body.chunks_exact_mut(4).zip(temps_c) {
         chunk.copy_from_slice(&t.to_le_bytes());
     }
@@ -322,7 +319,22 @@ pub fn restore<const N: usize>(
     bytes: &[u8],
     policy: &RestorePolicy,
 ) -> Result<([f32; N], SnapshotMeta), SnapshotError> {
-    let len = snapshot_len(N);
+    let mut temps_c = [0.0f32; N];
+    let meta = restore_into(bytes, policy, &mut temps_c)?;
+    Ok((temps_c, meta))
+}
+
+/// [`restore`] into `temps_c` \[degC\], whose length is the node count
+/// the snapshot must have (an observer's of sizes read at run time); on
+/// an error `temps_c` may hold part of the snapshot. Never panics,
+/// whatever the bytes.
+pub fn restore_into(
+    bytes: &[u8],
+    policy: &RestorePolicy,
+    temps_c: &mut [f32],
+) -> Result<SnapshotMeta, SnapshotError> {
+    let n = temps_c.len();
+    let len = snapshot_len(n);
     let bytes = bytes
         .get(..len)
         .ok_or(SnapshotError::BufferTooSmall { needed: len })?;
@@ -339,7 +351,7 @@ pub fn restore<const N: usize>(
         return Err(SnapshotError::UnsupportedVersion { found: version });
     }
     let nodes = read_u16(bytes, 6);
-    if nodes as usize != N {
+    if nodes as usize != n {
         return Err(SnapshotError::WrongNodeCount { found: nodes });
     }
     // Flags: only bit 0 is defined; bytes 17 .. 20 are reserved.
@@ -365,14 +377,13 @@ pub fn restore<const N: usize>(
     if age_s > policy.max_age_s {
         return Err(SnapshotError::Stale { age_s });
     }
-    let mut temps_c = [0.0f32; N];
     for (node, t) in temps_c.iter_mut().enumerate() {
         *t = f32::from_bits(read_u32(bytes, HEADER_LEN + 4 * node));
         if !(t.is_finite() && *t >= PLAUSIBLE_C.0 && *t <= PLAUSIBLE_C.1) {
             return Err(SnapshotError::ImplausibleTemperature { node });
         }
     }
-    Ok((temps_c, meta))
+    Ok(meta)
 }
 
 /// The power-off time \[s\] over which a restore decays the saved state:
@@ -398,30 +409,33 @@ pub fn off_time_s(off_s: Option<f32>, meta: &SnapshotMeta, policy: &RestorePolic
 /// observer's restore (the grid's, the Omnimagnet's, the network's), so
 /// that each checks its snapshot and measures its age the same way.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Restored<const N: usize> {
-    /// The saved node temperatures \[degC\].
-    pub saved_c: [f32; N],
+pub(crate) struct Restored<V> {
+    /// The saved node temperatures \[degC\] (an array, or a `Vec` at
+    /// sizes read at run time).
+    pub saved_c: V,
     /// The snapshot's header.
     pub meta: SnapshotMeta,
     /// What it was checked against.
     pub policy: RestorePolicy,
 }
 
-impl<const N: usize> Restored<N> {
-    /// [`restore`] of `bytes` for the configuration `fingerprint`, at
-    /// `now_s` \[s\], no older than `max_age_s` \[s\].
+impl<V: AsMut<[f32]>> Restored<V> {
+    /// [`restore`] of `bytes` into `saved_c` (whose length is the node
+    /// count) for the configuration `fingerprint`, at `now_s` \[s\], no
+    /// older than `max_age_s` \[s\].
     pub(crate) fn read(
         bytes: &[u8],
         fingerprint: u32,
         now_s: u32,
         max_age_s: u32,
+        mut saved_c: V,
     ) -> Result<Self, SnapshotError> {
         let policy = RestorePolicy {
             fingerprint,
             now_s,
             max_age_s,
         };
-        let (saved_c, meta) = restore::<N>(bytes, &policy)?;
+        let meta = restore_into(bytes, &policy, saved_c.as_mut())?;
         Ok(Self {
             saved_c,
             meta,
@@ -455,19 +469,32 @@ pub fn conservative_start<const N: usize, const P: usize>(
     sensor_node: &[usize; P],
     ambient_c: f32,
 ) -> [f32; N] {
+    let mut temps_c = [0.0; N];
+    conservative_start_into(readings_c, sensor_node, ambient_c, &mut temps_c);
+    temps_c
+}
+
+/// [`conservative_start`] into `temps_c` \[degC\] (one per node; the
+/// readings and their nodes pair up as far as both go), for sizes read at
+/// run time.
+pub fn conservative_start_into(
+    readings_c: &[Option<f32>],
+    sensor_node: &[usize],
+    ambient_c: f32,
+    temps_c: &mut [f32],
+) {
     let valid = |r: &Option<f32>| r.filter(|t| t.is_finite());
     let hottest = readings_c
         .iter()
         .filter_map(valid)
         .fold(ambient_c, f32::max);
     let hottest = if hottest.is_finite() { hottest } else { 20.0 };
-    let mut temps = [hottest; N];
+    temps_c.fill(hottest);
     for (reading, node) in readings_c.iter().zip(sensor_node) {
-        if let (Some(t), Some(slot)) = (valid(reading), temps.get_mut(*node)) {
+        if let (Some(t), Some(slot)) = (valid(reading), temps_c.get_mut(*node)) {
             *slot = t;
         }
     }
-    temps
 }
 
 #[cfg(test)]

@@ -152,34 +152,34 @@ const OFF_TIME_BISECTIONS: u32 = 20;
 /// (at least 1 is used: the spread must be a variance even when the bound
 /// takes no `k sigma`). An element already at or above that level keeps
 /// its steady deviation.
-pub fn start_sigma_k<const N: usize>(
-    read: &[bool; N],
-    steady_upper_c: &[f32; N],
-    limits_c: &[f32; N],
-    limited: &[bool; N],
-    steady_sigma_k: &[f32; N],
+pub fn start_sigma_k<'a>(
+    read: &'a [bool],
+    steady_upper_c: &'a [f32],
+    limits_c: &'a [f32],
+    limited: &'a [bool],
+    steady_sigma_k: &'a [f32],
     k_sigma: f32,
-) -> [Option<f32>; N] {
+) -> impl Iterator<Item = Option<f32>> + 'a {
     let k = if k_sigma >= 1.0 { k_sigma } else { 1.0 };
-    let gap_k = |i: usize| {
-        let gap = limits_c[i] - START_BELOW_LIMIT_K - steady_upper_c[i];
+    let gap_k = move |(upper, limit): (&f32, &f32)| {
+        let gap = limit - START_BELOW_LIMIT_K - upper;
         if gap.is_finite() && gap > 0.0 {
             gap
         } else {
             0.0
         }
     };
-    let widest_k = (0..N)
-        .filter(|i| limited[*i] && !read[*i])
-        .map(gap_k)
-        .fold(0.0f32, f32::max);
-    core::array::from_fn(|i| {
-        if read[i] {
-            return None;
-        }
-        let gap = if limited[i] { gap_k(i) } else { widest_k };
-        Some(steady_sigma_k[i] + gap / k)
-    })
+    let gaps = move || steady_upper_c.iter().zip(limits_c).map(gap_k);
+    let widest_k = gaps()
+        .zip(limited.iter().zip(read))
+        .filter(|(_, (limited, read))| **limited && !**read)
+        .fold(0.0f32, |a, (gap, _)| a.max(gap));
+    gaps()
+        .zip(read.iter().zip(limited).zip(steady_sigma_k))
+        .map(move |(gap, ((read, limited), sigma))| {
+            let gap = if *limited { gap } else { widest_k };
+            (!*read).then_some(sigma + gap / k)
+        })
 }
 
 /// Lowers every limited element no sensor read at the start (`read`
@@ -326,17 +326,20 @@ pub fn restore_tolerance_k(k_sigma: f32, variances_k2: impl IntoIterator<Item = 
 /// The readings \[degC\] a restore may trust: finite, of a sensor in use
 /// (`used[j]`), and no colder than `coldest_c` \[degC\] (the coldest
 /// boundary the device can have cooled towards) by more than
-/// `tolerance_k` \[K\]. A reading colder than that is no cooling the
-/// device can have done: left out (a faulty sensor at the boot).
-pub fn restore_readings<const P: usize>(
-    readings_c: &[Option<f32>; P],
-    used: &[bool; P],
+/// `tolerance_k` \[K\]; the others become `None`. A reading colder than
+/// that is no cooling the device can have done: left out (a faulty
+/// sensor at the boot).
+pub fn restore_readings(
+    readings_c: &mut [Option<f32>],
+    used: impl IntoIterator<Item = bool>,
     coldest_c: f32,
     tolerance_k: f32,
-) -> [Option<f32>; P] {
-    core::array::from_fn(|j| {
-        readings_c[j].filter(|t| used[j] && t.is_finite() && *t >= coldest_c - tolerance_k)
-    })
+) {
+    // A reading past `used`'s end is of no sensor in use.
+    let used = used.into_iter().chain(core::iter::repeat(false));
+    for (reading, used) in readings_c.iter_mut().zip(used) {
+        *reading = reading.filter(|t| used && t.is_finite() && *t >= coldest_c - tolerance_k);
+    }
 }
 
 /// The saved state `saved_c` \[degC\] cooled (`cooled(t)`, the state
@@ -347,17 +350,21 @@ pub fn restore_readings<const P: usize>(
 /// warmer than its reading (model error, or a node that a hotter
 /// neighbour warmed while off), and the sensor is the best knowledge of
 /// its node. `readings_c` as [`restore_readings`] leaves them.
-pub fn cooled_to_readings<const N: usize, const P: usize>(
-    saved_c: &[f32; N],
-    cooled: impl Fn(f32) -> [f32; N],
-    sensor_nodes: &[usize; P],
-    readings_c: &[Option<f32>; P],
+pub fn cooled_to_readings<V: AsRef<[f32]> + AsMut<[f32]> + Clone>(
+    saved_c: &V,
+    cooled: impl Fn(f32) -> V,
+    sensor_nodes: &[usize],
+    readings_c: &[Option<f32>],
     tolerance_k: f32,
     max_off_s: f32,
-) -> [f32; N] {
+) -> V {
     let off_s = earliest_off_time_s(&cooled, sensor_nodes, readings_c, tolerance_k, max_off_s);
-    let mut temps_c = if off_s > 0.0 { cooled(off_s) } else { *saved_c };
-    at_readings(&mut temps_c, sensor_nodes, readings_c);
+    let mut temps_c = if off_s > 0.0 {
+        cooled(off_s)
+    } else {
+        saved_c.clone()
+    };
+    at_readings(temps_c.as_mut(), sensor_nodes, readings_c);
     temps_c
 }
 
@@ -368,11 +375,7 @@ pub fn cooled_to_readings<const N: usize, const P: usize>(
 /// leave another's node off its reading (model error, or a node that
 /// warmed while the device was off: the heat of a hotter neighbour
 /// spreading), and the sensor is the best knowledge of its node.
-pub fn at_readings<const N: usize, const P: usize>(
-    temps_c: &mut [f32; N],
-    sensor_nodes: &[usize; P],
-    readings_c: &[Option<f32>; P],
-) {
+pub fn at_readings(temps_c: &mut [f32], sensor_nodes: &[usize], readings_c: &[Option<f32>]) {
     for (j, (reading, node)) in readings_c.iter().zip(sensor_nodes).enumerate() {
         let Some(t) = reading.filter(|t| t.is_finite()) else {
             continue;
@@ -407,10 +410,10 @@ pub fn at_readings<const N: usize, const P: usize>(
 /// 32 off times from 1 s (`OFF_TIME_GRID`), then 20 (`OFF_TIME_BISECTIONS`)
 /// bisections between the last that does not fit and the first that does:
 /// at most 53 evaluations of `cooled`, at the restore (never in a tick).
-pub fn earliest_off_time_s<const N: usize, const P: usize>(
-    cooled: impl Fn(f32) -> [f32; N],
-    sensor_nodes: &[usize; P],
-    readings_c: &[Option<f32>; P],
+pub fn earliest_off_time_s<V: AsRef<[f32]>>(
+    cooled: impl Fn(f32) -> V,
+    sensor_nodes: &[usize],
+    readings_c: &[Option<f32>],
     tolerance_k: f32,
     max_off_s: f32,
 ) -> f32 {
@@ -421,20 +424,25 @@ pub fn earliest_off_time_s<const N: usize, const P: usize>(
     // how long the device cooled: one below it (a node that warmed while
     // off, an estimate that was cold) says nothing about the time.
     let saved = cooled(0.0);
-    let telling: [Option<f32>; P] = core::array::from_fn(|j| {
-        let reading = readings_c[j].filter(|r| r.is_finite())?;
-        let model = saved.get(sensor_nodes[j])?;
+    let telling = |j: usize| {
+        let reading = readings_c
+            .get(j)
+            .copied()
+            .flatten()
+            .filter(|r| r.is_finite())?;
+        let model = saved.as_ref().get(*sensor_nodes.get(j)?)?;
         (*model > reading + tolerance_k).then_some(reading)
-    });
-    if telling.iter().all(Option::is_none) {
+    };
+    if (0..sensor_nodes.len()).all(|j| telling(j).is_none()) {
         return 0.0;
     }
     let fits = |t: f32| {
         let temps = cooled(t);
-        telling
+        let temps = temps.as_ref();
+        sensor_nodes
             .iter()
-            .zip(sensor_nodes)
-            .any(|(r, node)| match (r, temps.get(*node)) {
+            .enumerate()
+            .any(|(j, node)| match (telling(j), temps.get(*node)) {
                 (Some(reading), Some(model)) => *model <= reading + tolerance_k,
                 _ => false,
             })
@@ -566,22 +574,25 @@ mod tests {
     fn the_start_puts_an_unread_element_just_below_its_limit() {
         // Node 0 read; node 1 limited at 100 degC, its steady bound at 40;
         // node 2 unlimited: it takes node 1's spread.
-        let sigma = start_sigma_k(
+        let sigma: heapless::Vec<Option<f32>, 3> = start_sigma_k(
             &[true, false, false],
             &[30.0, 40.0, 35.0],
             &[100.0, 100.0, 1e9],
             &[true, true, false],
             &[0.1, 0.5, 0.7],
             3.0,
-        );
+        )
+        .collect();
+        assert_eq!(sigma.len(), 3);
         assert_eq!(sigma[0], None);
         let s1 = sigma[1].unwrap();
         // Upper bound = steady bound + k (sigma - steady sigma).
         assert!((40.0 + 3.0 * (s1 - 0.5) - (100.0 - START_BELOW_LIMIT_K)).abs() < 1e-4);
         assert!((sigma[2].unwrap() - (0.7 + (s1 - 0.5))).abs() < 1e-5);
         // An element already past that level keeps its steady deviation.
-        let hot = start_sigma_k(&[false], &[120.0], &[100.0], &[true], &[0.5], 3.0);
-        assert_eq!(hot, [Some(0.5)]);
+        let hot: heapless::Vec<Option<f32>, 1> =
+            start_sigma_k(&[false], &[120.0], &[100.0], &[true], &[0.5], 3.0).collect();
+        assert_eq!(hot[..], [Some(0.5)]);
     }
 
     #[test]

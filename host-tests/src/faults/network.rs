@@ -1,33 +1,30 @@
 //! The campaign on a model file: its `[observer]` table built into the
-//! library's `NetworkObserver` (as `codegen` builds the firmware's), run
+//! library's network observer (as `codegen` builds the firmware's), run
 //! against the model itself as the plant ([`FilePlant`], the explicit
 //! stepper), the thermocouples reading the truth at the observer's sensor
 //! nodes.
 //!
-//! The observer's sizes are types; a model file has them at run time. As
-//! in [`crate::library_observer`], the network is padded to
-//! `Network<C, 2, C>` for `C` in [`CLASSES`] (padding nodes decay to
-//! boundary 0 and touch no real node; padding sources carry no current),
-//! with one sensor slot per `[observer]` sensor (at most [`SLOTS`]: a padded
-//! slot would never read, fall silent and put the observer in doubt, which
-//! raises its upper bounds to the shadow model's as no firmware does). The padding sources' heat biases are unobservable, so they are
-//! left out of the bias states
-//! ([`NetworkObserverBuilder::bias_sources`]); the model's own sources keep
-//! theirs, at the model file's bias noise (the `[observer]` table's, or the
-//! default, as `codegen` builds it), each its own where the sensors can
-//! tell them apart and one shared in proportion to their Joule power where
-//! they cannot (the builder's default
-//! [`BiasMode::Auto`](coil_thermal::observer::network::BiasMode): three
-//! phases under one housing thermocouple need no `bias_sources` line): the
-//! campaign runs the firmware's filter, heat-bias alarm and all.
+//! The observer is the library's [`RunTimeObserver`]: the firmware's
+//! observer at the model's own size (as `replay` runs it,
+//! [`crate::library_observer`]), with one sensor per `[observer]` sensor
+//! and no cap on nodes, sources or sensors below what memory allows. The
+//! model's sources keep their heat biases at the model file's bias noise
+//! (the `[observer]` table's, or the default, as `codegen` builds it),
+//! each its own where the sensors can tell them apart and one shared in
+//! proportion to their Joule power where they cannot (the builder's
+//! default [`BiasMode::Auto`](coil_thermal::observer::network::BiasMode):
+//! three phases under one housing thermocouple need no `bias_sources`
+//! line): the campaign runs the firmware's filter, heat-bias alarm and
+//! all, and its starts and restores (test
+//! `the_campaign_runs_a_model_of_any_size`).
 
 use coil_thermal::observer::network::{
-    BiasMode, NetworkInputs, NetworkObserver, NetworkObserverBuilder, NetworkObserverState,
-    NetworkSettings, ResistanceSensor, SensorKind,
+    NetworkInputsOf, NetworkSettings, ResistanceSensor, RunTimeObserver, RunTimeObserverState,
 };
 use coil_thermal::observer::snapshot::snapshot_len;
 use coil_thermal::observer::SensorChecks;
-use coil_thermal::{SensorFault, SensorResult};
+use coil_thermal::{SensorFault, SensorResult, VoltageDrive};
+use nalgebra::Dyn;
 
 use super::{
     frozen_ticks, reading_period_s, run_on, Consistency, FaultConfig, FaultError, FaultReport,
@@ -36,26 +33,22 @@ use super::{
 use crate::codegen::FirmwareInputs;
 use crate::codegen::ObserverSpec;
 use crate::firmware::FirmwareConfig;
+use crate::library_observer::firmware_observer_spec;
 use crate::model_file::{Model, VoltageSource};
-use crate::padding::{on_big_stack, padded_with, Padding};
 use crate::sim::{FilePlant, Plant};
-use coil_thermal::VoltageDrive;
 
-/// The padded sizes `C` the campaign builds (nodes + 1 for the spare
-/// sensor slot, and sources).
-pub const CLASSES: [usize; 2] = [8, 16];
-
-/// The most thermocouples the campaign's observer takes.
-pub const SLOTS: usize = 4;
-
-/// A model file's observer padded to `C` nodes and sources, `X = 2C`
-/// states, with its plant.
-struct NetSubject<const C: usize, const X: usize, const P: usize> {
+/// A model file's observer at its own size, with its plant.
+struct NetSubject {
     name: String,
-    observer: NetworkObserver<C, 2, C, X, P>,
+    observer: RunTimeObserver,
     settings: NetworkSettings,
     plant: FilePlant,
+    /// The model's nodes.
     nodes: usize,
+    /// The observer's boundaries and sources (a model without a source
+    /// has one that never carries current, see [`firmware_observer_spec`]).
+    boundaries: usize,
+    sources: usize,
     /// Per node: it has a critical temperature.
     limited: Vec<bool>,
     sensor_nodes: Vec<usize>,
@@ -75,6 +68,15 @@ struct NetSubject<const C: usize, const X: usize, const P: usize> {
     resistances: Vec<Option<ResistanceSensor>>,
 }
 
+/// The observer's state and the inputs its ticks fill (held here so that
+/// a tick allocates nothing).
+#[derive(Debug, Clone)]
+struct NetState {
+    observer: RunTimeObserverState,
+    inputs: NetworkInputsOf<Dyn, Dyn, Dyn>,
+    drives: Vec<Option<VoltageDrive>>,
+}
+
 /// What the drive measures of a winding whose campaign reading is
 /// `reading` (the truth at its node with the sensor's noise, or a fault):
 /// the ohms its `R(T)` gives that temperature; an open winding `+inf` (no
@@ -92,7 +94,7 @@ fn resistance_measured(sensor: &ResistanceSensor, reading: SensorResult) -> f32 
     }
 }
 
-impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
+impl NetSubject {
     fn build(
         model: &Model,
         spec: &ObserverSpec,
@@ -100,29 +102,10 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
         cfg: &FaultConfig,
     ) -> Result<Self, FaultError> {
         let invalid = |e: anyhow::Error| FaultError::Invalid(format!("{e:#}"));
-        // The network `codegen` generates: each power scale in its resistance.
-        let network =
-            padded_with::<C>(&model.firmware_network(), Padding::DECAYING).map_err(invalid)?;
-        let mut slots = [0; P];
-        slots[..sensor_nodes.len()].copy_from_slice(&sensor_nodes);
-        let mut critical = [None; C];
-        critical[..model.critical_c.len()].copy_from_slice(&model.critical_c);
         // The firmware's settings (the `[observer]` table over codegen's
         // defaults, as `replay` and `codegen` resolve them), with the
         // campaign's step, reading period, stuck tolerance and origin.
         let firmware = FirmwareConfig::of(model, Some(spec)).map_err(invalid)?;
-        // Each sensor's kind, as `codegen` solves the tables with it (a
-        // resistance with its own noise).
-        let mut kinds = [SensorKind::Thermocouple; P];
-        kinds[..firmware.sensor_kinds.len()].copy_from_slice(&firmware.sensor_kinds);
-        if firmware.settings.boundary_offset.is_some() {
-            return Err(FaultError::Invalid(format!(
-                "model `{}`: [observer] boundary_offset adds a state the campaign's observer sizes have no room for; \
-                 run the campaign without it (replay and codegen take it)",
-                model.name
-            )));
-        }
-        let derating = firmware.rule();
         let (flag, loss) = frozen_ticks(cfg.step_us);
         let settings = NetworkSettings {
             step_us: cfg.step_us,
@@ -138,38 +121,27 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             frozen_loss_ticks: loss,
             ..firmware.settings
         };
-        // The model's sources carry their biases (those `[observer]
-        // bias_sources` names, when given), the padding's do not (see the
-        // module docs).
-        let bias_sources: [bool; C] = core::array::from_fn(|m| model.carries_bias(m));
-        let observer = NetworkObserverBuilder::new(&network, slots)
-            .critical_c(critical)
-            .hardware_limit_a([firmware.hardware_limit_a; C])
-            .derating(derating)
-            .settings(settings)
-            .bias_sources(bias_sources)
-            .sensor_kinds(kinds)
-            .bias_mode(if firmware.shared_bias {
-                // `[observer] shared_bias`, as `codegen` and `replay` build
-                // it: the padding's sources carry no bias to share.
-                BiasMode::Shared([true; C])
-            } else {
-                BiasMode::Auto
-            })
-            .build::<X>()
-            .map_err(|e| {
-                // The same words as `codegen` and `replay`.
-                match crate::codegen::build_hint::observer_build_hint(
-                    &e,
-                    settings.bias_noise_w2_per_s,
-                ) {
-                    Some(hint) => FaultError::Invalid(format!(
-                        "the observer of model `{}` does not build: {e}; {hint}",
-                        model.name
-                    )),
-                    None => FaultError::Build(e),
-                }
-            })?;
+        // Each sensor's kind, as `codegen` solves the tables with it (a
+        // resistance with its own noise).
+        let (network, run_time) = firmware_observer_spec(
+            model,
+            &firmware,
+            settings,
+            sensor_nodes.clone(),
+            firmware.sensor_kinds.clone(),
+        )
+        .map_err(invalid)?;
+        let observer = RunTimeObserver::build_at_run_time(&network, &run_time).map_err(|e| {
+            // The same words as `codegen` and `replay`.
+            match crate::codegen::build_hint::observer_build_hint(&e, settings.bias_noise_w2_per_s)
+            {
+                Some(hint) => FaultError::Invalid(format!(
+                    "the observer of model `{}` does not build: {e}; {hint}",
+                    model.name
+                )),
+                None => FaultError::Build(e),
+            }
+        })?;
         if let Some(k) = model
             .drives
             .iter()
@@ -195,6 +167,8 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
             settings,
             plant,
             nodes: model.nodes.len(),
+            boundaries: network.boundaries(),
+            sources: network.sources().len(),
             limited: model.critical_c.iter().map(Option::is_some).collect(),
             sensor_nodes,
             alarm_nodes,
@@ -208,10 +182,37 @@ impl<const C: usize, const X: usize, const P: usize> NetSubject<C, X, P> {
                 .collect(),
         })
     }
+
+    /// `observer` with the inputs its ticks fill.
+    fn held(&self, observer: RunTimeObserverState) -> NetState {
+        NetState {
+            observer,
+            inputs: NetworkInputsOf {
+                currents_a: vec![0.0; self.sources],
+                boundary_c: vec![0.0; self.boundaries],
+                readings: vec![None; self.sensor_nodes.len()],
+                now_us: 0,
+                elapsed_us: 0,
+            },
+            drives: vec![None; self.sources],
+        }
+    }
+
+    /// Every boundary at `ambient_c` \[degC\].
+    fn boundary_c(&self, ambient_c: f32) -> Vec<f32> {
+        vec![ambient_c; self.boundaries]
+    }
+
+    /// One reading per sensor from `readings_c` \[degC\] (missing: none).
+    fn readings(&self, readings_c: &[Option<f32>]) -> Vec<Option<f32>> {
+        (0..self.sensor_nodes.len())
+            .map(|j| readings_c.get(j).copied().flatten())
+            .collect()
+    }
 }
 
-impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X, P> {
-    type State = NetworkObserverState<C, 2, C, X, P>;
+impl Subject for NetSubject {
+    type State = NetState;
 
     fn name(&self) -> String {
         self.name.clone()
@@ -265,51 +266,55 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         }
     }
     fn state(&self, ambient_c: f32) -> Self::State {
-        let state = self.observer.state(&[ambient_c; C], &[ambient_c; 2]);
-        self.observer.with_warm_up(state)
+        let state = self
+            .observer
+            .state(&vec![ambient_c; self.nodes], &self.boundary_c(ambient_c));
+        self.held(self.observer.with_warm_up(state))
     }
     fn tick(&self, state: &mut Self::State, i: &TickInputs<'_>) -> TickView {
+        let NetState {
+            observer: observer_state,
+            inputs,
+            drives,
+        } = state;
         // As the generated `source_currents_a` (no signal: the campaign
         // refuses speed terms).
-        let mut currents_a = [0.0; C];
+        inputs.currents_a.fill(0.0);
         self.firmware_inputs
-            .currents_a(i.currents_a, &[], &mut currents_a);
-        let mut readings = [None; P];
-        for (j, (r, z)) in readings.iter_mut().zip(i.readings).enumerate() {
+            .currents_a(i.currents_a, &[], &mut inputs.currents_a);
+        for (j, r) in inputs.readings.iter_mut().enumerate() {
+            let z = i.readings.get(j).copied().flatten();
             *r = match (z, self.resistances.get(j).copied().flatten()) {
                 // A winding's resistance, read by the firmware's call at
                 // its source's current.
                 (Some(z), Some(sensor)) => self.observer.resistance_reading(
                     j,
                     resistance_measured(&sensor, z.result),
-                    currents_a.get(sensor.source).copied().unwrap_or(0.0),
+                    inputs.currents_a.get(sensor.source).copied().unwrap_or(0.0),
                     z.sampled_at_us,
                 ),
-                _ => *z,
+                _ => z,
             };
         }
-        let inputs = NetworkInputs {
-            currents_a,
-            boundary_c: [i.ambient_c; 2],
-            readings,
-            now_us: i.now_us,
-            elapsed_us: i.elapsed_us,
-        };
+        inputs.boundary_c.fill(i.ambient_c);
+        inputs.now_us = i.now_us;
+        inputs.elapsed_us = i.elapsed_us;
         if self.voltage_driven {
             // As the generated `source_drives`: the trace's duty on the
             // supply times the power scale (folded into the resistance),
             // so the duty's own rules (flags, clamp) act on the trace's
             // duty.
-            let drives: [Option<VoltageDrive>; C] =
-                core::array::from_fn(|m| self.firmware_inputs.drive(m, i.currents_a, &[]));
-            self.observer.tick_voltage(state, &inputs, &drives);
+            for (m, d) in drives.iter_mut().enumerate() {
+                *d = self.firmware_inputs.drive(m, i.currents_a, &[]);
+            }
+            self.observer.tick_voltage(observer_state, inputs, drives);
         } else {
-            self.observer.tick(state, &inputs);
+            self.observer.tick(observer_state, inputs);
         }
         self.view(state)
     }
     fn view(&self, state: &Self::State) -> TickView {
-        let out = state.outputs();
+        let out = state.observer.outputs();
         // An input's limit: the tightest of its sources', as the
         // generated `input_drive_limits` gives it (a source carries its
         // input's current, its power scale in its resistance).
@@ -320,7 +325,7 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
                 // its supply, or the voltage.
                 let per_input = match self.firmware_inputs.limit_supply_v(m, &[]) {
                     Some(supply_v) => {
-                        let d = self.observer.drive_limit(state, m, supply_v);
+                        let d = self.observer.drive_limit(&state.observer, m, supply_v);
                         self.firmware_inputs
                             .drive_limit(m, d.duty, d.voltage_v)
                             .unwrap_or(f32::INFINITY)
@@ -331,11 +336,11 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             }
         }
         TickView {
-            temps_c: out.temps_c[..self.nodes].to_vec(),
-            sensors: out.sensors[..self.sensor_nodes.len()].to_vec(),
+            temps_c: out.temps_c.clone(),
+            sensors: out.sensors.clone(),
             flags: out.flags,
             shutdown: out.alarm.shutdown,
-            upper_c: out.upper_c[..self.nodes].to_vec(),
+            upper_c: out.upper_c.clone(),
             limits_a,
         }
     }
@@ -346,8 +351,8 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
             .collect()
     }
     fn start(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
-        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
-        self.observer.start(&readings, &[ambient_c; 2])
+        let readings = self.readings(readings_c);
+        self.held(self.observer.start(&readings, &self.boundary_c(ambient_c)))
     }
     fn restore_with_readings(
         &self,
@@ -357,15 +362,18 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         ambient_c: f32,
         readings_c: &[Option<f32>],
     ) -> Result<Self::State, String> {
-        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
+        let readings = self.readings(readings_c);
+        let boundary_c = self.boundary_c(ambient_c);
         self.observer
-            .restore_with_readings(bytes, now_s, max_age_s, &[ambient_c; 2], &readings)
-            .map(|s| self.observer.with_warm_up(s))
+            .restore_with_readings(bytes, now_s, max_age_s, &boundary_c, &readings)
+            .map(|s| self.held(self.observer.with_warm_up(s)))
             .map_err(|e| e.to_string())
     }
     fn save(&self, state: &Self::State, now_s: u32) -> Option<Vec<u8>> {
-        let mut bytes = vec![0u8; snapshot_len(C)];
-        self.observer.save(state, now_s, &mut bytes).ok()?;
+        let mut bytes = vec![0u8; snapshot_len(self.nodes)];
+        self.observer
+            .save(&state.observer, now_s, &mut bytes)
+            .ok()?;
         Some(bytes)
     }
     fn restore(
@@ -376,40 +384,41 @@ impl<const C: usize, const X: usize, const P: usize> Subject for NetSubject<C, X
         ambient_c: f32,
         off_s: Option<f32>,
     ) -> Result<Self::State, String> {
+        let boundary_c = self.boundary_c(ambient_c);
         self.observer
-            .restore_after(bytes, now_s, max_age_s, &[ambient_c; 2], off_s)
-            .map(|s| self.observer.with_warm_up(s))
+            .restore_after(bytes, now_s, max_age_s, &boundary_c, off_s)
+            .map(|s| self.held(self.observer.with_warm_up(s)))
             .map_err(|e| e.to_string())
     }
     fn conservative_state(&self, readings_c: &[Option<f32>], ambient_c: f32) -> Self::State {
-        let readings: [Option<f32>; P] = super::sensor_slots(readings_c);
-        let state = self.observer.conservative_state(&readings, &[ambient_c; 2]);
-        self.observer.with_warm_up(state)
+        let readings = self.readings(readings_c);
+        let state = self
+            .observer
+            .conservative_state(&readings, &self.boundary_c(ambient_c));
+        self.held(self.observer.with_warm_up(state))
     }
     fn latched(&self, state: &Self::State) -> bool {
-        state.outputs().alarm.shutdown
+        state.observer.outputs().alarm.shutdown
     }
 }
 
 /// Runs the whole matrix on a model file's observer (`spec`, with
 /// `sensors` the node names of the thermocouples in use) against the
-/// model as the plant; `cfg.sensors` flags each of them. On a thread with
-/// a large stack (the observer's build solves its gain there).
+/// model as the plant; `cfg.sensors` flags each of them.
 ///
 /// # Errors
-/// No sensor, more than [`SLOTS`], an unknown node, speed-dependent terms,
-/// a model too large for [`CLASSES`], or an observer that does not build.
+/// No sensor, an unknown node, speed-dependent terms, or an observer that
+/// does not build.
 pub fn run_model(
     model: &Model,
     spec: &ObserverSpec,
     cfg: &FaultConfig,
 ) -> Result<FaultReport, FaultError> {
     let invalid = |m: String| FaultError::Invalid(m);
-    if spec.sensors.is_empty() || spec.sensors.len() > SLOTS {
-        return Err(invalid(format!(
-            "the observer needs 1 to {SLOTS} sensors: name the node each thermocouple measures in the model's `[observer] sensors = [\"node\"]` (got {})",
-            spec.sensors.len()
-        )));
+    if spec.sensors.is_empty() {
+        return Err(invalid(
+            "the observer needs a sensor: name the node each thermocouple measures in the model's `[observer] sensors = [\"node\"]`".into(),
+        ));
     }
     if !model.speed_losses.is_empty()
         || !model.losses.is_empty()
@@ -426,37 +435,7 @@ pub fn run_model(
         .map(|s| s.node_index(model))
         .collect::<anyhow::Result<Vec<_>>>()
         .map_err(|e| invalid(format!("{e:#}")))?;
-    let n = model.nodes.len();
-    let m = model.drives.len();
-    let Some(class) = CLASSES.into_iter().find(|c| *c > n && *c >= m) else {
-        return Err(invalid(format!(
-            "{n} nodes and {m} sources: the campaign takes at most {} nodes",
-            CLASSES[CLASSES.len() - 1] - 1
-        )));
-    };
-    let (model, spec, cfg) = (model.clone(), spec.clone(), cfg.clone());
-    let job = move || -> anyhow::Result<Result<FaultReport, FaultError>> {
-        // As many slots as sensors: a slot that never reads falls silent,
-        // and a silent sensor is one in doubt, which raises the published
-        // upper bounds to the shadow model's; the firmware has no such slot.
-        macro_rules! run {
-            ($c:literal, $x:literal, $p:literal) => {
-                NetSubject::<$c, $x, $p>::build(&model, &spec, sensor_nodes, &cfg)
-                    .and_then(|s| run_on(&cfg, s))
-            };
-        }
-        Ok(match (class, spec.sensors.len()) {
-            (8, 1) => run!(8, 16, 1),
-            (8, 2) => run!(8, 16, 2),
-            (8, 3) => run!(8, 16, 3),
-            (8, _) => run!(8, 16, 4),
-            (_, 1) => run!(16, 32, 1),
-            (_, 2) => run!(16, 32, 2),
-            (_, 3) => run!(16, 32, 3),
-            (_, _) => run!(16, 32, 4),
-        })
-    };
-    on_big_stack("faults", job).map_err(|e| invalid(format!("{e:#}")))?
+    NetSubject::build(model, spec, sensor_nodes, cfg).and_then(|s| run_on(cfg, s))
 }
 
 #[cfg(test)]
@@ -469,7 +448,7 @@ mod tests {
 
     /// The campaign's observer of `drive-3node-fitted.toml` with its
     /// winding's `[[source]]` lines replaced by `source`.
-    fn subject(source: &str) -> NetSubject<8, 16, 1> {
+    fn subject(source: &str) -> NetSubject {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/models/drive-3node-fitted.toml"

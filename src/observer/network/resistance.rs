@@ -78,13 +78,17 @@
 //! generated module of a thermocouple-only model calls, its tables
 //! unchanged), and refuses tables solved with another sensor noise.
 
+use nalgebra::DefaultAllocator;
+
 use crate::error::{check, BuildError};
 use crate::network::{Network, Resistance};
 use crate::observer::vocabulary::TimedReading;
 use crate::sensors::{Reading, SensorFault, SensorResult};
-use crate::sizes::Length;
+use crate::sizes::{Length, Sizes};
 
+#[cfg(any(doc, test))]
 use super::NetworkObserver;
+use super::{NetworkObserverOf, ObserverAllocator};
 
 /// The temperature \[degC\] at which a resistance sensor's relative noise
 /// is turned into kelvin for the steady gain, by default.
@@ -354,8 +358,10 @@ impl Conversion {
     }
 }
 
-impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
-    NetworkObserver<N, B, M, X, P>
+/// The resistance readings, written once for every size.
+impl<Z: Sizes, X: Length, P: Length> NetworkObserverOf<Z, X, P>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
 {
     /// Sensor `sensor`'s reading from a winding resistance `resistance_ohm`
     /// \[ohm\] measured at current `current_a` \[A\] (the drive's `V/I`, a
@@ -377,7 +383,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         current_a: f32,
         sampled_at_us: u32,
     ) -> Option<TimedReading> {
-        let conversion = self.resistance_sensors.get(sensor)?.as_ref()?;
+        let conversion = self.resistance_sensors.as_ref().get(sensor)?.as_ref()?;
         conversion
             .read(resistance_ohm, current_a)
             .map(|result| TimedReading {
@@ -397,7 +403,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
         current_a: f32,
         sampled_at_us: u32,
     ) -> Option<TimedReading> {
-        let conversion = self.resistance_sensors.get(sensor)?.as_ref()?;
+        let conversion = self.resistance_sensors.as_ref().get(sensor)?.as_ref()?;
         // Below the minimum current the division is not attempted: no
         // reading rather than a huge or infinite resistance.
         if current_a.is_finite() && current_a.abs() < conversion.min_current_a {
