@@ -539,28 +539,6 @@ fn the_build_hint_names_the_fix_for_its_error_only() {
     assert_eq!(observer_build_hint(&BuildError::Singular, 1e-3), None);
 }
 
-/// The fault campaign's padded observers have no room for a boundary
-/// offset state: a model asking for one is refused by name, not run
-/// without it.
-#[test]
-fn faults_refuses_a_boundary_offset_it_cannot_run() {
-    let dir = TempDir::new().unwrap();
-    let text = fs::read_to_string(models().join("drive-3node.toml")).unwrap();
-    let text = text.replace(
-        "[observer]\nsensors = [\"housing\"]",
-        "[observer]\nsensors = [\"housing\"]\nboundary_offset = \"ambient\"",
-    );
-    assert!(text.contains("boundary_offset"));
-    let p = dir.path().join("offset.toml");
-    fs::write(&p, text).unwrap();
-    refused(
-        ct().args(["faults", "--model", s(&p), "--current-a", "4"])
-            .args(["--duration-s", "60", "--classes", "stuck"])
-            .assert(),
-        &["boundary_offset"],
-    );
-}
-
 /// The host's row-rate filter is gone (the flashed `NetworkObserver` is
 /// what `replay --measure` runs): its flags are refused by the parser, by
 /// name, never taken and ignored.
