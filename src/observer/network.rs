@@ -3107,7 +3107,7 @@ pub mod resistance;
 mod run_time;
 mod solve;
 pub use super::warm_up::{NoWarmUp, WarmUp};
-pub use bias::BiasMode;
+pub use bias::{BiasMode, BiasModeOf};
 pub use parts::{
     AssembledTables, GainTables, ModelTables, NetworkParts, PredictorTables, ShadowTables,
 };

@@ -19,18 +19,19 @@ use crate::sizes::Length;
 use crate::network::ScalarResistance;
 
 /// Which sources' heat-input biases are estimated separately and which
-/// share one (see [`NetworkObserverBuilder::bias_mode`](super::NetworkObserverBuilder::bias_mode)).
+/// share one (see [`NetworkObserverBuilder::bias_mode`](super::NetworkObserverBuilder::bias_mode)),
+/// with `Mask` one flag per source: [`BiasMode`] on an MCU,
+/// [`RunTimeBiasMode`](super::RunTimeBiasMode) at sizes read at run time.
 /// A source left out of
 /// [`bias_sources`](super::NetworkObserverBuilder::bias_sources) has no
 /// bias in any mode: `bias_sources` wins.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum BiasMode<const M: usize> {
+pub enum BiasModeOf<Mask> {
     /// A bias per source wherever the sensors can tell them apart (the
     /// per-source steady gain converges and leaves every limited element
     /// within `max_element_sigma_k`); otherwise one heat bias shared by
     /// every biased source in proportion to its Joule power. The default.
-    #[default]
     Auto,
     /// A bias per source, or [`BuildError::NotConverged`](crate::BuildError::NotConverged)
     /// when the sensors cannot tell them apart (the behaviour before the
@@ -40,7 +41,29 @@ pub enum BiasMode<const M: usize> {
     /// heat bias in proportion to their Joule power; the other biased
     /// sources keep their own. Fewer than two such sources (with a positive
     /// nominal power) is [`BiasMode::PerSource`].
-    Shared([bool; M]),
+    Shared(Mask),
+}
+
+/// [`BiasModeOf`] of `M` sources known when the firmware is compiled.
+pub type BiasMode<const M: usize> = BiasModeOf<[bool; M]>;
+
+impl<Mask> Default for BiasModeOf<Mask> {
+    /// [`BiasModeOf::Auto`] (whatever the mask: an array of more than 32
+    /// flags has no `Default`).
+    fn default() -> Self {
+        Self::Auto
+    }
+}
+
+impl<Mask> BiasModeOf<Mask> {
+    /// The same mode, its mask borrowed.
+    pub fn as_ref(&self) -> BiasModeOf<&Mask> {
+        match self {
+            Self::Auto => BiasModeOf::Auto,
+            Self::PerSource => BiasModeOf::PerSource,
+            Self::Shared(mask) => BiasModeOf::Shared(mask),
+        }
+    }
 }
 
 /// The weight of a source's nominal share in the present shares: the

@@ -45,12 +45,10 @@ use core::fmt::{self, Write};
 use nalgebra::{Const, SVector};
 
 use super::assemble::{layout_of, Solved, StepMatrices};
-use super::bias::{nominal_powers_w, BiasMode};
+use super::bias::nominal_powers_w;
 use super::resistance::Conversion;
 use super::resistance::{check_kinds, SensorKind};
-use super::solve::{
-    check_offset, elements_per_stage, timing, two_tick_corrections, BiasChoice, GainSpec,
-};
+use super::solve::{check_offset, elements_per_stage, two_tick_corrections, GainSpec, Solution};
 use super::{
     default_incidence, Model, NetworkObserver, NetworkObserverBuilder, NetworkSettings, NO_LIMIT_C,
     PREDICTOR_POINTS,
@@ -58,7 +56,7 @@ use super::{
 use crate::discretize::fixed::{ConstFixedStep, FixedStep};
 use crate::error::{check, BuildError};
 use crate::input::ScalarLimits;
-use crate::network::{DeviationResistance, ScalarResistance};
+use crate::network::{DeviationResistance, NetworkDescription, ScalarResistance};
 use crate::observer::consistency::Shadow;
 use crate::observer::tables::{
     below, bound_rows, finite, finite_rows, invalid, matrix, rows, vector, write_alarm,
@@ -69,7 +67,7 @@ use crate::observer::tables::{
 pub use crate::observer::tables::{GainTables, PredictorTables};
 use crate::observer::SensorChecks;
 use crate::protect::margin::UncertaintyMargin;
-use crate::protect::predict::{LimitPredictor, PredictorBuilder};
+use crate::protect::predict::LimitPredictor;
 use crate::sizes::ConstSizes;
 
 impl<const N: usize, const B: usize, const M: usize> StepTables<N, B, M> {
@@ -313,7 +311,6 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
         check(self.sensor_nodes.iter().all(|n| *n < N), "sensor_nodes")?;
         check(!self.bad_sensor, "resistance_sensor")?;
         check(s.ambient_boundary < B, "ambient_boundary")?;
-        let timing = timing(s)?;
         check(
             self.critical_c
                 .iter()
@@ -330,19 +327,19 @@ impl<'a, const N: usize, const B: usize, const M: usize, const P: usize>
             Some(incidence) => incidence,
             None => default_incidence(network, s.incidence_fraction)?,
         };
-        let dt_s = timing.clock.step_s();
-        let model = Model::build(network, dt_s, s.origin_c)?;
-        check_kinds(&self.sensor_kinds, &self.sensor_nodes, &model.source_node)?;
-        let gain =
-            self.gain_spec()
-                .solve_biased_gain(&model, timing.correction_period, Const::<X>)?;
-        let cycle_s = dt_s * f64::from(s.protect_period_steps);
-        let predictor = solve_predictor(network, cycle_s)?;
-        let block = Model::build(
-            network,
-            dt_s * f64::from(timing.correction_period),
-            s.origin_c,
-        )?;
+        // Before the solve: a resistance sensor on no winding of its own
+        // is refused at once (`check_sources` found every source).
+        let source_node: [usize; M] = core::array::from_fn(|m| {
+            NetworkDescription::joule_source_of(network, m).map_or(usize::MAX, |source| source.node)
+        });
+        check_kinds(&self.sensor_kinds, &self.sensor_nodes, &source_node)?;
+        let Solution {
+            timing,
+            model,
+            gain,
+            predictor,
+            block,
+        } = self.gain_spec().solve(network, Const::<X>)?;
         let mut parts = NetworkParts {
             settings: *s,
             sensor_nodes: self.sensor_nodes,
@@ -384,21 +381,9 @@ impl<const N: usize, const B: usize, const M: usize, const P: usize>
             critical_c: &self.critical_c,
             hardware_limit_a: &self.hardware_limit_a,
             bias_sources: &self.bias_sources,
-            bias_mode: match &self.bias_mode {
-                BiasMode::Auto => BiasChoice::Auto,
-                BiasMode::PerSource => BiasChoice::PerSource,
-                BiasMode::Shared(mask) => BiasChoice::Shared(mask),
-            },
+            bias_mode: self.bias_mode.as_ref(),
         }
     }
-}
-
-#[inline(never)]
-fn solve_predictor<const N: usize, const B: usize, const M: usize>(
-    network: &crate::network::Network<N, B, M>,
-    cycle_s: f64,
-) -> Result<LimitPredictor<f32, N, B, M, PREDICTOR_POINTS>, BuildError> {
-    PredictorBuilder::new().tick_s(cycle_s).build(network)
 }
 
 impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: usize>
@@ -786,7 +771,7 @@ impl<const N: usize, const B: usize, const M: usize, const X: usize, const P: us
     NetworkParts<N, B, M, X, P>
 {
     /// The sources whose heat-input biases these tables share (see
-    /// [`BiasMode`]; all `false`: a bias per source), as
+    /// [`BiasMode`](super::BiasMode); all `false`: a bias per source), as
     /// [`NetworkObserver::from_parts`] reads them.
     pub fn shared_bias_sources(&self) -> [bool; M] {
         let nominal_w = nominal_powers_w::<Const<M>>(

@@ -8,8 +8,9 @@
 //! its vectors `Vec`s and its matrices on the heap. It is built by
 //! [`RunTimeObserver::build_at_run_time`] from any
 //! [`NetworkDescription`] of [`RunTimeSizes`], through the solve the
-//! builder runs ([`ModelOf::build`], the gain in the bias layout the
-//! settings ask for, the predictor) and the assembly
+//! builder runs (`GainSpec::solve`: the model, the gain in the bias
+//! layout the settings ask for, the predictor, the shadow's block) and the
+//! assembly
 //! ([`NetworkObserverOf::assemble`]) that `from_parts` runs on an MCU's
 //! tables. Test `the_run_time_observer_ticks_as_the_const_one`: a
 //! network's observer built at run time ticks an hour of currents and
@@ -26,17 +27,16 @@ use alloc::vec::Vec;
 use nalgebra::Dyn;
 
 use super::assemble::{Solved, StepMatrices};
+use super::bias::BiasModeOf;
 use super::resistance::SensorKind;
-use super::solve::{elements_per_stage, timing, BiasChoice, GainSpec};
+use super::solve::{GainSpec, Solution};
 use super::{
     default_incidence_of, ModelOf, NetworkObserverOf, NetworkObserverStateOf, NetworkSettings,
-    PREDICTOR_POINTS,
 };
 use crate::error::{check, BuildError};
 use crate::network::NetworkDescription;
 use crate::observer::tables::invalid;
 use crate::protect::derating::DeratingRule;
-use crate::protect::predict::PredictorBuilder;
 use crate::sizes::{RunTimeSizes, Sizes};
 
 /// The network observer of a model's own size on a host.
@@ -46,18 +46,9 @@ pub type RunTimeObserver = NetworkObserverOf<RunTimeSizes, Dyn, Dyn>;
 /// warm-up, as [`NetworkObserverStateOf`]'s default).
 pub type RunTimeObserverState = NetworkObserverStateOf<RunTimeSizes, Dyn, Dyn>;
 
-/// How the heat-input biases are laid out (the run-time form of
-/// [`BiasMode`](super::BiasMode)).
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub enum RunTimeBiasMode {
-    /// [`BiasMode::Auto`](super::BiasMode::Auto).
-    #[default]
-    Auto,
-    /// [`BiasMode::PerSource`](super::BiasMode::PerSource).
-    PerSource,
-    /// [`BiasMode::Shared`](super::BiasMode::Shared): one flag per source.
-    Shared(Vec<bool>),
-}
+/// How the heat-input biases are laid out at sizes read at run time
+/// ([`BiasModeOf`](super::BiasModeOf) of one flag per source).
+pub type RunTimeBiasMode = BiasModeOf<Vec<bool>>;
 
 /// What [`RunTimeObserver::build_at_run_time`] builds from, beside the
 /// network: the builder's settings, one entry per node, source or sensor
@@ -121,40 +112,29 @@ impl RunTimeObserver {
             }
             None => default_incidence_of(network, s.incidence_fraction)?,
         };
-        let bias_mode = match &spec.bias_mode {
-            RunTimeBiasMode::Shared(mask) => {
-                check(mask.len() == m, "bias_mode")?;
-                BiasChoice::Shared(mask)
-            }
-            RunTimeBiasMode::PerSource => BiasChoice::PerSource,
-            RunTimeBiasMode::Auto => BiasChoice::Auto,
-        };
+        if let BiasModeOf::Shared(mask) = &spec.bias_mode {
+            check(mask.len() == m, "bias_mode")?;
+        }
         // The filter's states: temperatures, biases, and the boundary
         // offset when the settings ask for one on a boundary that exists.
         let offset = s.boundary_offset.is_some_and(|o| o < b);
         let states = Dyn(n + m + usize::from(offset));
-        let timing = timing(s)?;
-        let dt_s = timing.clock.step_s();
-        let model = ModelOf::build(network, dt_s, s.origin_c)?;
-        let gain = GainSpec {
+        let Solution {
+            timing,
+            model,
+            gain,
+            predictor,
+            block,
+        } = GainSpec {
             settings: s,
             sensor_nodes: &spec.sensor_nodes,
             kinds: &spec.sensor_kinds,
             critical_c: &spec.critical_c,
             hardware_limit_a: &spec.hardware_limit_a,
             bias_sources: &spec.bias_sources,
-            bias_mode,
+            bias_mode: spec.bias_mode.as_ref(),
         }
-        .solve_biased_gain(&model, timing.correction_period, states)?;
-        let mut predictor = PredictorBuilder::new()
-            .tick_s(dt_s * f64::from(s.protect_period_steps))
-            .build_from::<f32, W, PREDICTOR_POINTS>(network)?;
-        predictor.elements_per_tick = elements_per_stage(s);
-        let block = ModelOf::build(
-            network,
-            dt_s * f64::from(timing.correction_period),
-            s.origin_c,
-        )?;
+        .solve(network, states)?;
         let step = |model: ModelOf<RunTimeSizes>| StepMatrices {
             phi_minus_i: model.phi_minus_i,
             bd_power: model.bd_power,

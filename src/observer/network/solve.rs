@@ -7,13 +7,15 @@
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
 
-use super::bias::{nominal_powers_w, shared_in_prior, tie_block, BiasLayout};
+use super::bias::{nominal_powers_w, shared_in_prior, tie_block, BiasLayout, BiasModeOf};
 use super::resistance::{sensor_variances_k2, SensorKind};
-use super::{ModelOf, NetworkSettings, ObserverAllocator};
+use super::{ModelOf, NetworkSettings, ObserverAllocator, PREDICTOR_POINTS};
 use crate::error::{check, BuildError};
 use crate::filter::{KalmanConfig, SteadyStateGain};
+use crate::network::NetworkDescription;
 use crate::observer::clock::StepClock;
 use crate::observer::tables::invalid;
+use crate::protect::predict::{ModalPredictor, PredictorBuilder};
 use crate::sizes::{InputVector, Length, NodeVector, Sizes};
 
 /// What the settings alone decide: the clock, the protection period \[us\]
@@ -81,15 +83,23 @@ pub(super) fn timing(s: &NetworkSettings) -> Result<Timing, BuildError> {
     })
 }
 
-/// How the heat-input biases are laid out ([`BiasMode`](super::BiasMode)
-/// over sizes, borrowed).
-pub(super) enum BiasChoice<'a, Z: Sizes> {
-    /// [`BiasMode::Auto`](super::BiasMode::Auto).
-    Auto,
-    /// [`BiasMode::PerSource`](super::BiasMode::PerSource).
-    PerSource,
-    /// [`BiasMode::Shared`](super::BiasMode::Shared).
-    Shared(&'a InputVector<Z, bool>),
+/// How the heat-input biases are laid out, over sizes, borrowed.
+pub(super) type BiasChoice<'a, Z> = BiasModeOf<&'a InputVector<Z, bool>>;
+
+/// What both builds solve, in this order (the builder's `parts` at an
+/// MCU's sizes, the run-time build at a model's own): the model over one
+/// step, the steady gain in the bias layout asked for, the time-to-limit
+/// predictor over the protection's cycle, and the model over the shadow's
+/// block of one correction period.
+pub(super) struct Solution<Z: Sizes, X: Length, P: Length>
+where
+    DefaultAllocator: ObserverAllocator<Z, X, P>,
+{
+    pub(super) timing: Timing,
+    pub(super) model: ModelOf<Z>,
+    pub(super) gain: SteadyStateGain<f32, X, P>,
+    pub(super) predictor: ModalPredictor<f32, Z, PREDICTOR_POINTS>,
+    pub(super) block: ModelOf<Z>,
 }
 
 /// What the gain solve reads of a builder, over sizes.
@@ -104,6 +114,40 @@ pub(super) struct GainSpec<'a, Z: Sizes, P: Length> {
 }
 
 impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
+    /// The [`Solution`] of `network` with `states` filter states.
+    ///
+    /// # Errors
+    /// The settings' timing refused, a network that does not discretise,
+    /// a gain that does not converge (or leaves a limited element
+    /// unobserved), a predictor that does not build.
+    pub(super) fn solve<W: NetworkDescription<Sizes = Z>, X: Length>(
+        &self,
+        network: &W,
+        states: X,
+    ) -> Result<Solution<Z, X, P>, BuildError>
+    where
+        DefaultAllocator: ObserverAllocator<Z, X, P>,
+    {
+        let s = self.settings;
+        let timing = timing(s)?;
+        let dt_s = timing.clock.step_s();
+        let model = ModelOf::build(network, dt_s, s.origin_c)?;
+        let gain = self.solve_biased_gain(&model, timing.correction_period, states)?;
+        let predictor = PredictorBuilder::new()
+            .tick_s(dt_s * f64::from(s.protect_period_steps))
+            .elements_per_tick(elements_per_stage(s))
+            .build_from(network)?;
+        let block_s = dt_s * f64::from(timing.correction_period);
+        let block = ModelOf::build(network, block_s, s.origin_c)?;
+        Ok(Solution {
+            timing,
+            model,
+            gain,
+            predictor,
+            block,
+        })
+    }
+
     /// Whether `gain` leaves every limited element within
     /// `max_element_sigma_k` (the check of
     /// [`NetworkObserver::from_parts`], which refuses it otherwise).
@@ -182,9 +226,9 @@ impl<Z: Sizes, P: Length> GainSpec<'_, Z, P> {
                 }
             };
         match self.bias_mode {
-            BiasChoice::PerSource => solve(&per_source()),
-            BiasChoice::Shared(mask) => solve(&shared(mask).unwrap_or_else(per_source)),
-            BiasChoice::Auto => match solve(&per_source()) {
+            BiasModeOf::PerSource => solve(&per_source()),
+            BiasModeOf::Shared(mask) => solve(&shared(mask).unwrap_or_else(per_source)),
+            BiasModeOf::Auto => match solve(&per_source()) {
                 Err(refused @ BuildError::NotConverged { .. }) => match shared(&all) {
                     Some(layout) => solve(&layout).map_err(|_| refused),
                     None => Err(refused),
