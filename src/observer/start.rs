@@ -141,7 +141,8 @@ const OFF_TIME_GRID: u32 = 32;
 /// Bisection steps of that refinement: the bracket shrinks `2^20`-fold.
 const OFF_TIME_BISECTIONS: u32 = 20;
 
-/// The standard deviation \[K\] the start gives each node: `None` for a
+/// The standard deviation \[K\] the start gives each node, node by node
+/// (one per node, every slice holding one entry per node): `None` for a
 /// node a sensor read at the start (it keeps its steady variance), else
 /// the one at which its upper bound is [`START_BELOW_LIMIT_K`] below its
 /// alarm limit.
